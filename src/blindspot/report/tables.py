@@ -1,0 +1,82 @@
+"""The paper's tables as Markdown, our values beside the paper's.
+
+Tables take plain values (configs and metrics read from the pipeline's artifacts); they compute
+no science of their own.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+from blindspot.radar.config import RadarConfig
+
+
+def markdown_table(header: Sequence[str], rows: Sequence[Sequence[Any]]) -> str:
+    """A GitHub-flavoured Markdown table; floats printed with 4 significant digits."""
+    def cell(v: Any) -> str:
+        if isinstance(v, float):
+            return "n/a" if math.isnan(v) else f"{v:.4g}"
+        return "" if v is None else str(v)
+
+    lines = ["| " + " | ".join(header) + " |", "|" + "|".join("---" for _ in header) + "|"]
+    lines += ["| " + " | ".join(cell(v) for v in row) + " |" for row in rows]
+    return "\n".join(lines) + "\n"
+
+
+def table2_radar(radar: RadarConfig) -> str:
+    """Table 2 (radar parameters): the paper's values, ours, and what the paper does not state."""
+    s = radar.summary()
+    rows = [
+        ("Centre frequency", "77 GHz", f"{s['center_freq_ghz']:.3f} GHz"),
+        ("Bandwidth", "300 MHz", f"{radar.bandwidth_hz / 1e6:g} MHz"),
+        ("Chirp duration", "30 us", f"{radar.ramp_time_s * 1e6:g} us"),
+        ("Chirps (loops) per frame", "64", f"{radar.n_chirps}"),
+        ("Samples per chirp", "256", f"{radar.n_samples}"),
+        ("TX / RX elements", "12 / 16", f"{radar.n_tx} / {radar.n_rx}"),
+        ("ADC rate", "not stated", f"{radar.adc_rate_hz / 1e6:.4g} Msps"),
+        ("Idle time", "not stated", f"{radar.idle_time_s * 1e6:g} us"),
+        ("Frame period", "not stated", f"{radar.frame_period_s * 1e3:g} ms"),
+        ("TX firing order (0-based)", "not stated", " ".join(map(str, radar.tx_order))),
+        ("Noise figure", "not stated", f"{radar.noise_figure_db:g} dB"),
+        ("TX power, TX/RX antenna gain", "not stated",
+         f"{radar.tx_power_dbm:g} dBm, {radar.tx_gain_dbi:g}/{radar.rx_gain_dbi:g} dBi"),
+        ("Slope (derived)", "10 MHz/us", f"{s['slope_mhz_per_us']:.4g} MHz/us"),
+        ("Range resolution (derived)", "0.5 m", f"{s['range_resolution_m']:.4g} m"),
+        ("Maximum range (derived)", "not stated", f"{s['max_range_m']:.4g} m"),
+        ("Velocity resolution (derived, TDM over all TX)", "not stated",
+         f"{s['velocity_resolution_mps']:.4g} m/s"),
+        ("Max. unambiguous velocity (derived)", "not stated", f"{s['max_velocity_mps']:.4g} m/s"),
+    ]
+    return ("## Table 2: radar parameters (TI MMWCAS-RF-EVM)\n\n"
+            + markdown_table(("parameter", "paper", "ours"), rows))
+
+
+def table1_lstm(model: Mapping[str, Any], train: Mapping[str, Any], counts: Mapping[str, int],
+                val_rmse_m: float, test_rmse_m: float | None = None,
+                baselines: Mapping[str, float] | None = None) -> str:
+    """Table 1 (LSTM hyper-parameters and validation RMSE), paper beside ours.
+
+    baselines: validation RMSE of other predictors on the same windows, e.g. {"constant velocity": ..}.
+    """
+    rows: list[tuple[Any, ...]] = [
+        ("Window size", 50, model.get("window", counts.get("window"))),
+        ("Training pairs", "20,000", f"{counts['train']:,}"),
+        ("Validation pairs", "4,000", f"{counts['val']:,}"),
+        ("Test pairs", "500", f"{counts['test']:,}"),
+        ("Validation RMSE", "0.07 (units not stated)", f"{val_rmse_m:.4f} m"),
+        ("Learning rate", 0.001, train["lr"]),
+        ("Activation", "ReLU", f"{model.get('head_activation', 'relu')} (head); tanh inside the LSTM cell"),
+        ("Optimiser", "Adam", str(train.get("optimizer", "adam")).capitalize()),
+        ("Epochs", 15, train["epochs"]),
+        ("Hidden size / layers", "not stated", f"{model.get('hidden_size')} / {model.get('num_layers')}"),
+        ("Batch size", "not stated", train.get("batch_size")),
+        ("Target", "not stated", model.get("target")),
+    ]
+    if test_rmse_m is not None:
+        rows.insert(5, ("Test RMSE", "not stated", f"{test_rmse_m:.4f} m"))
+    for name, value in (baselines or {}).items():
+        rows.append((f"Validation RMSE, {name}", "not reported", f"{value:.4f} m"))
+    return ("## Table 1: LSTM hyper-parameters\n\n"
+            + markdown_table(("parameter", "paper", "ours"), rows))
