@@ -58,3 +58,31 @@ def test_bad_inputs_are_named():
         interpolate(np.zeros((5, 2)), "spline")
     with pytest.raises(ValueError, match="needs a predictor"):
         interpolate(np.zeros((5, 2)), "forward")
+
+
+def test_short_history_is_padded_backwards_along_its_own_line():
+    from blindspot.traj.interpolation import pad_history
+
+    truth = straight_track(n=30)
+    padded = pad_history(truth[10:], 30)
+    np.testing.assert_allclose(padded, truth, atol=1e-9)
+    assert pad_history(truth, 10) is not None and len(pad_history(truth, 10)) == 30
+
+
+class _WindowedCV(ConstantVelocity):
+    """A predictor that, like the LSTM, refuses histories shorter than its window."""
+
+    window = 50
+
+    def predict(self, history, horizon):
+        assert history.shape[1] >= self.window
+        return super().predict(history, horizon)
+
+
+def test_fixed_window_predictors_get_a_long_enough_history():
+    truth = straight_track(n=60)
+    track = truth.copy()
+    track[:5] = np.nan
+    track[15:30] = np.nan  # only 10 points before the gap, the window is 50
+    filled = interpolate(track, "forward", predictor=_WindowedCV())
+    assert np.abs(filled[15:30] - truth[15:30]).max() < 1e-9

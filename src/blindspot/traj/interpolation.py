@@ -53,8 +53,37 @@ def _check_track(track: np.ndarray) -> np.ndarray:
 
 
 def _rollout(predictor: PathPredictor, history: np.ndarray, horizon: int) -> np.ndarray:
-    """(horizon, 2) continuation of ``history`` (T, 2) by the predictor."""
+    """(horizon, 2) continuation of ``history`` (T, 2) by the predictor.
+
+    A predictor with a fixed input ``window`` (the LSTM's 50 points) gets a history at least that
+    long: a shorter one is extended backwards in time by :func:`pad_history`.
+    """
+    window = getattr(predictor, "window", None)
+    if window is not None and len(history) < window:
+        history = pad_history(history, window)
     return np.asarray(predictor.predict(history[None], horizon))[0]
+
+
+def pad_history(history: np.ndarray, length: int, fit_points: int = 10) -> np.ndarray:
+    """Extend a (T, 2) history at its start to ``length`` rows by walking its first observed
+    points backwards at their mean velocity (a least-squares line over the first ``fit_points``
+    observed rows). Rows already there are kept as they are, NaN included."""
+    h = _check_track(history)
+    seen = np.flatnonzero(~np.isnan(h).any(axis=1))
+    if len(seen) == 0:
+        raise ValueError("cannot pad a history with no observed point")
+    n_pad = length - len(h)
+    if n_pad <= 0:
+        return h
+    idx = seen[:fit_points]
+    if len(idx) >= 2:
+        t = idx - idx.mean()
+        vel = (t[:, None] * (h[idx] - h[idx].mean(axis=0))).sum(axis=0) / (t**2).sum()
+        anchor = h[idx].mean(axis=0) - vel * idx.mean()  # the fitted line at frame 0
+    else:
+        vel, anchor = np.zeros(2), h[idx[0]]
+    back = anchor + vel * np.arange(-n_pad, 0)[:, None]
+    return np.vstack([back, h])
 
 
 def fill_forward(track: np.ndarray, predictor: PathPredictor) -> np.ndarray:
