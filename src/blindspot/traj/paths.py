@@ -1,0 +1,320 @@
+"""Synthetic pedestrian path kinematics for the training data set (paper section III).
+
+The paper draws "random range, velocity and angle" for a target and records 200 points per path.
+This module produces the *clean truth* of such paths: a start position (range, angle), a constant
+walking speed, an initial heading chosen to make the path approach the radar, recede from it or
+cross its boresight, and a constant (gentle) turn rate. The radar chain (another module) turns each
+truth point into a measured point with the radar's real error; :func:`radar_like_noise` is only a
+simple stand-in for tests and benchmarks.
+
+Geometry (project convention): radar at the origin, boresight +y, x to the right, angles positive
+towards +x, so a point at range R and angle theta is ``(R sin theta, R cos theta)``. A heading psi
+is measured the same way, so the walking velocity is ``v (sin psi, cos psi)``.
+
+Motion classes (heading psi0 relative to the start's own bearing theta0):
+
+- approaching: ``psi0 = theta0 + pi + U(-s, s)`` (towards the radar, slope up to ``s``),
+- receding: ``psi0 = theta0 + U(-s, s)`` (away from the radar),
+- perpendicular: ``psi0 = theta0 +- pi/2 + U(-p, p)`` (across the line of sight),
+
+with ``s = heading_spread_deg`` and ``p = perpendicular_spread_deg``. Paths that leave the field
+of view (``min_range_m <= R <= max_range_m`` and ``|theta| <= max_abs_angle_deg``) at any point are
+redrawn, so the kept distribution is the drawn one *conditioned on staying visible*: approaching
+paths, which would otherwise run through the radar, are biased towards slower speeds and larger
+start ranges. :func:`random_path_set` returns the per-path draws so callers can check this.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, fields
+from typing import Any
+
+import numpy as np
+
+MOTIONS: tuple[str, ...] = ("approaching", "receding", "perpendicular")
+
+
+class PathConfigError(ValueError):
+    """A path-simulation setting is invalid; names the key, the value found and what is allowed."""
+
+    def __init__(self, key: str, value: Any, expected: str) -> None:
+        super().__init__(f"{key}: expected {expected}, found {value!r}")
+        self.key = key
+        self.value = value
+        self.expected = expected
+
+
+def _interval(key: str, value: Any, *, lo: float = -np.inf, hi: float = np.inf) -> tuple[float, float]:
+    try:
+        a, b = (float(v) for v in value)
+    except (TypeError, ValueError):
+        raise PathConfigError(key, value, "a pair [low, high] of numbers") from None
+    if not (lo <= a <= b <= hi) or not np.isfinite([a, b]).all():
+        raise PathConfigError(key, value, f"a pair [low, high] with {lo} <= low <= high <= {hi}")
+    return a, b
+
+
+@dataclass(frozen=True)
+class PathSpec:
+    """How synthetic pedestrian paths are drawn (all SI; degrees only in ``*_deg`` names).
+
+    Attributes:
+        n_points: points per path (the paper: 200).
+        frame_period_s: time between points, the radar frame period.
+        speed_mps: [low, high] walking speed, drawn uniformly.
+        start_range_m: [low, high] range of the first point, drawn uniformly.
+        start_angle_deg: [low, high] bearing of the first point, drawn uniformly.
+        turn_rate_deg_s: [low, high] constant turn rate of a path, drawn uniformly (positive =
+            clockwise seen from above, i.e. heading turning towards +x).
+        motion_weights: relative frequency of (approaching, receding, perpendicular) paths.
+        heading_spread_deg: approaching/receding heading deviates from radial by up to this.
+        perpendicular_spread_deg: perpendicular heading deviates from tangential by up to this.
+        min_range_m, max_range_m, max_abs_angle_deg: field of view every point must stay in.
+    """
+
+    n_points: int = 200
+    frame_period_s: float = 0.1
+    speed_mps: tuple[float, float] = (0.5, 2.0)
+    start_range_m: tuple[float, float] = (5.0, 45.0)
+    start_angle_deg: tuple[float, float] = (-60.0, 60.0)
+    turn_rate_deg_s: tuple[float, float] = (-4.0, 4.0)
+    motion_weights: tuple[float, float, float] = (1.0, 1.0, 1.0)
+    heading_spread_deg: float = 45.0
+    perpendicular_spread_deg: float = 20.0
+    min_range_m: float = 1.0
+    max_range_m: float = 50.0
+    max_abs_angle_deg: float = 75.0
+
+    def __post_init__(self) -> None:
+        if int(self.n_points) != self.n_points or self.n_points < 2:
+            raise PathConfigError("n_points", self.n_points, "an integer >= 2")
+        if not (np.isfinite(self.frame_period_s) and self.frame_period_s > 0):
+            raise PathConfigError("frame_period_s", self.frame_period_s, "a positive number of seconds")
+        object.__setattr__(self, "speed_mps", _interval("speed_mps", self.speed_mps, lo=0.0))
+        object.__setattr__(self, "start_range_m", _interval("start_range_m", self.start_range_m, lo=0.0))
+        object.__setattr__(
+            self, "start_angle_deg", _interval("start_angle_deg", self.start_angle_deg, lo=-90.0, hi=90.0)
+        )
+        object.__setattr__(self, "turn_rate_deg_s", _interval("turn_rate_deg_s", self.turn_rate_deg_s))
+        w = np.asarray(self.motion_weights, dtype=float)
+        if w.shape != (3,) or not np.isfinite(w).all() or (w < 0).any() or w.sum() <= 0:
+            raise PathConfigError(
+                "motion_weights", self.motion_weights, "three non-negative weights (approaching, receding, perpendicular), not all 0"
+            )
+        object.__setattr__(self, "motion_weights", tuple(float(v) for v in w))
+        for key in ("heading_spread_deg", "perpendicular_spread_deg"):
+            v = getattr(self, key)
+            if not (0.0 <= v <= 90.0):
+                raise PathConfigError(key, v, "a number of degrees in [0, 90]")
+        if not (0.0 <= self.min_range_m < self.max_range_m):
+            raise PathConfigError("max_range_m", self.max_range_m, f"> min_range_m ({self.min_range_m}) >= 0")
+        if not (0.0 < self.max_abs_angle_deg <= 90.0):
+            raise PathConfigError("max_abs_angle_deg", self.max_abs_angle_deg, "a number of degrees in (0, 90]")
+        lo, hi = self.start_range_m
+        if lo < self.min_range_m or hi > self.max_range_m:
+            raise PathConfigError(
+                "start_range_m", self.start_range_m, f"inside [min_range_m, max_range_m] = [{self.min_range_m}, {self.max_range_m}]"
+            )
+        if max(abs(a) for a in self.start_angle_deg) > self.max_abs_angle_deg:
+            raise PathConfigError(
+                "start_angle_deg", self.start_angle_deg, f"inside +-max_abs_angle_deg ({self.max_abs_angle_deg})"
+            )
+
+    @classmethod
+    def from_mapping(cls, mapping: Mapping[str, Any], where: str = "dataset") -> PathSpec:
+        """Build from a config mapping, ignoring keys that are not path settings.
+
+        Raises:
+            PathConfigError: a value is invalid; the key is prefixed with ``where``.
+        """
+        names = {f.name for f in fields(cls)}
+        # sequences (list, tuple, OmegaConf ListConfig) become tuples; scalars pass through
+        kwargs = {k: (v if isinstance(v, str | int | float) else tuple(v)) for k, v in mapping.items() if k in names}
+        try:
+            return cls(**kwargs)
+        except PathConfigError as err:
+            raise PathConfigError(f"{where}.{err.key}", err.value, err.expected) from None
+
+    @property
+    def times_s(self) -> np.ndarray:
+        """(n_points,) time of each point from the start of the path."""
+        return np.arange(self.n_points) * self.frame_period_s
+
+
+@dataclass(frozen=True)
+class PathSet:
+    """Clean synthetic paths with the draws that made them.
+
+    Attributes:
+        xy: (P, T, 2) float64 truth positions (x, y) in metres.
+        motion: (P,) int index into :data:`MOTIONS`.
+        speed_mps: (P,) walking speed.
+        heading0_rad: (P,) initial heading (from +y towards +x).
+        turn_rate_rad_s: (P,) constant turn rate.
+    """
+
+    xy: np.ndarray
+    motion: np.ndarray
+    speed_mps: np.ndarray
+    heading0_rad: np.ndarray
+    turn_rate_rad_s: np.ndarray
+
+
+def integrate_constant_turn(
+    start_xy: np.ndarray, speed_mps: np.ndarray, heading0_rad: np.ndarray, turn_rate_rad_s: np.ndarray, n_points: int, dt_s: float
+) -> np.ndarray:
+    """Exact positions of walkers moving at constant speed and constant turn rate.
+
+    Over one step the heading changes by ``w dt``; the chord of that arc has length
+    ``v dt sinc(w dt / 2)`` (sinc(u) = sin u / u) and points along the mid-step heading, so the
+    cumulative sum of chords is exact on the arc (and a straight line when w = 0).
+
+    Args:
+        start_xy: (P, 2) first positions.
+        speed_mps, heading0_rad, turn_rate_rad_s: (P,) per walker.
+        n_points: T, number of positions per path.
+        dt_s: time step.
+
+    Returns:
+        (P, T, 2) positions.
+    """
+    k = np.arange(n_points - 1)
+    mid_heading = heading0_rad[:, None] + turn_rate_rad_s[:, None] * (k + 0.5) * dt_s  # (P, T-1)
+    chord = speed_mps * dt_s * np.sinc(turn_rate_rad_s * dt_s / (2.0 * np.pi))  # np.sinc(x)=sin(pi x)/(pi x)
+    steps = chord[:, None, None] * np.stack([np.sin(mid_heading), np.cos(mid_heading)], axis=-1)
+    xy = np.empty((start_xy.shape[0], n_points, 2))
+    xy[:, 0] = start_xy
+    xy[:, 1:] = start_xy[:, None, :] + np.cumsum(steps, axis=1)
+    return xy
+
+
+def _draw(spec: PathSpec, motion: int, n: int, rng: np.random.Generator) -> tuple[np.ndarray, ...]:
+    """Draw n candidate paths of one motion class: (xy, speed, heading0, turn_rate)."""
+    r0 = rng.uniform(*spec.start_range_m, size=n)
+    th0 = np.deg2rad(rng.uniform(*spec.start_angle_deg, size=n))
+    speed = rng.uniform(*spec.speed_mps, size=n)
+    turn = np.deg2rad(rng.uniform(*spec.turn_rate_deg_s, size=n))
+    spread = np.deg2rad(spec.heading_spread_deg)
+    if motion == 0:  # approaching
+        psi0 = th0 + np.pi + rng.uniform(-spread, spread, size=n)
+    elif motion == 1:  # receding
+        psi0 = th0 + rng.uniform(-spread, spread, size=n)
+    else:  # perpendicular, either way across
+        side = np.where(rng.random(n) < 0.5, -1.0, 1.0)
+        p = np.deg2rad(spec.perpendicular_spread_deg)
+        psi0 = th0 + side * np.pi / 2 + rng.uniform(-p, p, size=n)
+    psi0 = np.angle(np.exp(1j * psi0))  # wrap to (-pi, pi]
+    start = np.stack([r0 * np.sin(th0), r0 * np.cos(th0)], axis=-1)
+    xy = integrate_constant_turn(start, speed, psi0, turn, spec.n_points, spec.frame_period_s)
+    return xy, speed, psi0, turn
+
+
+def in_field_of_view(xy: np.ndarray, spec: PathSpec) -> np.ndarray:
+    """(P,) True where every point of a (P, T, 2) path lies inside the spec's field of view."""
+    rng_m = np.hypot(xy[..., 0], xy[..., 1])
+    ang = np.degrees(np.arctan2(xy[..., 0], xy[..., 1]))
+    ok = (rng_m >= spec.min_range_m) & (rng_m <= spec.max_range_m) & (np.abs(ang) <= spec.max_abs_angle_deg)
+    return ok.all(axis=-1)
+
+
+def random_path_set(n_paths: int, spec: PathSpec | None = None, seed: int = 0, *, max_rounds: int = 200) -> PathSet:
+    """Draw ``n_paths`` clean pedestrian paths that stay in the field of view.
+
+    The number of paths per motion class is multinomial with ``spec.motion_weights``; each class
+    is filled by vectorised rejection sampling (candidates drawn in batches, those leaving the
+    field of view dropped). The output order is shuffled. Same seed, same bytes.
+
+    Args:
+        n_paths: P >= 0.
+        spec: drawing settings (default :class:`PathSpec`).
+        seed: seeds ``np.random.default_rng``.
+        max_rounds: give up (ValueError) if a class is still not filled after this many batches,
+            which means the settings leave almost no path inside the field of view.
+
+    Returns:
+        :class:`PathSet` with ``xy`` of shape (P, spec.n_points, 2).
+    """
+    spec = spec or PathSpec()
+    if int(n_paths) != n_paths or n_paths < 0:
+        raise PathConfigError("n_paths", n_paths, "an integer >= 0")
+    rng = np.random.default_rng(seed)
+    w = np.asarray(spec.motion_weights)
+    per_class = rng.multinomial(int(n_paths), w / w.sum())
+    parts: list[tuple[np.ndarray, ...]] = []
+    labels: list[np.ndarray] = []
+    for motion, need in enumerate(per_class):
+        got: list[tuple[np.ndarray, ...]] = []
+        have = 0
+        for _ in range(max_rounds):
+            if have >= need:
+                break
+            cand = _draw(spec, motion, max(64, 2 * (need - have)), rng)
+            keep = in_field_of_view(cand[0], spec)
+            got.append(tuple(c[keep] for c in cand))
+            have += int(keep.sum())
+        if have < need:
+            raise ValueError(
+                f"{MOTIONS[motion]} paths: only {have} of {need} stayed in the field of view after {max_rounds} "
+                f"rounds; widen max_range_m/max_abs_angle_deg or shorten/slow the paths ({spec})"
+            )
+        if got:
+            parts.append(tuple(np.concatenate([g[i] for g in got])[:need] for i in range(4)))
+        else:
+            parts.append((np.empty((0, spec.n_points, 2)), np.empty(0), np.empty(0), np.empty(0)))
+        labels.append(np.full(need, motion, dtype=np.int64))
+    order = rng.permutation(int(n_paths))
+    xy, speed, psi0, turn = (np.concatenate([p[i] for p in parts])[order] for i in range(4))
+    return PathSet(xy=xy, motion=np.concatenate(labels)[order], speed_mps=speed, heading0_rad=psi0, turn_rate_rad_s=turn)
+
+
+def random_paths(n_paths: int, spec: PathSpec | None = None, seed: int = 0) -> np.ndarray:
+    """(P, spec.n_points, 2) clean truth paths; see :func:`random_path_set`."""
+    return random_path_set(n_paths, spec, seed).xy
+
+
+def radar_like_noise(
+    paths: np.ndarray,
+    *,
+    seed: int = 0,
+    range_step_m: float = 0.5,
+    range_mode: str = "quantise",
+    angle_std_deg: float = 1.0,
+    miss_prob: float = 0.05,
+) -> np.ndarray:
+    """A simple measurement model for tests and benchmarks (NOT the radar chain).
+
+    Each point is converted to (range, angle); the range is either rounded to the nearest
+    multiple of ``range_step_m`` (``range_mode="quantise"``, like an FFT peak bin: error uniform in
+    +-step/2, std step/sqrt(12) = 0.144 m for 0.5 m, but correlated along a path) or perturbed by an
+    independent uniform error of the same width (``"uniform"``); the angle gets Gaussian noise of
+    ``angle_std_deg``; each point is missed (set to NaN) with probability ``miss_prob``.
+
+    Args:
+        paths: (P, T, 2) clean positions.
+
+    Returns:
+        (P, T, 2) float64 measured positions with NaN rows for missed points.
+    """
+    paths = np.asarray(paths, dtype=float)
+    if paths.ndim != 3 or paths.shape[-1] != 2:
+        raise ValueError(f"paths: expected shape (P, T, 2), found {paths.shape}")
+    if range_step_m < 0 or angle_std_deg < 0 or not (0.0 <= miss_prob <= 1.0):
+        raise ValueError(
+            f"radar_like_noise: expected range_step_m >= 0, angle_std_deg >= 0, 0 <= miss_prob <= 1; "
+            f"found {range_step_m}, {angle_std_deg}, {miss_prob}"
+        )
+    rng = np.random.default_rng(seed)
+    r = np.hypot(paths[..., 0], paths[..., 1])
+    th = np.arctan2(paths[..., 0], paths[..., 1])
+    if range_step_m > 0:
+        if range_mode == "quantise":
+            r = np.round(r / range_step_m) * range_step_m
+        elif range_mode == "uniform":
+            r = r + rng.uniform(-range_step_m / 2, range_step_m / 2, size=r.shape)
+        else:
+            raise ValueError(f"range_mode: expected 'quantise' or 'uniform', found {range_mode!r}")
+    th = th + np.deg2rad(angle_std_deg) * rng.standard_normal(th.shape)
+    out = np.stack([r * np.sin(th), r * np.cos(th)], axis=-1)
+    out[rng.random(r.shape) < miss_prob] = np.nan
+    return out

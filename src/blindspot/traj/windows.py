@@ -1,0 +1,282 @@
+"""Sliding windows over point paths: a window of W points -> the next point (paper: W = 50).
+
+A path of T points gives ``T - W`` window/response pairs at stride 1 (200 points, W = 50: 150
+pairs), ``ceil((T - W) / stride)`` at a larger stride. Windows are views built with
+``numpy.lib.stride_tricks.sliding_window_view`` and copied once into float32 arrays.
+
+Missing points (NaN rows: no detection in that frame) are never invented here: a window whose
+W inputs or target contain a NaN is dropped (``nan_policy="drop"``, the default) or refused
+(``"raise"``). Fill gaps first with :func:`interpolate_gaps` (linear, interior gaps only) or a
+smoother if you want those windows. Dropping changes the number of windows per path, which is
+why :func:`split_by_path` counts windows per path instead of assuming 150.
+
+Splits (paper: 20,000 train / 4,000 validation / 500 test) are made of whole paths so no path is
+in two splits; each split then keeps exactly its count by a seeded random subset of its windows
+(see :func:`split_by_path`). With 200-point paths at stride 1 that takes 134 + 27 + 4 = 165 paths
+(:func:`paths_needed`).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import tempfile
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+_WINDOW_KEY = b"blindspot.window"
+
+
+@dataclass(frozen=True)
+class WindowSet:
+    """Window/response pairs.
+
+    Attributes:
+        x: (N, W, 2) float32 input windows of (x, y) points in metres, oldest first.
+        y: (N, 2) float32 response: the point right after each window.
+        path_id: (N,) int64 id of the path each window came from.
+        start: (N,) int64 index (within its path) of each window's first point, or None.
+    """
+
+    x: np.ndarray
+    y: np.ndarray
+    path_id: np.ndarray
+    start: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        x, y, pid = np.asarray(self.x), np.asarray(self.y), np.asarray(self.path_id)
+        if x.ndim != 3 or x.shape[-1] != 2:
+            raise ValueError(f"WindowSet.x: expected shape (N, W, 2), found {x.shape}")
+        n = x.shape[0]
+        if y.shape != (n, 2):
+            raise ValueError(f"WindowSet.y: expected shape ({n}, 2) to match x {x.shape}, found {y.shape}")
+        if pid.shape != (n,):
+            raise ValueError(f"WindowSet.path_id: expected shape ({n},), found {pid.shape}")
+        object.__setattr__(self, "x", x.astype(np.float32, copy=False))
+        object.__setattr__(self, "y", y.astype(np.float32, copy=False))
+        object.__setattr__(self, "path_id", pid.astype(np.int64, copy=False))
+        if self.start is not None:
+            st = np.asarray(self.start)
+            if st.shape != (n,):
+                raise ValueError(f"WindowSet.start: expected shape ({n},) or None, found {st.shape}")
+            object.__setattr__(self, "start", st.astype(np.int64, copy=False))
+
+    def __len__(self) -> int:
+        return int(self.x.shape[0])
+
+    @property
+    def window(self) -> int:
+        """W, the number of points in each input window."""
+        return int(self.x.shape[1])
+
+    def subset(self, index: np.ndarray) -> WindowSet:
+        """The windows selected by an integer or boolean index array."""
+        return WindowSet(
+            self.x[index], self.y[index], self.path_id[index], None if self.start is None else self.start[index]
+        )
+
+    def save(self, path: str | Path) -> Path:
+        """Write to Parquet (temporary name in the same folder, then renamed into place).
+
+        Columns: ``path_id`` int64, ``start`` int64 (-1 when unknown), ``x`` list<float32> of the
+        window flattened as x0, y0, x1, y1, ..., ``y`` list<float32> [x, y]; the window length is
+        stored in the schema metadata.
+        """
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        n, w = len(self), self.window
+        x = pa.FixedSizeListArray.from_arrays(pa.array(self.x.reshape(-1)), 2 * w)
+        y = pa.FixedSizeListArray.from_arrays(pa.array(self.y.reshape(-1)), 2)
+        start = self.start if self.start is not None else np.full(n, -1, dtype=np.int64)
+        table = pa.table({"path_id": self.path_id, "start": start, "x": x, "y": y})
+        table = table.replace_schema_metadata({_WINDOW_KEY: str(w).encode()})
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+        os.close(fd)
+        try:
+            pq.write_table(table, tmp)
+            os.replace(tmp, path)
+        except BaseException:
+            Path(tmp).unlink(missing_ok=True)
+            raise
+        return path
+
+    @classmethod
+    def load(cls, path: str | Path) -> WindowSet:
+        """Read a file written by :meth:`save`; raises ValueError naming the file if it is not one."""
+        path = Path(path)
+        table = pq.read_table(path)
+        meta = table.schema.metadata or {}
+        missing = {"path_id", "start", "x", "y"} - set(table.column_names)
+        if _WINDOW_KEY not in meta or missing:
+            raise ValueError(
+                f"{path}: not a WindowSet file (expected columns path_id, start, x, y and '{_WINDOW_KEY.decode()}' "
+                f"metadata; missing columns {sorted(missing)}, metadata keys {sorted(meta)})"
+            )
+        w = int(meta[_WINDOW_KEY])
+        n = table.num_rows
+
+        def flat(name: str, width: int) -> np.ndarray:
+            col = table.column(name).combine_chunks()
+            values = np.asarray(col.flatten(), dtype=np.float32)
+            if values.size != n * width:
+                raise ValueError(f"{path}: column {name!r} holds {values.size} values, expected {n} x {width}")
+            return values
+
+        start = table.column("start").to_numpy()
+        return cls(
+            x=flat("x", 2 * w).reshape(n, w, 2),
+            y=flat("y", 2).reshape(n, 2),
+            path_id=table.column("path_id").to_numpy(),
+            start=None if n and (start < 0).all() else start,
+        )
+
+
+def windows_per_path(n_points: int, window: int, stride: int = 1) -> int:
+    """Number of window/next-point pairs from one complete path: ceil((T - W) / stride)."""
+    return max(0, math.ceil((n_points - window) / stride))
+
+
+def paths_needed(counts: Sequence[int], n_points: int, window: int, stride: int = 1) -> int:
+    """Fewest complete (NaN-free) paths :func:`split_by_path` needs for the given split counts."""
+    per = windows_per_path(n_points, window, stride)
+    if per == 0:
+        raise ValueError(f"paths of {n_points} points give no windows of {window} (+1 target)")
+    return sum(math.ceil(c / per) for c in counts)
+
+
+def make_windows(
+    paths: np.ndarray,
+    window: int,
+    stride: int = 1,
+    target: str = "next",
+    *,
+    nan_policy: str = "drop",
+    path_ids: np.ndarray | None = None,
+) -> WindowSet:
+    """All windows of ``window`` points and the point right after each, from every path.
+
+    Window k of path p is ``paths[p, s:s+W]`` with ``s = k * stride`` and target ``paths[p, s+W]``,
+    for ``s + W <= T - 1``; windows are ordered by path, then by start.
+
+    Args:
+        paths: (P, T, 2) points in metres; NaN rows are missing points.
+        window: W >= 1.
+        stride: step between window starts, >= 1.
+        target: only ``"next"`` (the point following the window) is defined.
+        nan_policy: ``"drop"`` windows (inputs or target) containing NaN, or ``"raise"``.
+        path_ids: (P,) ids to store in ``path_id``; default ``arange(P)``.
+
+    Returns:
+        :class:`WindowSet` with x (N, W, 2), y (N, 2), path_id (N,), start (N,).
+    """
+    paths = np.asarray(paths)
+    if paths.ndim != 3 or paths.shape[-1] != 2:
+        raise ValueError(f"paths: expected shape (P, T, 2), found {paths.shape}")
+    if int(window) != window or window < 1:
+        raise ValueError(f"window: expected an integer >= 1, found {window!r}")
+    if int(stride) != stride or stride < 1:
+        raise ValueError(f"stride: expected an integer >= 1, found {stride!r}")
+    if target != "next":
+        raise ValueError(f"target: expected 'next', found {target!r}")
+    if nan_policy not in ("drop", "raise"):
+        raise ValueError(f"nan_policy: expected 'drop' or 'raise', found {nan_policy!r}")
+    n_paths, n_points, _ = paths.shape
+    if n_points < window + 1:
+        raise ValueError(f"paths have {n_points} points; a window of {window} plus its target needs {window + 1}")
+    ids = np.arange(n_paths) if path_ids is None else np.asarray(path_ids)
+    if ids.shape != (n_paths,):
+        raise ValueError(f"path_ids: expected shape ({n_paths},), found {ids.shape}")
+
+    # (P, T-W, 2, W+1) view -> every stride-th start -> (P, K, W+1, 2)
+    view = np.lib.stride_tricks.sliding_window_view(paths, window + 1, axis=1)[:, ::stride]
+    k = view.shape[1]
+    pairs = np.ascontiguousarray(view.transpose(0, 1, 3, 2), dtype=np.float32).reshape(n_paths * k, window + 1, 2)
+    pid = np.repeat(ids, k)
+    start = np.tile(np.arange(0, n_points - window, stride), n_paths)
+    finite = np.isfinite(pairs).all(axis=(1, 2))
+    if not finite.all():
+        if nan_policy == "raise":
+            bad = np.flatnonzero(~finite)
+            raise ValueError(
+                f"{bad.size} of {finite.size} windows contain NaN (first: path {pid[bad[0]]}, start {start[bad[0]]}); "
+                "fill gaps (interpolate_gaps) or use nan_policy='drop'"
+            )
+        pairs, pid, start = pairs[finite], pid[finite], start[finite]
+    return WindowSet(x=pairs[:, :window], y=pairs[:, window], path_id=pid, start=start)
+
+
+def interpolate_gaps(paths: np.ndarray) -> np.ndarray:
+    """Fill interior missing points (NaN rows) of each path by linear interpolation in time.
+
+    A row counts as missing if either coordinate is NaN. Missing rows before a path's first or
+    after its last observed point stay NaN (nothing to interpolate between).
+
+    Args:
+        paths: (P, T, 2) or (T, 2).
+
+    Returns:
+        float64 array of the same shape.
+    """
+    arr = np.asarray(paths, dtype=float)
+    squeeze = arr.ndim == 2
+    if squeeze:
+        arr = arr[None]
+    if arr.ndim != 3 or arr.shape[-1] != 2:
+        raise ValueError(f"paths: expected shape (P, T, 2) or (T, 2), found {np.shape(paths)}")
+    n_points = arr.shape[1]
+    valid = np.isfinite(arr).all(axis=-1)  # (P, T)
+    t = np.broadcast_to(np.arange(n_points), valid.shape)
+    prev = np.maximum.accumulate(np.where(valid, t, -1), axis=1)
+    nxt = np.minimum.accumulate(np.where(valid, t, n_points)[:, ::-1], axis=1)[:, ::-1]
+    fill = ~valid & (prev >= 0) & (nxt < n_points)
+    p0 = np.take_along_axis(arr, np.clip(prev, 0, n_points - 1)[..., None], axis=1)
+    p1 = np.take_along_axis(arr, np.clip(nxt, 0, n_points - 1)[..., None], axis=1)
+    frac = ((t - prev) / np.maximum(nxt - prev, 1))[..., None]
+    out = arr.copy()
+    out[fill] = (p0 + frac * (p1 - p0))[fill]
+    out[~valid & ~fill] = np.nan
+    return out[0] if squeeze else out
+
+
+def split_by_path(
+    ws: WindowSet, counts: Sequence[int] = (20000, 4000, 500), seed: int = 0
+) -> tuple[WindowSet, ...]:
+    """Split windows into len(counts) sets of exactly ``counts[i]`` windows, no path in two sets.
+
+    The path ids are shuffled (``np.random.default_rng(seed)``); split 0 takes paths in that order
+    until it holds at least ``counts[0]`` windows, split 1 continues from the next path, and so on.
+    Each split then keeps a random subset of exactly ``counts[i]`` of its windows (in their
+    original order), so at most one path per split is partly used. Leftover paths go unused.
+
+    Raises:
+        ValueError: the windows' paths cannot cover the counts; says how many windows were found.
+    """
+    counts = [int(c) for c in counts]
+    if any(c < 0 for c in counts):
+        raise ValueError(f"counts: expected non-negative integers, found {counts}")
+    rng = np.random.default_rng(seed)
+    ids, inverse = np.unique(ws.path_id, return_inverse=True)
+    order = rng.permutation(ids.size)  # shuffled position -> unique path index
+    rank = np.empty_like(order)
+    rank[order] = np.arange(ids.size)  # unique path index -> shuffled position
+    per_path = np.bincount(inverse, minlength=ids.size)[order]
+    cum = np.concatenate([[0], np.cumsum(per_path)])
+    out: list[WindowSet] = []
+    first = 0  # shuffled position of the next unused path
+    for i, need in enumerate(counts):
+        last = int(np.searchsorted(cum, cum[first] + need, side="left"))  # paths [first, last) cover need
+        if cum[min(last, ids.size)] - cum[first] < need:
+            raise ValueError(
+                f"split_by_path: {len(ws)} windows from {ids.size} paths cannot fill counts {counts} "
+                f"(split {i} wants {need}, {int(cum[-1] - cum[first])} windows left); generate more paths"
+            )
+        members = np.flatnonzero((rank[inverse] >= first) & (rank[inverse] < last))
+        keep = np.sort(rng.choice(members.size, size=need, replace=False))
+        out.append(ws.subset(members[keep]))
+        first = last
+    return tuple(out)
