@@ -191,6 +191,29 @@ def test_cascade_entry_offset_disagrees(cascade):
         read_ti_cascade(folder, S, L, C)
 
 
+def test_cascade_devices_with_different_frame_counts(cascade):
+    """A device that indexed one frame fewer (its data file may still be longer): the capture
+    is read up to the frames every device has, with a warning naming the counts."""
+    folder, cube = cascade
+    fb = S * C * L * 16
+    path = folder / "slave3_0000_idx.bin"
+    raw = path.read_bytes()
+    path.write_bytes(raw[:24 + 48 * 4])
+    _rewrite_header(path, num_idx=4, data_file_size=4 * fb)
+    with pytest.warns(UserWarning, match=r"'slave2': 5, 'slave3': 4.*using the 4"):
+        out = read_ti_cascade(folder, S, L, C, skip_first_frame=False)
+    assert np.array_equal(out, cube[:4])
+
+
+def test_cascade_writer_rejects_wrong_shapes(tmp_path, rng):
+    with pytest.raises(ValueError, match=r"expected \(chirps, tx, 16, samples\)"):
+        write_ti_cascade(tmp_path, random_codes(rng, (2, L, C, 8, S)))
+    frames = [random_codes(rng, (L, C, 16, S)), random_codes(rng, (L, C, 16, S + 2))]
+    with pytest.raises(ValueError, match="frame 1 has shape"):
+        write_ti_cascade(tmp_path, frames)
+    assert os.listdir(tmp_path) == []
+
+
 def test_cascade_too_small_for_a_frame(tmp_path, rng):
     write_ti_cascade(tmp_path, random_codes(rng, (1, L, C, 16, S)))
     assert read_ti_cascade(tmp_path, S, L, C, skip_first_frame=False).shape[0] == 1

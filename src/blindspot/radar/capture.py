@@ -176,8 +176,8 @@ def to_int16_iq(cube: np.ndarray, conversion: Int16Conversion = "exact",
         if conversion == "exact" and not np.array_equal(ints, iq):
             bad = np.abs(ints - iq).max()
             raise CaptureError(origin, "values are not integer ADC codes (pass conversion="
-                               "'round' or 'clip' to quantise)", f"a fractional part up to {bad:.3g}",
-                               "integers")
+                               "'round' or 'clip' to quantise)",
+                               f"a fractional part up to {bad:.3g}", "integers")
     if conversion == "clip":
         return np.clip(ints, -32768, 32767).astype("<i2")
     lo, hi = ints.min(initial=0), ints.max(initial=0)
@@ -229,8 +229,9 @@ def find_cascade_captures(folder: str | os.PathLike) -> list[int]:
     return sorted(int(m.group(1)) for p in folder.iterdir() if (m := _CAPTURE_RE.match(p.name)))
 
 
-def _cascade_paths(folder: Path, capture_index: int, digits: int = 4) -> tuple[list[Path], list[Path]]:
-    stem = [f"{dev}_{capture_index:0{digits}d}" for dev in CASCADE_DEVICES]
+def _cascade_paths(folder: Path, capture_index: int) -> tuple[list[Path], list[Path]]:
+    """The 4 data and 4 index paths of capture NNNN (4 digits, more if the index needs them)."""
+    stem = [f"{dev}_{capture_index:04d}" for dev in CASCADE_DEVICES]
     return ([folder / f"{s}_data.bin" for s in stem], [folder / f"{s}_idx.bin" for s in stem])
 
 
@@ -377,7 +378,7 @@ class TICascadeCapture:
         return out
 
     def frame(self, index: int) -> np.ndarray:
-        """complex64 (chirps, tx, 16, samples) of one frame (negative indices count from the end)."""
+        """complex64 (chirps, tx, 16, samples) of one frame (negative index: from the end)."""
         i = _check_index(index, self.n_frames)
         return self.read(i, i + 1)[0]
 
@@ -469,8 +470,13 @@ def write_ti_cascade(folder: str | os.PathLike, cube: np.ndarray | Iterable[np.n
         fb = cascade_frame_bytes(n_samples, n_chirps, n_tx)
         idx_bytes = _cascade_index_bytes(n_frames, fb, n_samples, n_chirps * n_tx, timestamps,
                                          frame_period_s)
-        _write_atomic(idx_paths, [lambda fh: fh.write(idx_bytes)] * len(idx_paths))
-        for tmp, target in zip(temps, data_paths):
+        for target in idx_paths:
+            fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=folder)
+            temps.append(Path(tmp))
+            with os.fdopen(fd, "wb") as fh:
+                fh.write(idx_bytes)
+        # all 8 complete: data files first, the index files (which readers trust) last
+        for tmp, target in zip(temps, data_paths + idx_paths):
             os.chmod(tmp, _FILE_MODE)
             os.replace(tmp, target)
     finally:
@@ -514,26 +520,24 @@ def dca1000_frame_bytes(n_samples: int, n_chirps: int, n_tx: int, n_rx: int) -> 
 
 
 def _dca_file_shape(layout: str, n_samples: int, n_chirps: int, n_tx: int,
-                    n_rx: int) -> tuple[tuple[int, ...], tuple[int, ...]]:
-    """(int16 shape of one frame in the file, transpose to (loop, tx, rx, sample/2, pair, iq))."""
+                    n_rx: int) -> tuple[int, ...]:
+    """int16 shape of one frame in the file, slowest axis first."""
     if layout == "xwr16xx":
         if n_samples % 2:
             raise ValueError(f"n_samples = {n_samples}: the xwr16xx DCA1000 layout stores "
                              "samples in pairs, expected an even number")
-        # (loop, tx, rx, sample pair, iq, which of the pair)
-        return (n_chirps, n_tx, n_rx, n_samples // 2, 2, 2), (0, 1, 2, 3, 5, 4)
+        return (n_chirps, n_tx, n_rx, n_samples // 2, 2, 2)  # (loop, tx, rx, pair, iq, k)
     if layout == "xwr14xx":
         if n_rx != 4:
             raise ValueError(f"n_rx = {n_rx}: the xwr14xx (four-lane) layout carries exactly 4 RX")
-        # (loop, tx, sample, iq, rx)
-        return (n_chirps, n_tx, n_samples, 2, n_rx), (0, 1, 4, 2, 3)
+        return (n_chirps, n_tx, n_samples, 2, n_rx)  # (loop, tx, sample, iq, rx)
     raise ValueError(f"layout = {layout!r}: expected 'xwr16xx' or 'xwr14xx'")
 
 
 def _dca_to_complex(raw: np.ndarray, layout: str, n_samples: int, n_chirps: int, n_tx: int,
                     n_rx: int) -> np.ndarray:
     """int16 (frames, frame_int16) -> complex64 (frames, loops, tx, rx, samples)."""
-    fshape, _ = _dca_file_shape(layout, n_samples, n_chirps, n_tx, n_rx)
+    fshape = _dca_file_shape(layout, n_samples, n_chirps, n_tx, n_rx)
     f = raw.shape[0]
     out = np.empty((f, n_chirps, n_tx, n_rx, n_samples), np.complex64)
     out_iq = out.view(np.float32).reshape(out.shape + (2,))
@@ -571,8 +575,7 @@ class DCA1000Capture:
         self.n_samples, self.n_chirps, self.n_tx, self.n_rx = map(int, (n_samples, n_chirps,
                                                                        n_tx, n_rx))
         self.layout = layout
-        self._fshape, _ = _dca_file_shape(layout, self.n_samples, self.n_chirps, self.n_tx,
-                                          self.n_rx)
+        _dca_file_shape(layout, self.n_samples, self.n_chirps, self.n_tx, self.n_rx)  # checks
         if not self.path.is_file():
             raise CaptureError(self.path, "DCA1000 capture file not found")
         self.frame_bytes = dca1000_frame_bytes(self.n_samples, self.n_chirps, self.n_tx, self.n_rx)
