@@ -1,0 +1,276 @@
+"""Command line: run pipeline stages, sweeps and the params.yaml tools.
+
+How to run things (from anywhere inside the repository)::
+
+    dvc repro                                   # the pipeline; stages read params.yaml
+    dvc exp run -S 'train.lr=0.01'              # DVC composes conf/ + override into params.yaml
+    dvc exp run --queue -S 'model.hidden_size=32,64' && dvc queue start -j 2
+
+    python -m blindspot <stage> key=value ...   # one stage outside DVC: conf/ + overrides
+    python -m blindspot train -m model.hidden_size=32,64,128           # Hydra multirun sweep
+    python -m blindspot train -m hydra/launcher=parallel model.hidden_size=32,64   # 2 processes
+    python -m blindspot <stage> --cfg job       # print the composed config, run nothing
+
+    python -m blindspot params                  # regenerate params.yaml from conf/
+    python -m blindspot check-params            # fail (exit 1) if params.yaml != conf/
+    python -m blindspot stages                  # list the stages
+
+Every stage run is one MLflow run (params = the flattened config, metrics, artifacts); a sweep
+is a parent run with one nested child run per job. The store is ``<repo>/mlflow.db`` (SQLite,
+absolute path; also for ``dvc queue`` runs, which execute in temporary copies). Open the UI
+from the repo root and compare runs there::
+
+    mlflow ui --backend-store-uri sqlite:///$PWD/mlflow.db
+
+Stage convention: ``stages/<name>.py`` defines ``run(cfg: DictConfig) -> None`` and ends with::
+
+    if __name__ == "__main__":
+        blindspot.cli.main_stage(run, "<name>")
+
+Under DVC (``python stages/<name>.py``) the config is ``params.yaml`` (what DVC tracked),
+checked against ``conf/`` unless DVC composed it itself (``dvc exp run``). With
+``python -m blindspot <name> ...`` it is ``conf/`` + the overrides, composed by Hydra.
+Both call the same ``run(cfg)`` inside :func:`blindspot.tracking.stage_run`, with the working
+directory set to the repo root.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import os
+import sys
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from types import ModuleType
+
+from omegaconf import DictConfig, OmegaConf
+
+from blindspot import config as bconfig
+from blindspot import tracking
+
+__all__ = [
+    "StageFunction",
+    "UnknownStage",
+    "available_stages",
+    "load_stage",
+    "run_stage",
+    "main_stage",
+    "main",
+]
+
+StageFunction = Callable[[DictConfig], None]
+
+COMMANDS = {
+    "params": "regenerate params.yaml from conf/",
+    "check-params": "fail if params.yaml is not what conf/ composes to",
+    "stages": "list the stages",
+}
+
+# Hydra flags that take a value (moved in front of the overrides together with their value).
+_VALUE_FLAGS = {"--cfg", "-c", "--package", "-p", "--config-path", "-cp", "--config-name",
+                "-cn", "--config-dir", "-cd", "--experimental-rerun", "--shell-completion", "-sc"}
+_INFO_FLAGS = {"--info", "-i"}
+_INFO_VALUES = {"all", "config", "defaults", "defaults-tree", "plugins", "searchpath"}
+
+
+class UnknownStage(LookupError):
+    """The stage named on the command line has no stages/<name>.py."""
+
+
+def available_stages(repo_root: str | os.PathLike[str]) -> list[str]:
+    """Names of ``<repo>/stages/*.py`` (without ``_``-prefixed helpers), sorted."""
+    folder = Path(repo_root) / "stages"
+    return sorted(p.stem for p in folder.glob("*.py") if not p.stem.startswith("_"))
+
+
+_LOADED: dict[Path, ModuleType] = {}
+
+
+def load_stage(repo_root: str | os.PathLike[str], name: str) -> StageFunction:
+    """Import ``<repo>/stages/<name>.py`` by path and return its ``run`` function.
+
+    Raises :class:`UnknownStage` listing the stages that exist, or ``TypeError`` if the file
+    has no callable ``run``.
+    """
+    path = (Path(repo_root) / "stages" / f"{name}.py").resolve()
+    if not path.is_file():
+        known = available_stages(repo_root)
+        raise UnknownStage(
+            f"unknown stage {name!r}: no {path}. Stages: {', '.join(known) or '(none)'}; "
+            f"commands: {', '.join(COMMANDS)}"
+        )
+    module = _LOADED.get(path)
+    if module is None:
+        spec = importlib.util.spec_from_file_location(f"blindspot_stage_{name}", path)
+        assert spec is not None and spec.loader is not None
+        module = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(module)
+        _LOADED[path] = module
+    run = getattr(module, "run", None)
+    if not callable(run):
+        raise TypeError(f"{path} must define `def run(cfg: DictConfig) -> None`")
+    return run  # type: ignore[no-any-return]
+
+
+def run_stage(
+    run: StageFunction,
+    name: str,
+    cfg: DictConfig,
+    repo_root: str | os.PathLike[str] | None = None,
+) -> None:
+    """Call ``run(cfg)`` inside ``tracking.stage_run(name, cfg)`` from the repo root.
+
+    ``cfg`` is resolved and put in struct mode (a misspelt key raises instead of reading None).
+    """
+    root = Path(repo_root).resolve() if repo_root is not None else bconfig.find_repo_root()
+    os.chdir(root)
+    cfg = OmegaConf.create(OmegaConf.to_container(cfg, resolve=True))
+    OmegaConf.set_struct(cfg, True)
+    with tracking.stage_run(name, cfg, repo_root=root):
+        run(cfg)
+
+
+def main_stage(run: StageFunction, name: str, argv: Sequence[str] | None = None) -> None:
+    """Entry point of ``python stages/<name>.py`` (what dvc.yaml calls): config = params.yaml.
+
+    Outside ``dvc exp run`` (env ``DVC_EXP_NAME`` unset) params.yaml is first checked against
+    conf/; if stale the process exits 1 with the fix. Takes no arguments (exit 2 says how to
+    override). SIGTERM ends the MLflow run KILLED and exits 143.
+    """
+    args = list(sys.argv[1:] if argv is None else argv)
+    if args:
+        print(
+            f"stages/{name}.py takes no arguments: it reads params.yaml (what DVC tracks).\n"
+            f"To override values: `python -m blindspot {name} {' '.join(args)}` (outside DVC) "
+            f"or `dvc exp run -S '<key>=<value>'`.",
+            file=sys.stderr,
+        )
+        raise SystemExit(2)
+    stage_file = Path(getattr(run, "__code__").co_filename)
+    try:
+        root = bconfig.find_repo_root(stage_file.parent)
+    except bconfig.ConfigNotFound:
+        root = bconfig.find_repo_root()
+    try:
+        if not os.environ.get("DVC_EXP_NAME"):
+            bconfig.check_params(root)
+        cfg = bconfig.load_params(root)
+    except (bconfig.ParamsOutOfDate, FileNotFoundError) as exc:
+        print(f"[blindspot] {exc}", file=sys.stderr)
+        raise SystemExit(1) from None
+    run_stage(run, name, cfg, root)
+
+
+class _StageTask:
+    """Hydra task function for one stage; picklable by reference (for joblib/loky workers)."""
+
+    def __init__(self, repo_root: str, name: str):
+        self.repo_root = repo_root
+        self.name = name
+
+    def __call__(self, cfg: DictConfig) -> None:
+        run_stage(load_stage(self.repo_root, self.name), self.name, cfg, self.repo_root)
+
+
+def _hydra_argv(args: Sequence[str], name: str) -> list[str]:
+    """Hydra flags first, then the user's overrides, then ours (argparse needs that order)."""
+    flags: list[str] = []
+    overrides: list[str] = []
+    i = 0
+    while i < len(args):
+        arg = args[i]
+        if arg.startswith("-"):
+            flags.append(arg)
+            takes_value = arg in _VALUE_FLAGS or (
+                arg in _INFO_FLAGS and i + 1 < len(args) and args[i + 1] in _INFO_VALUES
+            )
+            if takes_value and i + 1 < len(args):
+                flags.append(args[i + 1])
+                i += 1
+        else:
+            overrides.append(arg)
+        i += 1
+    ours = [
+        f"hydra.job.name={name}",
+        "++hydra.callbacks.blindspot_tracking._target_=blindspot.tracking.SweepCallback",
+    ]
+    return [*flags, *overrides, *ours]
+
+
+def _run_with_hydra(root: Path, name: str, args: Sequence[str]) -> None:
+    import hydra
+
+    load_stage(root, name)  # fail early, before Hydra, with the list of stages
+    os.chdir(root)
+    task = _StageTask(str(root), name)
+    entry = hydra.main(
+        config_path=str(root / bconfig.CONFIG_DIR),
+        config_name=bconfig.CONFIG_NAME,
+        version_base=None,
+    )(task)
+    saved = sys.argv
+    sys.argv = [f"python -m blindspot {name}", *_hydra_argv(args, name)]
+    status = "FAILED"
+    try:
+        with tracking.sigterm_as_exit():
+            entry()
+        status = "FINISHED"
+    except (tracking.Terminated, KeyboardInterrupt):
+        status = "KILLED"
+        raise
+    finally:
+        sys.argv = saved
+        tracking.end_open_sweep(status)  # no-op unless a sweep died before on_multirun_end
+
+
+def _usage(root: Path | None) -> str:
+    stages = ", ".join(available_stages(root)) if root else "(not inside a blindspot repo)"
+    cmds = "\n".join(f"  {k:<13} {v}" for k, v in COMMANDS.items())
+    return (
+        "usage: python -m blindspot <stage> [hydra overrides, -m for a sweep]\n"
+        "       python -m blindspot {params,check-params,stages}\n"
+        f"stages: {stages}\ncommands:\n{cmds}\n"
+        "MLflow UI: mlflow ui --backend-store-uri sqlite:///$PWD/mlflow.db"
+    )
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """``python -m blindspot``; returns the process exit status."""
+    args = list(sys.argv[1:] if argv is None else argv)
+    try:
+        root: Path | None = bconfig.find_repo_root()
+    except bconfig.ConfigNotFound as exc:
+        root = None
+        missing_root = exc
+    if not args or args[0] in {"-h", "--help", "help"}:
+        print(_usage(root))
+        return 0 if args else 2
+    command, rest = args[0], args[1:]
+    if root is None:
+        print(f"[blindspot] {missing_root}", file=sys.stderr)
+        return 2
+    if command == "stages":
+        print("\n".join(available_stages(root)))
+        return 0
+    if command in {"params", "check-params"} and rest:
+        print(f"[blindspot] `{command}` takes no arguments (got {' '.join(rest)}); "
+              "change values in conf/", file=sys.stderr)
+        return 2
+    if command == "params":
+        path = bconfig.write_params(root)
+        print(f"wrote {path}")
+        return 0
+    if command == "check-params":
+        try:
+            bconfig.check_params(root)
+        except bconfig.ParamsOutOfDate as exc:
+            print(f"[blindspot] {exc}", file=sys.stderr)
+            return 1
+        print(f"{root / bconfig.PARAMS_FILE} is up to date with conf/")
+        return 0
+    try:
+        _run_with_hydra(root, command, rest)
+    except UnknownStage as exc:
+        print(f"[blindspot] {exc}", file=sys.stderr)
+        return 2
+    return 0

@@ -1,0 +1,258 @@
+"""Atomic output helpers: a killed stage never leaves a half-written file that looks complete.
+
+Every writer writes to a hidden temporary name in the *same directory* as the target (so the
+final ``os.replace`` is a rename on one file system, atomic on POSIX), flushes and ``fsync``s the
+data, renames it into place and ``fsync``s the directory. On any exception (including the
+``SystemExit`` raised by the SIGTERM handler of :mod:`blindspot.tracking`) the temporary file or
+directory is removed and the previous target, if any, is left untouched.
+
+Temporary names keep the target's suffix (``.fig04.tmp-1a2b3c.png``) so libraries that infer the
+format from the extension (matplotlib ``savefig``, pandas) still work.
+
+Public API::
+
+    atomic_path(path) -> ContextManager[Path]        # write to the yielded path yourself
+    atomic_open(path, mode="w", **open_kw) -> ContextManager[IO]
+    atomic_dir(path) -> ContextManager[Path]         # fill the yielded directory
+    write_text(path, text) -> Path
+    write_bytes(path, data) -> Path
+    write_json(path, obj, *, indent=2) -> Path       # sorted keys, numpy-aware, no NaN
+    write_yaml(path, obj) -> Path
+    write_parquet(path, df, *, index=False, **kw) -> Path
+    save_figure(fig, path, **savefig_kw) -> Path
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import math
+import os
+import secrets
+import shutil
+from collections.abc import Iterator, Mapping
+from pathlib import Path
+from typing import IO, TYPE_CHECKING, Any
+
+if TYPE_CHECKING:  # pragma: no cover - typing only
+    import pandas as pd
+    from matplotlib.figure import Figure
+
+__all__ = [
+    "atomic_path",
+    "atomic_open",
+    "atomic_dir",
+    "write_text",
+    "write_bytes",
+    "write_json",
+    "write_yaml",
+    "write_parquet",
+    "save_figure",
+    "to_jsonable",
+]
+
+PathLike = str | os.PathLike[str]
+
+
+def _temp_sibling(target: Path) -> Path:
+    """Hidden, unique name next to ``target`` that keeps its suffix."""
+    token = secrets.token_hex(4)
+    stem = target.stem if target.suffix else target.name
+    return target.with_name(f".{stem}.tmp-{os.getpid()}-{token}{target.suffix}")
+
+
+def _fsync_file(path: Path) -> None:
+    fd = os.open(path, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
+def _fsync_dir(path: Path) -> None:
+    """fsync a directory so a rename inside it survives a crash (no-op where unsupported)."""
+    try:
+        fd = os.open(path, os.O_RDONLY)
+    except OSError:  # pragma: no cover - e.g. Windows
+        return
+    try:
+        os.fsync(fd)
+    except OSError:  # pragma: no cover - some file systems refuse directory fsync
+        pass
+    finally:
+        os.close(fd)
+
+
+def _remove(path: Path) -> None:
+    if path.is_dir() and not path.is_symlink():
+        shutil.rmtree(path, ignore_errors=True)
+    else:
+        with contextlib.suppress(FileNotFoundError):
+            path.unlink()
+
+
+@contextlib.contextmanager
+def atomic_path(path: PathLike) -> Iterator[Path]:
+    """Yield a temporary path next to ``path``; on success rename it onto ``path``.
+
+    The caller writes the file at the yielded path (any library, any format). Parent
+    directories are created. If the body raises, the temporary file is deleted and ``path`` is
+    left as it was. Raises ``FileNotFoundError`` naming the path if the body wrote nothing.
+    """
+    target = Path(path)
+    target.parent.mkdir(parents=True, exist_ok=True)
+    tmp = _temp_sibling(target)
+    try:
+        yield tmp
+        if not tmp.exists():
+            raise FileNotFoundError(
+                f"atomic write of {target}: nothing was written to the temporary file {tmp}"
+            )
+        if tmp.is_dir():
+            raise IsADirectoryError(
+                f"atomic write of {target}: a directory was written; use atomic_dir() for that"
+            )
+        _fsync_file(tmp)
+        os.replace(tmp, target)
+        _fsync_dir(target.parent)
+    except BaseException:
+        _remove(tmp)
+        raise
+
+
+@contextlib.contextmanager
+def atomic_open(path: PathLike, mode: str = "w", **open_kwargs: Any) -> Iterator[IO[Any]]:
+    """``open()`` for writing, atomically: the file appears at ``path`` only when complete.
+
+    ``mode`` must be a write mode (``"w"``, ``"wb"``, ``"x"``...); text mode defaults to UTF-8.
+    """
+    if not any(c in mode for c in "wx") or "+" in mode or "a" in mode:
+        raise ValueError(f"atomic_open({path!s}): mode must be 'w'/'wb'/'x', got {mode!r}")
+    mode = mode.replace("x", "w")
+    if "b" not in mode:
+        open_kwargs.setdefault("encoding", "utf-8")
+    with atomic_path(path) as tmp, open(tmp, mode, **open_kwargs) as fh:
+        yield fh
+        fh.flush()
+
+
+@contextlib.contextmanager
+def atomic_dir(path: PathLike) -> Iterator[Path]:
+    """Yield an empty temporary directory next to ``path``; on success it replaces ``path``.
+
+    Files written inside are fsynced, then an existing ``path`` is moved aside and the new
+    directory renamed into place (two renames: a crash between them leaves ``path`` absent,
+    never half-filled), and the old one removed. On error the temporary directory is removed
+    and ``path`` is untouched.
+    """
+    target = Path(path)
+    target.parent.mkdir(parents=True, exist_ok=True)
+    tmp = _temp_sibling(target)
+    tmp.mkdir()
+    old: Path | None = None
+    try:
+        yield tmp
+        for root, _dirs, files in os.walk(tmp):
+            for name in files:
+                _fsync_file(Path(root, name))
+            _fsync_dir(Path(root))
+        if target.exists() or target.is_symlink():
+            old = _temp_sibling(target)
+            os.replace(target, old)
+        os.replace(tmp, target)
+        _fsync_dir(target.parent)
+    except BaseException:
+        _remove(tmp)
+        if old is not None and not target.exists():
+            os.replace(old, target)  # put the previous version back
+            old = None
+        raise
+    finally:
+        if old is not None:
+            _remove(old)
+
+
+def write_bytes(path: PathLike, data: bytes) -> Path:
+    """Atomically write ``data`` to ``path``; returns the path."""
+    with atomic_open(path, "wb") as fh:
+        fh.write(data)
+    return Path(path)
+
+
+def write_text(path: PathLike, text: str) -> Path:
+    """Atomically write UTF-8 ``text`` (newline characters written as given); returns the path."""
+    with atomic_open(path, "w", newline="") as fh:
+        fh.write(text)
+    return Path(path)
+
+
+def to_jsonable(obj: Any, where: str = "$") -> Any:
+    """Convert numpy scalars/arrays, Paths, tuples and OmegaConf containers to plain JSON types.
+
+    Raises ``ValueError`` naming the offending key path (``where``) for NaN/inf (not valid JSON)
+    or unsupported types.
+    """
+    if obj is None or isinstance(obj, bool | str):
+        return obj
+    if isinstance(obj, int):
+        return int(obj)
+    if isinstance(obj, float):
+        if not math.isfinite(obj):
+            raise ValueError(f"{where}: {obj!r} is not valid JSON (expected a finite number)")
+        return float(obj)
+    if isinstance(obj, os.PathLike):
+        return os.fspath(obj)
+    if isinstance(obj, Mapping):
+        return {str(k): to_jsonable(v, f"{where}.{k}") for k, v in obj.items()}
+    if type(obj).__module__.startswith("omegaconf"):
+        from omegaconf import OmegaConf
+
+        return to_jsonable(OmegaConf.to_container(obj, resolve=True), where)
+    if type(obj).__module__ == "numpy":
+        if hasattr(obj, "tolist"):
+            return to_jsonable(obj.tolist(), where)
+    if isinstance(obj, list | tuple):
+        return [to_jsonable(v, f"{where}[{i}]") for i, v in enumerate(obj)]
+    raise ValueError(f"{where}: cannot write {type(obj).__name__} to JSON")
+
+
+def write_json(path: PathLike, obj: Any, *, indent: int | None = 2) -> Path:
+    """Atomically write ``obj`` as JSON with sorted keys and a trailing newline.
+
+    Deterministic bytes for equal input. numpy values are converted; NaN/inf raise
+    ``ValueError`` naming the file and the key.
+    """
+    try:
+        data = to_jsonable(obj)
+    except ValueError as exc:
+        raise ValueError(f"{path}: {exc}") from None
+    text = json.dumps(data, indent=indent, sort_keys=True, allow_nan=False) + "\n"
+    return write_text(path, text)
+
+
+def write_yaml(path: PathLike, obj: Any) -> Path:
+    """Atomically write ``obj`` (mapping/list, OmegaConf or plain) as YAML, keys in given order."""
+    from omegaconf import OmegaConf
+
+    text = OmegaConf.to_yaml(OmegaConf.create(to_jsonable(obj)))
+    return write_text(path, text)
+
+
+def write_parquet(path: PathLike, df: pd.DataFrame, *, index: bool = False, **kwargs: Any) -> Path:
+    """Atomically write a DataFrame to Parquet (pyarrow); the index is dropped unless asked."""
+    with atomic_path(path) as tmp:
+        df.to_parquet(tmp, index=index, **kwargs)
+    return Path(path)
+
+
+def save_figure(fig: Figure, path: PathLike, **savefig_kwargs: Any) -> Path:
+    """Atomically save a matplotlib figure; the format follows the suffix of ``path``.
+
+    Timestamps are left out of SVG/PDF metadata so the same figure gives the same bytes.
+    """
+    suffix = Path(path).suffix.lower()
+    if suffix in {".svg", ".pdf"}:
+        savefig_kwargs.setdefault("metadata", {"Date": None} if suffix == ".svg" else {"CreationDate": None})
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, **savefig_kwargs)
+    return Path(path)

@@ -1,0 +1,151 @@
+"""blindspot.config: Hydra composition, params.yaml round trip and the params check."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from omegaconf import OmegaConf
+
+from blindspot import config
+from tests.pipeline.toy_repo import REPO, make_toy_repo
+
+
+@pytest.fixture()
+def toy(tmp_path: Path) -> Path:
+    return make_toy_repo(tmp_path / "repo")
+
+
+def test_compose_reads_groups_and_overrides(toy: Path) -> None:
+    cfg = config.compose(config_dir=toy / "conf")
+    assert cfg.model.hidden_size == 16 and cfg.train.lr == 0.1 and cfg.seed == 0
+    assert "hydra" not in cfg
+    cfg = config.compose(["train.lr=0.01", "model.hidden_size=64"], config_dir=toy / "conf")
+    assert cfg.train.lr == 0.01 and cfg.model.hidden_size == 64
+
+
+def test_compose_rejects_unknown_key(toy: Path) -> None:
+    from hydra.errors import ConfigCompositionException
+
+    with pytest.raises(ConfigCompositionException, match="trian"):
+        config.compose(["trian.lr=1"], config_dir=toy / "conf")
+
+
+def test_params_yaml_round_trip_and_identical_to_dvc_dump(toy: Path, tmp_path: Path) -> None:
+    path = config.write_params(toy)
+    assert path == toy / "params.yaml"
+    loaded = config.load_params(toy)
+    assert OmegaConf.to_container(loaded) == OmegaConf.to_container(
+        config.compose(config_dir=toy / "conf")
+    )
+    config.check_params(toy)  # fresh file: no error
+    # DVC's own composition (what `dvc exp run` writes with hydra.enabled) gives the same bytes,
+    # so `dvc exp run` without overrides never rewrites params.yaml.
+    from dvc.utils.hydra import compose_and_dump
+
+    dvc_out = tmp_path / "dvc_params.yaml"
+    compose_and_dump(dvc_out, str(toy / "conf"), None, "config", str(toy), [])
+    assert dvc_out.read_bytes() == path.read_bytes()
+    # Rewriting an up-to-date file keeps it byte-identical (and leaves no temp files).
+    before = path.stat().st_mtime_ns
+    config.write_params(toy)
+    assert path.stat().st_mtime_ns == before
+    assert sorted(p.name for p in toy.iterdir() if ".tmp-" in p.name) == []
+
+
+def test_check_params_detects_edited_conf_value(toy: Path) -> None:
+    config.write_params(toy)
+    (toy / "conf" / "train" / "base.yaml").write_text("lr: 0.2\nepochs: 2\nmomentum: 0.9\n")
+    with pytest.raises(config.ParamsOutOfDate) as err:
+        config.check_params(toy)
+    diff = {d.key: d for d in err.value.differences}
+    assert set(diff) == {"train.lr", "train.momentum"}
+    assert diff["train.lr"].in_params == 0.1 and diff["train.lr"].in_conf == 0.2
+    message = str(err.value)
+    assert "python -m blindspot params" in message
+    assert "train.lr: params.yaml has 0.1, conf/ gives 0.2" in message
+    assert "train.momentum: params.yaml has <absent>" in message
+    config.write_params(toy)
+    config.check_params(toy)
+
+
+def test_check_params_detects_hand_edited_params(toy: Path) -> None:
+    config.write_params(toy)
+    text = (toy / "params.yaml").read_text().replace("hidden_size: 16", "hidden_size: 17")
+    (toy / "params.yaml").write_text(text)
+    with pytest.raises(config.ParamsOutOfDate, match="model.hidden_size"):
+        config.check_params(toy)
+
+
+def test_missing_params_yaml_names_the_fix(toy: Path) -> None:
+    with pytest.raises(FileNotFoundError, match="python -m blindspot params"):
+        config.load_params(toy)
+    with pytest.raises(config.ParamsOutOfDate):
+        config.check_params(toy)
+
+
+def test_params_diff_keeps_bool_and_int_apart() -> None:
+    assert config.params_diff({"a": True}, {"a": 1})[0].key == "a"
+    assert config.params_diff({"a": {"b": 1.0}}, {"a": {"b": 1}}) == []
+    assert config.flatten({"a": {"b": {"c": 1}, "d": [1, 2]}, "e": {}}) == {
+        "a.b.c": 1, "a.d": [1, 2], "e": {}}
+
+
+def test_find_repo_root_from_subdirectory(toy: Path, tmp_path: Path) -> None:
+    (toy / "stages" / "deep").mkdir()
+    assert config.find_repo_root(toy / "stages" / "deep") == toy.resolve()
+    assert config.find_repo_root(toy / "stages" / "toy.py") == toy.resolve()
+    with pytest.raises(config.ConfigNotFound, match="conf/config.yaml"):
+        config.find_repo_root(tmp_path)
+
+
+def test_original_repo_root_maps_dvc_queue_copies(toy: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.delenv("DVC_ROOT", raising=False)
+    copy = toy / ".dvc" / "tmp" / "exps" / "tmpab12cd34"
+    copy.mkdir(parents=True)
+    assert config.original_repo_root(copy) == toy.resolve()
+    assert config.original_repo_root(copy / "stages") == toy.resolve()
+    assert config.original_repo_root(toy) == toy.resolve()
+    # DVC exports DVC_ROOT=<original repo> to queued stages; it wins when it is a repo.
+    other = make_toy_repo(toy.parent / "other")
+    monkeypatch.setenv("DVC_ROOT", str(other))
+    assert config.original_repo_root(copy) == other.resolve()
+
+
+def test_shared_dir_resolves_from_original_root(toy: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.delenv("BLINDSPOT_SHARED", raising=False)
+    monkeypatch.delenv("DVC_ROOT", raising=False)
+    copy = toy / ".dvc" / "tmp" / "exps" / "tmpzz"
+    make_toy_repo(copy)
+    monkeypatch.chdir(copy)
+    cfg = {"paths": {"shared_dir": "../shared"}}
+    assert config.shared_dir(cfg) == (toy.parent / "shared").resolve()
+    monkeypatch.setenv("BLINDSPOT_SHARED", str(toy / "elsewhere"))
+    assert config.shared_dir(cfg) == (toy / "elsewhere").resolve()
+
+
+def _real_groups_present() -> bool:
+    defaults = OmegaConf.load(REPO / "conf" / "config.yaml").defaults
+    for entry in defaults:
+        if entry == "_self_":
+            continue
+        ((group, option),) = entry.items()
+        if not (REPO / "conf" / group / f"{option}.yaml").is_file():
+            return False
+    return True
+
+
+def test_real_conf_composes_without_hydra_interpolations() -> None:
+    if not _real_groups_present():
+        pytest.skip("conf/ groups named in conf/config.yaml are not all written yet")
+    cfg = config.compose(config_dir=REPO / "conf")
+    assert cfg.seed == 0 and cfg.tracking.experiment == "blindspot"
+    for path in (REPO / "conf").rglob("*.yaml"):
+        if "hydra" not in path.relative_to(REPO / "conf").parts:
+            assert "${hydra:" not in path.read_text(), f"{path} uses ${{hydra:...}}"
+
+
+def test_committed_params_yaml_is_up_to_date() -> None:
+    if not (REPO / "params.yaml").is_file() or not _real_groups_present():
+        pytest.skip("params.yaml or conf/ groups not written yet")
+    config.check_params(REPO)
