@@ -395,3 +395,33 @@ def test_dca1000_recording_frame_source(tmp_path, rng):
     assert np.array_equal(src.frame(1), cube[1])
     assert np.array_equal(np.stack(list(src)), cube)
     np.testing.assert_allclose(src.times_s, [0, 0.05, 0.1])
+
+
+def test_recording_reads_one_frame_without_loading_the_capture(tmp_path):
+    """A 100-frame paper-profile capture (315 MB per device file, sparse on disk): reading a frame
+    allocates about one frame, not the capture. Index entries left zero (offset/size unknown)
+    are accepted."""
+    import tracemalloc
+
+    from omegaconf import OmegaConf
+
+    from tests.conftest import REPO_ROOT
+
+    radar = RadarConfig.from_mapping(OmegaConf.load(REPO_ROOT / "conf/radar/mmwcas.yaml"))
+    n, fb = 100, radar.n_samples * radar.n_tx * radar.n_chirps * 16
+    for d in DEVICES:
+        with open(tmp_path / f"{d}_0000_data.bin", "wb") as fh:
+            fh.truncate(n * fb)
+        (tmp_path / f"{d}_0000_idx.bin").write_bytes(
+            struct.pack("<IIIIQ", 0, 1, 0, n, n * fb) + bytes(48 * n))
+    src = TICascadeRecording(tmp_path, radar)
+    frame_bytes = radar.n_chirps * radar.n_tx * 16 * radar.n_samples * 8  # complex64
+    tracemalloc.start()
+    try:
+        frame = src.frame(50)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert frame.shape == (64, 12, 16, 256) and not frame.any()
+    assert src.n_frames == 99
+    assert peak < 2 * frame_bytes  # one frame plus temporaries; the capture is 100 frames
