@@ -24,14 +24,17 @@ Checks, each a :class:`CaptureError` naming the file, the size found and the siz
 missing device or index file; an index whose length is not ``24 + 48 * numIdx``; a
 ``dataFileSize`` that is not a whole number of frames of the profile, or smaller than ``numIdx``
 frames; a data file shorter than ``dataFileSize`` or than ``numIdx`` frames; an entry whose
-non-zero ``offset``/``size`` is not where the profile puts that frame; no frame left.
+non-zero ``offset``/``size`` is not where the profile puts that frame; no frame left. Devices
+whose indices list different frame counts are read up to the count they share, with a warning.
 
 Values this module writes in the index fields TI's readers ignore (our choice, documented so the
 files are self-describing): header tag 0, version 1, flags 0; entry tag 0, version 1, flags 0,
-width = samples, height = chirps per frame (both saturated at 65535), pitch[0] = bytes per chirp,
-size = bytes per frame, timestamp in nanoseconds, offset = byte offset of the frame.
-Timestamps are read as nanoseconds (the unit TI's cascade tooling documents for this struct); the
-recording source uses them only when they increase and agree with the profile's frame period.
+width = samples, height = chirps per frame (both saturated at 65535), pitch[0] = bytes of one
+chirp in a device file, size = bytes per frame, timestamp in nanoseconds, offset = byte offset of
+the frame. Timestamps are read as nanoseconds, the unit given in the comment on this struct as
+TI's example scripts are commonly transcribed (not verified on a real cascade capture here); the
+recording source therefore uses them only when they increase and agree with the profile's frame
+period.
 
 DCA1000 (``adc_data.bin``) with an xWR16xx/xWR18xx/xWR68xx radar, complex output
 ---------------------------------------------------------------------------------
