@@ -1,8 +1,9 @@
 """The analytic range-Doppler patch against numpy's FFT of a directly synthesised cube.
 
-The reference cube is written here straight from the beat-signal model (one complex exponential
-per sample, chirp loop, TX slot and RX, no shortcuts), windowed and transformed with ``np.fft``
-and ``np.fft.fftshift``: truth that owes nothing to the patch's DTFT algebra.
+The reference cube is written here straight from the beat-signal model of
+``blindspot.radar.simulator`` (one complex exponential per sample, chirp loop, TX slot and RX, no
+shortcuts), windowed and transformed with ``np.fft`` and ``np.fft.fftshift``: truth that owes
+nothing to the patch's DTFT algebra. A second test uses the simulator's own cube.
 """
 
 from __future__ import annotations
@@ -15,7 +16,9 @@ from blindspot.radar.array import array_for
 from blindspot.radar.config import SPEED_OF_LIGHT, RadarConfig
 from blindspot.radar.rd_patch import (
     PointScatterers,
+    channel_energy,
     channel_selection,
+    patch_factors,
     patch_noise,
     post_fft_noise_power,
     range_doppler_patch,
@@ -35,21 +38,23 @@ def hann(n: int) -> np.ndarray:
     return scipy.signal.get_window("hann", n, fftbins=True)
 
 
-def synthesise_cube(radar: RadarConfig, array, r, v, theta, amp) -> np.ndarray:
+def synthesise_cube(radar: RadarConfig, array, r, v, theta, amp, el=None) -> np.ndarray:
     """(chirps, tx, rx, samples) beat signal of point scatterers, sample by sample."""
+    el = np.zeros(len(r)) if el is None else el
+    pos_el = (array.virtual_pos[..., 1] * array.spacing_wl)[None, :, :, None]
     n = np.arange(radar.n_samples)[None, None, None, :]
     m = np.arange(radar.n_chirps)[:, None, None, None]
     t = np.arange(radar.n_tx)[None, :, None, None]
     pos = (array.virtual_pos[..., 0] * array.spacing_wl)[None, :, :, None]
     cube = np.zeros((radar.n_chirps, radar.n_tx, radar.n_rx, radar.n_samples), complex)
     lam = SPEED_OF_LIGHT / radar.center_freq_hz
-    for rs, vs, ths, a in zip(r, v, theta, amp):
+    for rs, vs, ths, a, es in zip(r, v, theta, amp, el):
         fb = 2 * radar.slope_hz_per_s * rs / SPEED_OF_LIGHT + 2 * vs / lam
         fd = 2 * vs / lam
         time_slow = m * radar.n_tx * (radar.ramp_time_s + radar.idle_time_s) \
             + t * (radar.ramp_time_s + radar.idle_time_s)
         phase = 2 * np.pi * (fb * n / radar.adc_rate_hz + fd * time_slow) \
-            - 2 * np.pi * pos * np.sin(ths)
+            + 2 * np.pi * (pos * np.sin(ths) * np.cos(es) - pos_el * np.sin(es))
         cube += a * np.exp(1j * phase)
     return cube
 
@@ -72,12 +77,13 @@ def test_patch_equals_fft_of_synthesised_cube(profile):
     v = rng.uniform(-0.9, 0.9, s) * radar.max_velocity_mps
     theta = np.deg2rad(rng.uniform(-70, 70, s))
     amp = rng.uniform(0.5, 2.0, s) * np.exp(2j * np.pi * rng.uniform(size=s))
+    el = rng.uniform(-0.3, 0.3, s)
     wr, wd = hann(radar.n_samples), hann(radar.n_chirps)
-    truth = fft_range_doppler(synthesise_cube(radar, array, r, v, theta, amp), wr, wd)
+    truth = fft_range_doppler(synthesise_cube(radar, array, r, v, theta, amp, el), wr, wd)
 
     k0 = int(np.floor(r.min() / radar.range_bin_m)) - 3
     n_range = int(np.ceil(r.max() / radar.range_bin_m)) + 4 - k0
-    scat = PointScatterers(r[None], v[None], theta[None], amp[None])
+    scat = PointScatterers(r[None], v[None], theta[None], amp[None], el[None])
     for channels in ("all", "ula"):
         patch = range_doppler_patch(scat, radar, array, np.array([k0]), n_range, wr, wd,
                                     channels, dtype=np.complex128)[0]
@@ -160,3 +166,47 @@ def test_noise_statistics_match_fft_of_white_noise():
     np.testing.assert_allclose(cov[0], [1, -2 / 3, 1 / 6], atol=1e-12)
     # Real and imaginary parts independent and equal (circular noise).
     assert abs(np.mean(noise ** 2)) / expected < 0.02
+
+
+def test_channel_energy_is_the_channel_sum_of_the_patch():
+    radar = RadarConfig.from_mapping(MMWCAS)
+    array = array_for(radar)
+    rng = np.random.default_rng(5)
+    b, s = 3, 5
+    scat = PointScatterers(rng.uniform(4, 6, (b, s)), rng.uniform(-2, 2, (b, s)),
+                           rng.uniform(-1, 1, (b, s)),
+                           np.exp(2j * np.pi * rng.uniform(size=(b, s))),
+                           elevation_rad=rng.uniform(-0.2, 0.2, (b, s)))
+    wr, wd = hann(radar.n_samples), hann(radar.n_chirps)
+    first = np.array([6, 7, 8])
+    patch = range_doppler_patch(scat, radar, array, first, 6, wr, wd, dtype=np.complex128)
+    a, c = patch_factors(scat, radar, array, first, 6, wr, wd)
+    energy = channel_energy(a, c)
+    np.testing.assert_allclose(energy, np.sum(np.abs(patch) ** 2, axis=-1), rtol=1e-9)
+
+
+def test_patch_equals_range_doppler_of_the_simulator_cube():
+    """The project's simulator (noise off) through the chain's range_doppler: same cells."""
+    sim_mod = pytest.importorskip("blindspot.radar.simulator")
+    rd_mod = pytest.importorskip("blindspot.dsp.range_doppler")
+    radar = RadarConfig.from_mapping(MMWCAS)
+    array = array_for(radar)
+    sim = sim_mod.FmcwSimulator(radar, array, noise=False)
+    rng = np.random.default_rng(9)
+    pos = np.column_stack([rng.uniform(-4, 4, 5), rng.uniform(6, 12, 5), rng.uniform(-0.5, 1, 5)])
+    vel = np.column_stack([rng.uniform(-2, 2, 5), rng.uniform(-2, 2, 5), np.zeros(5)])
+    rcs = rng.uniform(0.05, 0.5, 5)
+    rd = rd_mod.range_doppler(sim.frame(pos, vel, rcs))
+    r = np.linalg.norm(pos, axis=1)
+    u = pos / r[:, None]
+    carrier = 4 * np.pi * radar.start_freq_hz * r / SPEED_OF_LIGHT
+    from blindspot.radar.radar_equation import received_power_w
+    amp = np.sqrt(received_power_w(radar, rcs, r)) * np.exp(1j * carrier)
+    scat = PointScatterers(r[None], np.einsum("kd,kd->k", vel, u)[None],
+                           np.arctan2(u[:, 0], u[:, 1])[None], amp[None],
+                           np.arcsin(u[:, 2])[None])
+    wr, wd = rd_mod.window("hann", radar.n_samples), rd_mod.window("hann", radar.n_chirps)
+    k0 = 8
+    patch = range_doppler_patch(scat, radar, array, np.array([k0]), 20, wr, wd)[0]
+    ref = rd[k0:k0 + 20].reshape(20, radar.n_chirps, -1)
+    assert np.abs(patch - ref).max() / np.abs(ref).max() < 1e-4

@@ -22,7 +22,7 @@ velocity v (positive = receding) and azimuth theta (positive towards +x)::
 
     x = a exp(j [phi_0 + 2 pi (f_b n / f_adc + f_D (m T_loop + t T_chirp)) + psi_{t r}(theta)])
 
-with ``f_b = 2 S R / c`` (S the chirp slope), ``f_D = 2 v / lambda``, ``T_loop`` the loop period,
+with ``f_b = 2 S R / c + f_D`` (S the chirp slope), ``f_D = 2 v / lambda`` (centre wavelength), ``T_loop`` the loop period,
 ``T_chirp`` the chirp period and ``psi`` the spatial phase of the virtual element (see
 :func:`spatial_phase`). FFT conventions follow :mod:`blindspot.dsp.range_doppler`: unnormalised
 sums, periodic windows of peak 1, Doppler zero-centred (bin ``d`` has signed index ``d - M // 2``).
@@ -49,7 +49,9 @@ __all__ = [
     "doppler_frequency_hz",
     "spatial_phase",
     "channel_phasors",
+    "patch_factors",
     "range_doppler_patch",
+    "channel_energy",
     "range_noise_covariance",
     "post_fft_noise_power",
     "patch_noise",
@@ -67,16 +69,21 @@ class PointScatterers:
         azimuth_rad: azimuth, rad, positive towards +x (x = R sin theta, y = R cos theta).
         amplitude: complex amplitude of the beat tone at the ADC (sqrt of received power, W^0.5,
             times the carrier phase); 0 pads a frame with fewer scatterers.
+        elevation_rad: elevation above the radar's horizontal plane, rad (None = 0). The unit
+            vector to the scatterer is (sin az cos el, cos az cos el, sin el).
     """
 
     range_m: np.ndarray
     velocity_mps: np.ndarray
     azimuth_rad: np.ndarray
     amplitude: np.ndarray
+    elevation_rad: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         shape = np.shape(self.range_m)
-        for name in ("velocity_mps", "azimuth_rad", "amplitude"):
+        if self.elevation_rad is None:
+            object.__setattr__(self, "elevation_rad", np.zeros(shape))
+        for name in ("velocity_mps", "azimuth_rad", "amplitude", "elevation_rad"):
             if np.shape(getattr(self, name)) != shape:
                 raise ValueError(
                     f"PointScatterers.{name}: expected shape {shape} like range_m, "
@@ -146,11 +153,19 @@ def doppler_frequency_hz(velocity_mps: np.ndarray | float, radar: RadarConfig) -
     return 2.0 * np.asarray(velocity_mps, dtype=np.float64) / radar.wavelength_m
 
 
-def spatial_phase(azimuth_rad: np.ndarray, positions_wl: np.ndarray) -> np.ndarray:
-    """Phase of each virtual element relative to the origin for a far-field target at azimuth
-    theta: ``-2 pi p sin(theta)`` (an element further towards +x is closer to a target at positive
-    theta, so its echo is delayed less). (...), (C,) -> (..., C), rad."""
-    return -2.0 * np.pi * np.sin(np.asarray(azimuth_rad))[..., None] * np.asarray(positions_wl)
+def spatial_phase(azimuth_rad: np.ndarray, positions_wl: np.ndarray,
+                  elevation_rad: np.ndarray | None = None,
+                  elevation_positions_wl: np.ndarray | None = None) -> np.ndarray:
+    """Phase of each virtual element for a far-field target, the simulator's convention:
+    ``+2 pi (p_az u_x - p_el u_z)`` with ``u_x = sin(az) cos(el)``, ``u_z = sin(el)`` (the array's
+    azimuth axis increases towards -x, so the steering vector is ``exp(+j 2 pi p sin theta)``;
+    see :mod:`blindspot.radar.simulator`). (...), (C,) [, (...), (C,)] -> (..., C), rad."""
+    az = np.asarray(azimuth_rad)
+    el = np.zeros_like(az, dtype=float) if elevation_rad is None else np.asarray(elevation_rad)
+    phase = 2.0 * np.pi * (np.sin(az) * np.cos(el))[..., None] * np.asarray(positions_wl)
+    if elevation_positions_wl is not None:
+        phase = phase - 2.0 * np.pi * np.sin(el)[..., None] * np.asarray(elevation_positions_wl)
+    return phase
 
 
 def channel_selection(array: VirtualArray, channels: str | tuple[np.ndarray, np.ndarray] = "all"
@@ -172,16 +187,50 @@ def channel_selection(array: VirtualArray, channels: str | tuple[np.ndarray, np.
 
 
 def channel_phasors(velocity_mps: np.ndarray, azimuth_rad: np.ndarray, radar: RadarConfig,
-                    array: VirtualArray, channels: str | tuple[np.ndarray, np.ndarray] = "all"
-                    ) -> np.ndarray:
+                    array: VirtualArray, channels: str | tuple[np.ndarray, np.ndarray] = "all",
+                    elevation_rad: np.ndarray | None = None) -> np.ndarray:
     """Per-channel factor of each scatterer: the Doppler phase gained by the TX slot (TDM-MIMO)
-    times the spatial phase of the virtual element. (B, S), (B, S) -> complex128 (B, S, C)."""
+    times the spatial phase of the virtual element (azimuth and elevation positions).
+    (B, S), (B, S)[, (B, S)] -> complex128 (B, S, C)."""
     t_idx, r_idx = channel_selection(array, channels)
     pos_wl = array.virtual_pos[t_idx, r_idx, 0] * array.spacing_wl
+    el_wl = array.virtual_pos[t_idx, r_idx, 1] * array.spacing_wl
     slot_s = radar.tx_slot_times_s()[t_idx]
     fd = doppler_frequency_hz(velocity_mps, radar)
-    phase = 2.0 * np.pi * fd[..., None] * slot_s + spatial_phase(azimuth_rad, pos_wl)
+    phase = 2.0 * np.pi * fd[..., None] * slot_s + spatial_phase(
+        azimuth_rad, pos_wl, elevation_rad, el_wl if np.any(el_wl) else None)
     return np.exp(1j * phase)
+
+
+def patch_factors(scatterers: PointScatterers, radar: RadarConfig, array: VirtualArray,
+                  first_range_bin: np.ndarray, n_range: int, range_window: np.ndarray,
+                  doppler_window: np.ndarray,
+                  channels: str | tuple[np.ndarray, np.ndarray] = "all",
+                  *, include_doppler_in_beat: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """The two factors of a patch: ``X[b, k, d, c] = sum_s A[b, s, k, d] C[b, s, c]``.
+
+    Returns:
+        A: complex128 (B, S, K, M) amplitude times range response times Doppler response;
+        C: complex128 (B, S, C) channel phasors (:func:`channel_phasors`).
+    See :func:`range_doppler_patch` for the arguments.
+    """
+    b, s = scatterers.shape
+    m = doppler_window.shape[0]
+    if m != radar.n_chirps or range_window.shape[0] != radar.n_samples:
+        raise ValueError(
+            f"windows: expected range window of {radar.n_samples} and Doppler window of "
+            f"{radar.n_chirps} points for profile '{radar.name}', found "
+            f"{range_window.shape[0]} and {m}")
+    first = np.asarray(first_range_bin, dtype=np.int64).reshape(b)
+    fb = beat_frequency_hz(scatterers.range_m, scatterers.velocity_mps, radar,
+                           include_doppler=include_doppler_in_beat)
+    rng_k = tone_dft(fb / radar.adc_rate_hz, first[:, None], n_range, range_window)  # (B,S,K)
+    nu_d = doppler_frequency_hz(scatterers.velocity_mps, radar) * radar.loop_period_s
+    dop = tone_dft(nu_d, -(m // 2), m, doppler_window)  # (B,S,M)
+    ch = channel_phasors(scatterers.velocity_mps, scatterers.azimuth_rad, radar, array, channels,
+                         scatterers.elevation_rad)
+    amp_k = rng_k * np.asarray(scatterers.amplitude)[..., None]  # (B,S,K)
+    return amp_k[:, :, :, None] * dop[:, :, None, :], ch
 
 
 def range_doppler_patch(scatterers: PointScatterers, radar: RadarConfig, array: VirtualArray,
@@ -195,29 +244,34 @@ def range_doppler_patch(scatterers: PointScatterers, radar: RadarConfig, array: 
     Args:
         scatterers: B frames of S scatterers.
         first_range_bin: (B,) integer first range bin of each frame's patch.
-        n_range: K, range bins in the patch (bins first..first+K-1).
+        n_range: K, range bins in the patch (bins first..first+K-1, wrapping like the FFT).
         range_window: (N,) window of the range FFT (peak 1, as the dsp module uses).
         doppler_window: (M,) window of the Doppler FFT (real; zero-centring is done here).
         channels: virtual channels to return, see :func:`channel_selection`.
+        include_doppler_in_beat: add the Doppler frequency to the fast-time beat frequency.
 
     Returns:
         (B, K, M, C) complex: equal to ``range_doppler(cube)[first:first+K, :, tx, rx]`` of the
         directly synthesised cube of the same scatterers, Doppler zero-centred.
     """
-    b, s = scatterers.shape
-    m = radar.n_chirps
-    first = np.asarray(first_range_bin, dtype=np.int64).reshape(b)
-    fb = beat_frequency_hz(scatterers.range_m, scatterers.velocity_mps, radar,
-                           include_doppler=include_doppler_in_beat)
-    rng_k = tone_dft(fb / radar.adc_rate_hz, first[:, None], n_range, range_window)  # (B,S,K)
-    nu_d = doppler_frequency_hz(scatterers.velocity_mps, radar) * radar.loop_period_s
-    dop = tone_dft(nu_d, -(m // 2), m, doppler_window)  # (B,S,M)
-    ch = channel_phasors(scatterers.velocity_mps, scatterers.azimuth_rad, radar, array, channels)
-    amp_k = rng_k * np.asarray(scatterers.amplitude)[..., None]  # (B,S,K)
-    # sum_s A[b,s,k] D[b,s,d] C[b,s,c]: (B, K*M, S) @ (B, S, C)
-    kd = (amp_k[:, :, :, None] * dop[:, :, None, :]).reshape(b, s, n_range * m)
-    out = np.matmul(kd.transpose(0, 2, 1), ch)
-    return out.reshape(b, n_range, m, ch.shape[-1]).astype(dtype, copy=False)
+    a, ch = patch_factors(scatterers, radar, array, first_range_bin, n_range, range_window,
+                          doppler_window, channels, include_doppler_in_beat=include_doppler_in_beat)
+    b, s, k, m = a.shape
+    out = np.matmul(a.reshape(b, s, k * m).transpose(0, 2, 1), ch)  # (B, K*M, C)
+    return out.reshape(b, k, m, ch.shape[-1]).astype(dtype, copy=False)
+
+
+def channel_energy(factors: np.ndarray, phasors: np.ndarray) -> np.ndarray:
+    """Signal energy summed over channels, ``sum_c |sum_s A[s] C[s, c]|^2``, per cell, without
+    forming the channels: ``sum_{s,s'} conj(A_s) G[s, s'] A_s'`` with the Gram matrix
+    ``G = conj(C) C^T`` of the scatterers' channel phasors.
+
+    factors: (B, S, K, M), phasors: (B, S, C) -> float64 (B, K, M)."""
+    b, s, k, m = factors.shape
+    gram = np.conj(phasors) @ np.swapaxes(phasors, 1, 2)  # (B, S, S)
+    a = factors.reshape(b, s, k * m)
+    ga = gram @ a
+    return np.real(np.einsum("bsx,bsx->bx", np.conj(a), ga)).reshape(b, k, m)
 
 
 # ------------------------------------------------------------------------------------ noise
