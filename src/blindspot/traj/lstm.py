@@ -1,0 +1,328 @@
+"""Many-to-one LSTM regression of the next point from a window of points (paper Table 1).
+
+Model: ``nn.LSTM`` over the W points of a window (input size 2), its last hidden state into an
+MLP head ``Linear(hidden, head_hidden) -> ReLU -> Linear(head_hidden, 2)``. PyTorch's LSTM cell
+has fixed tanh/sigmoid gates, so the paper's ReLU activation (Table 1) lives in the head; this is
+the place Keras users usually mean by "activation" of a regression LSTM's dense layer.
+
+Normalisation (:class:`NormStats`, fitted on the training windows only):
+
+- ``translate=True``: each window is expressed relative to its own last point, so the network
+  never sees where the pedestrian is, only how they moved (translation invariance). With
+  ``translate=False`` a fitted mean position is subtracted instead.
+- ``normalise=True``: inputs are divided by a fitted scalar RMS (one scale for x and y, so
+  directions are not distorted) and the target by its own fitted RMS.
+- ``target="displacement"``: the network predicts ``next - last point``; ``"absolute"``: it
+  predicts the next point in the same frame as its inputs (relative to the last point when
+  translating, so the two differ then only in the output scale).
+
+:class:`LSTMPredictor` wraps a model and its statistics, predicts one step from windows and rolls
+out several steps (predict, append, slide) for a whole batch at once.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from collections.abc import Mapping
+from dataclasses import asdict, dataclass, fields
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+from torch import nn
+
+from blindspot.traj.windows import interpolate_gaps
+
+_FORMAT = "blindspot.lstm/1"
+_ACTIVATIONS = {"relu": nn.ReLU, "tanh": nn.Tanh, "identity": nn.Identity}
+_TARGETS = ("displacement", "absolute")
+
+
+class LSTMConfigError(ValueError):
+    """An LSTM setting is invalid; names the key, the value and what is allowed."""
+
+    def __init__(self, key: str, value: Any, expected: str) -> None:
+        super().__init__(f"{key}: expected {expected}, found {value!r}")
+        self.key, self.value, self.expected = key, value, expected
+
+
+@dataclass(frozen=True)
+class LSTMConfig:
+    """Model settings.
+
+    Attributes:
+        window: W, points per input window (paper: 50; ETH/UCY protocol: 8).
+        hidden_size: LSTM hidden units.
+        num_layers: stacked LSTM layers.
+        dropout: dropout between LSTM layers (only used when num_layers > 1).
+        head_hidden: width of the MLP head's hidden layer; 0 = a single linear layer (no activation).
+        head_activation: "relu" (paper Table 1), "tanh" or "identity".
+        target: "displacement" (next - last point) or "absolute" (next point).
+        translate: express each window relative to its last point.
+        normalise: scale inputs and target by RMS values fitted on the training set.
+    """
+
+    window: int = 50
+    hidden_size: int = 64
+    num_layers: int = 1
+    dropout: float = 0.0
+    head_hidden: int = 32
+    head_activation: str = "relu"
+    target: str = "displacement"
+    translate: bool = True
+    normalise: bool = True
+
+    def __post_init__(self) -> None:
+        for key in ("window", "hidden_size", "num_layers"):
+            v = getattr(self, key)
+            if isinstance(v, bool) or int(v) != v or v < 1:
+                raise LSTMConfigError(key, v, "an integer >= 1")
+        if isinstance(self.head_hidden, bool) or int(self.head_hidden) != self.head_hidden or self.head_hidden < 0:
+            raise LSTMConfigError("head_hidden", self.head_hidden, "an integer >= 0")
+        if not (0.0 <= float(self.dropout) < 1.0):
+            raise LSTMConfigError("dropout", self.dropout, "a number in [0, 1)")
+        if self.head_activation not in _ACTIVATIONS:
+            raise LSTMConfigError("head_activation", self.head_activation, f"one of {sorted(_ACTIVATIONS)}")
+        if self.target not in _TARGETS:
+            raise LSTMConfigError("target", self.target, f"one of {list(_TARGETS)}")
+        for key in ("translate", "normalise"):
+            if not isinstance(getattr(self, key), bool):
+                raise LSTMConfigError(key, getattr(self, key), "true or false")
+
+    @classmethod
+    def from_mapping(cls, mapping: Mapping[str, Any], where: str = "model") -> LSTMConfig:
+        """Build from a config mapping (e.g. the Hydra ``model`` group); unknown keys are errors
+        except ``name`` and ``_target_``."""
+        names = {f.name for f in fields(cls)}
+        unknown = set(mapping) - names - {"name", "_target_"}
+        if unknown:
+            raise LSTMConfigError(f"{where}.{sorted(unknown)[0]}", mapping[sorted(unknown)[0]], f"one of the keys {sorted(names)}")
+        try:
+            return cls(**{k: v for k, v in mapping.items() if k in names})
+        except LSTMConfigError as err:
+            raise LSTMConfigError(f"{where}.{err.key}", err.value, err.expected) from None
+
+
+@dataclass(frozen=True)
+class NormStats:
+    """How windows become network inputs and network outputs become points.
+
+    With ``o`` the origin (the window's last point when ``translate``, else ``in_offset``)::
+
+        u = (x - o) / in_scale                      network input, (B, W, 2)
+        displacement: next = x[:, -1] + r * out_scale
+        absolute:     next = o + r * out_scale      r = network output, (B, 2)
+    """
+
+    translate: bool
+    target: str
+    in_offset: tuple[float, float] = (0.0, 0.0)
+    in_scale: float = 1.0
+    out_scale: float = 1.0
+
+    @classmethod
+    def fit(cls, x: np.ndarray, y: np.ndarray, cfg: LSTMConfig) -> NormStats:
+        """Fit on training windows x (N, W, 2) and targets y (N, 2) (float64 accumulation)."""
+        x = np.asarray(x, dtype=np.float64)
+        y = np.asarray(y, dtype=np.float64)
+        if not cfg.normalise:
+            return cls(cfg.translate, cfg.target)
+        if cfg.translate:
+            offset = np.zeros(2)
+            origin = x[:, -1:, :]
+        else:
+            offset = x.reshape(-1, 2).mean(axis=0)
+            origin = offset[None, None, :]
+        in_scale = float(np.sqrt(np.mean((x - origin) ** 2)))
+        tgt = y - (x[:, -1] if cfg.target == "displacement" else origin[:, 0])
+        out_scale = float(np.sqrt(np.mean(tgt**2)))
+        # a degenerate training set (all windows constant) keeps unit scale rather than dividing by 0
+        return cls(
+            cfg.translate,
+            cfg.target,
+            (float(offset[0]), float(offset[1])),
+            in_scale if in_scale > 0 else 1.0,
+            out_scale if out_scale > 0 else 1.0,
+        )
+
+    def _origin(self, x: torch.Tensor) -> torch.Tensor:
+        if self.translate:
+            return x[:, -1, :]
+        return torch.tensor(self.in_offset, dtype=x.dtype).expand(x.shape[0], 2)
+
+    def encode(self, x: torch.Tensor) -> torch.Tensor:
+        """(B, W, 2) windows in metres -> (B, W, 2) network input."""
+        return (x - self._origin(x)[:, None, :]) / self.in_scale
+
+    def encode_target(self, x: torch.Tensor, y: torch.Tensor) -> torch.Tensor:
+        """(B, 2) next points in metres -> (B, 2) training target in network units."""
+        base = x[:, -1, :] if self.target == "displacement" else self._origin(x)
+        return (y - base) / self.out_scale
+
+    def decode(self, x: torch.Tensor, r: torch.Tensor) -> torch.Tensor:
+        """(B, 2) network output -> (B, 2) next points in metres."""
+        base = x[:, -1, :] if self.target == "displacement" else self._origin(x)
+        return base + r * self.out_scale
+
+
+class LSTMRegressor(nn.Module):
+    """Many-to-one LSTM: (B, W, 2) normalised window -> (B, 2) normalised next-point target."""
+
+    def __init__(self, cfg: LSTMConfig) -> None:
+        super().__init__()
+        self.cfg = cfg
+        self.lstm = nn.LSTM(
+            input_size=2,
+            hidden_size=cfg.hidden_size,
+            num_layers=cfg.num_layers,
+            batch_first=True,
+            dropout=cfg.dropout if cfg.num_layers > 1 else 0.0,
+        )
+        if cfg.head_hidden > 0:
+            self.head = nn.Sequential(
+                nn.Linear(cfg.hidden_size, cfg.head_hidden),
+                _ACTIVATIONS[cfg.head_activation](),
+                nn.Linear(cfg.head_hidden, 2),
+            )
+        else:
+            self.head = nn.Linear(cfg.hidden_size, 2)
+
+    def forward(self, u: torch.Tensor) -> torch.Tensor:
+        if u.ndim != 3 or u.shape[-1] != 2:
+            raise ValueError(f"LSTMRegressor input: expected shape (B, W, 2), found {tuple(u.shape)}")
+        out, _ = self.lstm(u)
+        return self.head(out[:, -1, :])
+
+
+def _as_windows(arr: Any, window: int, what: str) -> torch.Tensor:
+    t = torch.as_tensor(np.asarray(arr, dtype=np.float32))
+    if t.ndim != 3 or t.shape[1] != window or t.shape[2] != 2:
+        raise ValueError(f"{what}: expected shape (B, {window}, 2), found {tuple(t.shape)}")
+    return t
+
+
+def fill_history(history: np.ndarray) -> np.ndarray:
+    """Make a (B, T, 2) history NaN-free for rollout.
+
+    Interior missing rows are linearly interpolated (:func:`interpolate_gaps`); missing rows before
+    a track's first observed point take that point's value (they only affect the oldest inputs).
+    A track that ends in missing rows, or has none observed, raises ValueError: extrapolating is
+    the model's job, so trim the history to its last observed point and roll out from there.
+    """
+    filled = interpolate_gaps(history)
+    valid = np.isfinite(filled).all(axis=-1)  # (B, T)
+    if not valid.all():
+        empty = ~valid.any(axis=1)
+        if empty.any():
+            raise ValueError(f"history: track(s) {np.flatnonzero(empty)[:5].tolist()} have no observed point")
+        trailing = ~valid[:, -1]
+        if trailing.any():
+            b = int(np.flatnonzero(trailing)[0])
+            n_missing = int(valid.shape[1] - 1 - np.flatnonzero(valid[b])[-1])
+            raise ValueError(
+                f"history: track {b} ends with {n_missing} missing (NaN) rows; trim it to its last observed point "
+                "and roll out from there"
+            )
+        first = valid.argmax(axis=1)  # first observed index per track
+        lead = ~valid  # only leading gaps remain
+        filled[lead] = np.broadcast_to(filled[np.arange(len(first)), first][:, None, :], filled.shape)[lead]
+    return filled
+
+
+class LSTMPredictor:
+    """A trained :class:`LSTMRegressor` with its normalisation, usable as a PathPredictor.
+
+    Attributes:
+        name: "lstm".
+        config: the :class:`LSTMConfig`.
+        stats: the :class:`NormStats` fitted on the training windows.
+        model: the network (kept in eval mode here).
+    """
+
+    name = "lstm"
+
+    def __init__(self, model: LSTMRegressor, stats: NormStats) -> None:
+        self.model = model.eval()
+        self.config: LSTMConfig = model.cfg
+        self.stats = stats
+
+    @property
+    def window(self) -> int:
+        return self.config.window
+
+    def step(self, x: torch.Tensor) -> torch.Tensor:
+        """(B, W, 2) float32 windows in metres -> (B, 2) next points in metres (torch, no grad)."""
+        with torch.inference_mode():
+            return self.stats.decode(x, self.model(self.stats.encode(x)))
+
+    def predict_next(self, windows: np.ndarray) -> np.ndarray:
+        """One-step prediction: windows (B, W, 2) in metres -> (B, 2) float64 next points."""
+        x = _as_windows(windows, self.window, "windows")
+        if not torch.isfinite(x).all():
+            raise ValueError("windows: contain NaN/inf; fill gaps first (blindspot.traj.windows.interpolate_gaps)")
+        return self.step(x).double().numpy()
+
+    def predict(self, history: np.ndarray, horizon: int) -> np.ndarray:
+        """Autoregressive rollout for a batch: predict, append, slide, ``horizon`` times.
+
+        The whole history goes through :func:`fill_history` (interior gaps interpolated, leading
+        gaps held, trailing gaps refused); then only its last W points are used.
+
+        Args:
+            history: (B, T, 2) observed points in metres, T >= W.
+            horizon: number of future points, >= 0.
+
+        Returns:
+            (B, horizon, 2) float64 predicted points.
+        """
+        history = np.asarray(history, dtype=float)
+        if history.ndim != 3 or history.shape[-1] != 2:
+            raise ValueError(f"history: expected shape (B, T, 2), found {history.shape}")
+        if history.shape[1] < self.window:
+            raise ValueError(f"history: needs at least window={self.window} points, found T={history.shape[1]}")
+        if int(horizon) != horizon or horizon < 0:
+            raise ValueError(f"horizon: expected an integer >= 0, found {horizon!r}")
+        x = torch.from_numpy(fill_history(history)[:, -self.window :].astype(np.float32))
+        out = torch.empty((x.shape[0], int(horizon), 2), dtype=torch.float32)
+        for k in range(int(horizon)):  # one batched network call per future step
+            nxt = self.step(x)
+            out[:, k] = nxt
+            x = torch.cat([x[:, 1:], nxt[:, None, :]], dim=1)
+        return out.double().numpy()
+
+    def save(self, path: str | Path) -> Path:
+        """Write weights, config and statistics with ``torch.save`` (temp name, then rename)."""
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        blob = {
+            "format": _FORMAT,
+            "config": asdict(self.config),
+            "stats": asdict(self.stats),
+            "state_dict": self.model.state_dict(),
+        }
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+        os.close(fd)
+        try:
+            torch.save(blob, tmp)
+            os.replace(tmp, path)
+        except BaseException:
+            Path(tmp).unlink(missing_ok=True)
+            raise
+        return path
+
+    @classmethod
+    def load(cls, path: str | Path) -> LSTMPredictor:
+        """Read a file written by :meth:`save`; ValueError naming the file if it is not one."""
+        path = Path(path)
+        blob = torch.load(path, map_location="cpu", weights_only=True)
+        if not isinstance(blob, dict) or blob.get("format") != _FORMAT:
+            found = blob.get("format") if isinstance(blob, dict) else type(blob).__name__
+            raise ValueError(f"{path}: not an LSTMPredictor file (expected format {_FORMAT!r}, found {found!r})")
+        cfg = LSTMConfig(**blob["config"])
+        st = blob["stats"]
+        stats = NormStats(st["translate"], st["target"], tuple(st["in_offset"]), st["in_scale"], st["out_scale"])
+        model = LSTMRegressor(cfg)
+        model.load_state_dict(blob["state_dict"])
+        return cls(model, stats)
