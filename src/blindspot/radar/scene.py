@@ -1,0 +1,455 @@
+"""The paper's Fig. 5 scene: a parked car and a pedestrian who steps out from behind it.
+
+Geometry (all in the ground plane, m; radar at the origin, boresight +y, x to the right)
+----------------------------------------------------------------------------------------
+* **Car**: a 4.5 m x 1.8 m box parked with its long axis along y at x = 1.5..3.3, y = 4.8..9.3
+  (the kerb-side lane to the radar's right). The radar sees its near end (y = 4.8, range
+  5.0-5.9 m) and its left side (x = 1.5, range 5.0-9.4 m). Point scatterers are painted on every
+  face the radar can see (found from the geometry, so any placement works) plus a few bright
+  points (the near bumper corner and the two left wheels, at ranges 5.0, 5.9 and 8.5 m), so the
+  strong zero-Doppler returns fall around 5-8 m as in the paper's Fig. 6b. Total visible RCS
+  ``car.rcs_dbsm`` (15 dBsm by default).
+* **Pedestrian**: starts at (7.9, 10.2), 0.9 m beyond the car's far end on the kerb side, and walks
+  in -x at 1.0-1.5 m/s. The car's shadow seen from the radar spans azimuths 9.2..34.5 deg, which
+  on the line y = 10.2 is x = 1.64..7.01: the pedestrian is visible for the first ~0.7 s (so the
+  hidden stretch has points on both sides of it, which the paper's Fig. 8 interpolation needs),
+  hidden for ~4.3 s, steps out past the car's far-left corner, walks on to x ~ 0.3 and then
+  turns by ``turn_deg`` on a 0.6 m radius arc: +45 = towards the radar (range decreasing,
+  approaching), -45 = away from it (receding), 0 = straight on.
+  The turn is a counter-clockwise rotation (x right, y forward) of the walking direction.
+* **Body**: torso, head, two arms and two legs (total about -3 dBsm). Arms and legs swing along
+  the walking direction at the stride frequency speed / stride_length (arms in anti-phase with
+  the leg on the same side), which gives the micro-Doppler spread of a walking person.
+* **Occlusion**: a pedestrian scatterer whose line of sight from the radar crosses the car's
+  footprint is attenuated by ``occlusion_db`` (50 dB in ``conf/scene/paper.yaml``: after the
+  2-D FFT and the 192-channel power sum a hidden pedestrian stays within the noise, so almost no
+  points appear while hidden, as in Fig. 7). Diffraction around the car's edges and propagation
+  under the car are not modelled (a hard shadow).
+
+Heights are used for the slant range and the elevation phase only; occlusion is 2-D (the car is
+taken to be taller than the line of sight). Times are frame start times, ``i * frame_period_s``.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any, NamedTuple
+
+import numpy as np
+import pandas as pd
+
+from blindspot.radar.config import ConfigError, RadarConfig
+from blindspot.radar.occlusion import segment_crosses_polygon
+
+TRUTH_COLUMNS = (
+    "frame", "time_s", "x_m", "y_m", "vx_mps", "vy_mps", "range_m", "radial_velocity_mps",
+    "angle_deg", "occluded", "visible_fraction",
+)
+
+
+class Scatterers(NamedTuple):
+    """Point scatterers at one time (shapes without F) or at F times (with a leading F axis).
+
+    position_m : (K, 3) or (F, K, 3) x, y, z relative to the radar phase centre, m.
+    velocity_mps : same shape as ``position_m``, m/s.
+    rcs_m2 : (K,) radar cross-section, m^2.
+    attenuation_db : (K,) or (F, K) one-way-path-independent extra loss (occlusion), dB >= 0.
+    """
+
+    position_m: np.ndarray
+    velocity_mps: np.ndarray
+    rcs_m2: np.ndarray
+    attenuation_db: np.ndarray
+
+
+# ----------------------------------------------------------------------------- configuration
+@dataclass(frozen=True)
+class BodyPart:
+    """One pedestrian scatterer: RCS, height, lateral offset (+ = walker's left), swing."""
+
+    name: str
+    rcs_dbsm: float
+    height_m: float
+    lateral_m: float = 0.0
+    swing_m: float = 0.0
+    phase_deg: float = 0.0
+
+
+@dataclass(frozen=True)
+class PedestrianConfig:
+    start_xy_m: tuple[float, float]
+    direction_xy: tuple[float, float]
+    speed_mps: float
+    turn_after_m: float
+    turn_deg: float
+    turn_radius_m: float
+    stride_length_m: float
+    parts: tuple[BodyPart, ...]
+
+
+@dataclass(frozen=True)
+class CarConfig:
+    center_xy_m: tuple[float, float]
+    length_m: float
+    width_m: float
+    yaw_deg: float
+    height_m: float
+    rcs_dbsm: float
+    face_spacing_m: float
+    bright_points: tuple[tuple[float, float, float], ...]  # (across_m, along_m, share)
+
+
+@dataclass(frozen=True)
+class SceneConfig:
+    """One scene of the experiment (see the module docstring for the geometry)."""
+
+    name: str
+    n_frames: int
+    seed: int
+    with_car: bool
+    occlusion_db: float
+    radar_height_m: float
+    start_time_s: float
+    car: CarConfig
+    pedestrian: PedestrianConfig
+
+    @classmethod
+    def from_mapping(cls, mapping: Mapping[str, Any], where: str = "scene") -> SceneConfig:
+        """Build and validate from a dict / OmegaConf node; errors name ``where.key``."""
+        m = _plain(mapping, where)
+        car_m = _plain(_req(m, "car", where), f"{where}.car")
+        ped_m = _plain(_req(m, "pedestrian", where), f"{where}.pedestrian")
+        return cls(
+            name=str(m.get("name", where.rsplit(".", 1)[-1])),
+            n_frames=_int(m, "n_frames", where, 1, 1_000_000),
+            seed=_int(m, "seed", where, 0, 2**63 - 1),
+            with_car=_bool(m, "with_car", where),
+            occlusion_db=_num(m, "occlusion_db", where, 0.0, 300.0),
+            radar_height_m=_num(m, "radar_height_m", where, -10.0, 10.0, default=0.0),
+            start_time_s=_num(m, "start_time_s", where, -1e6, 1e6, default=0.0),
+            car=_car(car_m, f"{where}.car"),
+            pedestrian=_pedestrian(ped_m, f"{where}.pedestrian"),
+        )
+
+
+def load_scenes(group: Mapping[str, Any], where: str = "scene") -> dict[str, SceneConfig]:
+    """The scenes of a scene group file (``conf/scene/paper.yaml``): each entry of ``scenes``
+    deep-merged over ``shared``. Returns {name: SceneConfig} in file order."""
+    g = _plain(group, where)
+    scenes = _plain(_req(g, "scenes", where), f"{where}.scenes")
+    if not scenes:
+        raise ConfigError(f"{where}.scenes", scenes, "at least one scene")
+    shared = _plain(g.get("shared", {}), f"{where}.shared")
+    out = {}
+    for name, over in scenes.items():
+        merged = _deep_merge(shared, _plain(over, f"{where}.scenes.{name}"))
+        merged.setdefault("name", str(name))
+        out[str(name)] = SceneConfig.from_mapping(merged, where=f"{where}.scenes.{name}")
+    return out
+
+
+# ----------------------------------------------------------------------------- kinematics
+def _rot90(u: np.ndarray) -> np.ndarray:
+    """Rotate (..., 2) vectors 90 deg counter-clockwise (to the walker's left)."""
+    return np.stack([-u[..., 1], u[..., 0]], axis=-1)
+
+
+def _rotate(u: np.ndarray, angle_rad: np.ndarray | float) -> np.ndarray:
+    """Rotate (..., 2) vectors counter-clockwise by ``angle_rad`` (broadcast over leading axes)."""
+    c, s = np.cos(angle_rad), np.sin(angle_rad)
+    return np.stack([c * u[..., 0] - s * u[..., 1], s * u[..., 0] + c * u[..., 1]], axis=-1)
+
+
+class WalkState(NamedTuple):
+    """Pedestrian body-centre kinematics at F times."""
+
+    position_m: np.ndarray    # (F, 2)
+    velocity_mps: np.ndarray  # (F, 2)
+    heading: np.ndarray       # (F, 2) unit walking direction
+    turn_rate_rps: np.ndarray  # (F,) heading rate, rad/s (counter-clockwise positive)
+
+
+def walk(ped: PedestrianConfig, t: np.ndarray) -> WalkState:
+    """Body-centre path at times ``t`` (F,) s: straight, a constant-radius arc of ``turn_deg``,
+    straight again, at constant speed. Closed form, continuous in position and heading."""
+    t = np.asarray(t, dtype=float)
+    u0 = np.asarray(ped.direction_xy, dtype=float)
+    u0 = u0 / np.linalg.norm(u0)
+    n0 = _rot90(u0)
+    s = ped.speed_mps * t
+    s1 = ped.turn_after_m
+    delta = math.radians(ped.turn_deg)
+    arc_len = ped.turn_radius_m * abs(delta)
+    before = np.minimum(s, s1)
+    if arc_len > 0:
+        kappa = delta / arc_len
+        on_arc = np.clip(s - s1, 0.0, arc_len)
+        phi = kappa * on_arc
+        arc = (np.sin(phi) / kappa)[:, None] * u0 + ((1 - np.cos(phi)) / kappa)[:, None] * n0
+        turning = (s > s1) & (s < s1 + arc_len)
+        rate = np.where(turning, ped.speed_mps * kappa, 0.0)
+    else:  # straight on, or an instantaneous turn
+        phi = np.where(s > s1, delta, 0.0)
+        arc = np.zeros(t.shape + (2,))
+        rate = np.zeros_like(t)
+    after = np.maximum(s - s1 - arc_len, 0.0)
+    u2 = _rotate(u0, delta)
+    pos = np.asarray(ped.start_xy_m) + before[:, None] * u0 + arc + after[:, None] * u2
+    heading = _rotate(u0, phi)
+    return WalkState(pos, ped.speed_mps * heading, heading, rate)
+
+
+# ----------------------------------------------------------------------------- the scene
+class Scene:
+    """Scatterers and truth of one scene; vectorised over scatterers and times."""
+
+    def __init__(self, cfg: SceneConfig):
+        self.cfg = cfg
+        self.car_polygon: np.ndarray | None = car_footprint(cfg.car) if cfg.with_car else None
+        if self.car_polygon is not None:
+            car_xy, car_rcs = car_scatterers(cfg.car, self.car_polygon)
+        else:
+            car_xy, car_rcs = np.zeros((0, 2)), np.zeros(0)
+        self._car_xy = car_xy
+        self._car_z = cfg.car.height_m - cfg.radar_height_m
+        parts = cfg.pedestrian.parts
+        self._part_rcs = 10.0 ** (np.array([p.rcs_dbsm for p in parts]) / 10.0)
+        self.rcs_m2 = np.concatenate([car_rcs, self._part_rcs])
+        self.names: tuple[str, ...] = ("car",) * len(car_rcs) + tuple(p.name for p in parts)
+        self.is_pedestrian = np.array([n != "car" for n in self.names])
+        self.torso_index = next((i for i, p in enumerate(parts) if p.name == "torso"), 0)
+
+    @property
+    def n_scatterers(self) -> int:
+        return len(self.rcs_m2)
+
+    def pedestrian_parts_at(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, WalkState]:
+        """Body-part positions (F, P, 3) and velocities (F, P, 3) at times (F,), and the walk."""
+        ped = self.cfg.pedestrian
+        t = np.atleast_1d(np.asarray(t, dtype=float))
+        w = walk(ped, t)
+        u, n, om = w.heading[:, None, :], _rot90(w.heading)[:, None, :], w.turn_rate_rps[:, None, None]
+        lat = np.array([p.lateral_m for p in ped.parts])[:, None]
+        amp = np.array([p.swing_m for p in ped.parts])
+        phase = np.radians([p.phase_deg for p in ped.parts])
+        f_stride = ped.speed_mps / ped.stride_length_m
+        arg = 2 * np.pi * f_stride * t[:, None] + phase          # (F, P)
+        d = (amp * np.sin(arg))[..., None]                        # swing along the heading
+        d_dot = (amp * 2 * np.pi * f_stride * np.cos(arg))[..., None]
+        xy = w.position_m[:, None, :] + d * u + lat * n
+        # d/dt of heading u is om * n, of the normal n is -om * u
+        vxy = w.velocity_mps[:, None, :] + d_dot * u + d * om * n - lat * om * u
+        z = np.array([p.height_m for p in ped.parts]) - self.cfg.radar_height_m
+        pos = np.concatenate([xy, np.broadcast_to(z, xy.shape[:2])[..., None]], axis=-1)
+        vel = np.concatenate([vxy, np.zeros(vxy.shape[:2] + (1,))], axis=-1)
+        return pos, vel, w
+
+    def scatterers_at(self, t: float | np.ndarray) -> Scatterers:
+        """All scatterers (car first, then the body parts) at time ``t``.
+
+        Scalar t -> position_m (K, 3), velocity_mps (K, 3), rcs_m2 (K,), attenuation_db (K,);
+        t of shape (F,) -> leading F axis on position, velocity and attenuation.
+        """
+        scalar = np.ndim(t) == 0
+        t = np.atleast_1d(np.asarray(t, dtype=float))
+        f = len(t)
+        ped_pos, ped_vel, _ = self.pedestrian_parts_at(t)
+        k_car = len(self._car_xy)
+        car_pos = np.concatenate([self._car_xy, np.full((k_car, 1), self._car_z)], axis=1)
+        pos = np.concatenate([np.broadcast_to(car_pos, (f, k_car, 3)), ped_pos], axis=1)
+        vel = np.concatenate([np.zeros((f, k_car, 3)), ped_vel], axis=1)
+        att = np.zeros((f, self.n_scatterers))
+        if self.car_polygon is not None:
+            hidden = segment_crosses_polygon(ped_pos[..., :2], self.car_polygon)
+            att[:, k_car:] = np.where(hidden, self.cfg.occlusion_db, 0.0)
+        rcs = self.rcs_m2
+        if scalar:
+            return Scatterers(pos[0], vel[0], rcs, att[0])
+        return Scatterers(pos, vel, rcs, att)
+
+    def frame_times(self, frame_period_s: float) -> np.ndarray:
+        """(n_frames,) frame start times, s."""
+        return self.cfg.start_time_s + np.arange(self.cfg.n_frames) * frame_period_s
+
+    def truth(self, times_s: np.ndarray) -> pd.DataFrame:
+        """Per-time pedestrian truth (torso), columns ``TRUTH_COLUMNS``."""
+        times_s = np.asarray(times_s, dtype=float)
+        pos, _, w = self.pedestrian_parts_at(times_s)
+        x, y = w.position_m[:, 0], w.position_m[:, 1]
+        vx, vy = w.velocity_mps[:, 0], w.velocity_mps[:, 1]
+        rng = np.hypot(x, y)
+        if self.car_polygon is not None:
+            hidden = segment_crosses_polygon(pos[..., :2], self.car_polygon)  # (F, P)
+            torso_hidden = segment_crosses_polygon(w.position_m, self.car_polygon)
+        else:
+            hidden = np.zeros(pos.shape[:2], dtype=bool)
+            torso_hidden = np.zeros(len(times_s), dtype=bool)
+        visible = (~hidden * self._part_rcs).sum(axis=1) / self._part_rcs.sum()
+        return pd.DataFrame({
+            "frame": np.arange(len(times_s), dtype=np.int64),
+            "time_s": times_s,
+            "x_m": x, "y_m": y, "vx_mps": vx, "vy_mps": vy,
+            "range_m": rng,
+            "radial_velocity_mps": (x * vx + y * vy) / rng,
+            "angle_deg": np.degrees(np.arctan2(x, y)),
+            "occluded": torso_hidden,
+            "visible_fraction": visible,
+        }, columns=list(TRUTH_COLUMNS))
+
+
+def scene_truth(scene_cfg: SceneConfig | Mapping[str, Any], radar: RadarConfig) -> pd.DataFrame:
+    """Pedestrian truth for every frame of a scene (frame start times from the radar's frame
+    period). Columns: frame, time_s, x_m, y_m, vx_mps, vy_mps, range_m, radial_velocity_mps,
+    angle_deg, occluded (torso line of sight blocked by the car), visible_fraction (share of the
+    pedestrian's RCS whose line of sight is clear)."""
+    cfg = scene_cfg if isinstance(scene_cfg, SceneConfig) else SceneConfig.from_mapping(scene_cfg)
+    scene = Scene(cfg)
+    return scene.truth(scene.frame_times(radar.frame_period_s))
+
+
+# ----------------------------------------------------------------------------- the car
+def car_footprint(car: CarConfig) -> np.ndarray:
+    """(4, 2) corners of the car's footprint, counter-clockwise. yaw 0 = long axis along +y;
+    positive yaw rotates the car counter-clockwise."""
+    hw, hl = car.width_m / 2, car.length_m / 2
+    local = np.array([[-hw, -hl], [hw, -hl], [hw, hl], [-hw, hl]])  # (across, along)
+    return _rotate(local, math.radians(car.yaw_deg)) + np.asarray(car.center_xy_m)
+
+
+def car_scatterers(car: CarConfig, polygon: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Scatterers on the faces of the car the radar sees, plus the visible bright points.
+
+    Returns xy (K, 2) m and rcs (K,) m^2 summing to ``car.rcs_dbsm``. Face points sit every
+    ``face_spacing_m`` along each edge; a point is kept when its line of sight, stopped 1 mm short
+    of it, does not cross the footprint (so only faces turned towards the radar remain)."""
+    q0, q1 = polygon, np.roll(polygon, -1, axis=0)
+    lengths = np.linalg.norm(q1 - q0, axis=1)
+    counts = np.maximum(1, np.ceil(lengths / car.face_spacing_m).astype(int))
+    edge = np.repeat(np.arange(len(polygon)), counts)
+    frac = (np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts) + 0.5) / counts[edge]
+    face_xy = q0[edge] + frac[:, None] * (q1 - q0)[edge]
+    bright = np.array(car.bright_points, dtype=float).reshape(-1, 3)
+    bright_xy = _rotate(bright[:, :2], math.radians(car.yaw_deg)) + np.asarray(car.center_xy_m)
+    xy = np.concatenate([face_xy, bright_xy])
+    face_share = 1.0 - bright[:, 2].sum()
+    weight = np.concatenate([np.full(len(face_xy), face_share / max(len(face_xy), 1)), bright[:, 2]])
+    r = np.linalg.norm(xy, axis=1, keepdims=True)
+    seen = ~segment_crosses_polygon(xy * (1 - 1e-3 / r), polygon)
+    xy, weight = xy[seen], weight[seen]
+    if weight.sum() <= 0:
+        raise ConfigError("car.bright_points", car.bright_points, "shares leaving RCS on visible points")
+    rcs = 10 ** (car.rcs_dbsm / 10) * weight / weight.sum()
+    return xy, rcs
+
+
+# ----------------------------------------------------------------------------- parsing helpers
+def _plain(m: Any, where: str) -> dict[str, Any]:
+    try:
+        from omegaconf import DictConfig, ListConfig, OmegaConf
+
+        if isinstance(m, (DictConfig, ListConfig)):
+            m = OmegaConf.to_container(m, resolve=True)
+    except ImportError:  # pragma: no cover
+        pass
+    if not isinstance(m, Mapping):
+        raise ConfigError(where, m, "a mapping")
+    return dict(m)
+
+
+def _deep_merge(base: Mapping[str, Any], over: Mapping[str, Any]) -> dict[str, Any]:
+    out = dict(base)
+    for k, v in over.items():
+        out[k] = _deep_merge(out[k], v) if isinstance(v, Mapping) and isinstance(out.get(k), Mapping) else v
+    return out
+
+
+def _req(m: Mapping[str, Any], key: str, where: str) -> Any:
+    if m.get(key) is None:
+        raise ConfigError(f"{where}.{key}", None, "a value (the key is required)")
+    return m[key]
+
+
+def _num(m: Mapping[str, Any], key: str, where: str, lo: float, hi: float,
+         default: float | None = None) -> float:
+    v = m.get(key, default)
+    if v is None:
+        raise ConfigError(f"{where}.{key}", None, f"a number in [{lo:g}, {hi:g}] (required)")
+    ok = isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and lo <= v <= hi
+    if not ok:
+        raise ConfigError(f"{where}.{key}", v, f"a finite number in [{lo:g}, {hi:g}]")
+    return float(v)
+
+
+def _int(m: Mapping[str, Any], key: str, where: str, lo: int, hi: int) -> int:
+    v = m.get(key)
+    if not (isinstance(v, int) and not isinstance(v, bool) and lo <= v <= hi):
+        raise ConfigError(f"{where}.{key}", v, f"an integer in [{lo}, {hi}]")
+    return int(v)
+
+
+def _bool(m: Mapping[str, Any], key: str, where: str) -> bool:
+    v = m.get(key)
+    if not isinstance(v, bool):
+        raise ConfigError(f"{where}.{key}", v, "true or false")
+    return v
+
+
+def _vec2(m: Mapping[str, Any], key: str, where: str, nonzero: bool = False) -> tuple[float, float]:
+    v = m.get(key)
+    ok = (isinstance(v, (list, tuple)) and len(v) == 2
+          and all(isinstance(c, (int, float)) and not isinstance(c, bool) and math.isfinite(c) for c in v))
+    if not ok or (nonzero and math.hypot(*v) == 0):
+        raise ConfigError(f"{where}.{key}", v, "two finite numbers [x, y]" + (" not both 0" if nonzero else ""))
+    return float(v[0]), float(v[1])
+
+
+def _car(m: Mapping[str, Any], where: str) -> CarConfig:
+    bright = m.get("bright_points", [])
+    rows = []
+    for i, b in enumerate(bright or []):
+        b = _plain(b, f"{where}.bright_points[{i}]")
+        rows.append((_num(b, "across_m", f"{where}.bright_points[{i}]", -50, 50),
+                     _num(b, "along_m", f"{where}.bright_points[{i}]", -50, 50),
+                     _num(b, "share", f"{where}.bright_points[{i}]", 0.0, 1.0)))
+    if sum(r[2] for r in rows) > 1.0 + 1e-9:
+        raise ConfigError(f"{where}.bright_points", [r[2] for r in rows], "shares summing to at most 1")
+    return CarConfig(
+        center_xy_m=_vec2(m, "center_xy_m", where),
+        length_m=_num(m, "length_m", where, 0.5, 30.0),
+        width_m=_num(m, "width_m", where, 0.5, 10.0),
+        yaw_deg=_num(m, "yaw_deg", where, -360.0, 360.0, default=0.0),
+        height_m=_num(m, "height_m", where, 0.0, 5.0),
+        rcs_dbsm=_num(m, "rcs_dbsm", where, -30.0, 60.0),
+        face_spacing_m=_num(m, "face_spacing_m", where, 0.05, 10.0),
+        bright_points=tuple(rows),
+    )
+
+
+def _pedestrian(m: Mapping[str, Any], where: str) -> PedestrianConfig:
+    parts_m = _plain(_req(m, "parts", where), f"{where}.parts")
+    if not parts_m:
+        raise ConfigError(f"{where}.parts", parts_m, "at least one body part")
+    parts = []
+    for name, p in parts_m.items():
+        w = f"{where}.parts.{name}"
+        p = _plain(p, w)
+        parts.append(BodyPart(
+            name=str(name),
+            rcs_dbsm=_num(p, "rcs_dbsm", w, -60.0, 20.0),
+            height_m=_num(p, "height_m", w, 0.0, 3.0),
+            lateral_m=_num(p, "lateral_m", w, -2.0, 2.0, default=0.0),
+            swing_m=_num(p, "swing_m", w, 0.0, 2.0, default=0.0),
+            phase_deg=_num(p, "phase_deg", w, -360.0, 360.0, default=0.0),
+        ))
+    return PedestrianConfig(
+        start_xy_m=_vec2(m, "start_xy_m", where),
+        direction_xy=_vec2(m, "direction_xy", where, nonzero=True),
+        speed_mps=_num(m, "speed_mps", where, 0.0, 10.0),
+        turn_after_m=_num(m, "turn_after_m", where, 0.0, 1e4),
+        turn_deg=_num(m, "turn_deg", where, -180.0, 180.0),
+        turn_radius_m=_num(m, "turn_radius_m", where, 0.0, 100.0, default=0.0),
+        stride_length_m=_num(m, "stride_length_m", where, 0.1, 5.0),
+        parts=tuple(parts),
+    )
