@@ -1,0 +1,419 @@
+"""Physics baselines that follow the :class:`~blindspot.traj.predictor.PathPredictor` interface.
+
+* :class:`ConstantVelocity` - the constant-velocity model (CVM) of Schöller et al. (2020): the
+  velocity of the last two observed positions, ``v = x_t - x_{t-1}`` per frame, extrapolated
+  linearly. Optionally a least-squares velocity over the last ``k`` valid observations.
+* :class:`KalmanCV` - a Kalman filter on the constant-velocity state ``(x, y, vx, vy)`` with
+  white-noise acceleration, which treats NaN rows as missing observations. Prediction uses a
+  batched numpy filter (:func:`kalman_filter`, checked against pykalman in the tests); gap
+  filling uses pykalman's RTS smoother (:meth:`KalmanCV.smooth`). Noise levels can be fitted by
+  maximum likelihood on training tracks (:meth:`KalmanCV.fit`).
+
+All arrays are (x, y) in metres; histories are (B, T, 2), NaN rows = missing frames.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from typing import NamedTuple
+
+import numpy as np
+
+from blindspot.traj.predictor import HistoryError, check_history
+
+__all__ = [
+    "ConstantVelocity",
+    "KalmanCV",
+    "FilterResult",
+    "cv_model",
+    "kalman_filter",
+    "last_valid_index",
+]
+
+
+def last_valid_index(valid: np.ndarray) -> np.ndarray:
+    """Index of the last True along the last axis of ``valid`` (B, T); -1 where none is True."""
+    T = valid.shape[-1]
+    idx = T - 1 - np.argmax(valid[..., ::-1], axis=-1)
+    return np.where(valid.any(axis=-1), idx, -1)
+
+
+def _valid_rows(history: np.ndarray) -> np.ndarray:
+    """(B, T) True where both coordinates of a history row are finite."""
+    return np.isfinite(history).all(axis=-1)
+
+
+# --------------------------------------------------------------------------------------------
+# Constant velocity
+# --------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class ConstantVelocity:
+    """Constant-velocity extrapolation from the last valid observation.
+
+    Attributes:
+        k: number of most recent *valid* observations the velocity is estimated from. ``k = 2``
+            (default) is the published CVM: ``v = (x_j - x_i) / (j - i)`` for the last two valid
+            frames ``i < j`` (``x_t - x_{t-1}`` when none is missing). ``k > 2`` fits a
+            least-squares line position-vs-frame over the last ``k`` valid observations and
+            uses its slope (less sensitive to measurement noise).
+        name: label used in reports.
+
+    Tracks with a single valid observation are predicted to stand still; tracks with none give
+    NaN predictions.
+    """
+
+    k: int = 2
+    name: str = "cvm"
+
+    def __post_init__(self) -> None:
+        if int(self.k) != self.k or self.k < 2:
+            raise ValueError(f"ConstantVelocity.k: expected an integer >= 2, found {self.k!r}")
+
+    def velocity(self, history: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Velocity per frame and index of the last valid observation.
+
+        Args:
+            history: (B, T, 2) positions, NaN rows missing.
+
+        Returns:
+            ``(v, last)``: v (B, 2) metres per frame (0 where fewer than two valid rows), last
+            (B,) index of the last valid row (-1 where none).
+        """
+        h = check_history(history, 1, who=f"{self.name}.velocity")
+        valid = _valid_rows(h)
+        T = h.shape[1]
+        # number of valid rows at or after each frame -> keep the last k valid ones
+        from_end = np.cumsum(valid[:, ::-1], axis=1)[:, ::-1]
+        w = (valid & (from_end <= self.k)).astype(float)               # (B, T)
+        n = w.sum(axis=1)                                                # (B,)
+        t = np.arange(T, dtype=float)
+        x = np.where(valid[..., None], h, 0.0)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            t_mean = (w * t).sum(axis=1) / n                             # (B,)
+            x_mean = (w[..., None] * x).sum(axis=1) / n[:, None]         # (B, 2)
+            dt = (t[None, :] - t_mean[:, None]) * w                      # (B, T)
+            sxx = (dt * dt).sum(axis=1)
+            sxy = (dt[..., None] * (x - x_mean[:, None, :])).sum(axis=1)
+            v = sxy / sxx[:, None]
+        v = np.where((n >= 2)[:, None], v, 0.0)
+        return v, last_valid_index(valid)
+
+    def predict(self, history: np.ndarray, horizon: int) -> np.ndarray:
+        """Extrapolate each track at constant velocity.
+
+        Args:
+            history: (B, T, 2) positions in metres, NaN rows missing.
+            horizon: number of future frames.
+
+        Returns:
+            (B, horizon, 2): ``x_last + v * (T - 1 - last + h)``, h = 1..horizon.
+        """
+        h = check_history(history, horizon, who=f"{self.name}.predict")
+        v, last = self.velocity(h)
+        B, T, _ = h.shape
+        x_last = h[np.arange(B), np.maximum(last, 0)]                   # (B, 2)
+        x_last = np.where((last >= 0)[:, None], x_last, np.nan)
+        steps = (T - 1 - last)[:, None] + np.arange(1, horizon + 1)[None, :]   # (B, horizon)
+        return x_last[:, None, :] + steps[..., None] * v[:, None, :]
+
+
+# --------------------------------------------------------------------------------------------
+# Kalman filter, constant-velocity model
+# --------------------------------------------------------------------------------------------
+
+
+def cv_model(dt: float, process_psd: float, meas_std: float) -> tuple[np.ndarray, ...]:
+    """Matrices of the 2-D constant-velocity model with continuous white-noise acceleration.
+
+    State ``s = (x, y, vx, vy)`` in m and m/s; observation ``z = (x, y)`` in m.
+
+    Args:
+        dt: frame period in seconds.
+        process_psd: power spectral density ``q`` of the white acceleration noise, m^2/s^3
+            (per axis); ``Q = q [[dt^3/3, dt^2/2], [dt^2/2, dt]]`` per axis.
+        meas_std: standard deviation of each position coordinate's measurement noise, m.
+
+    Returns:
+        ``(F (4, 4), Q (4, 4), H (2, 4), R (2, 2))``.
+    """
+    if not dt > 0:
+        raise ValueError(f"KalmanCV.dt: expected a positive frame period in s, found {dt!r}")
+    if not process_psd > 0:
+        raise ValueError(f"KalmanCV.process_psd: expected > 0 (m^2/s^3), found {process_psd!r}")
+    if not meas_std > 0:
+        raise ValueError(f"KalmanCV.meas_std: expected > 0 (m), found {meas_std!r}")
+    I2 = np.eye(2)
+    F = np.block([[I2, dt * I2], [np.zeros((2, 2)), I2]])
+    Q = process_psd * np.block([[dt**3 / 3 * I2, dt**2 / 2 * I2], [dt**2 / 2 * I2, dt * I2]])
+    H = np.hstack([I2, np.zeros((2, 2))])
+    R = meas_std**2 * I2
+    return F, Q, H, R
+
+
+def _unique_rows(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Distinct rows of a boolean (B, T) mask and each row's index into them."""
+    packed = np.ascontiguousarray(np.packbits(mask, axis=1))            # (B, ceil(T/8)) uint8
+    keys = packed.view(np.dtype((np.void, packed.shape[1]))).reshape(-1)
+    _, first, which = np.unique(keys, return_index=True, return_inverse=True)
+    return mask[first], which.reshape(-1)
+
+
+class FilterResult(NamedTuple):
+    """Output of :func:`kalman_filter`.
+
+    means: (B, T, n) filtered state means; covs: (B, T, n, n) filtered covariances;
+    loglik: (B,) log-likelihood of each sequence's observed rows.
+    """
+
+    means: np.ndarray
+    covs: np.ndarray
+    loglik: np.ndarray
+
+
+def kalman_filter(obs: np.ndarray, F: np.ndarray, Q: np.ndarray, H: np.ndarray, R: np.ndarray,
+                  m0: np.ndarray, P0: np.ndarray) -> FilterResult:
+    """Batched linear Kalman filter with missing observations (same recursion as pykalman).
+
+    At t = 0 the prior is ``(m0, P0)``; each step then predicts with ``F, Q`` and corrects with
+    the observation unless the row holds a NaN (missing: the prediction is kept). The loop runs
+    over time only. The covariances and gains depend only on *which* frames are observed, not on
+    the values, so they are computed once per distinct missing-frame pattern (one pattern for
+    fully observed windows) and shared by all sequences with that pattern.
+
+    Args:
+        obs: (B, T, d) observations, NaN rows missing.
+        F: (n, n) transition; Q: (n, n) process covariance; H: (d, n) observation matrix;
+            R: (d, d) measurement covariance.
+        m0: (B, n) or (n,) prior mean at t = 0; P0: (n, n) prior covariance (shared).
+
+    Returns:
+        :class:`FilterResult` with filtered means (B, T, n), covariances (B, T, n, n) and the
+        per-sequence log-likelihood (B,) (sum over observed rows of log N(z_t; H m_t|t-1, S_t)).
+    """
+    z = np.asarray(obs, dtype=float)
+    if z.ndim != 3:
+        raise ValueError(f"kalman_filter: obs must be (B, T, d), found shape {z.shape}")
+    B, T, d = z.shape
+    n = F.shape[0]
+    P0 = np.asarray(P0, float)
+    if P0.shape != (n, n):
+        raise ValueError(f"kalman_filter: P0 must be ({n}, {n}), found {P0.shape}")
+    observed = np.isfinite(z).all(axis=-1)                               # (B, T)
+    patterns, which = _unique_rows(observed)                             # (U, T), (B,)
+    U = patterns.shape[0]
+    eye = np.eye(n)
+
+    # covariance recursion, once per observation pattern
+    P = np.broadcast_to(P0, (U, n, n)).copy()
+    gains = np.zeros((T, U, n, d))
+    S_inv_all = np.empty((T, U, d, d))
+    logdet_all = np.empty((T, U))
+    covs_u = np.empty((T, U, n, n))
+    for t in range(T):
+        if t > 0:
+            P = F @ P @ F.T + Q
+        S = H @ P @ H.T + R                                              # (U, d, d)
+        S_inv = np.linalg.inv(S)
+        K = P @ H.T @ S_inv                                              # (U, n, d)
+        upd = patterns[:, t]
+        P = np.where(upd[:, None, None], (eye - K @ H) @ P, P)
+        gains[t] = np.where(upd[:, None, None], K, 0.0)
+        S_inv_all[t] = S_inv
+        logdet_all[t] = np.linalg.slogdet(S)[1]
+        covs_u[t] = P
+
+    # mean recursion, all sequences together
+    m = np.broadcast_to(np.asarray(m0, float), (B, n)).copy()
+    means = np.empty((B, T, n))
+    loglik = np.zeros(B)
+    for t in range(T):
+        if t > 0:
+            m = m @ F.T
+        innov = np.where(observed[:, t, None], z[:, t], 0.0) - m @ H.T   # (B, d)
+        m = m + np.einsum("bij,bj->bi", gains[t][which], innov)
+        maha = np.einsum("bi,bij,bj->b", innov, S_inv_all[t][which], innov)
+        ll = -0.5 * (maha + logdet_all[t][which] + d * np.log(2 * np.pi))
+        loglik += np.where(observed[:, t], ll, 0.0)
+        means[:, t] = m
+    covs = np.moveaxis(covs_u, 0, 1)[which]                              # (B, T, n, n)
+    return FilterResult(means, covs, loglik)
+
+
+@dataclass(frozen=True)
+class KalmanCV:
+    """Constant-velocity Kalman filter (prediction) and RTS smoother (gap filling).
+
+    Attributes:
+        dt: frame period in s (ETH/UCY: 0.4 s).
+        process_psd: white-acceleration noise density q, m^2/s^3 (see :func:`cv_model`).
+        meas_std: position measurement noise standard deviation, m.
+        init_pos_std: prior std of the position around the first valid observation, m.
+        init_vel_std: prior std of the velocity around 0, m/s (a pedestrian walks ~1.3 m/s).
+        name: label used in reports.
+
+    The prior of each track is centred on its first valid observation with zero velocity.
+    """
+
+    dt: float = 0.4
+    process_psd: float = 0.5
+    meas_std: float = 0.05
+    init_pos_std: float = 1.0
+    init_vel_std: float = 2.0
+    name: str = "kalman"
+
+    def __post_init__(self) -> None:
+        cv_model(self.dt, self.process_psd, self.meas_std)   # validates the three values
+        for key in ("init_pos_std", "init_vel_std"):
+            if not getattr(self, key) > 0:
+                raise ValueError(f"KalmanCV.{key}: expected > 0, found {getattr(self, key)!r}")
+
+    # -- model --------------------------------------------------------------------------------
+    def matrices(self) -> tuple[np.ndarray, ...]:
+        """``(F, Q, H, R)`` of this model (see :func:`cv_model`)."""
+        return cv_model(self.dt, self.process_psd, self.meas_std)
+
+    def prior(self, tracks: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Prior ``(m0 (B, 4), P0 (4, 4))``: first valid position, zero velocity.
+
+        Tracks without any valid row get a NaN prior (their output is NaN).
+        """
+        valid = _valid_rows(tracks)
+        first = np.argmax(valid, axis=1)
+        pos = tracks[np.arange(tracks.shape[0]), first]
+        pos = np.where(valid.any(axis=1)[:, None], pos, np.nan)
+        m0 = np.hstack([pos, np.zeros_like(pos)])
+        P0 = np.diag([self.init_pos_std**2] * 2 + [self.init_vel_std**2] * 2)
+        return m0, P0
+
+    def filter(self, history: np.ndarray) -> FilterResult:
+        """Run the batched filter over (B, T, 2) tracks (NaN rows missing)."""
+        h = check_history(history, 1, who=f"{self.name}.filter")
+        F, Q, H, R = self.matrices()
+        m0, P0 = self.prior(h)
+        return kalman_filter(h, F, Q, H, R, m0, P0)
+
+    # -- PathPredictor -------------------------------------------------------------------------
+    def predict(self, history: np.ndarray, horizon: int) -> np.ndarray:
+        """Filter the history, then propagate the last state mean ``horizon`` frames ahead.
+
+        Args:
+            history: (B, T, 2) positions in metres, NaN rows missing.
+            horizon: number of future frames.
+
+        Returns:
+            (B, horizon, 2): ``p_T-1 + h dt v_T-1`` for h = 1..horizon (the mean of F^h s).
+        """
+        h = check_history(history, horizon, who=f"{self.name}.predict")
+        state = self.filter(h).means[:, -1]                                  # (B, 4)
+        lead = self.dt * np.arange(1, horizon + 1)[None, :, None]            # (1, horizon, 1)
+        return state[:, None, :2] + lead * state[:, None, 2:]
+
+    # -- gap filling ---------------------------------------------------------------------------
+    def smooth(self, track: np.ndarray) -> np.ndarray:
+        """Fill the gaps of one track with the Rauch-Tung-Striebel smoother (pykalman).
+
+        Args:
+            track: (T, 2) positions in metres, NaN rows missing (at least one valid row).
+
+        Returns:
+            (T, 2) smoothed positions at every frame, missing frames included.
+        """
+        from pykalman import KalmanFilter
+
+        x = np.asarray(track, dtype=float)
+        if x.ndim != 2 or x.shape[1] != 2:
+            raise HistoryError(f"{self.name}.smooth: expected one track shaped (T, 2), "
+                               f"found shape {x.shape}")
+        valid = _valid_rows(x[None])[0]
+        if not valid.any():
+            raise HistoryError(f"{self.name}.smooth: the track has no valid (non-NaN) row to "
+                               f"smooth from (T = {x.shape[0]})")
+        F, Q, H, R = self.matrices()
+        m0, P0 = self.prior(x[None])
+        kf = KalmanFilter(transition_matrices=F, observation_matrices=H,
+                          transition_covariance=Q, observation_covariance=R,
+                          initial_state_mean=m0[0], initial_state_covariance=P0)
+        masked = np.ma.masked_array(np.where(valid[:, None], x, 0.0),
+                                    mask=np.repeat(~valid[:, None], 2, axis=1))
+        means, _ = kf.smooth(masked)
+        return np.asarray(means[:, :2])
+
+    # -- fitting -------------------------------------------------------------------------------
+    def log_likelihood(self, tracks: np.ndarray) -> float:
+        """Total log-likelihood of (B, T, 2) tracks under this model (NaN rows missing)."""
+        ll = self.filter(tracks).loglik
+        return float(ll[np.isfinite(ll)].sum())
+
+    def fit(self, tracks: np.ndarray, *, objective: str = "likelihood", obs_len: int = 8,
+            max_tracks: int | None = 5000, seed: int = 0, max_iter: int = 300) -> "KalmanCV":
+        """Fit ``process_psd`` and ``meas_std`` on training tracks.
+
+        Args:
+            tracks: (B, T, 2) training tracks, NaN rows missing.
+            objective: ``"likelihood"`` - maximise the innovation log-likelihood of the whole
+                tracks (the statistically proper fit); ``"forecast"`` - minimise the mean
+                time-aligned error (ADE) of predicting ``tracks[:, obs_len:]`` from
+                ``tracks[:, :obs_len]`` (the fit that serves prediction; on data whose
+                annotations are nearly noise-free the likelihood fit drives ``meas_std`` to
+                its floor and the filter's endpoint velocity overshoots).
+            obs_len: observed frames per track for ``objective="forecast"``.
+            max_tracks: fit on at most this many tracks, drawn with ``seed`` (None = all).
+            seed: seed of that draw.
+            max_iter: optimiser iterations.
+
+        ``"likelihood"`` searches both noise levels (Nelder-Mead in log space); ``"forecast"``
+        holds ``meas_std`` and searches ``process_psd`` alone (bounded scalar search), because
+        the predicted mean depends on them only through ``process_psd / meas_std**2`` and the
+        prior. Values are clipped to ``process_psd`` in [1e-4, 1e2] m^2/s^3 and ``meas_std`` in
+        [1e-3, 1] m. Deterministic for a seed.
+
+        Returns:
+            A new :class:`KalmanCV` with the fitted values (dt and priors unchanged).
+        """
+        from scipy.optimize import minimize, minimize_scalar
+
+        from blindspot.traj.metrics import ade
+
+        if objective not in ("likelihood", "forecast"):
+            raise ValueError(f"KalmanCV.fit objective: expected 'likelihood' or 'forecast', "
+                             f"found {objective!r}")
+        h = check_history(tracks, 1, who=f"{self.name}.fit")
+        if objective == "forecast" and not 2 <= obs_len < h.shape[1]:
+            raise HistoryError(f"{self.name}.fit: obs_len must be in [2, T-1] = [2, "
+                               f"{h.shape[1] - 1}], found {obs_len}")
+        min_rows = 2 if objective == "likelihood" else 1
+        keep = _valid_rows(h[:, :obs_len] if objective == "forecast" else h).sum(axis=1)
+        h = h[keep >= min_rows]
+        if h.shape[0] == 0:
+            raise HistoryError(f"{self.name}.fit: no track has enough valid rows to fit on")
+        if max_tracks is not None and h.shape[0] > max_tracks:
+            pick = np.random.default_rng(seed).choice(h.shape[0], size=max_tracks, replace=False)
+            h = h[np.sort(pick)]
+        n_obs = max(int(_valid_rows(h).sum()), 1)
+        lo, hi = np.log([1e-4, 1e-3]), np.log([1e2, 1.0])
+
+        def model_at(theta: np.ndarray) -> "KalmanCV":
+            q, r = np.exp(np.clip(theta, lo, hi))
+            return replace(self, process_psd=float(q), meas_std=float(r))
+
+        def loss(theta: np.ndarray) -> float:
+            model = model_at(theta)
+            if objective == "likelihood":
+                return -model.log_likelihood(h) / n_obs
+            pred = model.predict(h[:, :obs_len], h.shape[1] - obs_len)
+            return ade(pred, h[:, obs_len:])
+
+        if objective == "forecast":
+            # the predicted mean depends on the noise levels only through q / r^2 (and the
+            # prior): hold meas_std, search process_psd on a bounded log scale
+            res1 = minimize_scalar(lambda lq: loss(np.array([lq, np.log(self.meas_std)])),
+                                   bounds=(lo[0], hi[0]), method="bounded",
+                                   options={"xatol": 1e-3, "maxiter": max_iter})
+            q = float(np.exp(np.clip(res1.x, lo[0], hi[0])))
+            return replace(self, process_psd=q)
+        x0 = np.clip(np.log([self.process_psd, self.meas_std]), lo, hi)
+        res = minimize(loss, x0, method="Nelder-Mead",
+                       options={"maxiter": max_iter, "xatol": 1e-3, "fatol": 1e-7})
+        return model_at(res.x)
