@@ -1,0 +1,148 @@
+"""ETH/UCY loading and Social-GAN windowing; on the real data: the README's window counts and the
+published constant-velocity numbers (Schöller et al. 2020), plus a smoke run of the CLI."""
+
+import json
+
+import numpy as np
+import pytest
+
+from blindspot.bench.ethucy import main as bench_main
+from blindspot.traj.baselines import ConstantVelocity
+from blindspot.traj.ethucy import (
+    FOLDS,
+    PUBLISHED,
+    TEST_WINDOWS,
+    EthUcyDataError,
+    load_split,
+    random_rotations,
+    read_scene,
+    scene_tracks,
+    sliding_windows,
+)
+from blindspot.traj.metrics import ade, fde
+
+
+def write_scene(path, rows):
+    path.write_text("\n".join("\t".join(f"{v:g}" for v in r) for r in rows) + "\n")
+    return path
+
+
+def synthetic_rows():
+    """Pedestrian 1 in frames 0..24, 2 in 0..19, 3 in 3..22 (frame ids step 10, x = frame)."""
+    spans = {1: range(0, 25), 2: range(0, 20), 3: range(3, 23)}
+    return [(10 * f, p, float(f), float(p)) for p, fr in spans.items() for f in fr]
+
+
+def test_windows_need_full_presence_and_a_neighbour(tmp_path):
+    tracks = scene_tracks(read_scene(write_scene(tmp_path / "s.txt", synthetic_rows())))
+    assert tracks.xy.shape == (3, 25, 2)
+    # seq_len 20, fully present: ped 1 starts 0..5, ped 2 start 0, ped 3 start 3
+    xy, ped, start = sliding_windows(tracks, 20, min_peds=1)
+    assert sorted(zip(start.tolist(), tracks.ped_ids[ped].tolist())) == sorted(
+        [(s, 1) for s in range(6)] + [(0, 2), (3, 3)])
+    # with a neighbour required: start 0 (peds 1, 2) and start 3 (peds 1, 3)
+    xy, ped, start = sliding_windows(tracks, 20, min_peds=2)
+    assert sorted(zip(start.tolist(), tracks.ped_ids[ped].tolist())) == [
+        (0, 1), (0, 2), (3, 1), (3, 3)]
+    # windows hold the right positions: x equals the frame index here
+    np.testing.assert_array_equal(xy[:, :, 0], start[:, None] + np.arange(20))
+
+
+def test_a_gap_breaks_the_window(tmp_path):
+    rows = [r for r in synthetic_rows() if not (r[1] == 1 and r[0] == 120)]   # ped 1 misses f=12
+    tracks = scene_tracks(read_scene(write_scene(tmp_path / "s.txt", rows)))
+    _, ped, _ = sliding_windows(tracks, 20, min_peds=1)
+    assert 1 not in tracks.ped_ids[ped]
+
+
+def test_bad_files_are_named(tmp_path):
+    with pytest.raises(EthUcyDataError, match="no such"):
+        read_scene(tmp_path / "missing.txt")
+    bad = tmp_path / "three_columns.txt"
+    bad.write_text("0\t1\t2.0\n10\t1\t2.5\n")
+    with pytest.raises(EthUcyDataError, match=r"three_columns\.txt.*4 columns"):
+        read_scene(bad)
+    off = write_scene(tmp_path / "off_grid.txt", [(0, 1, 0, 0), (15, 1, 1, 0)])
+    with pytest.raises(EthUcyDataError, match="not on the grid"):
+        scene_tracks(read_scene(off), source=str(off))
+    dup = write_scene(tmp_path / "dup.txt", [(0, 1, 0, 0), (0, 1, 1, 0)])
+    with pytest.raises(EthUcyDataError, match="twice"):
+        read_scene(dup)
+    with pytest.raises(EthUcyDataError, match="fold"):
+        load_split(tmp_path, "nowhere", "test")
+
+
+def test_random_rotations_keep_shape_of_motion():
+    rng = np.random.default_rng(0)
+    xy = np.cumsum(rng.normal(size=(50, 9, 2)), axis=1)
+    rot = random_rotations(xy, 3, np.random.default_rng(1))
+    assert rot.shape == (150, 9, 2)
+    for copy in range(3):
+        r = rot[copy * 50:(copy + 1) * 50]
+        np.testing.assert_allclose(np.linalg.norm(r, axis=-1), np.linalg.norm(xy, axis=-1))
+        np.testing.assert_allclose(np.linalg.norm(np.diff(r, axis=1), axis=-1),
+                                   np.linalg.norm(np.diff(xy, axis=1), axis=-1))
+    assert not np.allclose(rot[:50], xy)
+    np.testing.assert_array_equal(rot, random_rotations(xy, 3, np.random.default_rng(1)))
+
+
+# ---------------------------------------------------------------------------- real data
+
+
+@pytest.fixture(scope="module")
+def ethucy_dir(shared_dir):
+    d = shared_dir / "data" / "ethucy"
+    if not (d / "eth" / "test").is_dir():
+        pytest.skip(f"ETH/UCY data not found at {d}")
+    return d
+
+
+@pytest.fixture(scope="module")
+def test_windows(ethucy_dir):
+    return {fold: load_split(ethucy_dir, fold, "test") for fold in FOLDS}
+
+
+@pytest.mark.real_data
+@pytest.mark.parametrize("fold", FOLDS)
+def test_test_window_counts_match_the_readme(test_windows, fold):
+    assert len(test_windows[fold]) == TEST_WINDOWS[fold]
+    assert np.isfinite(test_windows[fold].xy).all()
+
+
+@pytest.mark.real_data
+def test_constant_velocity_reproduces_the_published_numbers(test_windows):
+    cvm, scores = ConstantVelocity(), {}
+    for fold, w in test_windows.items():
+        pred = cvm.predict(w.observed(), 12)
+        scores[fold] = (ade(pred, w.future()), fde(pred, w.future()))
+    published = PUBLISHED["cvm (Schöller et al. 2020)"]
+    for fold, (a, f) in scores.items():    # published to two decimals: within half a unit + 0.005
+        assert abs(a - published[fold]["ade"]) <= 0.01, (fold, a)
+        assert abs(f - published[fold]["fde"]) <= 0.01, (fold, f)
+    avg = np.mean(list(scores.values()), axis=0)
+    assert abs(avg[0] - 0.52) <= 0.01 and abs(avg[1] - 1.14) <= 0.01, avg
+
+
+@pytest.mark.real_data
+def test_bench_cli_smoke_on_the_eth_fold(ethucy_dir, tmp_path):
+    out, report = tmp_path / "m" / "ethucy.json", tmp_path / "ethucy.md"
+    rc = bench_main(["--data", str(ethucy_dir), "--out", str(out), "--report", str(report),
+                     "--models", "cvm,kalman", "--folds", "eth", "--quiet"])
+    assert rc == 0
+    result = json.loads(out.read_text())
+    assert set(result) == {"cvm", "kalman"}
+    for model in result.values():
+        assert set(model) == {"eth", "avg"}
+        assert model["eth"]["n_windows"] == 181
+        assert model["avg"]["ade"] == model["eth"]["ade"]
+        assert 0 < model["eth"]["ade"] < model["eth"]["fde"] < 5
+    assert result["cvm"]["eth"]["ade"] == pytest.approx(1.00, abs=0.01)
+    text = report.read_text()
+    assert "| cvm (ours) |" in text and "published" in text
+    assert not list(out.parent.glob("*.tmp"))
+
+
+def test_bench_cli_rejects_unknown_model(tmp_path, capsys):
+    with pytest.raises(SystemExit):
+        bench_main(["--out", str(tmp_path / "x.json"), "--models", "cvm,magic"])
+    assert "--models" in capsys.readouterr().err
