@@ -7,10 +7,12 @@ copied from the real conf/ so the shipped files are the ones exercised.
 
 from __future__ import annotations
 
+import atexit
 import os
 import shutil
 import subprocess
 import sys
+import tempfile
 import textwrap
 from pathlib import Path
 
@@ -80,8 +82,34 @@ stages:
 """
 
 
-def make_toy_repo(root: Path, *, dvc_yaml: bool = True) -> Path:
-    """Write conf/, stages/toy.py and (optionally) dvc.yaml under ``root``; returns ``root``."""
+_TEMPLATE_DB: Path | None = None
+
+
+def _template_db() -> Path:
+    """An empty MLflow SQLite store (schema only), created once per test session.
+
+    Creating MLflow's schema (alembic migrations) costs seconds; copying the file costs
+    nothing. Only the schema and MLflow's "Default" experiment are in it: the "blindspot"
+    experiment is still created by blindspot.tracking in each repo.
+    """
+    global _TEMPLATE_DB
+    if _TEMPLATE_DB is None:
+        from mlflow.tracking import MlflowClient
+
+        folder = Path(tempfile.mkdtemp(prefix="blindspot-mlflow-template-"))
+        atexit.register(shutil.rmtree, folder, True)
+        db = folder / "mlflow.db"
+        MlflowClient(tracking_uri=f"sqlite:///{db}").search_experiments(max_results=1)
+        _TEMPLATE_DB = db
+    return _TEMPLATE_DB
+
+
+def make_toy_repo(root: Path, *, dvc_yaml: bool = True, store: bool = True) -> Path:
+    """Write conf/, stages/toy.py and (optionally) dvc.yaml under ``root``; returns ``root``.
+
+    ``store``: start with an empty MLflow store copied from a session template (fast);
+    False leaves the store to be created by the code under test.
+    """
     (root / "conf" / "model").mkdir(parents=True)
     (root / "conf" / "train").mkdir()
     (root / "conf" / "tracking").mkdir()
@@ -94,6 +122,8 @@ def make_toy_repo(root: Path, *, dvc_yaml: bool = True) -> Path:
     shutil.copy(REPO / "conf" / "hydra" / "launcher" / "parallel.yaml",
                 root / "conf" / "hydra" / "launcher")
     (root / "stages" / "toy.py").write_text(TOY_STAGE.lstrip())
+    if store:
+        shutil.copy(_template_db(), root / "mlflow.db")
     if dvc_yaml:
         (root / "dvc.yaml").write_text(textwrap.dedent(DVC_YAML).lstrip())
     (root / ".gitignore").write_text("/mlflow.db\n/mlflow.db.lock\n/mlartifacts/\n/outputs/\n"

@@ -1,0 +1,118 @@
+"""`python -m blindspot ...` and `python stages/<name>.py` (main_stage), run as real processes."""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+import pytest
+
+from blindspot import config
+from tests.pipeline.toy_repo import blindspot, clean_env, make_toy_repo, run, runs
+
+
+@pytest.fixture()
+def toy(tmp_path: Path) -> Path:
+    root = make_toy_repo(tmp_path / "repo")
+    config.write_params(root)
+    return root
+
+
+def test_stage_with_overrides_from_a_subdirectory(toy: Path) -> None:
+    blindspot(["toy", "train.lr=0.5", "model.hidden_size=4"], toy / "stages")
+    result = json.loads((toy / "out" / "toy.json").read_text())  # written at the repo root
+    assert result == {"hidden_size": 4, "lr": 0.5, "score": 2.0}
+    (r,) = runs(toy)
+    assert r.info.status == "FINISHED" and r.info.run_name == "toy"
+    assert r.data.params["train.lr"] == "0.5" and r.data.params["model.hidden_size"] == "4"
+    assert r.data.tags["toy.cwd"] == str(toy.resolve())
+    assert r.data.tags["hydra.overrides"] == "train.lr=0.5 model.hidden_size=4"
+    assert r.data.metrics["score"] == pytest.approx(4.0)  # last step: epoch 2 of 2
+
+
+def test_unknown_stage_lists_the_stages(toy: Path) -> None:
+    proc = blindspot(["tarin", "x=1"], toy, check=False)
+    assert proc.returncode == 2
+    assert "unknown stage 'tarin'" in proc.stderr and "Stages: toy" in proc.stderr
+    proc = blindspot(["stages"], toy)
+    assert proc.stdout.split() == ["toy"]
+
+
+def test_cfg_job_prints_config_and_logs_nothing(toy: Path) -> None:
+    proc = blindspot(["toy", "--cfg", "job", "train.lr=0.25"], toy)
+    assert "lr: 0.25" in proc.stdout
+    assert runs(toy) == []
+
+
+def test_params_and_check_params_commands(toy: Path) -> None:
+    assert "up to date" in blindspot(["check-params"], toy).stdout
+    (toy / "conf" / "model" / "small.yaml").write_text("hidden_size: 24\nlayers: [1, 2]\n")
+    proc = blindspot(["check-params"], toy, check=False)
+    assert proc.returncode == 1
+    assert "model.hidden_size: params.yaml has 16, conf/ gives 24" in proc.stderr
+    assert "Fix: run `python -m blindspot params`" in proc.stderr
+    assert blindspot(["params", "x=1"], toy, check=False).returncode == 2
+    blindspot(["params"], toy)
+    assert config.load_params(toy).model.hidden_size == 24
+    blindspot(["check-params"], toy)
+
+
+def test_main_stage_reads_params_yaml_and_refuses_arguments(toy: Path) -> None:
+    py = sys.executable
+    proc = run([py, "stages/toy.py", "train.lr=3"], toy, check=False)
+    assert proc.returncode == 2 and "python -m blindspot toy train.lr=3" in proc.stderr
+    # Stale params.yaml under `dvc repro` / by hand: refuse, with the fix.
+    (toy / "conf" / "train" / "base.yaml").write_text("lr: 0.3\nepochs: 2\n")
+    proc = run([py, "stages/toy.py"], toy, check=False)
+    assert proc.returncode == 1 and "python -m blindspot params" in proc.stderr
+    assert runs(toy) == []
+    # Inside `dvc exp run` DVC composed params.yaml itself: it is used as is.
+    text = (toy / "params.yaml").read_text().replace("lr: 0.1", "lr: 0.05")
+    (toy / "params.yaml").write_text(text)
+    run([py, str(toy / "stages" / "toy.py")], toy / "conf", env=clean_env(DVC_EXP_NAME="e1"))
+    (r,) = runs(toy)
+    assert r.data.params["train.lr"] == "0.05" and r.data.tags["dvc.exp_name"] == "e1"
+    assert r.info.run_name == "toy@e1"
+    assert json.loads((toy / "out" / "toy.json").read_text())["lr"] == 0.05
+
+
+def _sweep_runs(toy: Path) -> tuple[object, list]:
+    found = runs(toy)
+    parents = [r for r in found if r.data.tags.get("blindspot.sweep") == "true"]
+    assert len(parents) == 1, [r.info.run_name for r in found]
+    children = [r for r in found if r is not parents[0]]
+    assert {r.data.tags.get("mlflow.parentRunId") for r in children} == {parents[0].info.run_id}
+    return parents[0], sorted(children, key=lambda r: int(r.data.tags["hydra.job_num"]))
+
+
+def test_multirun_parent_with_one_child_per_job(toy: Path) -> None:
+    blindspot(["toy", "-m", "model.hidden_size=8,16"], toy)
+    parent, children = _sweep_runs(toy)
+    assert parent.info.status == "FINISHED" and parent.info.run_name == "toy-sweep"
+    assert parent.data.tags["hydra.overrides"] == "model.hidden_size=8,16"
+    assert [c.data.params["model.hidden_size"] for c in children] == ["8", "16"]
+    assert [c.info.run_name for c in children] == ["toy#0", "toy#1"]
+    assert {c.info.status for c in children} == {"FINISHED"}
+    assert [c.data.metrics["score"] for c in children] == pytest.approx([1.6, 3.2])
+
+
+def test_joblib_multirun_reuses_workers_without_leaking_runs(toy: Path) -> None:
+    blindspot(["toy", "-m", "hydra/launcher=parallel", "model.hidden_size=1,2,3,4"], toy)
+    parent, children = _sweep_runs(toy)
+    assert parent.info.status == "FINISHED"
+    assert [c.data.params["model.hidden_size"] for c in children] == ["1", "2", "3", "4"]
+    assert {c.info.status for c in children} == {"FINISHED"}
+    pids = [c.data.tags["toy.pid"] for c in children]
+    assert len(set(pids)) < len(pids) <= 4  # loky reused a worker process ...
+    # ... and each job still logged into its own run only: one score series per child.
+    for c, h in zip(children, [1, 2, 3, 4], strict=True):
+        assert c.data.metrics["score"] == pytest.approx(0.1 * h * 2)
+
+
+def test_failed_sweep_job_fails_parent_not_running(toy: Path) -> None:
+    proc = blindspot(["toy", "-m", "toy.fail=false,true"], toy, check=False)
+    assert proc.returncode != 0 and "toy stage asked to fail" in proc.stderr
+    parent, children = _sweep_runs(toy)
+    assert [c.info.status for c in children] == ["FINISHED", "FAILED"]
+    assert parent.info.status == "FAILED"

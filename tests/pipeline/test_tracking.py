@@ -1,0 +1,205 @@
+"""blindspot.tracking against a real SQLite MLflow store, read back with MlflowClient."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+from mlflow.tracking import MlflowClient
+
+from blindspot import tracking
+from tests.pipeline.toy_repo import blindspot, clean_env, make_toy_repo, runs
+
+
+@pytest.fixture(autouse=True)
+def _no_outer_tracking_env(monkeypatch: pytest.MonkeyPatch) -> None:
+    for key in ("MLFLOW_TRACKING_URI", tracking.PARENT_RUN_ENV, "DVC_ROOT", "DVC_EXP_NAME",
+                "DVC_EXP_BASELINE_REV", "DVC_STAGE"):
+        monkeypatch.delenv(key, raising=False)
+
+
+@pytest.fixture()
+def toy(tmp_path: Path) -> Path:
+    return make_toy_repo(tmp_path / "repo")
+
+
+CFG = {
+    "model": {"hidden_size": 16, "layers": [1, 2]},
+    "train": {"lr": 0.1, "note": "x" * 7000},
+    "tracking": {"enabled": True, "uri": None, "experiment": "blindspot"},
+    "seed": 0,
+}
+
+
+def _client(root: Path) -> MlflowClient:
+    return MlflowClient(tracking_uri=f"sqlite:///{root / 'mlflow.db'}")
+
+
+def test_stage_run_logs_params_metrics_artifacts(toy: Path) -> None:
+    subprocess.run(["git", "init", "-q"], cwd=toy, check=True)
+    (toy / "model.pt").write_bytes(b"\x00weights")
+    (toy / "figs").mkdir()
+    (toy / "figs" / "a.txt").write_text("a")
+    with tracking.stage_run("train", CFG, repo_root=toy) as t:
+        assert tracking.current() is t
+        for step in range(3):
+            t.log_metrics({"loss": 1.0 / (step + 1), "val": {"rmse_m": 0.5 - 0.1 * step}}, step=step)
+        t.log_model_file(toy / "model.pt")
+        t.log_artifact(toy / "figs", "figures")
+        t.log_params({"train.lr": 0.1})  # same value again: accepted (write-once semantics)
+        with pytest.raises(ValueError, match="write-once"):
+            t.log_params({"train.lr": 0.2})
+        with pytest.raises(ValueError, match="metric 'bad'"):
+            t.log_metrics({"bad": "high"})
+        with pytest.raises(FileNotFoundError, match="nope"):
+            t.log_artifact(toy / "nope")
+        run_id = t.run_id
+    assert isinstance(tracking.current(), tracking.NullTracker) and tracking.current().run_id is None
+
+    client = _client(toy)
+    run = client.get_run(run_id)
+    assert run.info.status == "FINISHED"
+    assert client.get_experiment(run.info.experiment_id).name == "blindspot"
+    p = run.data.params
+    assert p["model.hidden_size"] == "16" and p["train.lr"] == "0.1" and p["seed"] == "0"
+    assert p["model.layers"] == "[1, 2]"
+    assert len(p["train.note"]) <= 6000 and "truncated" in p["train.note"]
+    assert run.data.tags["blindspot.stage"] == "train"
+    assert "mlflow.source.git.commit" not in run.data.tags  # git repo without commits
+    history = client.get_metric_history(run_id, "loss")
+    assert [(m.step, round(m.value, 6)) for m in history] == [(0, 1.0), (1, 0.5), (2, 0.333333)]
+    assert run.data.metrics["val.rmse_m"] == pytest.approx(0.3)
+    names = {a.path for a in client.list_artifacts(run_id)}
+    assert names == {"config", "figures", "model"}
+    art_root = Path(run.info.artifact_uri.removeprefix("file://"))
+    assert art_root.is_relative_to(toy / "mlartifacts")
+    assert (art_root / "model" / "model.pt").read_bytes() == b"\x00weights"
+    assert (art_root / "figures" / "a.txt").read_text() == "a"
+    assert "hidden_size: 16" in (art_root / "config" / "params.yaml").read_text()
+
+
+def test_git_commit_tag(toy: Path) -> None:
+    env = clean_env(GIT_AUTHOR_NAME="t", GIT_AUTHOR_EMAIL="t@t", GIT_COMMITTER_NAME="t",
+                    GIT_COMMITTER_EMAIL="t@t")
+    for cmd in (["git", "init", "-q"], ["git", "add", "-A"], ["git", "commit", "-qm", "x"]):
+        subprocess.run(cmd, cwd=toy, check=True, env=env)
+    head = subprocess.run(["git", "rev-parse", "HEAD"], cwd=toy, capture_output=True, text=True,
+                          check=True).stdout.strip()
+    with tracking.stage_run("x", {"a": 1}, repo_root=toy) as t:
+        pass
+    tags = _client(toy).get_run(t.run_id).data.tags
+    assert tags["mlflow.source.git.commit"] == head and tags["git.dirty"] == "false"
+
+
+def test_exception_ends_run_failed_and_propagates(toy: Path) -> None:
+    with pytest.raises(RuntimeError, match="boom"):
+        with tracking.stage_run("train", CFG, repo_root=toy) as t:
+            raise RuntimeError("boom")
+    assert _client(toy).get_run(t.run_id).info.status == "FAILED"
+
+
+def test_nested_stage_runs_get_parent_tag(toy: Path) -> None:
+    with tracking.stage_run("outer", {"a": 1}, repo_root=toy) as outer:
+        with tracking.stage_run("inner", {"b": 2}, repo_root=toy) as inner:
+            assert tracking.current() is inner
+        assert tracking.current() is outer
+    run = _client(toy).get_run(inner.run_id)
+    assert run.data.tags["mlflow.parentRunId"] == outer.run_id
+
+
+def test_disabled_tracking_is_a_no_op(toy: Path) -> None:
+    cfg = {"tracking": {"enabled": False}, "x": 1}
+    (toy / "mlflow.db").unlink()
+    with tracking.stage_run("train", cfg, repo_root=toy) as t:
+        assert t.run_id is None and tracking.current() is t
+        t.log_metrics({"loss": 1.0})
+        t.log_artifact("does-not-matter")
+    assert not (toy / "mlflow.db").exists()
+    with pytest.raises(ValueError, match="tracking.enabled"):
+        tracking.settings_from_cfg({"tracking": {"enabled": "no"}}, toy)
+
+
+def test_tracking_uri_precedence(toy: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    assert tracking.tracking_uri(None, toy) == f"sqlite:///{toy.resolve() / 'mlflow.db'}"
+    rel = {"tracking": {"uri": "sqlite:///stores/m.db"}}
+    assert tracking.tracking_uri(rel, toy) == f"sqlite:///{toy.resolve() / 'stores' / 'm.db'}"
+    assert tracking.tracking_uri({"tracking": {"uri": "x.db"}}, toy).endswith(f"{toy.name}/x.db")
+    # A `dvc exp run --queue` temp copy logs into the ORIGINAL repo's store.
+    copy = make_toy_repo(toy / ".dvc" / "tmp" / "exps" / "tmp1234abcd")
+    s = tracking.settings_from_cfg(None, copy)
+    assert s.uri == f"sqlite:///{toy.resolve() / 'mlflow.db'}"
+    assert s.artifact_location == (toy.resolve() / "mlartifacts").as_uri()
+    monkeypatch.setenv("MLFLOW_TRACKING_URI", "sqlite:////elsewhere/m.db")
+    assert tracking.tracking_uri(rel, toy) == "sqlite:////elsewhere/m.db"
+
+
+def test_job_start_ends_leaked_fluent_run(toy: Path) -> None:
+    import mlflow
+
+    mlflow.set_tracking_uri(f"sqlite:///{toy / 'mlflow.db'}")
+    try:
+        leaked = mlflow.start_run()
+        assert mlflow.active_run() is not None
+        tracking.SweepCallback().on_job_start(config=None)
+        assert mlflow.active_run() is None
+        assert _client(toy).get_run(leaked.info.run_id).info.status == "FINISHED"
+    finally:
+        while mlflow.active_run():
+            mlflow.end_run()
+        mlflow.set_tracking_uri("")
+
+
+RACE = """
+import sys, time
+from pathlib import Path
+from blindspot import tracking
+import mlflow.tracking  # the slow imports happen before the barrier
+i, n, root = int(sys.argv[1]), int(sys.argv[2]), Path(sys.argv[3])
+(root / f"ready-{i}").touch()
+while len(list(root.glob("ready-*"))) < n:  # barrier: everybody imported, then go at once
+    time.sleep(0.005)
+with tracking.stage_run("race", {"i": i}, repo_root=root) as t:
+    t.log_metrics({"i": i})
+"""
+
+
+def test_parallel_first_runs_on_a_fresh_store_do_not_race(tmp_path: Path) -> None:
+    toy = make_toy_repo(tmp_path / "fresh", store=False)
+    n = 3
+    procs = [subprocess.Popen([sys.executable, "-c", RACE, str(i), str(n), str(toy)],
+                              env=clean_env(), stderr=subprocess.PIPE, text=True)
+             for i in range(n)]
+    errors = [p.communicate(timeout=90)[1] for p in procs]
+    assert [p.returncode for p in procs] == [0] * n, errors
+    found = runs(toy)
+    assert sorted(int(r.data.params["i"]) for r in found) == list(range(n))
+    assert {r.info.status for r in found} == {"FINISHED"}
+    assert len(_client(toy).search_experiments()) == 2  # Default + blindspot, created once
+
+
+def test_sigterm_ends_run_killed_and_leaves_no_partial_file(toy: Path) -> None:
+    proc = subprocess.Popen([sys.executable, "-m", "blindspot", "toy", "toy.sleep_s=60"],
+                            cwd=toy, env=clean_env(), stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    deadline = time.time() + 60
+    while not (toy / "out" / "started").exists():
+        assert proc.poll() is None, proc.communicate()
+        assert time.time() < deadline, "toy stage never started"
+        time.sleep(0.1)
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=30)
+    assert proc.returncode == 143, err
+    (run,) = runs(toy)
+    assert run.info.status == "KILLED"
+    assert run.info.end_time is not None
+    assert "ended KILLED" in err
+    # The stage was inside io.atomic_open("out/partial.txt"): nothing half-written remains.
+    assert not (toy / "out" / "partial.txt").exists()
+    assert [p.name for p in (toy / "out").iterdir() if ".tmp-" in p.name] == []
+    assert (toy / "out" / "toy.json").exists()  # finished before the signal
+    assert os.environ.get(tracking.PARENT_RUN_ENV) is None
