@@ -1,0 +1,292 @@
+"""Angle of arrival on a linear array: MUSIC (the paper's eq. 5-6), Bartlett and Capon.
+
+Model: element m at position ``p_m`` (wavelengths, along the array axis) sees a plane wave from
+angle theta (radians from boresight, positive towards +x) with the phase ``2 pi p_m sin theta``;
+the steering vector is ``a(theta) = exp(j 2 pi p sin theta)`` (unit-modulus, ``|a|^2 = M``).
+
+Snapshots are complex ``(M, L)`` (one angle problem) or batched ``(D, M, L)`` (D detections at
+once); every step is batched: covariance ``R = X X^H / L`` (D, M, M), one batched ``eigh``, the
+scan as one matrix product, peak refinement as a few batched Newton steps.
+
+All three methods reduce to a quadratic form ``g(u) = |B^H a(u)|^2`` of ``u = sin theta``:
+
+* MUSIC   B = E_s (the ``n_signals`` principal eigenvectors); P = 1 / (a^H E_n E_n^H a)
+          = 1 / (M - g); peak = maximum of g.
+* Bartlett B = U Lambda^(1/2) (so B B^H = R); P = a^H R a / M = g / M; peak = maximum of g.
+* Capon   B = U Lambda^(-1/2) (B B^H = R^-1); P = 1 / (a^H R^-1 a) = 1 / g; peak = minimum of g.
+
+Peaks are found on the grid (local maxima, strongest first) and refined between grid points by
+Newton's method on g(u) with analytic derivatives (a' = j 2 pi p a, a'' = -(2 pi p)^2 a), each
+step kept inside the neighbouring grid points; near a peak g is quadratic in u to high accuracy,
+so a few steps reach the exact maximiser of the pseudo-spectrum (needed to reach the Cramer-Rao
+bound, whose standard deviation is far below any practical grid step).
+
+Coherent sources (a car's scatterers in one range-Doppler cell) make R rank-deficient in the
+signal part; ``forward_backward=True`` (needs a centro-symmetric array) and spatial smoothing
+(``subarray=K``: average of the covariances of all contiguous K-element subarrays of a uniform
+array) restore the rank at the cost of aperture. ``loading`` adds ``loading * tr(R)/M`` to the
+diagonal (needed for Capon with fewer snapshots than elements).
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+
+import numpy as np
+
+DEFAULT_GRID_DEG = np.arange(-90.0, 90.0 + 0.125, 0.25)  # -90 .. 90 deg, 721 points
+METHODS = ("music", "bartlett", "capon")
+
+
+class DoaError(ValueError):
+    """Bad angle-estimation arguments."""
+
+
+# ---------------------------------------------------------------------------------------------
+# steering and covariance
+
+
+def steering_matrix(positions: np.ndarray, angles_deg: np.ndarray) -> np.ndarray:
+    """(M, G) complex128 steering vectors exp(j 2 pi p sin theta) for positions in wavelengths."""
+    p = np.asarray(positions, dtype=np.float64)
+    u = np.sin(np.radians(np.asarray(angles_deg, dtype=np.float64)))
+    return np.exp(2j * np.pi * np.outer(p, u))
+
+
+@lru_cache(maxsize=16)
+def _steering_cached(p_bytes: bytes, g_bytes: bytes) -> np.ndarray:
+    a = steering_matrix(np.frombuffer(p_bytes), np.frombuffer(g_bytes))
+    a.setflags(write=False)
+    return a
+
+
+def _as_batch(snapshots: np.ndarray, positions: np.ndarray) -> tuple[np.ndarray, np.ndarray, bool]:
+    x = np.asarray(snapshots)
+    p = np.asarray(positions, dtype=np.float64)
+    if p.ndim != 1:
+        raise DoaError(f"positions must be 1-D (M,) in wavelengths, got shape {p.shape}")
+    single = x.ndim == 2
+    if single:
+        x = x[None]
+    if x.ndim != 3 or x.shape[1] != p.size:
+        raise DoaError(
+            f"snapshots must be (M, L) or (D, M, L) with M = {p.size} elements (len(positions)), "
+            f"got shape {np.shape(snapshots)}"
+        )
+    if x.shape[2] < 1:
+        raise DoaError("snapshots need at least one snapshot (L >= 1)")
+    return x.astype(np.complex128, copy=False), p, single
+
+
+def covariance(snapshots: np.ndarray, positions: np.ndarray, *, forward_backward: bool = False,
+               subarray: int | None = None, loading: float = 0.0
+               ) -> tuple[np.ndarray, np.ndarray]:
+    """Sample covariance with the optional fixes for coherent sources.
+
+    snapshots : (D, M, L) complex
+    returns (R (D, K, K) complex128, positions of the K-element (sub)array in wavelengths)
+    """
+    x, p, _ = _as_batch(snapshots, positions)
+    m = p.size
+    r = x @ x.conj().transpose(0, 2, 1) / x.shape[2]
+    if subarray is not None and subarray != m:
+        if not (isinstance(subarray, (int, np.integer)) and 2 <= subarray <= m):
+            raise DoaError(f"subarray must be an integer in [2, {m}] (elements), got {subarray!r}")
+        step = np.diff(p)
+        if not np.allclose(step, step[0], rtol=1e-9, atol=1e-12):
+            raise DoaError("spatial smoothing needs a uniform linear array (equal spacings)")
+        n_sub = m - subarray + 1
+        idx = np.arange(n_sub)[:, None] + np.arange(subarray)[None, :]  # (n_sub, K)
+        r = r[:, idx[:, :, None], idx[:, None, :]].mean(axis=1)  # average over subarrays
+        p = p[:subarray]
+    if forward_backward:
+        if not np.allclose(p + p[::-1], p[0] + p[-1], rtol=1e-9, atol=1e-12):
+            raise DoaError("forward-backward averaging needs a centro-symmetric array")
+        r = 0.5 * (r + r[:, ::-1, ::-1].conj())
+    if loading:
+        if loading < 0:
+            raise DoaError(f"loading must be >= 0, got {loading!r}")
+        k = r.shape[-1]
+        tr = np.trace(r, axis1=1, axis2=2).real / k
+        r = r + (loading * tr)[:, None, None] * np.eye(k)
+    return r, p
+
+
+def _factor(r: np.ndarray, method: str, n_signals: int) -> tuple[np.ndarray, int]:
+    """B (D, K, rank) with g(u) = |B^H a|^2, and +1 if the peak is a maximum of g, -1 if minimum."""
+    if method not in METHODS:
+        raise DoaError(f"method must be one of {METHODS}, got {method!r}")
+    w, v = np.linalg.eigh(r)  # ascending eigenvalues
+    if method == "music":
+        k = r.shape[-1]
+        if not (isinstance(n_signals, (int, np.integer)) and 1 <= n_signals < k):
+            raise DoaError(f"n_signals must be an integer in [1, {k - 1}] (< elements), "
+                           f"got {n_signals!r}")
+        return v[:, :, k - n_signals:], 1
+    if method == "bartlett":
+        return v * np.sqrt(np.maximum(w, 0.0))[:, None, :], 1
+    floor = np.finfo(np.float64).eps * np.maximum(w[:, -1:], np.finfo(np.float64).tiny)
+    if np.any(w < floor):
+        raise DoaError("Capon needs a full-rank covariance: use loading > 0 or more snapshots "
+                       "(or smoothing)")
+    return v / np.sqrt(w)[:, None, :], -1
+
+
+def _spectrum_from_g(g: np.ndarray, method: str, m: int) -> np.ndarray:
+    if method == "music":
+        return 1.0 / np.maximum(m - g, m * 1e-15)
+    if method == "bartlett":
+        return g / m
+    return 1.0 / np.maximum(g, np.finfo(np.float64).tiny)
+
+
+def _g_on_grid(b: np.ndarray, p: np.ndarray, grid_deg: np.ndarray) -> np.ndarray:
+    grid = np.ascontiguousarray(grid_deg, dtype=np.float64)
+    a = _steering_cached(np.ascontiguousarray(p).tobytes(), grid.tobytes())
+    z = b.conj().transpose(0, 2, 1) @ a  # (D, rank, G)
+    return (z.real ** 2 + z.imag ** 2).sum(axis=1)
+
+
+# ---------------------------------------------------------------------------------------------
+# spectra
+
+
+def doa_spectrum(snapshots: np.ndarray, positions: np.ndarray,
+                 angles_deg: np.ndarray = DEFAULT_GRID_DEG, *, method: str = "music",
+                 n_signals: int = 3, forward_backward: bool = False,
+                 subarray: int | None = None, loading: float = 0.0) -> np.ndarray:
+    """Pseudo-spectrum of ``method`` over ``angles_deg``: (G,) for (M, L) snapshots, (D, G) for
+    (D, M, L). Linear scale (not dB)."""
+    _, _, single = _as_batch(snapshots, positions)
+    r, p = covariance(snapshots, positions, forward_backward=forward_backward,
+                      subarray=subarray, loading=loading)
+    b, _ = _factor(r, method, n_signals)
+    spec = _spectrum_from_g(_g_on_grid(b, p, angles_deg), method, p.size)
+    return spec[0] if single else spec
+
+
+def music_spectrum(snapshots: np.ndarray, positions: np.ndarray,
+                   angles_deg: np.ndarray = DEFAULT_GRID_DEG, n_signals: int = 3, *,
+                   forward_backward: bool = False, subarray: int | None = None,
+                   loading: float = 0.0) -> np.ndarray:
+    """MUSIC pseudo-spectrum P(theta) = 1 / (a^H E_n E_n^H a) (paper eq. 6).
+
+    snapshots : complex (M, L) or (D, M, L); positions : (M,) wavelengths; angles_deg : scan grid
+    n_signals : eigenvectors treated as signal (the paper: 3); the rest span the noise subspace
+    returns (G,) or (D, G) linear pseudo-spectrum
+    """
+    return doa_spectrum(snapshots, positions, angles_deg, method="music", n_signals=n_signals,
+                        forward_backward=forward_backward, subarray=subarray, loading=loading)
+
+
+def bartlett_spectrum(snapshots: np.ndarray, positions: np.ndarray,
+                      angles_deg: np.ndarray = DEFAULT_GRID_DEG, **options) -> np.ndarray:
+    """Bartlett (delay-and-sum / FFT) beamformer power a^H R a / M; same shapes as MUSIC."""
+    return doa_spectrum(snapshots, positions, angles_deg, method="bartlett", **options)
+
+
+def capon_spectrum(snapshots: np.ndarray, positions: np.ndarray,
+                   angles_deg: np.ndarray = DEFAULT_GRID_DEG, **options) -> np.ndarray:
+    """Capon (MVDR) power 1 / (a^H R^-1 a); same shapes as MUSIC (use ``loading`` if L < M)."""
+    return doa_spectrum(snapshots, positions, angles_deg, method="capon", **options)
+
+
+# ---------------------------------------------------------------------------------------------
+# peaks
+
+
+def _grid_peaks(spec: np.ndarray, n_targets: int) -> np.ndarray:
+    """(D, n_targets) grid indices of the strongest local maxima (end points count when above
+    their one neighbour); -1 where there are fewer peaks."""
+    d, g = spec.shape
+    left = np.concatenate([np.full((d, 1), -np.inf), spec[:, :-1]], axis=1)
+    right = np.concatenate([spec[:, 1:], np.full((d, 1), -np.inf)], axis=1)
+    is_peak = (spec >= left) & (spec > right)
+    score = np.where(is_peak, spec, -np.inf)
+    order = np.argsort(-score, axis=1, kind="stable")[:, :n_targets]
+    found = np.take_along_axis(score, order, axis=1) > -np.inf
+    return np.where(found, order, -1)
+
+
+def _refine(b: np.ndarray, p: np.ndarray, u0: np.ndarray, lo: np.ndarray, hi: np.ndarray,
+            sense: int, steps: int = 6) -> np.ndarray:
+    """Newton steps on g(u) = |B^H a(u)|^2 from u0 (D, T), kept within [lo, hi]."""
+    k = 2j * np.pi * p  # (K,)
+    bh = b.conj().transpose(0, 2, 1)  # (D, rank, K)
+    u = u0.copy()
+    for _ in range(steps):  # a fixed, small number of batched iterations
+        a = np.exp(k[None, None, :] * u[..., None])  # (D, T, K)
+        z = np.einsum("drk,dtk->dtr", bh, a)
+        z1 = np.einsum("drk,dtk->dtr", bh, a * k)
+        z2 = np.einsum("drk,dtk->dtr", bh, a * k * k)
+        g1 = 2 * np.einsum("dtr,dtr->dt", z.conj(), z1).real
+        g2 = 2 * (np.einsum("dtr,dtr->dt", z1.conj(), z1).real
+                  + np.einsum("dtr,dtr->dt", z.conj(), z2).real)
+        ok = sense * g2 < 0  # curvature of a maximum (MUSIC, Bartlett) / minimum (Capon)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            step = np.where(ok, -g1 / g2, 0.0)
+        u = np.clip(u + step, lo, hi)
+    return u
+
+
+def doa_angles(snapshots: np.ndarray, positions: np.ndarray, n_targets: int = 1,
+               n_signals: int = 3, grid_deg: np.ndarray = DEFAULT_GRID_DEG, *,
+               method: str = "music", forward_backward: bool = False,
+               subarray: int | None = None, loading: float = 0.0,
+               return_power: bool = False):
+    """The ``n_targets`` strongest peaks of the pseudo-spectrum, refined between grid points.
+
+    returns angles in degrees, (n_targets,) for (M, L) snapshots or (D, n_targets) for batched,
+    strongest first, NaN where the spectrum has fewer peaks; with ``return_power`` also the
+    pseudo-spectrum values at the refined peaks (same shape).
+    """
+    if not (isinstance(n_targets, (int, np.integer)) and n_targets >= 1):
+        raise DoaError(f"n_targets must be a positive integer, got {n_targets!r}")
+    _, _, single = _as_batch(snapshots, positions)
+    grid = np.asarray(grid_deg, dtype=np.float64)
+    if grid.ndim != 1 or grid.size < 3 or np.any(np.diff(grid) <= 0) or grid[0] < -90 \
+            or grid[-1] > 90:
+        raise DoaError("grid_deg must be an increasing 1-D grid of >= 3 angles within [-90, 90]")
+    r, p = covariance(snapshots, positions, forward_backward=forward_backward,
+                      subarray=subarray, loading=loading)
+    b, sense = _factor(r, method, n_signals)
+    g = _g_on_grid(b, p, grid)
+    spec = _spectrum_from_g(g, method, p.size)
+    idx = _grid_peaks(spec, n_targets)
+    safe = np.maximum(idx, 0)
+    u_grid = np.sin(np.radians(grid))
+    lo = u_grid[np.maximum(safe - 1, 0)]
+    hi = u_grid[np.minimum(safe + 1, grid.size - 1)]
+    u = _refine(b, p, u_grid[safe], lo, hi, sense)
+    a = np.exp(2j * np.pi * p[None, None, :] * u[..., None])
+    z = np.einsum("dkr,dtk->dtr", b.conj(), a)
+    peak = _spectrum_from_g((z.real ** 2 + z.imag ** 2).sum(axis=-1), method, p.size)
+    # the refined value can only improve on the grid value; keep strongest-first order
+    order = np.argsort(-np.where(idx >= 0, peak, -np.inf), axis=1, kind="stable")
+    angles = np.where(idx >= 0, np.degrees(np.arcsin(np.clip(u, -1, 1))), np.nan)
+    angles = np.take_along_axis(angles, order, axis=1)
+    peak = np.take_along_axis(np.where(idx >= 0, peak, np.nan), order, axis=1)
+    if single:
+        angles, peak = angles[0], peak[0]
+    return (angles, peak) if return_power else angles
+
+
+def music_angles(snapshots: np.ndarray, positions: np.ndarray, n_targets: int = 1,
+                 n_signals: int = 3, grid_deg: np.ndarray = DEFAULT_GRID_DEG, **options):
+    """MUSIC angles in degrees: the ``n_targets`` strongest pseudo-spectrum peaks over
+    ``grid_deg`` (default -90..90 in 0.25 deg), refined between grid points.
+    (M, L) -> (n_targets,); (D, M, L) -> (D, n_targets); NaN where fewer peaks exist."""
+    return doa_angles(snapshots, positions, n_targets, n_signals, grid_deg, method="music",
+                      **options)
+
+
+def bartlett_angles(snapshots: np.ndarray, positions: np.ndarray, n_targets: int = 1,
+                    grid_deg: np.ndarray = DEFAULT_GRID_DEG, **options):
+    """Bartlett beamformer peak angles (deg); shapes as :func:`music_angles`."""
+    return doa_angles(snapshots, positions, n_targets, 1, grid_deg, method="bartlett", **options)
+
+
+def capon_angles(snapshots: np.ndarray, positions: np.ndarray, n_targets: int = 1,
+                 grid_deg: np.ndarray = DEFAULT_GRID_DEG, **options):
+    """Capon (MVDR) peak angles (deg); shapes as :func:`music_angles`."""
+    return doa_angles(snapshots, positions, n_targets, 1, grid_deg, method="capon", **options)
