@@ -10,6 +10,8 @@ from omegaconf import OmegaConf
 
 from blindspot.dsp.path_measurement import (
     PedestrianModel,
+    cfar_on_patches,
+    noncoherent_power,
     body_scatterers,
     path_kinematics,
     point_scatterers,
@@ -73,3 +75,48 @@ def test_point_scatterers_radar_equation(radar):
     assert sc.velocity_mps[0, 0] == pytest.approx(0.8)
     assert np.degrees(sc.azimuth_rad[0, 0]) == pytest.approx(np.degrees(np.arctan2(3, 4)))
     assert sc.velocity_mps[0, 1] == pytest.approx(0.0)
+
+
+def test_noncoherent_power_is_the_channel_sum():
+    """One complex normal + one gamma per cell has the distribution of sum_c |s_c + n_c|^2."""
+    rng = np.random.default_rng(1)
+    n_looks, sigma2, cells = 24, 2.0, 40000
+    s = rng.standard_normal(n_looks) + 1j * rng.standard_normal(n_looks)  # any channel signal
+    energy = np.sum(np.abs(s) ** 2)
+    direct = np.sum(np.abs(s + np.sqrt(sigma2 / 2) * (
+        rng.standard_normal((cells, n_looks)) + 1j * rng.standard_normal((cells, n_looks)))) ** 2,
+        axis=1)
+    drawn = noncoherent_power(rng, np.full(cells, energy), n_looks, sigma2)
+    # mean E + K sigma^2, variance K sigma^4 + 2 E sigma^2 (non-central chi-square)
+    mean, var = energy + n_looks * sigma2, n_looks * sigma2**2 + 2 * energy * sigma2
+    for x in (direct, drawn):
+        assert x.mean() == pytest.approx(mean, rel=0.01)
+        assert x.var() == pytest.approx(var, rel=0.05)
+    q = [0.01, 0.5, 0.99, 0.999]
+    np.testing.assert_allclose(np.quantile(drawn, q), np.quantile(direct, q), rtol=0.03)
+
+
+@pytest.mark.parametrize("rule", [dict(pfa=1e-3, n_looks=8), dict(scale=1.18, domain="db")])
+def test_cfar_on_patches_equals_cfar_on_the_full_map(rule):
+    """Core rows of every patch (including patches cut by the first/last range bin) get exactly
+    the mask and noise estimate of CFAR run on the whole map."""
+    from blindspot.dsp.cfar import cfar_2d
+
+    rng = np.random.default_rng(4)
+    full = rng.gamma(8.0, 1.0, (128, 32)) * (1 + 9 * (rng.random((128, 32)) < 0.02))
+    guard, train = (1, 2), (3, 4)
+    ref = cfar_2d(full, guard, train, **rule)
+    k = 2 * (4 + 2) + 1
+    first = np.array([-5, -2, 0, 10, 37, 60, 115, 120, 123])
+    rows = first[:, None] + np.arange(k)
+    patches = full[np.clip(rows, 0, 127)]
+    patches[(rows < 0) | (rows > 127)] = 1e6  # rows outside the map must not matter
+    mask, noise = cfar_on_patches(patches, first, 128, guard, train, **rule)
+    h = 4
+    core = np.zeros(k, bool)
+    core[h:k - h] = True
+    valid = core[None, :] & (rows >= 0) & (rows <= 127)
+    b_idx, r_idx = np.nonzero(valid)
+    np.testing.assert_array_equal(mask[b_idx, r_idx], ref.mask[rows[b_idx, r_idx]])
+    np.testing.assert_allclose(noise[b_idx, r_idx], ref.noise[rows[b_idx, r_idx]], rtol=1e-10)
+    assert not mask[~valid].any()

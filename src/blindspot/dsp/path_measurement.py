@@ -170,3 +170,75 @@ def point_scatterers(position_m: np.ndarray, velocity_mps: np.ndarray, rcs_m2: n
                            azimuth_rad=np.arctan2(u[..., 0], u[..., 1]),
                            amplitude=amp * np.exp(1j * carrier),
                            elevation_rad=np.arcsin(np.clip(u[..., 2], -1.0, 1.0)))
+
+
+# ------------------------------------------------------------------ reduced chain: detection
+def noncoherent_power(rng: np.random.Generator, energy: np.ndarray, n_looks: int,
+                      cell_noise_power: float) -> np.ndarray:
+    """Draw the detection-map value of cells whose signal energy over ``n_looks`` channels is
+    ``energy``: ``sum_c |s_c + n_c|^2`` with n_c ~ CN(0, sigma^2) independent over channels.
+
+    Rotating the channel space so the signal lies along one axis, this is exactly
+    ``|sqrt(E) + n|^2 + sigma^2 Gamma(n_looks - 1)`` (a non-central chi-square of 2 n_looks
+    degrees of freedom): one complex normal and one gamma draw per cell instead of n_looks
+    complex normals. energy: (...) W-units -> float64 (...)."""
+    e = np.asarray(energy, dtype=np.float64)
+    z = rng.standard_normal(e.shape + (2,))
+    s = np.sqrt(cell_noise_power / 2.0)
+    out = (np.sqrt(np.maximum(e, 0.0)) + s * z[..., 0]) ** 2 + (s * z[..., 1]) ** 2
+    if n_looks > 1:
+        out += cell_noise_power * rng.standard_gamma(n_looks - 1, size=e.shape)
+    return out
+
+
+def cfar_on_patches(power: np.ndarray, first_row: np.ndarray, n_rows_total: int,
+                    guard, train, **rule) -> tuple[np.ndarray, np.ndarray]:
+    """Run the chain's 2-D CFAR (:func:`blindspot.dsp.cfar.cfar_2d`) on a batch of patches.
+
+    Each frame's patch holds rows ``first_row[b] .. first_row[b] + K - 1`` of a map of
+    ``n_rows_total`` range bins and *all* Doppler bins (so Doppler wraps as in the full map).
+    Only the core rows ``[h, K - h)``, ``h = guard_range + train_range``, are decided: their
+    training windows lie inside the patch, so the result equals CFAR on the full map. Frames
+    whose patches lie inside the map are stacked along range and processed in one call (rows of
+    neighbouring frames only ever fall into the windows of the undecided border rows); frames
+    whose patch crosses the first or last range bin are processed one by one on their existing
+    rows, so the edge rule (fewer training cells, larger factor) is the full map's.
+
+    Args:
+        power: (B, K, M) detection-map patches.
+        first_row: (B,) map row of each patch's first row (may be < 0 or run past the end).
+        n_rows_total: number of range bins of the full map.
+        guard, train: CFAR half-widths (range, Doppler), as for ``ca_cfar_2d``.
+        **rule: pfa / scale / domain / mode / n_looks, passed on unchanged.
+
+    Returns:
+        mask (B, K, M) bool (False outside the core rows and outside the map),
+        noise (B, K, M) float64 training-cell mean (NaN where undecided).
+    """
+    from blindspot.dsp.cfar import cfar_2d
+
+    b, k, m = power.shape
+    g = np.broadcast_to(np.asarray(guard), (2,))
+    t = np.broadcast_to(np.asarray(train), (2,))
+    h = int(g[0] + t[0])
+    if k < 2 * h + 1:
+        raise ValueError(f"cfar_on_patches: patches of {k} rows cannot hold a CFAR range window "
+                         f"of 2*(guard+train)+1 = {2 * h + 1} rows")
+    first = np.asarray(first_row, dtype=np.int64).reshape(b)
+    mask = np.zeros((b, k, m), dtype=bool)
+    noise = np.full((b, k, m), np.nan)
+    inside = (first >= 0) & (first + k <= n_rows_total)
+    idx = np.flatnonzero(inside)
+    if idx.size:
+        res = cfar_2d(power[idx].reshape(-1, m), guard, train, **rule)
+        mask[idx] = res.mask.reshape(-1, k, m)
+        noise[idx] = res.noise.reshape(-1, k, m)
+    for i in np.flatnonzero(~inside):  # rare: pedestrian within a CFAR window of the map edge
+        lo, hi = max(0, -first[i]), min(k, n_rows_total - first[i])
+        res = cfar_2d(power[i, lo:hi], guard, train, **rule)
+        mask[i, lo:hi], noise[i, lo:hi] = res.mask, res.noise
+    mask[:, :h] = False
+    mask[:, k - h:] = False
+    noise[:, :h] = np.nan
+    noise[:, k - h:] = np.nan
+    return mask, noise
