@@ -55,7 +55,7 @@ class Scatterers(NamedTuple):
     position_m : (K, 3) or (F, K, 3) x, y, z relative to the radar phase centre, m.
     velocity_mps : same shape as ``position_m``, m/s.
     rcs_m2 : (K,) radar cross-section, m^2.
-    attenuation_db : (K,) or (F, K) one-way-path-independent extra loss (occlusion), dB >= 0.
+    attenuation_db : (K,) or (F, K) extra loss of the received power (occlusion), dB >= 0.
     """
 
     position_m: np.ndarray
