@@ -11,6 +11,7 @@ from omegaconf import OmegaConf
 from blindspot.dsp.path_measurement import (
     PedestrianModel,
     cfar_on_patches,
+    music_peak_angles,
     noncoherent_power,
     body_scatterers,
     path_kinematics,
@@ -120,3 +121,21 @@ def test_cfar_on_patches_equals_cfar_on_the_full_map(rule):
     np.testing.assert_array_equal(mask[b_idx, r_idx], ref.mask[rows[b_idx, r_idx]])
     np.testing.assert_allclose(noise[b_idx, r_idx], ref.noise[rows[b_idx, r_idx]], rtol=1e-10)
     assert not mask[~valid].any()
+
+
+@pytest.mark.parametrize("n_snap,fb", [(64, False), (9, False), (9, True), (100, False)])
+def test_music_peak_angles_equal_music_angles(n_snap, fb):
+    """The batched adapter gives the chain's music_angles estimate (its strongest peak)."""
+    from blindspot.dsp.doa import music_angles
+
+    rng = np.random.default_rng(2)
+    p = np.arange(86) * 0.5
+    d = 40
+    theta = rng.uniform(-60, 60, (d, 3))
+    amp = rng.normal(size=(d, 3, n_snap)) + 1j * rng.normal(size=(d, 3, n_snap))
+    amp[:, 0] *= 3
+    a = np.exp(2j * np.pi * p[None, :, None] * np.sin(np.radians(theta))[:, None, :])
+    x = a @ amp + 0.5 * (rng.normal(size=(d, 86, n_snap)) + 1j * rng.normal(size=(d, 86, n_snap)))
+    ref = music_angles(x, p, n_targets=1, n_signals=3, forward_backward=fb)[:, 0]
+    got = music_peak_angles(x, p, n_signals=3, forward_backward=fb)
+    np.testing.assert_allclose(got, ref, atol=1e-6)
