@@ -151,12 +151,14 @@ def main_stage(run: StageFunction, name: str, argv: Sequence[str] | None = None)
         root = bconfig.find_repo_root(stage_file.parent)
     except bconfig.ConfigNotFound:
         root = bconfig.find_repo_root()
+    from hydra.errors import HydraException
+
     try:
         if not os.environ.get("DVC_EXP_NAME"):
             bconfig.check_params(root)
         cfg = bconfig.load_params(root)
-    except (bconfig.ParamsOutOfDate, FileNotFoundError) as exc:
-        print(f"[blindspot] {exc}", file=sys.stderr)
+    except (bconfig.ParamsOutOfDate, FileNotFoundError, HydraException) as exc:
+        print(f"[blindspot] stage {name}: {exc}", file=sys.stderr)
         raise SystemExit(1) from None
     run_stage(run, name, cfg, root)
 
@@ -256,17 +258,21 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"[blindspot] `{command}` takes no arguments (got {' '.join(rest)}); "
               "change values in conf/", file=sys.stderr)
         return 2
-    if command == "params":
-        path = bconfig.write_params(root)
-        print(f"wrote {path}")
-        return 0
-    if command == "check-params":
+    if command in {"params", "check-params"}:
+        from hydra.errors import HydraException
+
         try:
-            bconfig.check_params(root)
+            if command == "params":
+                print(f"wrote {bconfig.write_params(root)}")
+            else:
+                bconfig.check_params(root)
+                print(f"{root / bconfig.PARAMS_FILE} is up to date with conf/")
         except bconfig.ParamsOutOfDate as exc:
             print(f"[blindspot] {exc}", file=sys.stderr)
             return 1
-        print(f"{root / bconfig.PARAMS_FILE} is up to date with conf/")
+        except HydraException as exc:
+            print(f"[blindspot] cannot compose {root / bconfig.CONFIG_DIR}: {exc}", file=sys.stderr)
+            return 1
         return 0
     try:
         _run_with_hydra(root, command, rest)

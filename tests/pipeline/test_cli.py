@@ -56,6 +56,12 @@ def test_params_and_check_params_commands(toy: Path) -> None:
     blindspot(["params"], toy)
     assert config.load_params(toy).model.hidden_size == 24
     blindspot(["check-params"], toy)
+    cfg = toy / "conf" / "config.yaml"
+    cfg.write_text(cfg.read_text().replace("model: small", "model: huge"))
+    for command in ("params", "check-params"):
+        proc = blindspot([command], toy, check=False)
+        assert proc.returncode == 1 and "Could not find 'model/huge'" in proc.stderr
+        assert "Traceback" not in proc.stderr
 
 
 def test_main_stage_reads_params_yaml_and_refuses_arguments(toy: Path) -> None:

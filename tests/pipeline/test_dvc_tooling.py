@@ -99,8 +99,13 @@ def test_dvc_exp_run_set_param_composes_conf_into_params(repo: Path) -> None:
     run(["git", "checkout", "--", "."], repo)  # back to the committed baseline (tmp repo)
 
 
-def _wait_for_queue(repo: Path, timeout_s: float = 300) -> str:
+def _wait_for_queue(repo: Path, n_runs: int, timeout_s: float = 300) -> str:
+    """Wait until ``n_runs`` runs ended in the store (cheap to poll), then until DVC's queue
+    has collected every experiment (each `dvc queue status` costs a DVC start-up)."""
     deadline = time.time() + timeout_s
+    while sum(r.info.status != "RUNNING" for r in runs(repo)) < n_runs:
+        assert time.time() < deadline, f"only {len(runs(repo))} runs after {timeout_s} s"
+        time.sleep(0.5)
     while True:
         status = dvc("queue", "status", repo=repo).stdout
         if not re.search(r"\b(Queued|Running)\b", status):
@@ -115,7 +120,7 @@ def test_dvc_queue_runs_land_in_the_original_store(repo: Path) -> None:
     queued = re.findall(r"Queued experiment '([^']+)'", proc.stdout + proc.stderr)
     assert len(queued) == 2
     dvc("queue", "start", "-j", "2", repo=repo)
-    status = _wait_for_queue(repo)
+    status = _wait_for_queue(repo, before + 2)
     for name in queued:
         assert re.search(rf"{re.escape(name)}\s+.*Success", status), status
 
