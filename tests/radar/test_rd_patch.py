@@ -19,6 +19,8 @@ from blindspot.radar.rd_patch import (
     channel_energy,
     channel_selection,
     patch_factors,
+    patch_terms,
+    separable_channel_energy,
     patch_noise,
     post_fft_noise_power,
     range_doppler_patch,
@@ -183,6 +185,9 @@ def test_channel_energy_is_the_channel_sum_of_the_patch():
     a, c = patch_factors(scat, radar, array, first, 6, wr, wd)
     energy = channel_energy(a, c)
     np.testing.assert_allclose(energy, np.sum(np.abs(patch) ** 2, axis=-1), rtol=1e-9)
+    r_t, d_t, c_t = patch_terms(scat, radar, array, first, 6, wr, wd)
+    np.testing.assert_allclose(separable_channel_energy(r_t, d_t, c_t), energy, rtol=1e-9,
+                               atol=1e-12 * energy.max())
 
 
 def test_patch_equals_range_doppler_of_the_simulator_cube():
@@ -210,3 +215,18 @@ def test_patch_equals_range_doppler_of_the_simulator_cube():
     patch = range_doppler_patch(scat, radar, array, np.array([k0]), 20, wr, wd)[0]
     ref = rd[k0:k0 + 20].reshape(20, radar.n_chirps, -1)
     assert np.abs(patch - ref).max() / np.abs(ref).max() < 1e-4
+
+
+def test_block_noise_covariance_matches_fft_noise():
+    """3 x 3 block covariance vs the empirical covariance of FFT'd white noise."""
+    from blindspot.radar.rd_patch import block_noise_covariance
+
+    n, m = 32, 16
+    wr, wd = hann(n), hann(m)
+    rng = np.random.default_rng(8)
+    white = (rng.standard_normal((20000, m, n)) + 1j * rng.standard_normal((20000, m, n))) / np.sqrt(2)
+    x = np.fft.fft(np.fft.fft(white * wr, axis=2) * wd[:, None], axis=1)   # (F, doppler, range)
+    block = x[:, 5:8, 10:13].transpose(0, 2, 1).reshape(20000, 9)         # range outer
+    emp = block.T @ block.conj() / 20000
+    cov = block_noise_covariance(wr, wd, 3, 3)
+    assert np.abs(emp - cov).max() / cov[0, 0].real < 0.03

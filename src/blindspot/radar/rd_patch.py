@@ -52,8 +52,11 @@ __all__ = [
     "patch_factors",
     "range_doppler_patch",
     "channel_energy",
+    "patch_terms",
+    "separable_channel_energy",
     "range_noise_covariance",
     "post_fft_noise_power",
+    "block_noise_covariance",
     "patch_noise",
     "channel_selection",
 ]
@@ -202,15 +205,18 @@ def channel_phasors(velocity_mps: np.ndarray, azimuth_rad: np.ndarray, radar: Ra
     return np.exp(1j * phase)
 
 
-def patch_factors(scatterers: PointScatterers, radar: RadarConfig, array: VirtualArray,
-                  first_range_bin: np.ndarray, n_range: int, range_window: np.ndarray,
-                  doppler_window: np.ndarray,
-                  channels: str | tuple[np.ndarray, np.ndarray] = "all",
-                  *, include_doppler_in_beat: bool = True) -> tuple[np.ndarray, np.ndarray]:
-    """The two factors of a patch: ``X[b, k, d, c] = sum_s A[b, s, k, d] C[b, s, c]``.
+def patch_terms(scatterers: PointScatterers, radar: RadarConfig, array: VirtualArray,
+                first_range_bin: np.ndarray, n_range: int, range_window: np.ndarray,
+                doppler_window: np.ndarray,
+                channels: str | tuple[np.ndarray, np.ndarray] = "all",
+                *, include_doppler_in_beat: bool = True
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The three separable factors of a patch:
+    ``X[b, k, d, c] = sum_s R[b, s, k] D[b, s, d] C[b, s, c]``.
 
     Returns:
-        A: complex128 (B, S, K, M) amplitude times range response times Doppler response;
+        R: complex128 (B, S, K) amplitude times windowed range response at the patch's bins;
+        D: complex128 (B, S, M) windowed Doppler response, zero-centred bins;
         C: complex128 (B, S, C) channel phasors (:func:`channel_phasors`).
     See :func:`range_doppler_patch` for the arguments.
     """
@@ -229,8 +235,24 @@ def patch_factors(scatterers: PointScatterers, radar: RadarConfig, array: Virtua
     dop = tone_dft(nu_d, -(m // 2), m, doppler_window)  # (B,S,M)
     ch = channel_phasors(scatterers.velocity_mps, scatterers.azimuth_rad, radar, array, channels,
                          scatterers.elevation_rad)
-    amp_k = rng_k * np.asarray(scatterers.amplitude)[..., None]  # (B,S,K)
-    return amp_k[:, :, :, None] * dop[:, :, None, :], ch
+    return rng_k * np.asarray(scatterers.amplitude)[..., None], dop, ch
+
+
+def patch_factors(scatterers: PointScatterers, radar: RadarConfig, array: VirtualArray,
+                  first_range_bin: np.ndarray, n_range: int, range_window: np.ndarray,
+                  doppler_window: np.ndarray,
+                  channels: str | tuple[np.ndarray, np.ndarray] = "all",
+                  *, include_doppler_in_beat: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """The two factors of a patch: ``X[b, k, d, c] = sum_s A[b, s, k, d] C[b, s, c]``.
+
+    Returns:
+        A: complex128 (B, S, K, M) amplitude times range response times Doppler response;
+        C: complex128 (B, S, C) channel phasors (:func:`channel_phasors`).
+    See :func:`range_doppler_patch` for the arguments.
+    """
+    r, d, ch = patch_terms(scatterers, radar, array, first_range_bin, n_range, range_window,
+                           doppler_window, channels, include_doppler_in_beat=include_doppler_in_beat)
+    return r[:, :, :, None] * d[:, :, None, :], ch
 
 
 def range_doppler_patch(scatterers: PointScatterers, radar: RadarConfig, array: VirtualArray,
@@ -261,6 +283,25 @@ def range_doppler_patch(scatterers: PointScatterers, radar: RadarConfig, array: 
     return out.reshape(b, k, m, ch.shape[-1]).astype(dtype, copy=False)
 
 
+def separable_channel_energy(range_terms: np.ndarray, doppler_terms: np.ndarray,
+                             phasors: np.ndarray) -> np.ndarray:
+    """:func:`channel_energy` for separable factors ``A = R[s, k] D[s, d]``, as one batched
+    matrix product: ``E[k, d] = Re sum_{s,s'} (conj(R_s) R_s' G_ss')[k] (conj(D_s) D_s')[d]``.
+
+    range_terms (B, S, K), doppler_terms (B, S, M), phasors (B, S, C) -> float64 (B, K, M).
+    Cost B K M S^2 (torch's batched GEMM), independent of the number of channels."""
+    import torch
+
+    b, s, k = range_terms.shape
+    gram = np.conj(phasors) @ np.swapaxes(phasors, 1, 2)                      # (B, S, S)
+    p = (np.conj(range_terms)[:, :, None, :] * range_terms[:, None, :, :]
+         * gram[..., None]).reshape(b, s * s, k)                              # (B, S*S, K)
+    q = (np.conj(doppler_terms)[:, :, None, :] * doppler_terms[:, None, :, :]
+         ).reshape(b, s * s, -1)                                              # (B, S*S, M)
+    e = torch.from_numpy(np.ascontiguousarray(p.transpose(0, 2, 1))) @ torch.from_numpy(q)
+    return e.real.numpy().astype(np.float64, copy=False)
+
+
 def channel_energy(factors: np.ndarray, phasors: np.ndarray) -> np.ndarray:
     """Signal energy summed over channels, ``sum_c |sum_s A[s] C[s, c]|^2``, per cell, without
     forming the channels: ``sum_{s,s'} conj(A_s) G[s, s'] A_s'`` with the Gram matrix
@@ -285,6 +326,16 @@ def range_noise_covariance(range_window: np.ndarray, n_range: int) -> np.ndarray
     col = w2 @ np.exp(-2j * np.pi * np.outer(np.arange(n), lags) / n)  # C[lag, 0]
     idx = lags[:, None] - lags[None, :]
     return np.where(idx >= 0, col[np.abs(idx)], np.conj(col[np.abs(idx)]))
+
+
+def block_noise_covariance(range_window: np.ndarray, doppler_window: np.ndarray,
+                           n_range: int, n_doppler: int) -> np.ndarray:
+    """(n_range * n_doppler)^2 covariance of the range-Doppler noise over a block of consecutive
+    cells (row-major: range outer, Doppler inner) for unit noise power per ADC sample:
+    ``kron(C_range, C_doppler)`` (the two FFTs act on independent axes). The diagonal is
+    ``sum w_r^2 sum w_d^2``."""
+    return np.kron(range_noise_covariance(range_window, n_range),
+                   range_noise_covariance(doppler_window, n_doppler))
 
 
 def post_fft_noise_power(noise_power_w: float, range_window: np.ndarray,
