@@ -112,3 +112,11 @@ def test_sigkilled_writer_never_exposes_a_partial_file(tmp_path: Path) -> None:
     proc.send_signal(signal.SIGKILL)  # no handler can run: only the rename protects us
     proc.wait(timeout=30)
     assert not target.exists()
+
+
+def test_write_yaml_round_trip(tmp_path: Path) -> None:
+    from omegaconf import OmegaConf
+
+    cfg = OmegaConf.create({"b": {"x": np.float64(1.5)}, "a": [1, 2]})
+    path = io.write_yaml(tmp_path / "c.yaml", cfg)
+    assert path.read_text() == "b:\n  x: 1.5\na:\n- 1\n- 2\n"

@@ -468,6 +468,25 @@ def sigterm_as_exit() -> Iterator[None]:
         signal.signal(signal.SIGTERM, previous)
 
 
+@contextlib.contextmanager
+def _sigterm_deferred() -> Iterator[None]:
+    """Hold a SIGTERM back while the body runs (a run-state write), then deliver it."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    received: list[int] = []
+    previous = signal.signal(signal.SIGTERM, lambda signum, frame: received.append(signum))
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+        if received:
+            if callable(previous):
+                previous(signal.SIGTERM, None)
+            elif previous != signal.SIG_IGN:
+                raise Terminated()
+
+
 def _status_for(exc: BaseException | None) -> str:
     if exc is None:
         return "FINISHED"
@@ -508,51 +527,52 @@ def stage_run(
         return
 
     work, original = _repo_roots(repo_root)
-    client = get_client(settings)
-    if parent_run_id is None:
-        outer = next((t for t in reversed(_STACK) if t.run_id), None)
-        parent_run_id = outer.run_id if outer else os.environ.get(PARENT_RUN_ENV) or None
-    if parent_run_id:
-        experiment_id = client.get_run(parent_run_id).info.experiment_id
-    else:
-        experiment_id = ensure_experiment(settings)
-    tags = _run_tags(stage, work, original)
-    if parent_run_id:
-        tags["mlflow.parentRunId"] = parent_run_id
-    if run_name is None:
-        run_name = stage
-        if "hydra.job_num" in tags:
-            run_name = f"{stage}#{tags['hydra.job_num']}"
-        elif "dvc.exp_name" in tags:
-            run_name = f"{stage}@{tags['dvc.exp_name']}"
-    run = _retry(
-        lambda: client.create_run(experiment_id, tags=tags, run_name=run_name), "creating a run"
-    )
-    tracker = Tracker(client, run.info.run_id)
-    _STACK.append(tracker)
-    error: BaseException | None = None
-    try:
-        with sigterm_as_exit():
+    with sigterm_as_exit():  # from before the run exists: it can never be left RUNNING
+        client = get_client(settings)
+        if parent_run_id is None:
+            outer = next((t for t in reversed(_STACK) if t.run_id), None)
+            parent_run_id = outer.run_id if outer else os.environ.get(PARENT_RUN_ENV) or None
+        if parent_run_id:
+            experiment_id = client.get_run(parent_run_id).info.experiment_id
+        else:
+            experiment_id = ensure_experiment(settings)
+        tags = _run_tags(stage, work, original)
+        if parent_run_id:
+            tags["mlflow.parentRunId"] = parent_run_id
+        if run_name is None:
+            run_name = stage
+            if "hydra.job_num" in tags:
+                run_name = f"{stage}#{tags['hydra.job_num']}"
+            elif "dvc.exp_name" in tags:
+                run_name = f"{stage}@{tags['dvc.exp_name']}"
+        with _sigterm_deferred():
+            run = _retry(
+                lambda: client.create_run(experiment_id, tags=tags, run_name=run_name),
+                "creating a run",
+            )
+            tracker = Tracker(client, run.info.run_id)
+            _STACK.append(tracker)
+        error: BaseException | None = None
+        try:
             if cfg is not None:
                 tracker.log_params(_plain(cfg))
                 tracker.log_text(
                     OmegaConf.to_yaml(OmegaConf.create(_plain(cfg))), "config/params.yaml"
                 )
             yield tracker
-    except BaseException as exc:
-        error = exc
-        raise
-    finally:
-        _STACK.remove(tracker)
-        status = _status_for(error)
-        # Block SIGTERM's handler from interrupting the final write: mark the run first.
-        with contextlib.suppress(Exception):
-            _retry(lambda: client.set_terminated(tracker.run_id, status), "ending the run")
-        if error is not None and status != "FINISHED":
-            print(
-                f"[blindspot] MLflow run {tracker.run_id} ({stage}) ended {status}",
-                file=sys.stderr,
-            )
+        except BaseException as exc:
+            error = exc
+            raise
+        finally:
+            _STACK.remove(tracker)
+            status = _status_for(error)
+            with _sigterm_deferred(), contextlib.suppress(Exception):
+                _retry(lambda: client.set_terminated(tracker.run_id, status), "ending the run")
+            if error is not None and status != "FINISHED":
+                print(
+                    f"[blindspot] MLflow run {tracker.run_id} ({stage}) ended {status}",
+                    file=sys.stderr,
+                )
 
 
 # --------------------------------------------------------------------------- Hydra multirun

@@ -13,7 +13,7 @@ import pytest
 from mlflow.tracking import MlflowClient
 
 from blindspot import tracking
-from tests.pipeline.toy_repo import blindspot, clean_env, make_toy_repo, runs
+from tests.pipeline.toy_repo import clean_env, make_toy_repo, runs
 
 
 @pytest.fixture(autouse=True)
