@@ -117,6 +117,8 @@ def test_sigkilled_writer_never_exposes_a_partial_file(tmp_path: Path) -> None:
 def test_write_yaml_round_trip(tmp_path: Path) -> None:
     from omegaconf import OmegaConf
 
-    cfg = OmegaConf.create({"b": {"x": np.float64(1.5)}, "a": [1, 2]})
-    path = io.write_yaml(tmp_path / "c.yaml", cfg)
+    plain = {"b": {"x": np.float64(1.5)}, "a": [np.int64(1), 2]}
+    path = io.write_yaml(tmp_path / "c.yaml", plain)
     assert path.read_text() == "b:\n  x: 1.5\na:\n- 1\n- 2\n"
+    io.write_yaml(tmp_path / "d.yaml", OmegaConf.create({"b": {"x": 1.5}, "a": [1, 2]}))
+    assert (tmp_path / "d.yaml").read_bytes() == path.read_bytes()
