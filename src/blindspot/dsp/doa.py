@@ -87,8 +87,7 @@ def covariance(snapshots: np.ndarray, positions: np.ndarray, *, forward_backward
     returns (R (D, K, K) complex128, positions of the K-element (sub)array in wavelengths)
     """
     x, p, _ = _as_batch(snapshots, positions)
-    m = p.size
-    r = x @ x.conj().transpose(0, 2, 1) / x.shape[2]
+    m, n_snap = p.size, x.shape[2]
     if subarray is not None and subarray != m:
         if not (isinstance(subarray, (int, np.integer)) and 2 <= subarray <= m):
             raise DoaError(f"subarray must be an integer in [2, {m}] (elements), got {subarray!r}")
@@ -96,9 +95,23 @@ def covariance(snapshots: np.ndarray, positions: np.ndarray, *, forward_backward
         if not np.allclose(step, step[0], rtol=1e-9, atol=1e-12):
             raise DoaError("spatial smoothing needs a uniform linear array (equal spacings)")
         n_sub = m - subarray + 1
-        idx = np.arange(n_sub)[:, None] + np.arange(subarray)[None, :]  # (n_sub, K)
-        r = r[:, idx[:, :, None], idx[:, None, :]].mean(axis=1)  # average over subarrays
+        if n_sub * n_snap <= 4096:
+            # few snapshots: stack the subarrays' snapshots, one product (D, K, n_sub L)
+            sub = np.lib.stride_tricks.sliding_window_view(x, subarray, axis=1)  # (D, n_sub, L, K)
+            xs = sub.transpose(0, 3, 1, 2).reshape(x.shape[0], subarray, n_sub * n_snap)
+            r = xs @ xs.conj().transpose(0, 2, 1) / (n_sub * n_snap)
+        else:
+            # many snapshots: full covariance, then the mean of its diagonal K x K blocks (a
+            # strided view stepping down the diagonal, no copy)
+            full = x @ x.conj().transpose(0, 2, 1) / n_snap
+            s0, s1, s2 = full.strides
+            blocks = np.lib.stride_tricks.as_strided(
+                full, (full.shape[0], n_sub, subarray, subarray), (s0, s1 + s2, s1, s2),
+                writeable=False)
+            r = blocks.mean(axis=1)
         p = p[:subarray]
+    else:
+        r = x @ x.conj().transpose(0, 2, 1) / n_snap
     if forward_backward:
         if not np.allclose(p + p[::-1], p[0] + p[-1], rtol=1e-9, atol=1e-12):
             raise DoaError("forward-backward averaging needs a centro-symmetric array")
@@ -233,12 +246,13 @@ def doa_angles(snapshots: np.ndarray, positions: np.ndarray, n_targets: int = 1,
                n_signals: int = 3, grid_deg: np.ndarray = DEFAULT_GRID_DEG, *,
                method: str = "music", forward_backward: bool = False,
                subarray: int | None = None, loading: float = 0.0,
-               return_power: bool = False):
+               return_power: bool = False, return_spectrum: bool = False):
     """The ``n_targets`` strongest peaks of the pseudo-spectrum, refined between grid points.
 
     returns angles in degrees, (n_targets,) for (M, L) snapshots or (D, n_targets) for batched,
     strongest first, NaN where the spectrum has fewer peaks; with ``return_power`` also the
-    pseudo-spectrum values at the refined peaks (same shape).
+    pseudo-spectrum values at the refined peaks (same shape); with ``return_spectrum`` also the
+    pseudo-spectrum on the grid ((G,) or (D, G)). Extra outputs follow the angles in that order.
     """
     if not (isinstance(n_targets, (int, np.integer)) and n_targets >= 1):
         raise DoaError(f"n_targets must be a positive integer, got {n_targets!r}")
@@ -267,8 +281,9 @@ def doa_angles(snapshots: np.ndarray, positions: np.ndarray, n_targets: int = 1,
     angles = np.take_along_axis(angles, order, axis=1)
     peak = np.take_along_axis(np.where(idx >= 0, peak, np.nan), order, axis=1)
     if single:
-        angles, peak = angles[0], peak[0]
-    return (angles, peak) if return_power else angles
+        angles, peak, spec = angles[0], peak[0], spec[0]
+    out = (angles,) + ((peak,) if return_power else ()) + ((spec,) if return_spectrum else ())
+    return out if len(out) > 1 else angles
 
 
 def music_angles(snapshots: np.ndarray, positions: np.ndarray, n_targets: int = 1,

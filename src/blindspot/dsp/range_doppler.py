@@ -63,7 +63,9 @@ class RangeDoppler:
     """Range/Doppler FFT configured once for a cube shape (chirps, tx, rx, samples).
 
     ``__call__(cube) -> rd`` complex64 ``(range, doppler, tx, rx)`` (a transposed *view* of a
-    C-contiguous ``(doppler, tx, rx, range)`` array, so nothing is copied).
+    C-contiguous ``(doppler, tx, rx, range)`` array, so nothing is copied). With ``n_range`` only
+    the first ``n_range`` range bins are Doppler-processed and returned (a range window for
+    scenes that end well before the profile's maximum range; saves most of the Doppler FFT).
     """
 
     n_chirps: int
@@ -71,13 +73,24 @@ class RangeDoppler:
     range_window: str = "hann"
     doppler_window: str = "hann"
     workers: int = 1
+    n_range: int | None = None  # keep range bins 0..n_range-1 only (None = all)
     _w2d: np.ndarray = field(init=False, repr=False, compare=False)
+    _wr: np.ndarray = field(init=False, repr=False, compare=False)
+    _wd: np.ndarray = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
+        if self.n_range is not None and not 1 <= self.n_range <= self.n_samples:
+            raise ValueError(f"n_range must be in [1, {self.n_samples}], got {self.n_range}")
         wr = window(self.range_window, self.n_samples)
         wd = doppler_shift_window(self.doppler_window, self.n_chirps)
         w2d = (wd[:, None] * wr[None, :]).astype(np.complex64)[:, None, None, :]
         object.__setattr__(self, "_w2d", w2d)
+        object.__setattr__(self, "_wr", wr.astype(np.float32))
+        object.__setattr__(self, "_wd", wd.astype(np.complex64)[:, None, None, None])
+
+    @property
+    def cropped(self) -> bool:
+        return self.n_range is not None and self.n_range < self.n_samples
 
     def native(self, cube: np.ndarray) -> np.ndarray:
         """complex64 (doppler, tx, rx, range), C-contiguous: the FFT output before transposing."""
@@ -86,18 +99,29 @@ class RangeDoppler:
                 f"range_doppler: expected a cube (chirps={self.n_chirps}, tx, rx, "
                 f"samples={self.n_samples}), got shape {cube.shape}"
             )
-        x = np.multiply(cube, self._w2d, dtype=np.complex64)  # one pass, new array
-        sfft.fft(x, axis=3, overwrite_x=True, workers=self.workers)
-        return sfft.fft(x, axis=0, overwrite_x=True, workers=self.workers)
+        if not self.cropped:
+            x = np.multiply(cube, self._w2d, dtype=np.complex64)  # both windows, one pass
+            sfft.fft(x, axis=3, overwrite_x=True, workers=self.workers)
+            return sfft.fft(x, axis=0, overwrite_x=True, workers=self.workers)
+        # cropped: the Doppler FFT (and everything after) only sees range bins < n_range
+        x = self.range_profiles(cube)
+        y = np.multiply(x[..., :self.n_range], self._wd, dtype=np.complex64)
+        return sfft.fft(y, axis=0, overwrite_x=True, workers=self.workers)
 
     def __call__(self, cube: np.ndarray) -> np.ndarray:
         return np.moveaxis(self.native(cube), 3, 0)
 
     def range_profiles(self, cube: np.ndarray) -> np.ndarray:
         """Range FFT only: complex64 (chirps, tx, rx, range), range-windowed."""
-        wr = window(self.range_window, self.n_samples).astype(np.float32)
-        x = np.multiply(cube, wr, dtype=np.complex64)
+        x = np.multiply(cube, self._wr, dtype=np.complex64)
         return sfft.fft(x, axis=3, overwrite_x=True, workers=self.workers)
+
+    def doppler(self, range_profiles: np.ndarray) -> np.ndarray:
+        """Doppler FFT (zero-centred) of range profiles (chirps, tx, rx, range), IN PLACE:
+        returns the same buffer as (doppler, tx, rx, range)."""
+        x = range_profiles[..., :self.n_range] if self.cropped else range_profiles
+        x = np.multiply(x, self._wd, dtype=np.complex64) if self.cropped else x.__imul__(self._wd)
+        return sfft.fft(x, axis=0, overwrite_x=True, workers=self.workers)
 
 
 def range_doppler(cube: np.ndarray, range_window: str = "hann", doppler_window: str = "hann",

@@ -1,0 +1,56 @@
+"""TDM-MIMO Doppler compensation.
+
+In a TDM-MIMO frame TX slot ``k`` of every chirp loop fires ``t_k`` after the loop start
+(``RadarConfig.tx_slot_times_s()``, ``k * T_chirp``). A target with Doppler frequency
+``f_d = 2 v / lambda`` therefore adds the phase ``2 pi f_d t_k`` to every virtual channel of TX
+slot k, on top of its spatial phase. Across the virtual array this is a phase pattern that the
+angle estimator would read as a shifted (and distorted) direction; it must be removed before
+angle estimation, using the target's Doppler as measured by the Doppler FFT:
+
+    f_d = (bin - n_doppler // 2) / (n_doppler * T_loop)
+
+for a zero-centred (fftshift-ordered) Doppler axis with ``T_loop = n_tx * T_chirp`` the time
+between two chirps of one TX. The correction for channel (k, r) is ``exp(-j 2 pi f_d t_k)``.
+
+Limits: the Doppler FFT sees velocities modulo ``2 v_max``; for a target faster than ``v_max`` the
+bin is aliased and the correction is wrong by ``2 pi m t_k / T_loop`` (m = the unknown number of
+wraps). Pedestrians (up to ~2 m/s) stay below the MMWCAS profile's 2.3 m/s.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from blindspot.dsp.range_doppler import signed_doppler_index
+
+
+def doppler_frequency_hz(doppler_bin: np.ndarray | int, n_doppler: int,
+                         loop_period_s: float) -> np.ndarray:
+    """Doppler frequency (Hz) of zero-centred Doppler bins (any shape)."""
+    return signed_doppler_index(doppler_bin, n_doppler) / (n_doppler * loop_period_s)
+
+
+def tdm_phase_correction(doppler_hz: np.ndarray, slot_times_s: np.ndarray) -> np.ndarray:
+    """(..., n_tx) complex128 factors exp(-j 2 pi f_d t_k) for Doppler frequencies (...) and
+    slot times (n_tx,)."""
+    f = np.asarray(doppler_hz, dtype=np.float64)[..., None]
+    return np.exp(-2j * np.pi * f * np.asarray(slot_times_s, dtype=np.float64))
+
+
+def compensate_tdm(x: np.ndarray, doppler_bin: np.ndarray, n_doppler: int, loop_period_s: float,
+                   slot_times_s: np.ndarray, tx_of_element: np.ndarray | None = None) -> np.ndarray:
+    """Remove the TDM slot phase of targets at ``doppler_bin`` (D,) from their channels.
+
+    x : (D, n_tx, n_rx, L) channels by TX slot (firing order) and RX, or, with ``tx_of_element``
+        (E,) giving each element's TX slot, (D, E, L) (e.g. the ULA's 86 elements)
+    returns x times the correction, same shape (complex)
+    """
+    corr = tdm_phase_correction(doppler_frequency_hz(doppler_bin, n_doppler, loop_period_s),
+                                slot_times_s)  # (D, n_tx)
+    if tx_of_element is not None:
+        if x.ndim != 3:
+            raise ValueError(f"compensate_tdm: expected (D, elements, L) with tx_of_element, got {x.shape}")
+        return x * corr[:, np.asarray(tx_of_element)][:, :, None]
+    if x.ndim != 4 or x.shape[1] != corr.shape[1]:
+        raise ValueError(f"compensate_tdm: expected (D, n_tx={corr.shape[1]}, n_rx, L), got {x.shape}")
+    return x * corr[:, :, None, None]

@@ -1,0 +1,54 @@
+"""Array snapshots of CFAR detections, for angle estimation.
+
+Two ways to collect the L snapshots of a detection at (range bin r, Doppler bin d):
+
+* ``cells`` (default): the range-Doppler cells of a small neighbourhood around (r, d) after both
+  FFTs (half-widths ``half = (range, doppler)``; range clipped at the edges, Doppler wrapped). The
+  Doppler FFT has already separated the moving pedestrian from the static car at the same range,
+  so the covariance holds only what moves at that speed. The neighbours of a windowed peak carry
+  the same directions (scaled), so they mostly average noise: L = 9 for (1, 1), far fewer than the
+  86 elements, which is why the chain uses forward-backward averaging and spatial smoothing
+  (K-element subarrays, 2 (86 - K + 1) L effective snapshots, full rank for K < ~2 (86 - K + 1) L).
+* ``chirps``: the detection's range bin across the chirp loops (L = n_chirps = 64 time samples)
+  from the range FFT, i.e. the paper's "antenna data along the time axis at the detected range".
+  Everything at that range (the parked car included) is in it; the TDM correction is right only
+  for the detection's own Doppler. With 64 < 86 snapshots the plain covariance is singular too.
+
+Both return ``(D, n_tx, n_rx, L)`` (TX in firing order); ``VirtualArray.ula_snapshots`` then picks
+the ULA elements, giving ``(D, n_ula, L)``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+SNAPSHOT_MODES = ("cells", "chirps")
+
+
+def cell_snapshots(rd_native: np.ndarray, range_bin: np.ndarray, doppler_bin: np.ndarray,
+                   half: tuple[int, int] = (1, 1)) -> np.ndarray:
+    """Neighbourhood cells of each detection.
+
+    rd_native : (doppler, tx, rx, range) complex (``RangeDoppler.native`` layout)
+    range_bin, doppler_bin : (D,) ints
+    returns (D, tx, rx, L) with L = (2 half_r + 1)(2 half_d + 1), the centre cell first
+    """
+    n_dop, _, _, n_rng = rd_native.shape
+    dr, dd = np.meshgrid(np.arange(-half[0], half[0] + 1), np.arange(-half[1], half[1] + 1),
+                         indexing="ij")
+    dr, dd = dr.ravel(), dd.ravel()
+    centre_first = np.argsort((dr != 0) | (dd != 0), kind="stable")
+    dr, dd = dr[centre_first], dd[centre_first]
+    rr = np.clip(np.asarray(range_bin)[:, None] + dr, 0, n_rng - 1)  # (D, L)
+    ds = (np.asarray(doppler_bin)[:, None] + dd) % n_dop
+    cells = rd_native[ds, :, :, rr]  # (D, L, tx, rx): advanced indices first
+    return cells.transpose(0, 2, 3, 1)
+
+
+def chirp_snapshots(range_profiles: np.ndarray, range_bin: np.ndarray) -> np.ndarray:
+    """The detections' range bins across chirps.
+
+    range_profiles : (chirps, tx, rx, range) complex (range FFT only)
+    returns (D, tx, rx, chirps)
+    """
+    return range_profiles[..., np.asarray(range_bin)].transpose(3, 1, 2, 0)
