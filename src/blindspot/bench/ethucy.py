@@ -48,7 +48,7 @@ from blindspot.traj.ethucy import (
     random_rotations,
 )
 from blindspot.traj.metrics import ade, fde
-from blindspot.traj.predictor import PathPredictor
+from blindspot.traj.predictor import HeadingFrameRollout, PathPredictor, heading_frame_pairs
 
 MODELS: tuple[str, ...] = ("cvm", "kalman", "lstm")
 
@@ -60,7 +60,14 @@ class LSTMBenchSettings:
     Attributes:
         hidden_size, num_layers, head_hidden, target: model (window is fixed to 8).
         epochs, batch_size, lr, seed: training.
-        rotations: random-rotation copies added per training window (0 = no augmentation).
+        frame: ``"heading"`` - every window is expressed in its own heading frame (origin at the
+            last point, +x along the last step) for training and for each rollout step
+            (:class:`~blindspot.traj.predictor.HeadingFrameRollout`); ``"world"`` - the LSTM
+            sees world coordinates (its own translation to the last point still applies).
+        residual: (heading frame) the LSTM predicts the correction to constant velocity.
+        mirror: (heading frame) train on mirrored copies too and average the prediction with
+            the mirrored window's (left/right symmetry).
+        rotations: (world frame) random-rotation copies added per training window.
         num_threads: torch threads (None = leave torch's default).
     """
 
@@ -72,8 +79,18 @@ class LSTMBenchSettings:
     batch_size: int = 256
     lr: float = 1e-3
     seed: int = 0
+    frame: str = "heading"
+    residual: bool = True
+    mirror: bool = True
     rotations: int = 0
     num_threads: int | None = None
+
+    def __post_init__(self) -> None:
+        if self.frame not in ("heading", "world"):
+            raise ValueError(f"lstm frame: expected 'heading' or 'world', found {self.frame!r}")
+        if self.frame == "heading" and self.rotations:
+            raise ValueError("lstm rotations: random rotations do nothing in the heading frame "
+                             "(it is rotation invariant); use frame='world' or rotations=0")
 
 
 @dataclass
@@ -95,36 +112,54 @@ def score(predictor: PathPredictor, test: Windows, obs_len: int = OBS_LEN,
     return ade(pred, truth), fde(pred, truth)
 
 
-def lstm_window_set(data_dir: Path, fold: str, split: str, *, rotations: int = 0,
-                    seed: int = 0):
+def lstm_window_set(data_dir: Path, fold: str, split: str, s: LSTMBenchSettings, *,
+                    augment: bool = True):
     """Next-point windows (8 in -> 1 out) of a fold's split as a ``WindowSet``.
 
     Every fully observed 9-frame stretch of every pedestrian (no minimum-neighbour filter: the
-    LSTM sees one pedestrian at a time), plus ``rotations`` randomly rotated copies.
+    LSTM sees one pedestrian at a time). In the heading frame the pairs come from
+    :func:`~blindspot.traj.predictor.heading_frame_pairs` (mirrored copies when ``augment`` and
+    ``s.mirror``); in the world frame ``s.rotations`` random rotations are added when
+    ``augment``.
     """
     from blindspot.traj.windows import WindowSet
 
     w = load_split(data_dir, fold, split, seq_len=OBS_LEN + 1, min_peds=1)
     xy, pid = w.xy, w.track_id
-    if rotations:
-        xy = np.concatenate([xy, random_rotations(xy, rotations, np.random.default_rng(seed))])
-        pid = np.tile(pid, rotations + 1)
+    if s.frame == "heading":
+        mirror = augment and s.mirror
+        x, y = heading_frame_pairs(xy, residual=s.residual, mirror=mirror)
+        return WindowSet(x=x, y=y, path_id=np.tile(pid, 2) if mirror else pid)
+    if augment and s.rotations:
+        xy = np.concatenate([xy, random_rotations(xy, s.rotations, np.random.default_rng(s.seed))])
+        pid = np.tile(pid, s.rotations + 1)
     return WindowSet(x=xy[:, :OBS_LEN], y=xy[:, OBS_LEN], path_id=pid)
 
 
-def train_fold_lstm(data_dir: Path, fold: str, s: LSTMBenchSettings, progress: bool):
-    """Train the LSTM on a fold's train split (validated on its val split)."""
+def train_fold_lstm(data_dir: Path, fold: str, s: LSTMBenchSettings, progress: bool
+                    ) -> tuple[PathPredictor, float, int, int]:
+    """Train the LSTM on a fold's train split (validated on its val split).
+
+    Returns:
+        ``(predictor, val_rmse_m, n_train, n_val)``: the predictor to score (the LSTM itself,
+        or wrapped in :class:`HeadingFrameRollout`), the one-step validation RMSE in metres
+        per coordinate, and the window counts.
+    """
     from blindspot.traj.lstm import LSTMConfig
     from blindspot.traj.train import TrainConfig, train_lstm
 
-    train = lstm_window_set(data_dir, fold, "train", rotations=s.rotations, seed=s.seed)
-    val = lstm_window_set(data_dir, fold, "val")
+    train = lstm_window_set(data_dir, fold, "train", s)
+    val = lstm_window_set(data_dir, fold, "val", s, augment=False)
     model_cfg = LSTMConfig(window=OBS_LEN, hidden_size=s.hidden_size, num_layers=s.num_layers,
                            head_hidden=s.head_hidden, target=s.target)
     train_cfg = TrainConfig(epochs=s.epochs, batch_size=s.batch_size, lr=s.lr, seed=s.seed,
                             num_threads=s.num_threads)
     result = train_lstm(train, val, model_cfg, train_cfg, progress=progress)
-    return result, len(train), len(val)
+    predictor: PathPredictor = result.predictor
+    if s.frame == "heading":
+        predictor = HeadingFrameRollout(result.predictor, residual=s.residual,
+                                        symmetric=s.mirror, name="lstm")
+    return predictor, result.val_rmse_m, len(train), len(val)
 
 
 def run_fold(data_dir: Path, fold: str, models: Sequence[str], lstm: LSTMBenchSettings,
@@ -142,9 +177,8 @@ def run_fold(data_dir: Path, fold: str, models: Sequence[str], lstm: LSTMBenchSe
             predictor = KalmanCV().fit(train.xy, objective="forecast", obs_len=OBS_LEN)
             fitted = {"process_psd_m2_s3": predictor.process_psd, "meas_std_m": predictor.meas_std}
         elif name == "lstm":
-            result, n_train, n_val = train_fold_lstm(data_dir, fold, lstm, progress)
-            predictor = result.predictor
-            fitted = {"val_rmse_m": result.val_rmse_m, "n_train_windows": n_train,
+            predictor, val_rmse, n_train, n_val = train_fold_lstm(data_dir, fold, lstm, progress)
+            fitted = {"val_rmse_m": val_rmse, "n_train_windows": n_train,
                       "n_val_windows": n_val}
         else:  # guarded by parse_models
             raise ValueError(f"unknown model {name!r}")
@@ -212,9 +246,16 @@ def format_report(results, per_fold, folds, lstm: LSTMBenchSettings | None, comm
         parts.append(f"  Fitted process noise q (m^2/s^3), meas_std 0.05 m: {fitted}.")
     if lstm is not None and "lstm" in results:
         parts += [
-            "- **lstm**: next-point LSTM (window 8) trained per fold on every fully observed "
-            "9-frame stretch of the train split, validated on the val split, rolled out 12 steps "
-            f"autoregressively. Settings: `{json.dumps(asdict(lstm))}`.",
+            "- **lstm**: the project's next-point LSTM (window 8), trained per fold on every "
+            "fully observed 9-frame stretch of the train split, validated on the val split, "
+            "rolled out 12 steps autoregressively"
+            + (" in each window's heading frame (origin at the last point, +x along the last "
+               "step; recomputed at every rollout step)" if lstm.frame == "heading" else "")
+            + (", predicting the correction to constant velocity" if lstm.frame == "heading"
+               and lstm.residual else "")
+            + (", mirrored copies in training and left/right-symmetrised predictions"
+               if lstm.frame == "heading" and lstm.mirror else "")
+            + f". Settings: `{json.dumps(asdict(lstm))}`.",
             "  Validation one-step RMSE (m, per coordinate): "
             + ", ".join(f"{f} {per_fold[f]['lstm'].fitted['val_rmse_m']:.4f}" for f in folds)
             + ".",
@@ -269,8 +310,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--num-layers", type=int, default=d.num_layers)
     p.add_argument("--head-hidden", type=int, default=d.head_hidden)
     p.add_argument("--target", choices=("displacement", "absolute"), default=d.target)
+    p.add_argument("--frame", choices=("heading", "world"), default=d.frame,
+                   help="coordinates the LSTM sees (heading: each window's own heading frame)")
+    p.add_argument("--no-residual", dest="residual", action="store_false",
+                   help="heading frame: predict the next point, not the correction to CVM")
+    p.add_argument("--no-mirror", dest="mirror", action="store_false",
+                   help="heading frame: no mirrored copies / symmetric averaging")
     p.add_argument("--rotations", type=int, default=d.rotations,
-                   help="random-rotation copies per LSTM training window (augmentation)")
+                   help="world frame: random-rotation copies per training window")
     p.add_argument("--seed", type=int, default=d.seed)
     p.add_argument("--threads", type=int, default=None, help="torch threads for the LSTM")
     p.add_argument("--quiet", action="store_true", help="no progress bars")
@@ -284,10 +331,16 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"error: --data {data_dir}: no such folder (expected the ETH/UCY folder holding "
               f"{', '.join(FOLDS)})", file=sys.stderr)
         return 2
-    lstm = LSTMBenchSettings(hidden_size=args.hidden_size, num_layers=args.num_layers,
-                             head_hidden=args.head_hidden, target=args.target,
-                             epochs=args.epochs, batch_size=args.batch_size, lr=args.lr,
-                             seed=args.seed, rotations=args.rotations, num_threads=args.threads)
+    try:
+        lstm = LSTMBenchSettings(hidden_size=args.hidden_size, num_layers=args.num_layers,
+                                 head_hidden=args.head_hidden, target=args.target,
+                                 epochs=args.epochs, batch_size=args.batch_size, lr=args.lr,
+                                 seed=args.seed, frame=args.frame, residual=args.residual,
+                                 mirror=args.mirror, rotations=args.rotations,
+                                 num_threads=args.threads)
+    except ValueError as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
     progress = not args.quiet
     t0 = time.perf_counter()
     per_fold: dict[str, dict[str, FoldOutcome]] = {}

@@ -12,7 +12,17 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
-__all__ = ["PathPredictor", "HistoryError", "check_history"]
+__all__ = [
+    "PathPredictor",
+    "HistoryError",
+    "check_history",
+    "NextPointModel",
+    "heading_frame",
+    "to_frame",
+    "from_frame",
+    "heading_frame_pairs",
+    "HeadingFrameRollout",
+]
 
 
 @runtime_checkable
@@ -55,3 +65,143 @@ def check_history(history: np.ndarray, horizon: int, *, who: str = "predict") ->
     if int(horizon) != horizon or horizon < 1:
         raise HistoryError(f"{who}: horizon must be a positive integer, found {horizon!r}")
     return h
+
+
+# --------------------------------------------------------------------------------------------
+# Heading frame: rotation/translation-invariant use of a next-point model
+# --------------------------------------------------------------------------------------------
+
+
+@runtime_checkable
+class NextPointModel(Protocol):
+    """A one-step model: windows (B, window, 2) in metres -> next points (B, 2) in metres."""
+
+    window: int
+
+    def predict_next(self, windows: np.ndarray) -> np.ndarray: ...
+
+
+_MIRROR = np.array([1.0, -1.0])
+
+
+def heading_frame(windows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The frame of each window: origin at its last point, +x along its last step.
+
+    Args:
+        windows: (B, W, 2) points in metres, W >= 2, no NaN in the last two rows.
+
+    Returns:
+        ``(origin (B, 2), rot (B, 2, 2))`` with ``rot`` mapping world offsets to frame
+        coordinates (``q = rot @ (p - origin)``). A window whose last step is zero (standing
+        still) gets the world orientation.
+    """
+    origin = windows[:, -1]
+    step = windows[:, -1] - windows[:, -2]
+    theta = np.arctan2(step[:, 1], step[:, 0])
+    c, s = np.cos(theta), np.sin(theta)
+    rot = np.stack([np.stack([c, s], axis=-1), np.stack([-s, c], axis=-1)], axis=-2)
+    return origin, rot
+
+
+def to_frame(points: np.ndarray, origin: np.ndarray, rot: np.ndarray) -> np.ndarray:
+    """World points (B, ..., 2) -> frame coordinates ``rot @ (p - origin)`` per batch row."""
+    flat = points.reshape(points.shape[0], -1, 2) - origin[:, None, :]
+    return np.einsum("bij,bnj->bni", rot, flat).reshape(points.shape)
+
+
+def from_frame(points: np.ndarray, origin: np.ndarray, rot: np.ndarray) -> np.ndarray:
+    """Frame coordinates (B, ..., 2) -> world points ``rot^T q + origin``."""
+    flat = points.reshape(points.shape[0], -1, 2)
+    return (np.einsum("bji,bnj->bni", rot, flat) + origin[:, None, :]).reshape(points.shape)
+
+
+def heading_frame_pairs(sequences: np.ndarray, *, residual: bool = True, mirror: bool = True
+                        ) -> tuple[np.ndarray, np.ndarray]:
+    """Training pairs for a next-point model used through :class:`HeadingFrameRollout`.
+
+    Args:
+        sequences: (N, W + 1, 2) stretches of W inputs and the next point, metres, no NaN.
+        residual: make the target the deviation from constant velocity (next point minus the
+            last point carried one more step); the model then learns corrections to CVM.
+        mirror: also add every pair reflected across the heading axis (walking has no
+            preferred side), doubling N.
+
+    Returns:
+        ``(x (N', W, 2), y (N', 2))`` in each window's heading frame (``N' = 2N`` with mirror).
+    """
+    seq = np.asarray(sequences, dtype=float)
+    if seq.ndim != 3 or seq.shape[1] < 3 or seq.shape[2] != 2:
+        raise HistoryError(f"heading_frame_pairs: sequences must be (N, W + 1, 2) with W >= 2, "
+                           f"found shape {seq.shape}")
+    origin, rot = heading_frame(seq[:, :-1])
+    framed = to_frame(seq, origin, rot)
+    if mirror:
+        framed = np.concatenate([framed, framed * _MIRROR])
+    x, y = framed[:, :-1], framed[:, -1]
+    if residual:
+        y = y - (x[:, -1] - x[:, -2])
+    return x, y
+
+
+class HeadingFrameRollout:
+    """Autoregressive rollout of a next-point model in each window's heading frame.
+
+    At every step the current window is moved to its heading frame (:func:`heading_frame`),
+    the model predicts the next point there, and the point is mapped back to the world and
+    appended. This makes the prediction invariant to where the pedestrian is and which way they
+    walk. With ``residual`` the model's output is a correction to constant velocity (train it on
+    :func:`heading_frame_pairs` with the same flag); with ``symmetric`` the prediction is
+    averaged with that of the mirrored window (exact left/right symmetry).
+
+    Attributes:
+        model: a :class:`NextPointModel` (e.g. ``blindspot.traj.lstm.LSTMPredictor``).
+        residual, symmetric: see above. name: label used in reports.
+    """
+
+    def __init__(self, model: NextPointModel, *, residual: bool = True, symmetric: bool = True,
+                 name: str = "lstm") -> None:
+        self.model = model
+        self.residual = residual
+        self.symmetric = symmetric
+        self.name = name
+
+    @property
+    def window(self) -> int:
+        return int(self.model.window)
+
+    def step(self, windows: np.ndarray) -> np.ndarray:
+        """Next points (B, 2) in metres for windows (B, window, 2)."""
+        origin, rot = heading_frame(windows)
+        x = to_frame(windows, origin, rot)
+        nxt = np.asarray(self.model.predict_next(x), dtype=float)
+        if self.symmetric:
+            nxt = 0.5 * (nxt + np.asarray(self.model.predict_next(x * _MIRROR), float) * _MIRROR)
+        if self.residual:
+            nxt = nxt + (x[:, -1] - x[:, -2])
+        return from_frame(nxt[:, None, :], origin, rot)[:, 0]
+
+    def predict(self, history: np.ndarray, horizon: int) -> np.ndarray:
+        """Roll out ``horizon`` steps from the last ``window`` points of each history.
+
+        Args:
+            history: (B, T, 2) in metres, T >= window; the last ``window`` rows must be
+                observed (fill gaps first, e.g. with ``KalmanCV.smooth``).
+            horizon: number of future points.
+
+        Returns:
+            (B, horizon, 2) predicted points in metres.
+        """
+        h = check_history(history, horizon, who=f"{self.name}.predict")
+        W = self.window
+        if h.shape[1] < W:
+            raise HistoryError(f"{self.name}.predict: needs at least window={W} points, found "
+                               f"T={h.shape[1]}")
+        x = h[:, -W:]
+        if not np.isfinite(x).all():
+            raise HistoryError(f"{self.name}.predict: the last {W} history rows contain NaN; "
+                               "fill gaps first (e.g. KalmanCV.smooth)")
+        out = np.empty((h.shape[0], horizon, 2))
+        for k in range(horizon):          # one batched model call (two if symmetric) per step
+            out[:, k] = self.step(x)
+            x = np.concatenate([x[:, 1:], out[:, k, None]], axis=1)
+        return out

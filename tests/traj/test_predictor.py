@@ -1,0 +1,110 @@
+"""Heading-frame rollout: geometry of the frame, invariances, and exact CVM limits."""
+
+import numpy as np
+import pytest
+
+from blindspot.traj.baselines import ConstantVelocity
+from blindspot.traj.predictor import (
+    HeadingFrameRollout,
+    HistoryError,
+    PathPredictor,
+    from_frame,
+    heading_frame,
+    heading_frame_pairs,
+    to_frame,
+)
+
+
+class ConstantVelocityStep:
+    """Next point = last point + last step (a NextPointModel)."""
+
+    window = 8
+
+    def predict_next(self, w):
+        return 2 * w[:, -1] - w[:, -2]
+
+
+class Zero:
+    window = 8
+
+    def predict_next(self, w):
+        return np.zeros((w.shape[0], 2))
+
+
+class TurnLeft:
+    """In its own frame: keep the speed, turn left by 0.1 m per step (an asymmetric model)."""
+
+    window = 8
+
+    def predict_next(self, w):
+        step = w[:, -1] - w[:, -2]
+        return w[:, -1] + step + np.array([0.0, 0.1])
+
+
+def walks(seed, B=16, T=8):
+    return np.cumsum(np.random.default_rng(seed).normal(size=(B, T, 2)), axis=1)
+
+
+def rotate(p, theta):
+    c, s = np.cos(theta), np.sin(theta)
+    return p @ np.array([[c, s], [-s, c]])
+
+
+def test_frame_puts_last_point_at_origin_and_last_step_on_plus_x():
+    w = walks(0)
+    origin, rot = heading_frame(w)
+    q = to_frame(w, origin, rot)
+    np.testing.assert_allclose(q[:, -1], 0.0, atol=1e-12)
+    assert np.all(q[:, -2, 0] < 0) and np.allclose(q[:, -2, 1], 0.0, atol=1e-12)
+    np.testing.assert_allclose(-q[:, -2, 0], np.linalg.norm(w[:, -1] - w[:, -2], axis=-1))
+    np.testing.assert_allclose(from_frame(q, origin, rot), w, atol=1e-12)
+    # distances are preserved (a rigid motion)
+    np.testing.assert_allclose(np.linalg.norm(np.diff(q, axis=1), axis=-1),
+                               np.linalg.norm(np.diff(w, axis=1), axis=-1))
+
+
+def test_pairs_residual_and_mirror():
+    seq = walks(1, T=9)
+    x, y = heading_frame_pairs(seq, residual=False, mirror=False)
+    x_r, y_r = heading_frame_pairs(seq, residual=True, mirror=True)
+    assert x_r.shape == (32, 8, 2) and y_r.shape == (32, 2)
+    np.testing.assert_allclose(x_r[:16], x)
+    np.testing.assert_allclose(x_r[16:], x * [1, -1])
+    # residual = next point minus the constant-velocity guess (last point + last step)
+    np.testing.assert_allclose(y_r[:16], y - (x[:, -1] - x[:, -2]))
+    with pytest.raises(HistoryError, match="W \\+ 1"):
+        heading_frame_pairs(np.zeros((4, 2, 2)))
+
+
+@pytest.mark.parametrize("model,residual", [(ConstantVelocityStep(), False), (Zero(), True)])
+def test_cvm_limits_are_exact(model, residual):
+    h = walks(2)
+    roll = HeadingFrameRollout(model, residual=residual)
+    assert isinstance(roll, PathPredictor)
+    np.testing.assert_allclose(roll.predict(h, 12), ConstantVelocity().predict(h, 12), atol=1e-9)
+
+
+def test_rollout_is_rotation_and_translation_equivariant():
+    h = walks(3)
+    roll = HeadingFrameRollout(TurnLeft(), residual=False, symmetric=False)
+    moved = rotate(h, 0.7) + [5.0, -3.0]
+    np.testing.assert_allclose(roll.predict(moved, 6), rotate(roll.predict(h, 6), 0.7) + [5.0, -3.0],
+                               atol=1e-9)
+
+
+def test_symmetric_rollout_cancels_a_one_sided_bias():
+    h = np.stack([np.arange(8.0), np.zeros(8)], axis=-1)[None]       # straight along +x
+    biased = HeadingFrameRollout(TurnLeft(), residual=False, symmetric=False).predict(h, 3)
+    assert np.all(biased[0, :, 1] > 0)                                # drifts left
+    sym = HeadingFrameRollout(TurnLeft(), residual=False, symmetric=True).predict(h, 3)
+    np.testing.assert_allclose(sym[0], [[8, 0], [9, 0], [10, 0]], atol=1e-12)
+
+
+def test_rollout_refuses_short_or_gappy_histories():
+    roll = HeadingFrameRollout(Zero())
+    with pytest.raises(HistoryError, match="window=8"):
+        roll.predict(walks(4, T=5), 3)
+    h = walks(4)
+    h[0, -1] = np.nan
+    with pytest.raises(HistoryError, match="NaN"):
+        roll.predict(h, 3)
