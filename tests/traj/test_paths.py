@@ -88,7 +88,7 @@ def test_turn_rates_in_range(pathset):
     ("kwargs", "key"),
     [
         ({"speed_mps": (2.0, 0.5)}, "speed_mps"),
-        ({"n_points": 1}, "n_points"),
+        ({"points_per_path": 1}, "points_per_path"),
         ({"motion_weights": (0, 0, 0)}, "motion_weights"),
         ({"start_range_m": (5.0, 60.0)}, "start_range_m"),
         ({"heading_spread_deg": 120.0}, "heading_spread_deg"),
@@ -100,8 +100,8 @@ def test_bad_spec_names_the_key(kwargs, key):
 
 
 def test_from_mapping_prefixes_where_and_accepts_lists():
-    spec = PathSpec.from_mapping({"speed_mps": [0.6, 1.2], "window": 50, "n_points": 100})
-    assert spec.speed_mps == (0.6, 1.2) and spec.n_points == 100
+    spec = PathSpec.from_mapping({"speed_mps": [0.6, 1.2], "window": 50, "points_per_path": 100})
+    assert spec.speed_mps == (0.6, 1.2) and spec.points_per_path == 100
     with pytest.raises(PathConfigError, match=r"dataset\.turn_rate_deg_s"):
         PathSpec.from_mapping({"turn_rate_deg_s": [3.0]})
 

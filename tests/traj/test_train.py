@@ -1,6 +1,8 @@
 """Training: learns constant velocity, is bit-deterministic, resumes exactly, reports RMSE as
 defined, refuses bad input."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 import torch
@@ -90,10 +92,11 @@ def test_deterministic_for_a_seed(small_data):
     assert not torch.equal(state(a)["lstm.weight_hh_l0"], state(c)["lstm.weight_hh_l0"])
 
 
-def test_resume_gives_same_weights_as_uninterrupted(small_data, tmp_path):
+@pytest.mark.parametrize("schedule", ["constant", "cosine"])
+def test_resume_gives_same_weights_as_uninterrupted(small_data, tmp_path, schedule):
     train, val = small_data
     cfg_model = LSTMConfig(window=W, hidden_size=8, head_hidden=4, num_layers=2, dropout=0.2)  # dropout uses the RNG
-    cfg = TrainConfig(epochs=3, seed=1, num_threads=1)
+    cfg = TrainConfig(epochs=3, seed=1, num_threads=1, lr_schedule=schedule)
     full = train_lstm(train, val, cfg_model, cfg, progress=False)
 
     class Interrupted(Exception):
@@ -115,11 +118,23 @@ def test_resume_gives_same_weights_as_uninterrupted(small_data, tmp_path):
     np.testing.assert_array_equal(full.history["val_rmse_m"], resumed.history["val_rmse_m"])
 
     with pytest.raises(ValueError, match="different train"):
-        train_lstm(train, val, cfg_model, TrainConfig(epochs=3, seed=1, num_threads=1, lr=0.01), progress=False,
+        train_lstm(train, val, cfg_model, replace(cfg, lr=0.01), progress=False,
                    checkpoint_dir=tmp_path, resume=True)
     with pytest.raises(ValueError, match="different data"):
         train_lstm(train.subset(np.arange(100)), val, cfg_model, cfg, progress=False, checkpoint_dir=tmp_path,
                    resume=True)
+
+
+def test_cosine_schedule_changes_training_and_pins_epochs(small_data, tmp_path):
+    train, val = small_data
+    const = train_lstm(train, val, TINY, TrainConfig(epochs=2, num_threads=1), progress=False)
+    cos = train_lstm(train, val, TINY, TrainConfig(epochs=2, num_threads=1, lr_schedule="cosine"), progress=False,
+                     checkpoint_dir=tmp_path)
+    assert not torch.equal(state(const)["head.0.weight"], state(cos)["head.0.weight"])
+    # a cosine run cannot be extended: its learning rate depends on the planned epoch count
+    with pytest.raises(ValueError, match="different train"):
+        train_lstm(train, val, TINY, TrainConfig(epochs=3, num_threads=1, lr_schedule="cosine"), progress=False,
+                   checkpoint_dir=tmp_path, resume=True)
 
 
 def test_global_torch_settings_restored(small_data):
@@ -141,6 +156,8 @@ def test_bad_input(small_data):
         train_lstm(train, val, TINY, TrainConfig(epochs=1), progress=False, resume=True)
     with pytest.raises(TrainConfigError, match="lr"):
         TrainConfig(lr=0)
+    with pytest.raises(TrainConfigError, match="lr_schedule"):
+        TrainConfig(lr_schedule="step")
     with pytest.raises(TrainConfigError, match=r"train\.optimizer"):
         TrainConfig.from_mapping({"optimizer": "sgd"})
     with pytest.raises(TrainConfigError, match=r"train\.epoch"):

@@ -13,8 +13,9 @@ Normalisation (:class:`NormStats`, fitted on the training windows only):
 - ``normalise=True``: inputs are divided by a fitted scalar RMS (one scale for x and y, so
   directions are not distorted) and the target by its own fitted RMS.
 - ``target="displacement"``: the network predicts ``next - last point``; ``"absolute"``: it
-  predicts the next point in the same frame as its inputs (relative to the last point when
-  translating, so the two differ then only in the output scale).
+  predicts the next point in the same frame as its inputs. When translating, that frame is
+  centred on the last point, so the two targets coincide; they differ only with
+  ``translate=False`` (absolute = next point minus the fitted mean position).
 
 :class:`LSTMPredictor` wraps a model and its statistics, predicts one step from windows and rolls
 out several steps (predict, append, slide) for a whole batch at once.

@@ -60,7 +60,7 @@ class PathSpec:
     """How synthetic pedestrian paths are drawn (all SI; degrees only in ``*_deg`` names).
 
     Attributes:
-        n_points: points per path (the paper: 200).
+        points_per_path: points per path (the paper: 200).
         frame_period_s: time between points, the radar frame period.
         speed_mps: [low, high] walking speed, drawn uniformly.
         start_range_m: [low, high] range of the first point, drawn uniformly.
@@ -73,7 +73,7 @@ class PathSpec:
         min_range_m, max_range_m, max_abs_angle_deg: field of view every point must stay in.
     """
 
-    n_points: int = 200
+    points_per_path: int = 200
     frame_period_s: float = 0.1
     speed_mps: tuple[float, float] = (0.5, 2.0)
     start_range_m: tuple[float, float] = (5.0, 45.0)
@@ -87,8 +87,8 @@ class PathSpec:
     max_abs_angle_deg: float = 75.0
 
     def __post_init__(self) -> None:
-        if int(self.n_points) != self.n_points or self.n_points < 2:
-            raise PathConfigError("n_points", self.n_points, "an integer >= 2")
+        if int(self.points_per_path) != self.points_per_path or self.points_per_path < 2:
+            raise PathConfigError("points_per_path", self.points_per_path, "an integer >= 2")
         if not (np.isfinite(self.frame_period_s) and self.frame_period_s > 0):
             raise PathConfigError("frame_period_s", self.frame_period_s, "a positive number of seconds")
         object.__setattr__(self, "speed_mps", _interval("speed_mps", self.speed_mps, lo=0.0))
@@ -138,8 +138,8 @@ class PathSpec:
 
     @property
     def times_s(self) -> np.ndarray:
-        """(n_points,) time of each point from the start of the path."""
-        return np.arange(self.n_points) * self.frame_period_s
+        """(points_per_path,) time of each point from the start of the path."""
+        return np.arange(self.points_per_path) * self.frame_period_s
 
 
 @dataclass(frozen=True)
@@ -206,7 +206,7 @@ def _draw(spec: PathSpec, motion: int, n: int, rng: np.random.Generator) -> tupl
         psi0 = th0 + side * np.pi / 2 + rng.uniform(-p, p, size=n)
     psi0 = np.angle(np.exp(1j * psi0))  # wrap to (-pi, pi]
     start = np.stack([r0 * np.sin(th0), r0 * np.cos(th0)], axis=-1)
-    xy = integrate_constant_turn(start, speed, psi0, turn, spec.n_points, spec.frame_period_s)
+    xy = integrate_constant_turn(start, speed, psi0, turn, spec.points_per_path, spec.frame_period_s)
     return xy, speed, psi0, turn
 
 
@@ -233,7 +233,7 @@ def random_path_set(n_paths: int, spec: PathSpec | None = None, seed: int = 0, *
             which means the settings leave almost no path inside the field of view.
 
     Returns:
-        :class:`PathSet` with ``xy`` of shape (P, spec.n_points, 2).
+        :class:`PathSet` with ``xy`` of shape (P, spec.points_per_path, 2).
     """
     spec = spec or PathSpec()
     if int(n_paths) != n_paths or n_paths < 0:
@@ -261,7 +261,7 @@ def random_path_set(n_paths: int, spec: PathSpec | None = None, seed: int = 0, *
         if got:
             parts.append(tuple(np.concatenate([g[i] for g in got])[:need] for i in range(4)))
         else:
-            parts.append((np.empty((0, spec.n_points, 2)), np.empty(0), np.empty(0), np.empty(0)))
+            parts.append((np.empty((0, spec.points_per_path, 2)), np.empty(0), np.empty(0), np.empty(0)))
         labels.append(np.full(need, motion, dtype=np.int64))
     order = rng.permutation(int(n_paths))
     xy, speed, psi0, turn = (np.concatenate([p[i] for p in parts])[order] for i in range(4))
@@ -269,7 +269,7 @@ def random_path_set(n_paths: int, spec: PathSpec | None = None, seed: int = 0, *
 
 
 def random_paths(n_paths: int, spec: PathSpec | None = None, seed: int = 0) -> np.ndarray:
-    """(P, spec.n_points, 2) clean truth paths; see :func:`random_path_set`."""
+    """(P, spec.points_per_path, 2) clean truth paths; see :func:`random_path_set`."""
     return random_path_set(n_paths, spec, seed).xy
 
 

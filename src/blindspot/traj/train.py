@@ -43,6 +43,7 @@ from blindspot.traj.windows import WindowSet
 _CKPT_FORMAT = "blindspot.train-checkpoint/1"
 CHECKPOINT_NAME = "last.pt"
 _OPTIMIZERS = ("adam", "adamw")
+_SCHEDULES = ("constant", "cosine")
 HISTORY_COLUMNS = ("epoch", "train_loss", "train_rmse_m", "val_rmse_m", "val_rmse_euclid_m", "seconds")
 
 
@@ -63,6 +64,8 @@ class TrainConfig:
         epochs: passes over the training windows (paper: 15).
         batch_size: windows per optimiser step.
         optimizer: "adam" (paper) or "adamw".
+        lr_schedule: "constant" (lr throughout) or "cosine" (lr * (1 + cos(pi * s / S)) / 2 at
+            optimiser step s of S, decaying from lr to 0 over the run).
         seed: drives weight init, dropout and batch order.
         weight_decay: L2 penalty (Adam) / decoupled decay (AdamW).
         grad_clip: max global gradient norm, or None / 0 for no clipping.
@@ -74,6 +77,7 @@ class TrainConfig:
     epochs: int = 15
     batch_size: int = 64
     optimizer: str = "adam"
+    lr_schedule: str = "constant"
     seed: int = 0
     weight_decay: float = 0.0
     grad_clip: float | None = None
@@ -87,6 +91,8 @@ class TrainConfig:
             v = getattr(self, key)
             if isinstance(v, bool) or int(v) != v or v < lo:
                 raise TrainConfigError(key, v, f"an integer >= {lo}")
+        if self.lr_schedule not in _SCHEDULES:
+            raise TrainConfigError("lr_schedule", self.lr_schedule, f"one of {list(_SCHEDULES)}")
         if self.optimizer not in _OPTIMIZERS:
             raise TrainConfigError("optimizer", self.optimizer, f"one of {list(_OPTIMIZERS)}")
         if not (self.weight_decay >= 0):
@@ -164,9 +170,11 @@ def _fingerprint(train: WindowSet, val: WindowSet) -> str:
 
 
 def _resume_key(model_cfg: LSTMConfig, train_cfg: TrainConfig, fingerprint: str) -> dict[str, Any]:
-    """What must match between a checkpoint and the run resuming it (epochs may grow)."""
+    """What must match between a checkpoint and the run resuming it (epochs may grow, unless the
+    learning-rate schedule depends on them)."""
     tc = asdict(train_cfg)
-    tc.pop("epochs")
+    if train_cfg.lr_schedule == "constant":
+        tc.pop("epochs")
     return {"model": asdict(model_cfg), "train": tc, "data": fingerprint}
 
 
@@ -206,8 +214,8 @@ def train_lstm(
             metrics = that history row without "epoch"), after its checkpoint is written.
         checkpoint_dir: write ``<dir>/last.pt`` after every epoch (temp name, then rename).
         resume: continue from ``<dir>/last.pt`` if it exists (else start fresh); the checkpoint
-            must come from the same model config, training config (except ``epochs``) and data,
-            otherwise ValueError.
+            must come from the same model config, training config (except ``epochs`` with a
+            constant learning rate) and data, otherwise ValueError.
         progress: show tqdm bars.
 
     Returns:
@@ -285,6 +293,10 @@ def _train(
         loss_sum = 0.0
         for b in tqdm(range(n_batches), desc=f"epoch {epoch + 1}", leave=False, disable=not progress):
             idx = order[b * cfg.batch_size : (b + 1) * cfg.batch_size]
+            if cfg.lr_schedule == "cosine":
+                step = epoch * n_batches + b
+                for group in optimizer.param_groups:
+                    group["lr"] = cfg.lr * 0.5 * (1.0 + math.cos(math.pi * step / (cfg.epochs * n_batches)))
             optimizer.zero_grad(set_to_none=True)
             loss = loss_fn(model(u_all[idx]), t_all[idx])
             loss.backward()
