@@ -104,15 +104,15 @@ def test_multirun_parent_with_one_child_per_job(toy: Path) -> None:
 
 
 def test_joblib_multirun_reuses_workers_without_leaking_runs(toy: Path) -> None:
-    blindspot(["toy", "-m", "hydra/launcher=parallel", "model.hidden_size=1,2,3,4"], toy)
+    blindspot(["toy", "-m", "hydra/launcher=parallel", "model.hidden_size=1,2,3"], toy)
     parent, children = _sweep_runs(toy)
     assert parent.info.status == "FINISHED"
-    assert [c.data.params["model.hidden_size"] for c in children] == ["1", "2", "3", "4"]
+    assert [c.data.params["model.hidden_size"] for c in children] == ["1", "2", "3"]
     assert {c.info.status for c in children} == {"FINISHED"}
     pids = [c.data.tags["toy.pid"] for c in children]
-    assert len(set(pids)) < len(pids) <= 4  # loky reused a worker process ...
+    assert len(set(pids)) < len(pids) == 3  # 2 loky workers, 3 jobs: a worker was reused ...
     # ... and each job still logged into its own run only: one score series per child.
-    for c, h in zip(children, [1, 2, 3, 4], strict=True):
+    for c, h in zip(children, [1, 2, 3], strict=True):
         assert c.data.metrics["score"] == pytest.approx(0.1 * h * 2)
 
 

@@ -170,7 +170,7 @@ with tracking.stage_run("race", {"i": i}, repo_root=root) as t:
 
 def test_parallel_first_runs_on_a_fresh_store_do_not_race(tmp_path: Path) -> None:
     toy = make_toy_repo(tmp_path / "fresh", store=False)
-    n = 3
+    n = 2  # without the lock, 2 processes on a fresh store already fail (duplicate column)
     procs = [subprocess.Popen([sys.executable, "-c", RACE, str(i), str(n), str(toy)],
                               env=clean_env(), stderr=subprocess.PIPE, text=True)
              for i in range(n)]
