@@ -142,7 +142,7 @@ def test_simulated_paper_scene_visible_and_hidden():
     chain = DetectionChain.from_config(radar, array_for(radar), group("cfar", "paper"),
                                        group("doa", "music"), group("detect", "paper"))
     truth = src.truth()
-    det, pts = chain.process_source(src, frames=[3, 20], progress=False)
+    det, pts = chain.process_many(src, frames=[3, 20], progress=False)
     assert not truth.loc[3, "occluded"] and truth.loc[20, "occluded"]
     assert pts["frame"].tolist() == [3]
     p, t = pts.iloc[0], truth.loc[3]

@@ -9,7 +9,8 @@ the three ``cfg_*`` being the Hydra groups ``cfar``, ``doa`` and ``detect``), th
 3. ``cfar``: 2-D CFAR (CA / GO / SO / OS) on the map; optionally only local maxima (3 x 3,
    Doppler wrapped) of the map are kept, so one target gives one detection per peak.
 4. ``detections``: table of detections in the range window (``min_range_m``..``max_range_m``),
-   SNR = power / training-cell mean.
+   SNR = power / mean of the CFAR training cells (local noise-plus-interference: next to the
+   parked car's returns it is lower than the SNR over thermal noise).
 5. ``doa``: for the ``max_detections`` strongest detections, moving ones first: snapshots
    (``snapshots.py``), TDM-MIMO Doppler compensation with each detection's Doppler bin, ULA
    elements, batched MUSIC (or Bartlett / Capon); angle of the strongest peak. Others keep NaN.
@@ -17,7 +18,7 @@ the three ``cfg_*`` being the Hydra groups ``cfar``, ``doa`` and ``detect``), th
    SNR-weighted point (``points.py``), or no point.
 
 ``process`` returns a :class:`FrameResult` with the maps for figures and per-step timings;
-``process_source`` runs a whole :class:`~blindspot.radar.source.FrameSource` with a progress bar
+``process_many`` runs a whole :class:`~blindspot.radar.source.FrameSource` with a progress bar
 and returns the detections and points of every frame (no maps kept).
 """
 
@@ -444,10 +445,12 @@ class DetectionChain:
                               self.detect.cluster_gap_m)
         return detections, points
 
-    def process_source(self, source, *, frames: Iterable[int] | None = None,
+    def process_many(self, source, *, frames: Iterable[int] | None = None,
                        progress: bool = True) -> tuple[pd.DataFrame, pd.DataFrame]:
-        """Run a FrameSource (all frames, or the given frame indices; frame numbers and times
-        are the source's)."""
+        """Run a FrameSource (all frames, or the given frame indices) with a tqdm progress bar
+        (``progress=False`` silences it); frame numbers and times are the source's.
+        returns (detections of every frame, points: one row per frame where the pedestrian is
+        seen)."""
         idx = np.arange(source.n_frames) if frames is None else np.asarray(list(frames))
         cubes = (source.frame(int(i)) for i in idx)
         det, _ = self.process_frames(cubes, None, progress=progress, total=len(idx))
