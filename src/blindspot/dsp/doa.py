@@ -108,25 +108,29 @@ def _smoothed(x: np.ndarray, p: np.ndarray, subarray: int | None, hermitian_part
 def _q_h(x: np.ndarray) -> np.ndarray:
     """Q^H x along axis 1 for the unitary centro-Hermitian Q of size K (Huarng & Yeh):
     Q = [[I, jI], [J, -jJ]] / sqrt(2) (K even; K odd adds a centre row/column sqrt(2))."""
-    k = x.shape[1] // 2
+    d, m = x.shape[:2]
+    k = m // 2
     top, bot = x[:, :k], x[:, ::-1][:, :k]  # x1 and J x2
-    parts = [(top + bot) / np.sqrt(2)]
-    if x.shape[1] % 2:
-        parts.append(x[:, k:k + 1])
-    parts.append(-1j * (top - bot) / np.sqrt(2))
-    return np.concatenate(parts, axis=1)
+    out = np.empty(x.shape, dtype=np.complex128)
+    r = np.sqrt(0.5)
+    np.multiply(top + bot, r, out=out[:, :k])
+    np.multiply(top - bot, -1j * r, out=out[:, m - k:])
+    if m % 2:
+        out[:, k] = x[:, k]
+    return out
 
 
 def _q(e: np.ndarray) -> np.ndarray:
     """Q e along axis 1 (e real (D, K, r)) -> complex (D, K, r)."""
-    k = e.shape[1] // 2
-    e1, e2 = e[:, :k], e[:, e.shape[1] - k:]
-    top = (e1 + 1j * e2) / np.sqrt(2)
-    parts = [top]
-    if e.shape[1] % 2:
-        parts.append(e[:, k:k + 1].astype(np.complex128))
-    parts.append(np.conj(top)[:, ::-1])  # J (e1 - j e2) / sqrt(2)
-    return np.concatenate(parts, axis=1)
+    m = e.shape[1]
+    k = m // 2
+    out = np.empty(e.shape, dtype=np.complex128)
+    top = (e[:, :k] + 1j * e[:, m - k:]) * np.sqrt(0.5)
+    out[:, :k] = top
+    out[:, m - k:] = np.conj(top)[:, ::-1]  # J (e1 - j e2) / sqrt(2)
+    if m % 2:
+        out[:, k] = e[:, k]
+    return out
 
 
 def _check_centro(p: np.ndarray) -> None:
