@@ -131,7 +131,8 @@ def test_cfar_on_patches_equals_cfar_on_the_full_map(rule):
 
 
 @pytest.mark.parametrize("n_snap,fb,sub", [(64, False, None), (9, False, None), (9, True, None),
-                                           (100, False, None), (9, True, 64), (9, False, 40)])
+                                           (100, False, None), (9, True, 64), (9, False, 40),
+                                           (9, True, 41), (5, True, None)])
 def test_music_peak_angles_equal_music_angles(n_snap, fb, sub):
     """The batched adapter gives the chain's music_angles estimate (its strongest peak)."""
     from blindspot.dsp.doa import music_angles
@@ -213,3 +214,44 @@ def test_missed_detections_are_nan_never_invented(chain_cfg, walker):
     beyond = np.hypot(*out[0].T) > 30.5 + 1.0
     assert not m.detected[0, beyond].any()
     assert np.isfinite(m.xy[m.detected]).all()
+
+
+# ------------------------------------------------------------------ reduced vs full chain
+def test_reduced_chain_matches_full_chain_frame_by_frame(chain_cfg, walker):
+    """Same walker, same frames, 5-12 m: the reduced chain's points are the full chain's (the
+    simulated 64 x 12 x 16 x 256 cube through DetectionChain.process) up to receiver noise."""
+    paths = straight_paths(11, 1, 30, range_m=(5.0, 12.0))
+    red = measure_paths(paths, **chain_cfg, pedestrian=walker, seed=3, progress=False)
+    full = measure_paths(paths, **chain_cfg, pedestrian=walker, seed=3, progress=False,
+                         full_chain=True)
+    assert (red.detected == full.detected).mean() >= 0.9
+    both = red.detected & full.detected
+    assert both.sum() >= 25
+    diff = np.linalg.norm(red.xy - full.xy, axis=-1)[both]
+    assert np.median(diff) < 0.02 and np.percentile(diff, 90) < 0.1
+    assert (red.n_detections[both] == full.n_detections[both]).mean() >= 0.8
+    assert np.nanmedian(np.abs(red.snr_db - full.snr_db)) < 1.0
+
+
+STAT_KEYS = ("detection_rate", "median_error_m", "p90_error_m", "range_error_std_m",
+             "angle_error_std_deg")
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("cfar", ["paper", "ca_pfa"])
+def test_reduced_chain_error_statistics_match_full_chain(chain_cfg, walker, cfar):
+    """Issue 4's condition for using a reduced cube: on the same 300 truth frames (3-28 m, all
+    headings) the point-error statistics of the reduced chain are within 10 % of the full
+    chain's (detection rate, median and 90th-percentile Euclidean error, range and angle error
+    spread), for the paper's dB-domain CFAR and for CA-CFAR at Pfa 1e-6."""
+    cfg = dict(chain_cfg, cfar_cfg=OmegaConf.load(REPO / "conf" / "cfar" / f"{cfar}.yaml"))
+    paths = straight_paths(21, 12, 100, range_m=(3.0, 28.0), speed_mps=(0.5, 2.0))
+    r = np.hypot(paths[..., 0], paths[..., 1])
+    paths = paths[np.all((r > 2.0) & (r < 29.0), axis=1)][:3]
+    assert paths.shape == (3, 100, 2)
+    red = error_statistics(measure_paths(paths, **cfg, pedestrian=walker, seed=5,
+                                         progress=False), paths)
+    full = error_statistics(measure_paths(paths, **cfg, pedestrian=walker, seed=5,
+                                          progress=False, full_chain=True), paths)
+    for key in STAT_KEYS:
+        assert red[key] == pytest.approx(full[key], rel=0.10), (key, red, full)

@@ -295,35 +295,58 @@ def music_peak_angles(snapshots: np.ndarray, positions: np.ndarray, n_signals: i
 
 
 def _music_subspace_peaks(torch, x, p, n_signals, grid, forward_backward, subarray,
-                          newton_steps) -> np.ndarray:
+                          newton_steps, chunk: int = 512) -> np.ndarray:
+    """music_peak_angles' work, in chunks of detections small enough to stay in cache."""
     d, m, _ = x.shape
-    y = torch.from_numpy(np.ascontiguousarray(x, dtype=np.complex128))
-    if subarray is not None and subarray != m:
-        if not 2 <= subarray <= m:
-            raise ValueError(f"music_peak_angles: subarray must be in [2, {m}], found {subarray}")
-        r = y @ y.conj().transpose(1, 2)
-        n_sub = m - subarray + 1
-        rs = r[:, :subarray, :subarray].clone()
-        for i in range(1, n_sub):  # one batched slice-add per subarray offset
-            rs += r[:, i:i + subarray, i:i + subarray]
-        if forward_backward:
-            rs = 0.5 * (rs + torch.flip(rs, dims=(1, 2)).conj())
-        _, v = torch.linalg.eigh(rs)
-        e = v[:, :, subarray - n_signals:].numpy()
-        return _music_peak(e, p[:subarray], grid, newton_steps)
-    if forward_backward:
-        y = torch.cat([y, torch.flip(y.conj(), dims=(1,))], dim=2)
-    lp = y.shape[2]
-    if lp < m:
-        gram = y.conj().transpose(1, 2) @ y                       # (D, L', L')
+    k = m if subarray is None else int(subarray)
+    if not 2 <= k <= m:
+        raise ValueError(f"music_peak_angles: subarray must be in [2, {m}], found {subarray}")
+    out = np.empty(d)
+    for lo in range(0, d, chunk):  # one batched pass per chunk of detections
+        y = torch.from_numpy(np.ascontiguousarray(x[lo:lo + chunk], dtype=np.complex128))
+        out[lo:lo + chunk] = _music_peak(_signal_subspace(torch, y, k, n_signals, forward_backward),
+                                         p[:k], grid, newton_steps)
+    return out
+
+
+def _signal_subspace(torch, y, k: int, n_signals: int, forward_backward: bool) -> np.ndarray:
+    """(D, K, n_signals) principal eigenvectors of the (smoothed, forward-backward) covariance
+    of snapshots y (D, M, L) (torch complex128); scale-free, so the 1/L factors are omitted."""
+    d, m, lp = y.shape
+    if k == m and not forward_backward and lp < m:
+        gram = y.conj().transpose(1, 2) @ y                       # (D, L, L): same subspace
         w, v = torch.linalg.eigh(gram)
         w, v = w[:, lp - n_signals:], v[:, :, lp - n_signals:]
-        e = (y @ v) / torch.sqrt(torch.clamp(w, min=1e-300))[:, None, :]
-    else:
-        r = y @ y.conj().transpose(1, 2)
+        return ((y @ v) / torch.sqrt(torch.clamp(w, min=1e-300))[:, None, :]).numpy()
+    r = y @ y.conj().transpose(1, 2)                                # (D, M, M)
+    if k < m:  # spatial smoothing: mean of the diagonal K x K blocks (a strided view)
+        s0, s1, s2 = r.stride()
+        r = torch.as_strided(r, (d, m - k + 1, k, k), (s0, s1 + s2, s1, s2)).sum(dim=1)
+    if not forward_backward:
         _, v = torch.linalg.eigh(r)
-        e = v[:, :, m - n_signals:]
-    return _music_peak(e.numpy(), p, grid, newton_steps)
+        return v[:, :, k - n_signals:].numpy()
+    # forward-backward = real symmetric Q^H R Q for the unitary centro-Hermitian Q (Huarng &
+    # Yeh): a real eigh, and the eigenvectors of (R + J R* J) / 2 are Q e
+    rr = _unitary_qh(torch, _unitary_qh(torch, r).conj().transpose(1, 2)).real
+    rr = 0.5 * (rr + rr.transpose(1, 2))
+    _, v = torch.linalg.eigh(rr)
+    e = v[:, :, k - n_signals:].numpy()
+    h = k // 2
+    top = (e[:, :h] + 1j * e[:, k - h:]) / np.sqrt(2.0)
+    parts = [top] + ([e[:, h:h + 1].astype(np.complex128)] if k % 2 else []) \
+        + [np.conj(top)[:, ::-1]]
+    return np.concatenate(parts, axis=1)
+
+
+def _unitary_qh(torch, x):
+    """Q^H x along axis 1, Q = [[I, jI], [J, -jJ]] / sqrt(2) (odd size: a centre row sqrt(2))."""
+    h = x.shape[1] // 2
+    top, bot = x[:, :h], torch.flip(x, dims=(1,))[:, :h]
+    parts = [(top + bot) / np.sqrt(2.0)]
+    if x.shape[1] % 2:
+        parts.append(x[:, h:h + 1])
+    parts.append(-1j * (top - bot) / np.sqrt(2.0))
+    return torch.cat(parts, dim=1)
 
 
 def _music_peak(e: np.ndarray, p: np.ndarray, grid: np.ndarray, newton_steps: int) -> np.ndarray:
