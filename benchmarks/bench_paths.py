@@ -75,6 +75,12 @@ def main() -> None:
           f"= {total} frames): projected {total / fps:.0f} s (budget 180 s on 2 cores)")
     stats = error_statistics(m, paths)
     print("point errors:", ", ".join(f"{k} {v:.3g}" for k, v in stats.items()))
+    rng_m = (paths[..., 0] ** 2 + paths[..., 1] ** 2) ** 0.5
+    bands = [(0, 10), (10, 20), (20, 25), (25, 30), (30, 40), (40, 60)]
+    print("detection rate by truth range:", ", ".join(
+        f"{lo}-{hi} m {m.detected[(rng_m >= lo) & (rng_m < hi)].mean():.2f} "
+        f"(n={int(((rng_m >= lo) & (rng_m < hi)).sum())})"
+        for lo, hi in bands if ((rng_m >= lo) & (rng_m < hi)).any()))
     if args.full_frames:
         t_pts = paths.shape[1]
         n_p = max(1, -(-args.full_frames // t_pts))
