@@ -14,6 +14,7 @@ from blindspot.dsp.path_measurement import (
     error_statistics,
     measure_paths,
     cfar_on_patches,
+    local_maxima,
     music_peak_angles,
     noncoherent_power,
     body_scatterers,
@@ -255,3 +256,32 @@ def test_reduced_chain_error_statistics_match_full_chain(chain_cfg, walker, cfar
                                           progress=False, full_chain=True), paths)
     for key in STAT_KEYS:
         assert red[key] == pytest.approx(full[key], rel=0.10), (key, red, full)
+
+
+def test_local_maxima_on_patches_equal_the_chains_peak_rule(chain_cfg):
+    """The reduced chain's peak rule on patches picks exactly the cells DetectionChain's
+    select_cells picks on the full map (all cells passed as CFAR hits)."""
+    from blindspot.dsp.chain import DetectionChain
+
+    cfg = dict(chain_cfg)
+    radar = cfg.pop("radar")
+    from blindspot.radar.array import array_for
+
+    chain = DetectionChain.from_config(radar, array_for(radar), cfg["cfar_cfg"], cfg["doa_cfg"],
+                                       cfg["detect_cfg"])
+    n_rows = chain.range_axis_m.size
+    rng = np.random.default_rng(6)
+    power = rng.gamma(2.0, 1.0, (n_rows, radar.n_chirps))
+    rb, db = chain.select_cells(power, np.ones_like(power, dtype=bool))
+    ref = np.zeros_like(power, dtype=bool)
+    ref[rb, db] = True
+    first = np.array([-4, 0, 17, n_rows - 9, n_rows - 5])
+    k = 9
+    rows = first[:, None] + np.arange(k)
+    exists = (rows >= 0) & (rows < n_rows)
+    patches = np.where(exists[..., None], power[np.clip(rows, 0, n_rows - 1)], 1e9)
+    got = local_maxima(patches, exists) & (exists & chain.range_ok[np.clip(rows, 0, n_rows - 1)])[..., None]
+    inner = exists.copy()
+    inner[:, [0, -1]] = False  # the patch's border rows are never decided
+    b_idx, r_idx = np.nonzero(inner)
+    np.testing.assert_array_equal(got[b_idx, r_idx], ref[rows[b_idx, r_idx]])
