@@ -285,3 +285,15 @@ def test_local_maxima_on_patches_equal_the_chains_peak_rule(chain_cfg):
     inner[:, [0, -1]] = False  # the patch's border rows are never decided
     b_idx, r_idx = np.nonzero(inner)
     np.testing.assert_array_equal(got[b_idx, r_idx], ref[rows[b_idx, r_idx]])
+
+
+def test_bad_input_gives_clear_errors(chain_cfg, walker):
+    paths = straight_paths(0, 1, 10)
+    with pytest.raises(ValueError, match=r"\(P, T >= 2, 2\)"):
+        measure_paths(paths[0], **chain_cfg, pedestrian=walker, progress=False)
+    chirps = OmegaConf.merge(chain_cfg["detect_cfg"], {"snapshots": "chirps"})
+    with pytest.raises(ValueError, match="full_chain=True"):
+        measure_paths(paths, **dict(chain_cfg, detect_cfg=chirps), pedestrian=walker,
+                      progress=False)
+    with pytest.raises(ValueError, match="paths_per_batch"):
+        measure_paths(paths, **chain_cfg, pedestrian=walker, paths_per_batch=0, progress=False)
