@@ -280,7 +280,8 @@ def test_local_maxima_on_patches_equal_the_chains_peak_rule(chain_cfg):
     rows = first[:, None] + np.arange(k)
     exists = (rows >= 0) & (rows < n_rows)
     patches = np.where(exists[..., None], power[np.clip(rows, 0, n_rows - 1)], 1e9)
-    got = local_maxima(patches, exists) & (exists & chain.range_ok[np.clip(rows, 0, n_rows - 1)])[..., None]
+    in_window = exists & chain.range_ok[np.clip(rows, 0, n_rows - 1)]
+    got = local_maxima(patches, exists) & in_window[..., None]
     inner = exists.copy()
     inner[:, [0, -1]] = False  # the patch's border rows are never decided
     b_idx, r_idx = np.nonzero(inner)

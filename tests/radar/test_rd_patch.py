@@ -116,7 +116,8 @@ def test_patch_wraps_around_the_range_axis_and_pads():
     radar = RadarConfig.from_mapping(SMALL)
     array = array_for(radar)
     wr, wd = hann(radar.n_samples), hann(radar.n_chirps)
-    r, v, th, a = np.array([0.7, 5.0]), np.array([1.0, 0.0]), np.array([0.1, 0.0]), np.array([1.0, 0.0])
+    r, v = np.array([0.7, 5.0]), np.array([1.0, 0.0])
+    th, a = np.array([0.1, 0.0]), np.array([1.0, 0.0])
     truth = fft_range_doppler(synthesise_cube(radar, array, r[:1], v[:1], th[:1], a[:1]), wr, wd)
     patch = range_doppler_patch(PointScatterers(r[None], v[None], th[None], a[None]), radar, array,
                                 np.array([-3]), 8, wr, wd, dtype=np.complex128)[0]
@@ -224,7 +225,8 @@ def test_block_noise_covariance_matches_fft_noise():
     n, m = 32, 16
     wr, wd = hann(n), hann(m)
     rng = np.random.default_rng(8)
-    white = (rng.standard_normal((20000, m, n)) + 1j * rng.standard_normal((20000, m, n))) / np.sqrt(2)
+    white = (rng.standard_normal((20000, m, n))
+             + 1j * rng.standard_normal((20000, m, n))) / np.sqrt(2)
     x = np.fft.fft(np.fft.fft(white * wr, axis=2) * wd[:, None], axis=1)   # (F, doppler, range)
     block = x[:, 5:8, 10:13].transpose(0, 2, 1).reshape(20000, 9)         # range outer
     emp = block.T @ block.conj() / 20000

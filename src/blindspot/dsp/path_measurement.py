@@ -72,11 +72,12 @@ class PedestrianModel:
         if not self.parts:
             raise ValueError("PedestrianModel.parts: expected at least one body part, found none")
         if not (np.isfinite(self.stride_length_m) and self.stride_length_m > 0):
-            raise ValueError(f"PedestrianModel.stride_length_m: expected > 0, found {self.stride_length_m}")
+            raise ValueError("PedestrianModel.stride_length_m: expected > 0, found "
+                             f"{self.stride_length_m}")
 
     @classmethod
     def from_scene(cls, scene: SceneConfig) -> PedestrianModel:
-        """The body of a scene configuration (e.g. one of ``load_scenes(conf/scene/paper.yaml)``)."""
+        """The body of a scene configuration (e.g. from ``load_scenes(conf/scene/paper.yaml)``)."""
         ped = scene.pedestrian
         return cls(parts=ped.parts, stride_length_m=ped.stride_length_m,
                    radar_height_m=scene.radar_height_m)
@@ -283,7 +284,8 @@ def music_peak_angles(snapshots: np.ndarray, positions: np.ndarray, n_signals: i
     x = np.asarray(snapshots)
     p = np.asarray(positions, dtype=np.float64)
     if x.ndim != 3 or x.shape[1] != p.size:
-        raise ValueError(f"music_peak_angles: expected snapshots (D, M={p.size}, L), found {x.shape}")
+        raise ValueError(f"music_peak_angles: expected snapshots (D, M={p.size}, L), "
+                         f"found {x.shape}")
     d, m, _ = x.shape
     if d == 0:
         return np.zeros(0)
@@ -561,8 +563,8 @@ def _measure_batch_full(chain, simulator, pos: np.ndarray, vel: np.ndarray, rcs:
     out = _empty_frames(pos.shape[0])
     cube = np.empty(simulator.shape, dtype=np.complex64)
     for i in range(pos.shape[0]):  # one 64 x 12 x 16 x 256 cube per frame: the reference path
-        simulator.frame(pos[i], vel[i], rcs, bit_generator=frame_bit_generator(seed, int(frame_ids[i])),
-                        out=cube)
+        simulator.frame(pos[i], vel[i], rcs, out=cube,
+                        bit_generator=frame_bit_generator(seed, int(frame_ids[i])))
         res = chain.process(cube, keep_spectrum=False)
         if len(res.point):
             row = res.point.iloc[0]

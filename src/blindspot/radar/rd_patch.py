@@ -22,9 +22,9 @@ velocity v (positive = receding) and azimuth theta (positive towards +x)::
 
     x = a exp(j [phi_0 + 2 pi (f_b n / f_adc + f_D (m T_loop + t T_chirp)) + psi_{t r}(theta)])
 
-with ``f_b = 2 S R / c + f_D`` (S the chirp slope), ``f_D = 2 v / lambda`` (centre wavelength), ``T_loop`` the loop period,
-``T_chirp`` the chirp period and ``psi`` the spatial phase of the virtual element (see
-:func:`spatial_phase`). FFT conventions follow :mod:`blindspot.dsp.range_doppler`: unnormalised
+with ``f_b = 2 S R / c + f_D`` (S the chirp slope), ``f_D = 2 v / lambda`` (centre wavelength),
+``T_loop`` the loop period, ``T_chirp`` the chirp period, ``phi_0 = 4 pi f_0 R / c`` and ``psi``
+the spatial phase of the virtual element (see :func:`spatial_phase`). FFT conventions follow :mod:`blindspot.dsp.range_doppler`: unnormalised
 sums, periodic windows of peak 1, Doppler zero-centred (bin ``d`` has signed index ``d - M // 2``).
 
 Shapes: ``B`` frames, ``S`` scatterers per frame (pad with amplitude 0), ``K`` range bins in the
@@ -93,7 +93,8 @@ class PointScatterers:
                     f"found {np.shape(getattr(self, name))}"
                 )
         if len(shape) != 2:
-            raise ValueError(f"PointScatterers: expected (frames, scatterers) arrays, found shape {shape}")
+            raise ValueError("PointScatterers: expected (frames, scatterers) arrays, found shape "
+                             f"{shape}")
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -185,7 +186,8 @@ def channel_selection(array: VirtualArray, channels: str | tuple[np.ndarray, np.
         raise ValueError(f"channels: expected 'all', 'ula' or (tx_idx, rx_idx), found {channels!r}")
     t, r = (np.asarray(a, dtype=int) for a in channels)
     if t.shape != r.shape or t.ndim != 1:
-        raise ValueError(f"channels: expected two equal 1-D index arrays, found shapes {t.shape}, {r.shape}")
+        raise ValueError("channels: expected two equal 1-D index arrays, found shapes "
+                         f"{t.shape}, {r.shape}")
     return t, r
 
 
@@ -251,7 +253,8 @@ def patch_factors(scatterers: PointScatterers, radar: RadarConfig, array: Virtua
     See :func:`range_doppler_patch` for the arguments.
     """
     r, d, ch = patch_terms(scatterers, radar, array, first_range_bin, n_range, range_window,
-                           doppler_window, channels, include_doppler_in_beat=include_doppler_in_beat)
+                           doppler_window, channels,
+                           include_doppler_in_beat=include_doppler_in_beat)
     return r[:, :, :, None] * d[:, :, None, :], ch
 
 
