@@ -136,3 +136,20 @@ def test_noise_model_statistics():
         radar_like_noise(clean[:1], range_mode="gauss")
     with pytest.raises(ValueError, match=r"\(P, T, 2\)"):
         radar_like_noise(clean[0])
+
+
+def test_repo_dataset_config_builds_and_covers_the_splits():
+    from pathlib import Path
+
+    from omegaconf import OmegaConf
+
+    from blindspot.traj.windows import paths_needed
+
+    path = Path(__file__).resolve().parents[2] / "conf" / "dataset" / "paper.yaml"
+    cfg = OmegaConf.to_container(OmegaConf.merge(OmegaConf.load(path), {"seed": 0}), resolve=True)
+    spec = PathSpec.from_mapping(cfg)
+    assert spec.points_per_path == 200 and spec.speed_mps == (0.5, 2.0)
+    split = cfg["split"]
+    assert (split["train"], split["val"], split["test"]) == (20000, 4000, 500)
+    need = paths_needed((split["train"], split["val"], split["test"]), spec.points_per_path, cfg["window"], cfg["stride"])
+    assert cfg["n_paths"] >= need

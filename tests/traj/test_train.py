@@ -162,3 +162,19 @@ def test_bad_input(small_data):
         TrainConfig.from_mapping({"optimizer": "sgd"})
     with pytest.raises(TrainConfigError, match=r"train\.epoch"):
         TrainConfig.from_mapping({"epoch": 3})
+
+
+def test_repo_configs_build():
+    """conf/model/lstm.yaml and conf/train/paper.yaml are valid and hold the paper's Table 1 values."""
+    from pathlib import Path
+
+    from omegaconf import OmegaConf
+
+    conf = Path(__file__).resolve().parents[2] / "conf"
+    model = OmegaConf.to_container(OmegaConf.load(conf / "model" / "lstm.yaml"), resolve=True)
+    train = OmegaConf.merge(OmegaConf.load(conf / "train" / "paper.yaml"), {"seed": 3})
+    train = OmegaConf.to_container(train, resolve=True)
+    mc = LSTMConfig.from_mapping(model)
+    tc = TrainConfig.from_mapping({k: v for k, v in train.items()})
+    assert (mc.window, mc.head_activation) == (50, "relu")
+    assert (tc.lr, tc.epochs, tc.optimizer, tc.seed) == (0.001, 15, "adam", 3)
