@@ -50,7 +50,9 @@ def clean_targets(ws: WindowSet, clean: np.ndarray) -> np.ndarray:
     return clean[ws.path_id, ws.start + ws.window]
 
 
-def paper_splits(stride: int = 1, seed: int = 0, angle_std_deg: float = 1.0) -> tuple[tuple[WindowSet, ...], np.ndarray]:
+def paper_splits(
+    stride: int = 1, seed: int = 0, angle_std_deg: float = 1.0
+) -> tuple[tuple[WindowSet, ...], np.ndarray]:
     """20,000 / 4,000 / 500 windows (10 % more paths than the minimum to cover dropped windows)
     and the clean truth paths."""
     n_paths = int(np.ceil(1.1 * paths_needed(COUNTS, 200, WINDOW, stride)))
@@ -110,7 +112,8 @@ def speed(args: argparse.Namespace) -> dict[str, float]:
     print(f"model {model_cfg}\nthreads {args.threads}, torch {torch.__version__}")
     print(f"training: {out['seconds_per_epoch']:.2f} s/epoch on {len(train)} windows of {WINDOW} "
           f"(median of {args.epochs}; 15 epochs ~ {15 * out['seconds_per_epoch']:.0f} s)")
-    print(f"rollout step: {out['ms_per_step_batch1']:.3f} ms at batch 1, {out['ms_per_step_batch512']:.2f} ms at batch 512 "
+    print(f"rollout step: {out['ms_per_step_batch1']:.3f} ms at batch 1, "
+          f"{out['ms_per_step_batch512']:.2f} ms at batch 512 "
           f"({1e3 * out['ms_per_step_batch512'] / 512:.1f} us per track)")
     print(f"12-step rollout of 512 tracks (predict(), median of 5): {out['ms_rollout12_batch512']:.1f} ms")
     return out
@@ -147,7 +150,8 @@ def sweep(args: argparse.Namespace) -> dict[str, dict[str, float]]:
     names = [n for n in CANDIDATES if not args.only or any(o in n for o in args.only)]
     print(f"angle noise {args.angle_std_deg} deg; RMSE per coordinate in metres, mean over {args.seeds} training "
           "seed(s); 'spread' = max - min of test_clean over the seeds")
-    print(f"{'candidate':36s} {'val':>7s} {'val_clean':>9s} {'test':>7s} {'test_clean':>10s} {'spread':>7s} {'s/epoch':>8s}")
+    print(f"{'candidate':36s} {'val':>7s} {'val_clean':>9s} {'test':>7s} {'test_clean':>10s} "
+          f"{'spread':>7s} {'s/epoch':>8s}")
     for name in names:
         cfg, stride, batch = CANDIDATES[name]
         (train, val, _), clean = data[stride]

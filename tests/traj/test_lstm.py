@@ -122,8 +122,13 @@ def test_clear_errors(call, match):
 
 @pytest.mark.parametrize(
     ("kwargs", "key"),
-    [({"hidden_size": 0}, "hidden_size"), ({"target": "velocity"}, "target"),
-     ({"head_activation": "gelu"}, "head_activation"), ({"dropout": 1.0}, "dropout"), ({"normalise": "yes"}, "normalise")],
+    [
+        ({"hidden_size": 0}, "hidden_size"),
+        ({"target": "velocity"}, "target"),
+        ({"head_activation": "gelu"}, "head_activation"),
+        ({"dropout": 1.0}, "dropout"),
+        ({"normalise": "yes"}, "normalise"),
+    ],
 )
 def test_config_errors(kwargs, key):
     with pytest.raises(LSTMConfigError, match=key):

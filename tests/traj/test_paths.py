@@ -104,6 +104,8 @@ def test_from_mapping_prefixes_where_and_accepts_lists():
     assert spec.speed_mps == (0.6, 1.2) and spec.points_per_path == 100
     with pytest.raises(PathConfigError, match=r"dataset\.turn_rate_deg_s"):
         PathSpec.from_mapping({"turn_rate_deg_s": [3.0]})
+    with pytest.raises(PathConfigError, match=r"dataset\.speed_mp"):
+        PathSpec.from_mapping({"speed_mp": [0.5, 2.0]})
 
 
 def test_impossible_field_of_view_raises():
@@ -151,5 +153,6 @@ def test_repo_dataset_config_builds_and_covers_the_splits():
     assert spec.points_per_path == 200 and spec.speed_mps == (0.5, 2.0)
     split = cfg["split"]
     assert (split["train"], split["val"], split["test"]) == (20000, 4000, 500)
-    need = paths_needed((split["train"], split["val"], split["test"]), spec.points_per_path, cfg["window"], cfg["stride"])
+    counts = (split["train"], split["val"], split["test"])
+    need = paths_needed(counts, spec.points_per_path, cfg["window"], cfg["stride"])
     assert cfg["n_paths"] >= need

@@ -102,7 +102,8 @@ class LSTMConfig:
         names = {f.name for f in fields(cls)}
         unknown = set(mapping) - names - {"name", "_target_"}
         if unknown:
-            raise LSTMConfigError(f"{where}.{sorted(unknown)[0]}", mapping[sorted(unknown)[0]], f"one of the keys {sorted(names)}")
+            key = sorted(unknown)[0]
+            raise LSTMConfigError(f"{where}.{key}", mapping[key], f"one of the keys {sorted(names)}")
         try:
             return cls(**{k: v for k, v in mapping.items() if k in names})
         except LSTMConfigError as err:

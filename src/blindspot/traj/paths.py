@@ -26,13 +26,15 @@ start ranges. :func:`random_path_set` returns the per-path draws so callers can 
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, fields
 from typing import Any
 
 import numpy as np
 
 MOTIONS: tuple[str, ...] = ("approaching", "receding", "perpendicular")
+# Keys of the dataset config group that belong to the windows stage, not to the path kinematics.
+DATASET_KEYS: tuple[str, ...] = ("name", "n_paths", "window", "stride", "fill_gaps", "split", "seed")
 
 
 class PathConfigError(ValueError):
@@ -100,7 +102,9 @@ class PathSpec:
         w = np.asarray(self.motion_weights, dtype=float)
         if w.shape != (3,) or not np.isfinite(w).all() or (w < 0).any() or w.sum() <= 0:
             raise PathConfigError(
-                "motion_weights", self.motion_weights, "three non-negative weights (approaching, receding, perpendicular), not all 0"
+                "motion_weights",
+                self.motion_weights,
+                "three non-negative weights (approaching, receding, perpendicular), not all 0",
             )
         object.__setattr__(self, "motion_weights", tuple(float(v) for v in w))
         for key in ("heading_spread_deg", "perpendicular_spread_deg"):
@@ -114,7 +118,9 @@ class PathSpec:
         lo, hi = self.start_range_m
         if lo < self.min_range_m or hi > self.max_range_m:
             raise PathConfigError(
-                "start_range_m", self.start_range_m, f"inside [min_range_m, max_range_m] = [{self.min_range_m}, {self.max_range_m}]"
+                "start_range_m",
+                self.start_range_m,
+                f"inside [min_range_m, max_range_m] = [{self.min_range_m}, {self.max_range_m}]",
             )
         if max(abs(a) for a in self.start_angle_deg) > self.max_abs_angle_deg:
             raise PathConfigError(
@@ -122,13 +128,22 @@ class PathSpec:
             )
 
     @classmethod
-    def from_mapping(cls, mapping: Mapping[str, Any], where: str = "dataset") -> PathSpec:
-        """Build from a config mapping, ignoring keys that are not path settings.
+    def from_mapping(
+        cls, mapping: Mapping[str, Any], where: str = "dataset", ignore: Sequence[str] = DATASET_KEYS
+    ) -> PathSpec:
+        """Build from a config mapping (the Hydra ``dataset`` group).
+
+        Keys in ``ignore`` (the group's window/split settings) are skipped; any other key that is
+        not a field of this class is an error, so a misspelt setting cannot pass unnoticed.
 
         Raises:
-            PathConfigError: a value is invalid; the key is prefixed with ``where``.
+            PathConfigError: unknown key or invalid value; the key is prefixed with ``where``.
         """
         names = {f.name for f in fields(cls)}
+        unknown = sorted(set(mapping) - names - set(ignore))
+        if unknown:
+            key = unknown[0]
+            raise PathConfigError(f"{where}.{key}", mapping[key], f"one of the keys {sorted(names | set(ignore))}")
         # sequences (list, tuple, OmegaConf ListConfig) become tuples; scalars pass through
         kwargs = {k: (v if isinstance(v, str | int | float) else tuple(v)) for k, v in mapping.items() if k in names}
         try:
@@ -162,7 +177,12 @@ class PathSet:
 
 
 def integrate_constant_turn(
-    start_xy: np.ndarray, speed_mps: np.ndarray, heading0_rad: np.ndarray, turn_rate_rad_s: np.ndarray, n_points: int, dt_s: float
+    start_xy: np.ndarray,
+    speed_mps: np.ndarray,
+    heading0_rad: np.ndarray,
+    turn_rate_rad_s: np.ndarray,
+    n_points: int,
+    dt_s: float,
 ) -> np.ndarray:
     """Exact positions of walkers moving at constant speed and constant turn rate.
 
@@ -265,7 +285,8 @@ def random_path_set(n_paths: int, spec: PathSpec | None = None, seed: int = 0, *
         labels.append(np.full(need, motion, dtype=np.int64))
     order = rng.permutation(int(n_paths))
     xy, speed, psi0, turn = (np.concatenate([p[i] for p in parts])[order] for i in range(4))
-    return PathSet(xy=xy, motion=np.concatenate(labels)[order], speed_mps=speed, heading0_rad=psi0, turn_rate_rad_s=turn)
+    motion = np.concatenate(labels)[order]
+    return PathSet(xy=xy, motion=motion, speed_mps=speed, heading0_rad=psi0, turn_rate_rad_s=turn)
 
 
 def random_paths(n_paths: int, spec: PathSpec | None = None, seed: int = 0) -> np.ndarray:
