@@ -46,3 +46,32 @@ def data_path(cfg: DictConfig, *parts: str) -> Path:
 def reports_path(cfg: DictConfig, *parts: str) -> Path:
     return Path(cfg.paths.reports_dir, *parts)
 
+
+
+def scene_track(points, scene: str, n_frames: int):
+    """(n_frames, 2) x, y of a scene's points (``localise`` output), NaN where no point."""
+    import numpy as np
+
+    track = np.full((n_frames, 2), np.nan)
+    p = points[points.scene == scene]
+    track[p.frame.to_numpy()] = p[["x_m", "y_m"]].to_numpy()
+    return track
+
+
+def predictors(cfg: DictConfig, lstm=None) -> dict:
+    """The prediction methods of ``cfg.eval.prediction_methods`` by name."""
+    from blindspot.traj.baselines import ConstantVelocity, KalmanCV
+
+    dt = float(cfg.radar.frame_period_s)
+    made = {
+        "lstm": lstm,
+        "constant_velocity": ConstantVelocity(k=int(cfg.eval.cv_fit_points), name="constant_velocity"),
+        "kalman": KalmanCV(dt=dt, **cfg.eval.kalman),
+    }
+    out = {}
+    for name in cfg.eval.prediction_methods:
+        if name not in made or made[name] is None:
+            raise ValueError(f"config key 'eval.prediction_methods' lists {name!r}: expected names "
+                             f"from {sorted(k for k, v in made.items() if v is not None)}")
+        out[name] = made[name]
+    return out

@@ -1,0 +1,68 @@
+"""The paper's training data set: random pedestrian paths, every point measured by the radar chain.
+
+Paths are drawn in chunks of fixed size, each measured with its own seed derived from the config
+seed and the chunk index, so the bytes do not depend on how many worker processes run the chunks.
+"""
+
+from __future__ import annotations
+
+from functools import partial
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from blindspot.dsp.path_measurement import PathMeasurement, PedestrianModel, measure_paths
+from blindspot.parallel import parallel_map
+from blindspot.radar.config import RadarConfig
+from blindspot.traj.paths import MOTIONS, PathSet
+
+CHUNK_PATHS = 16
+
+
+def measure_path_set(paths: PathSet, radar: RadarConfig, cfar: Any, doa: Any, detect: Any, *,
+                     pedestrian: PedestrianModel, seed: int, jobs: int = 1,
+                     progress: bool = False) -> PathMeasurement:
+    """:func:`measure_paths` over chunks of :data:`CHUNK_PATHS` paths in ``jobs`` processes."""
+    xy = paths.xy
+    starts = list(range(0, len(xy), CHUNK_PATHS))
+    seeds = np.random.SeedSequence(seed).generate_state(len(starts), dtype=np.uint32)
+    work = partial(_measure_chunk, radar=radar, cfar=cfar, doa=doa, detect=detect,
+                   pedestrian=pedestrian)
+    items = [(xy[s:s + CHUNK_PATHS], int(k)) for s, k in zip(starts, seeds)]
+    parts = parallel_map(work, items, jobs, progress="paths (chunks)" if progress else None)
+    return PathMeasurement(**{f: np.concatenate([getattr(p, f) for p in parts])
+                              for f in PathMeasurement.__dataclass_fields__})
+
+
+def _measure_chunk(item, *, radar, cfar, doa, detect, pedestrian) -> PathMeasurement:
+    xy, seed = item
+    return measure_paths(xy, radar, None, cfar, doa, detect, pedestrian=pedestrian, seed=seed,
+                         progress=False)
+
+
+def path_table(paths: PathSet, measured: PathMeasurement, frame_period_s: float) -> pd.DataFrame:
+    """Long table: one row per path point, truth and measurement side by side."""
+    p, t = measured.xy.shape[:2]
+    return pd.DataFrame({
+        "path_id": np.repeat(np.arange(p), t),
+        "point": np.tile(np.arange(t), p),
+        "time_s": np.tile(np.arange(t) * frame_period_s, p),
+        "motion": np.repeat(np.asarray(MOTIONS)[paths.motion], t),
+        "x_true_m": paths.xy[..., 0].ravel(), "y_true_m": paths.xy[..., 1].ravel(),
+        "x_m": measured.xy[..., 0].ravel(), "y_m": measured.xy[..., 1].ravel(),
+        "range_m": measured.range_m.ravel(), "angle_deg": measured.angle_deg.ravel(),
+        "velocity_mps": measured.velocity_mps.ravel(), "snr_db": measured.snr_db.ravel(),
+        "n_detections": measured.n_detections.ravel(),
+    })
+
+
+def table_to_arrays(table: pd.DataFrame) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(truth (P, T, 2), measured (P, T, 2), motion (P,)) back from :func:`path_table`."""
+    t = table.sort_values(["path_id", "point"])
+    p, n = t.path_id.nunique(), t.point.nunique()
+    if p * n != len(t):
+        raise ValueError(f"path table: {len(t)} rows are not {p} paths x {n} points")
+    truth = t[["x_true_m", "y_true_m"]].to_numpy().reshape(p, n, 2)
+    meas = t[["x_m", "y_m"]].to_numpy().reshape(p, n, 2)
+    return truth, meas, t.motion.to_numpy()[::n]

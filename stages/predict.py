@@ -1,0 +1,56 @@
+"""predict: the future path of each car scene from the track seen so far (paper Fig. 9).
+
+From eval.prediction_start_s on, every method in eval.prediction_methods (the LSTM rolled out
+autoregressively, constant velocity, Kalman) predicts the rest of the scene (or
+eval.horizon_frames) from the points seen before the start, their gaps filled by
+eval.prediction_input (the paper: its own forward LSTM interpolation) without look-ahead.
+"""
+
+from functools import partial
+
+import numpy as np
+import pandas as pd
+
+from blindspot import experiment, tracking
+from blindspot.cli import main_stage
+from blindspot.io import write_parquet
+from blindspot.traj.baselines import KalmanCV
+from blindspot.traj.forecast import forecast_track
+from blindspot.traj.interpolation import interpolate
+from blindspot.traj.lstm import LSTMPredictor
+
+
+def run(cfg):
+    points = pd.read_parquet(experiment.data_path(cfg, "localise", "points.parquet"))
+    lstm = LSTMPredictor.load(experiment.data_path(cfg, "train", "model.pt"))
+    dt = float(cfg.radar.frame_period_s)
+    fill = partial(interpolate, method=str(cfg.eval.prediction_input), predictor=lstm,
+                   smoother=KalmanCV(dt=dt, **cfg.eval.kalman).smooth)
+    methods = experiment.predictors(cfg, lstm)
+    rows = []
+    for name, sc in experiment.scenes(cfg).items():
+        if not sc.with_car:
+            continue
+        track = experiment.scene_track(points, name, sc.n_frames)
+        start = int(round(float(cfg.eval.prediction_start_s) / dt))
+        horizon = cfg.eval.horizon_frames
+        end = sc.n_frames if horizon is None else min(sc.n_frames, start + int(horizon))
+        if not 0 < start < sc.n_frames:
+            raise ValueError(f"config key 'eval.prediction_start_s' = {cfg.eval.prediction_start_s}: "
+                             f"expected a time inside scene {name!r} (0..{sc.n_frames * dt:g} s)")
+        for method, predictor in methods.items():
+            pred = forecast_track(track, start, predictor, fill=fill, end=end)
+            frames = np.arange(start, end)
+            rows.append(pd.DataFrame({
+                "scene": name, "method": method, "step": np.arange(1, len(frames) + 1),
+                "frame": frames, "time_s": frames * dt, "x_m": pred[:, 0], "y_m": pred[:, 1],
+            }))
+    predictions = pd.concat(rows, ignore_index=True)
+    write_parquet(experiment.data_path(cfg, "predict", "predictions.parquet"), predictions)
+    tracking.current().log_metrics({"n_predicted_points": len(predictions)})
+    print(f"predict: {predictions.scene.nunique()} scenes x {predictions.method.nunique()} methods, "
+          f"{predictions.step.max()} steps each")
+
+
+if __name__ == "__main__":
+    main_stage(run, "predict")
