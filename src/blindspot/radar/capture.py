@@ -792,3 +792,44 @@ def _frame_times(timestamps_ns: np.ndarray, frame_period_s: float, where: Path) 
                       f"{frame_period_s:.6g} s; using the profile's period", stacklevel=3)
         return fallback
     return t
+
+
+class ArrayRecording:
+    """Frames already in memory, complex (frames, chirps, tx, rx, samples), as a frame source."""
+
+    def __init__(self, frames: np.ndarray, radar: RadarConfig, origin: str = "array"):
+        from blindspot.radar.source import check_frame_shape
+
+        self.radar = radar
+        self.array = array_for(radar)
+        self._frames = np.asarray(frames, dtype=np.complex64)
+        for i in range(min(1, len(self._frames))):
+            check_frame_shape(self._frames[i], radar, origin)
+
+    @property
+    def n_frames(self) -> int:
+        return len(self._frames)
+
+    @property
+    def times_s(self) -> np.ndarray:
+        return np.arange(self.n_frames) * self.radar.frame_period_s
+
+    def frame(self, index: int) -> np.ndarray:
+        return self._frames[_check_index(index, self.n_frames)]
+
+    def __iter__(self) -> Iterator[np.ndarray]:
+        return iter(self._frames)
+
+
+RECORDING_KINDS = ("ti_cascade", "dca1000", "openradar_npy")
+
+
+def open_recording(kind: str, path: str | os.PathLike, radar: RadarConfig):
+    """A recording on disk as a frame source: ``kind`` in :data:`RECORDING_KINDS`."""
+    if kind == "ti_cascade":
+        return TICascadeRecording(path, radar)
+    if kind == "dca1000":
+        return DCA1000Recording(path, radar)
+    if kind == "openradar_npy":
+        return ArrayRecording(read_openradar_npy(path, n_tx=radar.n_tx), radar, str(path))
+    raise ValueError(f"recording kind {kind!r} unknown: expected one of {RECORDING_KINDS}")
