@@ -146,3 +146,35 @@ def test_bench_cli_rejects_unknown_model(tmp_path, capsys):
     with pytest.raises(SystemExit):
         bench_main(["--out", str(tmp_path / "x.json"), "--models", "cvm,magic"])
     assert "--models" in capsys.readouterr().err
+
+
+@pytest.mark.real_data
+def test_lstm_training_pairs_cover_every_nine_frame_stretch(ethucy_dir):
+    from blindspot.bench.ethucy import LSTMBenchSettings, lstm_window_set
+
+    stretches = load_split(ethucy_dir, "eth", "val", seq_len=9, min_peds=1)
+    heading = lstm_window_set(ethucy_dir, "eth", "val", LSTMBenchSettings(mirror=True))
+    world = lstm_window_set(ethucy_dir, "eth", "val",
+                            LSTMBenchSettings(frame="world", rotations=2, mirror=False))
+    assert len(heading) == 2 * len(stretches) and len(world) == 3 * len(stretches)
+    np.testing.assert_allclose(world.x[: len(stretches)], stretches.xy[:, :8], atol=1e-5)
+    # heading frame: last input at the origin, last step along +x, target = CVM correction
+    np.testing.assert_allclose(heading.x[:, -1], 0.0, atol=1e-5)
+    np.testing.assert_allclose(heading.x[:, -2, 1], 0.0, atol=1e-5)
+    speed = np.linalg.norm(stretches.xy[:, 7] - stretches.xy[:, 6], axis=-1)
+    step_next = np.linalg.norm(stretches.xy[:, 8] - stretches.xy[:, 7], axis=-1)
+    next_in_frame = heading.y[: len(stretches)].astype(float)
+    next_in_frame[:, 0] += speed                 # undo the residual: add the last step (speed, 0)
+    np.testing.assert_allclose(np.linalg.norm(next_in_frame, axis=-1), step_next, atol=1e-4)
+
+
+@pytest.mark.slow
+@pytest.mark.real_data
+def test_bench_cli_trains_and_scores_the_lstm(ethucy_dir, tmp_path):
+    out = tmp_path / "ethucy.json"
+    rc = bench_main(["--data", str(ethucy_dir), "--out", str(out), "--models", "cvm,lstm",
+                     "--folds", "eth", "--epochs", "1", "--quiet", "--threads", "1"])
+    assert rc == 0
+    lstm = json.loads(out.read_text())["lstm"]
+    assert lstm["eth"]["n_windows"] == 181
+    assert 0.5 < lstm["eth"]["ade"] < 2.0     # CVM: 1.00; a broken rollout lands far outside

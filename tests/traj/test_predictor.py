@@ -108,3 +108,23 @@ def test_rollout_refuses_short_or_gappy_histories():
     h[0, -1] = np.nan
     with pytest.raises(HistoryError, match="NaN"):
         roll.predict(h, 3)
+
+
+def test_speed_scaled_frame_has_a_unit_last_step_and_round_trips():
+    w = walks(5) * 0.3
+    step = np.linalg.norm(w[:, -1] - w[:, -2], axis=-1)
+    origin, rot = heading_frame(w, speed_floor=0.05)
+    q = to_frame(w, origin, rot)
+    fast = step > 0.05
+    np.testing.assert_allclose(q[fast, -2], np.tile([-1.0, 0.0], (fast.sum(), 1)), atol=1e-12)
+    np.testing.assert_allclose(q[~fast, -2, 0], -step[~fast] / 0.05)
+    np.testing.assert_allclose(from_frame(q, origin, rot), w, atol=1e-12)
+    # CVM stays exact, and a frame-defined model scales with the walk (above the floor)
+    roll = HeadingFrameRollout(Zero(), residual=True, speed_floor=0.05)
+    np.testing.assert_allclose(roll.predict(w, 5), ConstantVelocity().predict(w, 5), atol=1e-9)
+    fast_walk = np.stack([np.arange(8.0), np.zeros(8)], axis=-1)[None]
+    turn = HeadingFrameRollout(TurnLeft(), residual=False, symmetric=False, speed_floor=0.05)
+    np.testing.assert_allclose(turn.predict(2 * fast_walk, 4), 2 * turn.predict(fast_walk, 4),
+                               atol=1e-9)
+    with pytest.raises(ValueError, match="speed_floor"):
+        heading_frame(w, speed_floor=0.0)

@@ -67,6 +67,9 @@ class LSTMBenchSettings:
         residual: (heading frame) the LSTM predicts the correction to constant velocity.
         mirror: (heading frame) train on mirrored copies too and average the prediction with
             the mirrored window's (left/right symmetry).
+        speed_floor: (heading frame) also scale each window by its last step length, floored
+            at this many metres (None = no scaling): the LSTM then sees the shape of the motion
+            independent of walking speed.
         rotations: (world frame) random-rotation copies added per training window.
         num_threads: torch threads (None = leave torch's default).
     """
@@ -82,6 +85,7 @@ class LSTMBenchSettings:
     frame: str = "heading"
     residual: bool = True
     mirror: bool = True
+    speed_floor: float | None = None
     rotations: int = 0
     num_threads: int | None = None
 
@@ -128,7 +132,8 @@ def lstm_window_set(data_dir: Path, fold: str, split: str, s: LSTMBenchSettings,
     xy, pid = w.xy, w.track_id
     if s.frame == "heading":
         mirror = augment and s.mirror
-        x, y = heading_frame_pairs(xy, residual=s.residual, mirror=mirror)
+        x, y = heading_frame_pairs(xy, residual=s.residual, mirror=mirror,
+                                   speed_floor=s.speed_floor)
         return WindowSet(x=x, y=y, path_id=np.tile(pid, 2) if mirror else pid)
     if augment and s.rotations:
         xy = np.concatenate([xy, random_rotations(xy, s.rotations, np.random.default_rng(s.seed))])
@@ -158,8 +163,14 @@ def train_fold_lstm(data_dir: Path, fold: str, s: LSTMBenchSettings, progress: b
     predictor: PathPredictor = result.predictor
     if s.frame == "heading":
         predictor = HeadingFrameRollout(result.predictor, residual=s.residual,
-                                        symmetric=s.mirror, name="lstm")
+                                        symmetric=s.mirror, speed_floor=s.speed_floor,
+                                        name="lstm")
     return predictor, result.val_rmse_m, len(train), len(val)
+
+
+def val_windows(data_dir: Path, fold: str) -> Windows:
+    """The fold's val split under the test protocol (20-frame Social-GAN windows)."""
+    return load_split(data_dir, fold, "val")
 
 
 def run_fold(data_dir: Path, fold: str, models: Sequence[str], lstm: LSTMBenchSettings,
@@ -178,11 +189,14 @@ def run_fold(data_dir: Path, fold: str, models: Sequence[str], lstm: LSTMBenchSe
             fitted = {"process_psd_m2_s3": predictor.process_psd, "meas_std_m": predictor.meas_std}
         elif name == "lstm":
             predictor, val_rmse, n_train, n_val = train_fold_lstm(data_dir, fold, lstm, progress)
-            fitted = {"val_rmse_m": val_rmse, "n_train_windows": n_train,
-                      "n_val_windows": n_val}
+            val_ade, val_fde = score(predictor, val_windows(data_dir, fold))
+            fitted = {"val_rmse_m": val_rmse, "val_ade_m": val_ade, "val_fde_m": val_fde,
+                      "n_train_windows": n_train, "n_val_windows": n_val}
         else:  # guarded by parse_models
             raise ValueError(f"unknown model {name!r}")
         a, f = score(predictor, test)
+        if "val_ade_m" not in fitted:
+            fitted["val_ade_m"], fitted["val_fde_m"] = score(predictor, val_windows(data_dir, fold))
         out[name] = FoldOutcome(a, f, len(test), time.perf_counter() - t0, fitted)
     return out
 
@@ -235,11 +249,14 @@ def format_report(results, per_fold, folds, lstm: LSTMBenchSettings | None, comm
         "",
         "## Models",
         "",
-        "- **cvm**: constant velocity from the last two observed positions, `x_t - x_(t-1)` "
-        "(Schöller et al. 2020).",
-        "- **kalman**: constant-velocity Kalman filter (white-noise acceleration, dt = 0.4 s), "
-        "process noise fitted per fold on that fold's train windows to minimise their ADE.",
     ]
+    if "cvm" in results:
+        parts.append("- **cvm**: constant velocity from the last two observed positions, "
+                     "`x_t - x_(t-1)` (Schöller et al. 2020).")
+    if "kalman" in results:
+        parts.append("- **kalman**: constant-velocity Kalman filter (white-noise acceleration, "
+                     "dt = 0.4 s), process noise fitted per fold on that fold's train windows "
+                     "to minimise their ADE.")
     if "kalman" in results:
         fitted = ", ".join(f"{f} {per_fold[f]['kalman'].fitted['process_psd_m2_s3']:.3g}"
                            for f in folds)
@@ -255,11 +272,25 @@ def format_report(results, per_fold, folds, lstm: LSTMBenchSettings | None, comm
                and lstm.residual else "")
             + (", mirrored copies in training and left/right-symmetrised predictions"
                if lstm.frame == "heading" and lstm.mirror else "")
+            + (f", windows scaled by their last step (floor {lstm.speed_floor} m)"
+               if lstm.frame == "heading" and lstm.speed_floor else "")
             + f". Settings: `{json.dumps(asdict(lstm))}`.",
-            "  Validation one-step RMSE (m, per coordinate): "
+            "  On each fold's val split (for model selection; never the test scene): one-step "
+            "RMSE per coordinate (m) "
             + ", ".join(f"{f} {per_fold[f]['lstm'].fitted['val_rmse_m']:.4f}" for f in folds)
+            + "; 12-step ADE / FDE (m) "
+            + ", ".join(f"{f} {per_fold[f]['lstm'].fitted['val_ade_m']:.2f} / "
+                        f"{per_fold[f]['lstm'].fitted['val_fde_m']:.2f}" for f in folds)
             + ".",
         ]
+    val = {m: {f: {"ade": per_fold[f][m].fitted["val_ade_m"], "fde": per_fold[f][m].fitted["val_fde_m"]}
+               for f in folds} for m in results}
+    for rows in val.values():
+        rows["avg"] = {k: float(np.mean([rows[f][k] for f in folds])) for k in ("ade", "fde")}
+    parts += ["", "## Validation splits", "",
+              "The same metrics on each fold's val split (parts of the training scenes, never "
+              "the test scene): settings are to be chosen on these, not on the test table.",
+              "", format_table(val, folds, published=False)]
     timing = ", ".join(f"{m} {sum(per_fold[f][m].seconds for f in folds):.0f} s" for m in results)
     parts += ["", "## Run", "", f"Command: `{command}`", "",
               f"Wall time {seconds:.0f} s ({timing}).", ""]
@@ -316,6 +347,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="heading frame: predict the next point, not the correction to CVM")
     p.add_argument("--no-mirror", dest="mirror", action="store_false",
                    help="heading frame: no mirrored copies / symmetric averaging")
+    p.add_argument("--speed-floor", type=float, default=d.speed_floor,
+                   help="heading frame: scale windows by their last step (floor in m)")
     p.add_argument("--rotations", type=int, default=d.rotations,
                    help="world frame: random-rotation copies per training window")
     p.add_argument("--seed", type=int, default=d.seed)
@@ -336,7 +369,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                                  head_hidden=args.head_hidden, target=args.target,
                                  epochs=args.epochs, batch_size=args.batch_size, lr=args.lr,
                                  seed=args.seed, frame=args.frame, residual=args.residual,
-                                 mirror=args.mirror, rotations=args.rotations,
+                                 mirror=args.mirror, speed_floor=args.speed_floor,
+                                 rotations=args.rotations,
                                  num_threads=args.threads)
     except ValueError as err:
         print(f"error: {err}", file=sys.stderr)

@@ -84,22 +84,32 @@ class NextPointModel(Protocol):
 _MIRROR = np.array([1.0, -1.0])
 
 
-def heading_frame(windows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def heading_frame(windows: np.ndarray, speed_floor: float | None = None
+                  ) -> tuple[np.ndarray, np.ndarray]:
     """The frame of each window: origin at its last point, +x along its last step.
 
     Args:
         windows: (B, W, 2) points in metres, W >= 2, no NaN in the last two rows.
+        speed_floor: if given (metres per frame, > 0), the frame is also scaled so that the
+            last step has unit length, ``scale = max(|last step|, speed_floor)`` (the floor keeps
+            a standing pedestrian's jitter from being blown up); None = metres.
 
     Returns:
         ``(origin (B, 2), rot (B, 2, 2))`` with ``rot`` mapping world offsets to frame
-        coordinates (``q = rot @ (p - origin)``). A window whose last step is zero (standing
-        still) gets the world orientation.
+        coordinates (``q = rot @ (p - origin)``; with a speed floor ``rot`` includes the
+        ``1 / scale`` factor). A window whose last step is zero (standing still) gets the
+        world orientation.
     """
     origin = windows[:, -1]
     step = windows[:, -1] - windows[:, -2]
     theta = np.arctan2(step[:, 1], step[:, 0])
     c, s = np.cos(theta), np.sin(theta)
     rot = np.stack([np.stack([c, s], axis=-1), np.stack([-s, c], axis=-1)], axis=-2)
+    if speed_floor is not None:
+        if not speed_floor > 0:
+            raise ValueError(f"speed_floor: expected a positive length in m, found {speed_floor!r}")
+        scale = np.maximum(np.hypot(step[:, 0], step[:, 1]), speed_floor)
+        rot = rot / scale[:, None, None]
     return origin, rot
 
 
@@ -110,13 +120,14 @@ def to_frame(points: np.ndarray, origin: np.ndarray, rot: np.ndarray) -> np.ndar
 
 
 def from_frame(points: np.ndarray, origin: np.ndarray, rot: np.ndarray) -> np.ndarray:
-    """Frame coordinates (B, ..., 2) -> world points ``rot^T q + origin``."""
+    """Frame coordinates (B, ..., 2) -> world points ``rot^-1 q + origin``."""
     flat = points.reshape(points.shape[0], -1, 2)
-    return (np.einsum("bji,bnj->bni", rot, flat) + origin[:, None, :]).reshape(points.shape)
+    inv = np.linalg.inv(rot)
+    return (np.einsum("bij,bnj->bni", inv, flat) + origin[:, None, :]).reshape(points.shape)
 
 
-def heading_frame_pairs(sequences: np.ndarray, *, residual: bool = True, mirror: bool = True
-                        ) -> tuple[np.ndarray, np.ndarray]:
+def heading_frame_pairs(sequences: np.ndarray, *, residual: bool = True, mirror: bool = True,
+                        speed_floor: float | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Training pairs for a next-point model used through :class:`HeadingFrameRollout`.
 
     Args:
@@ -133,7 +144,7 @@ def heading_frame_pairs(sequences: np.ndarray, *, residual: bool = True, mirror:
     if seq.ndim != 3 or seq.shape[1] < 3 or seq.shape[2] != 2:
         raise HistoryError(f"heading_frame_pairs: sequences must be (N, W + 1, 2) with W >= 2, "
                            f"found shape {seq.shape}")
-    origin, rot = heading_frame(seq[:, :-1])
+    origin, rot = heading_frame(seq[:, :-1], speed_floor)
     framed = to_frame(seq, origin, rot)
     if mirror:
         framed = np.concatenate([framed, framed * _MIRROR])
@@ -155,12 +166,16 @@ class HeadingFrameRollout:
 
     Attributes:
         model: a :class:`NextPointModel` (e.g. ``blindspot.traj.lstm.LSTMPredictor``).
-        residual, symmetric: see above. name: label used in reports.
+        residual, symmetric: see above.
+        speed_floor: also scale each window by its last step (None = metres; see
+            :func:`heading_frame`); train with the same value.
+        name: label used in reports.
     """
 
     def __init__(self, model: NextPointModel, *, residual: bool = True, symmetric: bool = True,
-                 name: str = "lstm") -> None:
+                 speed_floor: float | None = None, name: str = "lstm") -> None:
         self.model = model
+        self.speed_floor = speed_floor
         self.residual = residual
         self.symmetric = symmetric
         self.name = name
@@ -171,7 +186,7 @@ class HeadingFrameRollout:
 
     def step(self, windows: np.ndarray) -> np.ndarray:
         """Next points (B, 2) in metres for windows (B, window, 2)."""
-        origin, rot = heading_frame(windows)
+        origin, rot = heading_frame(windows, self.speed_floor)
         x = to_frame(windows, origin, rot)
         nxt = np.asarray(self.model.predict_next(x), dtype=float)
         if self.symmetric:
