@@ -6,7 +6,7 @@ import pandas as pd
 from blindspot import experiment, tracking
 from blindspot.cli import main_stage
 from blindspot.dsp.path_dataset import table_to_arrays
-from blindspot.traj.windows import interpolate_gaps, make_windows, split_by_path
+from blindspot.traj.windows import WindowSet, interpolate_gaps, make_windows, split_by_path
 
 SPLITS = ("train", "val", "test")
 
@@ -16,12 +16,16 @@ def run(cfg):
     if int(cfg.model.window) != int(d.window):
         raise ValueError(f"config key 'model.window' = {cfg.model.window}: expected dataset.window = {d.window}")
     table = pd.read_parquet(experiment.data_path(cfg, "paths", "paths.parquet"))
-    _, measured, _ = table_to_arrays(table)
+    truth, measured, _ = table_to_arrays(table)
     if d.fill_gaps == "linear":
         measured = interpolate_gaps(measured)
     elif d.fill_gaps != "none":
         raise ValueError(f"config key 'dataset.fill_gaps' = {d.fill_gaps!r}: expected 'linear' or 'none'")
     ws = make_windows(measured, int(d.window), int(d.stride))
+    if d.target == "truth":  # the true next position (known in simulation) instead of the measured one
+        ws = WindowSet(ws.x, truth[ws.path_id, ws.start + int(d.window)], ws.path_id, ws.start)
+    elif d.target != "measured":
+        raise ValueError(f"config key 'dataset.target' = {d.target!r}: expected 'measured' or 'truth'")
     counts = [int(d.split[s]) for s in SPLITS]
     parts = split_by_path(ws, counts, seed=int(d.seed))
     for name, part in zip(SPLITS, parts):

@@ -156,3 +156,27 @@ def test_repo_dataset_config_builds_and_covers_the_splits():
     counts = (split["train"], split["val"], split["test"])
     need = paths_needed(counts, spec.points_per_path, cfg["window"], cfg["stride"])
     assert cfg["n_paths"] >= need
+
+
+def test_sharp_turn_changes_heading_by_the_angle_and_keeps_speed():
+    from blindspot.traj.paths import add_sharp_turn, integrate_constant_turn
+
+    dt = 0.1
+    xy = integrate_constant_turn(np.zeros((1, 2)), np.array([1.2]), np.array([0.0]), np.array([0.0]), 60, dt)
+    out = add_sharp_turn(xy, np.array([2.0]), np.array([np.deg2rad(45.0)]), np.array([0.5]), dt)
+    steps = np.diff(out[0], axis=0)
+    np.testing.assert_allclose(np.hypot(*steps.T), 1.2 * dt, rtol=1e-12)   # speed kept
+    np.testing.assert_array_equal(out[0, :21], xy[0, :21])                  # unchanged before
+    heading = np.degrees(np.arctan2(steps[:, 0], steps[:, 1]))              # from +y towards +x
+    assert abs(heading[5]) < 1e-9 and abs(heading[-1] - 45.0) < 1e-9        # clockwise = towards +x
+
+
+def test_sharp_turn_share_follows_the_probability():
+    spec = PathSpec(sharp_turn_prob=0.5, start_range_m=(4.0, 20.0), max_range_m=28.0)
+    ps = random_path_set(400, spec, seed=1)
+    steps = np.diff(ps.xy, axis=1)
+    heading = np.unwrap(np.arctan2(steps[..., 0], steps[..., 1]), axis=1)
+    # beyond the gentle turn (at most 4 deg/s x 19.9 s = 80 deg) only sharp turns bend this much
+    bend = np.abs(np.degrees(heading[:, -1] - heading[:, 0]) - np.degrees(ps.turn_rate_rad_s) * 19.9)
+    share = np.mean(bend > 15.0)
+    assert 0.35 < share < 0.6, share

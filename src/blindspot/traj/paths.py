@@ -34,7 +34,7 @@ import numpy as np
 
 MOTIONS: tuple[str, ...] = ("approaching", "receding", "perpendicular")
 # Keys of the dataset config group that belong to the windows stage, not to the path kinematics.
-DATASET_KEYS: tuple[str, ...] = ("name", "n_paths", "window", "stride", "fill_gaps", "split", "seed")
+DATASET_KEYS: tuple[str, ...] = ("name", "n_paths", "window", "stride", "fill_gaps", "split", "seed", "target")
 
 
 class PathConfigError(ValueError):
@@ -73,6 +73,10 @@ class PathSpec:
         heading_spread_deg: approaching/receding heading deviates from radial by up to this.
         perpendicular_spread_deg: perpendicular heading deviates from tangential by up to this.
         min_range_m, max_range_m, max_abs_angle_deg: field of view every point must stay in.
+        sharp_turn_prob: share of paths that also make one sharp turn (a pedestrian turning at a
+            corner, as in the paper's scenes), on top of the gentle constant turn rate.
+        sharp_turn_deg: [low, high] magnitude of that turn; its sign is drawn at random.
+        sharp_turn_duration_s: [low, high] time the heading takes to swing through it.
     """
 
     points_per_path: int = 200
@@ -87,6 +91,9 @@ class PathSpec:
     min_range_m: float = 1.0
     max_range_m: float = 50.0
     max_abs_angle_deg: float = 75.0
+    sharp_turn_prob: float = 0.0
+    sharp_turn_deg: tuple[float, float] = (20.0, 90.0)
+    sharp_turn_duration_s: tuple[float, float] = (0.3, 1.5)
 
     def __post_init__(self) -> None:
         if int(self.points_per_path) != self.points_per_path or self.points_per_path < 2:
@@ -99,6 +106,12 @@ class PathSpec:
             self, "start_angle_deg", _interval("start_angle_deg", self.start_angle_deg, lo=-90.0, hi=90.0)
         )
         object.__setattr__(self, "turn_rate_deg_s", _interval("turn_rate_deg_s", self.turn_rate_deg_s))
+        if not 0.0 <= self.sharp_turn_prob <= 1.0:
+            raise PathConfigError("sharp_turn_prob", self.sharp_turn_prob, "a probability in [0, 1]")
+        object.__setattr__(self, "sharp_turn_deg", _interval("sharp_turn_deg", self.sharp_turn_deg, lo=0.0, hi=180.0))
+        object.__setattr__(
+            self, "sharp_turn_duration_s", _interval("sharp_turn_duration_s", self.sharp_turn_duration_s, lo=0.0)
+        )
         w = np.asarray(self.motion_weights, dtype=float)
         if w.shape != (3,) or not np.isfinite(w).all() or (w < 0).any() or w.sum() <= 0:
             raise PathConfigError(
@@ -227,7 +240,34 @@ def _draw(spec: PathSpec, motion: int, n: int, rng: np.random.Generator) -> tupl
     psi0 = np.angle(np.exp(1j * psi0))  # wrap to (-pi, pi]
     start = np.stack([r0 * np.sin(th0), r0 * np.cos(th0)], axis=-1)
     xy = integrate_constant_turn(start, speed, psi0, turn, spec.points_per_path, spec.frame_period_s)
+    sharp = rng.random(n) < spec.sharp_turn_prob
+    angle = np.deg2rad(rng.uniform(*spec.sharp_turn_deg, size=n)) * np.where(rng.random(n) < 0.5, -1.0, 1.0)
+    duration = rng.uniform(*spec.sharp_turn_duration_s, size=n)
+    at = rng.uniform(0.2, 0.9, size=n) * (spec.points_per_path - 1) * spec.frame_period_s
+    if sharp.any():
+        xy[sharp] = add_sharp_turn(xy[sharp], at[sharp], angle[sharp], duration[sharp], spec.frame_period_s)
     return xy, speed, psi0, turn
+
+
+def add_sharp_turn(xy: np.ndarray, at_s: np.ndarray, angle_rad: np.ndarray, duration_s: np.ndarray,
+                   dt_s: float) -> np.ndarray:
+    """Paths (P, T, 2) with one extra turn each: from time ``at_s`` the heading swings by
+    ``angle_rad`` (positive = clockwise, like the turn rate) at a constant rate over ``duration_s``.
+
+    Each step of the path is rotated by the extra heading reached at its mid-time, so speed and
+    the gentle turn already in the path are kept; the path before ``at_s`` is unchanged.
+    """
+    steps = np.diff(xy, axis=1)                                           # (P, T-1, 2)
+    t_mid = (np.arange(steps.shape[1]) + 0.5) * dt_s
+    frac = np.clip((t_mid[None, :] - at_s[:, None]) / np.maximum(duration_s[:, None], 1e-9), 0.0, 1.0)
+    extra = angle_rad[:, None] * frac                                     # (P, T-1)
+    c, s = np.cos(extra), np.sin(extra)
+    # heading measured from +y towards +x: a clockwise turn by a maps (sx, sy) -> R(-a) (sx, sy)
+    rot = np.stack([c * steps[..., 0] + s * steps[..., 1], -s * steps[..., 0] + c * steps[..., 1]], axis=-1)
+    out = np.empty_like(xy)
+    out[:, 0] = xy[:, 0]
+    out[:, 1:] = xy[:, :1] + np.cumsum(rot, axis=1)
+    return out
 
 
 def in_field_of_view(xy: np.ndarray, spec: PathSpec) -> np.ndarray:
