@@ -1,0 +1,36 @@
+"""fig07: the paper's Fig. 7, the pedestrian's points in the three directions without the car
+(a-c) and with it (d-f); with the car the frames where the pedestrian is hidden leave a gap."""
+
+import json
+
+import pandas as pd
+
+from blindspot import experiment, tracking
+from blindspot.cli import main_stage
+from blindspot.io import save_figure
+from blindspot.report.figures import fig07_scenes
+
+
+def scene_pairs(cfg) -> list[tuple[str, str]]:
+    """(no-car scene, car scene) per direction, in the order of conf/scene."""
+    scenes = experiment.scenes(cfg)
+    pairs = [(twin, name) for name in scenes if (twin := experiment.car_twin(name, scenes))]
+    if not pairs:
+        raise ValueError(f"fig07: config key 'scene.scenes' has no '<walk>_car' / '<walk>_nocar' pair "
+                         f"(found {list(scenes)})")
+    return pairs
+
+
+def run(cfg):
+    points = pd.read_parquet(experiment.data_path(cfg, "localise", "points.parquet"))
+    truth = pd.read_parquet(experiment.data_path(cfg, "simulate", "truth.parquet"))
+    scenes = json.loads(experiment.data_path(cfg, "simulate", "scenes.json").read_text())
+    pairs = scene_pairs(cfg)
+    fig = fig07_scenes(points, truth, scenes, pairs)
+    out = save_figure(fig, experiment.reports_path(cfg, "figures", "fig07.png"), dpi=110)
+    tracking.current().log_artifact(out)
+    print(f"fig07: {out} ({', '.join(f'{a} / {b}' for a, b in pairs)})")
+
+
+if __name__ == "__main__":
+    main_stage(run, "fig07")
