@@ -519,36 +519,48 @@ def fig08_interpolation(tracks: pd.DataFrame, truth: pd.DataFrame,
     if not names:
         raise ValueError("fig08_interpolation: no tracks")
     n = len(names)
-    fig, axes = _grid(1, n, 5.2 * n, 5.6)
+    fig, axes = _grid(1, n, 5.4 * n, 5.0)
+    everything = [_xy(truth[truth.scene.isin(names)]),
+                  _xy(tracks[tracks.filled.to_numpy(bool)]) if tracks.filled.any() else None]
+    everything += [np.asarray(scenes[s]["car_polygon_xy_m"]) for s in names if scenes[s].get("car_polygon_xy_m")]
     for i, (ax, name) in enumerate(zip(axes.flat, names)):
         info = scenes[name]
         tr = truth[truth.scene == name].sort_values("frame")
         scene_tracks = tracks[tracks.scene == name]
         first = scene_tracks[scene_tracks.method == methods[0]].sort_values("frame")
         obs = first[first.observed.to_numpy(bool)]
-        _draw_car(ax, info.get("car_polygon_xy_m"))
-        ax.plot(*_xy(tr).T, color=TRUTH_COLOUR, lw=1.2, ls="--", label="true path")
+        _draw_car(ax, info.get("car_polygon_xy_m"), label=False)
+        ax.plot(*_xy(tr).T, color=TRUTH_COLOUR, lw=1.2, ls="--")
         hid = tr.occluded.to_numpy(bool)
-        ax.plot(*_xy(tr[hid]).T, ".", color="orange", ms=4, zorder=1, label="true, hidden frames")
-        ax.plot(*_xy(obs).T, ".", color=POINT_COLOUR, ms=5, zorder=4, label=f"radar points ({len(obs)})")
-        chunks = [_xy(tr), _xy(obs), np.asarray(info.get("car_polygon_xy_m") or np.zeros((0, 2)))]
+        ax.plot(*_xy(tr[hid]).T, ".", color="orange", ms=4, zorder=1)
+        ax.plot(*_xy(obs).T, ".", color=POINT_COLOUR, ms=5, zorder=4)
+        lines = []
         for method in methods:
             m = scene_tracks[scene_tracks.method == method].sort_values("frame")
             xy = _xy(m)
             filled = m.filled.to_numpy(bool)
-            # draw each filled run joined to its observed neighbours, so the bridge is visible
-            draw = filled | np.roll(filled, 1) | np.roll(filled, -1)
-            draw[0] |= filled[0]
+            # each filled run starts from the observed point before it (the rollout's origin);
+            # where it ends away from the reappearance point, that mismatch is the method's error
+            draw = filled | np.roll(filled, -1)
+            draw[-1] = filled[-1]
             seg = np.where(draw[:, None], xy, np.nan)
             err = metrics.get(method, {}).get(name, {}).get("hidden_mean_m")
             label = _label(method) + (f": {err:.2f} m" if err is not None else "")
-            ax.plot(*seg.T, "-", color=_colour(method), lw=1.8, zorder=3, label=label)
-            ax.plot(*xy[filled].T, ".", color=_colour(method), ms=4, zorder=3)
-            chunks.append(xy[filled])
-        _xy_limits(ax, chunks, margin_m=0.5)
+            lines.append(ax.plot(*seg.T, "-", color=_colour(method), lw=1.8, zorder=3, label=label)[0])
+            ax.plot(*xy[filled].T, ".", color=_colour(method), ms=3, zorder=3)
+        _xy_limits(ax, everything, margin_m=0.4)
         _xy_axes(ax)
-        ax.legend(fontsize=7, loc="best", title="mean error on hidden frames", title_fontsize=7)
+        ax.legend(handles=lines, fontsize=8, loc="best", title="mean error on hidden frames",
+                  title_fontsize=8)
         _panel(ax, i, scene_title(name, info))
+    handles = [
+        plt.Line2D([], [], color=TRUTH_COLOUR, lw=1.2, ls="--", label="true path"),
+        plt.Line2D([], [], color="orange", marker=".", ls="none", ms=8,
+                   label="true position while hidden"),
+        plt.Line2D([], [], color=POINT_COLOUR, marker=".", ls="none", ms=8, label="radar points"),
+        Polygon(np.zeros((3, 2)), facecolor=CAR_COLOUR, edgecolor="0.35", label="parked car"),
+    ] + [plt.Line2D([], [], color=_colour(m), lw=1.8, label=f"{_label(m)}: filled frames") for m in methods]
+    fig.legend(handles=handles, loc="outside lower center", ncol=len(handles), fontsize=8)
     fig.suptitle("Fig. 8: interpolation of the frames where the pedestrian is hidden behind the car "
                  "(paper: forward LSTM rollout; no number given)", fontsize=12)
     return fig
@@ -578,7 +590,9 @@ def fig09_prediction(inputs: pd.DataFrame, predictions: pd.DataFrame, truth: pd.
     if not names:
         raise ValueError("fig09_prediction: no predictions")
     n = len(names)
-    fig, axes = _grid(1, n, 5.2 * n, 5.6)
+    fig, axes = _grid(1, n, 5.4 * n, 5.0)
+    everything = [_xy(truth[truth.scene.isin(names)]), _xy(predictions)]
+    everything += [np.asarray(scenes[s]["car_polygon_xy_m"]) for s in names if scenes[s].get("car_polygon_xy_m")]
     for i, (ax, name) in enumerate(zip(axes.flat, names)):
         info = scenes[name]
         pred = predictions[predictions.scene == name]
@@ -586,33 +600,42 @@ def fig09_prediction(inputs: pd.DataFrame, predictions: pd.DataFrame, truth: pd.
         tr = truth[truth.scene == name].sort_values("frame")
         past, future = tr[tr.frame < start], tr[tr.frame >= start - 1]
         inp = inputs[(inputs.scene == name) & (inputs.frame < start)].sort_values("frame")
-        _draw_car(ax, info.get("car_polygon_xy_m"))
-        ax.plot(*_xy(past).T, color=TRUTH_COLOUR, lw=0.8, label="true path")
-        ax.plot(*_xy(future).T, color=TRUTH_COLOUR, lw=1.6, ls="--", label="true future")
-        ax.plot(*_xy(inp).T, "-", color="black", lw=1.4, zorder=4, label="input track")
+        _draw_car(ax, info.get("car_polygon_xy_m"), label=False)
+        ax.plot(*_xy(past).T, color=TRUTH_COLOUR, lw=0.8)
+        ax.plot(*_xy(future).T, color=TRUTH_COLOUR, lw=1.6, ls="--")
+        ax.plot(*_xy(future)[-1], "x", color=TRUTH_COLOUR, ms=8, mew=2)
+        ax.plot(*_xy(inp).T, "-", color="black", lw=1.2, zorder=4)
         if "observed" in inp.columns:
             seen = inp[inp.observed.to_numpy(bool)]
             ax.plot(*_xy(seen).T, ".", color="black", ms=4, zorder=4)
-        chunks = [_xy(tr), _xy(inp), np.asarray(info.get("car_polygon_xy_m") or np.zeros((0, 2)))]
+        lines = []
         for method in methods:
             p = pred[pred.method == method].sort_values("step")
             xy = _xy(p)
             joined = np.vstack([_xy(inp)[-1:], xy]) if len(inp) else xy
             m = metrics.get(method, {}).get("per_scene", {}).get(name, {})
-            val = m.get("path_error_mean_m")
-            label = _label(method) + (f": {val:.2f} m" if val is not None else "")
-            ax.plot(*joined.T, "-", color=_colour(method), lw=1.8, zorder=5, label=label)
-            ax.plot(*xy[-1], "x", color=_colour(method), ms=7, mew=2, zorder=5)
-            chunks.append(xy)
-        _xy_limits(ax, chunks, margin_m=0.5)
+            val, ade = m.get("path_error_mean_m"), m.get("ade_m")
+            label = _label(method) + (f": {val:.2f} m" if val is not None else "") + (
+                f" (ADE {ade:.2f} m)" if ade is not None else "")
+            lines.append(ax.plot(*joined.T, "-", color=_colour(method), lw=1.8, zorder=5, label=label)[0])
+            ax.plot(*xy[-1], "x", color=_colour(method), ms=8, mew=2, zorder=5)
+        _xy_limits(ax, everything, margin_m=0.4)
         _xy_axes(ax)
         steps = int(pred.step.max())
-        ax.legend(fontsize=7, loc="best",
-                  title=f"paper metric, {steps} steps (paper {PAPER_PATH_ERROR_MEAN_M} m)",
-                  title_fontsize=7)
+        ax.legend(handles=lines, fontsize=7.5, loc="best",
+                  title=f"paper's metric over {steps} steps (paper {PAPER_PATH_ERROR_MEAN_M} m)",
+                  title_fontsize=7.5)
         _panel(ax, i, scene_title(name, info) + f", from frame {start}")
+    handles = [
+        plt.Line2D([], [], color="black", lw=1.2, marker=".", label="input track (dots: radar points)"),
+        plt.Line2D([], [], color=TRUTH_COLOUR, lw=0.8, label="true path"),
+        plt.Line2D([], [], color=TRUTH_COLOUR, lw=1.6, ls="--", label="true future"),
+        plt.Line2D([], [], color="black", marker="x", ls="none", mew=2, label="end of prediction / truth"),
+        Polygon(np.zeros((3, 2)), facecolor=CAR_COLOUR, edgecolor="0.35", label="parked car"),
+    ] + [plt.Line2D([], [], color=_colour(m), lw=1.8, label=_label(m)) for m in methods]
+    fig.legend(handles=handles, loc="outside lower center", ncol=len(handles), fontsize=8)
     fig.suptitle("Fig. 9: future path predicted from the interpolated track (black: input, red: LSTM "
-                 "as in the paper; x: last predicted point)", fontsize=12)
+                 "as in the paper)", fontsize=12)
     return fig
 
 
@@ -685,7 +708,8 @@ def fig_recording(power: np.ndarray, detections: np.ndarray | pd.DataFrame,
             (and optionally ``moving``) of the selected detections.
         range_axis_m: (R,) range of each row. velocity_axis_mps: (D,) velocity of each column.
         title: shown above the map (e.g. the recording's name).
-        dynamic_range_db: colour scale span below the map's peak.
+        dynamic_range_db: largest colour scale span below the map's peak (the scale starts at
+            the noise floor when that is closer).
     """
     power = np.asarray(power, dtype=float)
     r, v = np.asarray(range_axis_m, dtype=float), np.asarray(velocity_axis_mps, dtype=float)
@@ -695,9 +719,9 @@ def fig_recording(power: np.ndarray, detections: np.ndarray | pd.DataFrame,
     fig, axes = _grid(1, 1, 7.0, 5.6)
     ax = axes[0, 0]
     p_db = _db(power)
-    top = float(np.nanmax(p_db))
-    im = ax.pcolormesh(_edges(v), _edges(r), p_db, cmap="viridis", vmin=top - dynamic_range_db,
-                       vmax=top, shading="flat")
+    top, floor = float(np.nanmax(p_db)), float(np.nanpercentile(p_db, 5)) - 3.0
+    im = ax.pcolormesh(_edges(v), _edges(r), p_db, cmap="viridis",
+                       vmin=max(floor, top - dynamic_range_db), vmax=top, shading="flat")
     fig.colorbar(im, ax=ax, label="power (dB, ADC codes², summed over channels)")
     if isinstance(detections, pd.DataFrame):
         _require(detections, ("range_m", "velocity_mps"), "fig_recording detections")
@@ -717,5 +741,5 @@ def fig_recording(power: np.ndarray, detections: np.ndarray | pd.DataFrame,
     ax.set_xlabel("radial velocity (m/s)")
     ax.set_ylabel("range (m)")
     ax.legend(fontsize=8, loc="upper right", facecolor="0.9")
-    _panel(ax, 0, title)
+    ax.set_title(title, fontsize=11)
     return fig

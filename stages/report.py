@@ -1,0 +1,49 @@
+"""report: reports/README.md, every figure and table of the pipeline with our numbers beside the
+paper's and the command that regenerates each (blindspot.report.page). Metrics files that do not
+exist yet (e.g. the ETH/UCY benchmark's) are reported as not run; the page still builds."""
+
+import json
+from pathlib import Path
+
+from blindspot import experiment, tracking
+from blindspot.cli import main_stage
+from blindspot.io import write_text
+from blindspot.report.page import FigureEntry, build_page
+
+METRICS = ("localise", "train", "interpolate", "evaluate", "ethucy")
+
+
+def read_json(path: Path) -> dict | None:
+    return json.loads(path.read_text()) if path.is_file() else None
+
+
+def recording_figures(cfg) -> list[FigureEntry]:
+    """The recordings stage's figures that exist, in the order of reports/metrics/recordings.json."""
+    recordings = read_json(experiment.reports_path(cfg, "metrics", "recordings.json")) or {}
+    out = []
+    for name, info in recordings.items():
+        rel = f"figures/recording_{name}.png"
+        if experiment.reports_path(cfg, rel).is_file():
+            out.append(FigureEntry(
+                "recordings", rel, f"Real recording: {name}",
+                f"Range-Doppler map of frame 0 of `{Path(info.get('file', name)).name}` ({info.get('kind')}) "
+                f"with its CFAR detections; {info.get('detections_per_frame', float('nan')):.1f} "
+                "detections per frame."))
+    return out
+
+
+def run(cfg):
+    metrics = {name: read_json(experiment.reports_path(cfg, "metrics", f"{name}.json")) for name in METRICS}
+    tables = {}
+    for name in ("table1", "table2"):
+        path = experiment.reports_path(cfg, "tables", f"{name}.md")
+        tables[name] = path.read_text() if path.is_file() else None
+    page = build_page(metrics, tables, extra_figures=recording_figures(cfg))
+    out = write_text(experiment.reports_path(cfg, "README.md"), page)
+    tracking.current().log_artifact(out)
+    missing = [n for n, m in metrics.items() if m is None]
+    print(f"report: {out}" + (f" (not yet run: {', '.join(missing)})" if missing else ""))
+
+
+if __name__ == "__main__":
+    main_stage(run, "report")

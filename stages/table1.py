@@ -1,0 +1,32 @@
+"""table1: the paper's Table 1 (LSTM hyper-parameters, validation RMSE 0.07) with ours beside it,
+including the constant-velocity and Kalman baselines' one-step RMSE on the same windows."""
+
+import json
+
+from omegaconf import OmegaConf
+
+from blindspot import experiment, tracking
+from blindspot.cli import main_stage
+from blindspot.io import write_text
+from blindspot.report.tables import table1_lstm
+
+BASELINES = {"constant_velocity": "constant velocity", "kalman": "Kalman (CV)"}
+
+
+def run(cfg):
+    train = json.loads(experiment.reports_path(cfg, "metrics", "train.json").read_text())
+    counts = {**train["n_windows"], "window": int(cfg.model.window)}
+    text = table1_lstm(
+        OmegaConf.to_container(cfg.model, resolve=True), OmegaConf.to_container(cfg.train, resolve=True),
+        counts, val_rmse_m=train["lstm"]["val"]["rmse_m"], test_rmse_m=train["lstm"]["test"]["rmse_m"],
+        baselines={label: train[key]["val"]["rmse_m"] for key, label in BASELINES.items() if key in train})
+    text += ("\nRMSE here is per coordinate (root of the mean squared x and y error, metres), the usual "
+             "Keras/scikit-learn reading of the paper's number; the Euclidean one-step RMSE of the LSTM "
+             f"is {train['lstm']['val']['rmse_euclid_m']:.4f} m (validation).\n")
+    out = write_text(experiment.reports_path(cfg, "tables", "table1.md"), text)
+    tracking.current().log_artifact(out)
+    print(f"table1: {out} (val RMSE {train['lstm']['val']['rmse_m']:.4f} m, paper 0.07)")
+
+
+if __name__ == "__main__":
+    main_stage(run, "table1")
