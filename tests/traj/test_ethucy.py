@@ -168,12 +168,12 @@ def test_lstm_training_pairs_cover_every_nine_frame_stretch(ethucy_dir):
     np.testing.assert_allclose(np.linalg.norm(next_in_frame, axis=-1), step_next, atol=1e-4)
 
 
-@pytest.mark.slow
 @pytest.mark.real_data
 def test_bench_cli_trains_and_scores_the_lstm(ethucy_dir, tmp_path):
     out = tmp_path / "ethucy.json"
     rc = bench_main(["--data", str(ethucy_dir), "--out", str(out), "--models", "cvm,lstm",
-                     "--folds", "eth", "--epochs", "1", "--quiet", "--threads", "1"])
+                     "--folds", "eth", "--epochs", "1", "--ensemble", "2", "--quiet",
+                     "--threads", "1"])
     assert rc == 0
     lstm = json.loads(out.read_text())["lstm"]
     assert lstm["eth"]["n_windows"] == 181

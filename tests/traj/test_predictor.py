@@ -128,3 +128,28 @@ def test_speed_scaled_frame_has_a_unit_last_step_and_round_trips():
                                atol=1e-9)
     with pytest.raises(ValueError, match="speed_floor"):
         heading_frame(w, speed_floor=0.0)
+
+
+def test_mean_next_point_averages_models_and_checks_windows():
+    from blindspot.traj.predictor import MeanNextPoint
+
+    w = walks(6)
+    mean = MeanNextPoint([ConstantVelocityStep(), Zero()])
+    np.testing.assert_allclose(mean.predict_next(w), 0.5 * (2 * w[:, -1] - w[:, -2]))
+    assert mean.window == 8
+
+    class Short(Zero):
+        window = 5
+
+    with pytest.raises(ValueError, match="window"):
+        MeanNextPoint([Zero(), Short()])
+    with pytest.raises(ValueError, match="at least one"):
+        MeanNextPoint([])
+
+
+def test_world_rollout_appends_and_slides():
+    from blindspot.traj.predictor import NextPointRollout
+
+    h = walks(7)
+    np.testing.assert_allclose(NextPointRollout(ConstantVelocityStep()).predict(h, 6),
+                               ConstantVelocity().predict(h, 6), atol=1e-9)

@@ -28,7 +28,7 @@ import sys
 import tempfile
 import time
 from collections.abc import Sequence
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -48,7 +48,13 @@ from blindspot.traj.ethucy import (
     random_rotations,
 )
 from blindspot.traj.metrics import ade, fde
-from blindspot.traj.predictor import HeadingFrameRollout, PathPredictor, heading_frame_pairs
+from blindspot.traj.predictor import (
+    HeadingFrameRollout,
+    MeanNextPoint,
+    NextPointRollout,
+    PathPredictor,
+    heading_frame_pairs,
+)
 
 MODELS: tuple[str, ...] = ("cvm", "kalman", "lstm")
 
@@ -71,6 +77,8 @@ class LSTMBenchSettings:
             at this many metres (None = no scaling): the LSTM then sees the shape of the motion
             independent of walking speed.
         rotations: (world frame) random-rotation copies added per training window.
+        ensemble: train this many LSTMs with seeds ``seed, seed + 1, ...`` and
+            average their next-point predictions at every rollout step.
         num_threads: torch threads (None = leave torch's default).
     """
 
@@ -78,7 +86,7 @@ class LSTMBenchSettings:
     num_layers: int = 1
     head_hidden: int = 32
     target: str = "displacement"
-    epochs: int = 15
+    epochs: int = 8
     batch_size: int = 256
     lr: float = 1e-3
     seed: int = 0
@@ -87,6 +95,7 @@ class LSTMBenchSettings:
     mirror: bool = True
     speed_floor: float | None = None
     rotations: int = 0
+    ensemble: int = 5
     num_threads: int | None = None
 
     def __post_init__(self) -> None:
@@ -95,6 +104,8 @@ class LSTMBenchSettings:
         if self.frame == "heading" and self.rotations:
             raise ValueError("lstm rotations: random rotations do nothing in the heading frame "
                              "(it is rotation invariant); use frame='world' or rotations=0")
+        if int(self.ensemble) != self.ensemble or self.ensemble < 1:
+            raise ValueError(f"lstm ensemble: expected an integer >= 1, found {self.ensemble!r}")
 
 
 @dataclass
@@ -147,8 +158,9 @@ def train_fold_lstm(data_dir: Path, fold: str, s: LSTMBenchSettings, progress: b
 
     Returns:
         ``(predictor, val_rmse_m, n_train, n_val)``: the predictor to score (the LSTM itself,
-        or wrapped in :class:`HeadingFrameRollout`), the one-step validation RMSE in metres
-        per coordinate, and the window counts.
+        or the LSTM / ensemble mean wrapped in a rollout), the one-step
+        validation RMSE in metres per coordinate (mean over ensemble members), and the window
+        counts.
     """
     from blindspot.traj.lstm import LSTMConfig
     from blindspot.traj.train import TrainConfig, train_lstm
@@ -159,13 +171,20 @@ def train_fold_lstm(data_dir: Path, fold: str, s: LSTMBenchSettings, progress: b
                            head_hidden=s.head_hidden, target=s.target)
     train_cfg = TrainConfig(epochs=s.epochs, batch_size=s.batch_size, lr=s.lr, seed=s.seed,
                             num_threads=s.num_threads)
-    result = train_lstm(train, val, model_cfg, train_cfg, progress=progress)
-    predictor: PathPredictor = result.predictor
+    results = [train_lstm(train, val, model_cfg, replace(train_cfg, seed=s.seed + k),
+                          progress=progress) for k in range(s.ensemble)]
+    val_rmse = float(np.mean([r.val_rmse_m for r in results]))
+    model = (results[0].predictor if s.ensemble == 1
+             else MeanNextPoint([r.predictor for r in results]))
+    predictor: PathPredictor
     if s.frame == "heading":
-        predictor = HeadingFrameRollout(result.predictor, residual=s.residual,
-                                        symmetric=s.mirror, speed_floor=s.speed_floor,
-                                        name="lstm")
-    return predictor, result.val_rmse_m, len(train), len(val)
+        predictor = HeadingFrameRollout(model, residual=s.residual, symmetric=s.mirror,
+                                        speed_floor=s.speed_floor, name="lstm")
+    elif s.ensemble == 1:
+        predictor = results[0].predictor      # the LSTM's own rollout (fills gaps itself)
+    else:
+        predictor = NextPointRollout(model, name="lstm")
+    return predictor, val_rmse, len(train), len(val)
 
 
 def val_windows(data_dir: Path, fold: str) -> Windows:
@@ -232,6 +251,23 @@ def format_table(results: dict[str, dict[str, dict[str, float]]], folds: Sequenc
     return "\n".join(lines)
 
 
+def compare_to_cvm(results: dict[str, dict[str, dict[str, float]]]) -> list[str]:
+    """Report lines: each model's average ADE/FDE minus the CVM's (negative = better)."""
+    if "cvm" not in results:
+        return []
+    base = results["cvm"]["avg"]
+    lines = []
+    for m, rows in results.items():
+        if m == "cvm":
+            continue
+        d_ade, d_fde = rows["avg"]["ade"] - base["ade"], rows["avg"]["fde"] - base["fde"]
+        verdict = ("beats" if d_ade < 0 and d_fde < 0 else
+                   "does not beat" if d_ade >= 0 and d_fde >= 0 else "splits with")
+        lines.append(f"- {m} {verdict} CVM on the test-fold average: ADE {d_ade:+.3f} m, "
+                     f"FDE {d_fde:+.3f} m.")
+    return lines + [""] if lines else []
+
+
 def format_report(results, per_fold, folds, lstm: LSTMBenchSettings | None, command: str,
                   seconds: float) -> str:
     """The Markdown page: table, protocol, fitted values, command."""
@@ -247,6 +283,7 @@ def format_report(results, per_fold, folds, lstm: LSTMBenchSettings | None, comm
         "Test windows per fold: "
         + ", ".join(f"{f} {next(iter(per_fold[f].values())).n_windows}" for f in folds) + ".",
         "",
+        *compare_to_cvm(results),
         "## Models",
         "",
     ]
@@ -274,6 +311,8 @@ def format_report(results, per_fold, folds, lstm: LSTMBenchSettings | None, comm
                if lstm.frame == "heading" and lstm.mirror else "")
             + (f", windows scaled by their last step (floor {lstm.speed_floor} m)"
                if lstm.frame == "heading" and lstm.speed_floor else "")
+            + (f"; the mean of {lstm.ensemble} LSTMs trained with consecutive seeds"
+               if lstm.ensemble > 1 else "")
             + f". Settings: `{json.dumps(asdict(lstm))}`.",
             "  On each fold's val split (for model selection; never the test scene): one-step "
             "RMSE per coordinate (m) "
@@ -351,6 +390,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="heading frame: scale windows by their last step (floor in m)")
     p.add_argument("--rotations", type=int, default=d.rotations,
                    help="world frame: random-rotation copies per training window")
+    p.add_argument("--ensemble", type=int, default=d.ensemble,
+                   help="average this many LSTMs (seeds seed, seed+1, ...) at every step")
     p.add_argument("--seed", type=int, default=d.seed)
     p.add_argument("--threads", type=int, default=None, help="torch threads for the LSTM")
     p.add_argument("--quiet", action="store_true", help="no progress bars")
@@ -370,7 +411,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                                  epochs=args.epochs, batch_size=args.batch_size, lr=args.lr,
                                  seed=args.seed, frame=args.frame, residual=args.residual,
                                  mirror=args.mirror, speed_floor=args.speed_floor,
-                                 rotations=args.rotations,
+                                 rotations=args.rotations, ensemble=args.ensemble,
                                  num_threads=args.threads)
     except ValueError as err:
         print(f"error: {err}", file=sys.stderr)

@@ -21,7 +21,9 @@ __all__ = [
     "to_frame",
     "from_frame",
     "heading_frame_pairs",
+    "NextPointRollout",
     "HeadingFrameRollout",
+    "MeanNextPoint",
 ]
 
 
@@ -154,30 +156,16 @@ def heading_frame_pairs(sequences: np.ndarray, *, residual: bool = True, mirror:
     return x, y
 
 
-class HeadingFrameRollout:
-    """Autoregressive rollout of a next-point model in each window's heading frame.
-
-    At every step the current window is moved to its heading frame (:func:`heading_frame`),
-    the model predicts the next point there, and the point is mapped back to the world and
-    appended. This makes the prediction invariant to where the pedestrian is and which way they
-    walk. With ``residual`` the model's output is a correction to constant velocity (train it on
-    :func:`heading_frame_pairs` with the same flag); with ``symmetric`` the prediction is
-    averaged with that of the mirrored window (exact left/right symmetry).
+class NextPointRollout:
+    """Autoregressive rollout of a next-point model in world coordinates (predict, append,
+    slide), batched over tracks.
 
     Attributes:
-        model: a :class:`NextPointModel` (e.g. ``blindspot.traj.lstm.LSTMPredictor``).
-        residual, symmetric: see above.
-        speed_floor: also scale each window by its last step (None = metres; see
-            :func:`heading_frame`); train with the same value.
-        name: label used in reports.
+        model: a :class:`NextPointModel`. name: label used in reports.
     """
 
-    def __init__(self, model: NextPointModel, *, residual: bool = True, symmetric: bool = True,
-                 speed_floor: float | None = None, name: str = "lstm") -> None:
+    def __init__(self, model: NextPointModel, *, name: str = "lstm") -> None:
         self.model = model
-        self.speed_floor = speed_floor
-        self.residual = residual
-        self.symmetric = symmetric
         self.name = name
 
     @property
@@ -186,14 +174,7 @@ class HeadingFrameRollout:
 
     def step(self, windows: np.ndarray) -> np.ndarray:
         """Next points (B, 2) in metres for windows (B, window, 2)."""
-        origin, rot = heading_frame(windows, self.speed_floor)
-        x = to_frame(windows, origin, rot)
-        nxt = np.asarray(self.model.predict_next(x), dtype=float)
-        if self.symmetric:
-            nxt = 0.5 * (nxt + np.asarray(self.model.predict_next(x * _MIRROR), float) * _MIRROR)
-        if self.residual:
-            nxt = nxt + (x[:, -1] - x[:, -2])
-        return from_frame(nxt[:, None, :], origin, rot)[:, 0]
+        return np.asarray(self.model.predict_next(windows), dtype=float)
 
     def predict(self, history: np.ndarray, horizon: int) -> np.ndarray:
         """Roll out ``horizon`` steps from the last ``window`` points of each history.
@@ -220,3 +201,63 @@ class HeadingFrameRollout:
             out[:, k] = self.step(x)
             x = np.concatenate([x[:, 1:], out[:, k, None]], axis=1)
         return out
+
+
+
+
+class HeadingFrameRollout(NextPointRollout):
+    """Autoregressive rollout of a next-point model in each window's heading frame.
+
+    At every step the current window is moved to its heading frame (:func:`heading_frame`),
+    the model predicts the next point there, and the point is mapped back to the world and
+    appended. This makes the prediction invariant to where the pedestrian is and which way they
+    walk. With ``residual`` the model's output is a correction to constant velocity (train it on
+    :func:`heading_frame_pairs` with the same flag); with ``symmetric`` the prediction is
+    averaged with that of the mirrored window (exact left/right symmetry).
+
+    Attributes:
+        model: a :class:`NextPointModel` (e.g. ``blindspot.traj.lstm.LSTMPredictor``).
+        residual, symmetric: see above.
+        speed_floor: also scale each window by its last step (None = metres; see
+            :func:`heading_frame`); train with the same value.
+        name: label used in reports.
+    """
+
+    def __init__(self, model: NextPointModel, *, residual: bool = True, symmetric: bool = True,
+                 speed_floor: float | None = None, name: str = "lstm") -> None:
+        super().__init__(model, name=name)
+        self.speed_floor = speed_floor
+        self.residual = residual
+        self.symmetric = symmetric
+
+    def step(self, windows: np.ndarray) -> np.ndarray:
+        """Next points (B, 2) in metres for windows (B, window, 2)."""
+        origin, rot = heading_frame(windows, self.speed_floor)
+        x = to_frame(windows, origin, rot)
+        nxt = np.asarray(self.model.predict_next(x), dtype=float)
+        if self.symmetric:
+            nxt = 0.5 * (nxt + np.asarray(self.model.predict_next(x * _MIRROR), float) * _MIRROR)
+        if self.residual:
+            nxt = nxt + (x[:, -1] - x[:, -2])
+        return from_frame(nxt[:, None, :], origin, rot)[:, 0]
+
+
+class MeanNextPoint:
+    """The mean of several next-point models (e.g. the same LSTM trained with different seeds).
+
+    Averaging independently trained models lowers the variance of each step, which matters in
+    an autoregressive rollout where step errors feed back.
+    """
+
+    def __init__(self, models: list[NextPointModel]) -> None:
+        if not models:
+            raise ValueError("MeanNextPoint: expected at least one model, found none")
+        windows = {int(m.window) for m in models}
+        if len(windows) != 1:
+            raise ValueError(f"MeanNextPoint: models disagree on the window length: {windows}")
+        self.models = list(models)
+        self.window = windows.pop()
+
+    def predict_next(self, windows: np.ndarray) -> np.ndarray:
+        """(B, window, 2) -> (B, 2): mean of the models' next points."""
+        return np.mean([np.asarray(m.predict_next(windows), float) for m in self.models], axis=0)
