@@ -3,8 +3,9 @@ e perpendicular).
 
 Cases are chosen deterministically from the test split's path ids by motion (lowest id first); when
 the test split holds fewer paths of a motion than the figure needs, validation paths of that motion
-follow (also unseen in training), then later windows of the same paths. The LSTM sees the window exactly as in training (gaps filled) and is rolled out
-autoregressively for up to HORIZON steps against the true continuation.
+follow (also unseen in training), then later windows of the same paths. The LSTM sees the window
+exactly as in training (gaps filled) and is rolled out autoregressively for up to HORIZON steps
+against the true continuation.
 """
 
 import json

@@ -309,7 +309,7 @@ def fig06_detection(frame: Mapping[str, Any], detections: pd.DataFrame, *,
     frame_no = int(np.asarray(frame.get("frame", -1)))
     time_s = float(np.asarray(frame.get("time_s", np.nan)))
 
-    fig = plt.figure(figsize=(16, 9.5), layout="constrained")
+    fig = plt.figure(figsize=(17, 9.5), layout="constrained")
     gs = fig.add_gridspec(2, 6)
     ax_a = fig.add_subplot(gs[0, 0:2])
     ax_b = fig.add_subplot(gs[0, 2:4])
@@ -322,7 +322,7 @@ def fig06_detection(frame: Mapping[str, Any], detections: pd.DataFrame, *,
     p_db = _db(power)
     top, floor = float(np.nanmax(p_db)), float(np.nanpercentile(p_db, 5))
     im = ax_a.pcolormesh(ve, re, p_db, cmap="viridis", vmin=floor - 3.0, vmax=top, shading="flat")
-    fig.colorbar(im, ax=ax_a, label="power (dB, ADC codes², summed over channels)")
+    fig.colorbar(im, ax=ax_a, label="power (dB re 1 ADC code²)")
     ax_a.set_xlabel("radial velocity (m/s)")
     ax_a.set_ylabel("range (m)")
     _panel(ax_a, 0, "range-velocity map (FFT)")
@@ -331,7 +331,7 @@ def fig06_detection(frame: Mapping[str, Any], detections: pd.DataFrame, *,
     margin = p_db - _db(threshold)
     im = ax_b.pcolormesh(ve, re, np.clip(margin, -20, 20), cmap="RdBu_r", vmin=-20, vmax=20,
                          shading="flat")
-    fig.colorbar(im, ax=ax_b, label="power - CA-CFAR threshold (dB)")
+    fig.colorbar(im, ax=ax_b, label="power over CA-CFAR threshold (dB)")
     if mask.any():
         ax_b.contour(vel_ax, rng_ax, mask.astype(float), levels=[0.5], colors="black",
                      linewidths=0.8)
@@ -722,7 +722,7 @@ def fig_recording(power: np.ndarray, detections: np.ndarray | pd.DataFrame,
     top, floor = float(np.nanmax(p_db)), float(np.nanpercentile(p_db, 5)) - 3.0
     im = ax.pcolormesh(_edges(v), _edges(r), p_db, cmap="viridis",
                        vmin=max(floor, top - dynamic_range_db), vmax=top, shading="flat")
-    fig.colorbar(im, ax=ax, label="power (dB, ADC codes², summed over channels)")
+    fig.colorbar(im, ax=ax, label="power (dB re 1 ADC code², summed over channels)")
     if isinstance(detections, pd.DataFrame):
         _require(detections, ("range_m", "velocity_mps"), "fig_recording detections")
         mov = (detections["moving"].to_numpy(bool) if "moving" in detections.columns
