@@ -20,8 +20,8 @@ def run(cfg):
         OmegaConf.to_container(cfg.model, resolve=True), OmegaConf.to_container(cfg.train, resolve=True),
         counts, val_rmse_m=train["lstm"]["val"]["rmse_m"], test_rmse_m=train["lstm"]["test"]["rmse_m"],
         baselines={label: train[key]["val"]["rmse_m"] for key, label in BASELINES.items() if key in train})
-    text += ("\nRMSE here is per coordinate (root of the mean squared x and y error, metres), the usual "
-             "Keras/scikit-learn reading of the paper's number; the Euclidean one-step RMSE of the LSTM "
+    text += ("\nRMSE here is over both coordinates (root of the mean squared x and y error, metres), what "
+             "Keras' RMSE metric reports on (x, y) targets; the Euclidean one-step RMSE of the LSTM "
              f"is {train['lstm']['val']['rmse_euclid_m']:.4f} m (validation).\n")
     out = write_text(experiment.reports_path(cfg, "tables", "table1.md"), text)
     tracking.current().log_artifact(out)
