@@ -1,0 +1,87 @@
+"""The whole pipeline, for real: `dvc repro` of the tiny profile in a temporary git repository.
+
+Every stage runs (simulation, detection, localisation, the real recordings, the radar-measured
+path data set, windows, training, interpolation, prediction, evaluation, figures, tables, the
+report page); a second `dvc repro` with nothing changed reruns nothing but the params check; each
+computing stage lands one FINISHED MLflow run in the copy's SQLite store.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+import time
+from pathlib import Path
+
+import pytest
+
+from tests.conftest import REPO_ROOT, SHARED
+from tests.pipeline.toy_repo import VENV_BIN, clean_env, run, runs
+
+pytestmark = pytest.mark.pipeline
+
+DVC = VENV_BIN / "dvc"
+
+
+def copy_worktree(dest: Path) -> Path:
+    """The repository's tracked and untracked-but-not-ignored files (what a commit would hold)."""
+    files = subprocess.run(["git", "ls-files", "-co", "--exclude-standard", "-z"], cwd=REPO_ROOT,
+                           capture_output=True, text=True, check=True).stdout.split("\0")
+    for rel in filter(None, files):
+        src = REPO_ROOT / rel
+        if src.is_file() and not rel.startswith(("data/", "reports/", "mlflow.db")):
+            (dest / rel).parent.mkdir(parents=True, exist_ok=True)
+            shutil.copy2(src, dest / rel)
+    return dest
+
+
+@pytest.fixture(scope="module")
+def tiny_repo(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    if not (SHARED / "data" / "radar").is_dir():
+        pytest.skip(f"shared recordings not found at {SHARED}")
+    root = copy_worktree(tmp_path_factory.mktemp("repro") / "repo")
+    cfg = root / "conf" / "config.yaml"
+    cfg.write_text(cfg.read_text().replace("  - profile: paper", "  - profile: tiny"))
+    env = clean_env(BLINDSPOT_SHARED=str(SHARED))
+    for cmd in (["git", "init", "-q", "-b", "main"], ["git", "config", "user.email", "t@example.com"],
+                ["git", "config", "user.name", "t"]):
+        run(cmd, root, env=env)
+    run([str(VENV_BIN / "python"), "-m", "blindspot", "params"], root, env=env)
+    run(["git", "add", "-A"], root, env=env)
+    run(["git", "commit", "-qm", "tiny"], root, env=env)
+    return root
+
+
+def test_dvc_repro_tiny_profile_end_to_end(tiny_repo: Path) -> None:
+    env = clean_env(BLINDSPOT_SHARED=str(SHARED))
+    t0 = time.monotonic()
+    proc = run([str(DVC), "repro"], tiny_repo, env=env, timeout=600)
+    first = time.monotonic() - t0
+    reports = tiny_repo / "reports"
+    for fig in ("fig04", "fig06", "fig07", "fig08", "fig09", "fig10"):
+        png = reports / "figures" / f"{fig}.png"
+        assert png.stat().st_size > 20_000, f"{png} missing or empty"
+    for table in ("table1", "table2"):
+        text = (reports / "tables" / f"{table}.md").read_text()
+        assert "| parameter | paper | ours |" in text, text[:300]
+    evaluate = json.loads((reports / "metrics" / "evaluate.json").read_text())
+    for method in ("lstm", "constant_velocity", "kalman"):
+        m = evaluate[method]
+        assert 0 < m["path_error_mean_m"] < 5 and 0 < m["ade_m"] < 10, (method, m)
+        assert m["path_error_mean_m"] <= m["ade_m"] + 1e-9  # nearest point is never farther
+    train = json.loads((reports / "metrics" / "train.json").read_text())
+    assert train["n_windows"] == {"train": 1000, "val": 300, "test": 100}
+    assert (reports / "README.md").read_text().count("0.09") >= 1
+    finished = [r for r in runs(tiny_repo) if r.info.status == "FINISHED"]
+    stages = {r.data.tags.get("blindspot.stage") for r in finished}
+    assert {"simulate", "detect", "localise", "paths", "train", "evaluate"} <= stages, stages
+    assert all(r.info.status != "RUNNING" for r in runs(tiny_repo))
+
+    t0 = time.monotonic()
+    again = run([str(DVC), "repro"], tiny_repo, env=env, timeout=300)
+    second = time.monotonic() - t0
+    ran = [line for line in again.stdout.splitlines() if line.startswith("Running stage")]
+    assert ran == ["Running stage 'check_params':"], again.stdout
+    assert second < first / 3, (first, second)
+    print(f"dvc repro (tiny): {first:.0f} s; nothing changed: {second:.1f} s\n{proc.stdout[-2000:]}")
