@@ -33,6 +33,7 @@ __all__ = [
     "OBS_LEN",
     "PRED_LEN",
     "PUBLISHED",
+    "TEST_WINDOWS",
     "EthUcyDataError",
     "SceneTracks",
     "Windows",
@@ -40,7 +41,9 @@ __all__ = [
     "read_scene",
     "scene_tracks",
     "sliding_windows",
+    "split_files",
     "load_split",
+    "random_rotations",
 ]
 
 FOLDS: tuple[str, ...] = ("eth", "hotel", "univ", "zara1", "zara2")
