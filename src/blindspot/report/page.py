@@ -65,7 +65,8 @@ FIGURES: tuple[FigureEntry, ...] = (
                 "Observed radar points (black), truth (dashed) and each method's filled frames; the "
                 "legend gives the mean error on the hidden frames."),
     FigureEntry("fig09", "figures/fig09.png", "Fig. 9: future path prediction",
-                "Input track (black, the forward-LSTM interpolated track as in the paper), LSTM "
+                "Input track (black: the points seen before the prediction start, gaps filled by "
+                "eval.prediction_input; the paper filled them with its forward LSTM), LSTM "
                 "predictions (red) and baselines, truth dashed; legend: the paper's metric per scene."),
     FigureEntry("fig10", "figures/fig10.png", "Fig. 10: error against prediction step",
                 "(a) the paper's metric (distance to the nearest actual point; solid: against the truth, "
