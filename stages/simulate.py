@@ -4,7 +4,6 @@ Frames are not stored (detect and localise regenerate them from the same seeds);
 ``simulate.write_captures: true`` each scene is also written as a TI MMWCAS cascade capture.
 """
 
-import numpy as np
 import pandas as pd
 from tqdm import tqdm
 

@@ -237,7 +237,7 @@ def fig04_lstm_paths(cases: Sequence[PathCase], dt_s: float = 0.1,
         pred = np.asarray(case.prediction, dtype=float)
         fut = np.asarray(case.future_true, dtype=float)
         htrue = np.asarray(case.history_true, dtype=float)
-        W, H = len(hist), len(pred)
+        W = len(hist)
         seen = np.isfinite(hist).all(axis=1)
         h = [
             ax.plot(*htrue.T, color=TRUTH_COLOUR, lw=1.0, label="true path (input window)")[0],
