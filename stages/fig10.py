@@ -10,13 +10,14 @@ from blindspot import experiment, tracking
 from blindspot.cli import main_stage
 from blindspot.io import save_figure
 from blindspot.report.figures import fig10_error
+from blindspot.report.page import PAPER
 
 
 def run(cfg):
     curves = pd.read_csv(experiment.data_path(cfg, "evaluate", "error_by_step_per_scene.csv"))
     metrics = json.loads(experiment.reports_path(cfg, "metrics", "evaluate.json").read_text())
-    paper = metrics.get("paper", {}).get("path_error_mean_m", 0.09)
-    fig = fig10_error(curves, metrics, dt_s=float(cfg.radar.frame_period_s), paper_mean_m=paper)
+    fig = fig10_error(curves, metrics, dt_s=float(cfg.radar.frame_period_s),
+                      paper_mean_m=PAPER["path_error_mean_m"])
     out = save_figure(fig, experiment.reports_path(cfg, "figures", "fig10.png"), dpi=110)
     tracking.current().log_artifact(out)
     print(f"fig10: {out} ({curves.method.nunique()} methods, {curves.step.max()} steps)")
