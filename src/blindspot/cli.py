@@ -264,6 +264,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         try:
             if command == "params":
                 print(f"wrote {bconfig.write_params(root)}")
+            elif os.environ.get("DVC_EXP_NAME"):
+                # inside `dvc exp run`, DVC itself composed conf/ + the -S overrides into
+                # params.yaml, so it differs from conf/ on purpose (same rule as main_stage)
+                print(f"{root / bconfig.PARAMS_FILE}: composed by `dvc exp run` "
+                      f"({os.environ['DVC_EXP_NAME']}), not checked against conf/")
             else:
                 bconfig.check_params(root)
                 print(f"{root / bconfig.PARAMS_FILE} is up to date with conf/")

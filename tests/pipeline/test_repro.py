@@ -85,3 +85,19 @@ def test_dvc_repro_tiny_profile_end_to_end(tiny_repo: Path) -> None:
     assert ran == ["Running stage 'check_params':"], again.stdout
     assert second < first / 3, (first, second)
     print(f"dvc repro (tiny): {first:.0f} s; nothing changed: {second:.1f} s\n{proc.stdout[-2000:]}")
+
+
+def test_dvc_exp_run_override_reruns_only_what_depends_on_it(tiny_repo: Path) -> None:
+    """`dvc exp run -S train.lr=...` composes conf/ + the override (Hydra) and reruns training and
+    what follows it, never the radar stages; the run logs the new value to MLflow."""
+    env = clean_env(BLINDSPOT_SHARED=str(SHARED))
+    if not (tiny_repo / "dvc.lock").exists():  # this test run alone
+        run([str(DVC), "repro"], tiny_repo, env=env, timeout=600)
+    run(["git", "add", "-A"], tiny_repo, env=env)
+    run(["git", "commit", "-qm", "baseline", "--allow-empty"], tiny_repo, env=env)
+    proc = run([str(DVC), "exp", "run", "-S", "train.lr=0.003"], tiny_repo, env=env, timeout=600)
+    ran = {line.split("'")[1] for line in proc.stdout.splitlines() if line.startswith("Running stage")}
+    assert {"train", "interpolate", "predict", "evaluate"} <= ran, proc.stdout
+    assert not ran & {"simulate", "detect", "localise", "paths", "windows", "recordings"}, ran
+    train_runs = [r for r in runs(tiny_repo) if r.data.tags.get("blindspot.stage") == "train"]
+    assert train_runs[-1].data.params["train.lr"] == "0.003"
