@@ -701,7 +701,29 @@ def read_openradar_npy(path: str | os.PathLike, *, n_tx: int | None = None,
 
 
 # ---------------------------------------------------------------------------------- frame sources
-class TICascadeRecording:
+class _CaptureFrames:
+    """The frame-source methods shared by the recordings on disk: frames come from
+    ``self.capture.frame(i)`` (lazy reads), one at a time."""
+
+    capture: TICascadeCapture | DCA1000Capture
+
+    @property
+    def n_frames(self) -> int:
+        return self.capture.n_frames
+
+    def frame(self, index: int) -> np.ndarray:
+        """complex64 (chirps, tx, rx, samples)."""
+        return self.capture.frame(index)
+
+    def __len__(self) -> int:
+        return self.n_frames
+
+    def __iter__(self) -> Iterator[np.ndarray]:
+        for i in range(self.n_frames):
+            yield self.capture.frame(i)
+
+
+class TICascadeRecording(_CaptureFrames):
     """A TI MMWCAS capture on disk as a frame source (frames read lazily, one at a time).
 
     radar : the capture's chirp profile (n_samples, n_chirps, n_tx, n_rx = 16, frame_period_s).
@@ -726,27 +748,13 @@ class TICascadeRecording:
                                    self.capture.idx_paths[0])
 
     @property
-    def n_frames(self) -> int:
-        return self.capture.n_frames
-
-    @property
     def times_s(self) -> np.ndarray:
         """(n_frames,) frame start times, s."""
         return self._times.copy()
 
-    def frame(self, index: int) -> np.ndarray:
-        """complex64 (chirps, tx, 16, samples)."""
-        return self.capture.frame(index)
-
-    def __len__(self) -> int:
-        return self.n_frames
-
-    def __iter__(self) -> Iterator[np.ndarray]:
-        for i in range(self.n_frames):
-            yield self.capture.frame(i)
 
 
-class DCA1000Recording:
+class DCA1000Recording(_CaptureFrames):
     """A DCA1000 ``adc_data.bin`` as a frame source (lazy; times ``i * radar.frame_period_s``)."""
 
     def __init__(self, path: str | os.PathLike, radar: RadarConfig, *,
@@ -757,24 +765,9 @@ class DCA1000Recording:
                                       radar.n_rx, layout=layout)
 
     @property
-    def n_frames(self) -> int:
-        return self.capture.n_frames
-
-    @property
     def times_s(self) -> np.ndarray:
         """(n_frames,) frame start times, s."""
         return np.arange(self.n_frames) * self.radar.frame_period_s
-
-    def frame(self, index: int) -> np.ndarray:
-        """complex64 (chirps, tx, rx, samples)."""
-        return self.capture.frame(index)
-
-    def __len__(self) -> int:
-        return self.n_frames
-
-    def __iter__(self) -> Iterator[np.ndarray]:
-        for i in range(self.n_frames):
-            yield self.capture.frame(i)
 
 
 def _frame_times(timestamps_ns: np.ndarray, frame_period_s: float, where: Path) -> np.ndarray:

@@ -23,8 +23,6 @@ out several steps (predict, append, slide) for a whole batch at once.
 
 from __future__ import annotations
 
-import os
-import tempfile
 from collections.abc import Mapping
 from dataclasses import asdict, dataclass, fields
 from pathlib import Path
@@ -34,6 +32,7 @@ import numpy as np
 import torch
 from torch import nn
 
+from blindspot.io import atomic_path
 from blindspot.traj.windows import interpolate_gaps
 
 _FORMAT = "blindspot.lstm/1"
@@ -307,14 +306,8 @@ class LSTMPredictor:
             "stats": asdict(self.stats),
             "state_dict": self.model.state_dict(),
         }
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-        os.close(fd)
-        try:
+        with atomic_path(path) as tmp:
             torch.save(blob, tmp)
-            os.replace(tmp, path)
-        except BaseException:
-            Path(tmp).unlink(missing_ok=True)
-            raise
         return path
 
     @classmethod

@@ -19,8 +19,6 @@ in two splits; each split then keeps exactly its count by a seeded random subset
 from __future__ import annotations
 
 import math
-import os
-import tempfile
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -28,6 +26,8 @@ from pathlib import Path
 import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
+
+from blindspot.io import atomic_path
 
 _WINDOW_KEY = b"blindspot.window"
 
@@ -95,14 +95,8 @@ class WindowSet:
         start = self.start if self.start is not None else np.full(n, -1, dtype=np.int64)
         table = pa.table({"path_id": self.path_id, "start": start, "x": x, "y": y})
         table = table.replace_schema_metadata({_WINDOW_KEY: str(w).encode()})
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-        os.close(fd)
-        try:
+        with atomic_path(path) as tmp:
             pq.write_table(table, tmp)
-            os.replace(tmp, path)
-        except BaseException:
-            Path(tmp).unlink(missing_ok=True)
-            raise
         return path
 
     @classmethod
