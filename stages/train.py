@@ -26,14 +26,13 @@ def run(cfg):
              for s in ("train", "val", "test")}
     model_cfg = LSTMConfig.from_mapping(
         {k: v for k, v in OmegaConf.to_container(cfg.model).items() if k != "name"})
-    train_cfg = TrainConfig.from_mapping(
-        {k: v for k, v in OmegaConf.to_container(cfg.train).items() if k != "resume"})
+    train_cfg = TrainConfig.from_mapping(OmegaConf.to_container(cfg.train))
     tracker = tracking.current()
     result = train_lstm(
         split["train"], split["val"], model_cfg, train_cfg,
         on_epoch=lambda epoch, m: tracker.log_metrics(m, step=epoch),
         checkpoint_dir=experiment.data_path(cfg, "train", "checkpoints"),
-        resume=bool(OmegaConf.select(cfg, "train.resume", default=False)),
+        resume=bool(cfg.train.resume),
         progress=bool(cfg.progress),
     )
     model_path = result.predictor.save(experiment.data_path(cfg, "train", "model.pt"))

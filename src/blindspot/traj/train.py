@@ -105,9 +105,10 @@ class TrainConfig:
     @classmethod
     def from_mapping(cls, mapping: Mapping[str, Any], where: str = "train") -> TrainConfig:
         """Build from a config mapping (the Hydra ``train`` group); unknown keys other than
-        ``name`` are errors."""
+        ``name`` and ``resume`` (read by the train stage: continue from the last checkpoint) are
+        errors."""
         names = {f.name for f in fields(cls)}
-        unknown = sorted(set(mapping) - names - {"name"})
+        unknown = sorted(set(mapping) - names - {"name", "resume"})
         if unknown:
             raise TrainConfigError(f"{where}.{unknown[0]}", mapping[unknown[0]], f"one of the keys {sorted(names)}")
         try:
