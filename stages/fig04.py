@@ -15,7 +15,6 @@ import pandas as pd
 
 from blindspot import experiment, tracking
 from blindspot.cli import main_stage
-from blindspot.io import save_figure
 from blindspot.report.figures import PathCase, fig04_lstm_paths
 from blindspot.traj.lstm import LSTMPredictor
 from blindspot.traj.metrics import ade
@@ -76,10 +75,8 @@ def run(cfg):
     train = json.loads(experiment.reports_path(cfg, "metrics", "train.json").read_text())
     fig = fig04_lstm_paths(cases, dt_s=float(cfg.radar.frame_period_s),
                            val_rmse_m=train["lstm"]["val"]["rmse_m"])
-    out = save_figure(fig, experiment.reports_path(cfg, "figures", "fig04.png"), dpi=110)
-    tracker = tracking.current()
-    tracker.log_artifact(out)
-    tracker.log_metrics({f"fig04_ade_m.{c.motion}_{c.path_id}_{c.start}": c.ade_m for c in cases})
+    out = experiment.save_report_figure(cfg, fig, "fig04", dpi=110)
+    tracking.current().log_metrics({f"fig04_ade_m.{c.motion}_{c.path_id}_{c.start}": c.ade_m for c in cases})
     print(f"fig04: {out} ("
           + ", ".join(f"{c.motion} {c.split} path {c.path_id}@{c.start} ADE {c.ade_m:.2f} m" for c in cases) + ")")
 

@@ -7,10 +7,9 @@ import json
 import numpy as np
 import pandas as pd
 
-from blindspot import experiment, tracking
+from blindspot import experiment
 from blindspot.cli import main_stage
 from blindspot.dsp.points import to_cartesian
-from blindspot.io import save_figure
 from blindspot.report.figures import fig06_detection
 
 N_ACCUMULATE = 100  # the paper's Fig. 6e
@@ -37,8 +36,7 @@ def run(cfg):
         point=None if pt.empty else pt.iloc[0][["x_m", "y_m", "range_m", "angle_deg"]].to_dict(), static_xy_m=static_xy,
         scene_points=points[points.scene == scene], scene_truth=tr,
         car_polygon=scenes[scene]["car_polygon_xy_m"], scene_name=scene, n_accumulate=N_ACCUMULATE)
-    out = save_figure(fig, experiment.reports_path(cfg, "figures", "fig06.png"), dpi=110)
-    tracking.current().log_artifact(out)
+    out = experiment.save_report_figure(cfg, fig, "fig06", dpi=110)
     print(f"fig06: {out} ({scene}, frame {frame_no}, {len(detections)} detections)")
 
 

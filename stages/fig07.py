@@ -5,9 +5,8 @@ import json
 
 import pandas as pd
 
-from blindspot import experiment, tracking
+from blindspot import experiment
 from blindspot.cli import main_stage
-from blindspot.io import save_figure
 from blindspot.report.figures import fig07_scenes
 
 
@@ -27,8 +26,7 @@ def run(cfg):
     scenes = json.loads(experiment.data_path(cfg, "simulate", "scenes.json").read_text())
     pairs = scene_pairs(cfg)
     fig = fig07_scenes(points, truth, scenes, pairs)
-    out = save_figure(fig, experiment.reports_path(cfg, "figures", "fig07.png"), dpi=110)
-    tracking.current().log_artifact(out)
+    out = experiment.save_report_figure(cfg, fig, "fig07", dpi=110)
     print(f"fig07: {out} ({', '.join(f'{a} / {b}' for a, b in pairs)})")
 
 

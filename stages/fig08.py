@@ -5,9 +5,8 @@ import json
 
 import pandas as pd
 
-from blindspot import experiment, tracking
+from blindspot import experiment
 from blindspot.cli import main_stage
-from blindspot.io import save_figure
 from blindspot.report.figures import fig08_interpolation
 
 
@@ -17,8 +16,7 @@ def run(cfg):
     scenes = json.loads(experiment.data_path(cfg, "simulate", "scenes.json").read_text())
     metrics = json.loads(experiment.reports_path(cfg, "metrics", "interpolate.json").read_text())
     fig = fig08_interpolation(tracks, truth, scenes, metrics)
-    out = save_figure(fig, experiment.reports_path(cfg, "figures", "fig08.png"), dpi=110)
-    tracking.current().log_artifact(out)
+    out = experiment.save_report_figure(cfg, fig, "fig08", dpi=110)
     print(f"fig08: {out} ({tracks.scene.nunique()} scenes x {tracks.method.nunique()} methods)")
 
 

@@ -5,9 +5,8 @@ import json
 
 import pandas as pd
 
-from blindspot import experiment, tracking
+from blindspot import experiment
 from blindspot.cli import main_stage
-from blindspot.io import save_figure
 from blindspot.report.figures import fig09_prediction
 
 
@@ -23,8 +22,7 @@ def run(cfg):
         raise ValueError(f"fig09: config key 'eval.prediction_input' = {method!r} has no rows in "
                          f"data/interpolate/tracks.parquet (methods there: {sorted(tracks.method.unique())})")
     fig = fig09_prediction(inputs, predictions, truth, scenes, metrics)
-    out = save_figure(fig, experiment.reports_path(cfg, "figures", "fig09.png"), dpi=110)
-    tracking.current().log_artifact(out)
+    out = experiment.save_report_figure(cfg, fig, "fig09", dpi=110)
     print(f"fig09: {out} ({predictions.scene.nunique()} scenes x {predictions.method.nunique()} methods)")
 
 

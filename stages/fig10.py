@@ -6,9 +6,8 @@ import json
 
 import pandas as pd
 
-from blindspot import experiment, tracking
+from blindspot import experiment
 from blindspot.cli import main_stage
-from blindspot.io import save_figure
 from blindspot.report.figures import fig10_error
 from blindspot.report.page import PAPER
 
@@ -18,8 +17,7 @@ def run(cfg):
     metrics = json.loads(experiment.reports_path(cfg, "metrics", "evaluate.json").read_text())
     fig = fig10_error(curves, metrics, dt_s=float(cfg.radar.frame_period_s),
                       paper_mean_m=PAPER["path_error_mean_m"])
-    out = save_figure(fig, experiment.reports_path(cfg, "figures", "fig10.png"), dpi=110)
-    tracking.current().log_artifact(out)
+    out = experiment.save_report_figure(cfg, fig, "fig10", dpi=110)
     print(f"fig10: {out} ({curves.method.nunique()} methods, {curves.step.max()} steps)")
 
 

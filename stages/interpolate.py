@@ -11,7 +11,6 @@ import pandas as pd
 from blindspot import experiment, tracking
 from blindspot.cli import main_stage
 from blindspot.io import write_json, write_parquet
-from blindspot.traj.baselines import KalmanCV
 from blindspot.traj.interpolation import find_gaps, interpolate
 from blindspot.traj.lstm import LSTMPredictor
 
@@ -20,7 +19,7 @@ def run(cfg):
     points = pd.read_parquet(experiment.data_path(cfg, "localise", "points.parquet"))
     truth = pd.read_parquet(experiment.data_path(cfg, "simulate", "truth.parquet"))
     lstm = LSTMPredictor.load(experiment.data_path(cfg, "train", "model.pt"))
-    kalman = KalmanCV(dt=float(cfg.radar.frame_period_s), **cfg.eval.kalman)
+    kalman = experiment.kalman(cfg)
     scenes = {n: s for n, s in experiment.scenes(cfg).items() if s.with_car}
     rows, metrics = [], {}
     for name, sc in scenes.items():

@@ -14,7 +14,6 @@ import pandas as pd
 from blindspot import experiment, tracking
 from blindspot.cli import main_stage
 from blindspot.io import write_parquet
-from blindspot.traj.baselines import KalmanCV
 from blindspot.traj.forecast import forecast_track
 from blindspot.traj.interpolation import interpolate
 from blindspot.traj.lstm import LSTMPredictor
@@ -25,7 +24,7 @@ def run(cfg):
     lstm = LSTMPredictor.load(experiment.data_path(cfg, "train", "model.pt"))
     dt = float(cfg.radar.frame_period_s)
     fill = partial(interpolate, method=str(cfg.eval.prediction_input), predictor=lstm,
-                   smoother=KalmanCV(dt=dt, **cfg.eval.kalman).smooth)
+                   smoother=experiment.kalman(cfg).smooth)
     methods = experiment.predictors(cfg, lstm)
     rows = []
     for name, sc in experiment.scenes(cfg).items():

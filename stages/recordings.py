@@ -16,10 +16,11 @@ from blindspot import experiment, tracking
 from blindspot.cli import main_stage
 from blindspot.config import shared_dir
 from blindspot.dsp.chain import DetectionChain
-from blindspot.io import atomic_open, save_figure, write_json, write_parquet
+from blindspot.io import atomic_open, write_json, write_parquet
 from blindspot.radar.array import array_for
 from blindspot.radar.capture import open_recording
 from blindspot.radar.config import RadarConfig
+from blindspot.report.figures import fig_recording
 
 
 def run(cfg):
@@ -51,16 +52,9 @@ def run(cfg):
             "strongest_range_m": [float(r) for r in strongest.sort_values("frame").range_m],
             "noise_floor_db": float(10 * np.log10(np.median(first.power))),
         }
-        try:
-            from blindspot.report.figures import fig_recording
-        except ImportError:  # the report module is optional for running the chain
-            fig_recording = None
-        if fig_recording is not None:
-            fig = fig_recording(first.power, first.detections, first.range_axis_m,
-                                first.velocity_axis_mps, f"{name} ({rec.kind}), frame 0")
-            png = experiment.reports_path(cfg, "figures", f"recording_{name}.png")
-            save_figure(fig, png)
-            tracker.log_artifact(png)
+        fig = fig_recording(first.power, first.detections, first.range_axis_m,
+                            first.velocity_axis_mps, f"{name} ({rec.kind}), frame 0")
+        experiment.save_report_figure(cfg, fig, f"recording_{name}")
         print(f"recordings {name}: {source.n_frames} frames, {per_frame.mean():.1f} detections/frame, "
               f"strongest return at {summary[name]['strongest_range_m']} m")
     write_json(experiment.reports_path(cfg, "metrics", "recordings.json"), summary)

@@ -10,7 +10,7 @@ from omegaconf import OmegaConf
 from blindspot import experiment, tracking
 from blindspot.cli import main_stage
 from blindspot.io import write_json, write_text
-from blindspot.traj.baselines import ConstantVelocity, KalmanCV
+from blindspot.traj.baselines import ConstantVelocity
 from blindspot.traj.lstm import LSTMConfig
 from blindspot.traj.train import TrainConfig, evaluate, rmse_euclidean, rmse_per_coordinate, train_lstm
 from blindspot.traj.windows import WindowSet
@@ -38,8 +38,7 @@ def run(cfg):
     model_path = result.predictor.save(experiment.data_path(cfg, "train", "model.pt"))
     history_path = experiment.data_path(cfg, "train", "history.csv")
     write_text(history_path, result.history.to_csv(index=False))
-    dt = float(cfg.radar.frame_period_s)
-    baselines = {"constant_velocity": ConstantVelocity(), "kalman": KalmanCV(dt=dt, **cfg.eval.kalman)}
+    baselines = {"constant_velocity": ConstantVelocity(), "kalman": experiment.kalman(cfg)}
     metrics = {
         "lstm": {"val": evaluate(result.predictor, split["val"]),
                  "test": evaluate(result.predictor, split["test"]),

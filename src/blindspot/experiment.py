@@ -58,15 +58,31 @@ def scene_track(points, scene: str, n_frames: int):
     return track
 
 
+def kalman(cfg: DictConfig):
+    """The constant-velocity Kalman baseline of ``cfg.eval.kalman`` at the radar's frame period."""
+    from blindspot.traj.baselines import KalmanCV
+
+    return KalmanCV(dt=float(cfg.radar.frame_period_s), **cfg.eval.kalman)
+
+
+def save_report_figure(cfg: DictConfig, fig, name: str, **savefig_kwargs) -> Path:
+    """Write ``reports/figures/<name>.png`` atomically and log it to the stage's MLflow run."""
+    from blindspot import tracking
+    from blindspot.io import save_figure
+
+    out = save_figure(fig, reports_path(cfg, "figures", f"{name}.png"), **savefig_kwargs)
+    tracking.current().log_artifact(out)
+    return out
+
+
 def predictors(cfg: DictConfig, lstm=None) -> dict:
     """The prediction methods of ``cfg.eval.prediction_methods`` by name."""
-    from blindspot.traj.baselines import ConstantVelocity, KalmanCV
+    from blindspot.traj.baselines import ConstantVelocity
 
-    dt = float(cfg.radar.frame_period_s)
     made = {
         "lstm": lstm,
         "constant_velocity": ConstantVelocity(k=int(cfg.eval.cv_fit_points), name="constant_velocity"),
-        "kalman": KalmanCV(dt=dt, **cfg.eval.kalman),
+        "kalman": kalman(cfg),
     }
     out = {}
     for name in cfg.eval.prediction_methods:
