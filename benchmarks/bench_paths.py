@@ -38,7 +38,7 @@ def main() -> None:
 
     from omegaconf import OmegaConf
 
-    from blindspot.dsp.path_measurement import PedestrianModel, error_statistics, measure_paths
+    from blindspot.synth.path_measurement import PedestrianModel, error_statistics, measure_paths
     from blindspot.radar.config import RadarConfig
     from blindspot.radar.scene import load_scenes
     from blindspot.traj.paths import PathSpec, random_paths

@@ -12,7 +12,7 @@ from omegaconf import OmegaConf
 
 from blindspot import experiment, tracking
 from blindspot.cli import main_stage
-from blindspot.dsp.scene_detection import detect_scenes
+from blindspot.synth.scene_detection import detect_scenes
 from blindspot.io import atomic_open, write_parquet
 
 

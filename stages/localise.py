@@ -6,7 +6,7 @@ import pandas as pd
 
 from blindspot import experiment, tracking
 from blindspot.cli import main_stage
-from blindspot.dsp.chain import DetectConfig
+from blindspot.dsp.config import DetectConfig
 from blindspot.dsp.points import frame_points
 from blindspot.io import write_json, write_parquet
 

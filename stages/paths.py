@@ -2,15 +2,15 @@
 
 Clean walks (random start, speed, heading, gentle turns) are drawn by blindspot.traj.paths; every
 point then goes through the radar chain (target -> range-Doppler -> CFAR -> MUSIC -> point, the
-reduced-cube chain of blindspot.dsp.path_measurement), so the data carry the radar's own errors.
+reduced-cube chain of blindspot.synth.path_measurement), so the data carry the radar's own errors.
 """
 
 import numpy as np
 
 from blindspot import experiment, tracking
 from blindspot.cli import main_stage
-from blindspot.dsp.path_dataset import measure_path_set, path_table
-from blindspot.dsp.path_measurement import PedestrianModel
+from blindspot.synth.path_dataset import measure_path_set, path_table
+from blindspot.synth.path_measurement import PedestrianModel
 from blindspot.io import write_parquet
 from blindspot.traj.paths import PathSpec, random_path_set
 

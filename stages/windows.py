@@ -5,7 +5,7 @@ import pandas as pd
 
 from blindspot import experiment, tracking
 from blindspot.cli import main_stage
-from blindspot.dsp.path_dataset import table_to_arrays
+from blindspot.synth.path_dataset import table_to_arrays
 from blindspot.traj.windows import WindowSet, interpolate_gaps, make_windows, split_by_path
 
 SPLITS = ("train", "val", "test")

@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 from omegaconf import OmegaConf
 
-from blindspot.dsp.chain import CfarConfig, DetectConfig, DetectionChain, DoaConfig
+from blindspot.dsp.chain import DetectionChain
+from blindspot.dsp.config import CfarConfig, DetectConfig, DoaConfig
 from blindspot.radar.config import ConfigError, RadarConfig
 from tests.conftest import REPO_ROOT
 from tests.dsp._synth import mmwcas, tone_cube

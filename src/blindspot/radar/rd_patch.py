@@ -12,7 +12,7 @@ with ``W(nu) = sum_n w[n] exp(j 2 pi nu n)``. This module evaluates that express
 of range bins (all Doppler bins, chosen virtual channels) around the targets of many frames at
 once, and draws the receiver noise with exactly the statistics the FFT gives it (the variance
 ``sigma^2 sum w_r^2 sum w_d^2`` per cell and the correlation a window puts between neighbouring
-bins). It is the fast path of the training-data generator (:mod:`blindspot.dsp.path_measurement`),
+bins). It is the fast path of the training-data generator (:mod:`blindspot.synth.path_measurement`),
 which runs the detection chain on such patches instead of on 64 x 12 x 16 x 256 cubes.
 
 Signal model (the same as :mod:`blindspot.radar.simulator`; SI units)

@@ -19,7 +19,7 @@ Two ways to get there
   and budget, ``compensate_tdm``, a batched MUSIC tested equal to ``music_angles``, and
   ``group_point``) run on the patches of thousands of frames at once. See
   :func:`measure_paths` for what is exact and what is approximated; the test
-  ``tests/dsp/test_path_measurement.py`` shows the point-error statistics of both agree within
+  ``tests/synth/test_path_measurement.py`` shows the point-error statistics of both agree within
   10 % (measured: within 1 % for the paper's CFAR, 5 % for CA-CFAR at Pfa 1e-6), at 300-600
   frames/s on this 2-core machine (``benchmarks/bench_paths.py``).
 

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from omegaconf import OmegaConf
 
-from blindspot.dsp.path_measurement import (
+from blindspot.synth.path_measurement import (
     PedestrianModel,
     error_statistics,
     measure_paths,

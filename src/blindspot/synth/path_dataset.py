@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from blindspot.dsp.path_measurement import PathMeasurement, PedestrianModel, measure_paths
+from blindspot.synth.path_measurement import PathMeasurement, PedestrianModel, measure_paths
 from blindspot.parallel import parallel_map
 from blindspot.radar.config import RadarConfig
 from blindspot.traj.paths import MOTIONS, PathSet
