@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 
 import numpy as np
+import pandas as pd
 import pytest
 from omegaconf import OmegaConf
 
@@ -163,3 +164,28 @@ def test_benchmark_command_prints_json(capsys):
     assert set(summary) >= {"fps", "ms_per_frame", "steps", "n_detections"}
     assert summary["fps"] > 0 and summary["n_detections"] >= 1
     assert {"range_doppler", "cfar", "doa", "points"} <= set(summary["steps"])
+
+
+def test_a_batch_gives_what_each_frame_gives(paper):
+    """process_batch on three frames at once equals process on each frame: detections, angles,
+    points, maps (the batch axis changes nothing but speed)."""
+    radar, array, chain = paper
+    rng = np.random.default_rng(4)
+    cubes = np.stack([tone_cube(radar, array, CAR + [(12.5 - 0.3 * i, -0.7, 30.0 + 3 * i, 300.0)],
+                                noise_power=NOISE, rng=rng) for i in range(3)])
+    batch = chain.process_batch(cubes, np.array([10, 11, 12]), np.array([1.0, 1.1, 1.2]),
+                                keep_maps=True, keep_spectra=True)
+    for i in range(3):
+        one = chain.process(cubes[i], frame=10 + i, time_s=1.0 + 0.1 * i)
+        got = batch.detections[batch.detections.frame == 10 + i].reset_index(drop=True)
+        pd.testing.assert_frame_equal(got, one.detections)
+        pd.testing.assert_frame_equal(batch.points[batch.points.frame == 10 + i]
+                                      .reset_index(drop=True), one.point)
+        np.testing.assert_array_equal(batch.power[i], one.power)
+        np.testing.assert_array_equal(batch.mask[i], one.mask)
+        row, spec = batch.spectra[i]
+        np.testing.assert_array_equal(spec, one.spectrum)
+        assert batch.detections.iloc[row].frame == 10 + i
+    assert len(batch.points) == 3
+    with pytest.raises(ValueError, match="frames, chirps, tx, rx, samples"):
+        chain.range_doppler(cubes[0])

@@ -163,3 +163,69 @@ def test_real_valued_forward_backward_equals_the_complex_one(m, subarray):
                                                 subarray=subarray, loading=0.01,
                                                 **({"n_signals": 2} if method == "music" else {}))
         np.testing.assert_allclose(got, ref, rtol=1e-7)
+
+
+@pytest.mark.parametrize("n_snap,fb,sub", [(64, False, None), (9, False, None), (9, True, None),
+                                           (100, False, None), (9, True, 64), (9, False, 40),
+                                           (9, True, 41), (5, True, None)])
+def test_torch_backend_equals_numpy_backend(n_snap, fb, sub):
+    """One MUSIC, two back-ends for its subspace: the torch path (Gram-matrix shortcut, unitary
+    forward-backward) gives the numpy path's angles, spectra and peak values."""
+    rng = np.random.default_rng(2)
+    p = np.arange(86) * 0.5
+    d = 40
+    theta = rng.uniform(-60, 60, (d, 3))
+    amp = rng.normal(size=(d, 3, n_snap)) + 1j * rng.normal(size=(d, 3, n_snap))
+    amp[:, 0] *= 3
+    a = np.exp(2j * np.pi * p[None, :, None] * np.sin(np.radians(theta))[:, None, :])
+    x = a @ amp + 0.5 * (rng.normal(size=(d, 86, n_snap)) + 1j * rng.normal(size=(d, 86, n_snap)))
+    opts = dict(n_targets=2, n_signals=3, forward_backward=fb, subarray=sub,
+                return_power=True, return_spectrum=True)
+    ref = music_angles(x, p, **opts)
+    got = music_angles(x, p, backend="torch", **opts)
+    np.testing.assert_allclose(got[0], ref[0], atol=1e-9)           # angles, deg
+    np.testing.assert_allclose(got[1], ref[1], rtol=1e-7)           # peak pseudo-spectrum
+    np.testing.assert_allclose(got[2], ref[2], rtol=1e-7)           # spectrum on the grid
+
+
+def test_torch_backend_is_music_only_and_blocks_do_not_change_results(ula):
+    """backend='torch' refuses what it does not compute; many detections (several blocks of
+    BLOCK_DETECTIONS) give the same angles as one at a time."""
+    from blindspot.dsp import doa
+
+    with pytest.raises(DoaError, match="backend 'torch'"):
+        doa.doa_angles(np.ones((4, 3), complex), np.arange(4) * 0.5, method="capon",
+                       backend="torch")
+    with pytest.raises(DoaError, match="backend must be one of"):
+        doa.music_angles(np.ones((4, 3), complex), np.arange(4) * 0.5, backend="cupy")
+    rng = np.random.default_rng(3)
+    p = np.arange(8) * 0.5
+    d = doa.BLOCK_DETECTIONS + 7
+    th = rng.uniform(-50, 50, d)
+    x = np.exp(2j * np.pi * p[None, :, None] * np.sin(np.radians(th))[:, None, None]) \
+        * (rng.normal(size=(d, 1, 6)) + 1j * rng.normal(size=(d, 1, 6)))
+    x = x + 0.05 * (rng.normal(size=x.shape) + 1j * rng.normal(size=x.shape))
+    whole = doa.music_angles(x, p, n_signals=1)[:, 0]
+    one = np.array([doa.music_angles(x[i], p, n_signals=1)[0] for i in (0, d - 1)])
+    np.testing.assert_array_equal(whole[[0, d - 1]], one)
+    assert np.max(np.abs(whole - th)) < 1.0
+
+
+@pytest.mark.parametrize("method", ["music", "bartlett"])
+def test_non_finite_snapshots_are_named_and_flat_spectra_have_no_angle(method):
+    """One NaN is a DoaError naming the array (not numpy's 'Eigenvalues did not converge');
+    all-zero snapshots give a flat spectrum, which has no peak: NaN, not the grid's edge."""
+    p = np.arange(8) * 0.5
+    x = np.ones((8, 4), complex)
+    x[3, 1] = np.nan
+    with pytest.raises(DoaError, match="snapshots contain 1 non-finite"):
+        doa_angles_fn(method)(x, p)
+    angle = doa_angles_fn(method)(np.zeros((8, 4), complex), p)
+    assert np.isnan(angle).all()
+
+
+def doa_angles_fn(method):
+    from blindspot.dsp import doa
+
+    return {"music": lambda x, p: doa.music_angles(x, p, n_signals=1),
+            "bartlett": doa.bartlett_angles}[method]

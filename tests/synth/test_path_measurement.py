@@ -14,8 +14,6 @@ from blindspot.synth.path_measurement import (
     error_statistics,
     measure_paths,
     cfar_on_patches,
-    local_maxima,
-    music_peak_angles,
     noncoherent_power,
     body_scatterers,
     path_kinematics,
@@ -131,26 +129,6 @@ def test_cfar_on_patches_equals_cfar_on_the_full_map(rule):
     assert not mask[~valid].any()
 
 
-@pytest.mark.parametrize("n_snap,fb,sub", [(64, False, None), (9, False, None), (9, True, None),
-                                           (100, False, None), (9, True, 64), (9, False, 40),
-                                           (9, True, 41), (5, True, None)])
-def test_music_peak_angles_equal_music_angles(n_snap, fb, sub):
-    """The batched adapter gives the chain's music_angles estimate (its strongest peak)."""
-    from blindspot.dsp.doa import music_angles
-
-    rng = np.random.default_rng(2)
-    p = np.arange(86) * 0.5
-    d = 40
-    theta = rng.uniform(-60, 60, (d, 3))
-    amp = rng.normal(size=(d, 3, n_snap)) + 1j * rng.normal(size=(d, 3, n_snap))
-    amp[:, 0] *= 3
-    a = np.exp(2j * np.pi * p[None, :, None] * np.sin(np.radians(theta))[:, None, :])
-    x = a @ amp + 0.5 * (rng.normal(size=(d, 86, n_snap)) + 1j * rng.normal(size=(d, 86, n_snap)))
-    ref = music_angles(x, p, n_targets=1, n_signals=3, forward_backward=fb, subarray=sub)[:, 0]
-    got = music_peak_angles(x, p, n_signals=3, forward_backward=fb, subarray=sub)
-    np.testing.assert_allclose(got, ref, atol=1e-6)
-
-
 # ------------------------------------------------------------------ paths through the chain
 @pytest.fixture(scope="module")
 def chain_cfg(radar):
@@ -259,9 +237,10 @@ def test_reduced_chain_error_statistics_match_full_chain(chain_cfg, walker, cfar
 
 
 def test_local_maxima_on_patches_equal_the_chains_peak_rule(chain_cfg):
-    """The reduced chain's peak rule on patches picks exactly the cells DetectionChain's
+    """The peak rule on the reduced chain's patches picks exactly the cells DetectionChain's
     select_cells picks on the full map (all cells passed as CFAR hits)."""
     from blindspot.dsp.chain import DetectionChain
+    from blindspot.dsp.detections import local_maxima
 
     cfg = dict(chain_cfg)
     radar = cfg.pop("radar")
@@ -272,7 +251,8 @@ def test_local_maxima_on_patches_equal_the_chains_peak_rule(chain_cfg):
     n_rows = chain.range_axis_m.size
     rng = np.random.default_rng(6)
     power = rng.gamma(2.0, 1.0, (n_rows, radar.n_chirps))
-    rb, db = chain.select_cells(power, np.ones_like(power, dtype=bool))
+    fi, rb, db = chain.select_cells(power[None], np.ones((1,) + power.shape, dtype=bool))
+    assert np.all(fi == 0)
     ref = np.zeros_like(power, dtype=bool)
     ref[rb, db] = True
     first = np.array([-4, 0, 17, n_rows - 9, n_rows - 5])

@@ -93,8 +93,9 @@ def _pair(value, name: str) -> tuple[int, int]:
 
 def _check_power(power: np.ndarray) -> np.ndarray:
     p = np.asarray(power)
-    if p.ndim != 2:
-        raise CfarError(f"power must be a 2-D map (range, doppler), got shape {p.shape}")
+    if p.ndim < 2:
+        raise CfarError(f"power must be a map (..., range, doppler) with any leading batch axes "
+                        f"(e.g. frames), got shape {p.shape}")
     if np.iscomplexobj(p):
         raise CfarError("power must be real |X|^2 values, got a complex array (take |X|^2 first)")
     p = p.astype(np.float64, copy=False)
@@ -124,7 +125,8 @@ def _check_rule(pfa, scale, domain: str) -> None:
         raise CfarError(f"scale must be a positive finite number, got {scale!r}")
 
 
-def _check_window(shape: tuple[int, int], guard: tuple[int, int], train: tuple[int, int]) -> None:
+def _check_window(shape: tuple[int, ...], guard: tuple[int, int], train: tuple[int, int]) -> None:
+    shape = shape[-2:]
     if train[0] == 0 and train[1] == 0:
         raise CfarError("train is (0, 0): at least one axis needs training cells")
     width = 2 * (guard[1] + train[1]) + 1
@@ -140,7 +142,8 @@ def _check_window(shape: tuple[int, int], guard: tuple[int, int], train: tuple[i
 
 
 class _BoxSummer:
-    """Sums of ``x`` over rectangles of offsets around every cell, from one integral image.
+    """Sums of ``x`` (..., R, D) over rectangles of offsets around every cell, from one integral
+    image per map (leading batch axes, e.g. frames, are independent maps).
 
     The map is zero-padded by ``a`` rows on both range ends and wrap-padded by ``b`` columns on
     both Doppler ends."""
@@ -148,24 +151,26 @@ class _BoxSummer:
     def __init__(self, x: np.ndarray, a: int, b: int):
         self.shape = x.shape
         self.a, self.b = a, b
-        padded = np.pad(x, ((0, 0), (b, b)), mode="wrap") if b else x
-        padded = np.pad(padded, ((a, a), (0, 0)), mode="constant")
-        integral = np.zeros((padded.shape[0] + 1, padded.shape[1] + 1))
-        np.cumsum(padded, axis=0, out=integral[1:, 1:])
-        np.cumsum(integral[1:, 1:], axis=1, out=integral[1:, 1:])
+        lead = ((0, 0),) * (x.ndim - 2)
+        padded = np.pad(x, lead + ((0, 0), (b, b)), mode="wrap") if b else x
+        padded = np.pad(padded, lead + ((a, a), (0, 0)), mode="constant")
+        integral = np.zeros(padded.shape[:-2] + (padded.shape[-2] + 1, padded.shape[-1] + 1))
+        inner = integral[..., 1:, 1:]
+        np.cumsum(padded, axis=-2, out=inner)
+        np.cumsum(inner, axis=-1, out=inner)
         self.integral = integral
 
     def box(self, dr0: int, dr1: int, dd0: int, dd1: int) -> np.ndarray:
-        """(R, D) sum over range offsets dr0..dr1 and Doppler offsets dd0..dd1 (inclusive);
+        """(..., R, D) sum over range offsets dr0..dr1 and Doppler offsets dd0..dd1 (inclusive);
         zero where the rectangle is empty."""
-        R, D = self.shape
+        R, D = self.shape[-2:]
         if dr1 < dr0 or dd1 < dd0:
             return np.zeros(self.shape)
         I = self.integral
         r_hi, r_lo = self.a + dr1 + 1, self.a + dr0
         c_hi, c_lo = self.b + dd1 + 1, self.b + dd0
-        return (I[r_hi:r_hi + R, c_hi:c_hi + D] - I[r_lo:r_lo + R, c_hi:c_hi + D]
-                - I[r_hi:r_hi + R, c_lo:c_lo + D] + I[r_lo:r_lo + R, c_lo:c_lo + D])
+        return (I[..., r_hi:r_hi + R, c_hi:c_hi + D] - I[..., r_lo:r_lo + R, c_hi:c_hi + D]
+                - I[..., r_hi:r_hi + R, c_lo:c_lo + D] + I[..., r_lo:r_lo + R, c_lo:c_lo + D])
 
     def training(self, guard: tuple[int, int], train: tuple[int, int]) -> np.ndarray:
         gr, gd = guard
@@ -201,11 +206,12 @@ def _counts(shape: tuple[int, int], guard: tuple[int, int], train: tuple[int, in
 
 
 def training_mean(power: np.ndarray, guard, train) -> tuple[np.ndarray, np.ndarray]:
-    """(mean training-cell power (R, D), training-cell count (R, D)) with the edge rules above."""
+    """(mean training-cell power (..., R, D), training-cell count (R, D)) with the edge rules
+    above; leading axes of ``power`` (e.g. frames) are independent maps."""
     p = _check_power(power)
     g, t = _pair(guard, "guard"), _pair(train, "train")
     _check_window(p.shape, g, t)
-    n, _, _ = _counts(p.shape, g, t)
+    n, _, _ = _counts(p.shape[-2:], g, t)
     s = _sanitize(_BoxSummer(p, g[0] + t[0], g[1] + t[1]).training(g, t))
     with np.errstate(invalid="ignore", divide="ignore"):
         return np.where(n > 0, s / np.maximum(n, 1), np.nan), n
@@ -304,9 +310,11 @@ def _per_unique(keys: np.ndarray, fn) -> np.ndarray:
 # detectors
 
 
-def _db_floor(p: np.ndarray) -> float:
-    positive = p[p > 0]
-    return float(positive.min()) if positive.size else 1.0
+def _db_floor(p: np.ndarray) -> np.ndarray:
+    """The smallest positive power of each map (..., R, D) -> (..., 1, 1) (1.0 for a map of
+    zeros)."""
+    positive = np.where(p > 0, p, np.inf).min(axis=(-2, -1), keepdims=True)
+    return np.where(np.isfinite(positive), positive, 1.0)
 
 
 def _to_db(x: np.ndarray, floor: float) -> np.ndarray:
@@ -319,9 +327,10 @@ def cfar_2d(power: np.ndarray, guard, train, *, pfa: float | None = None,
             n_looks: int = 1) -> CfarResult:
     """CA / GO / SO CFAR on a (range, doppler) power map; see the module docstring.
 
-    power : (R, D) real non-negative
+    power : (..., R, D) real non-negative; leading axes (e.g. frames) are independent maps
     guard, train : int or (range, doppler) half-widths in cells
-    returns :class:`CfarResult` (mask, threshold in power units, noise mean, training counts)
+    returns :class:`CfarResult` (mask, threshold in power units, noise mean: (..., R, D);
+    training counts (R, D))
     """
     p = _check_power(power)
     g, t = _pair(guard, "guard"), _pair(train, "train")
@@ -333,7 +342,7 @@ def cfar_2d(power: np.ndarray, guard, train, *, pfa: float | None = None,
         raise CfarError(f"n_looks must be a positive integer, got {n_looks!r}")
 
     a, b = g[0] + t[0], g[1] + t[1]
-    n, n_lo, n_hi = _counts(p.shape, g, t)
+    n, n_lo, n_hi = _counts(p.shape[-2:], g, t)
     lin = _BoxSummer(p, a, b)
     with np.errstate(invalid="ignore", divide="ignore"):
         noise = np.where(n > 0, _sanitize(lin.training(g, t)) / np.maximum(n, 1), np.nan)
@@ -379,12 +388,13 @@ def ca_cfar_2d(power: np.ndarray, guard, train, *, pfa: float | None = None,
                n_looks: int = 1) -> tuple[np.ndarray, np.ndarray]:
     """Cell-averaging CFAR (``mode`` "ca", or greatest-of "go" / smallest-of "so").
 
-    power : (R, D) |X|^2 map, rows = range bins, cols = Doppler bins (Doppler wraps)
+    power : (..., R, D) |X|^2 map, rows = range bins, cols = Doppler bins (Doppler wraps);
+            leading axes (e.g. frames) are independent maps
     guard, train : int or (range, doppler) half-widths in cells
     pfa : design false-alarm probability per cell (square-law detector; ``n_looks`` channels
           summed non-coherently, 1 = plain |X|^2)
     scale : multiplier of the training-cell mean in ``domain`` "power" or "db"
-    returns (mask bool (R, D), threshold float64 (R, D) in power units)
+    returns (mask bool (..., R, D), threshold float64 (..., R, D) in power units)
     """
     res = cfar_2d(power, guard, train, pfa=pfa, scale=scale, domain=domain, mode=mode,
                   n_looks=n_looks)
@@ -398,8 +408,9 @@ def os_cfar_2d(power: np.ndarray, guard, train, *, rank: float = 0.75, pfa: floa
     (clipped to 1..N) for each cell's own N; threshold = alpha * level (``pfa``, alpha from
     :func:`os_factor`), ``scale * level`` (power) or ``10**(scale * level_db / 10)`` (db).
 
-    Memory: gathers an (R, D, N_max) window stack; meant for maps of a few 10^5 cells.
-    returns (mask (R, D), threshold (R, D) in power units)
+    power : (..., R, D), leading axes (e.g. frames) independent maps.
+    Memory: gathers a (..., rows, D, N_max) window stack per block of range rows.
+    returns (mask (..., R, D), threshold (..., R, D) in power units)
     """
     p = _check_power(power)
     g, t = _pair(guard, "guard"), _pair(train, "train")
@@ -408,22 +419,25 @@ def os_cfar_2d(power: np.ndarray, guard, train, *, rank: float = 0.75, pfa: floa
     if not (0.0 < rank <= 1.0):
         raise CfarError(f"rank must be a quantile in (0, 1], got {rank!r}")
     a, b = g[0] + t[0], g[1] + t[1]
-    n, _, _ = _counts(p.shape, g, t)
+    n, _, _ = _counts(p.shape[-2:], g, t)
     k = np.clip(np.rint(rank * n), 1, np.maximum(n, 1)).astype(np.int64)
 
-    padded = np.pad(np.pad(p, ((0, 0), (b, b)), mode="wrap"), ((a, a), (0, 0)),
+    lead = ((0, 0),) * (p.ndim - 2)
+    padded = np.pad(np.pad(p, lead + ((0, 0), (b, b)), mode="wrap"), lead + ((a, a), (0, 0)),
                     constant_values=np.inf)
-    win = np.lib.stride_tricks.sliding_window_view(padded, (2 * a + 1, 2 * b + 1))
+    win = np.lib.stride_tricks.sliding_window_view(padded, (2 * a + 1, 2 * b + 1),
+                                                   axis=(-2, -1))
     dr, dd = np.meshgrid(np.arange(-a, a + 1), np.arange(-b, b + 1), indexing="ij")
     is_train = ~((np.abs(dr) <= g[0]) & (np.abs(dd) <= g[1]))
     kth = np.unique(k) - 1
     level = np.empty_like(p)
-    rows = max(1, (1 << 22) // max(1, p.shape[1] * int(is_train.sum())))  # ~32 MB per block
-    for r0 in range(0, p.shape[0], rows):  # blocks of rows bound the memory, not a per-cell loop
-        # (rows, D, N_max); missing range cells are +inf and order last
-        stack = np.partition(win[r0:r0 + rows][:, :, is_train], kth, axis=-1)
-        level[r0:r0 + rows] = np.take_along_axis(stack, (k[r0:r0 + rows] - 1)[..., None],
-                                                 axis=-1)[..., 0]
+    n_maps = int(np.prod(p.shape[:-2], dtype=np.int64))
+    rows = max(1, (1 << 22) // max(1, n_maps * p.shape[-1] * int(is_train.sum())))  # ~32 MB
+    for r0 in range(0, p.shape[-2], rows):  # blocks of rows bound the memory, not a per-cell loop
+        # (..., rows, D, N_max); missing range cells are +inf and order last
+        stack = np.partition(win[..., r0:r0 + rows, :, :, :][..., is_train], kth, axis=-1)
+        kk = np.broadcast_to((k[r0:r0 + rows] - 1)[..., None], stack.shape[:-1] + (1,))
+        level[..., r0:r0 + rows, :] = np.take_along_axis(stack, kk, axis=-1)[..., 0]
 
     if pfa is not None:
         keys = np.stack([n, k], axis=-1)

@@ -1,29 +1,36 @@
-"""The detection chain of one radar: cube -> range-Doppler map -> CFAR -> MUSIC -> points.
+"""The detection chain of one radar: cubes -> range-Doppler maps -> CFAR -> MUSIC -> points.
 
-Configured once (``DetectionChain.from_config(radar, array, cfg_cfar, cfg_doa, cfg_detect)``,
-the three ``cfg_*`` being the Hydra groups ``cfar``, ``doa`` and ``detect``), then
-``process(cube)`` per frame:
+Configured once (``DetectionChain.from_config(radar, array, cfar, doa, detect)``, the typed
+groups of :mod:`blindspot.dsp.config`), then run on a batch of frames at once; every step takes
+a leading frames axis:
 
-1. ``range_doppler``: windowed range and Doppler FFTs (zero-Doppler centred), in place.
-2. ``map``: detection map = sum of |X|^2 over all virtual channels (range, doppler).
-3. ``cfar``: 2-D CFAR (CA / GO / SO / OS) on the map; optionally only local maxima (3 x 3,
-   Doppler wrapped) of the map are kept, so one target gives one detection per peak.
-4. ``detections``: table of detections in the range window (``min_range_m``..``max_range_m``),
-   SNR = power / mean of the CFAR training cells (local noise-plus-interference: next to the
-   parked car's returns it is lower than the SNR over thermal noise).
-5. ``doa``: for the ``max_detections`` strongest detections, moving ones first: snapshots
+1. ``range_doppler``: windowed range and Doppler FFTs (zero-Doppler centred):
+   cubes (frames, chirps, tx, rx, samples) -> (frames, doppler, tx, rx, range).
+2. ``detection_map``: sum of |X|^2 over all virtual channels -> (frames, range, doppler).
+3. ``run_cfar``: 2-D CFAR (CA / GO / SO / OS) on every map -> mask, threshold, noise
+   (frames, range, doppler).
+4. ``select_cells``: CFAR cells inside the range window (``min_range_m``..``max_range_m``),
+   with ``peak_only`` only the local maxima of the map (:mod:`blindspot.dsp.detections`);
+   ordered per frame moving first, then strongest; SNR = power / mean of the CFAR training cells
+   (local noise-plus-interference: next to the parked car's returns it is lower than the SNR
+   over thermal noise).
+5. ``angles``: for the ``max_detections`` first detections of each frame: snapshots
    (``snapshots.py``), TDM-MIMO Doppler compensation with each detection's Doppler bin, ULA
    elements, batched MUSIC (or Bartlett / Capon); angle of the strongest peak. Others keep NaN.
-6. ``points``: static clutter removed by speed, the pedestrian's detections grouped into one
-   SNR-weighted point (``points.py``), or no point.
+6. ``points``: static clutter removed by speed, each frame's pedestrian detections grouped into
+   one SNR-weighted point (:func:`blindspot.dsp.points.group_points`), or no point.
 
-``process`` returns a :class:`FrameResult` with the maps for figures and per-step timings;
-``process_many`` runs a whole :class:`~blindspot.radar.source.FrameSource` with a progress bar
-and returns the detections and points of every frame (no maps kept).
+The reduced measurement of the synthesis room (:mod:`blindspot.synth.path_measurement`) runs
+steps 3-6 of this same chain on analytic patches. ``process_batch`` returns a
+:class:`BatchResult`; ``process`` runs one frame and returns a :class:`FrameResult` with the
+maps for figures and per-step timings; ``process_many`` runs a whole
+:class:`~blindspot.radar.source.FrameSource` in batches of ``detect.batch_frames`` frames with
+a progress bar and returns the detections and points of every frame (no maps kept).
 """
 
 from __future__ import annotations
 
+import itertools
 import time
 from collections.abc import Iterable
 from dataclasses import dataclass, field
@@ -34,10 +41,11 @@ import pandas as pd
 
 from blindspot.dsp.cfar import cfar_2d, os_cfar_2d, training_mean
 from blindspot.dsp.config import CfarConfig, DetectConfig, DoaConfig
+from blindspot.dsp.detections import detection_order, local_maxima, rank_in_frame
 from blindspot.dsp.doa import doa_angles
 from blindspot.dsp.doppler_compensation import compensate_tdm
 from blindspot.dsp.points import (
-    DETECTION_COLUMNS, POINT_COLUMNS, frame_points, group_point, moving,
+    DETECTION_COLUMNS, POINT_COLUMNS, POINT_FIELDS, group_points, moving,
 )
 from blindspot.dsp.range_doppler import RangeDoppler, detection_map
 from blindspot.dsp.snapshots import cell_snapshots, chirp_snapshots
@@ -74,6 +82,37 @@ class FrameResult:
     velocity_axis_mps: np.ndarray
     timings_ms: dict[str, float] = field(default_factory=dict)
 
+
+@dataclass
+class BatchResult:
+    """A processed batch of frames.
+
+    frames, times_s : (F,) frame numbers and times (s) of the batch
+    detections : DataFrame ``DETECTION_COLUMNS`` + ``moving`` of all frames, per frame moving
+                 first, then strongest; ``angle_deg`` NaN beyond the DOA budget
+    points     : DataFrame ``POINT_COLUMNS``, one row per frame where the pedestrian is seen
+    power, threshold, noise : (F, range, doppler) float64, mask (F, range, doppler) bool, or
+                 None unless the maps were asked for
+    spectra    : per frame None or (row of ``detections``, (G,) pseudo-spectrum of the frame's
+                 first detection, a moving one), or None unless asked for
+    timings_ms : wall time of each step for the whole batch
+    """
+
+    frames: np.ndarray
+    times_s: np.ndarray
+    detections: pd.DataFrame
+    points: pd.DataFrame
+    power: np.ndarray | None
+    threshold: np.ndarray | None
+    mask: np.ndarray | None
+    noise: np.ndarray | None
+    spectra: list | None
+    timings_ms: dict[str, float] = field(default_factory=dict)
+
+
+# Frames processed together by process_many: one MMWCAS frame is 25 MB as complex64, so eight
+# (cubes and their range-Doppler maps) stay well under a gigabyte.
+BATCH_FRAMES = 8
 
 # ---------------------------------------------------------------------------------------------
 # the chain
@@ -127,8 +166,30 @@ class DetectionChain:
         return cls(radar, array, cfar, doa, det)
 
     # -------------------------------------------------------------------------------- steps
+    def range_doppler(self, cubes: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
+        """Range and Doppler FFTs of a batch.
+
+        cubes: (frames, chirps, tx, rx, samples) complex.
+        Returns (rd (frames, doppler, tx, rx, range) complex64, range profiles (frames, chirps,
+        tx, rx, range) when ``detect.snapshots`` is "chirps", else None).
+        """
+        if cubes.ndim != 5:
+            raise ValueError(f"range_doppler: expected cubes (frames, chirps, tx, rx, samples), "
+                             f"found shape {cubes.shape}")
+        if self.detect.snapshots == "chirps":
+            profiles = self.rd.range_profiles(cubes)
+            return self.rd.doppler(profiles.copy()), profiles
+        return self.rd.native(cubes), None
+
+    @staticmethod
+    def detection_map(rd: np.ndarray) -> np.ndarray:
+        """(frames, doppler, tx, rx, range) -> float64 (frames, range, doppler): sum of |X|^2 over
+        the virtual channels (power, never log-magnitude)."""
+        return detection_map(rd)
+
     def run_cfar(self, power: np.ndarray):
-        """(mask, threshold, noise) of the configured CFAR on a (range, doppler) map."""
+        """(mask, threshold, noise) of the configured CFAR on (..., range, doppler) maps (any
+        leading batch axes), each (..., range, doppler)."""
         c = self.cfar
         if c.domain == "db":
             floor = float(np.median(power))
@@ -147,49 +208,66 @@ class DetectionChain:
                       mode=c.method, n_looks=self.n_looks)
         return res.mask, res.threshold, res.noise
 
-    def select_cells(self, power: np.ndarray, mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(range_bin, doppler_bin) of detections: CFAR cells inside the range window, and with
-        ``peak_only`` the local maxima of the map over their 3 x 3 neighbours (Doppler wraps)."""
+    def select_cells(self, power: np.ndarray, mask: np.ndarray
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(frame, range_bin, doppler_bin) (D,) of the detections of (frames, range, doppler)
+        maps: CFAR cells inside the range window and, with ``peak_only``, the local maxima of the
+        map over their 3 x 3 neighbours (Doppler wraps). Unordered (frame-major)."""
         keep = mask & self.range_ok[:, None]
         if self.detect.peak_only:
-            p = np.pad(power, ((1, 1), (0, 0)), constant_values=-np.inf)
-            centre = power
-            is_max = np.ones_like(keep)
-            for dr in (-1, 0, 1):  # the 8 neighbours, each a whole-map comparison
-                rows = p[1 + dr:1 + dr + power.shape[0]]
-                for dd in (-1, 0, 1):
-                    if dr == 0 and dd == 0:
-                        continue
-                    is_max &= centre >= np.roll(rows, -dd, axis=1)
-            keep &= is_max
+            keep &= local_maxima(power)
         return np.nonzero(keep)
 
-    def angles(self, rd_native: np.ndarray, range_profiles: np.ndarray | None,
-               range_bin: np.ndarray, doppler_bin: np.ndarray, *, spectrum_of: int | None = None
-               ) -> tuple[np.ndarray, np.ndarray | None]:
-        """Angles (deg) of the given detections (D,), and the pseudo-spectrum of detection
-        ``spectrum_of`` (an index into them) on the scan grid."""
-        if range_bin.size == 0:
-            return np.zeros(0), None
-        d = self.detect
-        if d.snapshots == "cells":
-            x = cell_snapshots(rd_native, range_bin, doppler_bin, d.cell_half)
-        else:
-            x = chirp_snapshots(range_profiles, range_bin)
-        ula = x[:, self.ula_tx, self.ula_rx, :]  # (D, n_ula, L)
-        if d.tdm_compensation:
+    def order_detections(self, frame: np.ndarray, power: np.ndarray, doppler_bin: np.ndarray
+                         ) -> tuple[np.ndarray, np.ndarray]:
+        """(permutation (D,): per frame moving first, then strongest; moving flags (D,) in the
+        new order)."""
+        mov = moving(self.velocity_axis_mps[doppler_bin], self.detect.min_speed_mps)
+        order = detection_order(frame, power, mov)
+        return order, mov[order]
+
+    def doa_budget(self, frame_sorted: np.ndarray) -> np.ndarray:
+        """(D,) bool: the first ``detect.max_detections`` detections of each frame (sorted by
+        frame), whose angles are estimated."""
+        return rank_in_frame(frame_sorted) < self.detect.max_detections
+
+    def angles(self, snapshots: np.ndarray, doppler_bin: np.ndarray, *,
+               return_spectrum: bool = False, backend: str = "numpy"):
+        """Angles (deg) of detections from their snapshots.
+
+        snapshots: (D, tx, rx, L) channels in firing order, or (D, n_ula, L) already on the ULA
+        elements; doppler_bin: (D,) for the TDM-MIMO compensation.
+        Returns angles (D,) (NaN where the spectrum has no peak) and, with ``return_spectrum``,
+        the pseudo-spectra (D, G) on ``grid_deg``.
+        """
+        ula = snapshots[:, self.ula_tx, self.ula_rx, :] if snapshots.ndim == 4 else snapshots
+        if self.detect.tdm_compensation:
             ula = compensate_tdm(ula, doppler_bin, self.radar.n_chirps, self.radar.loop_period_s,
                                  self.slot_times_s, self.ula_tx)
         o = self.doa
-        opts = dict(forward_backward=o.forward_backward, subarray=o.subarray, loading=o.loading)
         ang, spec = doa_angles(ula, self.ula_pos, 1, o.n_signals, self.grid_deg, method=o.method,
-                               return_spectrum=True, **opts)
-        return ang[:, 0], (None if spectrum_of is None else spec[spectrum_of])
+                               forward_backward=o.forward_backward, subarray=o.subarray,
+                               loading=o.loading, return_spectrum=True, backend=backend)
+        return (ang[:, 0], spec) if return_spectrum else ang[:, 0]
 
-    # -------------------------------------------------------------------------------- frames
-    def process(self, cube: np.ndarray, frame: int = 0, time_s: float = 0.0,
-                keep_spectrum: bool = True) -> FrameResult:
-        """Run the chain on one cube (chirps, tx, rx, samples)."""
+    # -------------------------------------------------------------------------------- batches
+    def process_batch(self, cubes: np.ndarray, frames: np.ndarray | None = None,
+                      times_s: np.ndarray | None = None, *, keep_maps: bool = False,
+                      keep_spectra: bool = False) -> BatchResult:
+        """Run the chain on a batch of cubes (frames, chirps, tx, rx, samples).
+
+        ``frames`` (F,) numbers the frames in the outputs (default 0..F-1), ``times_s`` (F,)
+        their times (NaN without). ``keep_maps`` keeps power, threshold, mask and noise
+        (F, range, doppler); ``keep_spectra`` the pseudo-spectrum of each frame's first
+        detection when it is moving (the pedestrian's candidate; else None).
+        """
+        cubes = np.asarray(cubes)
+        n = cubes.shape[0] if cubes.ndim == 5 else 0
+        frame_ids = np.arange(n) if frames is None else np.asarray(frames, dtype=np.int64)
+        times = np.full(n, np.nan) if times_s is None else np.asarray(times_s, dtype=np.float64)
+        if frame_ids.shape != (n,) or times.shape != (n,):
+            raise ValueError(f"process_batch: frames {frame_ids.shape} and times_s {times.shape} "
+                             f"must be ({n},) for cubes of shape {cubes.shape}")
         t = [time.perf_counter()]
         steps: dict[str, float] = {}
 
@@ -197,77 +275,113 @@ class DetectionChain:
             t.append(time.perf_counter())
             steps[name] = (t[-1] - t[-2]) * 1e3
 
-        range_profiles = None
-        if self.detect.snapshots == "chirps":
-            range_profiles = self.rd.range_profiles(cube)
-            rd_native = self.rd.doppler(range_profiles.copy())
-        else:
-            rd_native = self.rd.native(cube)  # (doppler, tx, rx, range)
+        rd, profiles = self.range_doppler(cubes)
         lap("range_doppler")
-        power = detection_map(np.moveaxis(rd_native, 3, 0))
+        power = self.detection_map(rd)
         lap("map")
         mask, threshold, noise = self.run_cfar(power)
         lap("cfar")
-        rb, db = self.select_cells(power, mask)
-        pw = power[rb, db]
-        vel = self.velocity_axis_mps[db]
-        mov = moving(vel, self.detect.min_speed_mps)
-        order = np.lexsort((-pw, ~mov))  # moving first, then strongest
-        rb, db, pw, vel, mov = rb[order], db[order], pw[order], vel[order], mov[order]
-        snr_db = 10 * np.log10(pw / noise[rb, db])
+        fi, rb, db = self.select_cells(power, mask)
+        pw = power[fi, rb, db]
+        order, mov = self.order_detections(fi, pw, db)
+        fi, rb, db, pw = fi[order], rb[order], db[order], pw[order]
+        snr_db = 10 * np.log10(pw / noise[fi, rb, db])
+        budget = self.doa_budget(fi)
         lap("detections")
-        n_doa = min(self.detect.max_detections, rb.size)
-        spectrum_of = 0 if (keep_spectrum and n_doa and mov[0]) else None
-        ang_sel, spectrum = self.angles(rd_native, range_profiles, rb[:n_doa], db[:n_doa],
-                                        spectrum_of=spectrum_of)
+        sel = np.flatnonzero(budget)
+        if self.detect.snapshots == "cells":
+            x = cell_snapshots(rd, rb[sel], db[sel], self.detect.cell_half, frame=fi[sel])
+        else:
+            x = chirp_snapshots(profiles, rb[sel], frame=fi[sel])
+        ang_sel, spec_sel = self.angles(x, db[sel], return_spectrum=True)
         angles = np.full(rb.size, np.nan)
-        angles[:n_doa] = ang_sel
+        angles[sel] = ang_sel
         lap("doa")
         det = pd.DataFrame({
-            "frame": np.full(rb.size, frame, dtype=np.int64),
-            "range_bin": rb.astype(np.int64), "doppler_bin": db.astype(np.int64),
-            "range_m": self.range_axis_m[rb], "velocity_mps": vel, "power": pw,
-            "snr_db": snr_db, "angle_deg": angles, "moving": mov,
+            "frame": frame_ids[fi], "range_bin": rb.astype(np.int64),
+            "doppler_bin": db.astype(np.int64), "range_m": self.range_axis_m[rb],
+            "velocity_mps": self.velocity_axis_mps[db], "power": pw, "snr_db": snr_db,
+            "angle_deg": angles, "moving": mov,
         })
-        pt = group_point(self.range_axis_m[rb], vel, angles, snr_db, self.detect.min_speed_mps,
-                         self.detect.cluster_gap_m)
-        point = pd.DataFrame([{"frame": frame, "time_s": time_s, **pt}] if pt else [],
-                             columns=list(POINT_COLUMNS))
+        pts = group_points(fi, det["range_m"].to_numpy(), det["velocity_mps"].to_numpy(), angles,
+                           snr_db, self.detect.min_speed_mps, self.detect.cluster_gap_m)
+        points = pd.DataFrame({"frame": frame_ids[pts["frame"]], "time_s": times[pts["frame"]],
+                               **{k: pts[k] for k in POINT_FIELDS}}, columns=list(POINT_COLUMNS))
         lap("points")
-        return FrameResult(frame=frame, time_s=time_s, detections=det, point=point, power=power,
-                           threshold=threshold, mask=mask, noise=noise, spectrum=spectrum,
-                           spectrum_detection=spectrum_of, angles_deg=self.grid_deg,
-                           range_axis_m=self.range_axis_m,
-                           velocity_axis_mps=self.velocity_axis_mps, timings_ms=steps)
+        spectra = None
+        if keep_spectra:  # per frame: its first detection's spectrum when that one is moving
+            first = np.flatnonzero(np.r_[True, fi[sel][1:] != fi[sel][:-1]]) if sel.size else sel
+            spectra = [None] * n
+            for i in first[mov[sel][first]]:  # one entry per frame with a moving first detection
+                spectra[fi[sel][i]] = (int(sel[i]), spec_sel[i])
+        maps = (power, threshold, mask, noise) if keep_maps else (None,) * 4
+        return BatchResult(frames=frame_ids, times_s=times, detections=det, points=points,
+                           power=maps[0], threshold=maps[1], mask=maps[2], noise=maps[3],
+                           spectra=spectra, timings_ms=steps)
+
+    def process(self, cube: np.ndarray, frame: int = 0, time_s: float = 0.0,
+                keep_spectrum: bool = True) -> FrameResult:
+        """Run the chain on one cube (chirps, tx, rx, samples): a batch of one frame, with its
+        maps (and the first moving detection's pseudo-spectrum) kept for figures."""
+        if cube.ndim != 4:
+            raise ValueError(f"process: expected one cube (chirps, tx, rx, samples), found shape "
+                             f"{cube.shape} (use process_batch for a batch of frames)")
+        res = self.process_batch(cube[None], np.array([frame]), np.array([time_s]),
+                                 keep_maps=True, keep_spectra=keep_spectrum)
+        det = res.detections.reset_index(drop=True)
+        kept = res.spectra[0] if res.spectra else None
+        return FrameResult(frame=frame, time_s=time_s, detections=det, point=res.points,
+                           power=res.power[0], threshold=res.threshold[0], mask=res.mask[0],
+                           noise=res.noise[0], spectrum=None if kept is None else kept[1],
+                           spectrum_detection=None if kept is None else kept[0],
+                           angles_deg=self.grid_deg, range_axis_m=self.range_axis_m,
+                           velocity_axis_mps=self.velocity_axis_mps, timings_ms=res.timings_ms)
 
     def process_frames(self, frames: Iterable[np.ndarray], times_s: np.ndarray | None = None,
                        *, progress: bool = True, total: int | None = None,
-                       desc: str = "detect") -> tuple[pd.DataFrame, pd.DataFrame]:
+                       desc: str = "detect", batch_frames: int = BATCH_FRAMES
+                       ) -> tuple[pd.DataFrame, pd.DataFrame]:
         """Detections (all frames) and points (one per frame where the pedestrian is seen) of a
-        sequence of cubes; frame i gets time ``times_s[i]`` (NaN without)."""
+        sequence of cubes, processed in batches of ``batch_frames``; frame i gets time
+        ``times_s[i]`` (NaN without)."""
         from tqdm.auto import tqdm
 
-        dets = []
-        for i, cube in enumerate(tqdm(frames, total=total, desc=desc, disable=not progress,
-                                      unit="frame")):
-            t = float(times_s[i]) if times_s is not None else float("nan")
-            dets.append(self.process(cube, frame=i, time_s=t, keep_spectrum=False).detections)
+        if not (isinstance(batch_frames, int) and batch_frames >= 1):
+            raise ValueError(f"batch_frames: expected a positive integer, found {batch_frames!r}")
+        dets, pts, batch, start = [], [], [], 0
+        with tqdm(total=total, desc=desc, disable=not progress, unit="frame") as bar:
+            for cube in itertools.chain(frames, [None]):
+                if cube is not None:
+                    batch.append(cube)
+                if batch and (cube is None or len(batch) == batch_frames):
+                    ids = np.arange(start, start + len(batch))
+                    tt = None if times_s is None else np.asarray(times_s, dtype=np.float64)[ids]
+                    res = self.process_batch(np.stack(batch), ids, tt)
+                    dets.append(res.detections)
+                    pts.append(res.points)
+                    start += len(batch)
+                    bar.update(len(batch))
+                    batch = []
         detections = (pd.concat(dets, ignore_index=True) if dets
                       else pd.DataFrame(columns=list(DETECTION_COLUMNS) + ["moving"]))
-        points = frame_points(detections, times_s, self.detect.min_speed_mps,
-                              self.detect.cluster_gap_m)
-        return detections, points
+        points = (pd.concat(pts, ignore_index=True) if pts
+                  else pd.DataFrame(columns=list(POINT_COLUMNS)))
+        return detections, points.astype({"frame": np.int64, "n_detections": np.int64})
 
     def process_many(self, source, *, frames: Iterable[int] | None = None,
-                       progress: bool = True) -> tuple[pd.DataFrame, pd.DataFrame]:
-        """Run a FrameSource (all frames, or the given frame indices) with a tqdm progress bar
-        (``progress=False`` silences it); frame numbers and times are the source's.
-        returns (detections of every frame, points: one row per frame where the pedestrian is
-        seen)."""
+                     progress: bool = True, batch_frames: int = BATCH_FRAMES
+                     ) -> tuple[pd.DataFrame, pd.DataFrame]:
+        """Run a FrameSource (all frames, or the given frame indices) in batches of
+        ``batch_frames`` with a tqdm progress bar (``progress=False`` silences it); frame numbers
+        and times are the source's. Returns (detections of every frame, points: one row per frame
+        where the pedestrian is seen)."""
         idx = np.arange(source.n_frames) if frames is None else np.asarray(list(frames))
         cubes = (source.frame(int(i)) for i in idx)
-        det, _ = self.process_frames(cubes, None, progress=progress, total=len(idx))
-        det["frame"] = idx[det["frame"].to_numpy()] if len(det) else det["frame"]
-        times = np.asarray(source.times_s)
-        points = frame_points(det, times, self.detect.min_speed_mps, self.detect.cluster_gap_m)
+        times = np.asarray(source.times_s, dtype=np.float64)[idx]
+        det, points = self.process_frames(cubes, times, progress=progress, total=len(idx),
+                                          batch_frames=batch_frames)
+        if len(det):
+            det["frame"] = idx[det["frame"].to_numpy()]
+        if len(points):
+            points["frame"] = idx[points["frame"].to_numpy()]
         return det, points

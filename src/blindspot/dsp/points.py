@@ -51,33 +51,107 @@ def cluster_labels(x: np.ndarray, y: np.ndarray, gap_m: float) -> np.ndarray:
     return labels
 
 
+POINT_FIELDS = POINT_COLUMNS[2:]  # the per-point values, without frame and time_s
+
+
+def group_points(frame: np.ndarray, range_m: np.ndarray, velocity_mps: np.ndarray,
+                 angle_deg: np.ndarray, snr_db: np.ndarray, min_speed_mps: float,
+                 cluster_gap_m: float) -> dict[str, np.ndarray]:
+    """The pedestrian's point of every frame, from the detections of many frames at once.
+
+    Args:
+        frame: (D,) frame index of each detection (any order).
+        range_m, velocity_mps, angle_deg, snr_db: (D,) per detection; a NaN angle means no
+            angle was estimated (outside the DOA budget): such detections are not grouped.
+        min_speed_mps: static-clutter threshold (``|v| <=`` it is static).
+        cluster_gap_m: single-linkage distance.
+
+    Returns:
+        dict of (P,) arrays, one entry per frame that has a point, sorted by frame: ``frame``
+        and :data:`POINT_FIELDS` (``n_detections`` int64). Frames without a moving detection
+        with a finite angle have no entry (nothing is invented).
+
+    All frames are clustered in one connected-components pass over the graph of detection pairs
+    of the same frame closer than ``cluster_gap_m``; per frame the cluster with the most
+    detections (then the largest summed linear SNR, then the later one) is the pedestrian.
+    """
+    f_all = np.asarray(frame)
+    keep = moving(velocity_mps, min_speed_mps) & np.isfinite(angle_deg)
+    order = np.argsort(f_all[keep], kind="stable")
+    f = f_all[keep][order]
+    r, v, a, s = (np.asarray(z, dtype=np.float64)[keep][order]
+                  for z in (range_m, velocity_mps, angle_deg, snr_db))
+    n = f.size
+    if n == 0:
+        out = {k: np.zeros(0) for k in POINT_FIELDS}
+        out["frame"], out["n_detections"] = np.zeros(0, np.int64), np.zeros(0, np.int64)
+        return out
+    x, y = to_cartesian(r, a)
+    w = 10 ** (s / 10)
+    labels = _cluster_within_frames(f, x, y, cluster_gap_m)
+    count = np.bincount(labels)
+    weight = np.bincount(labels, weights=w)
+    first = np.zeros(count.size, dtype=np.int64)
+    first[labels[::-1]] = np.arange(n)[::-1]          # first detection of each cluster
+    c_frame = f[first]
+    by = np.lexsort((np.arange(count.size), weight, count, c_frame))
+    last_of_frame = np.r_[c_frame[by][1:] != c_frame[by][:-1], True]
+    best = by[last_of_frame]                          # one cluster per frame, frames ascending
+    sel = np.isin(labels, best)
+    lab, xs, ys, vs, ss, wsel = labels[sel], x[sel], y[sel], v[sel], s[sel], w[sel]
+    slot = np.searchsorted(best, lab, sorter=np.argsort(best))
+    slot = np.argsort(best)[slot]                     # index of the point in frame order
+    wsum = np.bincount(slot, weights=wsel, minlength=best.size)
+    ws = wsel / wsum[slot]
+    cx = np.bincount(slot, weights=ws * xs, minlength=best.size)
+    cy = np.bincount(slot, weights=ws * ys, minlength=best.size)
+    ext2 = np.full(best.size, -np.inf)
+    np.maximum.at(ext2, slot, (xs - cx[slot]) ** 2 + (ys - cy[slot]) ** 2)
+    snr = np.full(best.size, -np.inf)
+    np.maximum.at(snr, slot, ss)
+    return {
+        "frame": c_frame[best].astype(np.int64),
+        "range_m": np.hypot(cx, cy),
+        "velocity_mps": np.bincount(slot, weights=ws * vs, minlength=best.size),
+        "angle_deg": np.degrees(np.arctan2(cx, cy)),
+        "x_m": cx, "y_m": cy,
+        "snr_db": snr,
+        "n_detections": np.bincount(slot, minlength=best.size).astype(np.int64),
+        "extent_m": np.sqrt(ext2),
+    }
+
+
+def _cluster_within_frames(frame_sorted: np.ndarray, x: np.ndarray, y: np.ndarray,
+                           gap_m: float) -> np.ndarray:
+    """Single-linkage labels (D,) of detections sorted by frame: connected components of the
+    graph 'same frame and closer than gap_m', all frames in one pass (labels never span two
+    frames; within a frame they are numbered in detection order, as :func:`cluster_labels`)."""
+    n = frame_sorted.size
+    starts = np.flatnonzero(np.r_[True, frame_sorted[1:] != frame_sorted[:-1]])
+    sizes = np.diff(np.r_[starts, n])
+    block = np.repeat(np.arange(starts.size), sizes)          # block (frame) of each detection
+    i = np.repeat(np.arange(n), sizes[block])                 # every pair (i, j) of one block
+    offset = np.arange(i.size) - np.repeat(np.cumsum(sizes[block]) - sizes[block], sizes[block])
+    j = starts[block[i]] + offset
+    d2 = (x[i] - x[j]) ** 2 + (y[i] - y[j]) ** 2
+    near = d2 < gap_m ** 2
+    graph = scipy.sparse.csr_matrix((np.ones(int(near.sum()), dtype=bool), (i[near], j[near])),
+                                    shape=(n, n))
+    _, labels = scipy.sparse.csgraph.connected_components(graph, directed=False)
+    return labels
+
+
 def group_point(range_m: np.ndarray, velocity_mps: np.ndarray, angle_deg: np.ndarray,
                 snr_db: np.ndarray, min_speed_mps: float, cluster_gap_m: float) -> dict | None:
     """The pedestrian's point from one frame's detections (arrays (n,)), or None when no moving
-    detection with a finite angle exists. Keys: POINT_COLUMNS without frame and time_s."""
-    keep = moving(velocity_mps, min_speed_mps) & np.isfinite(angle_deg)
-    if not keep.any():
+    detection with a finite angle exists. Keys: POINT_COLUMNS without frame and time_s.
+    (:func:`group_points` for one frame.)"""
+    pts = group_points(np.zeros(len(range_m), dtype=np.int64), range_m, velocity_mps, angle_deg,
+                       snr_db, min_speed_mps, cluster_gap_m)
+    if pts["frame"].size == 0:
         return None
-    r, v, a, s = (np.asarray(z, dtype=np.float64)[keep]
-                  for z in (range_m, velocity_mps, angle_deg, snr_db))
-    x, y = to_cartesian(r, a)
-    w = 10 ** (s / 10)
-    labels = cluster_labels(x, y, cluster_gap_m)
-    count = np.bincount(labels)
-    weight = np.bincount(labels, weights=w)
-    best = np.lexsort((weight, count))[-1]  # most detections, then largest summed SNR
-    sel = labels == best
-    ws = w[sel] / w[sel].sum()
-    cx, cy = float(ws @ x[sel]), float(ws @ y[sel])
-    return {
-        "range_m": float(np.hypot(cx, cy)),
-        "velocity_mps": float(ws @ v[sel]),
-        "angle_deg": float(np.degrees(np.arctan2(cx, cy))),
-        "x_m": cx, "y_m": cy,
-        "snr_db": float(s[sel].max()),
-        "n_detections": int(sel.sum()),
-        "extent_m": float(np.sqrt(((x[sel] - cx) ** 2 + (y[sel] - cy) ** 2).max())),
-    }
+    return {k: (int(pts[k][0]) if k == "n_detections" else float(pts[k][0]))
+            for k in POINT_FIELDS}
 
 
 def pedestrian_point(detections: pd.DataFrame, min_speed_mps: float,
@@ -90,14 +164,21 @@ def pedestrian_point(detections: pd.DataFrame, min_speed_mps: float,
 
 def frame_points(detections: pd.DataFrame, times_s: dict | pd.Series | np.ndarray | None,
                  min_speed_mps: float, cluster_gap_m: float) -> pd.DataFrame:
-    """One pedestrian point per frame that has one (``POINT_COLUMNS``); ``times_s`` maps frame
-    index -> time (array indexed by frame, dict or Series), None gives NaN times."""
-    rows = []
-    for frame, group in detections.groupby("frame", sort=True):  # one step per frame
-        pt = pedestrian_point(group, min_speed_mps, cluster_gap_m)
-        if pt is None:
-            continue
-        t = np.nan if times_s is None else float(np.asarray(times_s[frame]))
-        rows.append({"frame": int(frame), "time_s": t, **pt})
-    out = pd.DataFrame(rows, columns=list(POINT_COLUMNS))
+    """One pedestrian point per frame that has one (``POINT_COLUMNS``), all frames grouped in
+    one pass (:func:`group_points`); ``times_s`` maps frame index -> time (array indexed by
+    frame, dict or Series), None gives NaN times."""
+    if len(detections) == 0:
+        return pd.DataFrame(columns=list(POINT_COLUMNS)).astype(
+            {"frame": np.int64, "n_detections": np.int64})
+    pts = group_points(detections["frame"].to_numpy(), detections["range_m"].to_numpy(),
+                       detections["velocity_mps"].to_numpy(), detections["angle_deg"].to_numpy(),
+                       detections["snr_db"].to_numpy(), min_speed_mps, cluster_gap_m)
+    if times_s is None:
+        t = np.full(pts["frame"].size, np.nan)
+    elif isinstance(times_s, dict | pd.Series):
+        t = pd.Series(times_s).loc[pts["frame"]].to_numpy(np.float64)
+    else:
+        t = np.asarray(times_s, dtype=np.float64)[pts["frame"]]
+    out = pd.DataFrame({"frame": pts["frame"], "time_s": t,
+                        **{k: pts[k] for k in POINT_FIELDS}}, columns=list(POINT_COLUMNS))
     return out.astype({"frame": np.int64, "n_detections": np.int64})

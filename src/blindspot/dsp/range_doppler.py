@@ -94,19 +94,21 @@ class RangeDoppler:
 
     def native(self, cube: np.ndarray) -> np.ndarray:
         """complex64 (doppler, tx, rx, range), C-contiguous: the FFT output before transposing."""
-        if cube.ndim != 4 or cube.shape[0] != self.n_chirps or cube.shape[3] != self.n_samples:
+        if cube.ndim not in (4, 5) or cube.shape[-4] != self.n_chirps \
+                or cube.shape[-1] != self.n_samples:
             raise ValueError(
                 f"range_doppler: expected a cube (chirps={self.n_chirps}, tx, rx, "
-                f"samples={self.n_samples}), got shape {cube.shape}"
+                f"samples={self.n_samples}) or a batch of them (frames, chirps, tx, rx, "
+                f"samples), got shape {cube.shape}"
             )
         if not self.cropped:
             x = np.multiply(cube, self._w2d, dtype=np.complex64)  # both windows, one pass
-            sfft.fft(x, axis=3, overwrite_x=True, workers=self.workers)
-            return sfft.fft(x, axis=0, overwrite_x=True, workers=self.workers)
+            sfft.fft(x, axis=-1, overwrite_x=True, workers=self.workers)
+            return sfft.fft(x, axis=-4, overwrite_x=True, workers=self.workers)
         # cropped: the Doppler FFT (and everything after) only sees range bins < n_range
         x = self.range_profiles(cube)
         y = np.multiply(x[..., :self.n_range], self._wd, dtype=np.complex64)
-        return sfft.fft(y, axis=0, overwrite_x=True, workers=self.workers)
+        return sfft.fft(y, axis=-4, overwrite_x=True, workers=self.workers)
 
     def __call__(self, cube: np.ndarray) -> np.ndarray:
         return np.moveaxis(self.native(cube), 3, 0)
@@ -114,14 +116,14 @@ class RangeDoppler:
     def range_profiles(self, cube: np.ndarray) -> np.ndarray:
         """Range FFT only: complex64 (chirps, tx, rx, range), range-windowed."""
         x = np.multiply(cube, self._wr, dtype=np.complex64)
-        return sfft.fft(x, axis=3, overwrite_x=True, workers=self.workers)
+        return sfft.fft(x, axis=-1, overwrite_x=True, workers=self.workers)
 
     def doppler(self, range_profiles: np.ndarray) -> np.ndarray:
         """Doppler FFT (zero-centred) of range profiles (chirps, tx, rx, range), IN PLACE:
         returns the same buffer as (doppler, tx, rx, range)."""
         x = range_profiles[..., :self.n_range] if self.cropped else range_profiles
         x = np.multiply(x, self._wd, dtype=np.complex64) if self.cropped else x.__imul__(self._wd)
-        return sfft.fft(x, axis=0, overwrite_x=True, workers=self.workers)
+        return sfft.fft(x, axis=-4, overwrite_x=True, workers=self.workers)
 
 
 def range_doppler(cube: np.ndarray, range_window: str = "hann", doppler_window: str = "hann",
@@ -138,6 +140,10 @@ def range_doppler(cube: np.ndarray, range_window: str = "hann", doppler_window: 
 def detection_map(rd: np.ndarray) -> np.ndarray:
     """Non-coherent integration: (range, doppler, tx, rx) -> float64 (range, doppler) = sum |X|^2
     over all virtual channels (power, never log-magnitude)."""
+    if rd.ndim == 5:  # a batch in RangeDoppler.native layout (frames, doppler, tx, rx, range)
+        f, d, t, r, n = rd.shape
+        x = np.ascontiguousarray(rd).reshape(f * d, t, r, n)
+        return _channel_power(x, axes_first=True).reshape(f, d, n).transpose(0, 2, 1)
     if rd.ndim != 4:
         raise ValueError(f"detection_map: expected rd (range, doppler, tx, rx), got shape {rd.shape}")
     base = rd

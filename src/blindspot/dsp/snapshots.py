@@ -26,14 +26,20 @@ SNAPSHOT_MODES = ("cells", "chirps")
 
 
 def cell_snapshots(rd_native: np.ndarray, range_bin: np.ndarray, doppler_bin: np.ndarray,
-                   half: tuple[int, int] = (1, 1)) -> np.ndarray:
+                   half: tuple[int, int] = (1, 1), frame: np.ndarray | None = None) -> np.ndarray:
     """Neighbourhood cells of each detection.
 
-    rd_native : (doppler, tx, rx, range) complex (``RangeDoppler.native`` layout)
-    range_bin, doppler_bin : (D,) ints
+    rd_native : (doppler, tx, rx, range) complex (``RangeDoppler.native`` layout) or, with
+                ``frame``, a batch (frames, doppler, tx, rx, range)
+    range_bin, doppler_bin : (D,) ints; frame : (D,) index into the batch axis (batched only)
     returns (D, tx, rx, L) with L = (2 half_r + 1)(2 half_d + 1), the centre cell first
+    raises ValueError when ``rd_native`` does not have 4 axes (5 with ``frame``)
     """
-    n_dop, _, _, n_rng = rd_native.shape
+    if rd_native.ndim != (4 if frame is None else 5):
+        raise ValueError("cell_snapshots: expected rd_native (doppler, tx, rx, range)"
+                         + ("" if frame is None else " per frame: (frames, doppler, tx, rx, range)")
+                         + f", found shape {rd_native.shape}")
+    n_dop, _, _, n_rng = rd_native.shape[-4:]
     dr, dd = np.meshgrid(np.arange(-half[0], half[0] + 1), np.arange(-half[1], half[1] + 1),
                          indexing="ij")
     dr, dd = dr.ravel(), dd.ravel()
@@ -41,14 +47,23 @@ def cell_snapshots(rd_native: np.ndarray, range_bin: np.ndarray, doppler_bin: np
     dr, dd = dr[centre_first], dd[centre_first]
     rr = np.clip(np.asarray(range_bin)[:, None] + dr, 0, n_rng - 1)  # (D, L)
     ds = (np.asarray(doppler_bin)[:, None] + dd) % n_dop
-    cells = rd_native[ds, :, :, rr]  # (D, L, tx, rx): advanced indices first
+    if frame is None:
+        cells = rd_native[ds, :, :, rr]  # (D, L, tx, rx): advanced indices first
+    else:
+        cells = rd_native[np.asarray(frame)[:, None], ds, :, :, rr]
     return cells.transpose(0, 2, 3, 1)
 
 
-def chirp_snapshots(range_profiles: np.ndarray, range_bin: np.ndarray) -> np.ndarray:
+def chirp_snapshots(range_profiles: np.ndarray, range_bin: np.ndarray,
+                    frame: np.ndarray | None = None) -> np.ndarray:
     """The detections' range bins across chirps.
 
-    range_profiles : (chirps, tx, rx, range) complex (range FFT only)
+    range_profiles : (chirps, tx, rx, range) complex (range FFT only) or, with ``frame``,
+                     (frames, chirps, tx, rx, range)
+    range_bin : (D,) ints; frame : (D,) index into the batch axis (batched only)
     returns (D, tx, rx, chirps)
     """
-    return range_profiles[..., np.asarray(range_bin)].transpose(3, 1, 2, 0)
+    if frame is None:
+        return range_profiles[..., np.asarray(range_bin)].transpose(3, 1, 2, 0)
+    # advanced indices on the first and last axes, separated by slices: they go first
+    return range_profiles[np.asarray(frame), ..., np.asarray(range_bin)].transpose(0, 2, 3, 1)

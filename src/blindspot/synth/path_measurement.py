@@ -15,9 +15,10 @@ Two ways to get there
 * default, the *reduced* chain: the same scatterers give a range-Doppler *patch* around the
   pedestrian computed analytically (:mod:`blindspot.radar.rd_patch`: windowed DTFT at the bin
   frequencies, identical to the FFT of the simulated cube), with noise drawn with the FFT's exact
-  statistics, and the chain's own steps (its ``run_cfar``, local-maximum rule, detection order
-  and budget, ``compensate_tdm``, a batched MUSIC tested equal to ``music_angles``, and
-  ``group_point``) run on the patches of thousands of frames at once. See
+  statistics, and the chain's own batch-native steps (``run_cfar``, ``local_maxima``,
+  ``order_detections`` and ``doa_budget``, ``angles``: TDM compensation and MUSIC on the torch
+  back-end of :mod:`blindspot.dsp.doa`, and ``group_points``) run on the patches of thousands of
+  frames at once. See
   :func:`measure_paths` for what is exact and what is approximated; the test
   ``tests/synth/test_path_measurement.py`` shows the point-error statistics of both agree within
   10 % (measured: within 1 % for the paper's CFAR, 5 % for CA-CFAR at Pfa 1e-6), at 300-600
@@ -32,6 +33,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from blindspot.dsp.detections import local_maxima
+from blindspot.dsp.points import group_points
 from blindspot.radar.config import SPEED_OF_LIGHT, RadarConfig
 from blindspot.radar.radar_equation import received_power_w
 from blindspot.radar.rd_patch import PointScatterers
@@ -44,8 +47,6 @@ __all__ = [
     "PedestrianModel",
     "noncoherent_power",
     "cfar_on_patches",
-    "local_maxima",
-    "music_peak_angles",
     "path_kinematics",
     "body_scatterers",
     "point_scatterers",
@@ -255,155 +256,7 @@ def cfar_on_patches(power: np.ndarray, first_row: np.ndarray, n_rows_total: int,
     return mask, noise
 
 
-# ------------------------------------------------------------------ reduced chain: angles
-def music_peak_angles(snapshots: np.ndarray, positions: np.ndarray, n_signals: int = 3,
-                      grid_deg: np.ndarray | None = None, *, forward_backward: bool = False,
-                      subarray: int | None = None, newton_steps: int = 6) -> np.ndarray:
-    """The strongest MUSIC peak per detection, for tens of thousands of detections at once.
-
-    The same estimate as :func:`blindspot.dsp.doa.music_angles` with ``n_targets=1`` (the test
-    checks equality): signal subspace = the ``n_signals`` principal eigenvectors of
-    ``R = X X^H / L`` (spatially smoothed over contiguous ``subarray``-element subarrays, then
-    forward-backward averaged ``(R + J conj(R) J) / 2``, as ``doa.covariance`` does), maximum of
-    ``g(u) = |E_s^H a(u)|^2`` on the grid, refined by Newton steps on ``u = sin theta`` kept
-    between the neighbouring grid points. Faster for large batches in two ways: when there are
-    fewer (augmented) snapshots than elements the principal eigenvectors come from the small
-    L x L Gram matrix ``X^H X`` (``E_s = X V / sqrt(w)``, the same subspace), and the batched
-    products and ``eigh`` run in torch on one thread, whose batched small-matrix kernels are
-    several times faster than numpy's here (and than torch's own multi-threaded ones, which
-    thrash on two cores).
-
-    snapshots: complex (D, M, L); positions: (M,) wavelengths -> (D,) degrees (NaN if D rows
-    have no signal at all).
-    """
-    import torch
-
-    from blindspot.dsp.doa import DEFAULT_GRID_DEG
-
-    grid = DEFAULT_GRID_DEG if grid_deg is None else np.asarray(grid_deg, dtype=np.float64)
-    x = np.asarray(snapshots)
-    p = np.asarray(positions, dtype=np.float64)
-    if x.ndim != 3 or x.shape[1] != p.size:
-        raise ValueError(f"music_peak_angles: expected snapshots (D, M={p.size}, L), "
-                         f"found {x.shape}")
-    d, m, _ = x.shape
-    if d == 0:
-        return np.zeros(0)
-    threads = torch.get_num_threads()
-    torch.set_num_threads(1)
-    try:
-        return _music_subspace_peaks(torch, x, p, n_signals, grid, forward_backward, subarray,
-                                     newton_steps)
-    finally:
-        torch.set_num_threads(threads)
-
-
-def _music_subspace_peaks(torch, x, p, n_signals, grid, forward_backward, subarray,
-                          newton_steps, chunk: int = 512) -> np.ndarray:
-    """music_peak_angles' work, in chunks of detections small enough to stay in cache."""
-    d, m, _ = x.shape
-    k = m if subarray is None else int(subarray)
-    if not 2 <= k <= m:
-        raise ValueError(f"music_peak_angles: subarray must be in [2, {m}], found {subarray}")
-    out = np.empty(d)
-    for lo in range(0, d, chunk):  # one batched pass per chunk of detections
-        y = torch.from_numpy(np.ascontiguousarray(x[lo:lo + chunk], dtype=np.complex128))
-        out[lo:lo + chunk] = _music_peak(_signal_subspace(torch, y, k, n_signals, forward_backward),
-                                         p[:k], grid, newton_steps)
-    return out
-
-
-def _signal_subspace(torch, y, k: int, n_signals: int, forward_backward: bool) -> np.ndarray:
-    """(D, K, n_signals) principal eigenvectors of the (smoothed, forward-backward) covariance
-    of snapshots y (D, M, L) (torch complex128); scale-free, so the 1/L factors are omitted."""
-    d, m, lp = y.shape
-    if k == m and not forward_backward and lp < m:
-        gram = y.conj().transpose(1, 2) @ y                       # (D, L, L): same subspace
-        w, v = torch.linalg.eigh(gram)
-        w, v = w[:, lp - n_signals:], v[:, :, lp - n_signals:]
-        return ((y @ v) / torch.sqrt(torch.clamp(w, min=1e-300))[:, None, :]).numpy()
-    r = y @ y.conj().transpose(1, 2)                                # (D, M, M)
-    if k < m:  # spatial smoothing: mean of the diagonal K x K blocks (a strided view)
-        s0, s1, s2 = r.stride()
-        r = torch.as_strided(r, (d, m - k + 1, k, k), (s0, s1 + s2, s1, s2)).sum(dim=1)
-    if not forward_backward:
-        _, v = torch.linalg.eigh(r)
-        return v[:, :, k - n_signals:].numpy()
-    # forward-backward = real symmetric Q^H R Q for the unitary centro-Hermitian Q (Huarng &
-    # Yeh): a real eigh, and the eigenvectors of (R + J R* J) / 2 are Q e
-    rr = _unitary_qh(torch, _unitary_qh(torch, r).conj().transpose(1, 2)).real
-    rr = 0.5 * (rr + rr.transpose(1, 2))
-    _, v = torch.linalg.eigh(rr)
-    e = v[:, :, k - n_signals:].numpy()
-    h = k // 2
-    top = (e[:, :h] + 1j * e[:, k - h:]) / np.sqrt(2.0)
-    parts = [top] + ([e[:, h:h + 1].astype(np.complex128)] if k % 2 else []) \
-        + [np.conj(top)[:, ::-1]]
-    return np.concatenate(parts, axis=1)
-
-
-def _unitary_qh(torch, x):
-    """Q^H x along axis 1, Q = [[I, jI], [J, -jJ]] / sqrt(2) (odd size: a centre row sqrt(2))."""
-    h = x.shape[1] // 2
-    top, bot = x[:, :h], torch.flip(x, dims=(1,))[:, :h]
-    parts = [(top + bot) / np.sqrt(2.0)]
-    if x.shape[1] % 2:
-        parts.append(x[:, h:h + 1])
-    parts.append(-1j * (top - bot) / np.sqrt(2.0))
-    return torch.cat(parts, dim=1)
-
-
-def _music_peak(e: np.ndarray, p: np.ndarray, grid: np.ndarray, newton_steps: int) -> np.ndarray:
-    """Strongest peak of g(u) = |E^H a(u)|^2 for signal subspaces e (D, M, ns): grid maximum,
-    then Newton steps between the neighbouring grid points (``doa.doa_angles``' refinement)."""
-    from blindspot.dsp.doa import steering_matrix
-
-    d, m, _ = e.shape
-    a = steering_matrix(p, grid)                                    # (M, G)
-    z = e.conj().transpose(0, 2, 1).reshape(-1, m) @ a              # (D*ns, G)
-    g = (z.real**2 + z.imag**2).reshape(d, -1, grid.size).sum(axis=1)
-    idx = np.argmax(g, axis=1)
-    u_grid = np.sin(np.radians(grid))
-    lo = u_grid[np.maximum(idx - 1, 0)]
-    hi = u_grid[np.minimum(idx + 1, grid.size - 1)]
-    u = u_grid[idx]
-    k = 2j * np.pi * p
-    eh = e.conj().transpose(0, 2, 1)                                # (D, ns, M)
-    for _ in range(newton_steps):                                   # batched Newton on g(u)
-        av = np.exp(k[None, :] * u[:, None])                        # (D, M)
-        z0 = np.einsum("drm,dm->dr", eh, av)
-        z1 = np.einsum("drm,dm->dr", eh, av * k)
-        z2 = np.einsum("drm,dm->dr", eh, av * k * k)
-        g1 = 2 * np.sum(z0.conj() * z1, axis=1).real
-        g2 = 2 * (np.sum(np.abs(z1) ** 2, axis=1) + np.sum(z0.conj() * z2, axis=1).real)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            step = np.where(g2 < 0, -g1 / g2, 0.0)
-        u = np.clip(u + step, lo, hi)
-    return np.degrees(np.arcsin(np.clip(u, -1.0, 1.0)))
-
-
 # ------------------------------------------------------------------ reduced chain: one batch
-def local_maxima(power: np.ndarray, row_exists: np.ndarray) -> np.ndarray:
-    """The chain's ``peak_only`` rule on patches: cells >= all 8 neighbours, Doppler wrapping,
-    rows outside the map counting as -inf (as the full map's padding does).
-
-    power (B, K, M), row_exists (B, K) bool -> (B, K, M) bool; the first and last patch rows are
-    False (their neighbourhoods are incomplete)."""
-    p = np.where(row_exists[..., None], power, -np.inf)
-    b, k, m = p.shape
-    out = np.zeros((b, k, m), dtype=bool)
-    centre = p[:, 1:-1]
-    is_max = np.ones(centre.shape, dtype=bool)
-    for dr in (-1, 0, 1):      # the 8 neighbours, each one whole-batch comparison
-        rows = p[:, 1 + dr:k - 1 + dr]
-        for dd in (-1, 0, 1):
-            if dr == 0 and dd == 0:
-                continue
-            is_max &= centre >= np.roll(rows, -dd, axis=2)
-    out[:, 1:-1] = is_max
-    return out
-
-
 @dataclass(frozen=True)
 class _ReducedSetup:
     """What every batch of the reduced chain needs, computed once."""
@@ -455,38 +308,16 @@ def _empty_frames(n: int) -> dict[str, np.ndarray]:
     return out
 
 
-def _group_frames(frame: np.ndarray, n_frames: int, range_m, velocity, angle, snr_db,
-                  min_speed: float, gap_m: float) -> dict[str, np.ndarray]:
-    """The chain's :func:`~blindspot.dsp.points.group_point` for every frame of a batch.
-    Detections sorted by frame; one call per frame that has a moving detection with an angle."""
-    from blindspot.dsp.points import group_point, moving
-
-    out = _empty_frames(n_frames)
-    usable = moving(velocity, min_speed) & np.isfinite(angle)
-    frames_with = np.unique(frame[usable])
-    bounds = np.searchsorted(frame, np.stack([frames_with, frames_with + 1]))
-    for f, lo, hi in zip(frames_with, bounds[0], bounds[1]):
-        pt = group_point(range_m[lo:hi], velocity[lo:hi], angle[lo:hi], snr_db[lo:hi],
-                         min_speed, gap_m)
-        if pt is None:  # pragma: no cover - excluded by `usable`
-            continue
-        for key in _FRAME_FIELDS:
-            out[key][f] = pt[key]
-    return out
-
-
 def _measure_batch_reduced(setup: _ReducedSetup, sc: PointScatterers,
                            rng: np.random.Generator) -> dict[str, np.ndarray]:
-    """Measured point of each of B frames through the reduced chain (see measure_paths)."""
+    """Measured point of each of B frames through the reduced chain (see measure_paths): the
+    patches are synthesised here, every detection step is the chain's own."""
     import torch
 
-    from blindspot.dsp.doa import doa_angles
-    from blindspot.dsp.doppler_compensation import compensate_tdm
-    from blindspot.dsp.points import moving
     from blindspot.radar.rd_patch import patch_terms, separable_channel_energy
 
     chain = setup.chain
-    radar, det, doa = chain.radar, chain.detect, chain.doa
+    radar, det = chain.radar, chain.detect
     b = sc.shape[0]
     n_rows = chain.range_axis_m.size
     m = radar.n_chirps
@@ -499,7 +330,7 @@ def _measure_batch_reduced(setup: _ReducedSetup, sc: PointScatterers,
                                   setup.doppler_window, "all")
     energy = separable_channel_energy(r_t, d_t, c_all)
     power = noncoherent_power(rng, energy, radar.n_tx * radar.n_rx, setup.cell_noise_power)
-    # 2. CFAR, range window, local maxima
+    # 2. the chain's CFAR (on the patches as on the full map), range window, local maxima
     rows = first[:, None] + np.arange(k)
     exists = (rows >= 0) & (rows < n_rows)
     mask, noise = cfar_on_patches(power, first, n_rows, h, chain.run_cfar)
@@ -509,15 +340,13 @@ def _measure_batch_reduced(setup: _ReducedSetup, sc: PointScatterers,
         mask &= local_maxima(power, exists)
     bi, ki, di = np.nonzero(mask)
     pw = power[bi, ki, di]
+    order, mov = chain.order_detections(bi, pw, di)   # per frame: moving first, then strongest
+    bi, ki, di, pw = bi[order], ki[order], di[order], pw[order]
     vel = chain.velocity_axis_mps[di]
-    mov = moving(vel, det.min_speed_mps)
-    order = np.lexsort((-pw, ~mov, bi))              # per frame: moving first, then strongest
-    bi, ki, di, pw, vel, mov = bi[order], ki[order], di[order], pw[order], vel[order], mov[order]
     snr_db = 10.0 * np.log10(pw / noise[bi, ki, di])
-    rank = np.arange(bi.size) - np.searchsorted(bi, bi)  # position within its frame
-    # 3. angles of the moving detections among the first max_detections of each frame
-    # (static ones cannot become the pedestrian's point, so their angles are not needed)
-    sel = np.flatnonzero((rank < det.max_detections) & mov)
+    # 3. angles of the moving detections within each frame's DOA budget (static ones cannot
+    # become the pedestrian's point, so their angles are not needed)
+    sel = np.flatnonzero(chain.doa_budget(bi) & mov)
     angle = np.full(bi.size, np.nan)
     if sel.size:
         hr, hd = det.cell_half
@@ -539,20 +368,15 @@ def _measure_batch_reduced(setup: _ReducedSetup, sc: PointScatterers,
         # a clipped neighbour repeats its row's noise, exactly as the chain repeats the cell
         cell = (kk - k_s[:, None] + hr) * (2 * hd + 1) + (dd + hd)
         x = x + np.take_along_axis(blk, cell[:, None, :], axis=2)
-        if det.tdm_compensation:
-            x = compensate_tdm(x, d_s, m, radar.loop_period_s, chain.slot_times_s, chain.ula_tx)
-        if doa.method == "music" and doa.loading == 0.0:
-            angle[sel] = music_peak_angles(x, chain.ula_pos, doa.n_signals, chain.grid_deg,
-                                           forward_backward=doa.forward_backward,
-                                           subarray=doa.subarray)
-        else:
-            angle[sel] = doa_angles(x, chain.ula_pos, 1, doa.n_signals, chain.grid_deg,
-                                    method=doa.method, forward_backward=doa.forward_backward,
-                                    subarray=doa.subarray, loading=doa.loading)[:, 0]
+        backend = "torch" if chain.doa.method == "music" and chain.doa.loading == 0.0 else "numpy"
+        angle[sel] = chain.angles(x, d_s, backend=backend)
     # 4. the pedestrian's point per frame (the chain's grouping)
     range_m = chain.range_axis_m[np.clip(first[bi] + ki, 0, n_rows - 1)]
-    return _group_frames(bi, b, range_m, vel, angle, snr_db, det.min_speed_mps,
-                         det.cluster_gap_m)
+    pts = group_points(bi, range_m, vel, angle, snr_db, det.min_speed_mps, det.cluster_gap_m)
+    out = _empty_frames(b)
+    for key in _FRAME_FIELDS:
+        out[key][pts["frame"]] = pts[key]
+    return out
 
 
 def _measure_batch_full(chain, simulator, pos: np.ndarray, vel: np.ndarray, rcs: np.ndarray,

@@ -1,0 +1,79 @@
+"""From CFAR cells to the detections whose angles are estimated: peak cells, order and budget.
+
+Batch-native: every function takes the cells of many frames (or patches) at once, identified by
+a frame index, so the full chain (:class:`~blindspot.dsp.chain.DetectionChain`, frames of a
+capture) and the reduced measurement of the synthesis room (patches of thousands of frames) run
+the same steps.
+
+* :func:`local_maxima`: the ``peak_only`` rule, a cell is kept when it is at least as strong as
+  its 8 neighbours (Doppler wraps; rows beyond the first and last range bin count as -inf), so
+  one target gives one detection per spectral peak rather than its whole window main lobe.
+* :func:`detection_order`: within each frame, moving detections first, then by decreasing
+  power; :func:`rank_in_frame` gives each detection's position in its frame, so the DOA budget
+  (``detect.max_detections`` angles per frame) is a comparison, not a loop.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["local_maxima", "detection_order", "rank_in_frame"]
+
+
+def local_maxima(power: np.ndarray, row_exists: np.ndarray | None = None) -> np.ndarray:
+    """Cells at least as strong as each of their 8 neighbours.
+
+    Args:
+        power: (..., range, doppler) detection map(s), any leading batch axes (frames).
+        row_exists: optional (..., range) bool: False for rows that lie outside the full map
+            (a patch that hangs over the first or last range bin); those rows count as -inf,
+            exactly as the rows beyond the map's edges do.
+
+    Returns:
+        (..., range, doppler) bool. Doppler wraps (its spectrum is periodic); range does not.
+
+    Raises:
+        ValueError: ``power`` has fewer than 2 axes or ``row_exists`` does not match it.
+    """
+    p = np.asarray(power)
+    if p.ndim < 2:
+        raise ValueError(f"local_maxima: expected power (..., range, doppler), found {p.shape}")
+    if row_exists is not None:
+        rows_ok = np.asarray(row_exists, dtype=bool)
+        if rows_ok.shape != p.shape[:-1]:
+            raise ValueError(f"local_maxima: row_exists must be {p.shape[:-1]} (..., range), "
+                             f"found {rows_ok.shape}")
+        p = np.where(rows_ok[..., None], p, -np.inf)
+    lead = ((0, 0),) * (p.ndim - 2)
+    padded = np.pad(p, lead + ((1, 1), (0, 0)), constant_values=-np.inf)
+    n_rows = p.shape[-2]
+    is_max = np.ones(p.shape, dtype=bool)
+    for dr in (-1, 0, 1):  # the 8 neighbours, each one whole-batch comparison
+        rows = padded[..., 1 + dr:1 + dr + n_rows, :]
+        for dd in (-1, 0, 1):
+            if dr == 0 and dd == 0:
+                continue
+            is_max &= p >= np.roll(rows, -dd, axis=-1)
+    if row_exists is not None:
+        is_max &= rows_ok[..., None]
+    return is_max
+
+
+def detection_order(frame: np.ndarray, power: np.ndarray, is_moving: np.ndarray) -> np.ndarray:
+    """Permutation that sorts detections by frame, then moving before static, then by
+    decreasing power (stable: equal keys keep their input order).
+
+    frame, power, is_moving: (D,) -> (D,) int indices."""
+    return np.lexsort((-np.asarray(power), ~np.asarray(is_moving, dtype=bool),
+                       np.asarray(frame)))
+
+
+def rank_in_frame(frame_sorted: np.ndarray) -> np.ndarray:
+    """Position of each detection within its frame, for detections sorted by frame.
+
+    frame_sorted: (D,) non-decreasing frame indices -> (D,) int64 (0 for the first of each
+    frame). Raises ValueError when ``frame_sorted`` is not sorted."""
+    f = np.asarray(frame_sorted)
+    if f.size and np.any(np.diff(f) < 0):
+        raise ValueError("rank_in_frame: detections must be sorted by frame")
+    return np.arange(f.size, dtype=np.int64) - np.searchsorted(f, f, side="left")
