@@ -15,10 +15,13 @@ import numpy as np
 import pytest
 
 from blindspot.radar.capture import (
+    RECORDING_KINDS,
     CaptureError,
     DCA1000Recording,
+    OpenRadarRecording,
     TICascadeRecording,
     find_cascade_captures,
+    open_recording,
     read_dca1000,
     read_openradar_npy,
     read_ti_cascade,
@@ -425,3 +428,48 @@ def test_recording_reads_one_frame_without_loading_the_capture(tmp_path):
     assert frame.shape == (64, 12, 16, 256) and not frame.any()
     assert src.n_frames == 99
     assert peak < 2 * frame_bytes  # one frame plus temporaries; the capture is 100 frames
+
+
+def test_open_recording_gives_a_frame_source_for_every_kind(tmp_path, rng):
+    cascade_cube = random_codes(rng, (3, L, C, 16, S))
+    write_ti_cascade(tmp_path / "cas", cascade_cube)
+    dca_radar = small_profile(n_tx=2, n_rx=4, tx_order=[0, 1], array="ula")
+    dca_cube = random_codes(rng, (2, L, 2, 4, S))
+    write_dca1000(tmp_path / "adc_data.bin", dca_cube)
+    npy_cube = random_codes(rng, (1, L, 2, 4, S))
+    stored = npy_cube.reshape(L, 8, S).astype(np.complex128)
+    np.save(tmp_path / "a.npy", np.where(stored.real < 0, stored.real + 65536, stored.real)
+            + 1j * np.where(stored.imag < 0, stored.imag + 65536, stored.imag))
+    opened = {
+        "ti_cascade": (open_recording("ti_cascade", tmp_path / "cas", small_profile(),
+                                      skip_first_frame=False), cascade_cube, TICascadeRecording),
+        "dca1000": (open_recording("dca1000", tmp_path / "adc_data.bin", dca_radar), dca_cube,
+                    DCA1000Recording),
+        "openradar_npy": (open_recording("openradar_npy", tmp_path / "a.npy", dca_radar),
+                          npy_cube, OpenRadarRecording),
+    }
+    assert set(opened) == set(RECORDING_KINDS)
+    for kind, (src, cube, cls) in opened.items():
+        assert isinstance(src, cls) and isinstance(src, FrameSource), kind
+        assert len(src) == src.n_frames == len(cube) == len(src.times_s), kind
+        assert np.array_equal(np.stack(list(src)), cube), kind
+        assert np.array_equal(src.frame(-1), cube[-1]), kind
+    with pytest.raises(ValueError, match=r"kind 'bag' unknown.*ti_cascade"):
+        open_recording("bag", tmp_path / "a.npy", dca_radar)
+
+
+def test_failed_write_keeps_the_previous_file_and_leaves_no_temporaries(tmp_path, rng):
+    cube = random_codes(rng, (2, L, 2, 4, S))
+    path = write_dca1000(tmp_path / "adc_data.bin", cube)
+    before = path.read_bytes()
+    bad = cube.astype(np.complex128)
+    bad[1, 0, 0, 0, 0] = 0.5
+    with pytest.raises(CaptureError, match="cube frame 1.*not integer"):
+        write_dca1000(path, bad)
+    assert path.read_bytes() == before and os.listdir(tmp_path) == ["adc_data.bin"]
+    write_ti_cascade(tmp_path / "cas", random_codes(rng, (2, L, C, 16, S)))
+    files = sorted(os.listdir(tmp_path / "cas"))
+    with pytest.raises(ValueError, match="frame 1 has shape"):
+        write_ti_cascade(tmp_path / "cas", [random_codes(rng, (L, C, 16, S)),
+                                            random_codes(rng, (L, C, 16, S + 2))])
+    assert sorted(os.listdir(tmp_path / "cas")) == files
