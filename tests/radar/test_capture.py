@@ -19,8 +19,9 @@ from blindspot.radar.capture import (
     CaptureError,
     DCA1000Recording,
     OpenRadarRecording,
+    TICascadeCapture,
     TICascadeRecording,
-    find_cascade_captures,
+    find_cascade_parts,
     open_recording,
     read_dca1000,
     read_openradar_npy,
@@ -103,16 +104,23 @@ def test_cascade_frame_count_comes_from_index_not_padding(cascade):
     assert np.array_equal(read_ti_cascade(folder, S, L, C, skip_first_frame=False), cube)
 
 
-def test_cascade_capture_index_selection(tmp_path, rng):
+def test_cascade_part_selection_and_gaps(tmp_path, rng):
     a, b = random_codes(rng, (2, L, C, 16, S)), random_codes(rng, (3, L, C, 16, S))
-    write_ti_cascade(tmp_path, a, capture_index=3)
-    write_ti_cascade(tmp_path, b, capture_index=1)
-    assert find_cascade_captures(tmp_path) == [1, 3]
-    assert np.array_equal(read_ti_cascade(tmp_path, S, L, C, skip_first_frame=False), b)
-    assert np.array_equal(read_ti_cascade(tmp_path, S, L, C, skip_first_frame=False,
-                                          capture_index=3), a)
+    write_ti_cascade(tmp_path, a, part=3)
+    write_ti_cascade(tmp_path, b, part=1)
+    assert find_cascade_parts(tmp_path) == [1, 3]
+    # parts 0000 and 0002 are missing: reading "everything" would silently drop their frames
+    with pytest.raises(CaptureError, match=r"master_0000_data.bin: part 0000 missing.*parts "
+                       r"found: 0001, 0003.*part=N.*found no file, expected parts 0000 to 0003"):
+        read_ti_cascade(tmp_path, S, L, C)
+    with pytest.warns(UserWarning, match=r"part 0001 cannot be numbered.*master_0000_data.bin"):
+        cap = TICascadeCapture(tmp_path, S, L, C, part=1)
+    # not the recording's first frame (parts before it exist): nothing skipped, numbered locally
+    assert np.array_equal(cap.read(), b) and cap.frame_numbers.tolist() == [0, 1, 2]
+    with pytest.warns(UserWarning, match="cannot be numbered"):
+        assert np.array_equal(read_ti_cascade(tmp_path, S, L, C, part=3), a)
     with pytest.raises(CaptureError, match="master_0002_data.bin"):
-        read_ti_cascade(tmp_path, S, L, C, capture_index=2)
+        read_ti_cascade(tmp_path, S, L, C, part=2)
 
 
 def test_cascade_missing_slave_file(cascade):

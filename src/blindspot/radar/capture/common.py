@@ -45,16 +45,19 @@ Int16Conversion = Literal["exact", "round", "clip"]
 class CaptureError(ValueError):
     """A capture file is missing, cut, or does not fit the chirp profile.
 
-    Attributes ``path``, ``problem``, ``found``, ``expected``; the message reads
-    ``"{path}: {problem} (found {found}, expected {expected})"``.
+    Attributes ``path``, ``problem``, ``found``, ``expected``, ``note``; the message reads
+    ``"{path}: {problem} (found {found}, expected {expected}); {note}"`` (the parts given).
     """
 
     def __init__(self, path: str | os.PathLike, problem: str, found: Any = None,
-                 expected: Any = None):
+                 expected: Any = None, note: str | None = None):
         self.path, self.problem, self.found, self.expected = Path(path), problem, found, expected
+        self.note = note
         msg = f"{path}: {problem}"
         if found is not None or expected is not None:
             msg += f" (found {found}, expected {expected})"
+        if note:
+            msg += f"; {note}"
         super().__init__(msg)
 
 
