@@ -15,10 +15,14 @@ import numpy as np
 import pytest
 
 from blindspot.radar.capture import (
+    RECORDING_KINDS,
     CaptureError,
     DCA1000Recording,
+    OpenRadarRecording,
+    TICascadeCapture,
     TICascadeRecording,
-    find_cascade_captures,
+    find_cascade_parts,
+    open_recording,
     read_dca1000,
     read_openradar_npy,
     read_ti_cascade,
@@ -100,16 +104,23 @@ def test_cascade_frame_count_comes_from_index_not_padding(cascade):
     assert np.array_equal(read_ti_cascade(folder, S, L, C, skip_first_frame=False), cube)
 
 
-def test_cascade_capture_index_selection(tmp_path, rng):
+def test_cascade_part_selection_and_gaps(tmp_path, rng):
     a, b = random_codes(rng, (2, L, C, 16, S)), random_codes(rng, (3, L, C, 16, S))
-    write_ti_cascade(tmp_path, a, capture_index=3)
-    write_ti_cascade(tmp_path, b, capture_index=1)
-    assert find_cascade_captures(tmp_path) == [1, 3]
-    assert np.array_equal(read_ti_cascade(tmp_path, S, L, C, skip_first_frame=False), b)
-    assert np.array_equal(read_ti_cascade(tmp_path, S, L, C, skip_first_frame=False,
-                                          capture_index=3), a)
+    write_ti_cascade(tmp_path, a, part=3)
+    write_ti_cascade(tmp_path, b, part=1)
+    assert find_cascade_parts(tmp_path) == [1, 3]
+    # parts 0000 and 0002 are missing: reading "everything" would silently drop their frames
+    with pytest.raises(CaptureError, match=r"master_0000_data.bin: part 0000 missing.*parts "
+                       r"found: 0001, 0003.*part=N.*found no file, expected parts 0000 to 0003"):
+        read_ti_cascade(tmp_path, S, L, C)
+    with pytest.warns(UserWarning, match=r"part 0001 cannot be numbered.*master_0000_data.bin"):
+        cap = TICascadeCapture(tmp_path, S, L, C, part=1)
+    # not the recording's first frame (parts before it exist): nothing skipped, numbered locally
+    assert np.array_equal(cap.read(), b) and cap.frame_numbers.tolist() == [0, 1, 2]
+    with pytest.warns(UserWarning, match="cannot be numbered"):
+        assert np.array_equal(read_ti_cascade(tmp_path, S, L, C, part=3), a)
     with pytest.raises(CaptureError, match="master_0002_data.bin"):
-        read_ti_cascade(tmp_path, S, L, C, capture_index=2)
+        read_ti_cascade(tmp_path, S, L, C, part=2)
 
 
 def test_cascade_missing_slave_file(cascade):
@@ -425,3 +436,48 @@ def test_recording_reads_one_frame_without_loading_the_capture(tmp_path):
     assert frame.shape == (64, 12, 16, 256) and not frame.any()
     assert src.n_frames == 99
     assert peak < 2 * frame_bytes  # one frame plus temporaries; the capture is 100 frames
+
+
+def test_open_recording_gives_a_frame_source_for_every_kind(tmp_path, rng):
+    cascade_cube = random_codes(rng, (3, L, C, 16, S))
+    write_ti_cascade(tmp_path / "cas", cascade_cube)
+    dca_radar = small_profile(n_tx=2, n_rx=4, tx_order=[0, 1], array="ula")
+    dca_cube = random_codes(rng, (2, L, 2, 4, S))
+    write_dca1000(tmp_path / "adc_data.bin", dca_cube)
+    npy_cube = random_codes(rng, (1, L, 2, 4, S))
+    stored = npy_cube.reshape(L, 8, S).astype(np.complex128)
+    np.save(tmp_path / "a.npy", np.where(stored.real < 0, stored.real + 65536, stored.real)
+            + 1j * np.where(stored.imag < 0, stored.imag + 65536, stored.imag))
+    opened = {
+        "ti_cascade": (open_recording("ti_cascade", tmp_path / "cas", small_profile(),
+                                      skip_first_frame=False), cascade_cube, TICascadeRecording),
+        "dca1000": (open_recording("dca1000", tmp_path / "adc_data.bin", dca_radar), dca_cube,
+                    DCA1000Recording),
+        "openradar_npy": (open_recording("openradar_npy", tmp_path / "a.npy", dca_radar),
+                          npy_cube, OpenRadarRecording),
+    }
+    assert set(opened) == set(RECORDING_KINDS)
+    for kind, (src, cube, cls) in opened.items():
+        assert isinstance(src, cls) and isinstance(src, FrameSource), kind
+        assert len(src) == src.n_frames == len(cube) == len(src.times_s), kind
+        assert np.array_equal(np.stack(list(src)), cube), kind
+        assert np.array_equal(src.frame(-1), cube[-1]), kind
+    with pytest.raises(ValueError, match=r"kind 'bag' unknown.*ti_cascade"):
+        open_recording("bag", tmp_path / "a.npy", dca_radar)
+
+
+def test_failed_write_keeps_the_previous_file_and_leaves_no_temporaries(tmp_path, rng):
+    cube = random_codes(rng, (2, L, 2, 4, S))
+    path = write_dca1000(tmp_path / "adc_data.bin", cube)
+    before = path.read_bytes()
+    bad = cube.astype(np.complex128)
+    bad[1, 0, 0, 0, 0] = 0.5
+    with pytest.raises(CaptureError, match="cube frame 1.*not integer"):
+        write_dca1000(path, bad)
+    assert path.read_bytes() == before and os.listdir(tmp_path) == ["adc_data.bin"]
+    write_ti_cascade(tmp_path / "cas", random_codes(rng, (2, L, C, 16, S)))
+    files = sorted(os.listdir(tmp_path / "cas"))
+    with pytest.raises(ValueError, match="frame 1 has shape"):
+        write_ti_cascade(tmp_path / "cas", [random_codes(rng, (L, C, 16, S)),
+                                            random_codes(rng, (L, C, 16, S + 2))])
+    assert sorted(os.listdir(tmp_path / "cas")) == files

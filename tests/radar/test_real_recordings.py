@@ -8,7 +8,7 @@ leakage and DC offset live there), not with the project's DSP code.
 
 For the DCA1000 file the same bytes are also read in the other plausible ways (I/Q pairs, I and
 Q swapped, TI's four-lane order, TX slot slowest): each fails at least one measure by a wide
-margin, which is what fixes the layout documented in :mod:`blindspot.radar.capture`.
+margin, which is what fixes the layout documented in :mod:`blindspot.radar.capture.dca1000`.
 """
 
 from __future__ import annotations

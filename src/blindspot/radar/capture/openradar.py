@@ -1,0 +1,74 @@
+"""OpenRadar example recordings (``.npy``): complex arrays of ADC codes.
+
+The PreSense OpenRadar examples hold complex128 arrays whose real and imaginary parts are
+*unsigned* 16-bit codes (0..65535) stored as floats; :func:`read_openradar_npy` reinterprets them
+as two's-complement int16 (``v - 65536`` where ``v > 32767``). The file is small and holds no
+frame structure of its own, so :class:`OpenRadarRecording` loads it whole and serves it as one
+frame of ``(chirps, tx, rx, samples)``.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+
+from blindspot.radar.capture.common import CaptureError
+from blindspot.radar.config import RadarConfig
+from blindspot.radar.source import ArrayRecording
+
+__all__ = ["OpenRadarRecording", "read_openradar_npy"]
+
+
+def read_openradar_npy(path: str | os.PathLike, *, n_tx: int | None = None,
+                       unsigned: bool = True) -> np.ndarray:
+    """Read an OpenRadar example ``.npy`` as complex64 int16 codes.
+
+    unsigned : the file holds unsigned 16-bit codes in floats (the PreSense examples do); they
+        are reinterpreted as two's-complement int16. With False the values must already be in
+        the int16 range.
+    n_tx : if given and the array is (chirps, n_tx * n_rx, samples), return the cube
+        (1, chirps, n_tx, n_rx, samples) (virtual channels TX-major, as the examples store them).
+
+    Returns the stored shape, e.g. (chirps, samples) or (chirps, channels, samples), unless
+    ``n_tx`` reshapes it. Raises :class:`CaptureError` (file, what was found, what was expected)
+    for a missing file, a real array, values that are not integer codes or lie outside the code
+    range, or channels that do not split into ``n_tx`` TX.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise CaptureError(path, "OpenRadar .npy file not found")
+    a = np.load(path, allow_pickle=False)
+    if not np.iscomplexobj(a):
+        raise CaptureError(path, "expected a complex array", str(a.dtype), "complex I + jQ")
+    iq = np.stack([a.real, a.imag], axis=-1)
+    if not np.all(np.isfinite(iq)) or not np.array_equal(iq, np.rint(iq)):
+        raise CaptureError(path, "values are not integer ADC codes", "fractional or NaN values",
+                           "integers")
+    lo, hi = (0, 65535) if unsigned else (-32768, 32767)
+    if iq.size and (iq.min() < lo or iq.max() > hi):
+        raise CaptureError(path, "values outside the code range", f"[{iq.min():g}, {iq.max():g}]",
+                           f"[{lo}, {hi}]" + (" (unsigned codes; pass unsigned=False for signed)"
+                                              if unsigned else ""))
+    codes = iq.astype(np.int64)
+    if unsigned:
+        codes = np.where(codes > 32767, codes - 65536, codes)
+    z = (codes[..., 0] + 1j * codes[..., 1]).astype(np.complex64)
+    if n_tx is None:
+        return z
+    if z.ndim != 3 or z.shape[1] % n_tx:
+        raise CaptureError(path, f"cannot split channels into {n_tx} TX", str(z.shape),
+                           f"(chirps, {n_tx} * n_rx, samples)")
+    c, v, s = z.shape
+    return z.reshape(1, c, n_tx, v // n_tx, s)
+
+
+class OpenRadarRecording(ArrayRecording):
+    """An OpenRadar ``.npy`` (chirps, n_tx * n_rx, samples) as a frame source of one frame
+    (chirps, tx, rx, samples), channels split TX-major with ``radar.n_tx``; the frame shape must
+    match ``radar`` (``ValueError`` naming the file)."""
+
+    def __init__(self, path: str | os.PathLike, radar: RadarConfig, *, unsigned: bool = True):
+        super().__init__(read_openradar_npy(path, n_tx=radar.n_tx, unsigned=unsigned), radar,
+                         str(path))

@@ -1,0 +1,33 @@
+"""Open a recording on disk by its kind: one frame source per capture format."""
+
+from __future__ import annotations
+
+import os
+from typing import Any
+
+from blindspot.radar.capture.dca1000 import DCA1000Recording
+from blindspot.radar.capture.openradar import OpenRadarRecording
+from blindspot.radar.capture.ti_cascade import TICascadeRecording
+from blindspot.radar.config import RadarConfig
+from blindspot.radar.source import FrameSource
+
+__all__ = ["RECORDING_KINDS", "open_recording"]
+
+_RECORDINGS: dict[str, type] = {
+    "ti_cascade": TICascadeRecording,
+    "dca1000": DCA1000Recording,
+    "openradar_npy": OpenRadarRecording,
+}
+RECORDING_KINDS: tuple[str, ...] = tuple(_RECORDINGS)
+
+
+def open_recording(kind: str, path: str | os.PathLike, radar: RadarConfig,
+                   **options: Any) -> FrameSource:
+    """A recording on disk as a frame source: ``kind`` in :data:`RECORDING_KINDS`.
+
+    ``options`` go to the format's recording class as keywords (e.g. ``layout`` for
+    ``dca1000``). Raises ``ValueError`` for an unknown kind; the format's errors otherwise.
+    """
+    if kind not in _RECORDINGS:
+        raise ValueError(f"recording kind {kind!r} unknown: expected one of {RECORDING_KINDS}")
+    return _RECORDINGS[kind](path, radar, **options)
