@@ -1,7 +1,7 @@
 """Speed of the detection chain on one frame.
 
-    python -m blindspot.bench.dsp [--frame FILE.npz] [--threads N] [--json]
-                                  [--repeats 50] [--set detect.max_range_m=30 ...]
+    python -m blindspot.bench.dsp [--frame FILE.npz] [--threads N] [--json] [--batch N]
+                                  [--repeats 50] [--set detect.max_range_m=null ...]
 
 Runs the whole chain (range and Doppler FFTs, channel-summed map, CFAR, MUSIC for up to
 ``detect.max_detections`` detections, points) with the MMWCAS profile and the paper's config
@@ -17,7 +17,12 @@ are; the paper CFAR's dB-domain scale needs those units).
 
 ``--threads N`` pins every thread pool to N threads: the OpenMP/BLAS environment variables are set
 before numpy is first imported, threadpoolctl limits the already-loaded BLAS/OpenMP libraries,
-scipy.fft gets ``workers=N`` and torch (if loaded) ``set_num_threads(N)``.
+the FFTs get ``workers=N`` and torch ``set_num_threads(N)``. ``--batch N`` also times
+``DetectionChain.process_batch`` on N copies of the frame (frames/s of a batch).
+
+The configuration is composed from conf/ through Hydra exactly as the stages compose it
+(:func:`blindspot.config.compose`), with the radar in 16-bit ADC codes; ``--set`` takes any
+Hydra override.
 """
 
 from __future__ import annotations
@@ -54,67 +59,25 @@ from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-REPO_ROOT = Path(__file__).resolve().parents[3]
-CONF = REPO_ROOT / "conf"
+def load_configs(overrides: list[str]):
+    """The composed experiment config (conf/ through Hydra, exactly as the stages compose it)
+    with the paper's radar in 16-bit ADC codes and the user's ``--set`` overrides (any Hydra
+    override: ``detect.max_range_m=null``, ``cfar=ca_pfa``, ``doa=capon``)."""
+    from blindspot.config import compose
+
+    return compose(["radar.adc_bits=16", *overrides])
 
 
-def _load_yaml(path: Path) -> dict:
-    from omegaconf import OmegaConf
-
-    if not path.is_file():
-        raise FileNotFoundError(f"config file {path} not found (run from a blindspot checkout)")
-    return OmegaConf.to_container(OmegaConf.load(path), resolve=True)  # type: ignore[return-value]
-
-
-def load_configs(overrides: list[str]) -> dict[str, dict]:
-    """radar / cfar / doa / detect mappings: the paper profiles plus ``group.key=value``
-    overrides (values parsed as YAML)."""
-    import yaml
-
-    cfg = {
-        "radar": _load_yaml(CONF / "radar" / "mmwcas.yaml"),
-        "cfar": _load_yaml(CONF / "cfar" / "paper.yaml"),
-        "doa": _load_yaml(CONF / "doa" / "music.yaml"),
-        "detect": _load_yaml(CONF / "detect" / "paper.yaml"),
-    }
-    for item in overrides:
-        key, sep, value = item.partition("=")
-        group, _, name = key.partition(".")
-        if not sep or group not in cfg or not name:
-            raise SystemExit(f"--set expects group.key=value with group in {sorted(cfg)}, got {item!r}")
-        cfg[group][name] = yaml.safe_load(value)
-    return cfg
-
-
-def simulated_frame(radar, scene_name: str = "straight_car", index: int = 3):
+def simulated_frame(cfg, radar, scene_name: str = "straight_car", index: int = 3):
     """One frame of a paper scene from the simulator (returns cube, label)."""
     from blindspot.radar.scene import load_scenes
     from blindspot.radar.simulator import SimulatedSource
 
-    scenes = load_scenes(_load_yaml(CONF / "scene" / "paper.yaml"))
+    scenes = load_scenes(cfg.scene, where="scene")
+    if scene_name not in scenes:
+        raise SystemExit(f"--scene {scene_name!r}: expected one of {list(scenes)}")
     src = SimulatedSource(scenes[scene_name], radar)
     return src.frame(index), f"simulated paper scene '{scene_name}' frame {index}"
-
-
-def synthetic_frame(radar, array, seed: int = 0):
-    """Fallback when no simulator is available: ideal point targets (two static car points at 5 m
-    and 8.5 m, a pedestrian at 12 m moving at -0.7 m/s) plus white noise. Clearly not physics."""
-    from blindspot.radar.config import SPEED_OF_LIGHT
-
-    c = np.arange(radar.n_chirps)[:, None, None, None]
-    t = np.arange(radar.n_tx)[None, :, None, None]
-    s = np.arange(radar.n_samples)[None, None, None, :]
-    p = (array.virtual_pos[..., 0] * array.spacing_wl)[None, :, :, None]
-    rng = np.random.default_rng(seed)
-    shape = (radar.n_chirps, radar.n_tx, radar.n_rx, radar.n_samples)
-    cube = 30 * (rng.standard_normal(shape) + 1j * rng.standard_normal(shape))
-    for r_m, v, ang, amp in ((5.0, 0.0, 17.0, 3e4), (8.5, 0.0, 10.0, 1e4), (12.5, -0.7, 36.0, 500)):
-        fb = 2 * radar.slope_hz_per_s * r_m / SPEED_OF_LIGHT
-        fd = 2 * v / radar.wavelength_m
-        ph = (fb * s / radar.adc_rate_hz + fd * (c * radar.loop_period_s + t * radar.chirp_period_s)
-              + p * np.sin(np.radians(ang)))
-        cube = cube + amp * np.exp(2j * np.pi * ph)
-    return cube.astype(np.complex64), "SYNTHETIC point targets (no simulator available)"
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -125,13 +88,18 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--json", action="store_true", help="last stdout line is a JSON summary")
     ap.add_argument("--repeats", type=int, default=50)
     ap.add_argument("--warmup", type=int, default=5)
+    ap.add_argument("--batch", type=int, default=0, metavar="N",
+                    help="also time process_batch on N copies of the frame (frames/s of a batch)")
     ap.add_argument("--scene", default="straight_car")
     ap.add_argument("--frame-index", type=int, default=3)
     ap.add_argument("--set", dest="overrides", action="append", default=[],
-                    metavar="GROUP.KEY=VALUE", help="override a config key (radar/cfar/doa/detect)")
+                    metavar="KEY=VALUE", help="a Hydra override of conf/ (e.g. "
+                    "detect.max_range_m=null for the full 256-bin range, cfar=ca_pfa)")
     args = ap.parse_args(argv)
     if args.threads is not None and args.threads < 1:
         ap.error("--threads must be >= 1")
+    if args.batch < 0 or args.repeats < 1 or args.warmup < 0:
+        ap.error("--batch and --warmup must be >= 0, --repeats >= 1")
 
     from contextlib import nullcontext
 
@@ -143,20 +111,25 @@ def main(argv: list[str] | None = None) -> int:
         from threadpoolctl import threadpool_limits
 
         limiter = threadpool_limits(limits=args.threads)
-        if "torch" in sys.modules:
-            sys.modules["torch"].set_num_threads(args.threads)
-        pinned = f"{args.threads} thread(s): env vars + threadpoolctl + scipy.fft workers"
+        import torch
+
+        torch.set_num_threads(args.threads)
+        pinned = f"{args.threads} thread(s): env vars + threadpoolctl + FFT workers + torch"
+
+    from hydra.errors import HydraException
 
     from blindspot.dsp.chain import DetectionChain
     from blindspot.radar.array import array_for
     from blindspot.radar.config import RadarConfig
 
-    cfg = load_configs(args.overrides)
+    overrides = list(args.overrides)
     if args.threads is not None:
-        cfg["detect"]["workers"] = args.threads
-    if args.frame is None and cfg["radar"].get("adc_bits") is None:
-        cfg["radar"]["adc_bits"] = 16  # simulated frames in ADC codes, like captures
-    radar = RadarConfig.from_mapping(cfg["radar"])
+        overrides.append(f"detect.workers={args.threads}")
+    try:
+        cfg = load_configs(overrides)
+    except HydraException as exc:
+        raise SystemExit(f"--set: {exc}") from None
+    radar = RadarConfig.from_mapping(cfg.radar, where="radar")
     array = array_for(radar)
     if args.frame is not None:
         with np.load(args.frame) as z:
@@ -170,12 +143,9 @@ def main(argv: list[str] | None = None) -> int:
         cube = cube.astype(np.complex64, copy=False)
         label = str(args.frame)
     else:
-        try:
-            cube, label = simulated_frame(radar, args.scene, args.frame_index)
-        except ImportError:
-            cube, label = synthetic_frame(radar, array)
+        cube, label = simulated_frame(cfg, radar, args.scene, args.frame_index)
 
-    chain = DetectionChain.from_config(radar, array, cfg["cfar"], cfg["doa"], cfg["detect"])
+    chain = DetectionChain.from_config(radar, array, cfg.cfar, cfg.doa, cfg.detect)
     with limiter:
         for _ in range(args.warmup):
             res = chain.process(cube)
@@ -186,6 +156,16 @@ def main(argv: list[str] | None = None) -> int:
             walls.append((time.perf_counter() - t0) * 1e3)
             cpus.append((time.thread_time() - c0) * 1e3)
             steps.append(res.timings_ms)
+        batch_fps = None
+        if args.batch:
+            cubes = np.broadcast_to(cube, (args.batch,) + cube.shape).copy()
+            chain.process_batch(cubes)
+            batch_walls = []
+            for _ in range(max(1, min(args.repeats, 5))):
+                t0 = time.perf_counter()
+                chain.process_batch(cubes)
+                batch_walls.append(time.perf_counter() - t0)
+            batch_fps = args.batch / float(np.median(batch_walls))
     med = {k: float(np.median([s[k] for s in steps])) for k in steps[0]}
     total = float(np.median(walls))
     cpu = float(np.median(cpus))
@@ -201,10 +181,15 @@ def main(argv: list[str] | None = None) -> int:
     print(f"  {'total':<14s} {total:8.3f} ms  ({1e3 / total:9.1f} frames/s)")
     print(f"  {'total CPU':<14s} {cpu:8.3f} ms  ({1e3 / cpu:9.1f} frames/s of this thread's CPU "
           "time; less sensitive to other load on the machine)")
+    if batch_fps is not None:
+        print(f"  batch of {args.batch:<5d} {1e3 / batch_fps:8.3f} ms per frame "
+              f"({batch_fps:9.1f} frames/s)")
     if args.json:
         print(json.dumps({"fps": 1e3 / total, "ms_per_frame": total, "steps": med,
-                          "n_detections": n_det, "n_music": n_doa, "cpu_ms_per_frame": cpu, "frame": label,
-                          "threads": args.threads, "n_range_bins": int(chain.range_axis_m.size)}))
+                          "n_detections": n_det, "n_music": n_doa, "cpu_ms_per_frame": cpu,
+                          "frame": label, "threads": args.threads,
+                          "n_range_bins": int(chain.range_axis_m.size),
+                          "batch": args.batch or None, "batch_fps": batch_fps}))
     return 0
 
 
