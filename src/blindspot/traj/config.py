@@ -15,11 +15,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from blindspot.traj.ethucy import FOLDS as ETHUCY_FOLDS
 from blindspot.traj.interpolation import METHODS as INTERPOLATION_METHODS
 from blindspot.typed_config import ConfigError, TypedConfig, setting
 
 __all__ = [
-    "ACTIVATIONS", "DatasetConfig", "EvalConfig", "KalmanConfig", "LSTMConfig", "OPTIMIZERS",
+    "ACTIVATIONS", "DatasetConfig", "ETHUCY_MODELS", "EthUcyConfig", "EvalConfig", "KalmanConfig", "LSTMConfig", "OPTIMIZERS",
     "PREDICTION_METHODS", "PathSpec", "SCHEDULES", "SplitConfig", "TARGETS", "TrainConfig",
 ]
 
@@ -28,6 +29,7 @@ TARGETS: tuple[str, ...] = ("displacement", "absolute")
 OPTIMIZERS: tuple[str, ...] = ("adam", "adamw")
 SCHEDULES: tuple[str, ...] = ("constant", "cosine")
 PREDICTION_METHODS: tuple[str, ...] = ("lstm", "constant_velocity", "kalman")
+ETHUCY_MODELS: tuple[str, ...] = ("cvm", "kalman", "lstm")
 
 
 # ----------------------------------------------------------------------------- dataset
@@ -233,3 +235,26 @@ class EvalConfig(TypedConfig):
     kalman: KalmanConfig = setting()
     fig06_scene: str = setting()
     fig06_frame: int = setting(ge=0)
+
+
+@dataclass(frozen=True)
+class EthUcyConfig(TypedConfig):
+    """The Hydra group ``ethucy`` (conf/ethucy/standard.yaml): the ETH/UCY benchmark.
+
+    Attributes:
+        data: folder of the ETH/UCY files, relative to ``paths.shared_dir`` (or absolute).
+        models: predictors to score, from :data:`ETHUCY_MODELS`.
+        folds: leave-one-scene-out folds, from :data:`blindspot.traj.ethucy.FOLDS`.
+        epochs: LSTM training epochs per fold.
+        ensemble: LSTM seeds per fold (the best on validation ADE is kept).
+        threads: torch threads.
+    """
+
+    GROUP = "ethucy"
+
+    data: str = setting()
+    models: tuple[str, ...] = setting(choices=ETHUCY_MODELS, min_items=1)
+    folds: tuple[str, ...] = setting(choices=ETHUCY_FOLDS, min_items=1)
+    epochs: int = setting(ge=1)
+    ensemble: int = setting(ge=1)
+    threads: int = setting(ge=1)
