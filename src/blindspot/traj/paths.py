@@ -31,6 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from blindspot.traj.config import PathSpec
+from blindspot.typed_config import ConfigError
 
 MOTIONS: tuple[str, ...] = ("approaching", "receding", "perpendicular")
 
@@ -162,7 +163,7 @@ def random_path_set(n_paths: int, spec: PathSpec | None = None, seed: int = 0, *
     """
     spec = spec or PathSpec()
     if int(n_paths) != n_paths or n_paths < 0:
-        raise PathConfigError("n_paths", n_paths, "an integer >= 0")
+        raise ConfigError("n_paths", n_paths, "an integer >= 0")
     rng = np.random.default_rng(seed)
     w = np.asarray(spec.motion_weights)
     per_class = rng.multinomial(int(n_paths), w / w.sum())
