@@ -135,6 +135,18 @@ def test_cross_field_rule_and_direct_construction():
         Toy.from_mapping({**GOOD, "count": 0}, where="other")
 
 
+def test_require_all_makes_defaults_code_only():
+    @dataclass(frozen=True)
+    class Strict(Inner):
+        REQUIRE_ALL = True
+
+    assert Inner.from_mapping({"size": [1, 2]}).band == (0.0, 1.0)
+    assert Strict(size=(1, 2)).band == (0.0, 1.0)  # built in code, the default holds
+    with pytest.raises(ConfigError) as err:
+        Strict.from_mapping({"size": [1, 2]}, where="g")
+    assert err.value.key == "g.band" and "required" in err.value.allowed
+
+
 def test_not_a_mapping():
     with pytest.raises(ConfigError) as err:
         Toy.from_mapping([1, 2])

@@ -114,10 +114,13 @@ class TypedConfig:
         GROUP: the config key used in errors when ``from_mapping`` gets no ``where``.
         IGNORED: keys of the group that this class does not read (e.g. ``name``); any other
             unknown key is an error.
+        REQUIRE_ALL: every key must be in the group, even those with a default (for a class
+            whose defaults serve code and tests while conf/ is the source of truth).
     """
 
     GROUP: ClassVar[str] = ""
     IGNORED: ClassVar[tuple[str, ...]] = ()
+    REQUIRE_ALL: ClassVar[bool] = False
 
     def __post_init__(self) -> None:
         hints = _hints(type(self))
@@ -178,11 +181,12 @@ def _build(cls: type, mapping: Any) -> Any:
         if key not in fields and key not in ignored:
             raise ConfigError(str(key), m[key], f"one of the keys {sorted(fields)}")
     hints = _hints(cls)
+    require_all = getattr(cls, "REQUIRE_ALL", False)
     kwargs = {}
     for name, f in fields.items():
         if name in m:
             kwargs[name] = m[name]
-        elif f.default is MISSING and f.default_factory is MISSING:
+        elif require_all or (f.default is MISSING and f.default_factory is MISSING):
             raise ConfigError(name, None, _describe(hints[name], _rule(f)) + " (the key is required)")
     return cls(**kwargs)
 

@@ -57,9 +57,10 @@ import numpy as np
 from scipy.linalg import blas
 
 from blindspot.radar.array import VirtualArray, array_for
-from blindspot.radar.config import SPEED_OF_LIGHT, ConfigError, RadarConfig, SimConfig
+from blindspot.radar.config import SPEED_OF_LIGHT, RadarConfig, SimConfig
 from blindspot.radar.radar_equation import received_power_w
 from blindspot.radar.scene import Scene, SceneConfig
+from blindspot.typed_config import ConfigError
 
 _TWO_PI = 2.0 * np.pi
 

@@ -121,9 +121,13 @@ class DatasetConfig(PathSpec):
         target: a window's response: the next "measured" point or the "truth".
         split: windows per split (train / val / test).
         seed: seed of the path draws.
+
+    Every key is required here (conf/dataset/ is the source of truth; the :class:`PathSpec`
+    defaults are only for code that draws paths without the experiment's config).
     """
 
     GROUP = "dataset"
+    REQUIRE_ALL = True
 
     n_paths: int = setting(ge=1, kw_only=True)
     window: int = setting(ge=1, kw_only=True)
