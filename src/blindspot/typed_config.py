@@ -252,6 +252,8 @@ def _coerce_tuple(value: Any, tp: Any, rule: Rule, key: str) -> tuple:
     elem = items[0] if variable else None
     if variable and _is_config(elem) and isinstance(value, Mapping):
         # a mapping of named records: the key is each record's name
+        if len(value) < rule.min_items:
+            raise ConfigError(key, value, _describe(tp, rule))
         out = []
         for name, item in value.items():
             item = plain(item)
@@ -261,9 +263,6 @@ def _coerce_tuple(value: Any, tp: Any, rule: Rule, key: str) -> tuple:
                 out.append(_build(elem, {"name": str(name), **item}))
             except ConfigError as err:
                 raise err.under(f"{key}.{name}") from None
-        value = out
-        if len(out) < rule.min_items:
-            raise ConfigError(key, value, _describe(tp, rule))
         return tuple(out)
     if isinstance(value, (str, bytes, Mapping)) or not isinstance(value, (list, tuple)):
         raise ConfigError(key, value, _describe(tp, rule))
