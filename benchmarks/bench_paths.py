@@ -41,7 +41,9 @@ def main() -> None:
     from blindspot.synth.path_measurement import PedestrianModel, error_statistics, measure_paths
     from blindspot.radar.config import RadarConfig
     from blindspot.radar.scene import load_scenes
-    from blindspot.traj.paths import PathSpec, random_paths
+    from blindspot.config import compose
+    from blindspot.traj.config import DatasetConfig
+    from blindspot.traj.paths import random_paths
 
     if args.threads:
         import torch
@@ -54,9 +56,7 @@ def main() -> None:
     cfar = OmegaConf.load(conf / "cfar" / f"{args.cfar}.yaml")
     doa = OmegaConf.load(conf / "doa" / "music.yaml")
     detect = OmegaConf.load(conf / "detect" / "paper.yaml")
-    dataset = OmegaConf.to_container(OmegaConf.load(conf / "dataset" / "paper.yaml"), resolve=False)
-    dataset.pop("seed", None)
-    spec = PathSpec.from_mapping(dataset)
+    spec = DatasetConfig.from_mapping(compose(config_dir=conf).dataset).path_spec()
     scene = next(iter(load_scenes(OmegaConf.load(conf / "scene" / "paper.yaml")).values()))
     walker = PedestrianModel.from_scene(scene)
     paths = random_paths(args.paths, spec, seed=args.seed)

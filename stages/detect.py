@@ -8,7 +8,6 @@ turns the detections into points. The maps of one frame are kept for Fig. 6 (a-c
 
 import numpy as np
 import pandas as pd
-from omegaconf import OmegaConf
 
 from blindspot import experiment, tracking
 from blindspot.cli import main_stage
@@ -21,8 +20,8 @@ def run(cfg):
     fig_scene, fig_frame = cfg.eval.fig06_scene, int(cfg.eval.fig06_frame)
     if fig_scene not in scenes:
         raise ValueError(f"config key 'eval.fig06_scene' = {fig_scene!r}: expected one of {list(scenes)}")
-    plain = {k: OmegaConf.to_container(cfg[k], resolve=True) for k in ("cfar", "doa", "detect", "sim")}
-    results = detect_scenes(scenes, experiment.radar(cfg), **plain, keep=(fig_scene, fig_frame),
+    results = detect_scenes(scenes, experiment.radar(cfg), experiment.cfar(cfg), experiment.doa(cfg),
+                            experiment.detect(cfg), experiment.sim(cfg), keep=(fig_scene, fig_frame),
                             jobs=cfg.jobs, progress=cfg.progress)
     detections = pd.concat([r.detections for r in results], ignore_index=True)
     kept = next(r.kept_frame for r in results if r.kept_frame is not None)

@@ -11,7 +11,7 @@ from blindspot.config import shared_dir
 
 
 def run(cfg):
-    e = cfg.ethucy
+    e = experiment.ethucy(cfg)
     out = experiment.reports_path(cfg, "metrics", "ethucy.json")
     report = experiment.reports_path(cfg, "ethucy.md")
     argv = ["--data", str(shared_dir(cfg) / e.data), "--out", str(out), "--report", str(report),

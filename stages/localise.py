@@ -6,7 +6,6 @@ import pandas as pd
 
 from blindspot import experiment, tracking
 from blindspot.cli import main_stage
-from blindspot.dsp.config import DetectConfig
 from blindspot.dsp.points import frame_points
 from blindspot.io import write_json, write_parquet
 
@@ -34,7 +33,7 @@ def localisation_errors(points: pd.DataFrame, truth: pd.DataFrame) -> dict:
 
 
 def run(cfg):
-    detect = DetectConfig.from_mapping(cfg.detect)
+    detect = experiment.detect(cfg)
     detections = pd.read_parquet(experiment.data_path(cfg, "detect", "detections.parquet"))
     truth = pd.read_parquet(experiment.data_path(cfg, "simulate", "truth.parquet"))
     tables = []

@@ -12,19 +12,17 @@ from blindspot.cli import main_stage
 from blindspot.synth.path_dataset import measure_path_set, path_table
 from blindspot.synth.path_measurement import PedestrianModel
 from blindspot.io import write_parquet
-from blindspot.traj.paths import PathSpec, random_path_set
+from blindspot.traj.paths import random_path_set
 
 
 def run(cfg):
     radar = experiment.radar(cfg)
-    spec = PathSpec.from_mapping(cfg.dataset)
-    if not np.isclose(spec.frame_period_s, radar.frame_period_s):
-        raise ValueError(f"config key 'dataset.frame_period_s' = {spec.frame_period_s}: expected "
-                         f"the radar's frame period radar.frame_period_s = {radar.frame_period_s}")
-    paths = random_path_set(int(cfg.dataset.n_paths), spec, seed=int(cfg.dataset.seed))
+    dataset = experiment.dataset(cfg)
+    paths = random_path_set(dataset.n_paths, dataset.path_spec(), seed=dataset.seed)
     walker = PedestrianModel.from_scene(next(iter(experiment.scenes(cfg).values())))
-    measured = measure_path_set(paths, radar, cfg.cfar, cfg.doa, cfg.detect, pedestrian=walker,
-                                seed=int(cfg.dataset.seed), jobs=int(cfg.jobs),
+    measured = measure_path_set(paths, radar, experiment.cfar(cfg), experiment.doa(cfg),
+                                experiment.detect(cfg), pedestrian=walker,
+                                seed=dataset.seed, jobs=int(cfg.jobs),
                                 progress=bool(cfg.progress))
     table = path_table(paths, measured, radar.frame_period_s)
     write_parquet(experiment.data_path(cfg, "paths", "paths.parquet"), table)

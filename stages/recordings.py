@@ -16,6 +16,7 @@ from blindspot import experiment, tracking
 from blindspot.cli import main_stage
 from blindspot.config import shared_dir
 from blindspot.dsp.chain import DetectionChain
+from blindspot.dsp.config import CfarConfig, DetectConfig, DoaConfig
 from blindspot.io import atomic_open, write_json, write_parquet
 from blindspot.radar.array import array_for
 from blindspot.radar.capture import open_recording
@@ -30,12 +31,13 @@ def run(cfg):
         path = Path(rec.path)
         if not path.is_absolute():
             path = shared_dir(cfg) / path
-        radar = RadarConfig.from_mapping(rec.radar, where=f"recordings.{name}.radar")
+        where = f"recordings.{name}"
+        radar = RadarConfig.from_mapping(rec.radar, where=f"{where}.radar")
         source = open_recording(rec.kind, path, radar)
         # per-recording overrides of the chain's groups (e.g. a smaller array needs doa.subarray)
-        groups = {g: OmegaConf.merge(cfg[g], rec.get(g) or {}) for g in ("cfar", "doa", "detect")}
-        chain = DetectionChain.from_config(radar, array_for(radar), **{
-            f"cfg_{g}": c for g, c in groups.items()})
+        chain = DetectionChain.from_config(radar, array_for(radar), *(
+            kind.from_mapping(OmegaConf.merge(cfg[g], rec.get(g) or {}), where=f"{where}.{g}")
+            for g, kind in (("cfar", CfarConfig), ("doa", DoaConfig), ("detect", DetectConfig))))
         det, _ = chain.process_many(source, progress=cfg.progress)
         first = chain.process(source.frame(0), frame=0)
         out = experiment.data_path(cfg, "recordings", name)

@@ -39,7 +39,7 @@ def run(cfg):
     tracker.log_metrics({f"radar.{k}": v for k, v in radar.summary().items()})
     if cfg.simulate.write_captures:
         for name, sc in tqdm(scenes.items(), desc="captures", disable=not cfg.progress):
-            SimulatedSource.from_config(sc, radar, cfg.sim).write_ti_cascade(
+            SimulatedSource.from_config(sc, radar, experiment.sim(cfg)).write_ti_cascade(
                 experiment.data_path(cfg, "captures", name))
     print(f"simulate: {len(scenes)} scenes, {len(truth)} frames; hidden fraction "
           + ", ".join(f"{k} {v:.2f}" for k, v in hidden.items()))

@@ -2,8 +2,7 @@
 including the constant-velocity and Kalman baselines' one-step RMSE on the same windows."""
 
 import json
-
-from omegaconf import OmegaConf
+from dataclasses import asdict
 
 from blindspot import experiment, tracking
 from blindspot.cli import main_stage
@@ -15,9 +14,10 @@ BASELINES = {"constant_velocity": "constant velocity", "kalman": "Kalman (CV)"}
 
 def run(cfg):
     train = json.loads(experiment.reports_path(cfg, "metrics", "train.json").read_text())
-    counts = {**train["n_windows"], "window": int(cfg.model.window)}
+    model, training = experiment.model(cfg), experiment.training(cfg)
+    counts = {**train["n_windows"], "window": model.window}
     text = table1_lstm(
-        OmegaConf.to_container(cfg.model, resolve=True), OmegaConf.to_container(cfg.train, resolve=True),
+        asdict(model), asdict(training),
         counts, val_rmse_m=train["lstm"]["val"]["rmse_m"], test_rmse_m=train["lstm"]["test"]["rmse_m"],
         baselines={label: train[key]["val"]["rmse_m"] for key, label in BASELINES.items() if key in train})
     text += ("\nRMSE here is over both coordinates (root of the mean squared x and y error, metres), what "

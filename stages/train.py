@@ -5,14 +5,11 @@ every epoch under data/train/checkpoints (resume with train.resume=true). Valida
 RMSE are reported beside the constant-velocity and Kalman one-step errors on the same windows.
 """
 
-from omegaconf import OmegaConf
-
 from blindspot import experiment, tracking
 from blindspot.cli import main_stage
 from blindspot.io import write_json, write_text
 from blindspot.traj.baselines import ConstantVelocity
-from blindspot.traj.lstm import LSTMConfig
-from blindspot.traj.train import TrainConfig, evaluate, rmse_euclidean, rmse_per_coordinate, train_lstm
+from blindspot.traj.train import evaluate, rmse_euclidean, rmse_per_coordinate, train_lstm
 from blindspot.traj.windows import WindowSet
 
 
@@ -24,15 +21,14 @@ def baseline_rmse(predictor, ws: WindowSet) -> dict:
 def run(cfg):
     split = {s: WindowSet.load(experiment.data_path(cfg, "windows", f"{s}.parquet"))
              for s in ("train", "val", "test")}
-    model_cfg = LSTMConfig.from_mapping(
-        {k: v for k, v in OmegaConf.to_container(cfg.model).items() if k != "name"})
-    train_cfg = TrainConfig.from_mapping(OmegaConf.to_container(cfg.train))
+    model_cfg = experiment.model(cfg)
+    train_cfg = experiment.training(cfg)
     tracker = tracking.current()
     result = train_lstm(
         split["train"], split["val"], model_cfg, train_cfg,
         on_epoch=lambda epoch, m: tracker.log_metrics(m, step=epoch),
         checkpoint_dir=experiment.data_path(cfg, "train", "checkpoints"),
-        resume=bool(cfg.train.resume),
+        resume=train_cfg.resume,
         progress=bool(cfg.progress),
     )
     model_path = result.predictor.save(experiment.data_path(cfg, "train", "model.pt"))

@@ -12,22 +12,16 @@ SPLITS = ("train", "val", "test")
 
 
 def run(cfg):
-    d = cfg.dataset
-    if int(cfg.model.window) != int(d.window):
-        raise ValueError(f"config key 'model.window' = {cfg.model.window}: expected dataset.window = {d.window}")
+    d = experiment.dataset(cfg)
     table = pd.read_parquet(experiment.data_path(cfg, "paths", "paths.parquet"))
     truth, measured, _ = table_to_arrays(table)
-    if d.fill_gaps == "linear":
+    if d.fill_gaps == "linear":  # else "none" (DatasetConfig allows only these)
         measured = interpolate_gaps(measured)
-    elif d.fill_gaps != "none":
-        raise ValueError(f"config key 'dataset.fill_gaps' = {d.fill_gaps!r}: expected 'linear' or 'none'")
-    ws = make_windows(measured, int(d.window), int(d.stride))
+    ws = make_windows(measured, d.window, d.stride)
     if d.target == "truth":  # the true next position (known in simulation) instead of the measured one
-        ws = WindowSet(ws.x, truth[ws.path_id, ws.start + int(d.window)], ws.path_id, ws.start)
-    elif d.target != "measured":
-        raise ValueError(f"config key 'dataset.target' = {d.target!r}: expected 'measured' or 'truth'")
-    counts = [int(d.split[s]) for s in SPLITS]
-    parts = split_by_path(ws, counts, seed=int(d.seed))
+        ws = WindowSet(ws.x, truth[ws.path_id, ws.start + d.window], ws.path_id, ws.start)
+    counts = [getattr(d.split, s) for s in SPLITS]
+    parts = split_by_path(ws, counts, seed=d.seed)
     for name, part in zip(SPLITS, parts):
         part.save(experiment.data_path(cfg, "windows", f"{name}.parquet"))
     stats = {"windows_available": len(ws), **{f"n_{n}": len(p) for n, p in zip(SPLITS, parts)}}

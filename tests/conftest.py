@@ -14,3 +14,12 @@ def shared_dir() -> Path:
     if not (SHARED / "data").is_dir():
         pytest.skip(f"shared data folder not found at {SHARED} (set BLINDSPOT_SHARED)")
     return SHARED
+
+
+@pytest.fixture(scope="session")
+def composed_config():
+    """The real conf/ composed with the tiny run-size profile (``profile=tiny``), resolved:
+    what the stages see in the pipeline test. Treat it as read-only."""
+    from blindspot.config import compose
+
+    return compose(["profile=tiny"], config_dir=REPO_ROOT / "conf")

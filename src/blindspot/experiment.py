@@ -11,14 +11,62 @@ from typing import Any
 
 from omegaconf import DictConfig
 
+from blindspot.dsp.config import CfarConfig, DetectConfig, DoaConfig
 from blindspot.radar.array import VirtualArray, array_for
-from blindspot.radar.config import RadarConfig
+from blindspot.radar.config import RadarConfig, SimConfig
 from blindspot.radar.scene import SceneConfig, load_scenes
+from blindspot.traj.config import DatasetConfig, EthUcyConfig, EvalConfig, LSTMConfig, TrainConfig
 
 
+# One builder per config group: stages hand these typed objects to the library, never raw groups.
 def radar(cfg: DictConfig) -> RadarConfig:
     """The radar profile of ``cfg.radar``."""
-    return RadarConfig.from_mapping(cfg.radar, where="radar")
+    return RadarConfig.from_mapping(cfg.radar)
+
+
+def sim(cfg: DictConfig) -> SimConfig:
+    """The simulator settings of ``cfg.sim``."""
+    return SimConfig.from_mapping(cfg.sim)
+
+
+def cfar(cfg: DictConfig) -> CfarConfig:
+    """The CFAR settings of ``cfg.cfar``."""
+    return CfarConfig.from_mapping(cfg.cfar)
+
+
+def doa(cfg: DictConfig) -> DoaConfig:
+    """The angle-estimation settings of ``cfg.doa``."""
+    return DoaConfig.from_mapping(cfg.doa)
+
+
+def detect(cfg: DictConfig) -> DetectConfig:
+    """The detection-chain settings of ``cfg.detect``."""
+    return DetectConfig.from_mapping(cfg.detect)
+
+
+def dataset(cfg: DictConfig) -> DatasetConfig:
+    """The path data set and window settings of ``cfg.dataset``."""
+    return DatasetConfig.from_mapping(cfg.dataset)
+
+
+def model(cfg: DictConfig) -> LSTMConfig:
+    """The LSTM settings of ``cfg.model``."""
+    return LSTMConfig.from_mapping(cfg.model)
+
+
+def training(cfg: DictConfig) -> TrainConfig:
+    """The optimisation settings of ``cfg.train``."""
+    return TrainConfig.from_mapping(cfg.train)
+
+
+def ethucy(cfg: DictConfig) -> EthUcyConfig:
+    """The ETH/UCY benchmark settings of ``cfg.ethucy``."""
+    return EthUcyConfig.from_mapping(cfg.ethucy)
+
+
+def evaluation(cfg: DictConfig) -> EvalConfig:
+    """The interpolation / prediction / evaluation settings of ``cfg.eval``."""
+    return EvalConfig.from_mapping(cfg.eval)
 
 
 def array(cfg: DictConfig) -> VirtualArray:
@@ -27,7 +75,7 @@ def array(cfg: DictConfig) -> VirtualArray:
 
 def scenes(cfg: DictConfig) -> dict[str, SceneConfig]:
     """{name: SceneConfig} of ``cfg.scene`` in file order."""
-    return load_scenes(cfg.scene, where="scene")
+    return load_scenes(cfg.scene)
 
 
 def car_twin(name: str, all_scenes: dict[str, Any]) -> str | None:
@@ -62,7 +110,8 @@ def kalman(cfg: DictConfig):
     """The constant-velocity Kalman baseline of ``cfg.eval.kalman`` at the radar's frame period."""
     from blindspot.traj.baselines import KalmanCV
 
-    return KalmanCV(dt=float(cfg.radar.frame_period_s), **cfg.eval.kalman)
+    k = evaluation(cfg).kalman
+    return KalmanCV(dt=radar(cfg).frame_period_s, process_psd=k.process_psd, meas_std=k.meas_std)
 
 
 def save_report_figure(cfg: DictConfig, fig, name: str, **savefig_kwargs) -> Path:
@@ -79,13 +128,14 @@ def predictors(cfg: DictConfig, lstm=None) -> dict:
     """The prediction methods of ``cfg.eval.prediction_methods`` by name."""
     from blindspot.traj.baselines import ConstantVelocity
 
+    ev = evaluation(cfg)
     made = {
         "lstm": lstm,
-        "constant_velocity": ConstantVelocity(k=int(cfg.eval.cv_fit_points), name="constant_velocity"),
+        "constant_velocity": ConstantVelocity(k=ev.cv_fit_points, name="constant_velocity"),
         "kalman": kalman(cfg),
     }
     out = {}
-    for name in cfg.eval.prediction_methods:
+    for name in ev.prediction_methods:
         if name not in made or made[name] is None:
             raise ValueError(f"config key 'eval.prediction_methods' lists {name!r}: expected names "
                              f"from {sorted(k for k, v in made.items() if v is not None)}")

@@ -12,7 +12,8 @@ from omegaconf import OmegaConf
 
 from blindspot.dsp.chain import DetectionChain
 from blindspot.dsp.config import CfarConfig, DetectConfig, DoaConfig
-from blindspot.radar.config import ConfigError, RadarConfig
+from blindspot.radar.config import RadarConfig
+from blindspot.typed_config import ConfigError
 from tests.conftest import REPO_ROOT
 from tests.dsp._synth import mmwcas, tone_cube
 
@@ -103,21 +104,26 @@ def test_every_config_variant_finds_the_pedestrian(paper, cfar, doa):
 
 
 def test_config_errors_name_the_key():
+    ca_pfa, music, detect = group("cfar", "ca_pfa"), group("doa", "music"), group("detect", "paper")
     with pytest.raises(ConfigError, match="cfar.pfa"):
-        CfarConfig.from_mapping({"scale": 1.18, "pfa": 1e-3})
+        CfarConfig.from_mapping({**ca_pfa, "scale": 1.18, "pfa": 1e-3})
     with pytest.raises(ConfigError, match="cfar.domain"):
-        CfarConfig.from_mapping({"pfa": 1e-3, "domain": "db"})
+        CfarConfig.from_mapping({**ca_pfa, "pfa": 1e-3, "domain": "db"})
     with pytest.raises(ConfigError, match="cfar.guard"):
-        CfarConfig.from_mapping({"pfa": 1e-3, "guard": [1, -2]})
+        CfarConfig.from_mapping({**ca_pfa, "guard": [1, -2]})
+    with pytest.raises(ConfigError, match="cfar.rank"):
+        CfarConfig.from_mapping({k: v for k, v in ca_pfa.items() if k != "rank"})
     with pytest.raises(ConfigError, match="doa.methd"):
-        DoaConfig.from_mapping({"methd": "music"})
+        DoaConfig.from_mapping({**music, "methd": "music"})
     with pytest.raises(ConfigError, match="doa.grid_deg"):
-        DoaConfig.from_mapping({"grid_deg": [90, -90, 1]})
+        DoaConfig.from_mapping({**music, "grid_deg": [90, -90, 1]})
     with pytest.raises(ConfigError, match="detect.snapshots"):
-        DetectConfig.from_mapping({"snapshots": "frames"})
+        DetectConfig.from_mapping({**detect, "snapshots": "frames"})
     radar, array = mmwcas()
     with pytest.raises(ConfigError, match="doa.subarray"):
-        DetectionChain.from_config(radar, array, {"pfa": 1e-3}, {"subarray": 100}, {})
+        DetectionChain.from_config(radar, array, CfarConfig.from_mapping(ca_pfa),
+                                   DoaConfig.from_mapping({**music, "subarray": 100}),
+                                   DetectConfig.from_mapping(detect))
 
 
 def test_chirp_snapshot_mode(paper):

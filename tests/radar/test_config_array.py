@@ -7,7 +7,8 @@ import pytest
 from omegaconf import OmegaConf
 
 from blindspot.radar.array import mmwcas_array, ula_array, array_for
-from blindspot.radar.config import SPEED_OF_LIGHT, ConfigError, RadarConfig
+from blindspot.radar.config import SPEED_OF_LIGHT, RadarConfig
+from blindspot.typed_config import ConfigError
 from tests.conftest import REPO_ROOT
 
 MMWCAS = OmegaConf.to_container(OmegaConf.load(REPO_ROOT / "conf/radar/mmwcas.yaml"))

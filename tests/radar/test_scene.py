@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 from omegaconf import OmegaConf
 
-from blindspot.radar.config import ConfigError, RadarConfig
+from blindspot.radar.config import RadarConfig
+from blindspot.typed_config import ConfigError
 from blindspot.radar.occlusion import point_in_polygon
 from blindspot.radar.scene import TRUTH_COLUMNS, Scene, load_scenes, scene_truth
 from tests.conftest import REPO_ROOT

@@ -256,7 +256,7 @@ def test_write_ti_cascade_hook_round_trips_through_the_capture_reader(tmp_path):
 
 
 def test_from_config_reads_the_sim_group_and_rejects_unknown_keys():
-    from blindspot.radar.config import ConfigError
+    from blindspot.typed_config import ConfigError
 
     sim_cfg = OmegaConf.to_container(OmegaConf.load(REPO_ROOT / "conf/sim/default.yaml"))
     cfg = dataclasses.replace(SCENES["straight_nocar"], n_frames=1)

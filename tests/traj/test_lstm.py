@@ -5,9 +5,9 @@ import numpy as np
 import pytest
 import torch
 
+from blindspot.typed_config import ConfigError
 from blindspot.traj.lstm import (
     LSTMConfig,
-    LSTMConfigError,
     LSTMPredictor,
     LSTMRegressor,
     NormStats,
@@ -131,15 +131,15 @@ def test_clear_errors(call, match):
     ],
 )
 def test_config_errors(kwargs, key):
-    with pytest.raises(LSTMConfigError, match=key):
+    with pytest.raises(ConfigError, match=key):
         LSTMConfig(**kwargs)
 
 
 def test_config_from_mapping():
     assert LSTMConfig.from_mapping({"name": "lstm", "hidden_size": 16}).hidden_size == 16
-    with pytest.raises(LSTMConfigError, match=r"model\.hiden_size"):
+    with pytest.raises(ConfigError, match=r"model\.hiden_size"):
         LSTMConfig.from_mapping({"hiden_size": 16})
-    with pytest.raises(LSTMConfigError, match=r"model\.window"):
+    with pytest.raises(ConfigError, match=r"model\.window"):
         LSTMConfig.from_mapping({"window": 0})
 
 

@@ -4,9 +4,10 @@ classes, field of view, and the test noise model's statistics."""
 import numpy as np
 import pytest
 
+from blindspot.traj.config import DatasetConfig
+from blindspot.typed_config import ConfigError
 from blindspot.traj.paths import (
     MOTIONS,
-    PathConfigError,
     PathSpec,
     integrate_constant_turn,
     radar_like_noise,
@@ -95,17 +96,17 @@ def test_turn_rates_in_range(pathset):
     ],
 )
 def test_bad_spec_names_the_key(kwargs, key):
-    with pytest.raises(PathConfigError, match=key):
+    with pytest.raises(ConfigError, match=key):
         PathSpec(**kwargs)
 
 
 def test_from_mapping_prefixes_where_and_accepts_lists():
-    spec = PathSpec.from_mapping({"speed_mps": [0.6, 1.2], "window": 50, "points_per_path": 100})
+    spec = PathSpec.from_mapping({"speed_mps": [0.6, 1.2], "points_per_path": 100}, "dataset")
     assert spec.speed_mps == (0.6, 1.2) and spec.points_per_path == 100
-    with pytest.raises(PathConfigError, match=r"dataset\.turn_rate_deg_s"):
-        PathSpec.from_mapping({"turn_rate_deg_s": [3.0]})
-    with pytest.raises(PathConfigError, match=r"dataset\.speed_mp"):
-        PathSpec.from_mapping({"speed_mp": [0.5, 2.0]})
+    with pytest.raises(ConfigError, match=r"dataset\.turn_rate_deg_s"):
+        PathSpec.from_mapping({"turn_rate_deg_s": [3.0]}, "dataset")
+    with pytest.raises(ConfigError, match=r"dataset\.speed_mp"):
+        DatasetConfig.from_mapping({"speed_mp": [0.5, 2.0]})
 
 
 def test_impossible_field_of_view_raises():
@@ -141,42 +142,16 @@ def test_noise_model_statistics():
 
 
 def test_repo_dataset_config_builds_and_covers_the_splits():
-    from pathlib import Path
-
-    from omegaconf import OmegaConf
-
+    from blindspot.config import compose
     from blindspot.traj.windows import paths_needed
+    from tests.conftest import REPO_ROOT
 
-    path = Path(__file__).resolve().parents[2] / "conf" / "dataset" / "paper.yaml"
-    cfg = OmegaConf.to_container(OmegaConf.merge(OmegaConf.load(path), {"seed": 0}), resolve=True)
-    spec = PathSpec.from_mapping(cfg)
+    cfg = compose(config_dir=REPO_ROOT / "conf")  # the paper profile
+    spec = DatasetConfig.from_mapping(cfg.dataset)
     assert spec.points_per_path == 200 and spec.speed_mps == (0.5, 2.0)
-    split = cfg["split"]
-    assert (split["train"], split["val"], split["test"]) == (20000, 4000, 500)
-    counts = (split["train"], split["val"], split["test"])
-    need = paths_needed(counts, spec.points_per_path, cfg["window"], cfg["stride"])
-    assert cfg["n_paths"] >= need
-
-
-def test_sharp_turn_changes_heading_by_the_angle_and_keeps_speed():
-    from blindspot.traj.paths import add_sharp_turn, integrate_constant_turn
-
-    dt = 0.1
-    xy = integrate_constant_turn(np.zeros((1, 2)), np.array([1.2]), np.array([0.0]), np.array([0.0]), 60, dt)
-    out = add_sharp_turn(xy, np.array([2.0]), np.array([np.deg2rad(45.0)]), np.array([0.5]), dt)
-    steps = np.diff(out[0], axis=0)
-    np.testing.assert_allclose(np.hypot(*steps.T), 1.2 * dt, rtol=1e-12)   # speed kept
-    np.testing.assert_array_equal(out[0, :21], xy[0, :21])                  # unchanged before
-    heading = np.degrees(np.arctan2(steps[:, 0], steps[:, 1]))              # from +y towards +x
-    assert abs(heading[5]) < 1e-9 and abs(heading[-1] - 45.0) < 1e-9        # clockwise = towards +x
-
-
-def test_sharp_turn_share_follows_the_probability():
-    spec = PathSpec(sharp_turn_prob=0.5, start_range_m=(4.0, 20.0), max_range_m=28.0)
-    ps = random_path_set(400, spec, seed=1)
-    steps = np.diff(ps.xy, axis=1)
-    heading = np.unwrap(np.arctan2(steps[..., 0], steps[..., 1]), axis=1)
-    # beyond the gentle turn (at most 4 deg/s x 19.9 s = 80 deg) only sharp turns bend this much
-    bend = np.abs(np.degrees(heading[:, -1] - heading[:, 0]) - np.degrees(ps.turn_rate_rad_s) * 19.9)
-    share = np.mean(bend > 15.0)
-    assert 0.35 < share < 0.6, share
+    assert spec.frame_period_s == cfg.radar.frame_period_s
+    split = spec.split
+    assert (split.train, split.val, split.test) == (20000, 4000, 500)
+    need = paths_needed((split.train, split.val, split.test), spec.points_per_path, spec.window,
+                        spec.stride)
+    assert spec.n_paths >= need

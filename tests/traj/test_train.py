@@ -12,13 +12,13 @@ from blindspot.traj.train import (
     CHECKPOINT_NAME,
     HISTORY_COLUMNS,
     TrainConfig,
-    TrainConfigError,
     evaluate,
     rmse_euclidean,
     rmse_per_coordinate,
     train_lstm,
 )
 from blindspot.traj.windows import make_windows, split_by_path
+from blindspot.typed_config import ConfigError
 
 W = 10
 TINY = LSTMConfig(window=W, hidden_size=8, head_hidden=4)
@@ -154,27 +154,23 @@ def test_bad_input(small_data):
         train_lstm(bad, val, TINY, TrainConfig(epochs=1), progress=False)
     with pytest.raises(ValueError, match="checkpoint_dir"):
         train_lstm(train, val, TINY, TrainConfig(epochs=1), progress=False, resume=True)
-    with pytest.raises(TrainConfigError, match="lr"):
+    with pytest.raises(ConfigError, match="lr"):
         TrainConfig(lr=0)
-    with pytest.raises(TrainConfigError, match="lr_schedule"):
+    with pytest.raises(ConfigError, match="lr_schedule"):
         TrainConfig(lr_schedule="step")
-    with pytest.raises(TrainConfigError, match=r"train\.optimizer"):
+    with pytest.raises(ConfigError, match=r"train\.optimizer"):
         TrainConfig.from_mapping({"optimizer": "sgd"})
-    with pytest.raises(TrainConfigError, match=r"train\.epoch"):
+    with pytest.raises(ConfigError, match=r"train\.epoch"):
         TrainConfig.from_mapping({"epoch": 3})
 
 
 def test_repo_configs_build():
     """conf/model/lstm.yaml and conf/train/paper.yaml are valid and hold the paper's Table 1 values."""
-    from pathlib import Path
+    from blindspot.config import compose
+    from tests.conftest import REPO_ROOT
 
-    from omegaconf import OmegaConf
-
-    conf = Path(__file__).resolve().parents[2] / "conf"
-    model = OmegaConf.to_container(OmegaConf.load(conf / "model" / "lstm.yaml"), resolve=True)
-    train = OmegaConf.merge(OmegaConf.load(conf / "train" / "paper.yaml"), {"seed": 3})
-    train = OmegaConf.to_container(train, resolve=True)
-    mc = LSTMConfig.from_mapping(model)
-    tc = TrainConfig.from_mapping({k: v for k, v in train.items()})
+    cfg = compose(["seed=3"], config_dir=REPO_ROOT / "conf")  # the paper profile
+    mc = LSTMConfig.from_mapping(cfg.model)
+    tc = TrainConfig.from_mapping(cfg.train)
     assert (mc.window, mc.head_activation) == (50, "relu")
     assert (tc.lr, tc.epochs, tc.optimizer, tc.seed) == (0.001, 15, "adam", 3)

@@ -17,7 +17,8 @@ from functools import cached_property
 
 import numpy as np
 
-from blindspot.radar.config import ConfigError, RadarConfig
+from blindspot.radar.config import RadarConfig
+from blindspot.typed_config import ConfigError
 
 # TI MMWCAS-RF-EVM, positions in units of lambda/2 at 76.8 GHz (TI cascade reference code).
 # RX azimuth in file order: master RX1-4, slave1 RX5-8, slave2 RX9-12, slave3 RX13-16.

@@ -3,8 +3,9 @@
 ``RadarConfig`` holds what a TI chirp profile holds (start frequency, swept bandwidth, ramp and
 idle time, ADC rate, samples, chirp loops, TX firing order) plus the link-budget numbers the
 simulator needs (noise figure, TX power, antenna gains). Everything is SI. Build it from a Hydra
-node with :meth:`RadarConfig.from_mapping`, which validates every key and names the offending key,
-the value found and the allowed range in its error.
+node with ``RadarConfig.from_mapping(cfg.radar)`` (:mod:`blindspot.typed_config`), which validates
+every key and names the offending key, the value found and the allowed range in its error.
+:class:`SimConfig` is the ``sim`` group (simulator noise and ADC headroom).
 
 Conventions
 -----------
@@ -18,50 +19,55 @@ Conventions
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass
 from typing import Any
 
 import numpy as np
+
+from blindspot.typed_config import ConfigError, TypedConfig, setting
+
+__all__ = ["ARRAY_KINDS", "RadarConfig", "SimConfig", "SPEED_OF_LIGHT"]
 
 SPEED_OF_LIGHT = 299_792_458.0
 BOLTZMANN = 1.380_649e-23
 T0_KELVIN = 290.0
 
+# array kind -> (physical TX, physical RX) available
+ARRAY_KINDS: dict[str, tuple[int, int]] = {"mmwcas": (12, 16), "ula": (64, 64)}
 
-class ConfigError(ValueError):
-    """A configuration value is missing or outside its allowed range."""
-
-    def __init__(self, key: str, value: Any, allowed: str):
-        self.key, self.value, self.allowed = key, value, allowed
-        super().__init__(f"config key '{key}' = {value!r} is invalid: expected {allowed}")
+_DB = dict(ge=-50.0, le=100.0)
 
 
 @dataclass(frozen=True)
-class RadarConfig:
-    """An FMCW TDM-MIMO chirp profile (all SI units)."""
+class RadarConfig(TypedConfig):
+    """An FMCW TDM-MIMO chirp profile (all SI units); the Hydra group ``radar``.
 
-    name: str
-    start_freq_hz: float
-    bandwidth_hz: float
-    ramp_time_s: float
-    idle_time_s: float
-    adc_rate_hz: float
-    n_samples: int
-    n_chirps: int
-    n_tx: int
-    n_rx: int
-    tx_order: tuple[int, ...]
-    frame_period_s: float
-    noise_figure_db: float = 14.0
-    tx_power_dbm: float = 12.0
-    tx_gain_dbi: float = 10.0
-    rx_gain_dbi: float = 10.0
-    adc_bits: int | None = None
-    array: str = "ula"
-    rx_spacing_wl: float = 0.5
-    design_freq_hz: float | None = None
-    extra: dict = field(default_factory=dict, compare=False, repr=False)
+    ``tx_order`` (0-based TX indices in firing order) defaults to ``0 .. n_tx - 1``.
+    """
+
+    GROUP = "radar"
+
+    name: str = setting()
+    start_freq_hz: float = setting(gt=1e9, le=300e9)
+    bandwidth_hz: float = setting(gt=0.0, le=10e9)
+    ramp_time_s: float = setting(gt=0.0, le=1e-2)
+    idle_time_s: float = setting(ge=0.0, le=1e-2)
+    adc_rate_hz: float = setting(gt=0.0, le=1e9)
+    n_samples: int = setting(ge=1, le=1 << 16)
+    n_chirps: int = setting(ge=1, le=1 << 16)
+    n_tx: int = setting(ge=1, le=64)
+    n_rx: int = setting(ge=1, le=64)
+    frame_period_s: float = setting(gt=0.0, le=3600.0)
+    tx_order: tuple[int, ...] | None = setting(None, ge=0)
+    noise_figure_db: float = setting(14.0, **_DB)
+    tx_power_dbm: float = setting(12.0, **_DB)
+    tx_gain_dbi: float = setting(10.0, **_DB)
+    rx_gain_dbi: float = setting(10.0, **_DB)
+    adc_bits: int | None = setting(
+        None, ge=2, le=32, doc="null (no quantisation) or an integer number of bits in [2, 32]")
+    array: str = setting("ula", choices=tuple(ARRAY_KINDS))
+    rx_spacing_wl: float = setting(0.5, gt=0.0, le=1e3)
+    design_freq_hz: float | None = setting(None, gt=0.0, le=300e9)
 
     # ------------------------------------------------------------------ derived quantities
     @property
@@ -155,79 +161,26 @@ class RadarConfig:
 
     def to_dict(self) -> dict[str, Any]:
         d = asdict(self)
-        d.pop("extra")
         d["tx_order"] = list(self.tx_order)
         return d
 
-    # ------------------------------------------------------------------ construction
-    @classmethod
-    def from_mapping(cls, mapping: Mapping[str, Any], where: str = "radar") -> RadarConfig:
-        """Build and validate from a dict or OmegaConf node; ``where`` prefixes key names in errors."""
-        m = _plain(mapping)
-        known = {f for f in cls.__dataclass_fields__ if f != "extra"}
-        required = {
-            "start_freq_hz", "bandwidth_hz", "ramp_time_s", "idle_time_s", "adc_rate_hz",
-            "n_samples", "n_chirps", "n_tx", "n_rx", "frame_period_s",
-        }
-        for key in sorted(required):
-            if m.get(key) is None:
-                raise ConfigError(f"{where}.{key}", None, "a value (the key is required)")
-        kwargs: dict[str, Any] = {k: m[k] for k in known if k in m}
-        kwargs.setdefault("name", m.get("name", where))
-        if kwargs.get("tx_order") is None:
-            kwargs["tx_order"] = tuple(range(int(m["n_tx"])))
-        kwargs["tx_order"] = tuple(int(t) for t in kwargs["tx_order"])
-        kwargs["extra"] = {k: v for k, v in m.items() if k not in known}
-        cfg = cls(**kwargs)
-        cfg.validate(where)
-        return cfg
+    # ------------------------------------------------------------------ cross-field rules
+    def validate(self) -> None:
+        """Rules between keys (each key's own range is checked from its field)."""
+        if self.tx_order is None:
+            object.__setattr__(self, "tx_order", tuple(range(self.n_tx)))
 
-    def validate(self, where: str = "radar") -> None:
-        """Raise ConfigError for the first invalid value (naming key, value and allowed range)."""
         def check(key: str, ok: bool, allowed: str) -> None:
             if not ok:
-                raise ConfigError(f"{where}.{key}", getattr(self, key), allowed)
+                raise ConfigError(key, getattr(self, key), allowed)
 
-        def positive(key: str, lo: float = 0.0, hi: float = math.inf) -> None:
-            v = getattr(self, key)
-            ok = isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
-            check(key, ok and lo < v <= hi, f"a finite number in ({lo:g}, {hi:g}]")
-
-        def count(key: str, hi: int) -> None:
-            v = getattr(self, key)
-            check(key, isinstance(v, int) and not isinstance(v, bool) and 1 <= v <= hi,
-                  f"an integer in [1, {hi}]")
-
-        positive("start_freq_hz", 1e9, 300e9)
-        positive("bandwidth_hz", 0.0, 10e9)
-        positive("ramp_time_s", 0.0, 1e-2)
-        v = self.idle_time_s
-        check("idle_time_s", isinstance(v, (int, float)) and math.isfinite(v) and 0 <= v <= 1e-2,
-              "a finite number in [0, 0.01]")
-        positive("adc_rate_hz", 0.0, 1e9)
-        count("n_samples", 1 << 16)
-        count("n_chirps", 1 << 16)
-        count("n_tx", 64)
-        count("n_rx", 64)
-        positive("frame_period_s", 0.0, 3600.0)
-        for key in ("noise_figure_db", "tx_power_dbm", "tx_gain_dbi", "rx_gain_dbi"):
-            v = getattr(self, key)
-            check(key, isinstance(v, (int, float)) and math.isfinite(v) and -50 <= v <= 100,
-                  "a finite number of dB in [-50, 100]")
-        check("adc_bits", self.adc_bits is None or (isinstance(self.adc_bits, int)
-                                                    and 2 <= self.adc_bits <= 32),
-              "null (no quantisation) or an integer number of bits in [2, 32]")
-        check("rx_spacing_wl", math.isfinite(self.rx_spacing_wl) and self.rx_spacing_wl > 0,
-              "a positive element spacing in wavelengths")
-        check("array", self.array in ARRAY_KINDS, f"one of {sorted(ARRAY_KINDS)}")
         # Sampling must fit inside the ramp, or the swept bandwidth cannot be sampled.
         check("adc_rate_hz", self.sampling_time_s <= self.ramp_time_s * (1 + 1e-9),
               f"at least n_samples / ramp_time_s = {self.n_samples / self.ramp_time_s:.6g} Hz "
               f"so that {self.n_samples} samples fit in the {self.ramp_time_s * 1e6:g} us ramp "
               f"(sampling would take {self.sampling_time_s * 1e6:.4g} us)")
-        max_tx = ARRAY_KINDS[self.array][0]
+        max_tx, max_rx = ARRAY_KINDS[self.array]
         check("n_tx", self.n_tx <= max_tx, f"at most {max_tx} TX for array '{self.array}'")
-        max_rx = ARRAY_KINDS[self.array][1]
         check("n_rx", self.n_rx <= max_rx, f"at most {max_rx} RX for array '{self.array}'")
         order = self.tx_order
         check("tx_order", len(order) == self.n_tx and len(set(order)) == len(order)
@@ -238,18 +191,18 @@ class RadarConfig:
               f"(n_chirps * n_tx * (ramp + idle))")
 
 
-# array kind -> (physical TX, physical RX) available
-ARRAY_KINDS: dict[str, tuple[int, int]] = {"mmwcas": (12, 16), "ula": (64, 64)}
+@dataclass(frozen=True)
+class SimConfig(TypedConfig):
+    """The Hydra group ``sim``: FMCW simulator settings (the chirp profile, link budget and ADC
+    width live in :class:`RadarConfig`).
 
+    Attributes:
+        noise: add thermal noise k T0 F f_s per complex sample; false = noiseless cubes.
+        adc_headroom_db: with ``radar.adc_bits`` set, the ADC full scale above the per-component
+            noise RMS, dB.
+    """
 
-def _plain(mapping: Mapping[str, Any]) -> dict[str, Any]:
-    try:
-        from omegaconf import DictConfig, OmegaConf
+    GROUP = "sim"
 
-        if isinstance(mapping, DictConfig):
-            return dict(OmegaConf.to_container(mapping, resolve=True))  # type: ignore[arg-type]
-    except ImportError:  # pragma: no cover - omegaconf is a dependency
-        pass
-    if not isinstance(mapping, Mapping):
-        raise ConfigError("radar", mapping, "a mapping of radar profile keys")
-    return dict(mapping)
+    noise: bool = setting(True)
+    adc_headroom_db: float = setting(60.0, gt=0.0, lt=200.0)

@@ -40,7 +40,8 @@ from typing import Any, NamedTuple
 import numpy as np
 import pandas as pd
 
-from blindspot.radar.config import ConfigError, RadarConfig
+from blindspot.radar.config import RadarConfig
+from blindspot.typed_config import ConfigError, TypedConfig, setting
 from blindspot.radar.occlusion import segment_crosses_polygon
 
 TRUTH_COLUMNS = (
@@ -66,85 +67,106 @@ class Scatterers(NamedTuple):
 
 # ----------------------------------------------------------------------------- configuration
 @dataclass(frozen=True)
-class BodyPart:
+class BodyPart(TypedConfig):
     """One pedestrian scatterer: RCS, height, lateral offset (+ = walker's left), swing."""
 
-    name: str
-    rcs_dbsm: float
-    height_m: float
-    lateral_m: float = 0.0
-    swing_m: float = 0.0
-    phase_deg: float = 0.0
+    name: str = setting()
+    rcs_dbsm: float = setting(ge=-60.0, le=20.0)
+    height_m: float = setting(ge=0.0, le=3.0)
+    lateral_m: float = setting(0.0, ge=-2.0, le=2.0)
+    swing_m: float = setting(0.0, ge=0.0, le=2.0)
+    phase_deg: float = setting(0.0, ge=-360.0, le=360.0)
 
 
 @dataclass(frozen=True)
-class PedestrianConfig:
-    start_xy_m: tuple[float, float]
-    direction_xy: tuple[float, float]
-    speed_mps: float
-    turn_after_m: float
-    turn_deg: float
-    turn_radius_m: float
-    stride_length_m: float
-    parts: tuple[BodyPart, ...]
+class PedestrianConfig(TypedConfig):
+    """The walker: start, walking direction, speed, one turn, stride and body parts (given in
+    the config as a mapping ``{part name: {rcs_dbsm, height_m, ...}}``)."""
+
+    start_xy_m: tuple[float, float] = setting(doc="two finite numbers [x, y]")
+    direction_xy: tuple[float, float] = setting(nonzero=True, doc="two finite numbers [x, y] not both 0")
+    speed_mps: float = setting(ge=0.0, le=10.0)
+    turn_after_m: float = setting(ge=0.0, le=1e4)
+    turn_deg: float = setting(ge=-180.0, le=180.0)
+    stride_length_m: float = setting(ge=0.1, le=5.0)
+    parts: tuple[BodyPart, ...] = setting(min_items=1, doc="at least one body part")
+    turn_radius_m: float = setting(0.0, ge=0.0, le=100.0)
 
 
 @dataclass(frozen=True)
-class CarConfig:
-    center_xy_m: tuple[float, float]
-    length_m: float
-    width_m: float
-    yaw_deg: float
-    height_m: float
-    rcs_dbsm: float
-    face_spacing_m: float
-    bright_points: tuple[tuple[float, float, float], ...]  # (across_m, along_m, share)
+class BrightPoint(TypedConfig):
+    """A bright scatterer of the car, car-local (across +x, along +y at yaw 0) from the centre,
+    with its share of the car's RCS."""
+
+    across_m: float = setting(ge=-50.0, le=50.0)
+    along_m: float = setting(ge=-50.0, le=50.0)
+    share: float = setting(ge=0.0, le=1.0)
 
 
 @dataclass(frozen=True)
-class SceneConfig:
+class CarConfig(TypedConfig):
+    """The parked car: footprint, scatterer height, RCS, face scatterer spacing, bright points."""
+
+    center_xy_m: tuple[float, float] = setting(doc="two finite numbers [x, y]")
+    length_m: float = setting(ge=0.5, le=30.0)
+    width_m: float = setting(ge=0.5, le=10.0)
+    height_m: float = setting(ge=0.0, le=5.0)
+    rcs_dbsm: float = setting(ge=-30.0, le=60.0)
+    face_spacing_m: float = setting(ge=0.05, le=10.0)
+    yaw_deg: float = setting(0.0, ge=-360.0, le=360.0)
+    bright_points: tuple[BrightPoint, ...] = setting(())
+
+    def validate(self) -> None:
+        shares = [b.share for b in self.bright_points]
+        if sum(shares) > 1.0 + 1e-9:
+            raise ConfigError("bright_points", shares, "shares summing to at most 1")
+
+
+@dataclass(frozen=True)
+class SceneConfig(TypedConfig):
     """One scene of the experiment (see the module docstring for the geometry)."""
 
-    name: str
-    n_frames: int
-    seed: int
-    with_car: bool
-    occlusion_db: float
-    radar_height_m: float
-    start_time_s: float
-    car: CarConfig
-    pedestrian: PedestrianConfig
+    GROUP = "scene"
 
-    @classmethod
-    def from_mapping(cls, mapping: Mapping[str, Any], where: str = "scene") -> SceneConfig:
-        """Build and validate from a dict / OmegaConf node; errors name ``where.key``."""
-        m = _plain(mapping, where)
-        car_m = _plain(_req(m, "car", where), f"{where}.car")
-        ped_m = _plain(_req(m, "pedestrian", where), f"{where}.pedestrian")
-        return cls(
-            name=str(m.get("name", where.rsplit(".", 1)[-1])),
-            n_frames=_int(m, "n_frames", where, 1, 1_000_000),
-            seed=_int(m, "seed", where, 0, 2**63 - 1),
-            with_car=_bool(m, "with_car", where),
-            occlusion_db=_num(m, "occlusion_db", where, 0.0, 300.0),
-            radar_height_m=_num(m, "radar_height_m", where, -10.0, 10.0, default=0.0),
-            start_time_s=_num(m, "start_time_s", where, -1e6, 1e6, default=0.0),
-            car=_car(car_m, f"{where}.car"),
-            pedestrian=_pedestrian(ped_m, f"{where}.pedestrian"),
-        )
+    n_frames: int = setting(ge=1, le=1_000_000)
+    seed: int = setting(ge=0, le=2**63 - 1)
+    with_car: bool = setting()
+    occlusion_db: float = setting(ge=0.0, le=300.0)
+    car: CarConfig = setting()
+    pedestrian: PedestrianConfig = setting()
+    radar_height_m: float = setting(0.0, ge=-10.0, le=10.0)
+    start_time_s: float = setting(0.0, ge=-1e6, le=1e6)
+    name: str = setting("scene")
 
 
-def load_scenes(group: Mapping[str, Any], where: str = "scene") -> dict[str, SceneConfig]:
+@dataclass(frozen=True)
+class SceneGroup(TypedConfig):
+    """The Hydra group ``scene`` (``conf/scene/paper.yaml``): ``shared`` settings and the
+    ``scenes``, each a partial scene deep-merged over ``shared``."""
+
+    GROUP = "scene"
+
+    scenes: dict = setting(doc="a mapping {scene name: settings over shared}, at least one scene")
+    shared: dict = setting(default_factory=dict)
+
+    def validate(self) -> None:
+        if not self.scenes:
+            raise ConfigError("scenes", self.scenes, "at least one scene")
+
+
+def load_scenes(group: Any, where: str = "scene") -> dict[str, SceneConfig]:
     """The scenes of a scene group file (``conf/scene/paper.yaml``): each entry of ``scenes``
-    deep-merged over ``shared``. Returns {name: SceneConfig} in file order."""
-    g = _plain(group, where)
-    scenes = _plain(_req(g, "scenes", where), f"{where}.scenes")
-    if not scenes:
-        raise ConfigError(f"{where}.scenes", scenes, "at least one scene")
-    shared = _plain(g.get("shared", {}), f"{where}.shared")
+    deep-merged over ``shared``. Returns {name: SceneConfig} in file order.
+
+    Raises:
+        ConfigError: a missing or invalid key, named ``scene.scenes.<name>.<key>``.
+    """
+    g = SceneGroup.from_mapping(group, where)
     out = {}
-    for name, over in scenes.items():
-        merged = _deep_merge(shared, _plain(over, f"{where}.scenes.{name}"))
+    for name, over in g.scenes.items():
+        if not isinstance(over, Mapping):
+            raise ConfigError(f"{where}.scenes.{name}", over, "a mapping of scene settings")
+        merged = _deep_merge(g.shared, over)
         merged.setdefault("name", str(name))
         out[str(name)] = SceneConfig.from_mapping(merged, where=f"{where}.scenes.{name}")
     return out
@@ -330,7 +352,8 @@ def car_scatterers(car: CarConfig, polygon: np.ndarray) -> tuple[np.ndarray, np.
     edge = np.repeat(np.arange(len(polygon)), counts)
     frac = (np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts) + 0.5) / counts[edge]
     face_xy = q0[edge] + frac[:, None] * (q1 - q0)[edge]
-    bright = np.array(car.bright_points, dtype=float).reshape(-1, 3)
+    bright = np.array([(b.across_m, b.along_m, b.share) for b in car.bright_points],
+                      dtype=float).reshape(-1, 3)
     bright_xy = _rotate(bright[:, :2], math.radians(car.yaw_deg)) + np.asarray(car.center_xy_m)
     xy = np.concatenate([face_xy, bright_xy])
     face_share = 1.0 - bright[:, 2].sum()
@@ -345,111 +368,8 @@ def car_scatterers(car: CarConfig, polygon: np.ndarray) -> tuple[np.ndarray, np.
 
 
 # ----------------------------------------------------------------------------- parsing helpers
-def _plain(m: Any, where: str) -> dict[str, Any]:
-    try:
-        from omegaconf import DictConfig, ListConfig, OmegaConf
-
-        if isinstance(m, (DictConfig, ListConfig)):
-            m = OmegaConf.to_container(m, resolve=True)
-    except ImportError:  # pragma: no cover
-        pass
-    if not isinstance(m, Mapping):
-        raise ConfigError(where, m, "a mapping")
-    return dict(m)
-
-
 def _deep_merge(base: Mapping[str, Any], over: Mapping[str, Any]) -> dict[str, Any]:
     out = dict(base)
     for k, v in over.items():
         out[k] = _deep_merge(out[k], v) if isinstance(v, Mapping) and isinstance(out.get(k), Mapping) else v
     return out
-
-
-def _req(m: Mapping[str, Any], key: str, where: str) -> Any:
-    if m.get(key) is None:
-        raise ConfigError(f"{where}.{key}", None, "a value (the key is required)")
-    return m[key]
-
-
-def _num(m: Mapping[str, Any], key: str, where: str, lo: float, hi: float,
-         default: float | None = None) -> float:
-    v = m.get(key, default)
-    if v is None:
-        raise ConfigError(f"{where}.{key}", None, f"a number in [{lo:g}, {hi:g}] (required)")
-    ok = isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and lo <= v <= hi
-    if not ok:
-        raise ConfigError(f"{where}.{key}", v, f"a finite number in [{lo:g}, {hi:g}]")
-    return float(v)
-
-
-def _int(m: Mapping[str, Any], key: str, where: str, lo: int, hi: int) -> int:
-    v = m.get(key)
-    if not (isinstance(v, int) and not isinstance(v, bool) and lo <= v <= hi):
-        raise ConfigError(f"{where}.{key}", v, f"an integer in [{lo}, {hi}]")
-    return int(v)
-
-
-def _bool(m: Mapping[str, Any], key: str, where: str) -> bool:
-    v = m.get(key)
-    if not isinstance(v, bool):
-        raise ConfigError(f"{where}.{key}", v, "true or false")
-    return v
-
-
-def _vec2(m: Mapping[str, Any], key: str, where: str, nonzero: bool = False) -> tuple[float, float]:
-    v = m.get(key)
-    ok = (isinstance(v, (list, tuple)) and len(v) == 2
-          and all(isinstance(c, (int, float)) and not isinstance(c, bool) and math.isfinite(c) for c in v))
-    if not ok or (nonzero and math.hypot(*v) == 0):
-        raise ConfigError(f"{where}.{key}", v, "two finite numbers [x, y]" + (" not both 0" if nonzero else ""))
-    return float(v[0]), float(v[1])
-
-
-def _car(m: Mapping[str, Any], where: str) -> CarConfig:
-    bright = m.get("bright_points", [])
-    rows = []
-    for i, b in enumerate(bright or []):
-        b = _plain(b, f"{where}.bright_points[{i}]")
-        rows.append((_num(b, "across_m", f"{where}.bright_points[{i}]", -50, 50),
-                     _num(b, "along_m", f"{where}.bright_points[{i}]", -50, 50),
-                     _num(b, "share", f"{where}.bright_points[{i}]", 0.0, 1.0)))
-    if sum(r[2] for r in rows) > 1.0 + 1e-9:
-        raise ConfigError(f"{where}.bright_points", [r[2] for r in rows], "shares summing to at most 1")
-    return CarConfig(
-        center_xy_m=_vec2(m, "center_xy_m", where),
-        length_m=_num(m, "length_m", where, 0.5, 30.0),
-        width_m=_num(m, "width_m", where, 0.5, 10.0),
-        yaw_deg=_num(m, "yaw_deg", where, -360.0, 360.0, default=0.0),
-        height_m=_num(m, "height_m", where, 0.0, 5.0),
-        rcs_dbsm=_num(m, "rcs_dbsm", where, -30.0, 60.0),
-        face_spacing_m=_num(m, "face_spacing_m", where, 0.05, 10.0),
-        bright_points=tuple(rows),
-    )
-
-
-def _pedestrian(m: Mapping[str, Any], where: str) -> PedestrianConfig:
-    parts_m = _plain(_req(m, "parts", where), f"{where}.parts")
-    if not parts_m:
-        raise ConfigError(f"{where}.parts", parts_m, "at least one body part")
-    parts = []
-    for name, p in parts_m.items():
-        w = f"{where}.parts.{name}"
-        p = _plain(p, w)
-        parts.append(BodyPart(
-            name=str(name),
-            rcs_dbsm=_num(p, "rcs_dbsm", w, -60.0, 20.0),
-            height_m=_num(p, "height_m", w, 0.0, 3.0),
-            lateral_m=_num(p, "lateral_m", w, -2.0, 2.0, default=0.0),
-            swing_m=_num(p, "swing_m", w, 0.0, 2.0, default=0.0),
-            phase_deg=_num(p, "phase_deg", w, -360.0, 360.0, default=0.0),
-        ))
-    return PedestrianConfig(
-        start_xy_m=_vec2(m, "start_xy_m", where),
-        direction_xy=_vec2(m, "direction_xy", where, nonzero=True),
-        speed_mps=_num(m, "speed_mps", where, 0.0, 10.0),
-        turn_after_m=_num(m, "turn_after_m", where, 0.0, 1e4),
-        turn_deg=_num(m, "turn_deg", where, -180.0, 180.0),
-        turn_radius_m=_num(m, "turn_radius_m", where, 0.0, 100.0, default=0.0),
-        stride_length_m=_num(m, "stride_length_m", where, 0.1, 5.0),
-        parts=tuple(parts),
-    )

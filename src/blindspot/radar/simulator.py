@@ -57,9 +57,10 @@ import numpy as np
 from scipy.linalg import blas
 
 from blindspot.radar.array import VirtualArray, array_for
-from blindspot.radar.config import SPEED_OF_LIGHT, ConfigError, RadarConfig
+from blindspot.radar.config import SPEED_OF_LIGHT, RadarConfig, SimConfig
 from blindspot.radar.radar_equation import received_power_w
 from blindspot.radar.scene import Scene, SceneConfig
+from blindspot.typed_config import ConfigError
 
 _TWO_PI = 2.0 * np.pi
 
@@ -264,17 +265,10 @@ class SimulatedSource:
 
     @classmethod
     def from_config(cls, scene_cfg: SceneConfig | Mapping[str, Any], radar: RadarConfig,
-                    sim_cfg: Mapping[str, Any] | None = None) -> SimulatedSource:
-        """Build from a scene and the ``sim`` config group (keys: noise, adc_headroom_db)."""
-        s = dict(sim_cfg or {})
-        unknown = set(s) - {"noise", "adc_headroom_db"}
-        if unknown:
-            raise ConfigError(f"sim.{sorted(unknown)[0]}", s[sorted(unknown)[0]],
-                              "one of the keys noise, adc_headroom_db")
-        if not isinstance(s.get("noise", True), bool):
-            raise ConfigError("sim.noise", s["noise"], "true or false")
-        return cls(scene_cfg, radar, noise=s.get("noise", True),
-                   adc_headroom_db=s.get("adc_headroom_db", 60.0))
+                    sim_cfg: SimConfig | Mapping[str, Any] | None = None) -> SimulatedSource:
+        """Build from a scene and the ``sim`` config group (a :class:`SimConfig` or its mapping)."""
+        s = sim_cfg if isinstance(sim_cfg, SimConfig) else SimConfig.from_mapping(sim_cfg)
+        return cls(scene_cfg, radar, noise=s.noise, adc_headroom_db=s.adc_headroom_db)
 
     @property
     def n_frames(self) -> int:

@@ -23,8 +23,7 @@ out several steps (predict, append, slide) for a whole batch at once.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
-from dataclasses import asdict, dataclass, fields
+from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
@@ -33,80 +32,11 @@ import torch
 from torch import nn
 
 from blindspot.io import atomic_path
+from blindspot.traj.config import LSTMConfig
 from blindspot.traj.windows import interpolate_gaps
 
 _FORMAT = "blindspot.lstm/1"
 _ACTIVATIONS = {"relu": nn.ReLU, "tanh": nn.Tanh, "identity": nn.Identity}
-_TARGETS = ("displacement", "absolute")
-
-
-class LSTMConfigError(ValueError):
-    """An LSTM setting is invalid; names the key, the value and what is allowed."""
-
-    def __init__(self, key: str, value: Any, expected: str) -> None:
-        super().__init__(f"{key}: expected {expected}, found {value!r}")
-        self.key, self.value, self.expected = key, value, expected
-
-
-@dataclass(frozen=True)
-class LSTMConfig:
-    """Model settings.
-
-    Attributes:
-        window: W, points per input window (paper: 50; ETH/UCY protocol: 8).
-        hidden_size: LSTM hidden units.
-        num_layers: stacked LSTM layers.
-        dropout: dropout between LSTM layers (only used when num_layers > 1).
-        head_hidden: width of the MLP head's hidden layer; 0 = a single linear layer (no activation).
-        head_activation: "relu" (paper Table 1), "tanh" or "identity".
-        target: "displacement" (next - last point) or "absolute" (next point).
-        translate: express each window relative to its last point.
-        normalise: scale inputs and target by RMS values fitted on the training set.
-
-    The defaults were chosen by measurement (numbers in conf/model/lstm.yaml): translating is
-    what matters; fitted scaling, more units or layers did not help in 15 epochs.
-    """
-
-    window: int = 50
-    hidden_size: int = 64
-    num_layers: int = 1
-    dropout: float = 0.0
-    head_hidden: int = 32
-    head_activation: str = "relu"
-    target: str = "displacement"
-    translate: bool = True
-    normalise: bool = False
-
-    def __post_init__(self) -> None:
-        for key in ("window", "hidden_size", "num_layers"):
-            v = getattr(self, key)
-            if isinstance(v, bool) or int(v) != v or v < 1:
-                raise LSTMConfigError(key, v, "an integer >= 1")
-        if isinstance(self.head_hidden, bool) or int(self.head_hidden) != self.head_hidden or self.head_hidden < 0:
-            raise LSTMConfigError("head_hidden", self.head_hidden, "an integer >= 0")
-        if not (0.0 <= float(self.dropout) < 1.0):
-            raise LSTMConfigError("dropout", self.dropout, "a number in [0, 1)")
-        if self.head_activation not in _ACTIVATIONS:
-            raise LSTMConfigError("head_activation", self.head_activation, f"one of {sorted(_ACTIVATIONS)}")
-        if self.target not in _TARGETS:
-            raise LSTMConfigError("target", self.target, f"one of {list(_TARGETS)}")
-        for key in ("translate", "normalise"):
-            if not isinstance(getattr(self, key), bool):
-                raise LSTMConfigError(key, getattr(self, key), "true or false")
-
-    @classmethod
-    def from_mapping(cls, mapping: Mapping[str, Any], where: str = "model") -> LSTMConfig:
-        """Build from a config mapping (e.g. the Hydra ``model`` group); unknown keys are errors
-        except ``name`` and ``_target_``."""
-        names = {f.name for f in fields(cls)}
-        unknown = set(mapping) - names - {"name", "_target_"}
-        if unknown:
-            key = sorted(unknown)[0]
-            raise LSTMConfigError(f"{where}.{key}", mapping[key], f"one of the keys {sorted(names)}")
-        try:
-            return cls(**{k: v for k, v in mapping.items() if k in names})
-        except LSTMConfigError as err:
-            raise LSTMConfigError(f"{where}.{err.key}", err.value, err.expected) from None
 
 
 @dataclass(frozen=True)

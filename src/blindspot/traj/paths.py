@@ -26,148 +26,14 @@ start ranges. :func:`random_path_set` returns the per-path draws so callers can 
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, fields
-from typing import Any
+from dataclasses import dataclass
 
 import numpy as np
 
+from blindspot.traj.config import PathSpec
+from blindspot.typed_config import ConfigError
+
 MOTIONS: tuple[str, ...] = ("approaching", "receding", "perpendicular")
-# Keys of the dataset config group that belong to the windows stage, not to the path kinematics.
-DATASET_KEYS: tuple[str, ...] = ("name", "n_paths", "window", "stride", "fill_gaps", "split", "seed", "target")
-
-
-class PathConfigError(ValueError):
-    """A path-simulation setting is invalid; names the key, the value found and what is allowed."""
-
-    def __init__(self, key: str, value: Any, expected: str) -> None:
-        super().__init__(f"{key}: expected {expected}, found {value!r}")
-        self.key = key
-        self.value = value
-        self.expected = expected
-
-
-def _interval(key: str, value: Any, *, lo: float = -np.inf, hi: float = np.inf) -> tuple[float, float]:
-    try:
-        a, b = (float(v) for v in value)
-    except (TypeError, ValueError):
-        raise PathConfigError(key, value, "a pair [low, high] of numbers") from None
-    if not (lo <= a <= b <= hi) or not np.isfinite([a, b]).all():
-        raise PathConfigError(key, value, f"a pair [low, high] with {lo} <= low <= high <= {hi}")
-    return a, b
-
-
-@dataclass(frozen=True)
-class PathSpec:
-    """How synthetic pedestrian paths are drawn (all SI; degrees only in ``*_deg`` names).
-
-    Attributes:
-        points_per_path: points per path (the paper: 200).
-        frame_period_s: time between points, the radar frame period.
-        speed_mps: [low, high] walking speed, drawn uniformly.
-        start_range_m: [low, high] range of the first point, drawn uniformly.
-        start_angle_deg: [low, high] bearing of the first point, drawn uniformly.
-        turn_rate_deg_s: [low, high] constant turn rate of a path, drawn uniformly (positive =
-            clockwise seen from above, i.e. heading turning towards +x).
-        motion_weights: relative frequency of (approaching, receding, perpendicular) paths.
-        heading_spread_deg: approaching/receding heading deviates from radial by up to this.
-        perpendicular_spread_deg: perpendicular heading deviates from tangential by up to this.
-        min_range_m, max_range_m, max_abs_angle_deg: field of view every point must stay in.
-        sharp_turn_prob: share of paths that also make one sharp turn (a pedestrian turning at a
-            corner, as in the paper's scenes), on top of the gentle constant turn rate.
-        sharp_turn_deg: [low, high] magnitude of that turn; its sign is drawn at random.
-        sharp_turn_duration_s: [low, high] time the heading takes to swing through it.
-    """
-
-    points_per_path: int = 200
-    frame_period_s: float = 0.1
-    speed_mps: tuple[float, float] = (0.5, 2.0)
-    start_range_m: tuple[float, float] = (5.0, 45.0)
-    start_angle_deg: tuple[float, float] = (-60.0, 60.0)
-    turn_rate_deg_s: tuple[float, float] = (-4.0, 4.0)
-    motion_weights: tuple[float, float, float] = (1.0, 1.0, 1.0)
-    heading_spread_deg: float = 45.0
-    perpendicular_spread_deg: float = 20.0
-    min_range_m: float = 1.0
-    max_range_m: float = 50.0
-    max_abs_angle_deg: float = 75.0
-    sharp_turn_prob: float = 0.0
-    sharp_turn_deg: tuple[float, float] = (20.0, 90.0)
-    sharp_turn_duration_s: tuple[float, float] = (0.3, 1.5)
-
-    def __post_init__(self) -> None:
-        if int(self.points_per_path) != self.points_per_path or self.points_per_path < 2:
-            raise PathConfigError("points_per_path", self.points_per_path, "an integer >= 2")
-        if not (np.isfinite(self.frame_period_s) and self.frame_period_s > 0):
-            raise PathConfigError("frame_period_s", self.frame_period_s, "a positive number of seconds")
-        object.__setattr__(self, "speed_mps", _interval("speed_mps", self.speed_mps, lo=0.0))
-        object.__setattr__(self, "start_range_m", _interval("start_range_m", self.start_range_m, lo=0.0))
-        object.__setattr__(
-            self, "start_angle_deg", _interval("start_angle_deg", self.start_angle_deg, lo=-90.0, hi=90.0)
-        )
-        object.__setattr__(self, "turn_rate_deg_s", _interval("turn_rate_deg_s", self.turn_rate_deg_s))
-        if not 0.0 <= self.sharp_turn_prob <= 1.0:
-            raise PathConfigError("sharp_turn_prob", self.sharp_turn_prob, "a probability in [0, 1]")
-        object.__setattr__(self, "sharp_turn_deg", _interval("sharp_turn_deg", self.sharp_turn_deg, lo=0.0, hi=180.0))
-        object.__setattr__(
-            self, "sharp_turn_duration_s", _interval("sharp_turn_duration_s", self.sharp_turn_duration_s, lo=0.0)
-        )
-        w = np.asarray(self.motion_weights, dtype=float)
-        if w.shape != (3,) or not np.isfinite(w).all() or (w < 0).any() or w.sum() <= 0:
-            raise PathConfigError(
-                "motion_weights",
-                self.motion_weights,
-                "three non-negative weights (approaching, receding, perpendicular), not all 0",
-            )
-        object.__setattr__(self, "motion_weights", tuple(float(v) for v in w))
-        for key in ("heading_spread_deg", "perpendicular_spread_deg"):
-            v = getattr(self, key)
-            if not (0.0 <= v <= 90.0):
-                raise PathConfigError(key, v, "a number of degrees in [0, 90]")
-        if not (0.0 <= self.min_range_m < self.max_range_m):
-            raise PathConfigError("max_range_m", self.max_range_m, f"> min_range_m ({self.min_range_m}) >= 0")
-        if not (0.0 < self.max_abs_angle_deg <= 90.0):
-            raise PathConfigError("max_abs_angle_deg", self.max_abs_angle_deg, "a number of degrees in (0, 90]")
-        lo, hi = self.start_range_m
-        if lo < self.min_range_m or hi > self.max_range_m:
-            raise PathConfigError(
-                "start_range_m",
-                self.start_range_m,
-                f"inside [min_range_m, max_range_m] = [{self.min_range_m}, {self.max_range_m}]",
-            )
-        if max(abs(a) for a in self.start_angle_deg) > self.max_abs_angle_deg:
-            raise PathConfigError(
-                "start_angle_deg", self.start_angle_deg, f"inside +-max_abs_angle_deg ({self.max_abs_angle_deg})"
-            )
-
-    @classmethod
-    def from_mapping(
-        cls, mapping: Mapping[str, Any], where: str = "dataset", ignore: Sequence[str] = DATASET_KEYS
-    ) -> PathSpec:
-        """Build from a config mapping (the Hydra ``dataset`` group).
-
-        Keys in ``ignore`` (the group's window/split settings) are skipped; any other key that is
-        not a field of this class is an error, so a misspelt setting cannot pass unnoticed.
-
-        Raises:
-            PathConfigError: unknown key or invalid value; the key is prefixed with ``where``.
-        """
-        names = {f.name for f in fields(cls)}
-        unknown = sorted(set(mapping) - names - set(ignore))
-        if unknown:
-            key = unknown[0]
-            raise PathConfigError(f"{where}.{key}", mapping[key], f"one of the keys {sorted(names | set(ignore))}")
-        # sequences (list, tuple, OmegaConf ListConfig) become tuples; scalars pass through
-        kwargs = {k: (v if isinstance(v, str | int | float) else tuple(v)) for k, v in mapping.items() if k in names}
-        try:
-            return cls(**kwargs)
-        except PathConfigError as err:
-            raise PathConfigError(f"{where}.{err.key}", err.value, err.expected) from None
-
-    @property
-    def times_s(self) -> np.ndarray:
-        """(points_per_path,) time of each point from the start of the path."""
-        return np.arange(self.points_per_path) * self.frame_period_s
 
 
 @dataclass(frozen=True)
@@ -297,7 +163,7 @@ def random_path_set(n_paths: int, spec: PathSpec | None = None, seed: int = 0, *
     """
     spec = spec or PathSpec()
     if int(n_paths) != n_paths or n_paths < 0:
-        raise PathConfigError("n_paths", n_paths, "an integer >= 0")
+        raise ConfigError("n_paths", n_paths, "an integer >= 0")
     rng = np.random.default_rng(seed)
     w = np.asarray(spec.motion_weights)
     per_class = rng.multinomial(int(n_paths), w / w.sum())

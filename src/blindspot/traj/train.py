@@ -26,8 +26,8 @@ import math
 import os
 import tempfile
 import time
-from collections.abc import Callable, Mapping
-from dataclasses import asdict, dataclass, fields
+from collections.abc import Callable
+from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
@@ -37,84 +37,13 @@ import torch
 from torch import nn
 from tqdm.auto import tqdm
 
-from blindspot.traj.lstm import LSTMConfig, LSTMPredictor, LSTMRegressor, NormStats
+from blindspot.traj.config import LSTMConfig, TrainConfig
+from blindspot.traj.lstm import LSTMPredictor, LSTMRegressor, NormStats
 from blindspot.traj.windows import WindowSet
 
 _CKPT_FORMAT = "blindspot.train-checkpoint/1"
 CHECKPOINT_NAME = "last.pt"
-_OPTIMIZERS = ("adam", "adamw")
-_SCHEDULES = ("constant", "cosine")
 HISTORY_COLUMNS = ("epoch", "train_loss", "train_rmse_m", "val_rmse_m", "val_rmse_euclid_m", "seconds")
-
-
-class TrainConfigError(ValueError):
-    """A training setting is invalid; names the key, the value and what is allowed."""
-
-    def __init__(self, key: str, value: Any, expected: str) -> None:
-        super().__init__(f"{key}: expected {expected}, found {value!r}")
-        self.key, self.value, self.expected = key, value, expected
-
-
-@dataclass(frozen=True)
-class TrainConfig:
-    """Optimisation settings.
-
-    Attributes:
-        lr: learning rate (paper: 0.001).
-        epochs: passes over the training windows (paper: 15).
-        batch_size: windows per optimiser step.
-        optimizer: "adam" (paper) or "adamw".
-        lr_schedule: "constant" (lr throughout) or "cosine" (lr * (1 + cos(pi * s / S)) / 2 at
-            optimiser step s of S, decaying from lr to 0 over the run).
-        seed: drives weight init, dropout and batch order.
-        weight_decay: L2 penalty (Adam) / decoupled decay (AdamW).
-        grad_clip: max global gradient norm, or None / 0 for no clipping.
-        num_threads: torch intra-op threads during training (None = leave as is).
-        eval_batch_size: windows per forward pass when evaluating.
-    """
-
-    lr: float = 1e-3
-    epochs: int = 15
-    batch_size: int = 64
-    optimizer: str = "adam"
-    lr_schedule: str = "constant"
-    seed: int = 0
-    weight_decay: float = 0.0
-    grad_clip: float | None = None
-    num_threads: int | None = None
-    eval_batch_size: int = 4096
-
-    def __post_init__(self) -> None:
-        if not (math.isfinite(self.lr) and self.lr > 0):
-            raise TrainConfigError("lr", self.lr, "a positive number")
-        for key, lo in (("epochs", 0), ("batch_size", 1), ("eval_batch_size", 1), ("seed", 0)):
-            v = getattr(self, key)
-            if isinstance(v, bool) or int(v) != v or v < lo:
-                raise TrainConfigError(key, v, f"an integer >= {lo}")
-        if self.lr_schedule not in _SCHEDULES:
-            raise TrainConfigError("lr_schedule", self.lr_schedule, f"one of {list(_SCHEDULES)}")
-        if self.optimizer not in _OPTIMIZERS:
-            raise TrainConfigError("optimizer", self.optimizer, f"one of {list(_OPTIMIZERS)}")
-        if not (self.weight_decay >= 0):
-            raise TrainConfigError("weight_decay", self.weight_decay, "a number >= 0")
-        if self.grad_clip is not None and not (self.grad_clip >= 0):
-            raise TrainConfigError("grad_clip", self.grad_clip, "null or a number >= 0")
-        if self.num_threads is not None and (int(self.num_threads) != self.num_threads or self.num_threads < 1):
-            raise TrainConfigError("num_threads", self.num_threads, "null or an integer >= 1")
-
-    @classmethod
-    def from_mapping(cls, mapping: Mapping[str, Any], where: str = "train") -> TrainConfig:
-        """Build from a config mapping (the Hydra ``train`` group); unknown keys other than
-        ``name`` and ``resume`` (read by the train stage: continue from the last checkpoint) are
-        errors."""
-        names = {f.name for f in fields(cls)}
-        unknown = sorted(set(mapping) - names - {"name", "resume"})
-        if unknown:
-            raise TrainConfigError(f"{where}.{unknown[0]}", mapping[unknown[0]], f"one of the keys {sorted(names)}")
-        try:
-            return cls(**{k: v for k, v in mapping.items() if k in names})
-        except TrainConfigError as err:
-            raise TrainConfigError(f"{where}.{err.key}", err.value, err.expected) from None
 
 
 @dataclass
@@ -174,6 +103,7 @@ def _resume_key(model_cfg: LSTMConfig, train_cfg: TrainConfig, fingerprint: str)
     """What must match between a checkpoint and the run resuming it (epochs may grow, unless the
     learning-rate schedule depends on them)."""
     tc = asdict(train_cfg)
+    tc.pop("resume")  # whether to resume is not part of what a checkpoint must match
     if train_cfg.lr_schedule == "constant":
         tc.pop("epochs")
     return {"model": asdict(model_cfg), "train": tc, "data": fingerprint}

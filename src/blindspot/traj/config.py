@@ -1,0 +1,264 @@
+"""Typed configuration of the traj room: the Hydra groups ``dataset``, ``model``, ``train`` and
+``eval`` as frozen dataclasses built through :mod:`blindspot.typed_config` (a bad value raises
+:class:`~blindspot.typed_config.ConfigError` naming ``group.key``, the value and the allowed range).
+
+Build them from the composed config with ``DatasetConfig.from_mapping(cfg.dataset)``,
+``LSTMConfig.from_mapping(cfg.model)``, ``TrainConfig.from_mapping(cfg.train)``,
+``EvalConfig.from_mapping(cfg.eval)``. :class:`PathSpec` (the path kinematics alone) is the part
+of :class:`DatasetConfig` that :func:`blindspot.traj.paths.random_path_set` reads; it can be built
+on its own with library defaults for tests and benchmarks.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from blindspot.traj.ethucy import FOLDS as ETHUCY_FOLDS
+from blindspot.traj.interpolation import METHODS as INTERPOLATION_METHODS
+from blindspot.typed_config import ConfigError, TypedConfig, setting
+
+__all__ = [
+    "ACTIVATIONS", "DatasetConfig", "ETHUCY_MODELS", "EthUcyConfig", "EvalConfig", "KalmanConfig", "LSTMConfig", "OPTIMIZERS",
+    "PREDICTION_METHODS", "PathSpec", "SCHEDULES", "SplitConfig", "TARGETS", "TrainConfig",
+]
+
+ACTIVATIONS: tuple[str, ...] = ("relu", "tanh", "identity")
+TARGETS: tuple[str, ...] = ("displacement", "absolute")
+OPTIMIZERS: tuple[str, ...] = ("adam", "adamw")
+SCHEDULES: tuple[str, ...] = ("constant", "cosine")
+PREDICTION_METHODS: tuple[str, ...] = ("lstm", "constant_velocity", "kalman")
+ETHUCY_MODELS: tuple[str, ...] = ("cvm", "kalman", "lstm")
+
+
+# ----------------------------------------------------------------------------- dataset
+@dataclass(frozen=True)
+class PathSpec(TypedConfig):
+    """How synthetic pedestrian paths are drawn (all SI; degrees only in ``*_deg`` names).
+
+    Attributes:
+        points_per_path: points per path (the paper: 200).
+        frame_period_s: time between points, the radar frame period.
+        speed_mps: [low, high] walking speed, drawn uniformly.
+        start_range_m: [low, high] range of the first point, drawn uniformly.
+        start_angle_deg: [low, high] bearing of the first point, drawn uniformly.
+        turn_rate_deg_s: [low, high] constant turn rate of a path, drawn uniformly (positive =
+            clockwise seen from above, i.e. heading turning towards +x).
+        motion_weights: relative frequency of (approaching, receding, perpendicular) paths.
+        heading_spread_deg: approaching/receding heading deviates from radial by up to this.
+        perpendicular_spread_deg: perpendicular heading deviates from tangential by up to this.
+        min_range_m, max_range_m, max_abs_angle_deg: field of view every point must stay in.
+        sharp_turn_prob: share of paths that also make one sharp turn (a pedestrian turning at a
+            corner, as in the paper's scenes), on top of the gentle constant turn rate.
+        sharp_turn_deg: [low, high] magnitude of that turn; its sign is drawn at random.
+        sharp_turn_duration_s: [low, high] time the heading takes to swing through it.
+
+    The defaults are a generic library setting for tests and benchmarks; the experiment's values
+    are in conf/dataset/ (read through :class:`DatasetConfig`, which has no defaults).
+    """
+
+    points_per_path: int = setting(200, ge=2)
+    frame_period_s: float = setting(0.1, gt=0.0)
+    speed_mps: tuple[float, float] = setting((0.5, 2.0), ge=0.0, ordered=True)
+    start_range_m: tuple[float, float] = setting((5.0, 45.0), ge=0.0, ordered=True)
+    start_angle_deg: tuple[float, float] = setting((-60.0, 60.0), ge=-90.0, le=90.0, ordered=True)
+    turn_rate_deg_s: tuple[float, float] = setting((-4.0, 4.0), ordered=True)
+    motion_weights: tuple[float, float, float] = setting(
+        (1.0, 1.0, 1.0), ge=0.0, nonzero=True,
+        doc="three non-negative weights (approaching, receding, perpendicular), not all 0")
+    heading_spread_deg: float = setting(45.0, ge=0.0, le=90.0)
+    perpendicular_spread_deg: float = setting(20.0, ge=0.0, le=90.0)
+    min_range_m: float = setting(1.0, ge=0.0)
+    max_range_m: float = setting(50.0, gt=0.0)
+    max_abs_angle_deg: float = setting(75.0, gt=0.0, le=90.0)
+    sharp_turn_prob: float = setting(0.0, ge=0.0, le=1.0)
+    sharp_turn_deg: tuple[float, float] = setting((20.0, 90.0), ge=0.0, le=180.0, ordered=True)
+    sharp_turn_duration_s: tuple[float, float] = setting((0.3, 1.5), ge=0.0, ordered=True)
+
+    def validate(self) -> None:
+        if not self.min_range_m < self.max_range_m:
+            raise ConfigError("max_range_m", self.max_range_m, f"> min_range_m ({self.min_range_m}) >= 0")
+        lo, hi = self.start_range_m
+        if lo < self.min_range_m or hi > self.max_range_m:
+            raise ConfigError("start_range_m", list(self.start_range_m),
+                              f"inside [min_range_m, max_range_m] = [{self.min_range_m}, {self.max_range_m}]")
+        if max(abs(a) for a in self.start_angle_deg) > self.max_abs_angle_deg:
+            raise ConfigError("start_angle_deg", list(self.start_angle_deg),
+                              f"inside +-max_abs_angle_deg ({self.max_abs_angle_deg})")
+
+    @property
+    def times_s(self) -> np.ndarray:
+        """(points_per_path,) time of each point from the start of the path."""
+        return np.arange(self.points_per_path) * self.frame_period_s
+
+    def path_spec(self) -> PathSpec:
+        """The path kinematics alone (a plain :class:`PathSpec`)."""
+        from dataclasses import fields
+
+        return PathSpec(**{f.name: getattr(self, f.name) for f in fields(PathSpec)})
+
+
+@dataclass(frozen=True)
+class SplitConfig(TypedConfig):
+    """Windows per split (``dataset.split``); no path is in two splits."""
+
+    train: int = setting(ge=0)
+    val: int = setting(ge=0)
+    test: int = setting(ge=0)
+
+
+@dataclass(frozen=True)
+class DatasetConfig(PathSpec):
+    """The Hydra group ``dataset`` (conf/dataset/paper.yaml): the path kinematics (every field
+    of :class:`PathSpec`) plus how many paths, how they become windows and the split.
+
+    Attributes:
+        n_paths: paths to simulate.
+        window: points per input window (the paper: 50).
+        stride: start of consecutive windows, in points.
+        fill_gaps: "linear" (interpolate missed points before windowing) or "none".
+        target: a window's response: the next "measured" point or the "truth".
+        split: windows per split (train / val / test).
+        seed: seed of the path draws.
+
+    Every key is required here (conf/dataset/ is the source of truth; the :class:`PathSpec`
+    defaults are only for code that draws paths without the experiment's config).
+    """
+
+    GROUP = "dataset"
+    REQUIRE_ALL = True
+
+    n_paths: int = setting(ge=1, kw_only=True)
+    window: int = setting(ge=1, kw_only=True)
+    stride: int = setting(ge=1, kw_only=True)
+    fill_gaps: str = setting(choices=("linear", "none"), kw_only=True)
+    target: str = setting(choices=("measured", "truth"), kw_only=True)
+    split: SplitConfig = setting(kw_only=True)
+    seed: int = setting(ge=0, kw_only=True)
+
+
+# ----------------------------------------------------------------------------- model, training
+@dataclass(frozen=True)
+class LSTMConfig(TypedConfig):
+    """The Hydra group ``model``: the next-point LSTM (blindspot.traj.lstm).
+
+    Attributes:
+        window: W, points per input window (paper: 50; ETH/UCY protocol: 8).
+        hidden_size: LSTM hidden units.
+        num_layers: stacked LSTM layers.
+        dropout: dropout between LSTM layers (only used when num_layers > 1).
+        head_hidden: width of the MLP head's hidden layer; 0 = a single linear layer (no activation).
+        head_activation: "relu" (paper Table 1), "tanh" or "identity".
+        target: "displacement" (next - last point) or "absolute" (next point).
+        translate: express each window relative to its last point.
+        normalise: scale inputs and target by RMS values fitted on the training set.
+
+    The defaults were chosen by measurement (numbers in conf/model/lstm.yaml, which holds the
+    same values): translating is what matters; fitted scaling, more units or layers did not help
+    in 15 epochs. The group's ``name`` (and a Hydra ``_target_``) are not read.
+    """
+
+    GROUP = "model"
+    IGNORED = ("name", "_target_")
+
+    window: int = setting(50, ge=1)
+    hidden_size: int = setting(64, ge=1)
+    num_layers: int = setting(1, ge=1)
+    dropout: float = setting(0.0, ge=0.0, lt=1.0)
+    head_hidden: int = setting(32, ge=0)
+    head_activation: str = setting("relu", choices=ACTIVATIONS)
+    target: str = setting("displacement", choices=TARGETS)
+    translate: bool = setting(True)
+    normalise: bool = setting(False)
+
+
+@dataclass(frozen=True)
+class TrainConfig(TypedConfig):
+    """The Hydra group ``train``: optimisation of the LSTM (blindspot.traj.train).
+
+    Attributes:
+        lr: learning rate (paper: 0.001).
+        epochs: passes over the training windows (paper: 15).
+        batch_size: windows per optimiser step.
+        optimizer: "adam" (paper) or "adamw".
+        lr_schedule: "constant" (lr throughout) or "cosine" (lr * (1 + cos(pi * s / S)) / 2 at
+            optimiser step s of S, decaying from lr to 0 over the run).
+        seed: drives weight init, dropout and batch order.
+        weight_decay: L2 penalty (Adam) / decoupled decay (AdamW).
+        grad_clip: max global gradient norm, or None / 0 for no clipping.
+        num_threads: torch intra-op threads during training (None = leave as is; conf/ sets 1).
+        eval_batch_size: windows per forward pass when evaluating.
+        resume: continue from the last checkpoint (not part of what a checkpoint must match).
+    """
+
+    GROUP = "train"
+    IGNORED = ("name",)
+
+    lr: float = setting(1e-3, gt=0.0)
+    epochs: int = setting(15, ge=0)
+    batch_size: int = setting(64, ge=1)
+    optimizer: str = setting("adam", choices=OPTIMIZERS)
+    lr_schedule: str = setting("constant", choices=SCHEDULES)
+    seed: int = setting(0, ge=0)
+    weight_decay: float = setting(0.0, ge=0.0)
+    grad_clip: float | None = setting(None, ge=0.0)
+    num_threads: int | None = setting(None, ge=1)
+    eval_batch_size: int = setting(4096, ge=1)
+    resume: bool = setting(False)
+
+
+# ----------------------------------------------------------------------------- evaluation
+@dataclass(frozen=True)
+class KalmanConfig(TypedConfig):
+    """``eval.kalman``: the constant-velocity Kalman baseline (blindspot.traj.baselines.KalmanCV).
+
+    Attributes:
+        process_psd: white-acceleration spectral density, m^2/s^3.
+        meas_std: measurement noise of a point, m (per coordinate).
+    """
+
+    process_psd: float = setting(gt=0.0)
+    meas_std: float = setting(gt=0.0)
+
+
+@dataclass(frozen=True)
+class EvalConfig(TypedConfig):
+    """The Hydra group ``eval`` (conf/eval/paper.yaml): interpolation, prediction and evaluation
+    of the car scenes; see that file for the meaning of every key."""
+
+    GROUP = "eval"
+
+    interpolation_methods: tuple[str, ...] = setting(choices=INTERPOLATION_METHODS, min_items=1)
+    prediction_input: str = setting(choices=INTERPOLATION_METHODS)
+    prediction_start_s: float = setting(ge=0.0)
+    horizon_frames: int | None = setting(ge=1)
+    prediction_methods: tuple[str, ...] = setting(choices=PREDICTION_METHODS, min_items=1)
+    horizons_s: tuple[float, ...] = setting(gt=0.0, min_items=1)
+    cv_fit_points: int = setting(ge=2)
+    kalman: KalmanConfig = setting()
+    fig06_scene: str = setting()
+    fig06_frame: int = setting(ge=0)
+
+
+@dataclass(frozen=True)
+class EthUcyConfig(TypedConfig):
+    """The Hydra group ``ethucy`` (conf/ethucy/standard.yaml): the ETH/UCY benchmark.
+
+    Attributes:
+        data: folder of the ETH/UCY files, relative to ``paths.shared_dir`` (or absolute).
+        models: predictors to score, from :data:`ETHUCY_MODELS`.
+        folds: leave-one-scene-out folds, from :data:`blindspot.traj.ethucy.FOLDS`.
+        epochs: LSTM training epochs per fold.
+        ensemble: LSTM seeds per fold (the best on validation ADE is kept).
+        threads: torch threads.
+    """
+
+    GROUP = "ethucy"
+
+    data: str = setting()
+    models: tuple[str, ...] = setting(choices=ETHUCY_MODELS, min_items=1)
+    folds: tuple[str, ...] = setting(choices=ETHUCY_FOLDS, min_items=1)
+    epochs: int = setting(ge=1)
+    ensemble: int = setting(ge=1)
+    threads: int = setting(ge=1)
