@@ -1,12 +1,79 @@
-"""Speed of the detection chain on one MMWCAS frame: `python benchmarks/bench_dsp.py [--threads 1]`.
+"""Speed of the detection chain on one MMWCAS frame, beside the peer chain, in one run.
 
-The same command as `python -m blindspot.bench.dsp` (DESIGN.md's interface), kept here beside the
-other benchmarks.
+    python benchmarks/bench_dsp.py [--threads 1] [--batch 64] [--set detect.max_range_m=null]
+
+Runs the peer chain a user would assemble from public libraries (OpenRadar + doa-py,
+``../shared/bench/peer_chain.py``, in the venv named by ``PEERBENCH_VENV``; set it up once with
+``bash ../shared/bench/setup_peer_venv.sh``) on one frame, dumps that frame, then runs
+``python -m blindspot.bench.dsp`` (DESIGN.md's interface) on the same frame with the same thread
+pinning, and prints both per-step tables and the ratio of frames/s. The machines are shared, so
+only the ratio of two runs made together means something. Without the peer venv it runs ours
+alone and says how to get the peer. The peer processes the full 256-bin range: compare with
+``--set detect.max_range_m=null`` (the default here) for like with like.
 """
 
-import sys
+from __future__ import annotations
 
-from blindspot.bench.dsp import main
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def _shared() -> Path:
+    return Path(os.environ.get("BLINDSPOT_SHARED", REPO.parent / "shared")).resolve()
+
+
+def _run(cmd: list[str], threads: int) -> dict:
+    env = {**os.environ, "OMP_NUM_THREADS": str(threads), "OPENBLAS_NUM_THREADS": str(threads),
+           "MKL_NUM_THREADS": str(threads)}
+    out = subprocess.run(cmd, env=env, capture_output=True, text=True, check=False)
+    if out.returncode != 0:
+        raise SystemExit(f"{' '.join(cmd)} failed ({out.returncode}):\n{out.stderr[-2000:]}")
+    print(out.stdout.rstrip())
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--threads", type=int, default=1)
+    ap.add_argument("--batch", type=int, default=64, help="frames/s of a batch of N (0: skip)")
+    ap.add_argument("--repeats", type=int, default=30)
+    ap.add_argument("--set", dest="overrides", action="append", default=None,
+                    metavar="KEY=VALUE", help="Hydra overrides for our chain "
+                    "(default: detect.max_range_m=null, the peer's full range)")
+    args = ap.parse_args()
+    overrides = args.overrides if args.overrides is not None else ["detect.max_range_m=null"]
+    ours = [sys.executable, "-m", "blindspot.bench.dsp", "--threads", str(args.threads),
+            "--json", "--repeats", str(args.repeats), "--batch", str(args.batch)]
+    for o in overrides:
+        ours += ["--set", o]
+    venv = os.environ.get("PEERBENCH_VENV")
+    peer_python = Path(venv, "bin", "python") if venv else None
+    if peer_python is None or not peer_python.is_file():
+        print(f"peer chain: not run (PEERBENCH_VENV={venv!r} has no bin/python; set it up with "
+              f"`PEERBENCH_VENV=... bash {_shared() / 'bench' / 'setup_peer_venv.sh'}`)")
+        _run(ours, args.threads)
+        return 0
+    with tempfile.TemporaryDirectory() as tmp:
+        frame = Path(tmp) / "frame.npz"
+        print("== peer chain (OpenRadar + doa-py)")
+        peer = _run([str(peer_python), str(_shared() / "bench" / "peer_chain.py"), "--threads",
+                     str(args.threads), "--json", "--dump-frame", str(frame)], args.threads)
+        print("\n== blindspot chain, same frame")
+        mine = _run(ours + ["--frame", str(frame)], args.threads)
+    print(f"\nratio (ours / peer), one frame, {args.threads} thread(s): "
+          f"{mine['fps'] / peer['fps']:.1f}x ({mine['fps']:.1f} vs {peer['fps']:.1f} frames/s)")
+    if mine.get("batch_fps"):
+        print(f"ratio, ours in batches of {args.batch}: {mine['batch_fps'] / peer['fps']:.1f}x "
+              f"({mine['batch_fps']:.1f} frames/s)")
+    return 0
+
 
 if __name__ == "__main__":
-    sys.exit(main())
+    raise SystemExit(main())
