@@ -90,6 +90,24 @@ def test_every_method_matches_the_reference_on_one_frame_and_a_batch(n_range):
     np.testing.assert_allclose(detection_map(proc(batch)), maps, rtol=1e-6)
 
 
+@pytest.mark.parametrize(("direct_bytes", "block_bytes"), [(0, 1), (0, 3 * 16 * 32 * 8),
+                                                        (0, 2 * 12 * 16 * 32 * 8)])
+def test_large_batches_go_in_blocks_with_the_same_result(monkeypatch, direct_bytes, block_bytes):
+    """Blocks of one channel, of a divisor of the frame's channels (3 of 12), and of two
+    whole frames (a batch of 3: the last block is short): equal to frame by frame."""
+    import blindspot.dsp.range_doppler as rd_mod
+
+    batch = noise_cube((3, 16, 3, 4, 32), seed=4)
+    proc = RangeDoppler(16, 32, "hann", "hamming")
+    one_by_one = np.stack([proc.channel_major(c) for c in batch])
+    monkeypatch.setattr(rd_mod, "_DIRECT_BYTES", direct_bytes)
+    monkeypatch.setattr(rd_mod, "_BLOCK_BYTES", block_bytes)
+    blocks = proc.channel_major(batch)
+    assert blocks.shape == (3, 3, 4, 16, 32) and blocks.flags.c_contiguous
+    np.testing.assert_allclose(blocks, one_by_one, rtol=0, atol=1e-6 * np.abs(one_by_one).max())
+    assert_float32_close(np.moveaxis(proc.native(batch), -1, -4), numpy_reference(batch))
+
+
 def test_range_window_keeps_the_first_bins_of_the_full_transform():
     cube = noise_cube((64, 2, 4, 256), seed=3)
     full = RangeDoppler(64, 256).native(cube)

@@ -28,7 +28,9 @@ nothing else is copied; :func:`detection_map` recognises the layout.
 * Full range (``n_range`` None or ``n_samples``): both FFTs in one call of ``torch.fft.fft2``
   (CPU builds: MKL), which does each channel's 2-D transform while it is in cache; it beat
   ``scipy.fft`` (pocketfft, two passes over the cube), ``numpy.fft`` and torch's own two 1-D
-  passes. torch's intra-op pool is set to ``workers`` for the call and restored after.
+  passes. torch's intra-op pool is set to ``workers`` for the call and restored after. Batches
+  larger than one MMWCAS frame go through it in cache-sized blocks of channels (see
+  ``RangeDoppler._fft2``).
 * Range window (``n_range`` < ``n_samples``): range FFT in place with ``scipy.fft``, then the
   Doppler window and FFT only on the kept range bins (``scipy.fft``; faster than torch here, and
   the same arithmetic as before, so the stages' detections are unchanged bit for bit).
@@ -46,6 +48,12 @@ import scipy.fft as sfft
 import scipy.signal
 
 WINDOW_NAMES = ("hann", "hamming", "blackman", "blackmanharris", "rect")
+# Full-range FFT of inputs whose result exceeds _DIRECT_BYTES: in blocks of _BLOCK_BYTES. glibc
+# serves allocations above 32 MiB by a fresh mmap, so torch's output of a larger batch in one call
+# was page-faulted in 4 KiB pages on every call (tripled its cost per frame); one MMWCAS frame is
+# 24 MiB and goes in one call (no copy).
+_DIRECT_BYTES = 24 << 20
+_BLOCK_BYTES = 4 << 20  # 32 MMWCAS channels (64 x 256 complex64 each)
 
 
 class WindowError(ValueError):
@@ -148,14 +156,45 @@ class RangeDoppler:
         np.multiply(_to_channel_major(cube), w, out=buf)
         return buf
 
-    def _fft2_torch(self, x: np.ndarray) -> np.ndarray:
-        """2-D FFT over the last two axes of a C-contiguous complex64 array (new array)."""
+    def _fft2(self, cube: np.ndarray) -> np.ndarray:
+        """Window and both FFTs: complex64 C-contiguous (..., tx, rx, doppler, range) of a
+        checked cube (..., chirps, tx, rx, samples), by ``torch.fft.fft2`` (MKL), which does each
+        channel's 2-D transform while it is in cache.
+
+        Up to ``_DIRECT_BYTES`` of result (one MMWCAS frame): the windowed channel-major buffer
+        is transformed in one call and torch's output is returned (no copy). Larger batches go in
+        blocks of about ``_BLOCK_BYTES`` (whole frames when a frame is smaller; otherwise a
+        divisor of the frame's channels, so a block never spans two frames): a block is
+        window-multiplied into a small buffer, transformed, and copied into the result, so torch
+        never allocates more than a block. The loop runs over cache blocks, not over frames,
+        chirps or channels (an MMWCAS frame is 6 blocks)."""
         import torch
 
+        lead, (c, t, r, n) = cube.shape[:-4], cube.shape[-4:]
+        n_frames, n_ch = int(np.prod(lead, dtype=np.int64)), t * r
+        per_ch = c * n * np.dtype(np.complex64).itemsize
         threads = torch.get_num_threads()
         torch.set_num_threads(self.workers)  # process-wide pool: pinned for the call only
         try:
-            return torch.fft.fft2(torch.from_numpy(x), dim=(-2, -1)).numpy()
+            if n_frames * n_ch * per_ch <= _DIRECT_BYTES:
+                x = torch.from_numpy(self._windowed(cube, self._w2d))
+                return torch.fft.fft2(x, dim=(-2, -1)).numpy()
+            src = np.moveaxis(cube.reshape(n_frames, c, n_ch, n), 1, 2)  # (F, T*R, C, N) view
+            out = np.empty((*lead, t, r, c, n), np.complex64)
+            dst = out.reshape(n_frames, n_ch, c, n)
+            budget = max(1, _BLOCK_BYTES // per_ch)  # channels per block
+            if budget >= n_ch:  # whole frames per block
+                k_f, k_c = min(n_frames, budget // n_ch), n_ch
+            else:  # the largest divisor of the frame's channels within the budget
+                k_f, k_c = 1, max(d for d in range(1, budget + 1) if n_ch % d == 0)
+            buf = np.empty((k_f, k_c, c, n), np.complex64)
+            tbuf = torch.from_numpy(buf)
+            for f0 in range(0, n_frames, k_f):
+                f1 = min(f0 + k_f, n_frames)
+                for c0 in range(0, n_ch, k_c):
+                    np.multiply(src[f0:f1, c0:c0 + k_c], self._w2d, out=buf[:f1 - f0])
+                    dst[f0:f1, c0:c0 + k_c] = torch.fft.fft2(tbuf[:f1 - f0], dim=(-2, -1)).numpy()
+            return out
         finally:
             torch.set_num_threads(threads)
 
@@ -176,7 +215,7 @@ class RangeDoppler:
         range), range = ``n_range`` bins when cropped. Raises ValueError for a wrong shape."""
         cube = self._check(cube)
         if not self.cropped:
-            return self._fft2_torch(self._windowed(cube, self._w2d))
+            return self._fft2(cube)
         # cropped: the Doppler FFT (and everything after) only sees range bins < n_range
         x = self._windowed(cube, self._wr)
         sfft.fft(x, axis=-1, overwrite_x=True, workers=self.workers)
