@@ -275,9 +275,11 @@ def variants(cube: np.ndarray, threads: int, n_crop: int):
     def _():
         return (t_cm.abs() ** 2).sum(dim=(0, 1)).numpy().astype(np.float64).T
 
+    rd_native = rd_full.native(cube)
+
     @add("map", "detection_map (this checkout), its native layout")
     def _():
-        return detection_map(np.moveaxis(rd_full.native(cube), 3, 0))
+        return detection_map(np.moveaxis(rd_native, 3, 0))
 
     return out
 
