@@ -295,7 +295,8 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--threads", type=int, default=1)
     ap.add_argument("--rounds", type=int, default=15)
-    ap.add_argument("--frame", type=Path, help="npz with 'cube' complex64 (chirps, tx, rx, samples)")
+    ap.add_argument("--frame", type=Path,
+                    help="npz with 'cube' complex64 (chirps, tx, rx, samples)")
     ap.add_argument("--crop", type=int, default=61, help="range bins kept in the cut variants "
                     "(61 = the paper's 30 m window)")
     ap.add_argument("--batch", type=int, default=0,

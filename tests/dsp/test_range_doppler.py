@@ -59,7 +59,7 @@ def test_every_method_matches_the_reference_on_one_frame_and_a_batch(n_range):
     doppler, one frame and a batch whose frames differ: all equal the numpy reference."""
     batch = noise_cube((3, 16, 3, 4, 32), seed=2)
     batch[1] *= 1000  # very different scales per frame: nothing mixes between frames
-    ref = numpy_reference(batch)[:, :n_range]                      # (frames, range, doppler, tx, rx)
+    ref = numpy_reference(batch)[:, :n_range]  # (frames, range, doppler, tx, rx)
     proc = RangeDoppler(16, 32, "hann", "hamming", 1, n_range)
     k = 32 if n_range is None else n_range
     for cube, want in [(batch[0], ref[0]), (batch, ref)]:

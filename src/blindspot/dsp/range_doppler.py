@@ -22,8 +22,8 @@ The window multiply writes the cube once into a *channel-major* buffer ``(..., t
 samples)``: each virtual channel's chirps x samples block is contiguous (64 x 256 complex64 =
 128 KiB, it stays in L2 through both FFTs), and the channel sum of the map then runs over the
 outermost axis in one streaming pass. The arrays handed out (``native``, ``__call__``,
-``range_profiles``) are transposed *views* of that buffer with the documented axis order, so
-nothing else is copied; :func:`detection_map` recognises the layout.
+``range_profiles``) are transposed *views* of the channel-major result with the documented axis
+order (no transposing copy); :func:`detection_map` recognises the layout.
 
 * Full range (``n_range`` None or ``n_samples``): both FFTs in one call of ``torch.fft.fft2``
   (CPU builds: MKL), which does each channel's 2-D transform while it is in cache; it beat
@@ -39,7 +39,6 @@ All arithmetic is complex64 (complex128 costs twice the time and agrees within f
 
 from __future__ import annotations
 
-import warnings
 from dataclasses import dataclass, field
 from functools import lru_cache
 
