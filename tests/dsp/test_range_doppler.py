@@ -1,5 +1,6 @@
-"""Range-Doppler FFTs: agreement with a plain numpy reference, target placement on the physical
-axes, zero-Doppler centring, scaling and noise level of the non-coherent map."""
+"""Range-Doppler FFTs: agreement with a plain numpy reference (one frame and a batch, full range
+and a range window, both FFT back-ends), target placement on the physical axes, zero-Doppler
+centring, scaling and noise level of the non-coherent map."""
 
 from __future__ import annotations
 
@@ -18,24 +19,121 @@ def paper():
     return mmwcas()
 
 
+def noise_cube(shape, seed=1):
+    rng = np.random.default_rng(seed)
+    return (rng.standard_normal(shape) + 1j * rng.standard_normal(shape)).astype(np.complex64)
+
+
+def numpy_reference(cube, range_window="hann", doppler_window="hamming"):
+    """Plain float64 numpy: window, fft over samples, window, fft over chirps, fftshift.
+    cube (..., chirps, tx, rx, samples) -> (..., range, doppler, tx, rx) complex128."""
+    n_chirps, n_samples = cube.shape[-4], cube.shape[-1]
+    wr = scipy.signal.get_window(range_window, n_samples, fftbins=True)
+    wd = scipy.signal.get_window(doppler_window, n_chirps, fftbins=True)
+    ref = np.fft.fft(cube.astype(np.complex128) * wr, axis=-1)
+    ref = np.fft.fftshift(np.fft.fft(ref * wd[:, None, None, None], axis=-4), axes=-4)
+    return np.moveaxis(ref, -1, -4)
+
+
+def assert_float32_close(actual, ref):
+    np.testing.assert_allclose(actual, ref, rtol=0, atol=2e-6 * np.abs(ref).max())
+
+
 @pytest.mark.parametrize("n_chirps", [16, 15])
 def test_matches_numpy_reference(n_chirps):
-    rng = np.random.default_rng(1)
-    cube = (rng.standard_normal((n_chirps, 3, 4, 32))
-            + 1j * rng.standard_normal((n_chirps, 3, 4, 32))).astype(np.complex64)
-    wr = scipy.signal.windows.hann(32, sym=False)
-    wd = scipy.signal.windows.hamming(n_chirps, sym=False)
-    ref = np.fft.fft(cube.astype(np.complex128) * wr, axis=-1)
-    ref = np.fft.fftshift(np.fft.fft(ref * wd[:, None, None, None], axis=0), axes=0)
-    ref = ref.transpose(3, 0, 1, 2)  # (range, doppler, tx, rx)
+    cube = noise_cube((n_chirps, 3, 4, 32))
+    ref = numpy_reference(cube)
     rd = range_doppler(cube, "hann", "hamming")
-    assert rd.shape == (32, n_chirps, 3, 4)
-    np.testing.assert_allclose(rd, ref, rtol=0, atol=2e-5 * np.abs(ref).max())
-    np.testing.assert_allclose(detection_map(rd), (np.abs(ref) ** 2).sum(axis=(2, 3)),
-                               rtol=1e-4)
-    # a C-contiguous copy (not RangeDoppler's view) gives the same map
-    np.testing.assert_allclose(detection_map(np.ascontiguousarray(rd)), detection_map(rd),
-                               rtol=1e-6)
+    assert rd.shape == (32, n_chirps, 3, 4) and rd.dtype == np.complex64
+    assert_float32_close(rd, ref)
+    power = detection_map(rd)
+    assert power.shape == (32, n_chirps) and power.dtype == np.float64
+    np.testing.assert_allclose(power, (np.abs(ref) ** 2).sum(axis=(2, 3)), rtol=1e-5)
+    # a C-contiguous copy (not RangeDoppler's view) takes the general path: same map
+    np.testing.assert_allclose(detection_map(np.ascontiguousarray(rd)), power, rtol=1e-6)
+
+
+@pytest.mark.parametrize("n_range", [None, 32, 11, 1])
+def test_every_method_matches_the_reference_on_one_frame_and_a_batch(n_range):
+    """Full range (torch fft2) and range window (scipy), native / __call__ / range_profiles +
+    doppler, one frame and a batch whose frames differ: all equal the numpy reference."""
+    batch = noise_cube((3, 16, 3, 4, 32), seed=2)
+    batch[1] *= 1000  # very different scales per frame: nothing mixes between frames
+    ref = numpy_reference(batch)[:, :n_range]  # (frames, range, doppler, tx, rx)
+    proc = RangeDoppler(16, 32, "hann", "hamming", 1, n_range)
+    k = 32 if n_range is None else n_range
+    for cube, want in [(batch[0], ref[0]), (batch, ref)]:
+        lead = cube.shape[:-4]
+        native = proc.native(cube)
+        assert native.shape == (*lead, 16, 3, 4, k) and native.dtype == np.complex64
+        assert proc.channel_major(cube).shape == (*lead, 3, 4, 16, k)
+        rd = proc(cube)
+        assert rd.shape == (*lead, k, 16, 3, 4)
+        for f in range(len(batch) if lead else 1):
+            sel = (f,) if lead else ()
+            assert_float32_close(rd[sel], want[sel])
+            assert_float32_close(np.moveaxis(native[sel], -1, -4), want[sel])
+        profiles = proc.range_profiles(cube)
+        assert profiles.shape == (*lead, 16, 3, 4, 32)
+        before = profiles.copy()
+        via_profiles = proc.doppler(profiles)
+        np.testing.assert_array_equal(profiles, before)  # the input is left alone
+        np.testing.assert_allclose(via_profiles, native, rtol=0, atol=2e-6 * np.abs(native).max())
+        power = detection_map(rd)
+        assert power.shape == (*lead, k, 16)
+        np.testing.assert_allclose(power, (np.abs(want) ** 2).sum(axis=(-2, -1)), rtol=1e-5)
+    # the batch is the frames one by one
+    one_by_one = np.stack([proc.native(c) for c in batch])
+    np.testing.assert_allclose(proc.native(batch), one_by_one, rtol=0,
+                               atol=1e-6 * np.abs(one_by_one).max())
+    maps = np.stack([detection_map(proc(c)) for c in batch])
+    np.testing.assert_allclose(detection_map(proc(batch)), maps, rtol=1e-6)
+
+
+@pytest.mark.parametrize(("direct_bytes", "block_bytes"), [(0, 1), (0, 3 * 16 * 32 * 8),
+                                                        (0, 2 * 12 * 16 * 32 * 8)])
+def test_large_batches_go_in_blocks_with_the_same_result(monkeypatch, direct_bytes, block_bytes):
+    """Blocks of one channel, of a divisor of the frame's channels (3 of 12), and of two
+    whole frames (a batch of 3: the last block is short): equal to frame by frame."""
+    import blindspot.dsp.range_doppler as rd_mod
+
+    batch = noise_cube((3, 16, 3, 4, 32), seed=4)
+    proc = RangeDoppler(16, 32, "hann", "hamming")
+    one_by_one = np.stack([proc.channel_major(c) for c in batch])
+    monkeypatch.setattr(rd_mod, "_DIRECT_BYTES", direct_bytes)
+    monkeypatch.setattr(rd_mod, "_BLOCK_BYTES", block_bytes)
+    blocks = proc.channel_major(batch)
+    assert blocks.shape == (3, 3, 4, 16, 32) and blocks.flags.c_contiguous
+    np.testing.assert_allclose(blocks, one_by_one, rtol=0, atol=1e-6 * np.abs(one_by_one).max())
+    assert_float32_close(np.moveaxis(proc.native(batch), -1, -4), numpy_reference(batch))
+
+
+def test_range_window_keeps_the_first_bins_of_the_full_transform():
+    cube = noise_cube((64, 2, 4, 256), seed=3)
+    full = RangeDoppler(64, 256).native(cube)
+    cut = RangeDoppler(64, 256, n_range=61).native(cube)
+    assert cut.shape == (64, 2, 4, 61)
+    np.testing.assert_allclose(cut, full[..., :61], rtol=0, atol=2e-6 * np.abs(full).max())
+
+
+def test_torch_pool_is_pinned_to_workers_and_restored(monkeypatch):
+    torch = pytest.importorskip("torch")
+    seen = []
+    fft2 = torch.fft.fft2
+
+    def spy(*args, **kwargs):
+        seen.append(torch.get_num_threads())
+        return fft2(*args, **kwargs)
+
+    monkeypatch.setattr(torch.fft, "fft2", spy)
+    before = torch.get_num_threads()
+    torch.set_num_threads(2)
+    try:
+        RangeDoppler(16, 32, workers=1).native(noise_cube((16, 2, 2, 32)))
+        assert seen == [1]
+        assert torch.get_num_threads() == 2
+    finally:
+        torch.set_num_threads(before)
 
 
 @pytest.mark.parametrize(("range_bin", "vel_bin"), [(40, 0), (17, 5), (100, -7)])
@@ -53,6 +151,10 @@ def test_target_lands_on_its_physical_bin(paper, range_bin, vel_bin):
     if vel_bin == 0:
         gain = np.hanning(radar.n_samples + 1)[:-1].sum() * np.hanning(radar.n_chirps + 1)[:-1].sum()
         assert power[r, d] == pytest.approx(radar.n_tx * radar.n_rx * gain ** 2, rel=1e-4)
+    # with a range window that keeps the target (the other back-end): the same cell
+    cut = RangeDoppler(radar.n_chirps, radar.n_samples, n_range=range_bin + 5)
+    power_cut = detection_map(cut(cube))
+    assert np.unravel_index(np.argmax(power_cut), power_cut.shape) == (r, d)
 
 
 def test_noise_floor_of_the_map(paper):
@@ -69,5 +171,13 @@ def test_noise_floor_of_the_map(paper):
 def test_bad_input_is_named(paper):
     with pytest.raises(WindowError, match="unknown"):
         RangeDoppler(64, 256, range_window="kaiser-ish")
+    with pytest.raises(ValueError, match=r"n_range must be in \[1, 256\]"):
+        RangeDoppler(64, 256, n_range=0)
     with pytest.raises(ValueError, match=r"expected a cube \(chirps=64"):
         RangeDoppler(64, 256)(np.zeros((32, 12, 16, 256), np.complex64))
+    with pytest.raises(ValueError, match=r"expected a cube \(chirps=64"):
+        RangeDoppler(64, 256).native(np.zeros((12, 16, 256), np.complex64))
+    with pytest.raises(ValueError, match=r"expected range profiles \(chirps=64"):
+        RangeDoppler(64, 256).doppler(np.zeros((2, 1, 32, 12, 16, 256), np.complex64))
+    with pytest.raises(ValueError, match=r"expected rd \(range, doppler, tx, rx\)"):
+        detection_map(np.zeros((256, 64, 192), np.complex64))

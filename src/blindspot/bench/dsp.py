@@ -73,7 +73,7 @@ def simulated_frame(cfg, radar, scene_name: str = "straight_car", index: int = 3
     from blindspot.radar.scene import load_scenes
     from blindspot.radar.simulator import SimulatedSource
 
-    scenes = load_scenes(cfg.scene, where="scene")
+    scenes = load_scenes(cfg.scene)
     if scene_name not in scenes:
         raise SystemExit(f"--scene {scene_name!r}: expected one of {list(scenes)}")
     src = SimulatedSource(scenes[scene_name], radar)
@@ -118,9 +118,8 @@ def main(argv: list[str] | None = None) -> int:
 
     from hydra.errors import HydraException
 
+    from blindspot import experiment
     from blindspot.dsp.chain import DetectionChain
-    from blindspot.radar.array import array_for
-    from blindspot.radar.config import RadarConfig
 
     overrides = list(args.overrides)
     if args.threads is not None:
@@ -129,8 +128,8 @@ def main(argv: list[str] | None = None) -> int:
         cfg = load_configs(overrides)
     except HydraException as exc:
         raise SystemExit(f"--set: {exc}") from None
-    radar = RadarConfig.from_mapping(cfg.radar, where="radar")
-    array = array_for(radar)
+    radar = experiment.radar(cfg)
+    array = experiment.array(cfg)
     if args.frame is not None:
         with np.load(args.frame) as z:
             if "cube" not in z:
@@ -145,7 +144,8 @@ def main(argv: list[str] | None = None) -> int:
     else:
         cube, label = simulated_frame(cfg, radar, args.scene, args.frame_index)
 
-    chain = DetectionChain.from_config(radar, array, cfg.cfar, cfg.doa, cfg.detect)
+    chain = DetectionChain(radar, array, experiment.cfar(cfg), experiment.doa(cfg),
+                           experiment.detect(cfg))
     with limiter:
         for _ in range(args.warmup):
             res = chain.process(cube)

@@ -50,7 +50,8 @@ from blindspot.dsp.points import (
 from blindspot.dsp.range_doppler import RangeDoppler, detection_map
 from blindspot.dsp.snapshots import cell_snapshots, chirp_snapshots
 from blindspot.radar.array import VirtualArray
-from blindspot.radar.config import ConfigError, RadarConfig
+from blindspot.radar.config import RadarConfig
+from blindspot.typed_config import ConfigError
 
 # ---------------------------------------------------------------------------------------------
 # results
@@ -178,14 +179,14 @@ class DetectionChain:
                              f"found shape {cubes.shape}")
         if self.detect.snapshots == "chirps":
             profiles = self.rd.range_profiles(cubes)
-            return self.rd.doppler(profiles.copy()), profiles
+            return self.rd.doppler(profiles), profiles
         return self.rd.native(cubes), None
 
     @staticmethod
     def detection_map(rd: np.ndarray) -> np.ndarray:
         """(frames, doppler, tx, rx, range) -> float64 (frames, range, doppler): sum of |X|^2 over
         the virtual channels (power, never log-magnitude)."""
-        return detection_map(rd)
+        return detection_map(np.moveaxis(rd, -1, -4))
 
     def run_cfar(self, power: np.ndarray):
         """(mask, threshold, noise) of the configured CFAR on (..., range, doppler) maps (any

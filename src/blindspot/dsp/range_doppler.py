@@ -2,10 +2,13 @@
 
 Conventions
 -----------
-* Input cube: complex ``(chirps, tx, rx, samples)`` (one frame; ``chirps`` = chirp loops).
-* Output ``rd``: complex ``(range, doppler, tx, rx)``; the Doppler axis is zero-centred
-  (``fftshift`` order: bin ``n_doppler // 2`` is zero velocity, bin ``k`` has the signed index
-  ``k - n_doppler // 2``), matching ``RadarConfig.velocity_axis_mps()``.
+* Input cube: complex ``(chirps, tx, rx, samples)`` for one frame, or a batch
+  ``(frames, chirps, tx, rx, samples)`` (``chirps`` = chirp loops). Every method and
+  :func:`detection_map` take either; the batch axis stays in front.
+* Output ``rd``: complex ``(range, doppler, tx, rx)`` (batch: ``(frames, range, doppler, tx,
+  rx)``); the Doppler axis is zero-centred (``fftshift`` order: bin ``n_doppler // 2`` is zero
+  velocity, bin ``k`` has the signed index ``k - n_doppler // 2``), matching
+  ``RadarConfig.velocity_axis_mps()``.
 * FFTs are *unnormalised* sums with windows of peak 1 (the convention of TI's own processing of ADC
   counts): a tone of amplitude ``a`` exactly on a bin gives ``|X| = a * sum(w_range) * sum(w_doppler)``.
   Power maps are therefore in (input unit)^2, which is what a dB-domain CFAR scale refers to.
@@ -13,7 +16,25 @@ Conventions
   with ``h = N // 2`` (``(-1)^c`` for even N), which shifts the spectrum by ``h`` bins, so no
   ``fftshift`` copy of the cube is ever made.
 
-Both FFTs run in single precision through ``scipy.fft`` in place; ``workers`` sets its threads.
+Memory layout (measured in ``benchmarks/bench_fft.py``, one MMWCAS frame, one thread)
+---------------------------------------------------------------------------------------
+The window multiply writes the cube once into a *channel-major* buffer ``(..., tx, rx, chirps,
+samples)``: each virtual channel's chirps x samples block is contiguous (64 x 256 complex64 =
+128 KiB, it stays in L2 through both FFTs), and the channel sum of the map then runs over the
+outermost axis in one streaming pass. The arrays handed out (``native``, ``__call__``,
+``range_profiles``) are transposed *views* of the channel-major result with the documented axis
+order (no transposing copy); :func:`detection_map` recognises the layout.
+
+* Full range (``n_range`` None or ``n_samples``): both FFTs in one call of ``torch.fft.fft2``
+  (CPU builds: MKL), which does each channel's 2-D transform while it is in cache; it beat
+  ``scipy.fft`` (pocketfft, two passes over the cube), ``numpy.fft`` and torch's own two 1-D
+  passes. torch's intra-op pool is set to ``workers`` for the call and restored after. Batches
+  larger than one MMWCAS frame go through it in cache-sized blocks of channels (see
+  ``RangeDoppler._fft2``).
+* Range window (``n_range`` < ``n_samples``): range FFT in place with ``scipy.fft``, then the
+  Doppler window and FFT only on the kept range bins (``scipy.fft``; faster than torch here, and
+  the same arithmetic as before, so the stages' detections are unchanged bit for bit).
+All arithmetic is complex64 (complex128 costs twice the time and agrees within float32 rounding).
 """
 
 from __future__ import annotations
@@ -26,6 +47,12 @@ import scipy.fft as sfft
 import scipy.signal
 
 WINDOW_NAMES = ("hann", "hamming", "blackman", "blackmanharris", "rect")
+# Full-range FFT of inputs whose result exceeds _DIRECT_BYTES: in blocks of _BLOCK_BYTES. glibc
+# serves allocations above 32 MiB by a fresh mmap, so torch's output of a larger batch in one call
+# was page-faulted in 4 KiB pages on every call (tripled its cost per frame); one MMWCAS frame is
+# 24 MiB and goes in one call (no copy).
+_DIRECT_BYTES = 24 << 20
+_BLOCK_BYTES = 4 << 20  # 32 MMWCAS channels (64 x 256 complex64 each)
 
 
 class WindowError(ValueError):
@@ -34,7 +61,9 @@ class WindowError(ValueError):
 
 @lru_cache(maxsize=64)
 def window(name: str, n: int) -> np.ndarray:
-    """(n,) float64 periodic (DFT-even) window of peak <= 1; ``"rect"`` is all ones."""
+    """(n,) float64 periodic (DFT-even) window of peak <= 1; ``"rect"`` is all ones.
+
+    Raises WindowError for a name not in ``WINDOW_NAMES`` or ``n < 1``."""
     if name not in WINDOW_NAMES:
         raise WindowError(f"window '{name}' is unknown: expected one of {WINDOW_NAMES}")
     if n < 1:
@@ -48,7 +77,8 @@ def window(name: str, n: int) -> np.ndarray:
 
 
 def doppler_shift_window(name: str, n: int) -> np.ndarray:
-    """(n,) complex128 Doppler window times the zero-centring modulation exp(j 2 pi c (n//2) / n)."""
+    """(n,) complex128 Doppler window times the zero-centring modulation exp(j 2 pi c (n//2) / n),
+    indexed by chirp c."""
     c = np.arange(n)
     return window(name, n) * np.exp(2j * np.pi * c * (n // 2) / n)
 
@@ -58,14 +88,28 @@ def signed_doppler_index(doppler_bin: np.ndarray | int, n_doppler: int) -> np.nd
     return np.asarray(doppler_bin) - n_doppler // 2
 
 
+def _to_channel_major(x: np.ndarray) -> np.ndarray:
+    """View (..., chirps, tx, rx, n) as (..., tx, rx, chirps, n)."""
+    return np.moveaxis(x, -4, -2)
+
+
+def _from_channel_major(x: np.ndarray) -> np.ndarray:
+    """View (..., tx, rx, chirps, n) as (..., chirps, tx, rx, n)."""
+    return np.moveaxis(x, -2, -4)
+
+
 @dataclass(frozen=True)
 class RangeDoppler:
     """Range/Doppler FFT configured once for a cube shape (chirps, tx, rx, samples).
 
-    ``__call__(cube) -> rd`` complex64 ``(range, doppler, tx, rx)`` (a transposed *view* of a
-    C-contiguous ``(doppler, tx, rx, range)`` array, so nothing is copied). With ``n_range`` only
-    the first ``n_range`` range bins are Doppler-processed and returned (a range window for
-    scenes that end well before the profile's maximum range; saves most of the Doppler FFT).
+    ``__call__(cube) -> rd`` complex64 ``(range, doppler, tx, rx)`` (batch: ``(frames, range,
+    doppler, tx, rx)``), a transposed *view* of the C-contiguous channel-major result
+    ``(tx, rx, doppler, range)`` (see :meth:`channel_major`), so nothing is copied. With
+    ``n_range`` only the first ``n_range`` range bins are Doppler-processed and returned (a range
+    window for scenes that end well before the profile's maximum range; saves most of the Doppler
+    FFT). ``workers``: threads of scipy.fft and of torch's pool during the call.
+
+    Raises WindowError for an unknown window, ValueError for ``n_range`` outside [1, n_samples].
     """
 
     n_chirps: int
@@ -83,88 +127,177 @@ class RangeDoppler:
             raise ValueError(f"n_range must be in [1, {self.n_samples}], got {self.n_range}")
         wr = window(self.range_window, self.n_samples)
         wd = doppler_shift_window(self.doppler_window, self.n_chirps)
-        w2d = (wd[:, None] * wr[None, :]).astype(np.complex64)[:, None, None, :]
-        object.__setattr__(self, "_w2d", w2d)
+        # (chirps, samples): both windows and the zero-centring, for the channel-major buffer
+        object.__setattr__(self, "_w2d", (wd[:, None] * wr[None, :]).astype(np.complex64))
         object.__setattr__(self, "_wr", wr.astype(np.float32))
-        object.__setattr__(self, "_wd", wd.astype(np.complex64)[:, None, None, None])
+        object.__setattr__(self, "_wd", wd.astype(np.complex64)[:, None])  # (chirps, 1)
 
     @property
     def cropped(self) -> bool:
+        """True when only the first ``n_range`` < ``n_samples`` range bins are kept."""
         return self.n_range is not None and self.n_range < self.n_samples
 
-    def native(self, cube: np.ndarray) -> np.ndarray:
-        """complex64 (doppler, tx, rx, range), C-contiguous: the FFT output before transposing."""
-        if cube.ndim not in (4, 5) or cube.shape[-4] != self.n_chirps \
-                or cube.shape[-1] != self.n_samples:
+    # ------------------------------------------------------------------------------ helpers
+    def _check(self, cube: np.ndarray) -> np.ndarray:
+        cube = np.asarray(cube)
+        if (cube.ndim not in (4, 5) or cube.shape[-4] != self.n_chirps
+                or cube.shape[-1] != self.n_samples):
             raise ValueError(
                 f"range_doppler: expected a cube (chirps={self.n_chirps}, tx, rx, "
-                f"samples={self.n_samples}) or a batch of them (frames, chirps, tx, rx, "
-                f"samples), got shape {cube.shape}"
-            )
+                f"samples={self.n_samples}) or a batch (frames, chirps, tx, rx, samples), "
+                f"got shape {cube.shape}")
+        return cube
+
+    def _windowed(self, cube: np.ndarray, w: np.ndarray) -> np.ndarray:
+        """complex64 (..., tx, rx, chirps, samples) C-contiguous = cube * w, one pass."""
+        lead, (c, t, r, n) = cube.shape[:-4], cube.shape[-4:]
+        buf = np.empty((*lead, t, r, c, n), np.complex64)
+        np.multiply(_to_channel_major(cube), w, out=buf)
+        return buf
+
+    def _fft2(self, cube: np.ndarray) -> np.ndarray:
+        """Window and both FFTs: complex64 C-contiguous (..., tx, rx, doppler, range) of a
+        checked cube (..., chirps, tx, rx, samples), by ``torch.fft.fft2`` (MKL), which does each
+        channel's 2-D transform while it is in cache.
+
+        Up to ``_DIRECT_BYTES`` of result (one MMWCAS frame): the windowed channel-major buffer
+        is transformed in one call and torch's output is returned (no copy). Larger batches go in
+        blocks of about ``_BLOCK_BYTES`` (whole frames when a frame is smaller; otherwise a
+        divisor of the frame's channels, so a block never spans two frames): a block is
+        window-multiplied into a small buffer, transformed, and copied into the result, so torch
+        never allocates more than a block. The loop runs over cache blocks, not over frames,
+        chirps or channels (an MMWCAS frame is 6 blocks)."""
+        import torch
+
+        lead, (c, t, r, n) = cube.shape[:-4], cube.shape[-4:]
+        n_frames, n_ch = int(np.prod(lead, dtype=np.int64)), t * r
+        per_ch = c * n * np.dtype(np.complex64).itemsize
+        threads = torch.get_num_threads()
+        torch.set_num_threads(self.workers)  # process-wide pool: pinned for the call only
+        try:
+            if n_frames * n_ch * per_ch <= _DIRECT_BYTES:
+                x = torch.from_numpy(self._windowed(cube, self._w2d))
+                return torch.fft.fft2(x, dim=(-2, -1)).numpy()
+            src = np.moveaxis(cube.reshape(n_frames, c, n_ch, n), 1, 2)  # (F, T*R, C, N) view
+            out = np.empty((*lead, t, r, c, n), np.complex64)
+            dst = out.reshape(n_frames, n_ch, c, n)
+            budget = max(1, _BLOCK_BYTES // per_ch)  # channels per block
+            if budget >= n_ch:  # whole frames per block
+                k_f, k_c = min(n_frames, budget // n_ch), n_ch
+            else:  # the largest divisor of the frame's channels within the budget
+                k_f, k_c = 1, max(d for d in range(1, budget + 1) if n_ch % d == 0)
+            buf = np.empty((k_f, k_c, c, n), np.complex64)
+            tbuf = torch.from_numpy(buf)
+            for f0 in range(0, n_frames, k_f):
+                f1 = min(f0 + k_f, n_frames)
+                for c0 in range(0, n_ch, k_c):
+                    np.multiply(src[f0:f1, c0:c0 + k_c], self._w2d, out=buf[:f1 - f0])
+                    dst[f0:f1, c0:c0 + k_c] = torch.fft.fft2(tbuf[:f1 - f0], dim=(-2, -1)).numpy()
+            return out
+        finally:
+            torch.set_num_threads(threads)
+
+    def _doppler_cut(self, profiles_cm: np.ndarray) -> np.ndarray:
+        """Doppler window and FFT of the kept range bins of channel-major range profiles
+        (..., tx, rx, chirps, range >= n_range) -> new C-contiguous (..., tx, rx, doppler,
+        n_range)."""
+        x = profiles_cm[..., :self.n_range] if self.cropped else profiles_cm
+        y = np.multiply(x, self._wd, dtype=np.complex64)
+        return sfft.fft(y, axis=-2, overwrite_x=True, workers=self.workers)
+
+    # ------------------------------------------------------------------------------ public
+    def channel_major(self, cube: np.ndarray) -> np.ndarray:
+        """Both FFTs, in the layout they are computed in.
+
+        cube : complex (chirps, tx, rx, samples) or (frames, chirps, tx, rx, samples)
+        returns complex64 C-contiguous (tx, rx, doppler, range) or (frames, tx, rx, doppler,
+        range), range = ``n_range`` bins when cropped. Raises ValueError for a wrong shape."""
+        cube = self._check(cube)
         if not self.cropped:
-            x = np.multiply(cube, self._w2d, dtype=np.complex64)  # both windows, one pass
-            sfft.fft(x, axis=-1, overwrite_x=True, workers=self.workers)
-            return sfft.fft(x, axis=-4, overwrite_x=True, workers=self.workers)
+            return self._fft2(cube)
         # cropped: the Doppler FFT (and everything after) only sees range bins < n_range
-        x = self.range_profiles(cube)
-        y = np.multiply(x[..., :self.n_range], self._wd, dtype=np.complex64)
-        return sfft.fft(y, axis=-4, overwrite_x=True, workers=self.workers)
+        x = self._windowed(cube, self._wr)
+        sfft.fft(x, axis=-1, overwrite_x=True, workers=self.workers)
+        return self._doppler_cut(x)
+
+    def native(self, cube: np.ndarray) -> np.ndarray:
+        """Both FFTs: complex64 (doppler, tx, rx, range), or (frames, doppler, tx, rx, range)
+        for a batch; a view of :meth:`channel_major`'s buffer (not C-contiguous)."""
+        return _from_channel_major(self.channel_major(cube))
 
     def __call__(self, cube: np.ndarray) -> np.ndarray:
-        return np.moveaxis(self.native(cube), 3, 0)
+        """Both FFTs: complex64 (range, doppler, tx, rx), or (frames, range, doppler, tx, rx)."""
+        return np.moveaxis(self.native(cube), -1, -4)
 
     def range_profiles(self, cube: np.ndarray) -> np.ndarray:
-        """Range FFT only: complex64 (chirps, tx, rx, range), range-windowed."""
-        x = np.multiply(cube, self._wr, dtype=np.complex64)
-        return sfft.fft(x, axis=-1, overwrite_x=True, workers=self.workers)
+        """Range FFT only, range-windowed, all ``n_samples`` bins.
+
+        cube : complex (chirps, tx, rx, samples) or (frames, chirps, tx, rx, samples)
+        returns complex64 (chirps, tx, rx, range) or (frames, chirps, tx, rx, range), a view of
+        a C-contiguous channel-major (..., tx, rx, chirps, range) buffer."""
+        x = self._windowed(self._check(cube), self._wr)
+        return _from_channel_major(sfft.fft(x, axis=-1, overwrite_x=True, workers=self.workers))
 
     def doppler(self, range_profiles: np.ndarray) -> np.ndarray:
-        """Doppler FFT (zero-centred) of range profiles (chirps, tx, rx, range), IN PLACE:
-        returns the same buffer as (doppler, tx, rx, range)."""
-        x = range_profiles[..., :self.n_range] if self.cropped else range_profiles
-        x = np.multiply(x, self._wd, dtype=np.complex64) if self.cropped else x.__imul__(self._wd)
-        return sfft.fft(x, axis=-4, overwrite_x=True, workers=self.workers)
+        """Doppler window and FFT (zero-centred) of range profiles, on the first ``n_range``
+        range bins when cropped.
+
+        range_profiles : complex (chirps, tx, rx, range) or (frames, chirps, tx, rx, range), any
+            strides (e.g. :meth:`range_profiles`' output); it is not modified.
+        returns complex64 (doppler, tx, rx, range) or (frames, doppler, tx, rx, range), a view of
+        a new C-contiguous channel-major buffer (same layout as :meth:`native`)."""
+        p = np.asarray(range_profiles)
+        if p.ndim not in (4, 5) or p.shape[-4] != self.n_chirps:
+            raise ValueError(f"doppler: expected range profiles (chirps={self.n_chirps}, tx, rx, "
+                             f"range) or a batch of them, got shape {p.shape}")
+        return _from_channel_major(self._doppler_cut(_to_channel_major(p)))
 
 
 def range_doppler(cube: np.ndarray, range_window: str = "hann", doppler_window: str = "hann",
                   *, workers: int = 1) -> np.ndarray:
-    """Range-Doppler transform of one frame.
+    """Range-Doppler transform of one frame or a batch of frames.
 
-    cube : complex (chirps, tx, rx, samples)
-    returns complex64 (range, doppler, tx, rx), Doppler zero-centred.
+    cube : complex (chirps, tx, rx, samples) or (frames, chirps, tx, rx, samples)
+    returns complex64 (range, doppler, tx, rx) or (frames, range, doppler, tx, rx), Doppler
+    zero-centred (a view; see :class:`RangeDoppler`).
     """
-    proc = RangeDoppler(cube.shape[0], cube.shape[-1], range_window, doppler_window, workers)
+    cube = np.asarray(cube)
+    if cube.ndim not in (4, 5):
+        raise ValueError(f"range_doppler: expected a cube (chirps, tx, rx, samples) or a batch "
+                         f"(frames, chirps, tx, rx, samples), got shape {cube.shape}")
+    proc = RangeDoppler(cube.shape[-4], cube.shape[-1], range_window, doppler_window, workers)
     return proc(cube)
 
 
 def detection_map(rd: np.ndarray) -> np.ndarray:
-    """Non-coherent integration: (range, doppler, tx, rx) -> float64 (range, doppler) = sum |X|^2
-    over all virtual channels (power, never log-magnitude)."""
-    if rd.ndim == 5:  # a batch in RangeDoppler.native layout (frames, doppler, tx, rx, range)
-        f, d, t, r, n = rd.shape
-        x = np.ascontiguousarray(rd).reshape(f * d, t, r, n)
-        return _channel_power(x, axes_first=True).reshape(f, d, n).transpose(0, 2, 1)
-    if rd.ndim != 4:
-        raise ValueError(f"detection_map: expected rd (range, doppler, tx, rx), got shape {rd.shape}")
-    base = rd
-    # Work on the contiguous (doppler, tx, rx, range) layout when rd is RangeDoppler's view.
-    if not rd.flags.c_contiguous and rd.transpose(1, 2, 3, 0).flags.c_contiguous:
-        native = rd.transpose(1, 2, 3, 0)
-        return _channel_power(native, axes_first=True).T
-    return _channel_power(np.ascontiguousarray(base), axes_first=False)
+    """Non-coherent integration over all virtual channels (power, never log-magnitude).
 
+    rd : complex (range, doppler, tx, rx) or (frames, range, doppler, tx, rx), any strides
+    returns float64 (range, doppler) or (frames, range, doppler) = sum over tx, rx of |rd|^2.
+    Summed in the precision of ``rd`` (float32 for complex64), returned in float64. For
+    :class:`RangeDoppler`'s output it is a transposed view of a C-contiguous (doppler, range)
+    array (Fortran order for one frame), as it always was; otherwise C-contiguous.
 
-def _channel_power(x: np.ndarray, axes_first: bool) -> np.ndarray:
-    """sum |x|^2 over the two channel axes: (D, T, R, N) -> (D, N) if axes_first else
-    (N, D, T, R) -> (N, D). Squares the interleaved re/im float view (one pass, no temporaries of
-    complex size), sums channels in the input precision, returns float64."""
-    if x.dtype not in (np.complex64, np.complex128):
-        x = x.astype(np.complex128)
-    f = x.view(np.float32 if x.dtype == np.complex64 else np.float64)  # interleaved re/im
-    if axes_first:
-        d, t, r, n = x.shape
-        s = np.square(f.reshape(d, t * r, 2 * n)).sum(axis=1)  # (D, 2N)
-        return s.reshape(d, n, 2).sum(axis=2, dtype=np.float64)
-    n, d, t, r = x.shape
-    s = np.square(f.reshape(n, d, t * r * 2)).sum(axis=2, dtype=np.float64)
-    return s
+    Fast on :class:`RangeDoppler`'s output (a view of a channel-major buffer): one streaming pass
+    over the channels, no temporaries of cube size. Raises ValueError for another number of axes.
+    """
+    rd = np.asarray(rd)
+    if rd.ndim not in (4, 5):
+        raise ValueError(f"detection_map: expected rd (range, doppler, tx, rx) or (frames, range, "
+                         f"doppler, tx, rx), got shape {rd.shape}")
+    if rd.dtype not in (np.complex64, np.complex128):
+        rd = rd.astype(np.complex128)
+    real = np.float32 if rd.dtype == np.complex64 else np.float64
+    lead, (n, d, t, r) = rd.shape[:-4], rd.shape[-4:]
+    b = int(np.prod(lead, dtype=np.int64))
+    cm = np.moveaxis(rd, (-2, -1), (-4, -3))  # (..., tx, rx, range, doppler)
+    cm = np.swapaxes(cm, -1, -2)              # (..., tx, rx, doppler, range)
+    if cm.flags.c_contiguous:
+        # channel-major: sum of squares over the channel rows of the interleaved re/im floats
+        f = cm.view(real).reshape(b, t * r, d * n * 2)
+        s = np.einsum("bck,bck->bk", f, f).reshape(b, d, n, 2)   # (B, doppler, range, re/im)
+        dn = np.add(s[..., 0], s[..., 1], dtype=np.float64)      # (B, doppler, range)
+        return np.swapaxes(dn.reshape(*lead, d, n), -1, -2)
+    # any other layout: channels innermost, (B, range, doppler, channels * re/im)
+    f = np.ascontiguousarray(rd).view(real).reshape(b, n, d, t * r * 2)
+    return np.square(f).sum(axis=-1, dtype=np.float64).reshape(*lead, n, d)

@@ -7,20 +7,21 @@ seed and the chunk index, so the bytes do not depend on how many worker processe
 from __future__ import annotations
 
 from functools import partial
-from typing import Any
 
 import numpy as np
 import pandas as pd
 
-from blindspot.synth.path_measurement import PathMeasurement, PedestrianModel, measure_paths
+from blindspot.dsp.config import CfarConfig, DetectConfig, DoaConfig
 from blindspot.parallel import parallel_map
 from blindspot.radar.config import RadarConfig
+from blindspot.synth.path_measurement import PathMeasurement, PedestrianModel, measure_paths
 from blindspot.traj.paths import MOTIONS, PathSet
 
 CHUNK_PATHS = 16
 
 
-def measure_path_set(paths: PathSet, radar: RadarConfig, cfar: Any, doa: Any, detect: Any, *,
+def measure_path_set(paths: PathSet, radar: RadarConfig, cfar: CfarConfig, doa: DoaConfig,
+                     detect: DetectConfig, *,
                      pedestrian: PedestrianModel, seed: int, jobs: int = 1,
                      progress: bool = False) -> PathMeasurement:
     """:func:`measure_paths` over chunks of :data:`CHUNK_PATHS` paths in ``jobs`` processes."""

@@ -5,13 +5,13 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass
 from functools import partial
-from typing import Any
 
 import pandas as pd
 
 from blindspot.dsp.chain import DetectionChain, FrameResult
+from blindspot.dsp.config import CfarConfig, DetectConfig, DoaConfig
 from blindspot.radar.array import array_for
-from blindspot.radar.config import RadarConfig
+from blindspot.radar.config import RadarConfig, SimConfig
 from blindspot.radar.scene import SceneConfig
 from blindspot.radar.simulator import SimulatedSource
 
@@ -26,11 +26,11 @@ class SceneDetections:
     kept_frame: FrameResult | None
 
 
-def detect_scene(scene: SceneConfig, radar: RadarConfig, cfar: Mapping[str, Any],
-                 doa: Mapping[str, Any], detect: Mapping[str, Any], sim: Mapping[str, Any],
+def detect_scene(scene: SceneConfig, radar: RadarConfig, cfar: CfarConfig, doa: DoaConfig,
+                 detect: DetectConfig, sim: SimConfig,
                  keep_frame: int | None = None, progress: bool = False) -> SceneDetections:
-    """Simulate the scene frame by frame and run the chain on each frame."""
-    chain = DetectionChain.from_config(radar, array_for(radar), cfar, doa, detect)
+    """Simulate the scene frame by frame and run the chain on batches of frames."""
+    chain = DetectionChain(radar, array_for(radar), cfar, doa, detect)
     source = SimulatedSource.from_config(scene, radar, sim)
     det, _ = chain.process_many(source, progress=progress)
     det = det.assign(scene=scene.name, time_s=source.times_s[det["frame"].to_numpy()])
@@ -44,12 +44,12 @@ def detect_scene(scene: SceneConfig, radar: RadarConfig, cfar: Mapping[str, Any]
     return SceneDetections(scene.name, det, kept)
 
 
-def detect_scenes(scenes: Mapping[str, SceneConfig], radar: RadarConfig, cfar, doa, detect, sim,
-                  *, keep: tuple[str, int] | None = None, jobs: int = 1,
+def detect_scenes(scenes: Mapping[str, SceneConfig], radar: RadarConfig, cfar: CfarConfig,
+                  doa: DoaConfig, detect: DetectConfig, sim: SimConfig, *,
+                  keep: tuple[str, int] | None = None, jobs: int = 1,
                   progress: bool = False) -> list[SceneDetections]:
-    """:func:`detect_scene` for every scene, in ``jobs`` processes (configs must be plain
-    mappings or dataclasses so they pickle); ``keep`` = (scene, frame) whose full frame result
-    is kept."""
+    """:func:`detect_scene` for every scene, in ``jobs`` processes (the typed configs are frozen
+    dataclasses, so they pickle); ``keep`` = (scene, frame) whose full frame result is kept."""
     from blindspot.parallel import parallel_map
 
     items = [(sc, keep[1] if keep and keep[0] == name else None) for name, sc in scenes.items()]
