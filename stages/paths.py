@@ -7,15 +7,16 @@ reduced-cube chain of blindspot.synth.path_measurement), so the data carry the r
 
 import numpy as np
 
-from blindspot import experiment, tracking
+from blindspot import experiment
 from blindspot.cli import main_stage
+from blindspot.io import write_parquet
+from blindspot.stage import StageResult
 from blindspot.synth.path_dataset import measure_path_set, path_table
 from blindspot.synth.path_measurement import PedestrianModel
-from blindspot.io import write_parquet
 from blindspot.traj.paths import PathSpec, random_path_set
 
 
-def run(cfg):
+def run(cfg, ctx):
     radar = experiment.radar(cfg)
     spec = PathSpec.from_mapping(cfg.dataset)
     if not np.isclose(spec.frame_period_s, radar.frame_period_s):
@@ -27,7 +28,7 @@ def run(cfg):
                                 seed=int(cfg.dataset.seed), jobs=int(cfg.jobs),
                                 progress=bool(cfg.progress))
     table = path_table(paths, measured, radar.frame_period_s)
-    write_parquet(experiment.data_path(cfg, "paths", "paths.parquet"), table)
+    write_parquet(ctx.out("paths.parquet"), table)
     err = np.hypot(table.x_m - table.x_true_m, table.y_m - table.y_true_m).dropna()
     stats = {
         "n_paths": int(len(paths.xy)),
@@ -37,8 +38,8 @@ def run(cfg):
     }
     stats.update({f"detection_rate.{m}": float(g.x_m.notna().mean())
                   for m, g in table.groupby("motion")})
-    tracking.current().log_metrics(stats)
     print("paths: " + ", ".join(f"{k} {v:.3g}" for k, v in stats.items()))
+    return StageResult(metrics=stats)
 
 
 if __name__ == "__main__":

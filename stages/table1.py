@@ -5,16 +5,16 @@ import json
 
 from omegaconf import OmegaConf
 
-from blindspot import experiment, tracking
 from blindspot.cli import main_stage
 from blindspot.io import write_text
 from blindspot.report.tables import table1_lstm
+from blindspot.stage import StageResult
 
 BASELINES = {"constant_velocity": "constant velocity", "kalman": "Kalman (CV)"}
 
 
-def run(cfg):
-    train = json.loads(experiment.reports_path(cfg, "metrics", "train.json").read_text())
+def run(cfg, ctx):
+    train = json.loads(ctx.dep("train.json").read_text())
     counts = {**train["n_windows"], "window": int(cfg.model.window)}
     text = table1_lstm(
         OmegaConf.to_container(cfg.model, resolve=True), OmegaConf.to_container(cfg.train, resolve=True),
@@ -23,9 +23,9 @@ def run(cfg):
     text += ("\nRMSE here is over both coordinates (root of the mean squared x and y error, metres), what "
              "Keras' RMSE metric reports on (x, y) targets; the Euclidean one-step RMSE of the LSTM "
              f"is {train['lstm']['val']['rmse_euclid_m']:.4f} m (validation).\n")
-    out = write_text(experiment.reports_path(cfg, "tables", "table1.md"), text)
-    tracking.current().log_artifact(out)
+    out = write_text(ctx.out("table1.md"), text)
     print(f"table1: {out} (val RMSE {train['lstm']['val']['rmse_m']:.4f} m, paper 0.07)")
+    return StageResult(artifacts=[out])
 
 
 if __name__ == "__main__":
