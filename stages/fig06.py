@@ -25,8 +25,8 @@ def run(cfg, ctx):
     scenes = json.loads(ctx.dep("scenes.json").read_text())
     scene, frame_no = str(frame["scene"]), int(frame["frame"])
     if scene not in scenes:
-        raise ValueError(f"fig06: data/detect/fig06_frame.npz names scene {scene!r}, not in "
-                         f"data/simulate/scenes.json ({sorted(scenes)})")
+        raise ValueError(f"fig06: {ctx.dep('fig06_frame.npz')} names scene {scene!r}, not in "
+                         f"{ctx.dep('scenes.json')} ({sorted(scenes)})")
     tr = truth[truth.scene == scene].sort_values("frame")
     now = tr[tr.frame == frame_no].iloc[0]
     pt = points[(points.scene == scene) & (points.frame == frame_no)]

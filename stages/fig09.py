@@ -12,7 +12,8 @@ from blindspot.stage import StageResult
 
 
 def run(cfg, ctx):
-    tracks = pd.read_parquet(ctx.dep("tracks.parquet"))
+    tracks_file = ctx.dep("tracks.parquet")
+    tracks = pd.read_parquet(tracks_file)
     predictions = pd.read_parquet(ctx.dep("predictions.parquet"))
     truth = pd.read_parquet(ctx.dep("truth.parquet"))
     scenes = json.loads(ctx.dep("scenes.json").read_text())
@@ -21,7 +22,7 @@ def run(cfg, ctx):
     inputs = tracks[tracks.method == method]
     if inputs.empty:
         raise ValueError(f"fig09: config key 'eval.prediction_input' = {method!r} has no rows in "
-                         f"data/interpolate/tracks.parquet (methods there: {sorted(tracks.method.unique())})")
+                         f"{tracks_file} (methods there: {sorted(tracks.method.unique())})")
     fig = fig09_prediction(inputs, predictions, truth, scenes, metrics)
     out = save_figure(fig, ctx.out("fig09.png"), dpi=110)
     print(f"fig09: {out} ({predictions.scene.nunique()} scenes x {predictions.method.nunique()} methods)")
