@@ -4,16 +4,17 @@ The same as `python -m blindspot.bench.ethucy --data ... --out reports/metrics/e
 --report reports/ethucy.md`, with the settings from cfg.ethucy (conf/ethucy/).
 """
 
-from blindspot import experiment, tracking
 from blindspot.bench import ethucy as bench
+from blindspot import experiment
 from blindspot.cli import main_stage
 from blindspot.config import shared_dir
+from blindspot.stage import StageResult
 
 
-def run(cfg):
+def run(cfg, ctx):
     e = experiment.ethucy(cfg)
-    out = experiment.reports_path(cfg, "metrics", "ethucy.json")
-    report = experiment.reports_path(cfg, "ethucy.md")
+    out = ctx.out("ethucy.json")
+    report = ctx.out("ethucy.md")
     argv = ["--data", str(shared_dir(cfg) / e.data), "--out", str(out), "--report", str(report),
             "--models", ",".join(e.models), "--folds", ",".join(e.folds),
             "--epochs", str(e.epochs), "--ensemble", str(e.ensemble), "--threads", str(e.threads),
@@ -26,9 +27,7 @@ def run(cfg):
     import json
 
     results = json.loads(out.read_text())
-    tracker = tracking.current()
-    tracker.log_metrics({m: r["avg"] for m, r in results.items()})
-    tracker.log_artifact(report)
+    return StageResult(metrics={m: r["avg"] for m, r in results.items()}, artifacts=[report])
 
 
 if __name__ == "__main__":

@@ -7,25 +7,26 @@ import json
 import numpy as np
 import pandas as pd
 
-from blindspot import experiment
 from blindspot.cli import main_stage
+from blindspot.dsp.frame_io import read_frame_result
 from blindspot.dsp.points import to_cartesian
+from blindspot.io import save_figure
 from blindspot.report.figures import fig06_detection
+from blindspot.stage import StageResult
 
 N_ACCUMULATE = 100  # the paper's Fig. 6e
 
 
-def run(cfg):
-    with np.load(experiment.data_path(cfg, "detect", "fig06_frame.npz")) as z:
-        frame = {k: z[k] for k in z.files}
-    detections = pd.read_parquet(experiment.data_path(cfg, "detect", "fig06_detections.parquet"))
-    points = pd.read_parquet(experiment.data_path(cfg, "localise", "points.parquet"))
-    truth = pd.read_parquet(experiment.data_path(cfg, "simulate", "truth.parquet"))
-    scenes = json.loads(experiment.data_path(cfg, "simulate", "scenes.json").read_text())
+def run(cfg, ctx):
+    frame = read_frame_result(ctx.dep("fig06_frame.npz"))
+    detections = pd.read_parquet(ctx.dep("fig06_detections.parquet"))
+    points = pd.read_parquet(ctx.dep("points.parquet"))
+    truth = pd.read_parquet(ctx.dep("truth.parquet"))
+    scenes = json.loads(ctx.dep("scenes.json").read_text())
     scene, frame_no = str(frame["scene"]), int(frame["frame"])
     if scene not in scenes:
-        raise ValueError(f"fig06: data/detect/fig06_frame.npz names scene {scene!r}, not in "
-                         f"data/simulate/scenes.json ({sorted(scenes)})")
+        raise ValueError(f"fig06: {ctx.dep('fig06_frame.npz')} names scene {scene!r}, not in "
+                         f"{ctx.dep('scenes.json')} ({sorted(scenes)})")
     tr = truth[truth.scene == scene].sort_values("frame")
     now = tr[tr.frame == frame_no].iloc[0]
     pt = points[(points.scene == scene) & (points.frame == frame_no)]
@@ -36,8 +37,9 @@ def run(cfg):
         point=None if pt.empty else pt.iloc[0][["x_m", "y_m", "range_m", "angle_deg"]].to_dict(), static_xy_m=static_xy,
         scene_points=points[points.scene == scene], scene_truth=tr,
         car_polygon=scenes[scene]["car_polygon_xy_m"], scene_name=scene, n_accumulate=N_ACCUMULATE)
-    out = experiment.save_report_figure(cfg, fig, "fig06", dpi=110)
+    out = save_figure(fig, ctx.out("fig06.png"), dpi=110)
     print(f"fig06: {out} ({scene}, frame {frame_no}, {len(detections)} detections)")
+    return StageResult(artifacts=[out])
 
 
 if __name__ == "__main__":

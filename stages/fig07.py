@@ -7,7 +7,9 @@ import pandas as pd
 
 from blindspot import experiment
 from blindspot.cli import main_stage
+from blindspot.io import save_figure
 from blindspot.report.figures import fig07_scenes
+from blindspot.stage import StageResult
 
 
 def scene_pairs(cfg) -> list[tuple[str, str]]:
@@ -20,14 +22,15 @@ def scene_pairs(cfg) -> list[tuple[str, str]]:
     return pairs
 
 
-def run(cfg):
-    points = pd.read_parquet(experiment.data_path(cfg, "localise", "points.parquet"))
-    truth = pd.read_parquet(experiment.data_path(cfg, "simulate", "truth.parquet"))
-    scenes = json.loads(experiment.data_path(cfg, "simulate", "scenes.json").read_text())
+def run(cfg, ctx):
+    points = pd.read_parquet(ctx.dep("points.parquet"))
+    truth = pd.read_parquet(ctx.dep("truth.parquet"))
+    scenes = json.loads(ctx.dep("scenes.json").read_text())
     pairs = scene_pairs(cfg)
     fig = fig07_scenes(points, truth, scenes, pairs)
-    out = experiment.save_report_figure(cfg, fig, "fig07", dpi=110)
+    out = save_figure(fig, ctx.out("fig07.png"), dpi=110)
     print(f"fig07: {out} ({', '.join(f'{a} / {b}' for a, b in pairs)})")
+    return StageResult(artifacts=[out])
 
 
 if __name__ == "__main__":

@@ -5,19 +5,21 @@ import json
 
 import pandas as pd
 
-from blindspot import experiment
 from blindspot.cli import main_stage
+from blindspot.io import save_figure
 from blindspot.report.figures import fig08_interpolation
+from blindspot.stage import StageResult
 
 
-def run(cfg):
-    tracks = pd.read_parquet(experiment.data_path(cfg, "interpolate", "tracks.parquet"))
-    truth = pd.read_parquet(experiment.data_path(cfg, "simulate", "truth.parquet"))
-    scenes = json.loads(experiment.data_path(cfg, "simulate", "scenes.json").read_text())
-    metrics = json.loads(experiment.reports_path(cfg, "metrics", "interpolate.json").read_text())
+def run(cfg, ctx):
+    tracks = pd.read_parquet(ctx.dep("tracks.parquet"))
+    truth = pd.read_parquet(ctx.dep("truth.parquet"))
+    scenes = json.loads(ctx.dep("scenes.json").read_text())
+    metrics = json.loads(ctx.dep("interpolate.json").read_text())
     fig = fig08_interpolation(tracks, truth, scenes, metrics)
-    out = experiment.save_report_figure(cfg, fig, "fig08", dpi=110)
+    out = save_figure(fig, ctx.out("fig08.png"), dpi=110)
     print(f"fig08: {out} ({tracks.scene.nunique()} scenes x {tracks.method.nunique()} methods)")
+    return StageResult(artifacts=[out])
 
 
 if __name__ == "__main__":

@@ -5,25 +5,28 @@ import json
 
 import pandas as pd
 
-from blindspot import experiment
 from blindspot.cli import main_stage
+from blindspot.io import save_figure
 from blindspot.report.figures import fig09_prediction
+from blindspot.stage import StageResult
 
 
-def run(cfg):
-    tracks = pd.read_parquet(experiment.data_path(cfg, "interpolate", "tracks.parquet"))
-    predictions = pd.read_parquet(experiment.data_path(cfg, "predict", "predictions.parquet"))
-    truth = pd.read_parquet(experiment.data_path(cfg, "simulate", "truth.parquet"))
-    scenes = json.loads(experiment.data_path(cfg, "simulate", "scenes.json").read_text())
-    metrics = json.loads(experiment.reports_path(cfg, "metrics", "evaluate.json").read_text())
+def run(cfg, ctx):
+    tracks_file = ctx.dep("tracks.parquet")
+    tracks = pd.read_parquet(tracks_file)
+    predictions = pd.read_parquet(ctx.dep("predictions.parquet"))
+    truth = pd.read_parquet(ctx.dep("truth.parquet"))
+    scenes = json.loads(ctx.dep("scenes.json").read_text())
+    metrics = json.loads(ctx.dep("evaluate.json").read_text())
     method = str(cfg.eval.prediction_input)
     inputs = tracks[tracks.method == method]
     if inputs.empty:
         raise ValueError(f"fig09: config key 'eval.prediction_input' = {method!r} has no rows in "
-                         f"data/interpolate/tracks.parquet (methods there: {sorted(tracks.method.unique())})")
+                         f"{tracks_file} (methods there: {sorted(tracks.method.unique())})")
     fig = fig09_prediction(inputs, predictions, truth, scenes, metrics)
-    out = experiment.save_report_figure(cfg, fig, "fig09", dpi=110)
+    out = save_figure(fig, ctx.out("fig09.png"), dpi=110)
     print(f"fig09: {out} ({predictions.scene.nunique()} scenes x {predictions.method.nunique()} methods)")
+    return StageResult(artifacts=[out])
 
 
 if __name__ == "__main__":

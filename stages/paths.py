@@ -7,15 +7,16 @@ reduced-cube chain of blindspot.synth.path_measurement), so the data carry the r
 
 import numpy as np
 
-from blindspot import experiment, tracking
+from blindspot import experiment
 from blindspot.cli import main_stage
+from blindspot.io import write_parquet
+from blindspot.stage import StageResult
 from blindspot.synth.path_dataset import measure_path_set, path_table
 from blindspot.synth.path_measurement import PedestrianModel
-from blindspot.io import write_parquet
 from blindspot.traj.paths import random_path_set
 
 
-def run(cfg):
+def run(cfg, ctx):
     radar = experiment.radar(cfg)
     dataset = experiment.dataset(cfg)
     paths = random_path_set(dataset.n_paths, dataset.path_spec(), seed=dataset.seed)
@@ -25,7 +26,7 @@ def run(cfg):
                                 seed=dataset.seed, jobs=int(cfg.jobs),
                                 progress=bool(cfg.progress))
     table = path_table(paths, measured, radar.frame_period_s)
-    write_parquet(experiment.data_path(cfg, "paths", "paths.parquet"), table)
+    write_parquet(ctx.out("paths.parquet"), table)
     err = np.hypot(table.x_m - table.x_true_m, table.y_m - table.y_true_m).dropna()
     stats = {
         "n_paths": int(len(paths.xy)),
@@ -35,8 +36,8 @@ def run(cfg):
     }
     stats.update({f"detection_rate.{m}": float(g.x_m.notna().mean())
                   for m, g in table.groupby("motion")})
-    tracking.current().log_metrics(stats)
     print("paths: " + ", ".join(f"{k} {v:.3g}" for k, v in stats.items()))
+    return StageResult(metrics=stats)
 
 
 if __name__ == "__main__":

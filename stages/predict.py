@@ -11,17 +11,18 @@ from functools import partial
 import numpy as np
 import pandas as pd
 
-from blindspot import experiment, tracking
+from blindspot import experiment
 from blindspot.cli import main_stage
 from blindspot.io import write_parquet
+from blindspot.stage import StageResult
 from blindspot.traj.forecast import forecast_track
 from blindspot.traj.interpolation import interpolate
 from blindspot.traj.lstm import LSTMPredictor
 
 
-def run(cfg):
-    points = pd.read_parquet(experiment.data_path(cfg, "localise", "points.parquet"))
-    lstm = LSTMPredictor.load(experiment.data_path(cfg, "train", "model.pt"))
+def run(cfg, ctx):
+    points = pd.read_parquet(ctx.dep("points.parquet"))
+    lstm = LSTMPredictor.load(ctx.dep("model.pt"))
     dt = float(cfg.radar.frame_period_s)
     fill = partial(interpolate, method=str(cfg.eval.prediction_input), predictor=lstm,
                    smoother=experiment.kalman(cfg).smooth)
@@ -45,10 +46,10 @@ def run(cfg):
                 "frame": frames, "time_s": frames * dt, "x_m": pred[:, 0], "y_m": pred[:, 1],
             }))
     predictions = pd.concat(rows, ignore_index=True)
-    write_parquet(experiment.data_path(cfg, "predict", "predictions.parquet"), predictions)
-    tracking.current().log_metrics({"n_predicted_points": len(predictions)})
+    write_parquet(ctx.out("predictions.parquet"), predictions)
     print(f"predict: {predictions.scene.nunique()} scenes x {predictions.method.nunique()} methods, "
           f"{predictions.step.max()} steps each")
+    return StageResult(metrics={"n_predicted_points": len(predictions)})
 
 
 if __name__ == "__main__":

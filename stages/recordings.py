@@ -3,8 +3,9 @@
 Each entry of cfg.recordings (conf/recordings/) names a capture (kind: ti_cascade | dca1000 |
 openradar_npy, path relative to paths.shared_dir or absolute) and its radar profile. For each:
 the detections of every frame, the maps of the first frame, and a range-Doppler figure with the
-detections. Your own capture: add a conf/recordings/<name>.yaml and run
-`python -m blindspot recordings recordings=<name>`.
+detections. Your own capture: add a conf/recordings/<name>.yaml, declare its figure
+reports/figures/recording_<name>.png among the recordings stage's outs in dvc.yaml (and the
+report stage's deps), and run `python -m blindspot recordings recordings=<name>`.
 """
 
 from pathlib import Path
@@ -12,21 +13,21 @@ from pathlib import Path
 import numpy as np
 from omegaconf import OmegaConf
 
-from blindspot import experiment, tracking
 from blindspot.cli import main_stage
 from blindspot.config import shared_dir
 from blindspot.dsp.chain import DetectionChain
 from blindspot.dsp.config import CfarConfig, DetectConfig, DoaConfig
-from blindspot.io import atomic_open, write_json, write_parquet
+from blindspot.dsp.frame_io import write_frame_result
+from blindspot.io import save_figure, write_json, write_parquet
 from blindspot.radar.array import array_for
 from blindspot.radar.capture import open_recording
 from blindspot.radar.config import RadarConfig
 from blindspot.report.figures import fig_recording
+from blindspot.stage import StageResult
 
 
-def run(cfg):
-    summary = {}
-    tracker = tracking.current()
+def run(cfg, ctx):
+    summary, figures = {}, []
     for name, rec in cfg.recordings.items():
         path = Path(rec.path)
         if not path.is_absolute():
@@ -40,12 +41,9 @@ def run(cfg):
             for g, kind in (("cfar", CfarConfig), ("doa", DoaConfig), ("detect", DetectConfig))))
         det, _ = chain.process_many(source, progress=cfg.progress)
         first = chain.process(source.frame(0), frame=0)
-        out = experiment.data_path(cfg, "recordings", name)
+        out = ctx.out("recordings") / name
         write_parquet(out / "detections.parquet", det)
-        with atomic_open(out / "frame0.npz", "wb") as f:
-            np.savez_compressed(f, power=first.power, threshold=first.threshold, mask=first.mask,
-                                range_axis_m=first.range_axis_m,
-                                velocity_axis_mps=first.velocity_axis_mps)
+        write_frame_result(out / "frame0.npz", first, scene=name)
         per_frame = det.groupby("frame").size().reindex(range(source.n_frames), fill_value=0)
         strongest = det.sort_values("power", ascending=False).drop_duplicates("frame")
         summary[name] = {
@@ -56,11 +54,12 @@ def run(cfg):
         }
         fig = fig_recording(first.power, first.detections, first.range_axis_m,
                             first.velocity_axis_mps, f"{name} ({rec.kind}), frame 0")
-        experiment.save_report_figure(cfg, fig, f"recording_{name}")
+        figures.append(save_figure(fig, ctx.out(f"recording_{name}.png")))
         print(f"recordings {name}: {source.n_frames} frames, {per_frame.mean():.1f} detections/frame, "
               f"strongest return at {summary[name]['strongest_range_m']} m")
-    write_json(experiment.reports_path(cfg, "metrics", "recordings.json"), summary)
-    tracker.log_metrics({n: {"detections_per_frame": s["detections_per_frame"]} for n, s in summary.items()})
+    write_json(ctx.out("recordings.json"), summary)
+    return StageResult(metrics={n: {"detections_per_frame": s["detections_per_frame"]}
+                                for n, s in summary.items()}, artifacts=figures)
 
 
 if __name__ == "__main__":

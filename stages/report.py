@@ -5,10 +5,10 @@ exist yet (e.g. the ETH/UCY benchmark's) are reported as not run; the page still
 import json
 from pathlib import Path
 
-from blindspot import experiment, tracking
 from blindspot.cli import main_stage
 from blindspot.io import write_text
 from blindspot.report.page import FigureEntry, build_page
+from blindspot.stage import StageResult, UndeclaredPath
 
 METRICS = ("localise", "train", "interpolate", "evaluate", "ethucy")
 
@@ -17,13 +17,18 @@ def read_json(path: Path) -> dict | None:
     return json.loads(path.read_text()) if path.is_file() else None
 
 
-def recording_figures(cfg) -> list[FigureEntry]:
+def recording_figures(ctx) -> list[FigureEntry]:
     """The recordings stage's figures that exist, in the order of reports/metrics/recordings.json."""
-    recordings = read_json(experiment.reports_path(cfg, "metrics", "recordings.json")) or {}
+    recordings = read_json(ctx.dep("recordings.json")) or {}
+    page_dir = ctx.out("README.md").parent
     out = []
     for name, info in recordings.items():
-        rel = f"figures/recording_{name}.png"
-        if experiment.reports_path(cfg, rel).is_file():
+        try:
+            figure = ctx.dep(f"recording_{name}.png")
+        except UndeclaredPath:
+            continue
+        rel = figure.relative_to(page_dir).as_posix()
+        if figure.is_file():
             out.append(FigureEntry(
                 "recordings", rel, f"Real recording: {name}",
                 f"Range-Doppler map of frame 0 of `{Path(info.get('file', name)).name}` ({info.get('kind')}) "
@@ -32,17 +37,17 @@ def recording_figures(cfg) -> list[FigureEntry]:
     return out
 
 
-def run(cfg):
-    metrics = {name: read_json(experiment.reports_path(cfg, "metrics", f"{name}.json")) for name in METRICS}
+def run(cfg, ctx):
+    metrics = {name: read_json(ctx.dep(f"{name}.json")) for name in METRICS}
     tables = {}
     for name in ("table1", "table2"):
-        path = experiment.reports_path(cfg, "tables", f"{name}.md")
+        path = ctx.dep(f"{name}.md")
         tables[name] = path.read_text() if path.is_file() else None
-    page = build_page(metrics, tables, extra_figures=recording_figures(cfg))
-    out = write_text(experiment.reports_path(cfg, "README.md"), page)
-    tracking.current().log_artifact(out)
+    page = build_page(metrics, tables, extra_figures=recording_figures(ctx))
+    out = write_text(ctx.out("README.md"), page)
     missing = [n for n, m in metrics.items() if m is None]
     print(f"report: {out}" + (f" (not yet run: {', '.join(missing)})" if missing else ""))
+    return StageResult(artifacts=[out])
 
 
 if __name__ == "__main__":

@@ -1,20 +1,25 @@
 """simulate: the six paper scenes' truth (pedestrian path per frame, occlusion, car geometry).
 
 Frames are not stored (detect and localise regenerate them from the same seeds); with
-``simulate.write_captures: true`` each scene is also written as a TI MMWCAS cascade capture.
+``simulate.write_captures: true`` each scene is also written as a TI MMWCAS cascade capture
+under ``<paths.data_dir>/captures/<scene>``: an export for other tools, off by default and not a
+DVC out (nothing in the pipeline reads it).
 """
+
+from pathlib import Path
 
 import pandas as pd
 from tqdm import tqdm
 
-from blindspot import experiment, tracking
+from blindspot import experiment
 from blindspot.cli import main_stage
 from blindspot.io import write_json, write_parquet
 from blindspot.radar.scene import Scene, scene_truth
 from blindspot.radar.simulator import SimulatedSource
+from blindspot.stage import StageResult
 
 
-def run(cfg):
+def run(cfg, ctx):
     radar = experiment.radar(cfg)
     scenes = experiment.scenes(cfg)
     truth = pd.concat(
@@ -31,18 +36,17 @@ def run(cfg):
         }
         for name, sc in scenes.items()
     }
-    write_parquet(experiment.data_path(cfg, "simulate", "truth.parquet"), truth)
-    write_json(experiment.data_path(cfg, "simulate", "scenes.json"), geometry)
+    write_parquet(ctx.out("truth.parquet"), truth)
+    write_json(ctx.out("scenes.json"), geometry)
     hidden = truth.groupby("scene")["occluded"].mean()
-    tracker = tracking.current()
-    tracker.log_metrics({f"hidden_fraction.{k}": float(v) for k, v in hidden.items()})
-    tracker.log_metrics({f"radar.{k}": v for k, v in radar.summary().items()})
     if cfg.simulate.write_captures:
         for name, sc in tqdm(scenes.items(), desc="captures", disable=not cfg.progress):
             SimulatedSource.from_config(sc, radar, experiment.sim(cfg)).write_ti_cascade(
-                experiment.data_path(cfg, "captures", name))
+                Path(cfg.paths.data_dir, "captures", name))
     print(f"simulate: {len(scenes)} scenes, {len(truth)} frames; hidden fraction "
           + ", ".join(f"{k} {v:.2f}" for k, v in hidden.items()))
+    return StageResult(metrics={**{f"hidden_fraction.{k}": float(v) for k, v in hidden.items()},
+                                **{f"radar.{k}": v for k, v in radar.summary().items()}})
 
 
 if __name__ == "__main__":

@@ -4,16 +4,17 @@ including the constant-velocity and Kalman baselines' one-step RMSE on the same 
 import json
 from dataclasses import asdict
 
-from blindspot import experiment, tracking
+from blindspot import experiment
 from blindspot.cli import main_stage
 from blindspot.io import write_text
 from blindspot.report.tables import table1_lstm
+from blindspot.stage import StageResult
 
 BASELINES = {"constant_velocity": "constant velocity", "kalman": "Kalman (CV)"}
 
 
-def run(cfg):
-    train = json.loads(experiment.reports_path(cfg, "metrics", "train.json").read_text())
+def run(cfg, ctx):
+    train = json.loads(ctx.dep("train.json").read_text())
     model, training = experiment.model(cfg), experiment.training(cfg)
     counts = {**train["n_windows"], "window": model.window}
     text = table1_lstm(
@@ -23,9 +24,9 @@ def run(cfg):
     text += ("\nRMSE here is over both coordinates (root of the mean squared x and y error, metres), what "
              "Keras' RMSE metric reports on (x, y) targets; the Euclidean one-step RMSE of the LSTM "
              f"is {train['lstm']['val']['rmse_euclid_m']:.4f} m (validation).\n")
-    out = write_text(experiment.reports_path(cfg, "tables", "table1.md"), text)
-    tracking.current().log_artifact(out)
+    out = write_text(ctx.out("table1.md"), text)
     print(f"table1: {out} (val RMSE {train['lstm']['val']['rmse_m']:.4f} m, paper 0.07)")
+    return StageResult(artifacts=[out])
 
 
 if __name__ == "__main__":

@@ -1,13 +1,15 @@
 """train: the many-to-one LSTM of the paper's Table 1 on the radar-measured windows.
 
-Logs the flattened config, per-epoch metrics, the model and the history to MLflow; checkpoints
+Per-epoch metrics go to MLflow as they come (``ctx.log_step``, the training's ``on_epoch``);
+the model, the history and the final metrics are returned for the runner to log; checkpoints
 every epoch under data/train/checkpoints (resume with train.resume=true). Validation and test
 RMSE are reported beside the constant-velocity and Kalman one-step errors on the same windows.
 """
 
-from blindspot import experiment, tracking
+from blindspot import experiment
 from blindspot.cli import main_stage
 from blindspot.io import write_json, write_text
+from blindspot.stage import StageResult
 from blindspot.traj.baselines import ConstantVelocity
 from blindspot.traj.train import evaluate, rmse_euclidean, rmse_per_coordinate, train_lstm
 from blindspot.traj.windows import WindowSet
@@ -18,22 +20,19 @@ def baseline_rmse(predictor, ws: WindowSet) -> dict:
     return {"rmse_m": rmse_per_coordinate(pred, ws.y), "rmse_euclid_m": rmse_euclidean(pred, ws.y)}
 
 
-def run(cfg):
-    split = {s: WindowSet.load(experiment.data_path(cfg, "windows", f"{s}.parquet"))
-             for s in ("train", "val", "test")}
+def run(cfg, ctx):
+    split = {s: WindowSet.load(ctx.dep(f"{s}.parquet")) for s in ("train", "val", "test")}
     model_cfg = experiment.model(cfg)
     train_cfg = experiment.training(cfg)
-    tracker = tracking.current()
     result = train_lstm(
         split["train"], split["val"], model_cfg, train_cfg,
-        on_epoch=lambda epoch, m: tracker.log_metrics(m, step=epoch),
-        checkpoint_dir=experiment.data_path(cfg, "train", "checkpoints"),
+        on_epoch=lambda epoch, m: ctx.log_step(m, epoch),
+        checkpoint_dir=ctx.out("checkpoints"),
         resume=train_cfg.resume,
         progress=bool(cfg.progress),
     )
-    model_path = result.predictor.save(experiment.data_path(cfg, "train", "model.pt"))
-    history_path = experiment.data_path(cfg, "train", "history.csv")
-    write_text(history_path, result.history.to_csv(index=False))
+    model_path = result.predictor.save(ctx.out("model.pt"))
+    history_path = write_text(ctx.out("history.csv"), result.history.to_csv(index=False))
     baselines = {"constant_velocity": ConstantVelocity(), "kalman": experiment.kalman(cfg)}
     metrics = {
         "lstm": {"val": evaluate(result.predictor, split["val"]),
@@ -44,14 +43,13 @@ def run(cfg):
         "n_windows": {s: len(w) for s, w in split.items()},
         "paper": {"val_rmse": 0.07},
     }
-    write_json(experiment.reports_path(cfg, "metrics", "train.json"), metrics)
-    tracker.log_metrics({k: v for k, v in metrics.items() if k != "paper"})
-    tracker.log_model_file(model_path)
-    tracker.log_artifact(history_path)
+    write_json(ctx.out("train.json"), metrics)
     print(f"train: val RMSE {metrics['lstm']['val']['rmse_m']:.4f} m (paper 0.07), "
           f"test {metrics['lstm']['test']['rmse_m']:.4f} m; constant velocity val "
           f"{metrics['constant_velocity']['val']['rmse_m']:.4f} m, Kalman "
           f"{metrics['kalman']['val']['rmse_m']:.4f} m")
+    return StageResult(metrics={k: v for k, v in metrics.items() if k != "paper"},
+                       artifacts=[history_path], model_files=[model_path])
 
 
 if __name__ == "__main__":

@@ -3,17 +3,18 @@ path in two splits (the paper's 24,500 pairs; path count and stride in conf/data
 
 import pandas as pd
 
-from blindspot import experiment, tracking
+from blindspot import experiment
 from blindspot.cli import main_stage
+from blindspot.stage import StageResult
 from blindspot.synth.path_dataset import table_to_arrays
 from blindspot.traj.windows import WindowSet, interpolate_gaps, make_windows, split_by_path
 
 SPLITS = ("train", "val", "test")
 
 
-def run(cfg):
+def run(cfg, ctx):
     d = experiment.dataset(cfg)
-    table = pd.read_parquet(experiment.data_path(cfg, "paths", "paths.parquet"))
+    table = pd.read_parquet(ctx.dep("paths.parquet"))
     truth, measured, _ = table_to_arrays(table)
     if d.fill_gaps == "linear":  # else "none" (DatasetConfig allows only these)
         measured = interpolate_gaps(measured)
@@ -23,10 +24,10 @@ def run(cfg):
     counts = [getattr(d.split, s) for s in SPLITS]
     parts = split_by_path(ws, counts, seed=d.seed)
     for name, part in zip(SPLITS, parts):
-        part.save(experiment.data_path(cfg, "windows", f"{name}.parquet"))
+        part.save(ctx.out(f"{name}.parquet"))
     stats = {"windows_available": len(ws), **{f"n_{n}": len(p) for n, p in zip(SPLITS, parts)}}
-    tracking.current().log_metrics(stats)
     print("windows: " + ", ".join(f"{k} {v}" for k, v in stats.items()))
+    return StageResult(metrics=stats)
 
 
 if __name__ == "__main__":

@@ -22,16 +22,18 @@ from the repo root and compare runs there::
 
     mlflow ui --backend-store-uri sqlite:///$PWD/mlflow.db
 
-Stage convention: ``stages/<name>.py`` defines ``run(cfg: DictConfig) -> None`` and ends with::
+Stage convention (:mod:`blindspot.stage`): ``stages/<name>.py`` defines
+``run(cfg: DictConfig, ctx: StageContext) -> StageResult`` and ends with::
 
     if __name__ == "__main__":
         blindspot.cli.main_stage(run, "<name>")
 
 Under DVC (``python stages/<name>.py``) the config is ``params.yaml`` (what DVC tracked),
-checked against ``conf/`` unless DVC composed it itself (``dvc exp run``). With
-``python -m blindspot <name> ...`` it is ``conf/`` + the overrides, composed by Hydra.
-Both call the same ``run(cfg)`` inside :func:`blindspot.tracking.stage_run`, with the working
-directory set to the repo root.
+checked against ``conf/`` unless DVC composed it itself (``dvc exp run``), and the stage must
+write every out ``dvc.yaml`` declares for it. With ``python -m blindspot <name> ...`` it is
+``conf/`` + the overrides, composed by Hydra. Both call the same ``run(cfg, ctx)`` inside
+:func:`blindspot.tracking.stage_run`, with the working directory set to the repo root, and log
+the :class:`~blindspot.stage.StageResult` it returns: this runner is the one door to MLflow.
 """
 
 from __future__ import annotations
@@ -47,6 +49,7 @@ from omegaconf import DictConfig, OmegaConf
 
 from blindspot import config as bconfig
 from blindspot import tracking
+from blindspot.stage import StageContext, StageResult, declared_files
 
 __all__ = [
     "StageFunction",
@@ -54,11 +57,12 @@ __all__ = [
     "available_stages",
     "load_stage",
     "run_stage",
+    "log_result",
     "main_stage",
     "main",
 ]
 
-StageFunction = Callable[[DictConfig], None]
+StageFunction = Callable[[DictConfig, StageContext], StageResult]
 
 COMMANDS = {
     "params": "regenerate params.yaml from conf/",
@@ -108,7 +112,8 @@ def load_stage(repo_root: str | os.PathLike[str], name: str) -> StageFunction:
         _LOADED[path] = module
     run = getattr(module, "run", None)
     if not callable(run):
-        raise TypeError(f"{path} must define `def run(cfg: DictConfig) -> None`")
+        raise TypeError(f"{path} must define `def run(cfg: DictConfig, ctx: StageContext) -> "
+                        "StageResult`")
     return run  # type: ignore[no-any-return]
 
 
@@ -117,17 +122,46 @@ def run_stage(
     name: str,
     cfg: DictConfig,
     repo_root: str | os.PathLike[str] | None = None,
-) -> None:
-    """Call ``run(cfg)`` inside ``tracking.stage_run(name, cfg)`` from the repo root.
+    *,
+    check_outs: bool = False,
+) -> StageResult:
+    """Call ``run(cfg, ctx)`` inside ``tracking.stage_run(name, cfg)`` from the repo root and log
+    the :class:`StageResult` it returns (metrics, artifacts, model files, tags) to that run.
 
     ``cfg`` is resolved and put in struct mode (a misspelt key raises instead of reading None).
+    ``ctx`` carries the stage's files declared in ``dvc.yaml`` and ``ctx.log_step``, bound to the
+    run. ``check_outs``: afterwards, require that the stage wrote every declared out
+    (:meth:`StageContext.check_outs`). Raises ``TypeError`` if ``run`` returns something else
+    than a :class:`StageResult`.
     """
     root = Path(repo_root).resolve() if repo_root is not None else bconfig.find_repo_root()
     os.chdir(root)
     cfg = OmegaConf.create(OmegaConf.to_container(cfg, resolve=True))
     OmegaConf.set_struct(cfg, True)
-    with tracking.stage_run(name, cfg, repo_root=root):
-        run(cfg)
+    files = declared_files(root, name)
+    with tracking.stage_run(name, cfg, repo_root=root) as tracker:
+        ctx = StageContext(files, log_step=lambda metrics, step: tracker.log_metrics(metrics, step))
+        result = run(cfg, ctx)
+        if not isinstance(result, StageResult):
+            raise TypeError(f"stage {name!r}: run(cfg, ctx) returned {type(result).__name__}; "
+                            "expected a blindspot.stage.StageResult")
+        log_result(tracker, result)
+        if check_outs:
+            ctx.check_outs()
+    return result
+
+
+def log_result(tracker: tracking.NullTracker, result: StageResult) -> None:
+    """Log a stage's result into its run: metrics, artifacts (run root), model files
+    (``model/``), tags."""
+    if result.metrics:
+        tracker.log_metrics(result.metrics)
+    for path in result.artifacts:
+        tracker.log_artifact(path)
+    for path in result.model_files:
+        tracker.log_model_file(path)
+    if result.tags:
+        tracker.set_tags(result.tags)
 
 
 def main_stage(run: StageFunction, name: str, argv: Sequence[str] | None = None) -> None:
@@ -135,7 +169,8 @@ def main_stage(run: StageFunction, name: str, argv: Sequence[str] | None = None)
 
     Outside ``dvc exp run`` (env ``DVC_EXP_NAME`` unset) params.yaml is first checked against
     conf/; if stale the process exits 1 with the fix. Takes no arguments (exit 2 says how to
-    override). SIGTERM ends the MLflow run KILLED and exits 143.
+    override). The stage must write every out dvc.yaml declares for it (else
+    :class:`~blindspot.stage.UndeclaredPath`). SIGTERM ends the MLflow run KILLED and exits 143.
     """
     args = list(sys.argv[1:] if argv is None else argv)
     if args:
@@ -160,7 +195,7 @@ def main_stage(run: StageFunction, name: str, argv: Sequence[str] | None = None)
     except (bconfig.ParamsOutOfDate, FileNotFoundError, HydraException) as exc:
         print(f"[blindspot] stage {name}: {exc}", file=sys.stderr)
         raise SystemExit(1) from None
-    run_stage(run, name, cfg, root)
+    run_stage(run, name, cfg, root, check_outs=True)
 
 
 class _StageTask:

@@ -1,12 +1,12 @@
 """The experiment's objects built from the composed config, shared by the stages.
 
-Stages (``stages/*.py``) stay thin: they call these to get the radar, its array, the scenes and the
-artifact paths, then call the library and write their declared outputs.
+Stages (``stages/*.py``) stay thin: they call these to get the radar, its array, the scenes and
+the baselines, then call the library and write their declared outputs (paths from ``dvc.yaml``
+through :class:`blindspot.stage.StageContext`).
 """
 
 from __future__ import annotations
 
-from pathlib import Path
 from typing import Any
 
 from omegaconf import DictConfig
@@ -86,16 +86,6 @@ def car_twin(name: str, all_scenes: dict[str, Any]) -> str | None:
     return twin if twin in all_scenes else None
 
 
-def data_path(cfg: DictConfig, *parts: str) -> Path:
-    """A path under ``cfg.paths.data_dir`` (relative to the repo root, the stages' cwd)."""
-    return Path(cfg.paths.data_dir, *parts)
-
-
-def reports_path(cfg: DictConfig, *parts: str) -> Path:
-    return Path(cfg.paths.reports_dir, *parts)
-
-
-
 def scene_track(points, scene: str, n_frames: int):
     """(n_frames, 2) x, y of a scene's points (``localise`` output), NaN where no point."""
     import numpy as np
@@ -112,16 +102,6 @@ def kalman(cfg: DictConfig):
 
     k = evaluation(cfg).kalman
     return KalmanCV(dt=radar(cfg).frame_period_s, process_psd=k.process_psd, meas_std=k.meas_std)
-
-
-def save_report_figure(cfg: DictConfig, fig, name: str, **savefig_kwargs) -> Path:
-    """Write ``reports/figures/<name>.png`` atomically and log it to the stage's MLflow run."""
-    from blindspot import tracking
-    from blindspot.io import save_figure
-
-    out = save_figure(fig, reports_path(cfg, "figures", f"{name}.png"), **savefig_kwargs)
-    tracking.current().log_artifact(out)
-    return out
 
 
 def predictors(cfg: DictConfig, lstm=None) -> dict:

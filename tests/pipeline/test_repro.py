@@ -2,7 +2,7 @@
 
 Every stage runs (simulation, detection, localisation, the real recordings, the radar-measured
 path data set, windows, training, interpolation, prediction, evaluation, figures, tables, the
-report page); a second `dvc repro` with nothing changed reruns nothing but the params check; each
+report page) and writes exactly the files dvc.yaml declares; a second `dvc repro` with nothing changed reruns nothing but the params check; each
 computing stage lands one FINISHED MLflow run in the copy's SQLite store.
 """
 
@@ -16,6 +16,7 @@ from pathlib import Path
 
 import pytest
 
+from blindspot.stage import read_dvc_stages
 from tests.conftest import REPO_ROOT, SHARED
 from tests.pipeline.toy_repo import VENV_BIN, clean_env, run, runs
 
@@ -73,6 +74,13 @@ def test_dvc_repro_tiny_profile_end_to_end(tiny_repo: Path) -> None:
     train = json.loads((reports / "metrics" / "train.json").read_text())
     assert train["n_windows"] == {"train": 1000, "val": 300, "test": 100}
     assert (reports / "README.md").read_text().count("0.09") >= 1
+    # What the stages wrote is exactly what dvc.yaml declares (DVC ignores undeclared files).
+    declared = [o for files in read_dvc_stages(tiny_repo).values() for o in files.outs]
+    written = sorted(p.relative_to(tiny_repo).as_posix() for top in ("data", "reports")
+                     for p in (tiny_repo / top).rglob("*") if p.is_file() and p.name != ".gitignore")
+    undeclared = [w for w in written if not any(w == o or w.startswith(o + "/") for o in declared)]
+    assert not undeclared, f"files no dvc.yaml stage declares: {undeclared}"
+    assert [o for o in declared if not (tiny_repo / o).exists()] == []
     finished = [r for r in runs(tiny_repo) if r.info.status == "FINISHED"]
     stages = {r.data.tags.get("blindspot.stage") for r in finished}
     assert {"simulate", "detect", "localise", "paths", "train", "evaluate"} <= stages, stages

@@ -25,20 +25,18 @@ import os
 import time
 from pathlib import Path
 
-from blindspot import cli, io, tracking
+from blindspot import cli, io
+from blindspot.stage import StageResult
 
 
-def run(cfg):
-    t = tracking.current()
+def run(cfg, ctx):
     score = float(cfg.train.lr) * int(cfg.model.hidden_size)
     for epoch in range(int(cfg.train.epochs)):
-        t.log_metrics({"score": score * (epoch + 1), "nested": {"half": score / 2}}, step=epoch)
+        ctx.log_step({"score": score * (epoch + 1), "nested": {"half": score / 2}}, epoch)
     out = io.write_json(
-        "out/toy.json",
+        ctx.out("toy.json"),
         {"score": score, "lr": cfg.train.lr, "hidden_size": cfg.model.hidden_size},
     )
-    t.log_artifact(out)
-    t.set_tags({"toy.pid": os.getpid(), "toy.cwd": os.getcwd()})
     if cfg.toy.sleep_s:
         with io.atomic_open("out/partial.txt") as fh:
             fh.write("half")
@@ -46,6 +44,7 @@ def run(cfg):
             time.sleep(float(cfg.toy.sleep_s))
     if cfg.toy.fail:
         raise RuntimeError("toy stage asked to fail")
+    return StageResult(artifacts=[out], tags={"toy.pid": os.getpid(), "toy.cwd": os.getcwd()})
 
 
 if __name__ == "__main__":

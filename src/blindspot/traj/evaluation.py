@@ -1,4 +1,9 @@
-"""Scoring a predicted future path: the paper's metric and the time-aligned errors beside it.
+"""Scoring filled and predicted paths: the paper's metric and the time-aligned errors beside it.
+
+Interpolation (paper Fig. 8): :func:`score_interpolation` scores a filled track on the frames it
+filled while the pedestrian was hidden; :func:`mean_over_scenes` adds the mean over scenes.
+
+Prediction (paper Figs. 9 and 10):
 
 For each scene and method the prediction ``pred`` (H, 2) covers the frames after the prediction
 start. It is scored against
@@ -10,9 +15,15 @@ start. It is scored against
 
 from __future__ import annotations
 
-import numpy as np
+from collections.abc import Mapping
 
+import numpy as np
+import pandas as pd
+
+from blindspot.traj.interpolation import find_gaps
 from blindspot.traj.metrics import displacement, path_error
+
+PER_STEP_ARRAYS = ("per_step_m", "path_error_m", "path_error_radar_m")
 
 
 def errors_at_horizons(err_per_step: np.ndarray, dt_s: float,
@@ -56,3 +67,107 @@ def score_prediction(pred: np.ndarray, truth: np.ndarray, radar_track: np.ndarra
         out["path_error_radar_mean_m"] = float(np.nanmean(to_radar))
         out["path_error_radar_m"] = to_radar
     return out
+
+
+# ---------------------------------------------------------------------------------------------
+# interpolation
+
+
+def gap_mask(observed: np.ndarray) -> np.ndarray:
+    """(T,) bool: the frames inside the track's interior gaps (what interpolation fills).
+
+    observed : (T,) bool, True where the track has a point. Frames missing before the first or
+    after the last point are not a gap (nothing on both sides).
+    """
+    gap = np.zeros(len(observed), bool)
+    for a, b in find_gaps(np.asarray(observed, bool)):
+        gap[a:b] = True
+    return gap
+
+
+def score_interpolation(filled: np.ndarray, truth: np.ndarray, observed: np.ndarray,
+                        hidden: np.ndarray) -> dict[str, float | int]:
+    """Errors of one filled track against the truth.
+
+    filled, truth : (T, 2) x, y in m per frame; observed : (T,) bool, frames with a radar point;
+    hidden : (T,) bool, frames where the pedestrian was hidden behind the car.
+    Returns ``hidden_mean_m``, ``hidden_median_m``, ``hidden_max_m`` (over the filled frames
+    that were hidden), ``all_gaps_mean_m`` (over every filled frame), ``n_hidden_filled``,
+    ``n_filled``. Raises ``ValueError`` when no hidden frame was filled (nothing to score).
+    """
+    gap = gap_mask(observed)
+    hidden_gap = gap & np.asarray(hidden, bool)
+    if not hidden_gap.any():
+        raise ValueError("score_interpolation: no hidden frame lies in a gap of the track "
+                         f"({int(gap.sum())} filled frames, {int(np.sum(hidden))} hidden)")
+    err = np.hypot(*(np.asarray(filled) - np.asarray(truth)).T)
+    return {
+        "hidden_mean_m": float(err[hidden_gap].mean()),
+        "hidden_median_m": float(np.median(err[hidden_gap])),
+        "hidden_max_m": float(err[hidden_gap].max()),
+        "all_gaps_mean_m": float(err[gap].mean()),
+        "n_hidden_filled": int(hidden_gap.sum()),
+        "n_filled": int(gap.sum()),
+    }
+
+
+def mean_over_scenes(per_method: Mapping[str, Mapping[str, Mapping[str, float]]],
+                     key: str = "hidden_mean_m") -> dict[str, dict]:
+    """``{method: {scene: scores}}`` with ``{"all_scenes": {key: mean over the scenes}}`` added
+    to each method (a new dict; the input is not changed)."""
+    out = {}
+    for method, per in per_method.items():
+        out[method] = {**per, "all_scenes": {key: float(np.mean([m[key] for m in per.values()]))}}
+    return out
+
+
+# ---------------------------------------------------------------------------------------------
+# prediction, over scenes and methods
+
+
+def evaluate_predictions(predictions: pd.DataFrame, truth: pd.DataFrame,
+                         radar_tracks: Mapping[str, np.ndarray | None], dt_s: float,
+                         horizons_s: tuple[float, ...]) -> tuple[dict, pd.DataFrame]:
+    """Score every (scene, method) prediction and average over scenes per method.
+
+    predictions : rows ``scene``, ``method``, ``step`` (1..H), ``frame``, ``x_m``, ``y_m``.
+    truth : rows ``scene``, ``frame``, ``x_m``, ``y_m`` covering the predicted frames.
+    radar_tracks : scene -> (M, 2) the radar's points of the same walk without the car from the
+        prediction start on; a scene missing or None has no radar-track metric (give tracks for
+        all scenes or for none: the mean over scenes needs the same metrics in each).
+    Returns ``metrics`` = ``{method: {metric: mean over scenes, ..., "per_scene": {scene:
+    {metric: value}}}}`` (metrics of :func:`score_prediction` without its arrays) and the
+    per-step table (method, scene, step, time_s, error_m, path_error_m, path_error_radar_m;
+    NaN where there is no radar track), in the order of ``predictions``.
+    """
+    per_scene: dict[str, dict[str, dict]] = {}
+    curves = []
+    for (scene, method), pred in predictions.groupby(["scene", "method"], sort=False):
+        pred = pred.sort_values("step")
+        frames = pred.frame.to_numpy()
+        tr = truth[truth.scene == scene].set_index("frame").loc[frames]
+        s = score_prediction(pred[["x_m", "y_m"]].to_numpy(), tr[["x_m", "y_m"]].to_numpy(),
+                             radar_tracks.get(scene), dt_s, horizons_s)
+        per_scene.setdefault(method, {})[scene] = {k: v for k, v in s.items()
+                                                   if k not in PER_STEP_ARRAYS}
+        curves.append(pd.DataFrame({
+            "method": method, "scene": scene, "step": pred.step.to_numpy(),
+            "time_s": pred.step.to_numpy() * dt_s, "error_m": s["per_step_m"],
+            "path_error_m": s["path_error_m"],
+            "path_error_radar_m": s.get("path_error_radar_m", np.full(len(pred), np.nan)),
+        }))
+    metrics: dict[str, dict] = {}
+    for method, scenes in per_scene.items():
+        keys = next(iter(scenes.values())).keys()
+        metrics[method] = {k: float(np.mean([m[k] for m in scenes.values()])) for k in keys}
+        metrics[method]["per_scene"] = scenes
+    return metrics, pd.concat(curves, ignore_index=True)
+
+
+def mean_error_by_step(curve: pd.DataFrame, dt_s: float) -> pd.DataFrame:
+    """Per method and step, the mean over scenes of ``error_m`` and ``path_error_m`` of the
+    per-step table of :func:`evaluate_predictions`, with ``time_s`` = step * dt_s."""
+    mean = (curve.groupby(["method", "step"], sort=False)[["error_m", "path_error_m"]]
+            .mean().reset_index())
+    mean["time_s"] = mean.step * dt_s
+    return mean

@@ -19,7 +19,7 @@ in two splits; each split then keeps exactly its count by a seeded random subset
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -274,3 +274,40 @@ def split_by_path(
         out.append(ws.subset(members[keep]))
         first = last
     return tuple(out)
+
+
+def choose_windows(splits: dict[str, WindowSet], motion_of: Mapping[int, str],
+                   n_points: Mapping[int, int], layout: Sequence[tuple[str, int]],
+                   horizon: int) -> list[tuple[str, str, int, int]]:
+    """Windows to roll out for a figure: ``(motion, split, path_id, start)`` per panel.
+
+    splits : split name -> :class:`WindowSet` with ``start`` indices, searched in this order;
+    motion_of / n_points : path id -> its motion ("approaching", ...) / its number of points;
+    layout : ``(motion, number of panels)`` in panel order; horizon : rollout steps wanted.
+
+    Deterministic: paths of the wanted motion from the first split (lowest id first), then from
+    the next; when a motion has fewer paths than panels, the next panel takes the latest window
+    of a path already used (then the one before it...). Every window leaves room for the
+    rollout (``min(horizon, points left after the window)`` steps). Raises ``ValueError`` when a
+    split has no start indices, a motion no path or a path no such window.
+    """
+    for name, ws in splits.items():
+        if ws.start is None:
+            raise ValueError(f"split {name!r} has no window start indices")
+    chosen = []
+    for motion, count in layout:
+        candidates = [(name, int(p)) for name, ws in splits.items()
+                      for p in np.unique(ws.path_id) if motion_of[p] == motion]
+        if not candidates:
+            raise ValueError(f"no {motion} path in the splits {list(splits)}")
+        for k in range(count):
+            name, pid = candidates[k % len(candidates)]
+            ws = splits[name]
+            room = n_points[pid] - ws.window - min(horizon, n_points[pid] - ws.window)
+            starts = np.sort(ws.start[(ws.path_id == pid) & (ws.start <= room)])
+            if not len(starts):
+                raise ValueError(f"{name} path {pid} has no window leaving room for a rollout")
+            use = k // len(candidates)  # 0: earliest window; 1: latest; then stepping back
+            start = starts[0] if use == 0 else starts[max(0, len(starts) - use)]
+            chosen.append((motion, name, pid, int(start)))
+    return chosen

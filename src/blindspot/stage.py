@@ -1,0 +1,183 @@
+"""The stage protocol: what the runner hands a stage and what the stage hands back.
+
+A stage (``stages/<name>.py``) is one function::
+
+    def run(cfg: DictConfig, ctx: StageContext) -> StageResult:
+        truth = pd.read_parquet(ctx.dep("truth.parquet"))        # a declared dep of the stage
+        ...
+        out = write_json(ctx.out("localise.json"), metrics)      # a declared out of the stage
+        return StageResult(metrics=metrics, artifacts=[out])
+
+The runner (:func:`blindspot.cli.run_stage`) is the one door to MLflow: it opens the stage's run,
+calls ``run(cfg, ctx)`` and logs the returned :class:`StageResult` (metrics, artifacts, model
+files, tags). Stages and the library never import :mod:`blindspot.tracking`.
+
+Live metrics (per training epoch) are the one thing that cannot wait for the result: the runner
+hands the stage ``ctx.log_step(metrics, step)``, a plain callable bound to the run's tracker
+(a no-op when tracking is off), which the stage passes on to the library as a callback (e.g.
+``train_lstm(..., on_epoch=ctx.log_step)``). It is a parameter, not a global "current run": the
+dependency is visible in the stage's signature, the library sees only a callable, and a test can
+hand in a context whose ``log_step`` records into a list.
+
+Every file a stage reads from or writes for another stage is declared once, in ``dvc.yaml``: the
+stage names it (``ctx.dep("truth.parquet")``, ``ctx.out("detections.parquet")``, by its file name
+or any trailing part of its path) and gets the declared path; a name that is not declared, or
+ambiguous, raises :class:`UndeclaredPath` naming the stage, the name and what is declared. Under
+DVC (:func:`blindspot.cli.main_stage`) the runner also checks after the stage that it asked for
+every declared out (see :meth:`StageContext.check_outs`), so what a stage writes is exactly what
+``dvc.yaml`` declares.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+__all__ = [
+    "DVC_FILE",
+    "StageResult",
+    "StageContext",
+    "StepLogger",
+    "DeclaredFiles",
+    "UndeclaredPath",
+    "declared_files",
+]
+
+DVC_FILE = "dvc.yaml"
+
+PathLike = str | os.PathLike[str]
+StepLogger = Callable[[Mapping[str, Any], int], None]
+"""``log_step(metrics, step)``: numeric metrics (nested mappings -> dotted names) at ``step``."""
+
+
+@dataclass(frozen=True)
+class StageResult:
+    """What a stage returns; the runner logs it to the stage's MLflow run.
+
+    metrics     : numbers by name; nested mappings become dotted names (``{"val": {"rmse_m": x}}``
+                  -> ``val.rmse_m``). Logged once, at step 0.
+    artifacts   : files or folders copied to the run's artifacts (its root).
+    model_files : saved models (checkpoint files or folders), logged under ``model/``.
+    tags        : run tags (values are turned into strings).
+    """
+
+    metrics: Mapping[str, Any] = field(default_factory=dict)
+    artifacts: Sequence[PathLike] = ()
+    model_files: Sequence[PathLike] = ()
+    tags: Mapping[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        for name in ("artifacts", "model_files"):
+            value = getattr(self, name)
+            if isinstance(value, str | os.PathLike):
+                raise TypeError(f"StageResult.{name}: expected a sequence of paths, found the "
+                                f"single path {value!r}; wrap it in a list")
+
+
+class UndeclaredPath(LookupError):
+    """A stage asked for a file its ``dvc.yaml`` entry does not declare (or declares twice)."""
+
+
+@dataclass(frozen=True)
+class DeclaredFiles:
+    """The deps and outs (outs, metrics and plots) of one stage in ``dvc.yaml``, as written there
+    (paths relative to the repository root)."""
+
+    stage: str
+    deps: tuple[str, ...]
+    outs: tuple[str, ...]
+
+
+def _entry_paths(entries: Any) -> tuple[str, ...]:
+    """Paths of a dvc.yaml list whose items are ``path`` or ``{path: {options}}``."""
+    paths = []
+    for item in entries or ():
+        if isinstance(item, Mapping):
+            paths.extend(str(k) for k in item)
+        else:
+            paths.append(str(item))
+    return tuple(paths)
+
+
+def read_dvc_stages(repo_root: PathLike) -> dict[str, DeclaredFiles]:
+    """Every stage of ``<repo_root>/dvc.yaml`` by name ({} when there is no dvc.yaml)."""
+    import yaml
+
+    path = Path(repo_root) / DVC_FILE
+    if not path.is_file():
+        return {}
+    stages = (yaml.safe_load(path.read_text()) or {}).get("stages") or {}
+    return {
+        name: DeclaredFiles(
+            name,
+            _entry_paths(spec.get("deps")),
+            _entry_paths(spec.get("outs")) + _entry_paths(spec.get("metrics"))
+            + _entry_paths(spec.get("plots")),
+        )
+        for name, spec in stages.items()
+    }
+
+
+def declared_files(repo_root: PathLike, stage: str) -> DeclaredFiles:
+    """The declared deps and outs of ``stage``; none when ``dvc.yaml`` has no such stage."""
+    return read_dvc_stages(repo_root).get(stage) or DeclaredFiles(stage, (), ())
+
+
+def _match(key: str, paths: Sequence[str]) -> list[str]:
+    key = key.strip("/")
+    return [p for p in paths if p == key or p.endswith("/" + key)]
+
+
+class StageContext:
+    """What the runner hands a stage: its declared files and the live metric logger.
+
+    ``files`` : the stage's :class:`DeclaredFiles`; ``log_step`` : a :data:`StepLogger` bound to
+    the stage's MLflow run. Paths are relative to the repository root (the stage's cwd).
+    """
+
+    def __init__(self, files: DeclaredFiles, log_step: StepLogger | None = None):
+        self.files = files
+        self.name = files.stage
+        self._log_step = log_step
+        self.requested_outs: set[str] = set()
+
+    def log_step(self, metrics: Mapping[str, Any], step: int) -> None:
+        """Log ``metrics`` at ``step`` to the stage's run now (e.g. once per training epoch)."""
+        if self._log_step is not None:
+            self._log_step(metrics, step)
+
+    def _lookup(self, key: str, kind: str, paths: Sequence[str]) -> str:
+        found = _match(key, paths)
+        if len(found) == 1:
+            return found[0]
+        what = "declares no" if not found else f"declares {len(found)} matching"
+        raise UndeclaredPath(
+            f"stage {self.name!r}: {DVC_FILE} {what} {kind} {key!r} ({found or 'none'}); its "
+            f"{kind}s there: {', '.join(paths) or '(none)'}. Declare each file once, in "
+            f"{DVC_FILE}, and name it by its file name or a trailing part of its path")
+
+    def dep(self, key: str) -> Path:
+        """The declared dep whose path is ``key`` or ends with ``/key``."""
+        return Path(self._lookup(key, "dep", self.files.deps))
+
+    def out(self, key: str) -> Path:
+        """The declared out (outs, metrics or plots) whose path is ``key`` or ends with ``/key``."""
+        path = self._lookup(key, "out", self.files.outs)
+        self.requested_outs.add(path)
+        return Path(path)
+
+    def check_outs(self) -> None:
+        """Raise :class:`UndeclaredPath` unless the stage asked for every declared out, each of
+        which now exists (what the stage wrote is what dvc.yaml declares)."""
+        never = [p for p in self.files.outs if p not in self.requested_outs]
+        missing = [p for p in self.files.outs if p in self.requested_outs and not Path(p).exists()]
+        if never or missing:
+            raise UndeclaredPath(
+                f"stage {self.name!r}: {DVC_FILE} declares outs the stage did not write: "
+                + "; ".join(filter(None, [
+                    f"never asked for {', '.join(never)}" if never else "",
+                    f"asked for but missing {', '.join(missing)}" if missing else ""]))
+                + f". Write each through ctx.out(...) or remove it from {DVC_FILE}")

@@ -1,0 +1,49 @@
+"""MLflow glue: the one package of blindspot that imports mlflow, used only by the stage runner.
+
+A stage returns its metrics and artifacts (:class:`blindspot.cli.StageResult`); the runner
+(:func:`blindspot.cli.run_stage`) logs them into the stage's MLflow run. No library room imports
+this package (``.importlinter``, contract ``one-door-to-mlflow``).
+
+By concern:
+
+- :mod:`~blindspot.tracking.store`: the tracking URI (env ``MLFLOW_TRACKING_URI`` >
+  ``cfg.tracking.uri`` > ``sqlite:///<original repo root>/mlflow.db``), one client per URI, the
+  experiment created once under a file lock, retries while SQLite is locked.
+- :mod:`~blindspot.tracking.runs`: :func:`stage_run` (one run per stage run, always closed
+  FINISHED / FAILED / KILLED), :class:`Tracker` and :class:`NullTracker`, :func:`current`.
+- :mod:`~blindspot.tracking.tags`: git commit, DVC experiment and Hydra job tags of a run.
+- :mod:`~blindspot.tracking.signals`: SIGTERM -> :class:`Terminated` (exit status 143).
+- :mod:`~blindspot.tracking.sweep`: :class:`SweepCallback`, Hydra's callback for a multirun (one
+  parent run, a nested child per job); ``python -m blindspot`` registers it by the name
+  ``blindspot.tracking.SweepCallback``.
+"""
+
+from blindspot.tracking.runs import PARENT_RUN_ENV, NullTracker, Tracker, current, stage_run
+from blindspot.tracking.signals import Terminated, sigterm_as_exit
+from blindspot.tracking.store import (
+    DEFAULT_EXPERIMENT,
+    TrackingSettings,
+    ensure_experiment,
+    get_client,
+    settings_from_cfg,
+    tracking_uri,
+)
+from blindspot.tracking.sweep import SweepCallback, end_open_sweep
+
+__all__ = [
+    "DEFAULT_EXPERIMENT",
+    "PARENT_RUN_ENV",
+    "Terminated",
+    "TrackingSettings",
+    "Tracker",
+    "NullTracker",
+    "settings_from_cfg",
+    "tracking_uri",
+    "get_client",
+    "ensure_experiment",
+    "stage_run",
+    "current",
+    "SweepCallback",
+    "end_open_sweep",
+    "sigterm_as_exit",
+]

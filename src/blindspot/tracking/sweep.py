@@ -1,0 +1,116 @@
+"""Hydra multirun: one parent MLflow run per sweep, a nested child run per job.
+
+:class:`SweepCallback` opens the parent run and exports its id in
+``BLINDSPOT_MLFLOW_PARENT_RUN_ID``; each job's :func:`blindspot.tracking.stage_run` becomes a
+nested child of it. Since joblib/loky reuses worker processes, the callback ends any leftover
+active run at the start and end of every job.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import sys
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+from hydra.experimental.callback import Callback
+from omegaconf import DictConfig, OmegaConf
+
+from blindspot.tracking import runs
+from blindspot.tracking.runs import PARENT_RUN_ENV
+from blindspot.tracking.store import _repo_roots, _retry, ensure_experiment, get_client, settings_from_cfg
+from blindspot.tracking.tags import run_tags
+
+if TYPE_CHECKING:  # pragma: no cover
+    from mlflow.tracking import MlflowClient
+
+__all__ = ["SweepCallback", "end_open_sweep"]
+
+
+@dataclass
+class _OpenSweep:
+    client: MlflowClient
+    run_id: str
+    previous_env: str | None
+
+
+_SWEEP: _OpenSweep | None = None
+
+
+def _end_leftover_runs() -> None:
+    """End any fluent-API active run a reused (joblib/loky) worker may still hold."""
+    runs._STACK.clear()
+    mlflow = sys.modules.get("mlflow")
+    if mlflow is not None:
+        while mlflow.active_run() is not None:
+            mlflow.end_run()
+
+
+def end_open_sweep(status: str = "FAILED") -> None:
+    """Close the sweep's parent run if it is still open (called by the CLI when a sweep dies)."""
+    global _SWEEP
+    sweep, _SWEEP = _SWEEP, None
+    if sweep is None:
+        return
+    with contextlib.suppress(Exception):
+        _retry(lambda: sweep.client.set_terminated(sweep.run_id, status), "ending the sweep")
+    if sweep.previous_env is None:
+        os.environ.pop(PARENT_RUN_ENV, None)
+    else:
+        os.environ[PARENT_RUN_ENV] = sweep.previous_env
+
+
+class SweepCallback(Callback):
+    """Hydra callback: one parent MLflow run per multirun, a nested child run per job.
+
+    Registered by ``python -m blindspot`` (``hydra.callbacks.blindspot_tracking``).
+    """
+
+    def on_multirun_start(self, config: DictConfig, **kwargs: Any) -> None:
+        global _SWEEP
+        end_open_sweep("FAILED")
+        task_cfg = {k: v for k, v in _plain_with_hydra(config).items() if k != "hydra"}
+        settings = settings_from_cfg(task_cfg)
+        if not settings.enabled:
+            return
+        stage = str(OmegaConf.select(config, "hydra.job.name") or "sweep")
+        overrides = list(OmegaConf.select(config, "hydra.overrides.task") or [])
+        work, original = _repo_roots(None)
+        client = get_client(settings)
+        experiment_id = ensure_experiment(settings)
+        tags = run_tags(stage, work, original)
+        tags.pop("hydra.job_num", None)
+        tags["blindspot.sweep"] = "true"
+        tags["hydra.overrides"] = " ".join(overrides)
+        sweep_dir = OmegaConf.select(config, "hydra.sweep.dir", default=None)
+        if sweep_dir:
+            tags["hydra.sweep_dir"] = str(sweep_dir)
+        run = _retry(
+            lambda: client.create_run(experiment_id, tags=tags, run_name=f"{stage}-sweep"),
+            "creating the sweep run",
+        )
+        _SWEEP = _OpenSweep(client, run.info.run_id, os.environ.get(PARENT_RUN_ENV))
+        os.environ[PARENT_RUN_ENV] = run.info.run_id
+
+    def on_multirun_end(self, config: DictConfig, **kwargs: Any) -> None:
+        end_open_sweep("FINISHED")
+
+    def on_job_start(self, config: DictConfig, **kwargs: Any) -> None:
+        _end_leftover_runs()
+
+    def on_job_end(self, config: DictConfig, job_return: Any, **kwargs: Any) -> None:
+        _end_leftover_runs()
+
+
+def _plain_with_hydra(config: DictConfig) -> dict[str, Any]:
+    """Resolved container of a config's task part (its hydra node may hold ``${hydra:..}``)."""
+    out: dict[str, Any] = {}
+    for key in config:
+        if key == "hydra":
+            continue
+        value = config[key]
+        if OmegaConf.is_config(value):
+            value = OmegaConf.to_container(value, resolve=True)
+        out[str(key)] = value
+    return out

@@ -1,0 +1,267 @@
+"""dvc.yaml against the stage scripts, read statically (no stage runs here).
+
+- Each output path is declared once, in dvc.yaml: a stage gets every file it reads or writes from
+  ``ctx.dep(name)`` / ``ctx.out(name)`` (blindspot.stage), each name matches exactly one path its
+  dvc.yaml entry declares, every declared out is asked for, and no stage spells a path of its own.
+  (At run time, under DVC, the runner also checks that each declared out was written:
+  ``StageContext.check_outs``; tests/pipeline/test_repro.py compares the files a whole run
+  leaves under data/ and reports/ with the declared outs.)
+- Each stage's ``deps`` cover the project modules it imports, transitively (grimp's import graph of
+  blindspot): changing one of them reruns the stage.
+"""
+
+from __future__ import annotations
+
+import ast
+import re
+from functools import cache
+from pathlib import Path
+
+import grimp
+import pytest
+
+import blindspot
+from blindspot.stage import DeclaredFiles, read_dvc_stages
+
+REPO = Path(__file__).resolve().parents[2]
+STAGES = REPO / "stages"
+SRC = Path(blindspot.__file__).resolve().parents[1]
+# The runner and its glue: how a stage is called and logged, not what it computes. A stage's
+# outputs do not depend on them, so its deps need not list them (nor what they import).
+RUNNER = ("blindspot.cli", "blindspot.stage", "blindspot.tracking")
+# Suffixes of the pipeline's files: a string ending so in a stage is a hand-built path.
+FILE_SUFFIXES = (".parquet", ".json", ".npz", ".csv", ".png", ".svg", ".md", ".pt", ".yaml")
+PATH_IN_TEXT = re.compile(r"(^|[\s(`'\"])(data|reports)/")  # also inside messages
+
+DVC_STAGES = read_dvc_stages(REPO)
+STAGE_FILES = sorted(p.stem for p in STAGES.glob("*.py") if not p.stem.startswith("_"))
+
+
+def test_every_stage_script_has_its_dvc_stage() -> None:
+    missing = [s for s in STAGE_FILES if s not in DVC_STAGES]
+    assert not missing, f"stages/ scripts without a stage in dvc.yaml: {missing}"
+
+
+# --------------------------------------------------------------------------- declared paths
+
+
+def _ctx_calls(tree: ast.AST) -> list[tuple[str, ast.expr]]:
+    """(kind, argument) of every ``ctx.dep(...)`` / ``ctx.out(...)`` call."""
+    calls = []
+    for node in ast.walk(tree):
+        if (isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute)
+                and node.func.attr in ("dep", "out") and isinstance(node.func.value, ast.Name)
+                and node.func.value.id == "ctx" and len(node.args) == 1):
+            calls.append((node.func.attr, node.args[0]))
+    return calls
+
+
+def _pattern(arg: ast.expr) -> re.Pattern[str] | None:
+    """The names an argument can take: a literal, or an f-string (its fields match anything)."""
+    if isinstance(arg, ast.Constant) and isinstance(arg.value, str):
+        return re.compile(re.escape(arg.value))
+    if isinstance(arg, ast.JoinedStr):
+        parts = [re.escape(v.value) if isinstance(v, ast.Constant) else "[^/]+"
+                 for v in arg.values]
+        return re.compile("".join(parts))
+    return None
+
+
+def _matches(pattern: re.Pattern[str], path: str) -> bool:
+    return any(pattern.fullmatch(tail) for tail in
+               ["/".join(path.split("/")[i:]) for i in range(path.count("/") + 1)])
+
+
+def declared_file_problems(source: str, files: DeclaredFiles) -> list[str]:
+    """What a stage's ``ctx.dep``/``ctx.out`` names get wrong against its dvc.yaml entry."""
+    tree = ast.parse(source)
+    problems, asked = [], set()
+    for kind, arg in _ctx_calls(tree):
+        pattern = _pattern(arg)
+        if pattern is None:
+            problems.append(f"ctx.{kind}({ast.unparse(arg)}): name it by a literal or f-string")
+            continue
+        declared = files.deps if kind == "dep" else files.outs
+        found = [p for p in declared if _matches(pattern, p)]
+        if not found:
+            problems.append(f"ctx.{kind}({ast.unparse(arg)}) matches no declared {kind}")
+        if isinstance(arg, ast.Constant) and len(found) > 1:
+            problems.append(f"ctx.{kind}({arg.value!r}) matches {found}")
+        if kind == "out":
+            asked.update(found)
+    never = [p for p in files.outs if p not in asked]
+    if never:
+        problems.append(f"declared outs the stage never asks for: {never}")
+    return problems
+
+
+@pytest.mark.parametrize("stage", STAGE_FILES)
+def test_stage_names_only_declared_files_and_every_declared_out(stage: str) -> None:
+    problems = declared_file_problems((STAGES / f"{stage}.py").read_text(), DVC_STAGES[stage])
+    assert not problems, f"stages/{stage}.py against dvc.yaml:\n  " + "\n  ".join(problems)
+
+
+def _out_roots(tree: ast.AST) -> set[str]:
+    """Names assigned from an expression holding ``ctx.out(...)`` (a declared folder)."""
+    roots = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Assign) and _ctx_calls(node.value):
+            roots.update(t.id for t in node.targets if isinstance(t, ast.Name))
+    return roots
+
+
+def _leftmost(node: ast.expr) -> ast.expr:
+    while isinstance(node, ast.BinOp) and isinstance(node.op, ast.Div):
+        node = node.left
+    return node
+
+
+def hand_built_paths(source: str) -> list[str]:
+    """Path-like strings of a stage other than ``ctx.dep``/``ctx.out`` names and file names
+    inside a declared out folder (``ctx.out("recordings") / name / "detections.parquet"``)."""
+    tree = ast.parse(source)
+    allowed = {id(arg) for _, arg in _ctx_calls(tree)}
+    for _, arg in _ctx_calls(tree):
+        allowed.update(id(v) for v in ast.walk(arg))
+    roots = _out_roots(tree)
+    for node in ast.walk(tree):
+        if isinstance(node, ast.BinOp) and isinstance(node.op, ast.Div):
+            left = _leftmost(node)
+            if (isinstance(left, ast.Name) and left.id in roots) or _ctx_calls(left):
+                allowed.update(id(v) for v in ast.walk(node))
+    for node in ast.walk(tree):  # docstrings are prose
+        if isinstance(node, ast.Module | ast.FunctionDef | ast.ClassDef) and node.body \
+                and isinstance(node.body[0], ast.Expr) and isinstance(node.body[0].value, ast.Constant):
+            allowed.add(id(node.body[0].value))
+    bad = []
+    for node in ast.walk(tree):
+        if not (isinstance(node, ast.Constant) and isinstance(node.value, str)):
+            continue
+        if id(node) in allowed:
+            continue
+        text = node.value.strip()
+        if PATH_IN_TEXT.search(text) or " " not in text and text.endswith(FILE_SUFFIXES):
+            bad.append(f"line {node.lineno}: {text!r}")
+    return bad
+
+
+@pytest.mark.parametrize("stage", STAGE_FILES)
+def test_stage_spells_no_path_of_its_own(stage: str) -> None:
+    bad = hand_built_paths((STAGES / f"{stage}.py").read_text())
+    assert not bad, (f"stages/{stage}.py builds paths by hand (declare them in dvc.yaml and ask "
+                     f"ctx.dep/ctx.out):\n  " + "\n  ".join(bad))
+
+
+BAD_STAGE = """
+def run(cfg, ctx):
+    a = pd.read_parquet(ctx.dep("truth.parquet"))
+    b = pd.read_parquet(ctx.dep("missing.parquet"))
+    write_json(ctx.out(f"m_{cfg.x}.json"), {})
+    write_json("reports/metrics/extra.json", {})
+    folder = ctx.out("folder") / cfg.name
+    write_parquet(folder / "inside.parquet", a)
+    raise ValueError(f"see data/simulate/truth.parquet for {a}")
+"""
+
+
+def test_the_path_checks_catch_what_they_promise() -> None:
+    files = DeclaredFiles("bad", ("data/simulate/truth.parquet",),
+                          ("reports/metrics/m_1.json", "data/bad/folder", "data/bad/never.csv"))
+    problems = declared_file_problems(BAD_STAGE, files)
+    assert problems == ["ctx.dep('missing.parquet') matches no declared dep",
+                        "declared outs the stage never asks for: ['data/bad/never.csv']"]
+    assert hand_built_paths(BAD_STAGE) == ["line 6: 'reports/metrics/extra.json'",
+                                           "line 9: 'see data/simulate/truth.parquet for'"]
+
+
+# --------------------------------------------------------------------------- deps cover imports
+
+
+@cache
+def _graph() -> grimp.ImportGraph:
+    # imports under `if TYPE_CHECKING:` never run, so they cannot change what a stage computes
+    return grimp.build_graph("blindspot", cache_dir=None, exclude_type_checking_imports=True)
+
+
+def _module_file(module: str) -> Path:
+    base = SRC.joinpath(*module.split("."))
+    return base / "__init__.py" if base.is_dir() else base.with_suffix(".py")
+
+
+def _has_code(module: str) -> bool:
+    """False for a module holding only its docstring and dunder constants (``__version__``):
+    running it changes nothing a stage computes."""
+    body = ast.parse(_module_file(module).read_text()).body
+    return any(not (isinstance(n, ast.Expr) and isinstance(n.value, ast.Constant)
+                    or isinstance(n, ast.Assign) and isinstance(n.value, ast.Constant)
+                    and all(isinstance(t, ast.Name) and t.id.startswith("__") for t in n.targets))
+               for n in body)
+
+
+def _direct_imports(path: Path, modules: set[str]) -> set[str]:
+    """blindspot modules a script imports (``from pkg import mod`` counts as ``pkg.mod``)."""
+    found = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            found.update(a.name for a in node.names if a.name.split(".")[0] == "blindspot")
+        elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0 \
+                and node.module.split(".")[0] == "blindspot":
+            for alias in node.names:
+                sub = f"{node.module}.{alias.name}"
+                found.add(sub if sub in modules else node.module)
+    return found
+
+
+def _is_runner(module: str) -> bool:
+    return any(module == r or module.startswith(r + ".") for r in RUNNER)
+
+
+def imported_modules(script: Path) -> set[str]:
+    """Every blindspot module running ``script`` imports, transitively (with the packages whose
+    ``__init__`` runs on the way), not following the runner (:data:`RUNNER`)."""
+    graph = _graph()
+    todo = [m for m in _direct_imports(script, graph.modules) if not _is_runner(m)]
+    seen: set[str] = set()
+    while todo:
+        module = todo.pop()
+        if module in seen or _is_runner(module):
+            continue
+        seen.add(module)
+        parts = module.split(".")
+        todo.extend(".".join(parts[:i]) for i in range(1, len(parts)))  # parent packages run too
+        todo.extend(graph.find_modules_directly_imported_by(module))
+    return {m for m in seen if _has_code(m)}
+
+
+def _covered(path: str, deps: tuple[str, ...]) -> bool:
+    return any(path == d or path.startswith(d.rstrip("/") + "/") for d in deps)
+
+
+def uncovered_imports(stage: str, deps: tuple[str, ...]) -> list[str]:
+    """The stage script and the modules it imports that ``deps`` do not cover."""
+    script = f"stages/{stage}.py"
+    missing = sorted(
+        f"{m} ({_module_file(m).relative_to(REPO).as_posix()})"
+        for m in imported_modules(STAGES / f"{stage}.py")
+        if not _covered(_module_file(m).relative_to(REPO).as_posix(), deps))
+    if not _covered(script, deps):
+        missing.insert(0, script)
+    return missing
+
+
+@pytest.mark.parametrize("stage", STAGE_FILES)
+def test_stage_deps_cover_the_modules_it_imports(stage: str) -> None:
+    missing = uncovered_imports(stage, DVC_STAGES[stage].deps)
+    assert not missing, (f"dvc.yaml stage {stage!r} imports modules its deps do not cover "
+                         f"(changing them would not rerun it): " + ", ".join(missing))
+
+
+def test_the_deps_check_follows_imports_transitively() -> None:
+    """Live check: stages/windows.py reaches synth.path_dataset and, through it, traj.paths."""
+    found = imported_modules(STAGES / "windows.py")
+    assert {"blindspot.synth.path_dataset", "blindspot.traj.windows", "blindspot.io"} <= found
+    assert not any(_is_runner(m) for m in found)
+    assert "blindspot.traj.paths" in _graph().find_upstream_modules("blindspot.synth.path_dataset")
+    assert "blindspot.traj.paths" in found
+    deps = tuple(d for d in DVC_STAGES["windows"].deps if d != "src/blindspot/traj/paths.py")
+    assert uncovered_imports("windows", deps) == ["blindspot.traj.paths (src/blindspot/traj/paths.py)"]
