@@ -6,7 +6,7 @@ import pandas as pd
 from blindspot import experiment
 from blindspot.cli import main_stage
 from blindspot.stage import StageResult
-from blindspot.synth.path_dataset import table_to_arrays
+from blindspot.traj.paths import table_to_arrays
 from blindspot.traj.windows import WindowSet, interpolate_gaps, make_windows, split_by_path
 
 SPLITS = ("train", "val", "test")

@@ -155,3 +155,27 @@ def test_repo_dataset_config_builds_and_covers_the_splits():
     need = paths_needed((split.train, split.val, split.test), spec.points_per_path, spec.window,
                         spec.stride)
     assert spec.n_paths >= need
+
+
+def test_path_table_back_to_arrays_in_any_row_order():
+    """table_to_arrays undoes the paths stage's long table, whatever the row order, and refuses
+    rows that are not whole paths."""
+    import pandas as pd
+
+    from blindspot.traj.paths import table_to_arrays
+
+    rng = np.random.default_rng(0)
+    truth = rng.normal(size=(3, 4, 2))
+    meas = truth + 0.1
+    meas[1, 2] = np.nan
+    table = pd.DataFrame({
+        "path_id": np.repeat(np.arange(3), 4), "point": np.tile(np.arange(4), 3),
+        "motion": np.repeat(["approaching", "receding", "perpendicular"], 4),
+        "x_true_m": truth[..., 0].ravel(), "y_true_m": truth[..., 1].ravel(),
+        "x_m": meas[..., 0].ravel(), "y_m": meas[..., 1].ravel()})
+    t, m, motion = table_to_arrays(table.sample(frac=1.0, random_state=1))
+    np.testing.assert_array_equal(t, truth)
+    np.testing.assert_array_equal(m, meas)
+    assert list(motion) == ["approaching", "receding", "perpendicular"]
+    with pytest.raises(ValueError, match="not 3 paths x 4 points"):
+        table_to_arrays(table.iloc[:-1])

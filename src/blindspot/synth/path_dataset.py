@@ -56,14 +56,3 @@ def path_table(paths: PathSet, measured: PathMeasurement, frame_period_s: float)
         "velocity_mps": measured.velocity_mps.ravel(), "snr_db": measured.snr_db.ravel(),
         "n_detections": measured.n_detections.ravel(),
     })
-
-
-def table_to_arrays(table: pd.DataFrame) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(truth (P, T, 2), measured (P, T, 2), motion (P,)) back from :func:`path_table`."""
-    t = table.sort_values(["path_id", "point"])
-    p, n = t.path_id.nunique(), t.point.nunique()
-    if p * n != len(t):
-        raise ValueError(f"path table: {len(t)} rows are not {p} paths x {n} points")
-    truth = t[["x_true_m", "y_true_m"]].to_numpy().reshape(p, n, 2)
-    meas = t[["x_m", "y_m"]].to_numpy().reshape(p, n, 2)
-    return truth, meas, t.motion.to_numpy()[::n]

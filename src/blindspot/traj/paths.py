@@ -29,6 +29,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import pandas as pd
 
 from blindspot.traj.config import PathSpec
 from blindspot.typed_config import ConfigError
@@ -245,3 +246,17 @@ def radar_like_noise(
     out = np.stack([r * np.sin(th), r * np.cos(th)], axis=-1)
     out[rng.random(r.shape) < miss_prob] = np.nan
     return out
+
+
+def table_to_arrays(table: pd.DataFrame) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(truth (P, T, 2), measured (P, T, 2), motion (P,)) of the path table the ``paths`` stage
+    writes (:func:`blindspot.synth.path_dataset.path_table`: one row per path point, columns
+    path_id, point, motion, x_true_m, y_true_m, x_m, y_m, ...); measured points are NaN where the
+    radar gave none. Raises ValueError when the rows are not whole paths of equal length."""
+    t = table.sort_values(["path_id", "point"])
+    p, n = t.path_id.nunique(), t.point.nunique()
+    if p * n != len(t):
+        raise ValueError(f"path table: {len(t)} rows are not {p} paths x {n} points")
+    truth = t[["x_true_m", "y_true_m"]].to_numpy().reshape(p, n, 2)
+    meas = t[["x_m", "y_m"]].to_numpy().reshape(p, n, 2)
+    return truth, meas, t.motion.to_numpy()[::n]
