@@ -10,9 +10,7 @@ import pandas as pd
 from blindspot import experiment
 from blindspot.cli import main_stage
 from blindspot.dsp.points import to_cartesian
-from blindspot.report.figures import fig06_detection
-
-N_ACCUMULATE = 100  # the paper's Fig. 6e
+from blindspot.report.radar_figures import fig06_detection
 
 
 def run(cfg):
@@ -35,7 +33,7 @@ def run(cfg):
         frame, detections, true_angle_deg=float(now.angle_deg), true_xy_m=(now.x_m, now.y_m),
         point=None if pt.empty else pt.iloc[0][["x_m", "y_m", "range_m", "angle_deg"]].to_dict(), static_xy_m=static_xy,
         scene_points=points[points.scene == scene], scene_truth=tr,
-        car_polygon=scenes[scene]["car_polygon_xy_m"], scene_name=scene, n_accumulate=N_ACCUMULATE)
+        car_polygon=scenes[scene]["car_polygon_xy_m"], scene_name=scene)
     out = experiment.save_report_figure(cfg, fig, "fig06", dpi=110)
     print(f"fig06: {out} ({scene}, frame {frame_no}, {len(detections)} detections)")
 

@@ -7,7 +7,7 @@ import pandas as pd
 
 from blindspot import experiment
 from blindspot.cli import main_stage
-from blindspot.report.figures import fig07_scenes
+from blindspot.report.path_figures import fig07_scenes
 
 
 def scene_pairs(cfg) -> list[tuple[str, str]]:

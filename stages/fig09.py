@@ -7,7 +7,7 @@ import pandas as pd
 
 from blindspot import experiment
 from blindspot.cli import main_stage
-from blindspot.report.figures import fig09_prediction
+from blindspot.report.path_figures import fig09_prediction
 
 
 def run(cfg):

@@ -8,15 +8,13 @@ import pandas as pd
 
 from blindspot import experiment
 from blindspot.cli import main_stage
-from blindspot.report.figures import fig10_error
-from blindspot.report.page import PAPER
+from blindspot.report.error_figures import fig10_error
 
 
 def run(cfg):
     curves = pd.read_csv(experiment.data_path(cfg, "evaluate", "error_by_step_per_scene.csv"))
     metrics = json.loads(experiment.reports_path(cfg, "metrics", "evaluate.json").read_text())
-    fig = fig10_error(curves, metrics, dt_s=float(cfg.radar.frame_period_s),
-                      paper_mean_m=PAPER["path_error_mean_m"])
+    fig = fig10_error(curves, metrics, dt_s=float(cfg.radar.frame_period_s))
     out = experiment.save_report_figure(cfg, fig, "fig10", dpi=110)
     print(f"fig10: {out} ({curves.method.nunique()} methods, {curves.step.max()} steps)")
 

@@ -20,7 +20,7 @@ from blindspot.io import atomic_open, write_json, write_parquet
 from blindspot.radar.array import array_for
 from blindspot.radar.capture import open_recording
 from blindspot.radar.config import RadarConfig
-from blindspot.report.figures import fig_recording
+from blindspot.report.radar_figures import fig_recording
 
 
 def run(cfg):
