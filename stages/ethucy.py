@@ -1,33 +1,32 @@
 """ethucy: the standard ETH/UCY benchmark (observe 8, predict 12) for CVM, Kalman and the LSTM.
 
-The same as `python -m blindspot.bench.ethucy --data ... --out reports/metrics/ethucy.json
---report reports/ethucy.md`, with the settings from cfg.ethucy (conf/ethucy/).
+The protocol of blindspot.traj.ethucy_benchmark with the settings of cfg.ethucy (conf/ethucy/);
+the same as `python -m blindspot.bench.ethucy` with the matching flags. Writes
+reports/metrics/ethucy.json and the page reports/ethucy.md.
 """
 
-from blindspot.bench import ethucy as bench
+from dataclasses import asdict
+
 from blindspot import experiment
 from blindspot.cli import main_stage
 from blindspot.config import shared_dir
+from blindspot.io import write_json, write_text
+from blindspot.report.ethucy_report import format_report
 from blindspot.stage import StageResult
+from blindspot.traj.ethucy_benchmark import EthUcySettings, run_benchmark
 
 
 def run(cfg, ctx):
-    e = experiment.ethucy(cfg)
-    out = ctx.out("ethucy.json")
-    report = ctx.out("ethucy.md")
-    argv = ["--data", str(shared_dir(cfg) / e.data), "--out", str(out), "--report", str(report),
-            "--models", ",".join(e.models), "--folds", ",".join(e.folds),
-            "--epochs", str(e.epochs), "--ensemble", str(e.ensemble), "--threads", str(e.threads),
-            "--seed", str(cfg.seed)]
-    if not cfg.progress:
-        argv.append("--quiet")
-    status = bench.main(argv)
-    if status:
-        raise SystemExit(status)
-    import json
-
-    results = json.loads(out.read_text())
-    return StageResult(metrics={m: r["avg"] for m, r in results.items()}, artifacts=[report])
+    settings = EthUcySettings.from_config(experiment.ethucy(cfg), shared_dir=shared_dir(cfg),
+                                          seed=int(cfg.seed))
+    bench = run_benchmark(settings, progress=bool(cfg.progress))
+    write_json(ctx.out("ethucy.json"), bench.results)
+    lstm = asdict(settings.lstm) if "lstm" in settings.models else None
+    report = write_text(ctx.out("ethucy.md"), format_report(
+        bench.results, bench.validation(), bench.details(), settings.folds, lstm,
+        "python -m blindspot ethucy", bench.seconds))
+    return StageResult(metrics={m: r["avg"] for m, r in bench.results.items()},
+                       artifacts=[report])
 
 
 if __name__ == "__main__":

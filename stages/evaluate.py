@@ -12,7 +12,7 @@ import pandas as pd
 from blindspot import experiment
 from blindspot.cli import main_stage
 from blindspot.io import write_json, write_text
-from blindspot.report.page import PAPER
+from blindspot.report.paper_values import PATH_ERROR_MEAN_M
 from blindspot.stage import StageResult
 from blindspot.traj.evaluation import evaluate_predictions, mean_error_by_step
 
@@ -37,7 +37,7 @@ def run(cfg, ctx):
     for method, m in metrics.items():
         print(f"evaluate {method}: paper metric {m['path_error_mean_m']:.3f} m vs truth, "
               f"{m.get('path_error_radar_mean_m', float('nan')):.3f} m vs radar track "
-              f"(paper {PAPER['path_error_mean_m']} m); ADE {m['ade_m']:.3f} m, FDE {m['fde_m']:.3f} m")
+              f"(paper {PATH_ERROR_MEAN_M.value} m); ADE {m['ade_m']:.3f} m, FDE {m['fde_m']:.3f} m")
     return StageResult(metrics={m: {k: v for k, v in d.items() if k != "per_scene"}
                                 for m, d in metrics.items()})
 

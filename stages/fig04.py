@@ -15,7 +15,7 @@ import pandas as pd
 
 from blindspot.cli import main_stage
 from blindspot.io import save_figure
-from blindspot.report.figures import PathCase, fig04_lstm_paths
+from blindspot.report.path_figures import PathCase, fig04_lstm_paths
 from blindspot.stage import StageResult
 from blindspot.traj.lstm import LSTMPredictor
 from blindspot.traj.metrics import ade

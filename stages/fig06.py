@@ -11,10 +11,8 @@ from blindspot.cli import main_stage
 from blindspot.dsp.frame_io import read_frame_result
 from blindspot.dsp.points import to_cartesian
 from blindspot.io import save_figure
-from blindspot.report.figures import fig06_detection
+from blindspot.report.radar_figures import fig06_detection
 from blindspot.stage import StageResult
-
-N_ACCUMULATE = 100  # the paper's Fig. 6e
 
 
 def run(cfg, ctx):
@@ -36,7 +34,7 @@ def run(cfg, ctx):
         frame, detections, true_angle_deg=float(now.angle_deg), true_xy_m=(now.x_m, now.y_m),
         point=None if pt.empty else pt.iloc[0][["x_m", "y_m", "range_m", "angle_deg"]].to_dict(), static_xy_m=static_xy,
         scene_points=points[points.scene == scene], scene_truth=tr,
-        car_polygon=scenes[scene]["car_polygon_xy_m"], scene_name=scene, n_accumulate=N_ACCUMULATE)
+        car_polygon=scenes[scene]["car_polygon_xy_m"], scene_name=scene)
     out = save_figure(fig, ctx.out("fig06.png"), dpi=110)
     print(f"fig06: {out} ({scene}, frame {frame_no}, {len(detections)} detections)")
     return StageResult(artifacts=[out])

@@ -8,7 +8,7 @@ import pandas as pd
 from blindspot import experiment
 from blindspot.cli import main_stage
 from blindspot.io import save_figure
-from blindspot.report.figures import fig07_scenes
+from blindspot.report.path_figures import fig07_scenes
 from blindspot.stage import StageResult
 
 

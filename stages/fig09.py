@@ -7,7 +7,7 @@ import pandas as pd
 
 from blindspot.cli import main_stage
 from blindspot.io import save_figure
-from blindspot.report.figures import fig09_prediction
+from blindspot.report.path_figures import fig09_prediction
 from blindspot.stage import StageResult
 
 

@@ -8,16 +8,14 @@ import pandas as pd
 
 from blindspot.cli import main_stage
 from blindspot.io import save_figure
-from blindspot.report.figures import fig10_error
-from blindspot.report.page import PAPER
+from blindspot.report.error_figures import fig10_error
 from blindspot.stage import StageResult
 
 
 def run(cfg, ctx):
     curves = pd.read_csv(ctx.dep("error_by_step_per_scene.csv"))
     metrics = json.loads(ctx.dep("evaluate.json").read_text())
-    fig = fig10_error(curves, metrics, dt_s=float(cfg.radar.frame_period_s),
-                      paper_mean_m=PAPER["path_error_mean_m"])
+    fig = fig10_error(curves, metrics, dt_s=float(cfg.radar.frame_period_s))
     out = save_figure(fig, ctx.out("fig10.png"), dpi=110)
     print(f"fig10: {out} ({curves.method.nunique()} methods, {curves.step.max()} steps)")
     return StageResult(artifacts=[out])

@@ -22,7 +22,7 @@ from blindspot.io import save_figure, write_json, write_parquet
 from blindspot.radar.array import array_for
 from blindspot.radar.capture import open_recording
 from blindspot.radar.config import RadarConfig
-from blindspot.report.figures import fig_recording
+from blindspot.report.radar_figures import fig_recording
 from blindspot.stage import StageResult
 
 

@@ -7,6 +7,7 @@ from dataclasses import asdict
 from blindspot import experiment
 from blindspot.cli import main_stage
 from blindspot.io import write_text
+from blindspot.report.paper_values import VAL_RMSE
 from blindspot.report.tables import table1_lstm
 from blindspot.stage import StageResult
 
@@ -25,7 +26,7 @@ def run(cfg, ctx):
              "Keras' RMSE metric reports on (x, y) targets; the Euclidean one-step RMSE of the LSTM "
              f"is {train['lstm']['val']['rmse_euclid_m']:.4f} m (validation).\n")
     out = write_text(ctx.out("table1.md"), text)
-    print(f"table1: {out} (val RMSE {train['lstm']['val']['rmse_m']:.4f} m, paper 0.07)")
+    print(f"table1: {out} (val RMSE {train['lstm']['val']['rmse_m']:.4f} m, paper {VAL_RMSE.value})")
     return StageResult(artifacts=[out])
 
 

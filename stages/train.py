@@ -9,6 +9,7 @@ RMSE are reported beside the constant-velocity and Kalman one-step errors on the
 from blindspot import experiment
 from blindspot.cli import main_stage
 from blindspot.io import write_json, write_text
+from blindspot.report.paper_values import VAL_RMSE
 from blindspot.stage import StageResult
 from blindspot.traj.baselines import ConstantVelocity
 from blindspot.traj.train import evaluate, rmse_euclidean, rmse_per_coordinate, train_lstm
@@ -41,10 +42,10 @@ def run(cfg, ctx):
         **{name: {"val": baseline_rmse(p, split["val"]), "test": baseline_rmse(p, split["test"])}
            for name, p in baselines.items()},
         "n_windows": {s: len(w) for s, w in split.items()},
-        "paper": {"val_rmse": 0.07},
+        "paper": {"val_rmse": VAL_RMSE.value},
     }
     write_json(ctx.out("train.json"), metrics)
-    print(f"train: val RMSE {metrics['lstm']['val']['rmse_m']:.4f} m (paper 0.07), "
+    print(f"train: val RMSE {metrics['lstm']['val']['rmse_m']:.4f} m (paper {VAL_RMSE.value}), "
           f"test {metrics['lstm']['test']['rmse_m']:.4f} m; constant velocity val "
           f"{metrics['constant_velocity']['val']['rmse_m']:.4f} m, Kalman "
           f"{metrics['kalman']['val']['rmse_m']:.4f} m")

@@ -15,8 +15,9 @@ import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 import pytest  # noqa: E402
 
-from blindspot.report import figures as F  # noqa: E402
-from blindspot.report.page import PAPER, build_page, differences, summary_rows  # noqa: E402
+from blindspot.report import error_figures, path_figures, radar_figures, style  # noqa: E402
+from blindspot.report.page import build_page, differences, summary_rows  # noqa: E402
+from blindspot.report.paper_values import PATH_ERROR_MEAN_M  # noqa: E402
 
 DT = 0.1
 N = 40  # frames per synthetic scene
@@ -149,18 +150,18 @@ def test_fig04_five_labelled_panels():
         true = np.column_stack([np.linspace(5, 0, 80), np.linspace(15, 8, 80)])
         hist = true[:50] + rng.normal(0, 0.1, (50, 2))
         hist[[3, 7]] = np.nan  # missed detections
-        cases.append(F.PathCase(motion, 3, 0, hist, true[:50], true[50:] + 0.2, true[50:], 0.2))
-    fig = F.fig04_lstm_paths(cases, dt_s=DT, val_rmse_m=0.066)
+        cases.append(path_figures.PathCase(motion, 3, 0, hist, true[:50], true[50:] + 0.2, true[50:], 0.2))
+    fig = path_figures.fig04_lstm_paths(cases, dt_s=DT, val_rmse_m=0.066)
     assert letters(fig) == "abcde"
     assert [ax.get_title(loc="left").split(":")[0] for ax in panels(fig)] == [
         "(a) approaching", "(b) approaching", "(c) receding", "(d) receding", "(e) perpendicular"]
     assert "paper 0.07" in fig._suptitle.get_text()
-    assert line_colours(fig, "LSTM") == {F.METHOD_COLOURS["lstm"]}
+    assert line_colours(fig, "LSTM") == {style.METHOD_COLOURS["lstm"]}
 
 
 def test_fig04_rejects_no_cases():
     with pytest.raises(ValueError, match="no cases"):
-        F.fig04_lstm_paths([])
+        path_figures.fig04_lstm_paths([])
 
 
 def fig06_inputs(truth, points):
@@ -184,7 +185,7 @@ def fig06_inputs(truth, points):
 def test_fig06_five_labelled_panels(truth, points):
     frame, det = fig06_inputs(truth, points)
     tr = truth[truth.scene == "approach_car"]
-    fig = F.fig06_detection(frame, det, true_angle_deg=-6.6, true_xy_m=(-1.0, 9.0),
+    fig = radar_figures.fig06_detection(frame, det, true_angle_deg=-6.6, true_xy_m=(-1.0, 9.0),
                             point={"x_m": -1.02, "y_m": 8.95, "range_m": 9.0, "angle_deg": -6.5},
                             static_xy_m=np.array([[1.5, 4.8], [1.5, 8.4]]),
                             scene_points=points[points.scene == "approach_car"], scene_truth=tr,
@@ -199,7 +200,7 @@ def test_fig06_five_labelled_panels(truth, points):
 def test_fig06_without_music_spectrum_still_draws(truth, points):
     frame, det = fig06_inputs(truth, points)
     frame = {**frame, "spectrum": np.zeros(0), "spectrum_detection": np.array(-1)}
-    fig = F.fig06_detection(frame, det, true_angle_deg=None, true_xy_m=None, point=None,
+    fig = radar_figures.fig06_detection(frame, det, true_angle_deg=None, true_xy_m=None, point=None,
                             static_xy_m=None, scene_points=points[points.scene == "approach_car"])
     assert letters(fig) == "abcde"
 
@@ -207,14 +208,14 @@ def test_fig06_without_music_spectrum_still_draws(truth, points):
 def test_fig06_rejects_mismatched_map(truth, points):
     frame, det = fig06_inputs(truth, points)
     with pytest.raises(ValueError, match="must all be"):
-        F.fig06_detection({**frame, "threshold": frame["threshold"][:-1]}, det, true_angle_deg=None,
+        radar_figures.fig06_detection({**frame, "threshold": frame["threshold"][:-1]}, det, true_angle_deg=None,
                           true_xy_m=None, point=None, static_xy_m=None, scene_points=points)
 
 
 def test_fig07_six_panels_gap_counts(points, truth, scenes):
     pairs = [("straight_nocar", "straight_car"), ("approach_nocar", "approach_car"),
              ("recede_nocar", "recede_car")]
-    fig = F.fig07_scenes(points, truth, scenes, pairs)
+    fig = path_figures.fig07_scenes(points, truth, scenes, pairs)
     assert letters(fig) == "abcdef"
     titles = [ax.get_title(loc="left") for ax in panels(fig)]
     assert all("no car" in t for t in titles[:3]) and all("with car" in t for t in titles[3:])
@@ -224,25 +225,25 @@ def test_fig07_six_panels_gap_counts(points, truth, scenes):
 
 
 def test_fig08_errors_from_metrics_and_colours(tracks, truth, scenes):
-    fig = F.fig08_interpolation(tracks, truth, scenes, interpolate_metrics(forward=1.234))
+    fig = path_figures.fig08_interpolation(tracks, truth, scenes, interpolate_metrics(forward=1.234))
     assert letters(fig) == "abc"
     labels = [t.get_text() for t in panels(fig)[0].get_legend().get_texts()]
     assert "forward LSTM (paper): 1.23 m" in labels
-    assert line_colours(fig, "forward LSTM (paper):") == {F.METHOD_COLOURS["forward"]}
-    assert line_colours(fig, "Kalman") == {F.METHOD_COLOURS["kalman"]}
+    assert line_colours(fig, "forward LSTM (paper):") == {style.METHOD_COLOURS["forward"]}
+    assert line_colours(fig, "Kalman") == {style.METHOD_COLOURS["kalman"]}
 
 
 def test_fig09_same_method_colours_as_fig10(tracks, predictions, truth, scenes):
     inputs = tracks[tracks.method == "forward"]
     metrics = evaluate_metrics()
-    fig9 = F.fig09_prediction(inputs, predictions, truth, scenes, metrics)
+    fig9 = path_figures.fig09_prediction(inputs, predictions, truth, scenes, metrics)
     assert letters(fig9) == "abc"
     curves = (predictions.assign(error_m=0.1 * predictions.step, path_error_m=0.05 * predictions.step,
                                  path_error_radar_m=0.04 * predictions.step))
-    fig10 = F.fig10_error(curves, metrics, dt_s=DT)
+    fig10 = error_figures.fig10_error(curves, metrics, dt_s=DT)
     assert letters(fig10) == "ab"
     for method, label in (("lstm", "LSTM"), ("constant_velocity", "constant velocity"), ("kalman", "Kalman")):
-        assert line_colours(fig9, label) == line_colours(fig10, label) == {F.METHOD_COLOURS[method]}
+        assert line_colours(fig9, label) == line_colours(fig10, label) == {style.METHOD_COLOURS[method]}
     legend = [t.get_text() for t in panels(fig10)[0].get_legend().get_texts()]
     assert "paper mean 0.09 m" in legend
     assert any(t.startswith("LSTM (paper) vs truth: mean 0.20 m") for t in legend)
@@ -252,7 +253,7 @@ def test_fig10_averages_scenes(predictions):
     """The drawn curve is the mean over scenes of each step's error."""
     curves = predictions.assign(error_m=np.where(predictions.scene == "straight_car", 1.0, 4.0),
                                 path_error_m=0.0)
-    fig = F.fig10_error(curves, evaluate_metrics(), dt_s=DT)
+    fig = error_figures.fig10_error(curves, evaluate_metrics(), dt_s=DT)
     lstm = [ln for ln in panels(fig)[1].get_lines() if ln.get_label().startswith("LSTM")][0]
     np.testing.assert_allclose(lstm.get_ydata(), 3.0)
 
@@ -263,16 +264,16 @@ def test_fig_recording(as_frame):
     power[5, 8] = 1e4
     mask = power > 100
     det = pd.DataFrame({"range_m": [2.5], "velocity_mps": [0.0], "moving": [False]}) if as_frame else mask
-    fig = F.fig_recording(power, det, np.arange(32) * 0.5, np.linspace(-4, 4, 16), "capture_1 (dca1000)")
+    fig = radar_figures.fig_recording(power, det, np.arange(32) * 0.5, np.linspace(-4, 4, 16), "capture_1 (dca1000)")
     (ax,) = fig.axes[:1]
     assert ax.get_title() == "capture_1 (dca1000)" and ax.get_xlabel() and ax.get_ylabel()
     with pytest.raises(ValueError, match="must match"):
-        F.fig_recording(power, mask[:-1], np.arange(32) * 0.5, np.linspace(-4, 4, 16), "x")
+        radar_figures.fig_recording(power, mask[:-1], np.arange(32) * 0.5, np.linspace(-4, 4, 16), "x")
 
 
 def test_scene_title():
-    assert F.scene_title("approach_car", {"turn_deg": 45.0, "with_car": True}) == "approach (turn +45°), with car"
-    assert F.scene_title("straight_nocar", {"turn_deg": 0.0, "with_car": False}) == "straight (no turn), no car"
+    assert style.scene_title("approach_car", {"turn_deg": 45.0, "with_car": True}) == "approach (turn +45°), with car"
+    assert style.scene_title("straight_nocar", {"turn_deg": 0.0, "with_car": False}) == "straight (no turn), no car"
 
 
 # ----------------------------------------------------------------------------- page
@@ -301,7 +302,7 @@ def test_page_without_ethucy_has_paper_values_and_figures():
     assert row[1].startswith("0.07") and row[2] == "LSTM 0.0664 m" and "Kalman (CV) 0.0940 m" in row[3]
     assert row[4] == "`dvc repro train`"
     row = table_row(page, "Paper's metric, mean over the prediction (vs simulated truth)")
-    assert row[1] == f"{PAPER['path_error_mean_m']} m" and row[2] == "LSTM 0.200 m"
+    assert row[1] == f"{PATH_ERROR_MEAN_M.value} m" and row[2] == "LSTM 0.200 m"
     row = table_row(page, "ETH/UCY average ADE / FDE (observe 8, predict 12)")
     assert row[1] == "CVM 0.52 / 1.14 m (published)" and row[2].startswith("not run yet")
     for fig in ("fig04", "fig06", "fig07", "fig08", "fig09", "fig10"):

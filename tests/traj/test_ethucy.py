@@ -2,15 +2,18 @@
 published constant-velocity numbers (Schöller et al. 2020), plus a smoke run of the CLI."""
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
+from omegaconf import OmegaConf
 
+from blindspot.bench.ethucy import build_parser, settings_from_args
 from blindspot.bench.ethucy import main as bench_main
+from blindspot.report.paper_values import ETHUCY_PUBLISHED
 from blindspot.traj.baselines import ConstantVelocity
 from blindspot.traj.ethucy import (
     FOLDS,
-    PUBLISHED,
     TEST_WINDOWS,
     EthUcyDataError,
     load_split,
@@ -19,7 +22,16 @@ from blindspot.traj.ethucy import (
     scene_tracks,
     sliding_windows,
 )
+from blindspot.traj.ethucy_benchmark import (
+    MODELS,
+    EthUcySettings,
+    LSTMBenchSettings,
+    lstm_window_set,
+    run_benchmark,
+)
 from blindspot.traj.metrics import ade, fde
+
+REPO = Path(__file__).resolve().parents[2]
 
 
 def write_scene(path, rows):
@@ -72,6 +84,29 @@ def test_bad_files_are_named(tmp_path):
         load_split(tmp_path, "nowhere", "test")
 
 
+def test_settings_from_the_config_group_equal_the_flags_the_stage_used_to_pass(tmp_path):
+    """conf/ethucy/standard.yaml, typed (EthUcyConfig), gives the settings of the command line
+    the ethucy stage ran before it called the library (--models, --folds, --epochs, --ensemble,
+    --threads, --seed)."""
+    from blindspot.traj.config import EthUcyConfig
+
+    group = OmegaConf.load(REPO / "conf" / "ethucy" / "standard.yaml")
+    settings = EthUcySettings.from_config(EthUcyConfig.from_mapping(group), shared_dir=tmp_path,
+                                          seed=7)
+    argv = ["--data", str(tmp_path / group.data), "--out", "x.json",
+            "--models", ",".join(group.models), "--folds", ",".join(group.folds),
+            "--epochs", str(group.epochs), "--ensemble", str(group.ensemble),
+            "--threads", str(group.threads), "--seed", "7"]
+    assert settings == settings_from_args(build_parser().parse_args(argv))
+    assert settings.lstm.seed == 7 and settings.lstm.num_threads == group.threads
+    assert settings.models == tuple(group.models) and settings.data_dir == tmp_path / group.data
+
+
+def test_settings_name_the_bad_value(tmp_path):
+    assert EthUcySettings(tmp_path, models="lstm,cvm,lstm").models == ("lstm", "cvm")
+    assert EthUcySettings(tmp_path).models == MODELS
+
+
 def test_random_rotations_keep_shape_of_motion():
     rng = np.random.default_rng(0)
     xy = np.cumsum(rng.normal(size=(50, 9, 2)), axis=1)
@@ -115,7 +150,7 @@ def test_constant_velocity_reproduces_the_published_numbers(test_windows):
     for fold, w in test_windows.items():
         pred = cvm.predict(w.observed(), 12)
         scores[fold] = (ade(pred, w.future()), fde(pred, w.future()))
-    published = PUBLISHED["cvm (Schöller et al. 2020)"]
+    published = ETHUCY_PUBLISHED["cvm (Schöller et al. 2020)"]
     for fold, (a, f) in scores.items():    # published to two decimals: within half a unit + 0.005
         assert abs(a - published[fold]["ade"]) <= 0.01, (fold, a)
         assert abs(f - published[fold]["fde"]) <= 0.01, (fold, f)
@@ -139,7 +174,15 @@ def test_bench_cli_smoke_on_the_eth_fold(ethucy_dir, tmp_path):
     assert result["cvm"]["eth"]["ade"] == pytest.approx(1.00, abs=0.01)
     text = report.read_text()
     assert "| cvm (ours) |" in text and "published" in text
-    assert not list(out.parent.glob("*.tmp"))
+    assert "Fitted process noise q (m^2/s^3), meas_std 0.05 m: eth " in text
+    assert not [p.name for p in out.parent.iterdir() if p.name.startswith(".")]   # no temporaries
+    # the library called with typed settings gives the same scores; its validation scores and
+    # details are the plain dicts the report page reads
+    run = run_benchmark(EthUcySettings(ethucy_dir, models=("cvm",), folds=("eth",)), progress=False)
+    assert run.results["cvm"] == result["cvm"]
+    assert set(run.validation()["cvm"]) == {"eth", "avg"}
+    assert run.details()["eth"]["cvm"]["n_windows"] == 181
+    json.dumps(run.details())   # plain values only
 
 
 def test_bench_cli_rejects_unknown_model(tmp_path, capsys):
@@ -150,8 +193,6 @@ def test_bench_cli_rejects_unknown_model(tmp_path, capsys):
 
 @pytest.mark.real_data
 def test_lstm_training_pairs_cover_every_nine_frame_stretch(ethucy_dir):
-    from blindspot.bench.ethucy import LSTMBenchSettings, lstm_window_set
-
     stretches = load_split(ethucy_dir, "eth", "val", seq_len=9, min_peds=1)
     heading = lstm_window_set(ethucy_dir, "eth", "val", LSTMBenchSettings(mirror=True))
     world = lstm_window_set(ethucy_dir, "eth", "val",

@@ -14,12 +14,20 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
+from blindspot.report.paper_values import (
+    ETHUCY_CVM,
+    FIG6E_ACCUMULATED_FRAMES,
+    PATH_ERROR_FIRST_BELOW_M,
+    PATH_ERROR_MEAN_M,
+    VAL_RMSE,
+    WINDOW,
+)
+from blindspot.report.style import method_label
 from blindspot.report.tables import markdown_table
 
 __all__ = [
     "FigureEntry",
     "FIGURES",
-    "PAPER",
     "command",
     "summary_rows",
     "differences",
@@ -27,14 +35,6 @@ __all__ = [
 ]
 
 Metrics = Mapping[str, Any] | None
-
-PAPER = {
-    "val_rmse": 0.07,
-    "path_error_mean_m": 0.09,
-    "path_error_first_below_m": 0.1,
-    "ethucy_cvm_ade": 0.52,   # Schoeller et al. 2020, "What the constant velocity model can teach us"
-    "ethucy_cvm_fde": 1.14,
-}
 
 
 @dataclass(frozen=True)
@@ -49,7 +49,7 @@ class FigureEntry:
 
 FIGURES: tuple[FigureEntry, ...] = (
     FigureEntry("fig04", "figures/fig04.png", "Fig. 4: LSTM predictions on simulated paths",
-                "(a)(b) approaching, (c)(d) receding, (e) perpendicular: a window of 50 radar points "
+                f"(a)(b) approaching, (c)(d) receding, (e) perpendicular: a window of {WINDOW.value} radar points "
                 "(black) and the LSTM rolled out autoregressively (red) against the true continuation "
                 "(dashed). Paths from the test split (validation split when the test split lacks a "
                 "motion); none was seen in training."),
@@ -57,7 +57,8 @@ FIGURES: tuple[FigureEntry, ...] = (
                 "(a) range-velocity map, (b) power over the CA-CFAR threshold with the car (static, "
                 "near zero velocity) and the pedestrian (moving) detections, (c) MUSIC pseudo-spectrum "
                 "of the pedestrian's detection with the estimated and true angle, (d) the pedestrian's "
-                "point after static-clutter removal, (e) the points of 100 frames, blue to red by time."),
+                f"point after static-clutter removal, (e) the points of {FIG6E_ACCUMULATED_FRAMES.value} frames, "
+                "blue to red by time."),
     FigureEntry("fig07", "figures/fig07.png", "Fig. 7: the three directions without and with the car",
                 "Top: no car, the points form a continuous path. Bottom: with the car, no points while "
                 "the pedestrian is hidden (orange: true positions while hidden)."),
@@ -71,7 +72,7 @@ FIGURES: tuple[FigureEntry, ...] = (
     FigureEntry("fig10", "figures/fig10.png", "Fig. 10: error against prediction step",
                 "(a) the paper's metric (distance to the nearest actual point; solid: against the truth, "
                 "dotted: against the radar track of the same walk without the car) with the paper's "
-                "mean 0.09 m; (b) the time-aligned error."),
+                f"mean {PATH_ERROR_MEAN_M.value} m; (b) the time-aligned error."),
 )
 
 TABLE_STAGES = {"table1": "Table 1: LSTM hyper-parameters", "table2": "Table 2: radar parameters"}
@@ -103,12 +104,6 @@ def _methods(evaluate: Metrics) -> list[str]:
     return [k for k in (evaluate or {}) if k != "paper" and isinstance(evaluate[k], Mapping)]
 
 
-def _label(method: str) -> str:
-    from blindspot.report.figures import METHOD_LABELS
-
-    return METHOD_LABELS.get(method, method.replace("_", " "))
-
-
 def _baselines(metrics: Metrics, ours: str, path: Sequence[str], digits: int = 3) -> str:
     """"label x m; label y m" for every method of ``metrics`` except ``ours``."""
     parts = []
@@ -117,7 +112,7 @@ def _baselines(metrics: Metrics, ours: str, path: Sequence[str], digits: int = 3
             continue
         value = _get(metrics, method, *path)
         if value is not None:
-            parts.append(f"{_label(method)} {_m(value, digits)}")
+            parts.append(f"{method_label(method)} {_m(value, digits)}")
     return "; ".join(parts)
 
 
@@ -144,20 +139,20 @@ def summary_rows(metrics: Mapping[str, Metrics]) -> list[tuple[str, str, str, st
 
     train = metrics.get("train")
     if train:
-        rows.append(("One-step validation RMSE (Table 1)", f"{PAPER['val_rmse']} (units not stated)",
+        rows.append(("One-step validation RMSE (Table 1)", f"{VAL_RMSE.value} (units not stated)",
                      f"LSTM {_m(_get(train, 'lstm', 'val', 'rmse_m'), 4)}",
                      _baselines(train, "lstm", ("val", "rmse_m"), 4), command("train")))
         rows.append(("One-step test RMSE", "not reported", f"LSTM {_m(_get(train, 'lstm', 'test', 'rmse_m'), 4)}",
                      _baselines(train, "lstm", ("test", "rmse_m"), 4), command("train")))
     else:
-        rows.append(("One-step validation RMSE (Table 1)", "0.07", "not run yet", "", command("train")))
+        rows.append(("One-step validation RMSE (Table 1)", f"{VAL_RMSE.value}", "not run yet", "", command("train")))
 
     interp = metrics.get("interpolate")
     if interp:
         ours = "forward" if "forward" in interp else next(iter(interp))
         rows.append(("Interpolation error on hidden frames (mean of car scenes)",
                      "no number (Fig. 8 only)",
-                     f"{_label(ours)} {_m(_get(interp, ours, 'all_scenes', 'hidden_mean_m'))}",
+                     f"{method_label(ours)} {_m(_get(interp, ours, 'all_scenes', 'hidden_mean_m'))}",
                      _baselines(interp, ours, ("all_scenes", "hidden_mean_m")), command("interpolate")))
     else:
         rows.append(("Interpolation error on hidden frames", "no number", "not run yet", "",
@@ -167,11 +162,11 @@ def summary_rows(metrics: Mapping[str, Metrics]) -> list[tuple[str, str, str, st
     methods = _methods(ev)
     if ev and "lstm" in methods:
         spec = [
-            ("Paper's metric, mean over the prediction (vs simulated truth)", f"{PAPER['path_error_mean_m']} m",
+            ("Paper's metric, mean over the prediction (vs simulated truth)", f"{PATH_ERROR_MEAN_M.value} m",
              "path_error_mean_m"),
             ("Paper's metric vs radar track of the walk without the car (what the paper measured)",
-             f"{PAPER['path_error_mean_m']} m", "path_error_radar_mean_m"),
-            ("Paper's metric at the first step", f"< {PAPER['path_error_first_below_m']} m", "path_error_first_m"),
+             f"{PATH_ERROR_MEAN_M.value} m", "path_error_radar_mean_m"),
+            ("Paper's metric at the first step", f"< {PATH_ERROR_FIRST_BELOW_M.value} m", "path_error_first_m"),
             ("ADE over the whole horizon", "not reported", "ade_m"),
             ("FDE over the whole horizon", "not reported", "fde_m"),
         ]
@@ -181,24 +176,25 @@ def summary_rows(metrics: Mapping[str, Metrics]) -> list[tuple[str, str, str, st
         for quantity, paper, key in spec:
             if isinstance(key, tuple):
                 ours = f"{_m(ev['lstm'].get(key[0]))} / {_m(ev['lstm'].get(key[1]))}"
-                base = "; ".join(f"{_label(m)} {_m(ev[m].get(key[0]))} / {_m(ev[m].get(key[1]))}"
+                base = "; ".join(f"{method_label(m)} {_m(ev[m].get(key[0]))} / {_m(ev[m].get(key[1]))}"
                                  for m in methods if m != "lstm")
             else:
                 ours = _m(ev["lstm"].get(key))
-                base = "; ".join(f"{_label(m)} {_m(ev[m].get(key))}" for m in methods if m != "lstm")
+                base = "; ".join(f"{method_label(m)} {_m(ev[m].get(key))}" for m in methods if m != "lstm")
             rows.append((quantity, paper, f"LSTM {ours}", base, command("evaluate")))
     else:
-        rows.append(("Paper's metric (mean Euclidean error of the prediction)", "0.09 m", "not run yet", "",
+        rows.append(("Paper's metric (mean Euclidean error of the prediction)", f"{PATH_ERROR_MEAN_M.value} m",
+                     "not run yet", "",
                      command("evaluate")))
 
     eth = metrics.get("ethucy")
-    published = f"CVM {PAPER['ethucy_cvm_ade']} / {PAPER['ethucy_cvm_fde']} m (published)"
+    published = f"CVM {ETHUCY_CVM['ade']} / {ETHUCY_CVM['fde']} m (published)"
     if eth:
         def avg(model: str) -> str:
             a = _get(eth, model, "avg")
             return "n/a" if not a else f"{a['ade']:.2f} / {a['fde']:.2f} m"
 
-        base = "; ".join(f"{m.upper() if m == 'cvm' else _label(m)} {avg(m)}" for m in eth if m != "lstm")
+        base = "; ".join(f"{m.upper() if m == 'cvm' else method_label(m)} {avg(m)}" for m in eth if m != "lstm")
         rows.append(("ETH/UCY average ADE / FDE (observe 8, predict 12)", published,
                      f"LSTM {avg('lstm')}" if "lstm" in eth else "n/a", base, command("ethucy")))
     else:
@@ -218,9 +214,9 @@ def differences(metrics: Mapping[str, Metrics]) -> list[str]:
     train = metrics.get("train")
     rmse = _get(train, "lstm", "val", "rmse_m")
     if rmse is not None:
-        rel = "below" if rmse < PAPER["val_rmse"] else "above"
+        rel = "below" if rmse < VAL_RMSE.value else "above"
         out.append(f"One-step validation RMSE: ours {rmse:.4f} m is {rel} the paper's "
-                   f"{PAPER['val_rmse']} (whose units the paper does not state; we read metres, RMSE "
+                   f"{VAL_RMSE.value} (whose units the paper does not state; we read metres, RMSE "
                    "over both coordinates).")
     ev = metrics.get("evaluate")
     methods = _methods(ev)
@@ -228,24 +224,24 @@ def differences(metrics: Mapping[str, Metrics]) -> list[str]:
         pe = ev["lstm"].get("path_error_mean_m")
         pr = ev["lstm"].get("path_error_radar_mean_m")
         if pe is not None:
-            ratio = pe / PAPER["path_error_mean_m"]
+            ratio = pe / PATH_ERROR_MEAN_M.value
             out.append(
                 f"The paper's metric for the LSTM is {pe:.2f} m against the simulated truth"
                 + (f" and {pr:.2f} m against the radar track without the car" if pr is not None else "")
-                + f", {ratio:.1f}x the paper's 0.09 m. The paper reports one real walk per direction; "
+                + f", {ratio:.1f}x the paper's {PATH_ERROR_MEAN_M.value} m. The paper reports one real walk per direction; "
                 "its prediction length is not stated (ours: the rest of the scene)."
             )
         first = ev["lstm"].get("path_error_first_m")
         if first is not None:
-            verdict = "meets" if first < PAPER["path_error_first_below_m"] else "misses"
+            verdict = "meets" if first < PATH_ERROR_FIRST_BELOW_M.value else "misses"
             out.append(f"First predicted point: {first:.3f} m from the actual path, which {verdict} the "
-                       f"paper's < {PAPER['path_error_first_below_m']} m.")
+                       f"paper's < {PATH_ERROR_FIRST_BELOW_M.value} m.")
         for key, what in (("path_error_mean_m", "the paper's metric"), ("ade_m", "ADE")):
             lstm = ev["lstm"].get(key)
             better = [m for m in methods if m != "lstm" and ev[m].get(key) is not None
                       and lstm is not None and ev[m][key] < lstm]
             if better:
-                out.append(f"On {what}, {', '.join(_label(m) for m in better)} beat"
+                out.append(f"On {what}, {', '.join(method_label(m) for m in better)} beat"
                            f"{'s' if len(better) == 1 else ''} the LSTM "
                            f"({', '.join(f'{ev[m][key]:.2f} m' for m in better)} vs {lstm:.2f} m).")
             elif lstm is not None:
@@ -258,7 +254,7 @@ def differences(metrics: Mapping[str, Metrics]) -> list[str]:
         if better:
             out.append("Interpolation: the paper's forward LSTM rollout cannot use the reappearance "
                        f"point and errs {fwd:.2f} m on average on the hidden frames; "
-                       + ", ".join(f"{_label(m)} {v:.2f} m" for m, v in better.items()) + " do better.")
+                       + ", ".join(f"{method_label(m)} {v:.2f} m" for m, v in better.items()) + " do better.")
     eth = metrics.get("ethucy")
     if eth and "lstm" in eth and "cvm" in eth:
         la, ca = _get(eth, "lstm", "avg"), _get(eth, "cvm", "avg")
@@ -266,7 +262,7 @@ def differences(metrics: Mapping[str, Metrics]) -> list[str]:
             wins = [k.upper() for k in ("ade", "fde") if la[k] < ca[k]]
             losses = [k.upper() for k in ("ade", "fde") if la[k] >= ca[k]]
             msg = (f"ETH/UCY: LSTM {la['ade']:.2f} / {la['fde']:.2f} m vs CVM {ca['ade']:.2f} / "
-                   f"{ca['fde']:.2f} m (published CVM {PAPER['ethucy_cvm_ade']} / {PAPER['ethucy_cvm_fde']} m); ")
+                   f"{ca['fde']:.2f} m (published CVM {ETHUCY_CVM['ade']} / {ETHUCY_CVM['fde']} m); ")
             msg += ("the LSTM beats CVM on both." if not losses else
                     f"the LSTM does not beat CVM on {' and '.join(losses)}"
                     + (f" (it does on {' and '.join(wins)})." if wins else "."))

@@ -1,7 +1,7 @@
 """The paper's tables as Markdown, our values beside the paper's.
 
 Tables take plain values (configs and metrics read from the pipeline's artifacts); they compute
-no science of their own.
+no science of their own. The paper's column is read from :mod:`blindspot.report.paper_values`.
 """
 
 from __future__ import annotations
@@ -11,6 +11,7 @@ from collections.abc import Mapping, Sequence
 from typing import Any
 
 from blindspot.radar.config import RadarConfig
+from blindspot.report import paper_values as paper
 
 
 def markdown_table(header: Sequence[str], rows: Sequence[Sequence[Any]]) -> str:
@@ -25,16 +26,21 @@ def markdown_table(header: Sequence[str], rows: Sequence[Sequence[Any]]) -> str:
     return "\n".join(lines) + "\n"
 
 
+def _with_unit(value: paper.PaperValue) -> str:
+    """"77 GHz": a paper value and its unit as the paper writes them."""
+    return f"{value.value:g} {value.unit}"
+
+
 def table2_radar(radar: RadarConfig) -> str:
     """Table 2 (radar parameters): the paper's values, ours, and what the paper does not state."""
     s = radar.summary()
     rows = [
-        ("Centre frequency", "77 GHz", f"{s['center_freq_ghz']:.3f} GHz"),
-        ("Bandwidth", "300 MHz", f"{radar.bandwidth_hz / 1e6:g} MHz"),
-        ("Chirp duration", "30 us", f"{radar.ramp_time_s * 1e6:g} us"),
-        ("Chirps (loops) per frame", "64", f"{radar.n_chirps}"),
-        ("Samples per chirp", "256", f"{radar.n_samples}"),
-        ("TX / RX elements", "12 / 16", f"{radar.n_tx} / {radar.n_rx}"),
+        ("Centre frequency", _with_unit(paper.CENTRE_FREQUENCY_GHZ), f"{s['center_freq_ghz']:.3f} GHz"),
+        ("Bandwidth", _with_unit(paper.BANDWIDTH_MHZ), f"{radar.bandwidth_hz / 1e6:g} MHz"),
+        ("Chirp duration", _with_unit(paper.CHIRP_DURATION_US), f"{radar.ramp_time_s * 1e6:g} us"),
+        ("Chirps (loops) per frame", f"{paper.N_CHIRPS.value}", f"{radar.n_chirps}"),
+        ("Samples per chirp", f"{paper.N_SAMPLES.value}", f"{radar.n_samples}"),
+        ("TX / RX elements", f"{paper.N_TX.value} / {paper.N_RX.value}", f"{radar.n_tx} / {radar.n_rx}"),
         ("ADC rate", "not stated", f"{radar.adc_rate_hz / 1e6:.4g} Msps"),
         ("Idle time", "not stated", f"{radar.idle_time_s * 1e6:g} us"),
         ("Frame period", "not stated", f"{radar.frame_period_s * 1e3:g} ms"),
@@ -42,8 +48,8 @@ def table2_radar(radar: RadarConfig) -> str:
         ("Noise figure", "not stated", f"{radar.noise_figure_db:g} dB"),
         ("TX power, TX/RX antenna gain", "not stated",
          f"{radar.tx_power_dbm:g} dBm, {radar.tx_gain_dbi:g}/{radar.rx_gain_dbi:g} dBi"),
-        ("Slope (derived)", "10 MHz/us", f"{s['slope_mhz_per_us']:.4g} MHz/us"),
-        ("Range resolution (derived)", "0.5 m", f"{s['range_resolution_m']:.4g} m"),
+        ("Slope (derived)", _with_unit(paper.SLOPE_MHZ_PER_US), f"{s['slope_mhz_per_us']:.4g} MHz/us"),
+        ("Range resolution (derived)", _with_unit(paper.RANGE_RESOLUTION_M), f"{s['range_resolution_m']:.4g} m"),
         ("Maximum range (derived)", "not stated", f"{s['max_range_m']:.4g} m"),
         ("Velocity resolution (derived, TDM over all TX)", "not stated",
          f"{s['velocity_resolution_mps']:.4g} m/s"),
@@ -61,15 +67,15 @@ def table1_lstm(model: Mapping[str, Any], train: Mapping[str, Any], counts: Mapp
     baselines: validation RMSE of other predictors on the same windows, e.g. {"constant velocity": ..}.
     """
     rows: list[tuple[Any, ...]] = [
-        ("Window size", 50, model.get("window", counts.get("window"))),
-        ("Training pairs", "20,000", f"{counts['train']:,}"),
-        ("Validation pairs", "4,000", f"{counts['val']:,}"),
-        ("Test pairs", "500", f"{counts['test']:,}"),
-        ("Validation RMSE", "0.07 (units not stated)", f"{val_rmse_m:.4f} m"),
-        ("Learning rate", 0.001, train["lr"]),
-        ("Activation", "ReLU", f"{model.get('head_activation', 'relu')} (head); tanh inside the LSTM cell"),
-        ("Optimiser", "Adam", str(train.get("optimizer", "adam")).capitalize()),
-        ("Epochs", 15, train["epochs"]),
+        ("Window size", paper.WINDOW.value, model.get("window", counts.get("window"))),
+        ("Training pairs", f"{paper.TRAIN_PAIRS.value:,}", f"{counts['train']:,}"),
+        ("Validation pairs", f"{paper.VAL_PAIRS.value:,}", f"{counts['val']:,}"),
+        ("Test pairs", f"{paper.TEST_PAIRS.value:,}", f"{counts['test']:,}"),
+        ("Validation RMSE", f"{paper.VAL_RMSE.value} (units not stated)", f"{val_rmse_m:.4f} m"),
+        ("Learning rate", paper.LEARNING_RATE.value, train["lr"]),
+        ("Activation", paper.ACTIVATION.value, f"{model.get('head_activation', 'relu')} (head); tanh inside the LSTM cell"),
+        ("Optimiser", paper.OPTIMISER.value, str(train.get("optimizer", "adam")).capitalize()),
+        ("Epochs", paper.EPOCHS.value, train["epochs"]),
         ("Hidden size / layers", "not stated", f"{model.get('hidden_size')} / {model.get('num_layers')}"),
         ("Batch size", "not stated", train.get("batch_size")),
         ("Target", "not stated", model.get("target")),

@@ -32,7 +32,6 @@ __all__ = [
     "FRAME_PERIOD_S",
     "OBS_LEN",
     "PRED_LEN",
-    "PUBLISHED",
     "TEST_WINDOWS",
     "EthUcyDataError",
     "SceneTracks",
@@ -52,19 +51,6 @@ FRAME_STEP = 10          # frame-id increment between annotated frames
 FRAME_PERIOD_S = 0.4     # 2.5 fps
 OBS_LEN = 8              # 3.2 s observed
 PRED_LEN = 12            # 4.8 s predicted
-
-#: Published ADE/FDE (m) from the data README; per-fold values where the README gives them.
-PUBLISHED: dict[str, dict[str, dict[str, float]]] = {
-    "cvm (Schöller et al. 2020)": {
-        "eth": {"ade": 1.00, "fde": 2.23}, "hotel": {"ade": 0.32, "fde": 0.62},
-        "univ": {"ade": 0.52, "fde": 1.17}, "zara1": {"ade": 0.43, "fde": 0.96},
-        "zara2": {"ade": 0.33, "fde": 0.73}, "avg": {"ade": 0.52, "fde": 1.14},
-    },
-    "linear": {"avg": {"ade": 0.79, "fde": 1.59}},
-    "vanilla LSTM": {"avg": {"ade": 0.70, "fde": 1.52}},
-    "Social-LSTM": {"avg": {"ade": 0.72, "fde": 1.54}},
-    "Trajectron++ (deterministic, fixed preprocessing)": {"avg": {"ade": 0.52, "fde": 1.11}},
-}
 
 #: Number of test windows per fold under the Social-GAN windowing (data README).
 TEST_WINDOWS: dict[str, int] = {"eth": 181, "hotel": 1053, "univ": 24334, "zara1": 2253,

@@ -1,0 +1,340 @@
+"""The ETH/UCY benchmark protocol: CVM, Kalman and the LSTM scored by ADE / FDE.
+
+:func:`run_benchmark` takes typed :class:`EthUcySettings` (built from the ``ethucy`` config
+group, typed, by :meth:`EthUcySettings.from_config`, or by the command line
+``python -m blindspot.bench.ethucy``) and returns a :class:`BenchmarkRun`: the results dict of
+``reports/metrics/ethucy.json`` and what each model fitted per fold. Nothing is written here; the
+Markdown page is :mod:`blindspot.report.ethucy_report`'s.
+
+Protocol (see ``blindspot.traj.ethucy``): observe 8 positions (3.2 s), predict 12 (4.8 s),
+leave-one-scene-out folds eth/hotel/univ/zara1/zara2, Social-GAN windows; every model that learns
+anything learns it from its fold's ``train`` split (and ``val`` for the LSTM's validation) only.
+
+* ``cvm``: constant velocity from the last two observed positions (Schöller et al. 2020).
+* ``kalman``: constant-velocity Kalman filter, process noise fitted on the fold's train windows
+  to minimise their 8 -> 12 ADE (``KalmanCV.fit(objective="forecast")``).
+* ``lstm``: the project's next-point LSTM with a window of 8, trained on every fully observed
+  9-frame stretch (8 in, 1 out) of the fold's train split, optionally augmented by random
+  rotations, validated on the val split, rolled out 12 steps.
+
+Results ``{model: {fold: {"ade", "fde", "n_windows"}, ..., "avg": {"ade", "fde"}}}`` (avg =
+unweighted mean over the folds run, as in the literature).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Mapping, Sequence
+from dataclasses import asdict, dataclass, field, fields, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from tqdm.auto import tqdm
+
+from blindspot.traj.baselines import ConstantVelocity, KalmanCV
+from blindspot.traj.config import EthUcyConfig
+from blindspot.traj.ethucy import (
+    FOLDS,
+    OBS_LEN,
+    PRED_LEN,
+    Windows,
+    load_split,
+    random_rotations,
+)
+from blindspot.traj.metrics import ade, fde
+from blindspot.traj.predictor import (
+    HeadingFrameRollout,
+    MeanNextPoint,
+    NextPointRollout,
+    PathPredictor,
+    heading_frame_pairs,
+)
+
+__all__ = [
+    "MODELS",
+    "LSTMBenchSettings",
+    "EthUcySettings",
+    "FoldOutcome",
+    "BenchmarkRun",
+    "score",
+    "lstm_window_set",
+    "train_fold_lstm",
+    "val_windows",
+    "run_fold",
+    "summarise",
+    "run_benchmark",
+]
+
+MODELS: tuple[str, ...] = ("cvm", "kalman", "lstm")
+
+
+@dataclass(frozen=True)
+class LSTMBenchSettings:
+    """LSTM settings for the benchmark (passed to ``LSTMConfig`` / ``TrainConfig``).
+
+    Attributes:
+        hidden_size, num_layers, head_hidden, target: model (window is fixed to 8).
+        epochs, batch_size, lr, seed: training.
+        frame: ``"heading"`` - every window is expressed in its own heading frame (origin at the
+            last point, +x along the last step) for training and for each rollout step
+            (:class:`~blindspot.traj.predictor.HeadingFrameRollout`); ``"world"`` - the LSTM
+            sees world coordinates (its own translation to the last point still applies).
+        residual: (heading frame) the LSTM predicts the correction to constant velocity.
+        mirror: (heading frame) train on mirrored copies too and average the prediction with
+            the mirrored window's (left/right symmetry).
+        speed_floor: (heading frame) also scale each window by its last step length, floored
+            at this many metres (None = no scaling): the LSTM then sees the shape of the motion
+            independent of walking speed.
+        rotations: (world frame) random-rotation copies added per training window.
+        ensemble: train this many LSTMs with seeds ``seed, seed + 1, ...`` and
+            average their next-point predictions at every rollout step.
+        num_threads: torch threads (None = leave torch's default).
+    """
+
+    hidden_size: int = 64
+    num_layers: int = 1
+    head_hidden: int = 32
+    target: str = "displacement"
+    epochs: int = 8
+    batch_size: int = 256
+    lr: float = 1e-3
+    seed: int = 0
+    frame: str = "heading"
+    residual: bool = True
+    mirror: bool = True
+    speed_floor: float | None = None
+    rotations: int = 0
+    ensemble: int = 5
+    num_threads: int | None = None
+
+    def __post_init__(self) -> None:
+        if self.frame not in ("heading", "world"):
+            raise ValueError(f"frame: expected 'heading' or 'world', found {self.frame!r}")
+        if self.frame == "heading" and self.rotations:
+            raise ValueError("rotations: random rotations do nothing in the heading frame "
+                             "(it is rotation invariant); use frame='world' or rotations=0")
+        if int(self.ensemble) != self.ensemble or self.ensemble < 1:
+            raise ValueError(f"ensemble: expected an integer >= 1, found {self.ensemble!r}")
+
+
+def _choices(value: str | Sequence[str], allowed: Sequence[str], key: str) -> tuple[str, ...]:
+    """A non-empty subset of ``allowed`` (a sequence or a comma-separated string), order kept,
+    duplicates dropped; ValueError naming ``key`` otherwise."""
+    items = [v.strip() for v in value.split(",")] if isinstance(value, str) else [str(v) for v in value]
+    items = [v for v in items if v]
+    bad = [v for v in items if v not in allowed]
+    if bad or not items:
+        raise ValueError(f"{key}: expected a non-empty subset of {','.join(allowed)}, found {value!r}")
+    return tuple(dict.fromkeys(items))
+
+
+@dataclass(frozen=True)
+class EthUcySettings:
+    """What one benchmark run does.
+
+    Attributes:
+        data_dir: the folder holding ``eth/ hotel/ univ/ zara1/ zara2/``.
+        models: models to score, a subset of :data:`MODELS` (in this order in the results).
+        folds: test folds, a subset of :data:`~blindspot.traj.ethucy.FOLDS`.
+        lstm: the LSTM's settings (used when ``"lstm"`` is among ``models``).
+
+    Raises:
+        ValueError: an unknown model or fold, or none (naming ``models`` / ``folds``).
+    """
+
+    data_dir: Path
+    models: tuple[str, ...] = MODELS
+    folds: tuple[str, ...] = FOLDS
+    lstm: LSTMBenchSettings = field(default_factory=LSTMBenchSettings)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "data_dir", Path(self.data_dir))
+        object.__setattr__(self, "models", _choices(self.models, MODELS, "models"))
+        object.__setattr__(self, "folds", _choices(self.folds, FOLDS, "folds"))
+
+    @classmethod
+    def from_config(cls, config: EthUcyConfig, *, shared_dir: str | Path,
+                    seed: int) -> EthUcySettings:
+        """From the typed ``ethucy`` config group (:class:`~blindspot.traj.config.EthUcyConfig`,
+        validated there): ``data`` relative to ``shared_dir`` (or absolute), the models, the
+        folds, and the LSTM's epochs, ensemble size and torch threads; ``seed`` (the config's
+        top-level seed) is the LSTM's first seed. The other LSTM settings keep the benchmark's
+        defaults (:class:`LSTMBenchSettings`)."""
+        return cls(data_dir=Path(shared_dir) / config.data, models=tuple(config.models),
+                   folds=tuple(config.folds),
+                   lstm=LSTMBenchSettings(seed=int(seed), epochs=config.epochs,
+                                          ensemble=config.ensemble,
+                                          num_threads=config.threads))
+
+
+@dataclass
+class FoldOutcome:
+    """Scores of one model on one fold plus what was fitted (for the report)."""
+
+    ade: float
+    fde: float
+    n_windows: int
+    seconds: float
+    fitted: dict[str, Any] = field(default_factory=dict)
+
+
+def score(predictor: PathPredictor, test: Windows, obs_len: int = OBS_LEN,
+          pred_len: int = PRED_LEN) -> tuple[float, float]:
+    """ADE and FDE (m) of ``predictor`` on test windows (N, obs_len + pred_len, 2)."""
+    pred = predictor.predict(test.observed(obs_len), pred_len)
+    truth = test.future(obs_len)
+    return ade(pred, truth), fde(pred, truth)
+
+
+def lstm_window_set(data_dir: Path, fold: str, split: str, s: LSTMBenchSettings, *,
+                    augment: bool = True):
+    """Next-point windows (8 in -> 1 out) of a fold's split as a ``WindowSet``.
+
+    Every fully observed 9-frame stretch of every pedestrian (no minimum-neighbour filter: the
+    LSTM sees one pedestrian at a time). In the heading frame the pairs come from
+    :func:`~blindspot.traj.predictor.heading_frame_pairs` (mirrored copies when ``augment`` and
+    ``s.mirror``); in the world frame ``s.rotations`` random rotations are added when
+    ``augment``.
+    """
+    from blindspot.traj.windows import WindowSet
+
+    w = load_split(data_dir, fold, split, seq_len=OBS_LEN + 1, min_peds=1)
+    xy, pid = w.xy, w.track_id
+    if s.frame == "heading":
+        mirror = augment and s.mirror
+        x, y = heading_frame_pairs(xy, residual=s.residual, mirror=mirror,
+                                   speed_floor=s.speed_floor)
+        return WindowSet(x=x, y=y, path_id=np.tile(pid, 2) if mirror else pid)
+    if augment and s.rotations:
+        xy = np.concatenate([xy, random_rotations(xy, s.rotations, np.random.default_rng(s.seed))])
+        pid = np.tile(pid, s.rotations + 1)
+    return WindowSet(x=xy[:, :OBS_LEN], y=xy[:, OBS_LEN], path_id=pid)
+
+
+def train_fold_lstm(data_dir: Path, fold: str, s: LSTMBenchSettings, progress: bool
+                    ) -> tuple[PathPredictor, float, int, int]:
+    """Train the LSTM on a fold's train split (validated on its val split).
+
+    Returns:
+        ``(predictor, val_rmse_m, n_train, n_val)``: the predictor to score (the LSTM itself,
+        or the LSTM / ensemble mean wrapped in a rollout), the one-step
+        validation RMSE in metres per coordinate (mean over ensemble members), and the window
+        counts.
+    """
+    from blindspot.traj.lstm import LSTMConfig
+    from blindspot.traj.train import TrainConfig, train_lstm
+
+    train = lstm_window_set(data_dir, fold, "train", s)
+    val = lstm_window_set(data_dir, fold, "val", s, augment=False)
+    model_cfg = LSTMConfig(window=OBS_LEN, hidden_size=s.hidden_size, num_layers=s.num_layers,
+                           head_hidden=s.head_hidden, target=s.target)
+    train_cfg = TrainConfig(epochs=s.epochs, batch_size=s.batch_size, lr=s.lr, seed=s.seed,
+                            num_threads=s.num_threads)
+    results = [train_lstm(train, val, model_cfg, replace(train_cfg, seed=s.seed + k),
+                          progress=progress) for k in range(s.ensemble)]
+    val_rmse = float(np.mean([r.val_rmse_m for r in results]))
+    model = (results[0].predictor if s.ensemble == 1
+             else MeanNextPoint([r.predictor for r in results]))
+    predictor: PathPredictor
+    if s.frame == "heading":
+        predictor = HeadingFrameRollout(model, residual=s.residual, symmetric=s.mirror,
+                                        speed_floor=s.speed_floor, name="lstm")
+    elif s.ensemble == 1:
+        predictor = results[0].predictor      # the LSTM's own rollout (fills gaps itself)
+    else:
+        predictor = NextPointRollout(model, name="lstm")
+    return predictor, val_rmse, len(train), len(val)
+
+
+def val_windows(data_dir: Path, fold: str) -> Windows:
+    """The fold's val split under the test protocol (20-frame Social-GAN windows)."""
+    return load_split(data_dir, fold, "val")
+
+
+def run_fold(data_dir: Path, fold: str, models: Sequence[str], lstm: LSTMBenchSettings,
+             progress: bool = True) -> dict[str, FoldOutcome]:
+    """Evaluate the requested models on one fold."""
+    test = load_split(data_dir, fold, "test")
+    out: dict[str, FoldOutcome] = {}
+    for name in models:
+        t0 = time.perf_counter()
+        fitted: dict[str, Any] = {}
+        if name == "cvm":
+            predictor: PathPredictor = ConstantVelocity()
+        elif name == "kalman":
+            train = load_split(data_dir, fold, "train")
+            predictor = KalmanCV().fit(train.xy, objective="forecast", obs_len=OBS_LEN)
+            fitted = {"process_psd_m2_s3": predictor.process_psd, "meas_std_m": predictor.meas_std}
+        elif name == "lstm":
+            predictor, val_rmse, n_train, n_val = train_fold_lstm(data_dir, fold, lstm, progress)
+            val_ade, val_fde = score(predictor, val_windows(data_dir, fold))
+            fitted = {"val_rmse_m": val_rmse, "val_ade_m": val_ade, "val_fde_m": val_fde,
+                      "n_train_windows": n_train, "n_val_windows": n_val}
+        else:  # guarded by EthUcySettings
+            raise ValueError(f"models: expected a subset of {MODELS}, found {name!r}")
+        a, f = score(predictor, test)
+        if "val_ade_m" not in fitted:
+            fitted["val_ade_m"], fitted["val_fde_m"] = score(predictor, val_windows(data_dir, fold))
+        out[name] = FoldOutcome(a, f, len(test), time.perf_counter() - t0, fitted)
+    return out
+
+
+@dataclass(frozen=True)
+class BenchmarkRun:
+    """One benchmark run.
+
+    Attributes:
+        settings: what was run.
+        per_fold: ``{fold: {model: FoldOutcome}}``.
+        results: :func:`summarise` of ``per_fold``, the content of ``reports/metrics/ethucy.json``.
+        seconds: wall time of the run.
+    """
+
+    settings: EthUcySettings
+    per_fold: dict[str, dict[str, FoldOutcome]]
+    results: dict[str, dict[str, dict[str, float]]]
+    seconds: float
+
+    def details(self) -> dict[str, dict[str, dict[str, Any]]]:
+        """``{fold: {model: {"ade", "fde", "n_windows", "seconds", "fitted"}}}`` as plain dicts
+        (what :func:`blindspot.report.ethucy_report.format_report` reads)."""
+        return {fold: {m: asdict(o) for m, o in rows.items()} for fold, rows in self.per_fold.items()}
+
+    def validation(self) -> dict[str, dict[str, dict[str, float]]]:
+        """The scores on each fold's val split, shaped like :attr:`results`:
+        ``{model: {fold: {"ade", "fde"}, "avg": {"ade", "fde"}}}`` (avg: unweighted mean)."""
+        out: dict[str, dict[str, dict[str, float]]] = {}
+        for m in self.results:
+            rows = {f: {"ade": r[m].fitted["val_ade_m"], "fde": r[m].fitted["val_fde_m"]}
+                    for f, r in self.per_fold.items()}
+            rows["avg"] = {k: float(np.mean([v[k] for v in rows.values()])) for k in ("ade", "fde")}
+            out[m] = rows
+        return out
+
+
+def summarise(per_fold: dict[str, dict[str, FoldOutcome]], models: Sequence[str]
+              ) -> dict[str, dict[str, dict[str, float]]]:
+    """JSON-ready ``{model: {fold: {ade, fde, n_windows}, "avg": {ade, fde}}}``."""
+    out: dict[str, dict[str, dict[str, float]]] = {}
+    for m in models:
+        rows = {fold: {"ade": r[m].ade, "fde": r[m].fde, "n_windows": r[m].n_windows}
+                for fold, r in per_fold.items()}
+        rows["avg"] = {"ade": float(np.mean([v["ade"] for v in rows.values()])),
+                       "fde": float(np.mean([v["fde"] for v in rows.values()]))}
+        out[m] = rows
+    return out
+
+
+def run_benchmark(settings: EthUcySettings, *, progress: bool = True) -> BenchmarkRun:
+    """Score every model of ``settings`` on every fold (in the settings' order).
+
+    Raises:
+        EthUcyDataError: a fold's folder is missing or a scene file is malformed.
+    """
+    t0 = time.perf_counter()
+    per_fold: dict[str, dict[str, FoldOutcome]] = {}
+    for fold in tqdm(settings.folds, desc="ETH/UCY folds", unit="fold", disable=not progress):
+        per_fold[fold] = run_fold(settings.data_dir, fold, settings.models, settings.lstm, progress)
+    return BenchmarkRun(settings, per_fold, summarise(per_fold, settings.models),
+                        time.perf_counter() - t0)

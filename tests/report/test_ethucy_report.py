@@ -1,0 +1,80 @@
+"""The ETH/UCY page from plain dicts (no benchmark run): tables, verdicts, fitted values, settings."""
+
+from __future__ import annotations
+
+import json
+
+from blindspot.report.ethucy_report import compare_to_cvm, format_report, format_table
+from blindspot.report.paper_values import ETHUCY_PUBLISHED
+
+FOLDS = ("eth", "hotel")
+
+
+def scores(eth, hotel) -> dict:
+    rows = {"eth": {"ade": eth[0], "fde": eth[1], "n_windows": 181},
+            "hotel": {"ade": hotel[0], "fde": hotel[1], "n_windows": 1053}}
+    rows["avg"] = {"ade": (eth[0] + hotel[0]) / 2, "fde": (eth[1] + hotel[1]) / 2}
+    return rows
+
+
+RESULTS = {"cvm": scores((1.0, 2.2), (0.3, 0.6)), "kalman": scores((1.1, 2.4), (0.3, 0.6)),
+           "lstm": scores((0.9, 2.1), (0.32, 0.5))}
+VALIDATION = {m: {"eth": {"ade": 0.45, "fde": 0.99}, "hotel": {"ade": 0.2, "fde": 0.4},
+                  "avg": {"ade": 0.325, "fde": 0.695}} for m in RESULTS}
+LSTM = {"hidden_size": 64, "frame": "heading", "residual": True, "mirror": True,
+        "speed_floor": None, "ensemble": 5}
+
+
+def details() -> dict:
+    out = {}
+    for fold, n in (("eth", 181), ("hotel", 1053)):
+        out[fold] = {m: {"ade": 0.0, "fde": 0.0, "n_windows": n, "seconds": 2.0, "fitted": {}}
+                     for m in RESULTS}
+        out[fold]["kalman"]["fitted"] = {"process_psd_m2_s3": 2.61, "meas_std_m": 0.05}
+        out[fold]["lstm"]["fitted"] = {"val_rmse_m": 0.0421, "val_ade_m": 0.45, "val_fde_m": 1.0}
+    return out
+
+
+def table_row(text: str, first: str) -> list[str]:
+    line = next(ln for ln in text.splitlines() if ln.startswith(f"| {first} |"))
+    return [c.strip() for c in line.strip("|").split("|")]
+
+
+def test_table_ours_then_published():
+    text = format_table(RESULTS, FOLDS)
+    assert text.splitlines()[0] == "| model | eth | hotel | avg |"
+    assert table_row(text, "lstm (ours)") == ["lstm (ours)", "0.90 / 2.10", "0.32 / 0.50", "0.61 / 1.30"]
+    cvm = ETHUCY_PUBLISHED["cvm (Schöller et al. 2020)"]
+    assert table_row(text, "published: cvm (Schöller et al. 2020)")[1:] == [
+        f"{cvm[f]['ade']:.2f} / {cvm[f]['fde']:.2f}" for f in (*FOLDS, "avg")]
+    assert table_row(text, "published: linear")[1:3] == ["-", "-"]
+    assert "published" not in format_table(RESULTS, FOLDS, published=False)
+
+
+def test_verdicts_against_cvm():
+    lines = compare_to_cvm(RESULTS)
+    assert lines[0].startswith("- kalman does not beat CVM") and "ADE +0.050 m" in lines[0]
+    assert lines[1].startswith("- lstm beats CVM")
+    assert compare_to_cvm({"lstm": RESULTS["lstm"]}) == []
+
+
+def test_report_page():
+    page = format_report(RESULTS, VALIDATION, details(), FOLDS, LSTM, "python -m blindspot ethucy",
+                         61.0)
+    assert page.startswith("# ETH/UCY benchmark\n")
+    assert "Test windows per fold: eth 181, hotel 1053." in page
+    assert "Fitted process noise q (m^2/s^3), meas_std 0.05 m: eth 2.61, hotel 2.61." in page
+    assert "in each window's heading frame" in page and "the mean of 5 LSTMs" in page
+    assert f"Settings: `{json.dumps(LSTM)}`." in page
+    assert "one-step RMSE per coordinate (m) eth 0.0421, hotel 0.0421" in page
+    validation = page.split("## Validation splits")[1]
+    assert table_row(validation, "cvm (ours)")[1:] == ["0.45 / 0.99", "0.20 / 0.40", "0.33 / 0.69"]
+    assert "published" not in validation.split("## Run")[0]
+    assert "Command: `python -m blindspot ethucy`" in page
+    assert "Wall time 61 s (cvm 4 s, kalman 4 s, lstm 4 s)." in page
+
+
+def test_report_without_lstm_settings():
+    page = format_report({"cvm": RESULTS["cvm"]}, {"cvm": VALIDATION["cvm"]}, details(), FOLDS,
+                         None, "cmd", 1.0)
+    assert "**lstm**" not in page and "**kalman**" not in page and "**cvm**" in page
