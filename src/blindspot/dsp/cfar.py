@@ -51,8 +51,7 @@ import scipy.optimize
 import scipy.special
 import scipy.stats
 
-DOMAINS = ("power", "db")
-MODES = ("ca", "go", "so")
+from blindspot.dsp.config import CFAR_DOMAINS as DOMAINS, CFAR_MODES as MODES
 
 
 class CfarError(ValueError):

@@ -13,11 +13,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from blindspot.dsp.cfar import DOMAINS, MODES
-from blindspot.dsp.doa import METHODS
-from blindspot.dsp.range_doppler import WINDOW_NAMES
-from blindspot.dsp.snapshots import SNAPSHOT_MODES
 from blindspot.typed_config import ConfigError, TypedConfig, setting
+
+# The choices of the groups, declared here (this module imports no algorithm, so a stage that
+# only builds configs does not depend on the algorithms' code) and used by the algorithms.
+CFAR_DOMAINS = ("power", "db")            # where a CFAR scale multiplies the training mean
+CFAR_MODES = ("ca", "go", "so")           # cell averaging, greatest-of, smallest-of (+ "os")
+DOA_METHODS = ("music", "bartlett", "capon")
+WINDOW_NAMES = ("hann", "hamming", "blackman", "blackmanharris", "rect")
+SNAPSHOT_MODES = ("cells", "chirps")      # neighbourhood cells, or the range bin across chirps
 
 __all__ = ["CfarConfig", "DoaConfig", "DetectConfig"]
 
@@ -31,13 +35,13 @@ class CfarConfig(TypedConfig):
 
     GROUP = "cfar"
 
-    method: str = setting(choices=MODES + ("os",))
+    method: str = setting(choices=CFAR_MODES + ("os",))
     guard: tuple[int, int] = setting(ge=0, le=64, doc="[range, doppler] cells, integers in [0, 64]")
     train: tuple[int, int] = setting(ge=0, le=256,
                                      doc="[range, doppler] cells, integers in [0, 256]")
     pfa: float | None = setting(gt=0.0, le=0.5)
     scale: float | None = setting(gt=0.0, le=1e6)
-    domain: str = setting(choices=DOMAINS)
+    domain: str = setting(choices=CFAR_DOMAINS)
     rank: float = setting(gt=0.0, le=1.0)
     n_looks: int | str = setting(ge=1, choices=("channels",))
 
@@ -57,7 +61,7 @@ class DoaConfig(TypedConfig):
 
     GROUP = "doa"
 
-    method: str = setting(choices=METHODS)
+    method: str = setting(choices=DOA_METHODS)
     n_signals: int = setting(ge=1, le=1024)
     grid_deg: tuple[float, float, float] = setting(
         doc="[start, stop, step] degrees within -90..90, at least 3 points")

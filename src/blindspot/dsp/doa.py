@@ -42,7 +42,7 @@ from functools import lru_cache
 import numpy as np
 
 DEFAULT_GRID_DEG = np.arange(-90.0, 90.0 + 0.125, 0.25)  # -90 .. 90 deg, 721 points
-METHODS = ("music", "bartlett", "capon")
+from blindspot.dsp.config import DOA_METHODS as METHODS
 BACKENDS = ("numpy", "torch")
 BLOCK_DETECTIONS = 512  # detections per block: (block, rank, grid) products stay in cache
 

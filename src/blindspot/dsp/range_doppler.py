@@ -46,7 +46,7 @@ import numpy as np
 import scipy.fft as sfft
 import scipy.signal
 
-WINDOW_NAMES = ("hann", "hamming", "blackman", "blackmanharris", "rect")
+from blindspot.dsp.config import WINDOW_NAMES
 # Full-range FFT of inputs whose result exceeds _DIRECT_BYTES: in blocks of _BLOCK_BYTES. glibc
 # serves allocations above 32 MiB by a fresh mmap, so torch's output of a larger batch in one call
 # was page-faulted in 4 KiB pages on every call (tripled its cost per frame); one MMWCAS frame is

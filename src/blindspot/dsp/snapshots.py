@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 
-SNAPSHOT_MODES = ("cells", "chirps")
+from blindspot.dsp.config import SNAPSHOT_MODES
 
 
 def cell_snapshots(rd_native: np.ndarray, range_bin: np.ndarray, doppler_bin: np.ndarray,

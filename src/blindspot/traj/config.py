@@ -15,9 +15,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from blindspot.traj.ethucy import FOLDS as ETHUCY_FOLDS
-from blindspot.traj.interpolation import METHODS as INTERPOLATION_METHODS
 from blindspot.typed_config import ConfigError, TypedConfig, setting
+
+# The choices of the groups, declared here (this module imports no algorithm) and used by the
+# algorithms: the ETH/UCY leave-one-scene-out folds and the gap-filling methods.
+ETHUCY_FOLDS: tuple[str, ...] = ("eth", "hotel", "univ", "zara1", "zara2")
+INTERPOLATION_METHODS = ("forward", "kalman", "bidirectional")
 
 __all__ = [
     "ACTIVATIONS", "DatasetConfig", "ETHUCY_MODELS", "EthUcyConfig", "EvalConfig", "KalmanConfig", "LSTMConfig", "OPTIMIZERS",

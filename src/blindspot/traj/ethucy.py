@@ -25,6 +25,8 @@ from pathlib import Path
 
 import numpy as np
 
+from blindspot.traj.config import ETHUCY_FOLDS as FOLDS
+
 __all__ = [
     "FOLDS",
     "SPLITS",
@@ -45,7 +47,6 @@ __all__ = [
     "random_rotations",
 ]
 
-FOLDS: tuple[str, ...] = ("eth", "hotel", "univ", "zara1", "zara2")
 SPLITS: tuple[str, ...] = ("train", "val", "test")
 FRAME_STEP = 10          # frame-id increment between annotated frames
 FRAME_PERIOD_S = 0.4     # 2.5 fps

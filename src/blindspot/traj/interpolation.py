@@ -23,7 +23,7 @@ import numpy as np
 
 from blindspot.traj.predictor import PathPredictor
 
-METHODS = ("forward", "kalman", "bidirectional")
+from blindspot.traj.config import INTERPOLATION_METHODS as METHODS
 
 
 def find_gaps(observed: np.ndarray) -> np.ndarray:
