@@ -257,11 +257,15 @@ def test_stage_deps_cover_the_modules_it_imports(stage: str) -> None:
 
 
 def test_the_deps_check_follows_imports_transitively() -> None:
-    """Live check: stages/windows.py reaches synth.path_dataset and, through it, traj.paths."""
-    found = imported_modules(STAGES / "windows.py")
-    assert {"blindspot.synth.path_dataset", "blindspot.traj.windows", "blindspot.io"} <= found
+    """Live check: stages/paths.py reaches synth.path_measurement and, only through it, the
+    chain's dsp.detections; without the dsp folder among its deps that module is named."""
+    found = imported_modules(STAGES / "paths.py")
+    assert {"blindspot.synth.path_dataset", "blindspot.io"} <= found
     assert not any(_is_runner(m) for m in found)
-    assert "blindspot.traj.paths" in _graph().find_upstream_modules("blindspot.synth.path_dataset")
-    assert "blindspot.traj.paths" in found
-    deps = tuple(d for d in DVC_STAGES["windows"].deps if d != "src/blindspot/traj/paths.py")
-    assert uncovered_imports("windows", deps) == ["blindspot.traj.paths (src/blindspot/traj/paths.py)"]
+    assert "blindspot.dsp.detections" in _graph().find_upstream_modules(
+        "blindspot.synth.path_measurement")
+    assert "blindspot.dsp.detections" in found
+    assert "src/blindspot/dsp" in DVC_STAGES["paths"].deps
+    deps = tuple(d for d in DVC_STAGES["paths"].deps if d != "src/blindspot/dsp")
+    assert "blindspot.dsp.detections (src/blindspot/dsp/detections.py)" in \
+        uncovered_imports("paths", deps)
