@@ -269,3 +269,23 @@ def test_the_deps_check_follows_imports_transitively() -> None:
     deps = tuple(d for d in DVC_STAGES["paths"].deps if d != "src/blindspot/dsp")
     assert "blindspot.dsp.detections (src/blindspot/dsp/detections.py)" in \
         uncovered_imports("paths", deps)
+
+
+def stale_source_deps(stage: str) -> list[str]:
+    """Source files among a stage's deps that it no longer imports (a change to them would rerun
+    it for nothing), and deps that neither exist nor are another stage's outputs."""
+    files = {str(_module_file(m).relative_to(REPO)) for m in imported_modules(STAGES / f"{stage}.py")}
+    produced = {o for s in DVC_STAGES.values() for o in s.outs}
+    out = []
+    for dep in DVC_STAGES[stage].deps:
+        if not (REPO / dep).exists() and dep not in produced:
+            out.append(f"{dep} (does not exist and no stage writes it)")
+        elif dep.startswith("src/") and dep.endswith(".py") and dep not in files:
+            out.append(f"{dep} (not imported)")
+    return out
+
+
+@pytest.mark.parametrize("stage", STAGE_FILES)
+def test_stage_deps_name_only_what_it_uses(stage: str) -> None:
+    stale = stale_source_deps(stage)
+    assert not stale, f"dvc.yaml stage {stage!r} lists deps it does not use: " + ", ".join(stale)
