@@ -61,11 +61,10 @@ import numpy as np  # noqa: E402
 
 def load_configs(overrides: list[str]):
     """The composed experiment config (conf/ through Hydra, exactly as the stages compose it)
-    with the paper's radar in 16-bit ADC codes and the user's ``--set`` overrides (any Hydra
-    override: ``detect.max_range_m=null``, ``cfar=ca_pfa``, ``doa=capon``)."""
+    with Hydra overrides (e.g. ``detect.max_range_m=null``, ``cfar=ca_pfa``, ``doa=capon``)."""
     from blindspot.config import compose
 
-    return compose(["radar.adc_bits=16", *overrides])
+    return compose(list(overrides))
 
 
 def simulated_frame(cfg, radar, scene_name: str = "straight_car", index: int = 3):
@@ -122,6 +121,8 @@ def main(argv: list[str] | None = None) -> int:
     from blindspot.dsp.chain import DetectionChain
 
     overrides = list(args.overrides)
+    if args.frame is None:  # simulated frames in 16-bit ADC codes, as captures are
+        overrides.insert(0, "radar.adc_bits=16")
     if args.threads is not None:
         overrides.append(f"detect.workers={args.threads}")
     try:

@@ -24,7 +24,7 @@ The reduced measurement of the synthesis room (:mod:`blindspot.synth.path_measur
 steps 3-6 of this same chain on analytic patches. ``process_batch`` returns a
 :class:`BatchResult`; ``process`` runs one frame and returns a :class:`FrameResult` with the
 maps for figures and per-step timings; ``process_many`` runs a whole
-:class:`~blindspot.radar.source.FrameSource` in batches of ``detect.batch_frames`` frames with
+:class:`~blindspot.radar.source.FrameSource` in batches of :data:`BATCH_FRAMES` frames with
 a progress bar and returns the detections and points of every frame (no maps kept).
 """
 

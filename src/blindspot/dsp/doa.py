@@ -339,7 +339,9 @@ def doa_angles(snapshots: np.ndarray, positions: np.ndarray, n_targets: int = 1,
                backend: str = "numpy"):
     """The ``n_targets`` strongest peaks of the pseudo-spectrum, refined between grid points.
 
-    snapshots : complex (M, L) or batched (D, M, L); positions : (M,) wavelengths
+    snapshots : complex (elements M, snapshots L) or batched (detections D, M, L), array data in
+                any consistent unit; positions : (M,) element positions along the array, in
+                wavelengths
     backend : "numpy" (every method) or "torch" (MUSIC without loading; same angles)
     returns angles in degrees, (n_targets,) for (M, L) snapshots or (D, n_targets) for batched,
     strongest first, NaN where the spectrum has fewer peaks (a flat spectrum, e.g. from all-zero

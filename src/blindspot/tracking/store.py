@@ -23,6 +23,7 @@ from typing import TYPE_CHECKING, Any, TypeVar
 from omegaconf import DictConfig, OmegaConf
 
 from blindspot.config import ConfigNotFound, find_repo_root, original_repo_root
+from blindspot.typed_config import plain
 
 if TYPE_CHECKING:  # pragma: no cover
     from mlflow.tracking import MlflowClient
@@ -97,11 +98,8 @@ def tracking_uri(
 
 
 def _plain(cfg: DictConfig | Mapping[str, Any] | None) -> dict[str, Any]:
-    if cfg is None:
-        return {}
-    if isinstance(cfg, DictConfig):
-        return OmegaConf.to_container(cfg, resolve=True)  # type: ignore[return-value]
-    return dict(cfg)
+    """The config as a plain dict (the typed-config layer's conversion; {} for None)."""
+    return {} if cfg is None else dict(plain(cfg))
 
 
 def settings_from_cfg(
