@@ -59,20 +59,13 @@ from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-def load_configs(overrides: list[str]):
-    """The composed experiment config (conf/ through Hydra, exactly as the stages compose it)
-    with Hydra overrides (e.g. ``detect.max_range_m=null``, ``cfar=ca_pfa``, ``doa=capon``)."""
-    from blindspot.config import compose
-
-    return compose(list(overrides))
-
 
 def simulated_frame(cfg, radar, scene_name: str = "straight_car", index: int = 3):
     """One frame of a paper scene from the simulator (returns cube, label)."""
-    from blindspot.radar.scene import load_scenes
+    from blindspot import experiment
     from blindspot.radar.simulator import SimulatedSource
 
-    scenes = load_scenes(cfg.scene)
+    scenes = experiment.scenes(cfg)
     if scene_name not in scenes:
         raise SystemExit(f"--scene {scene_name!r}: expected one of {list(scenes)}")
     src = SimulatedSource(scenes[scene_name], radar)
@@ -118,6 +111,7 @@ def main(argv: list[str] | None = None) -> int:
     from hydra.errors import HydraException
 
     from blindspot import experiment
+    from blindspot.config import compose
     from blindspot.dsp.chain import DetectionChain
 
     overrides = list(args.overrides)
@@ -126,7 +120,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.threads is not None:
         overrides.append(f"detect.workers={args.threads}")
     try:
-        cfg = load_configs(overrides)
+        cfg = compose(overrides)
     except HydraException as exc:
         raise SystemExit(f"--set: {exc}") from None
     radar = experiment.radar(cfg)

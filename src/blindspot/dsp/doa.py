@@ -95,6 +95,26 @@ def _as_batch(snapshots: np.ndarray, positions: np.ndarray) -> tuple[np.ndarray,
     return x.astype(np.complex128, copy=False), p, single
 
 
+def _subarray_size(p: np.ndarray, subarray: int | None) -> int:
+    """K, the elements of the smoothing subarray (M without smoothing); raises DoaError for a
+    size outside [2, M] or for smoothing on a non-uniform array."""
+    m = p.size
+    if subarray is None or subarray == m:
+        return m
+    if not (isinstance(subarray, (int, np.integer)) and 2 <= subarray <= m):
+        raise DoaError(f"subarray must be an integer in [2, {m}] (elements), got {subarray!r}")
+    step = np.diff(p)
+    if not np.allclose(step, step[0], rtol=1e-9, atol=1e-12):
+        raise DoaError("spatial smoothing needs a uniform linear array (equal spacings)")
+    return int(subarray)
+
+
+def _check_n_signals(n_signals: int, k: int) -> None:
+    if not (isinstance(n_signals, (int, np.integer)) and 1 <= n_signals < k):
+        raise DoaError(f"n_signals must be an integer in [1, {k - 1}] (< elements), "
+                       f"got {n_signals!r}")
+
+
 def _smoothed(x: np.ndarray, p: np.ndarray, subarray: int | None, hermitian_part):
     """Spatially smoothed covariance from snapshots x (D, M, L): returns (R (D, K, K), p_sub).
 
@@ -103,13 +123,9 @@ def _smoothed(x: np.ndarray, p: np.ndarray, subarray: int | None, hermitian_part
     (few snapshots) or, with many snapshots, the full covariance is averaged over its diagonal
     blocks (a strided view stepping down the diagonal, no copy)."""
     m, n_snap = p.size, x.shape[2]
-    if subarray is None or subarray == m:
+    subarray = _subarray_size(p, subarray)
+    if subarray == m:
         return x, p, None
-    if not (isinstance(subarray, (int, np.integer)) and 2 <= subarray <= m):
-        raise DoaError(f"subarray must be an integer in [2, {m}] (elements), got {subarray!r}")
-    step = np.diff(p)
-    if not np.allclose(step, step[0], rtol=1e-9, atol=1e-12):
-        raise DoaError("spatial smoothing needs a uniform linear array (equal spacings)")
     n_sub = m - subarray + 1
     if n_sub * n_snap <= 4096:
         sub = np.lib.stride_tricks.sliding_window_view(x, subarray, axis=1)  # (D, n_sub, L, K)
@@ -221,9 +237,7 @@ def _factor(r: np.ndarray, method: str, n_signals: int) -> tuple[np.ndarray, int
     w, v = np.linalg.eigh(r)  # ascending eigenvalues
     if method == "music":
         k = r.shape[-1]
-        if not (isinstance(n_signals, (int, np.integer)) and 1 <= n_signals < k):
-            raise DoaError(f"n_signals must be an integer in [1, {k - 1}] (< elements), "
-                           f"got {n_signals!r}")
+        _check_n_signals(n_signals, k)
         return v[:, :, k - n_signals:], 1
     if method == "bartlett":
         return v * np.sqrt(np.maximum(w, 0.0))[:, None, :], 1
@@ -419,19 +433,10 @@ def _music_subspace_torch(x: np.ndarray, p: np.ndarray, n_signals: int, forward_
     its own multi-threaded ones thrash on two cores); the thread count is restored after."""
     import torch
 
-    d, m, lp = x.shape
-    k = m if subarray is None else subarray
-    if not (isinstance(k, (int, np.integer)) and 2 <= k <= m):
-        raise DoaError(f"subarray must be an integer in [2, {m}] (elements), got {subarray!r}")
-    if k < m:
-        step = np.diff(p)
-        if not np.allclose(step, step[0], rtol=1e-9, atol=1e-12):
-            raise DoaError("spatial smoothing needs a uniform linear array (equal spacings)")
+    k = _subarray_size(p, subarray)
     if forward_backward:
         _check_centro(p[:k])
-    if not (isinstance(n_signals, (int, np.integer)) and 1 <= n_signals < k):
-        raise DoaError(f"n_signals must be an integer in [1, {k - 1}] (< elements), "
-                       f"got {n_signals!r}")
+    _check_n_signals(n_signals, k)
     threads = torch.get_num_threads()
     torch.set_num_threads(1)
     try:

@@ -97,10 +97,11 @@ def group_points(frame: np.ndarray, range_m: np.ndarray, velocity_mps: np.ndarra
     by = np.lexsort((np.arange(count.size), weight, count, c_frame))
     last_of_frame = np.r_[c_frame[by][1:] != c_frame[by][:-1], True]
     best = by[last_of_frame]                          # one cluster per frame, frames ascending
-    sel = np.isin(labels, best)
-    lab, xs, ys, vs, ss, wsel = labels[sel], x[sel], y[sel], v[sel], s[sel], w[sel]
-    slot = np.searchsorted(best, lab, sorter=np.argsort(best))
-    slot = np.argsort(best)[slot]                     # index of the point in frame order
+    point_of = np.full(count.size, -1)
+    point_of[best] = np.arange(best.size)             # cluster label -> point (frame order)
+    sel = point_of[labels] >= 0
+    xs, ys, vs, ss, wsel = x[sel], y[sel], v[sel], s[sel], w[sel]
+    slot = point_of[labels[sel]]
     wsum = np.bincount(slot, weights=wsel, minlength=best.size)
     ws = wsel / wsum[slot]
     cx = np.bincount(slot, weights=ws * xs, minlength=best.size)
