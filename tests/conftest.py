@@ -23,3 +23,15 @@ def composed_config():
     from blindspot.config import compose
 
     return compose(["profile=tiny"], config_dir=REPO_ROOT / "conf")
+
+
+# Property-based tests (hypothesis): derandomised so CI and a developer see the same examples;
+# no per-example deadline (a cold import or a first FFT plan can take a second on a busy machine).
+# `HYPOTHESIS_PROFILE=thorough pytest ...` draws many more examples on purpose.
+from hypothesis import HealthCheck, settings  # noqa: E402
+
+settings.register_profile("ci", derandomize=True, deadline=None, max_examples=60,
+                          suppress_health_check=[HealthCheck.too_slow], database=None)
+settings.register_profile("thorough", deadline=None, max_examples=2000,
+                          suppress_health_check=[HealthCheck.too_slow])
+settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
