@@ -9,7 +9,7 @@ import pytest
 import scipy.signal
 
 from blindspot.dsp.range_doppler import (
-    RangeDoppler, WindowError, detection_map, range_doppler, signed_doppler_index,
+    RangeDoppler, RangeDopplerError, WindowError, detection_map, range_doppler, signed_doppler_index,
 )
 from tests.dsp._synth import mmwcas, tone_cube
 
@@ -171,13 +171,17 @@ def test_noise_floor_of_the_map(paper):
 def test_bad_input_is_named(paper):
     with pytest.raises(WindowError, match="unknown"):
         RangeDoppler(64, 256, range_window="kaiser-ish")
-    with pytest.raises(ValueError, match=r"n_range must be in \[1, 256\]"):
+    with pytest.raises(RangeDopplerError, match=r"n_range must be in \[1, 256\]"):
         RangeDoppler(64, 256, n_range=0)
-    with pytest.raises(ValueError, match=r"expected a cube \(chirps=64"):
+    with pytest.raises(RangeDopplerError, match=r"cube must be a cube \(chirps=64.*found complex64 "
+                       r"array of shape \(32, 12, 16, 256\)"):
         RangeDoppler(64, 256)(np.zeros((32, 12, 16, 256), np.complex64))
-    with pytest.raises(ValueError, match=r"expected a cube \(chirps=64"):
+    with pytest.raises(RangeDopplerError, match=r"must be a cube \(chirps=64"):
         RangeDoppler(64, 256).native(np.zeros((12, 16, 256), np.complex64))
-    with pytest.raises(ValueError, match=r"expected range profiles \(chirps=64"):
+    with pytest.raises(RangeDopplerError, match=r"must be range profiles \(chirps=64"):
         RangeDoppler(64, 256).doppler(np.zeros((2, 1, 32, 12, 16, 256), np.complex64))
-    with pytest.raises(ValueError, match=r"expected rd \(range, doppler, tx, rx\)"):
+    with pytest.raises(RangeDopplerError, match=r"cube must be .* of numbers"):
+        RangeDoppler(4, 8)(np.full((4, 1, 1, 8), "a"))
+    with pytest.raises(RangeDopplerError, match=r"rd must be range-Doppler data \(range, doppler, "
+                       r"tx, rx\)"):
         detection_map(np.zeros((256, 64, 192), np.complex64))

@@ -51,6 +51,7 @@ import scipy.optimize
 import scipy.special
 import scipy.stats
 
+from blindspot.arrays import checked_array
 from blindspot.dsp.config import CFAR_DOMAINS as DOMAINS, CFAR_MODES as MODES
 
 
@@ -90,17 +91,12 @@ def _pair(value, name: str) -> tuple[int, int]:
     return int(arr[0]), int(arr[1])
 
 
-def _check_power(power: np.ndarray) -> np.ndarray:
-    p = np.asarray(power)
-    if p.ndim < 2:
-        raise CfarError(f"power must be a map (..., range, doppler) with any leading batch axes "
-                        f"(e.g. frames), got shape {p.shape}")
-    if np.iscomplexobj(p):
-        raise CfarError("power must be real |X|^2 values, got a complex array (take |X|^2 first)")
-    p = p.astype(np.float64, copy=False)
-    if not np.all(np.isfinite(p)) or np.any(p < 0):
-        raise CfarError("power must be finite and non-negative (|X|^2), found negative/NaN/inf cells")
-    return p
+def _check_power(power: np.ndarray, where: str) -> np.ndarray:
+    """``power`` as float64 (..., range, doppler): real, finite, non-negative, not empty."""
+    p = checked_array(power, "power", CfarError, axes="an |X|^2 map (..., range, doppler)",
+                      min_ndim=2, kind="real", nonnegative=True, where=where,
+                      min_lengths={-2: 1, -1: 1})
+    return p.astype(np.float64, copy=False)
 
 
 def _check_rule(pfa, scale, domain: str) -> None:
@@ -207,7 +203,7 @@ def _counts(shape: tuple[int, int], guard: tuple[int, int], train: tuple[int, in
 def training_mean(power: np.ndarray, guard, train) -> tuple[np.ndarray, np.ndarray]:
     """(mean training-cell power (..., R, D), training-cell count (R, D)) with the edge rules
     above; leading axes of ``power`` (e.g. frames) are independent maps."""
-    p = _check_power(power)
+    p = _check_power(power, "training_mean")
     g, t = _pair(guard, "guard"), _pair(train, "train")
     _check_window(p.shape, g, t)
     n, _, _ = _counts(p.shape[-2:], g, t)
@@ -331,7 +327,7 @@ def cfar_2d(power: np.ndarray, guard, train, *, pfa: float | None = None,
     returns :class:`CfarResult` (mask, threshold in power units, noise mean: (..., R, D);
     training counts (R, D))
     """
-    p = _check_power(power)
+    p = _check_power(power, "cfar_2d")
     g, t = _pair(guard, "guard"), _pair(train, "train")
     _check_rule(pfa, scale, domain)
     _check_window(p.shape, g, t)
@@ -411,7 +407,7 @@ def os_cfar_2d(power: np.ndarray, guard, train, *, rank: float = 0.75, pfa: floa
     Memory: gathers a (..., rows, D, N_max) window stack per block of range rows.
     returns (mask (..., R, D), threshold (..., R, D) in power units)
     """
-    p = _check_power(power)
+    p = _check_power(power, "os_cfar_2d")
     g, t = _pair(guard, "guard"), _pair(train, "train")
     _check_rule(pfa, scale, domain)
     _check_window(p.shape, g, t)

@@ -47,7 +47,8 @@ from blindspot.dsp.doppler_compensation import compensate_tdm
 from blindspot.dsp.points import (
     DETECTION_COLUMNS, POINT_COLUMNS, POINT_FIELDS, group_points, moving,
 )
-from blindspot.dsp.range_doppler import RangeDoppler, detection_map
+from blindspot.arrays import checked_array
+from blindspot.dsp.range_doppler import RangeDoppler, RangeDopplerError, detection_map
 from blindspot.dsp.snapshots import cell_snapshots, chirp_snapshots
 from blindspot.radar.array import VirtualArray
 from blindspot.radar.config import RadarConfig
@@ -173,14 +174,25 @@ class DetectionChain:
         cubes: (frames, chirps, tx, rx, samples) complex.
         Returns (rd (frames, doppler, tx, rx, range) complex64, range profiles (frames, chirps,
         tx, rx, range) when ``detect.snapshots`` is "chirps", else None).
+        Raises RangeDopplerError for cubes of another shape (than the radar profile's) or kind,
+        or with NaN/inf samples.
         """
-        if cubes.ndim != 5:
-            raise ValueError(f"range_doppler: expected cubes (frames, chirps, tx, rx, samples), "
-                             f"found shape {cubes.shape}")
+        cubes = self._check_cubes(cubes, "range_doppler", ndim=5)
         if self.detect.snapshots == "chirps":
             profiles = self.rd.range_profiles(cubes)
             return self.rd.doppler(profiles), profiles
         return self.rd.native(cubes), None
+
+    def _check_cubes(self, cubes: np.ndarray, where: str, ndim: int) -> np.ndarray:
+        """Cubes of the radar profile's shape: (frames, chirps, tx, rx, samples) for ``ndim`` 5,
+        one (chirps, tx, rx, samples) for 4; numbers (finiteness: see RangeDoppler)."""
+        r = self.radar
+        shape = (r.n_chirps, r.n_tx, r.n_rx, r.n_samples)
+        axes = (f"one cube (chirps={shape[0]}, tx={shape[1]}, rx={shape[2]}, samples={shape[3]})"
+                + (" per frame: (frames, chirps, tx, rx, samples)" if ndim == 5 else ""))
+        return checked_array(cubes, "cubes" if ndim == 5 else "cube", RangeDopplerError,
+                             where=where, axes=axes, ndim=ndim, kind="numeric", finite=False,
+                             lengths={i - 4: n for i, n in enumerate(shape)})
 
     @staticmethod
     def detection_map(rd: np.ndarray) -> np.ndarray:
@@ -262,8 +274,8 @@ class DetectionChain:
         (F, range, doppler); ``keep_spectra`` the pseudo-spectrum of each frame's first
         detection when it is moving (the pedestrian's candidate; else None).
         """
-        cubes = np.asarray(cubes)
-        n = cubes.shape[0] if cubes.ndim == 5 else 0
+        cubes = self._check_cubes(cubes, "process_batch", ndim=5)
+        n = cubes.shape[0]
         frame_ids = np.arange(n) if frames is None else np.asarray(frames, dtype=np.int64)
         times = np.full(n, np.nan) if times_s is None else np.asarray(times_s, dtype=np.float64)
         if frame_ids.shape != (n,) or times.shape != (n,):
@@ -324,9 +336,7 @@ class DetectionChain:
                 keep_spectrum: bool = True) -> FrameResult:
         """Run the chain on one cube (chirps, tx, rx, samples): a batch of one frame, with its
         maps (and the first moving detection's pseudo-spectrum) kept for figures."""
-        if cube.ndim != 4:
-            raise ValueError(f"process: expected one cube (chirps, tx, rx, samples), found shape "
-                             f"{cube.shape} (use process_batch for a batch of frames)")
+        cube = self._check_cubes(cube, "process (process_batch takes a batch)", ndim=4)
         res = self.process_batch(cube[None], np.array([frame]), np.array([time_s]),
                                  keep_maps=True, keep_spectra=keep_spectrum)
         det = res.detections.reset_index(drop=True)

@@ -17,7 +17,13 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["local_maxima", "detection_order", "rank_in_frame"]
+from blindspot.arrays import checked_array
+
+__all__ = ["DetectionError", "local_maxima", "detection_order", "rank_in_frame"]
+
+
+class DetectionError(ValueError):
+    """A detection map or per-detection array of the wrong shape or kind, or holding NaN/inf."""
 
 
 def local_maxima(power: np.ndarray, row_exists: np.ndarray | None = None) -> np.ndarray:
@@ -33,16 +39,22 @@ def local_maxima(power: np.ndarray, row_exists: np.ndarray | None = None) -> np.
         (..., range, doppler) bool. Doppler wraps (its spectrum is periodic); range does not.
 
     Raises:
-        ValueError: ``power`` has fewer than 2 axes or ``row_exists`` does not match it.
+        DetectionError: ``power`` is not a real map of at least 2 axes without NaN (inf is a
+            valid strongest cell), or ``row_exists`` is not a bool array of its leading shape.
     """
-    p = np.asarray(power)
-    if p.ndim < 2:
-        raise ValueError(f"local_maxima: expected power (..., range, doppler), found {p.shape}")
+    p = checked_array(power, "power", DetectionError, where="local_maxima",
+                      axes="a detection map (..., range, doppler)", min_ndim=2, kind="real",
+                      finite=False).astype(np.float64, copy=False)  # -inf padding needs floats
+    if np.isnan(p).any():
+        raise DetectionError(f"local_maxima: power must be a detection map without NaN; found "
+                             f"{int(np.isnan(p).sum())} NaN cell(s) of {p.size}")
     if row_exists is not None:
-        rows_ok = np.asarray(row_exists, dtype=bool)
+        rows_ok = checked_array(row_exists, "row_exists", DetectionError, where="local_maxima",
+                                axes=f"a mask {p.shape[:-1]} (..., range)", kind="bool",
+                                ndim=p.ndim - 1)
         if rows_ok.shape != p.shape[:-1]:
-            raise ValueError(f"local_maxima: row_exists must be {p.shape[:-1]} (..., range), "
-                             f"found {rows_ok.shape}")
+            raise DetectionError(f"local_maxima: row_exists must be {p.shape[:-1]} (..., range), "
+                                 f"found {rows_ok.shape}")
         p = np.where(rows_ok[..., None], p, -np.inf)
     lead = ((0, 0),) * (p.ndim - 2)
     padded = np.pad(p, lead + ((1, 1), (0, 0)), constant_values=-np.inf)
@@ -63,17 +75,29 @@ def detection_order(frame: np.ndarray, power: np.ndarray, is_moving: np.ndarray)
     """Permutation that sorts detections by frame, then moving before static, then by
     decreasing power (stable: equal keys keep their input order).
 
-    frame, power, is_moving: (D,) -> (D,) int indices."""
-    return np.lexsort((-np.asarray(power), ~np.asarray(is_moving, dtype=bool),
-                       np.asarray(frame)))
+    frame, power, is_moving: (D,) -> (D,) int indices. Raises DetectionError for arrays that
+    are not (D,) of one length (frame: integers, power: finite reals, is_moving: booleans)."""
+    f, p, m = _per_detection("detection_order", frame=(frame, "index"), power=(power, "real"),
+                             is_moving=(is_moving, "bool"))
+    return np.lexsort((-p, ~m, f))
+
+
+def _per_detection(where: str, **arrays: tuple[np.ndarray, str]) -> list[np.ndarray]:
+    """Each ``name=(array, kind)`` checked as (D,) of its kind, all of one length D."""
+    out = [checked_array(a, name, DetectionError, where=where, axes="one value per detection (D,)",
+                         ndim=1, kind=kind) for name, (a, kind) in arrays.items()]
+    if len({a.size for a in out}) > 1:
+        sizes = ", ".join(f"{name} {a.shape}" for name, a in zip(arrays, out))
+        raise DetectionError(f"{where}: the per-detection arrays must have one length; found {sizes}")
+    return out
 
 
 def rank_in_frame(frame_sorted: np.ndarray) -> np.ndarray:
     """Position of each detection within its frame, for detections sorted by frame.
 
     frame_sorted: (D,) non-decreasing frame indices -> (D,) int64 (0 for the first of each
-    frame). Raises ValueError when ``frame_sorted`` is not sorted."""
-    f = np.asarray(frame_sorted)
+    frame). Raises DetectionError when ``frame_sorted`` is not (D,) sorted integers."""
+    (f,) = _per_detection("rank_in_frame", frame_sorted=(frame_sorted, "integer"))
     if f.size and np.any(np.diff(f) < 0):
-        raise ValueError("rank_in_frame: detections must be sorted by frame")
+        raise DetectionError("rank_in_frame: detections must be sorted by frame")
     return np.arange(f.size, dtype=np.int64) - np.searchsorted(f, f, side="left")

@@ -41,8 +41,10 @@ from functools import lru_cache
 
 import numpy as np
 
-DEFAULT_GRID_DEG = np.arange(-90.0, 90.0 + 0.125, 0.25)  # -90 .. 90 deg, 721 points
+from blindspot.arrays import checked_array
 from blindspot.dsp.config import DOA_METHODS as METHODS
+
+DEFAULT_GRID_DEG = np.arange(-90.0, 90.0 + 0.125, 0.25)  # -90 .. 90 deg, 721 points
 BACKENDS = ("numpy", "torch")
 BLOCK_DETECTIONS = 512  # detections per block: (block, rank, grid) products stay in cache
 
@@ -56,9 +58,12 @@ class DoaError(ValueError):
 
 
 def steering_matrix(positions: np.ndarray, angles_deg: np.ndarray) -> np.ndarray:
-    """(M, G) complex128 steering vectors exp(j 2 pi p sin theta) for positions in wavelengths."""
-    p = np.asarray(positions, dtype=np.float64)
-    u = np.sin(np.radians(np.asarray(angles_deg, dtype=np.float64)))
+    """(M, G) complex128 steering vectors exp(j 2 pi p sin theta) for positions (M,) in
+    wavelengths and angles (G,) in degrees from boresight. Raises DoaError for other input."""
+    p = _positions(positions)
+    g = checked_array(angles_deg, "angles_deg", DoaError, kind="real", ndim=1,
+                      axes="an angle grid (G,) in degrees")
+    u = np.sin(np.radians(g.astype(np.float64)))
     return np.exp(2j * np.pi * np.outer(p, u))
 
 
@@ -69,11 +74,17 @@ def _steering_cached(p_bytes: bytes, g_bytes: bytes) -> np.ndarray:
     return a
 
 
+def _positions(positions: np.ndarray) -> np.ndarray:
+    """(M,) float64 element positions in wavelengths, M >= 1, finite."""
+    p = checked_array(positions, "positions", DoaError, kind="real", ndim=1,
+                      min_lengths={0: 1}, axes="element positions (M,) in wavelengths")
+    return p.astype(np.float64, copy=False)
+
+
 def _as_batch(snapshots: np.ndarray, positions: np.ndarray) -> tuple[np.ndarray, np.ndarray, bool]:
-    x = np.asarray(snapshots)
-    p = np.asarray(positions, dtype=np.float64)
-    if p.ndim != 1:
-        raise DoaError(f"positions must be 1-D (M,) in wavelengths, got shape {p.shape}")
+    p = _positions(positions)
+    x = checked_array(snapshots, "snapshots", DoaError, kind="numeric", ndim=(2, 3), finite=False,
+                      axes=f"array snapshots (M, L) or (D, M, L) with M = {p.size} elements")
     single = x.ndim == 2
     if single:
         x = x[None]
@@ -84,14 +95,10 @@ def _as_batch(snapshots: np.ndarray, positions: np.ndarray) -> tuple[np.ndarray,
         )
     if x.shape[2] < 1:
         raise DoaError("snapshots need at least one snapshot (L >= 1)")
-    if not np.iscomplexobj(x) and not np.issubdtype(x.dtype, np.number):
-        raise DoaError(f"snapshots must be a numeric (complex) array, got dtype {x.dtype}")
     if not np.all(np.isfinite(x)):
         bad = int(np.count_nonzero(~np.isfinite(x)))
         raise DoaError(f"snapshots contain {bad} non-finite (NaN/inf) value(s) of {x.size}: "
                        "angle estimation needs finite array data")
-    if not np.all(np.isfinite(p)):
-        raise DoaError("positions contain non-finite (NaN/inf) values")
     return x.astype(np.complex128, copy=False), p, single
 
 

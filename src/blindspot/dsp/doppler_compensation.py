@@ -21,7 +21,12 @@ from __future__ import annotations
 
 import numpy as np
 
+from blindspot.arrays import checked_array
 from blindspot.dsp.range_doppler import signed_doppler_index
+
+
+class CompensationError(ValueError):
+    """Channels, Doppler bins or slot times of the wrong shape or kind, or not finite."""
 
 
 def doppler_frequency_hz(doppler_bin: np.ndarray | int, n_doppler: int,
@@ -44,13 +49,35 @@ def compensate_tdm(x: np.ndarray, doppler_bin: np.ndarray, n_doppler: int, loop_
     x : (D, n_tx, n_rx, L) channels by TX slot (firing order) and RX, or, with ``tx_of_element``
         (E,) giving each element's TX slot, (D, E, L) (e.g. the ULA's 86 elements)
     returns x times the correction, same shape (complex)
+    raises CompensationError for arrays of the wrong shape or kind or with NaN/inf values, or
+    a ``tx_of_element`` entry outside the ``n_tx`` slots
     """
+    where = "compensate_tdm"
+    x = checked_array(x, "x", CompensationError, where=where, kind="numeric", ndim=(3, 4),
+                      axes="channels (D, n_tx, n_rx, L) or (D, elements, L)")
+    doppler_bin = checked_array(doppler_bin, "doppler_bin", CompensationError, where=where,
+                                kind="index", ndim=1, lengths={0: x.shape[0]},
+                                axes=f"a Doppler bin per detection (D={x.shape[0]},)")
+    slot_times_s = checked_array(slot_times_s, "slot_times_s", CompensationError, where=where,
+                                 kind="real", ndim=1, axes="the TX slot times (n_tx,) in s")
+    if not (np.isfinite(loop_period_s) and loop_period_s > 0) or int(n_doppler) < 1:
+        raise CompensationError(f"{where}: loop_period_s must be a positive time and n_doppler a "
+                                f"positive bin count; found {loop_period_s!r} and {n_doppler!r}")
+    if tx_of_element is not None:
+        tx_of_element = checked_array(tx_of_element, "tx_of_element", CompensationError,
+                                      where=where, kind="index", ndim=1,
+                                      axes="a TX slot per element (E,)")
+        if tx_of_element.size and tx_of_element.max() >= slot_times_s.size:
+            raise CompensationError(f"{where}: tx_of_element must name one of the "
+                                    f"{slot_times_s.size} TX slots; found {tx_of_element.max()}")
     corr = tdm_phase_correction(doppler_frequency_hz(doppler_bin, n_doppler, loop_period_s),
                                 slot_times_s)  # (D, n_tx)
     if tx_of_element is not None:
         if x.ndim != 3:
-            raise ValueError(f"compensate_tdm: expected (D, elements, L) with tx_of_element, got {x.shape}")
+            raise CompensationError(f"{where}: x must be (D, elements, L) with tx_of_element; "
+                                    f"found shape {x.shape}")
         return x * corr[:, np.asarray(tx_of_element)][:, :, None]
     if x.ndim != 4 or x.shape[1] != corr.shape[1]:
-        raise ValueError(f"compensate_tdm: expected (D, n_tx={corr.shape[1]}, n_rx, L), got {x.shape}")
+        raise CompensationError(f"{where}: x must be (D, n_tx={corr.shape[1]}, n_rx, L); found "
+                                f"shape {x.shape}")
     return x * corr[:, :, None, None]

@@ -22,27 +22,74 @@ import pandas as pd
 import scipy.sparse
 import scipy.sparse.csgraph
 
+from blindspot.arrays import checked_array
+
 DETECTION_COLUMNS = ("frame", "range_bin", "doppler_bin", "range_m", "velocity_mps", "power",
                      "snr_db", "angle_deg")
 POINT_COLUMNS = ("frame", "time_s", "range_m", "velocity_mps", "angle_deg", "x_m", "y_m",
                  "snr_db", "n_detections", "extent_m")
 
 
+class PointError(ValueError):
+    """Per-detection arrays of the wrong shape or kind, NaN/inf where a value is needed, or a
+    threshold that is not a finite non-negative (gap: positive) number."""
+
+
+def _values(where: str, name: str, value: np.ndarray, *, nan_ok: bool = False,
+            nonnegative: bool = False) -> np.ndarray:
+    """A real float64 array; NaN only where ``nan_ok`` (a detection without an angle)."""
+    a = checked_array(value, name, PointError, where=where, axes="an array (one value per detection)",
+                      kind="real", finite=not nan_ok, nonnegative=nonnegative)
+    a = a.astype(np.float64, copy=False)
+    if nan_ok and np.isinf(a).any():
+        raise PointError(f"{where}: {name} must be finite or NaN (no angle); found "
+                         f"{int(np.isinf(a).sum())} infinite value(s)")
+    return a
+
+
+def _one_length(where: str, **arrays: np.ndarray) -> None:
+    if len({a.shape for a in arrays.values()}) > 1:
+        shapes = ", ".join(f"{k} {a.shape}" for k, a in arrays.items())
+        raise PointError(f"{where}: the per-detection arrays must have one shape; found {shapes}")
+
+
+def _threshold(where: str, name: str, value: float, *, positive: bool = False) -> float:
+    ok = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool)
+    if not ok or not np.isfinite(value) or value < 0 or (positive and value == 0):
+        raise PointError(f"{where}: {name} must be a finite {'positive' if positive else 'non-negative'} "
+                         f"number; found {value!r}")
+    return float(value)
+
+
 def to_cartesian(range_m: np.ndarray, angle_deg: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Eq. 7: (x, y) = R (sin theta, cos theta)."""
-    th = np.radians(np.asarray(angle_deg, dtype=np.float64))
-    r = np.asarray(range_m, dtype=np.float64)
-    return r * np.sin(th), r * np.cos(th)
+    """Eq. 7: (x, y) = R (sin theta, cos theta).
+
+    range_m: (...) metres, finite and >= 0; angle_deg: same shape, degrees from boresight
+    (positive towards +x), NaN for a detection without an angle (its x, y are NaN).
+    Returns (x_m, y_m), float64 of that shape. Raises PointError for other input."""
+    r = _values("to_cartesian", "range_m", range_m, nonnegative=True)
+    a = _values("to_cartesian", "angle_deg", angle_deg, nan_ok=True)
+    _one_length("to_cartesian", range_m=r, angle_deg=a)
+    th = np.radians(a)
+    return np.asarray(r * np.sin(th)), np.asarray(r * np.cos(th))
 
 
 def moving(velocity_mps: np.ndarray, min_speed_mps: float) -> np.ndarray:
-    """True for detections faster than the static-clutter threshold."""
-    return np.abs(np.asarray(velocity_mps)) > min_speed_mps
+    """True for detections faster than the static-clutter threshold: velocity_mps (...) m/s,
+    finite -> bool (...). Raises PointError for NaN/inf or a negative threshold."""
+    v = _values("moving", "velocity_mps", velocity_mps)
+    return np.abs(v) > _threshold("moving", "min_speed_mps", min_speed_mps)
 
 
 def cluster_labels(x: np.ndarray, y: np.ndarray, gap_m: float) -> np.ndarray:
-    """Single-linkage cluster label per point: connected components of 'closer than gap_m'."""
-    xy = np.stack([np.asarray(x, float), np.asarray(y, float)], axis=1)
+    """Single-linkage cluster label per point: connected components of 'closer than gap_m'.
+
+    x, y: (N,) metres, finite -> (N,) int labels. Raises PointError for other input."""
+    x = _values("cluster_labels", "x", x)
+    y = _values("cluster_labels", "y", y)
+    _one_length("cluster_labels", x=x, y=y)
+    gap_m = _threshold("cluster_labels", "gap_m", gap_m, positive=True)
+    xy = np.stack([x.ravel(), y.ravel()], axis=1)
     if len(xy) <= 1:
         return np.zeros(len(xy), dtype=np.int64)
     d2 = ((xy[:, None, :] - xy[None, :, :]) ** 2).sum(axis=-1)
@@ -74,8 +121,21 @@ def group_points(frame: np.ndarray, range_m: np.ndarray, velocity_mps: np.ndarra
     All frames are clustered in one connected-components pass over the graph of detection pairs
     of the same frame closer than ``cluster_gap_m``; per frame the cluster with the most
     detections (then the largest summed linear SNR, then the later one) is the pedestrian.
+
+    Raises:
+        PointError: arrays not (D,) of one length, a non-integer frame, NaN/inf in range,
+            velocity or SNR (inf in angle), a negative speed threshold or a gap that is not
+            positive.
     """
-    f_all = np.asarray(frame)
+    where = "group_points"
+    f_all = checked_array(frame, "frame", PointError, where=where, kind="integer", ndim=1,
+                          axes="a frame index per detection (D,)")
+    range_m, velocity_mps, snr_db = (_values(where, k, v) for k, v in (
+        ("range_m", range_m), ("velocity_mps", velocity_mps), ("snr_db", snr_db)))
+    angle_deg = _values(where, "angle_deg", angle_deg, nan_ok=True)
+    _one_length(where, frame=f_all, range_m=range_m, velocity_mps=velocity_mps,
+                angle_deg=angle_deg, snr_db=snr_db)
+    cluster_gap_m = _threshold(where, "cluster_gap_m", cluster_gap_m, positive=True)
     keep = moving(velocity_mps, min_speed_mps) & np.isfinite(angle_deg)
     order = np.argsort(f_all[keep], kind="stable")
     f = f_all[keep][order]

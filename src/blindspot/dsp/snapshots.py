@@ -22,7 +22,33 @@ from __future__ import annotations
 
 import numpy as np
 
+from blindspot.arrays import checked_array
 from blindspot.dsp.config import SNAPSHOT_MODES
+
+
+class SnapshotError(ValueError):
+    """Range-Doppler data or detection indices of the wrong shape or kind, or out of range."""
+
+
+def _indices(where: str, data: np.ndarray, frame: np.ndarray | None,
+             **bins: tuple[np.ndarray, int]) -> tuple[np.ndarray | None, list[np.ndarray]]:
+    """Detection indices checked: each ``name=(array, n_bins)`` (D,) integers in [0, n_bins);
+    ``frame`` (D,) in [0, data.shape[0]) when given; all of one length."""
+    out = []
+    named = dict(bins)
+    if frame is not None:
+        named = {"frame": (frame, data.shape[0]), **named}
+    for name, (a, n) in named.items():
+        a = checked_array(a, name, SnapshotError, where=where, kind="index", ndim=1,
+                          axes="a bin index per detection (D,)")
+        if a.size and a.max() >= n:
+            raise SnapshotError(f"{where}: {name} must index {n} bins (0..{n - 1}); found "
+                                f"{a.max()}")
+        out.append(a)
+    if len({a.size for a in out}) > 1:
+        sizes = ", ".join(f"{k} {a.shape}" for k, a in zip(named, out))
+        raise SnapshotError(f"{where}: the detection indices must have one length; found {sizes}")
+    return (out[0], out[1:]) if frame is not None else (None, out)
 
 
 def cell_snapshots(rd_native: np.ndarray, range_bin: np.ndarray, doppler_bin: np.ndarray,
@@ -33,13 +59,19 @@ def cell_snapshots(rd_native: np.ndarray, range_bin: np.ndarray, doppler_bin: np
                 ``frame``, a batch (frames, doppler, tx, rx, range)
     range_bin, doppler_bin : (D,) ints; frame : (D,) index into the batch axis (batched only)
     returns (D, tx, rx, L) with L = (2 half_r + 1)(2 half_d + 1), the centre cell first
-    raises ValueError when ``rd_native`` does not have 4 axes (5 with ``frame``)
+    raises SnapshotError when ``rd_native`` is not complex-valued with 4 axes (5 with
+    ``frame``) or an index is not a (D,) integer array within its axis; NaN/inf cells are left
+    to the angle estimator, which names them (:class:`~blindspot.dsp.doa.DoaError`)
     """
-    if rd_native.ndim != (4 if frame is None else 5):
-        raise ValueError("cell_snapshots: expected rd_native (doppler, tx, rx, range)"
-                         + ("" if frame is None else " per frame: (frames, doppler, tx, rx, range)")
-                         + f", found shape {rd_native.shape}")
+    rd_native = checked_array(rd_native, "rd_native", SnapshotError, where="cell_snapshots",
+                              kind="numeric", finite=False, ndim=4 if frame is None else 5,
+                              axes="range-Doppler data (doppler, tx, rx, range)" + (
+                                  "" if frame is None else " per frame: (frames, doppler, tx, "
+                                  "rx, range)"))
     n_dop, _, _, n_rng = rd_native.shape[-4:]
+    frame, (range_bin, doppler_bin) = _indices("cell_snapshots", rd_native, frame,
+                                               range_bin=(range_bin, n_rng),
+                                               doppler_bin=(doppler_bin, n_dop))
     dr, dd = np.meshgrid(np.arange(-half[0], half[0] + 1), np.arange(-half[1], half[1] + 1),
                          indexing="ij")
     dr, dd = dr.ravel(), dd.ravel()
@@ -62,7 +94,15 @@ def chirp_snapshots(range_profiles: np.ndarray, range_bin: np.ndarray,
                      (frames, chirps, tx, rx, range)
     range_bin : (D,) ints; frame : (D,) index into the batch axis (batched only)
     returns (D, tx, rx, chirps)
+    raises SnapshotError as :func:`cell_snapshots`
     """
+    range_profiles = checked_array(
+        range_profiles, "range_profiles", SnapshotError, where="chirp_snapshots",
+        kind="numeric", finite=False, ndim=4 if frame is None else 5,
+        axes="range profiles (chirps, tx, rx, range)" + (
+            "" if frame is None else " per frame: (frames, chirps, tx, rx, range)"))
+    frame, (range_bin,) = _indices("chirp_snapshots", range_profiles, frame,
+                                   range_bin=(range_bin, range_profiles.shape[-1]))
     if frame is None:
         return range_profiles[..., np.asarray(range_bin)].transpose(3, 1, 2, 0)
     # advanced indices on the first and last axes, separated by slices: they go first
