@@ -21,7 +21,7 @@ from blindspot.dsp.doppler_compensation import CompensationError, compensate_tdm
 from blindspot.dsp.range_doppler import RangeDoppler, RangeDopplerError, detection_map
 from tests.dsp.test_chain import paper  # noqa: F401  (module fixture: the paper's chain)
 
-KINDS = ("bool", "int", "float", "complex", "str", "object")
+KINDS = ("bool", "int", "float", "complex", "complex64", "str", "object")
 
 
 @st.composite
@@ -34,8 +34,9 @@ def arrays(draw, max_ndim: int = 5, max_side: int = 6):
     if kind in ("bool", "int", "str", "object"):
         return {"bool": lambda: x > 0, "int": lambda: x.astype(np.int64),
                 "str": lambda: x.astype(str), "object": lambda: x.astype(object)}[kind]()
-    if kind == "complex":
-        x = x + 1j * np.array(rng.normal(size=shape))
+    if kind.startswith("complex"):
+        dtype = np.complex64 if kind == "complex64" else np.complex128
+        x = (x + 1j * np.array(rng.normal(size=shape))).astype(dtype)
     bad = draw(st.sampled_from((None, np.nan, np.inf, -np.inf)))
     if bad is not None and x.size:
         x.flat[draw(st.integers(0, x.size - 1))] = bad

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from blindspot.radar.occlusion import point_in_polygon, segment_crosses_polygon
+from blindspot.radar.occlusion import GeometryError, point_in_polygon, segment_crosses_polygon
 
 # The paper scene's car footprint: x 1.5..3.3, y 4.8..9.3 (conf/scene/paper.yaml).
 CAR = np.array([[1.5, 4.8], [3.3, 4.8], [3.3, 9.3], [1.5, 9.3]])
@@ -76,7 +76,7 @@ def test_origin_moves_the_radar():
 
 
 def test_bad_shapes_raise():
-    with pytest.raises(ValueError, match="last axis"):
+    with pytest.raises(GeometryError, match=r"points must be points \(\.\.\., 2\).*shape \(3, 3\)"):
         segment_crosses_polygon(np.zeros((3, 3)), CAR)
-    with pytest.raises(ValueError, match="polygon"):
+    with pytest.raises(GeometryError, match=r"polygon must be vertices \(E >= 3, 2\)"):
         segment_crosses_polygon(np.zeros((3, 2)), CAR[:2])

@@ -17,6 +17,7 @@ from functools import cached_property
 
 import numpy as np
 
+from blindspot.arrays import checked_array
 from blindspot.radar.config import RadarConfig
 from blindspot.typed_config import ConfigError
 
@@ -29,6 +30,11 @@ MMWCAS_RX_ID = (13, 14, 15, 16, 1, 2, 3, 4, 9, 10, 11, 12, 5, 6, 7, 8)
 MMWCAS_TX_AZIMUTH = (11, 10, 9, 32, 28, 24, 20, 16, 12, 8, 4, 0)
 MMWCAS_TX_ELEVATION = (6, 4, 1, 0, 0, 0, 0, 0, 0, 0, 0, 0)
 MMWCAS_DESIGN_FREQ_HZ = 76.8e9
+
+
+
+class ArrayShapeError(ValueError):
+    """Channel data whose TX/RX axes do not match the virtual array."""
 
 
 @dataclass(frozen=True)
@@ -93,11 +99,11 @@ class VirtualArray:
 
     def ula_snapshots(self, x: np.ndarray) -> np.ndarray:
         """Pick the ULA channels out of an array whose axes (..., tx, rx, last) end as given:
-        (..., n_tx, n_rx, L) -> (..., n_ula, L)."""
-        if x.shape[-3:-1] != (self.n_tx, self.n_rx):
-            raise ValueError(
-                f"expected axes (..., tx={self.n_tx}, rx={self.n_rx}, L), got shape {x.shape}"
-            )
+        (..., n_tx, n_rx, L) -> (..., n_ula, L). Raises ArrayShapeError for other axes or a
+        non-numeric array (values are not inspected: the angle estimator checks them)."""
+        x = checked_array(x, "x", ArrayShapeError, where="ula_snapshots", kind="numeric",
+                          finite=False, min_ndim=3, lengths={-3: self.n_tx, -2: self.n_rx},
+                          axes=f"channels (..., tx={self.n_tx}, rx={self.n_rx}, L)")
         t, r = self.ula_index
         return x[..., t, r, :]
 

@@ -16,6 +16,12 @@ from __future__ import annotations
 
 import numpy as np
 
+from blindspot.arrays import checked_array
+
+
+class GeometryError(ValueError):
+    """Points, a polygon or an origin of the wrong shape or kind, or not finite."""
+
 
 def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """z-component of the 2-D cross product, broadcast over leading axes."""
@@ -23,11 +29,18 @@ def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 def polygon_edges(polygon: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(E, 2) vertices (closed implicitly) -> (start (E, 2), end (E, 2)) of each edge."""
-    poly = np.asarray(polygon, dtype=float)
-    if poly.ndim != 2 or poly.shape[1] != 2 or poly.shape[0] < 3:
-        raise ValueError(f"polygon must be (E >= 3, 2) vertices, got shape {poly.shape}")
+    """(E, 2) vertices (closed implicitly) -> (start (E, 2), end (E, 2)) of each edge.
+    Raises GeometryError unless ``polygon`` is (E >= 3, 2) finite real coordinates."""
+    poly = checked_array(polygon, "polygon", GeometryError, kind="real", ndim=2,
+                         lengths={1: 2}, min_lengths={0: 3}, axes="vertices (E >= 3, 2) in m")
+    poly = poly.astype(float, copy=False)
     return poly, np.roll(poly, -1, axis=0)
+
+
+def _points(points: np.ndarray) -> np.ndarray:
+    p = checked_array(points, "points", GeometryError, kind="real", min_ndim=1,
+                      lengths={-1: 2}, axes="points (..., 2) of (x, y) in m")
+    return p.astype(float, copy=False)
 
 
 def segment_crosses_polygon(points: np.ndarray, polygon: np.ndarray,
@@ -38,13 +51,13 @@ def segment_crosses_polygon(points: np.ndarray, polygon: np.ndarray,
     polygon : (E, 2) vertices of the occluding footprint, in order (either orientation).
     origin : (2,) start of every segment (the radar), default (0, 0).
     Returns bool (...): True where the line of sight is blocked.
+    Raises GeometryError for points, polygon or origin of another shape, kind, or not finite.
     """
-    p = np.asarray(points, dtype=float)
-    if p.shape[-1] != 2:
-        raise ValueError(f"points must have a last axis of (x, y), got shape {p.shape}")
+    p = _points(points)
     q0, q1 = polygon_edges(polygon)
     if origin is not None:
-        o = np.asarray(origin, dtype=float)
+        o = checked_array(origin, "origin", GeometryError, kind="real", ndim=1, lengths={0: 2},
+                          axes="a point (2,) in m").astype(float)
         p, q0, q1 = p - o, q0 - o, q1 - o
     pe = p[..., None, :]                      # (..., 1, 2) against (E, 2) edges
     # sides of the edge end points relative to the line 0 -> p
@@ -59,8 +72,9 @@ def segment_crosses_polygon(points: np.ndarray, polygon: np.ndarray,
 
 
 def point_in_polygon(points: np.ndarray, polygon: np.ndarray) -> np.ndarray:
-    """Even-odd rule inside test: (..., 2) points, (E, 2) polygon -> bool (...)."""
-    p = np.asarray(points, dtype=float)[..., None, :]
+    """Even-odd rule inside test: (..., 2) points, (E, 2) polygon -> bool (...).
+    Raises GeometryError as :func:`segment_crosses_polygon`."""
+    p = _points(points)[..., None, :]
     q0, q1 = polygon_edges(polygon)
     straddles = (q0[:, 1] > p[..., 1]) != (q1[:, 1] > p[..., 1])
     with np.errstate(divide="ignore", invalid="ignore"):

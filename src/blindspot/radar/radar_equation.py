@@ -15,7 +15,12 @@ from __future__ import annotations
 
 import numpy as np
 
+from blindspot.arrays import checked_array
 from blindspot.radar.config import RadarConfig
+
+
+class RadarEquationError(ValueError):
+    """A radar cross-section or range that is not a finite real array (RCS >= 0, range > 0)."""
 
 
 def db_to_linear(db: float | np.ndarray) -> float | np.ndarray:
@@ -27,13 +32,20 @@ def received_power_w(radar: RadarConfig, rcs_m2: np.ndarray | float,
                      range_m: np.ndarray | float) -> np.ndarray:
     """P_r = P_t G_t G_r lambda^2 sigma / ((4 pi)^3 R^4), W, for one TX firing (TDM-MIMO).
 
-    rcs_m2, range_m : broadcastable arrays (m^2, m). Wavelength at the sweep centre.
+    rcs_m2, range_m : broadcastable arrays (m^2 >= 0, m > 0). Wavelength at the sweep centre.
+    Raises RadarEquationError for NaN/inf, negative RCS, a range <= 0 or non-real input.
     """
+    rcs = checked_array(rcs_m2, "rcs_m2", RadarEquationError, kind="real", nonnegative=True,
+                        where="received_power_w", axes="radar cross-sections in m^2")
+    r = checked_array(range_m, "range_m", RadarEquationError, kind="real",
+                      where="received_power_w", axes="ranges in m").astype(float)
+    if r.size and r.min() <= 0:
+        raise RadarEquationError(f"received_power_w: range_m must be positive (the radar "
+                                 f"equation diverges at R = 0); found a minimum of {r.min()}")
     p_t = 1e-3 * db_to_linear(radar.tx_power_dbm)
     g = db_to_linear(radar.tx_gain_dbi) * db_to_linear(radar.rx_gain_dbi)
     lam = radar.wavelength_m
-    r = np.asarray(range_m, dtype=float)
-    return p_t * g * lam**2 * np.asarray(rcs_m2, dtype=float) / ((4 * np.pi) ** 3 * r**4)
+    return p_t * g * lam**2 * rcs.astype(float) / ((4 * np.pi) ** 3 * r**4)
 
 
 def snr_per_sample(radar: RadarConfig, rcs_m2: np.ndarray | float,

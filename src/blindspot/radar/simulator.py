@@ -56,10 +56,16 @@ from typing import Any
 import numpy as np
 from scipy.linalg import blas
 
+from blindspot.arrays import checked_array
 from blindspot.radar.array import VirtualArray, array_for
 from blindspot.radar.config import SPEED_OF_LIGHT, RadarConfig, SimConfig
 from blindspot.radar.radar_equation import received_power_w
 from blindspot.radar.scene import Scene, SceneConfig
+
+
+class SimulationError(ValueError):
+    """Arrays handed to the simulator's codecs or quantiser of the wrong kind or shape, not
+    finite, or not representable as ADC codes."""
 from blindspot.typed_config import ConfigError
 
 _TWO_PI = 2.0 * np.pi
@@ -216,12 +222,18 @@ class FmcwSimulator:
 
 def quantise(cube: np.ndarray, bits: int, out: np.ndarray | None = None) -> np.ndarray:
     """Round I and Q to integer codes and clip to [-2^(bits-1), 2^(bits-1) - 1] (cube already in
-    LSB units). complex64 in, complex64 out (integer-valued)."""
-    if not 2 <= int(bits) <= 24:
-        raise ValueError(f"adc_bits must be in [2, 24] to be exact in float32, got {bits}")
-    x = np.asarray(cube)
+    LSB units). complex64 in, complex64 out (integer-valued).
+
+    Raises SimulationError for ``bits`` outside [2, 24] or a cube that is not finite complex64.
+    """
+    if not (isinstance(bits, (int, np.integer)) and 2 <= bits <= 24):
+        raise SimulationError(f"adc_bits must be an integer in [2, 24] to be exact in float32, "
+                              f"got {bits!r}")
+    x = checked_array(cube, "cube", SimulationError, where="quantise", kind="numeric",
+                      min_ndim=1, axes="a cube (...) of complex64 samples in LSB")
     if x.dtype != np.complex64:
-        raise ValueError(f"quantise expects complex64, got {x.dtype}")
+        raise SimulationError(f"quantise: cube must be complex64; found {x.dtype}")
+    x = np.ascontiguousarray(x)  # the float32 view below needs contiguous (re, im) pairs
     out = np.empty_like(x) if out is None else out
     f_in, f_out = x.view(np.float32), out.view(np.float32)
     np.rint(f_in, out=f_out)
@@ -231,19 +243,21 @@ def quantise(cube: np.ndarray, bits: int, out: np.ndarray | None = None) -> np.n
 
 
 def to_int16_iq(cube: np.ndarray) -> np.ndarray:
-    """Integer-valued complex64 (..., n) -> int16 (..., n, 2) of (I, Q); raises if not exact."""
-    f = np.asarray(cube, dtype=np.complex64).view(np.float32).reshape(*np.shape(cube), 2)
+    """Integer-valued complex64 (..., n) -> int16 (..., n, 2) of (I, Q); raises SimulationError
+    if not exact (or not finite numbers)."""
+    x = checked_array(cube, "cube", SimulationError, where="to_int16_iq", kind="numeric",
+                      axes="a cube (...) of integer-valued samples")
+    f = np.ascontiguousarray(x, dtype=np.complex64).view(np.float32).reshape(*x.shape, 2)
     codes = f.astype(np.int16)
     if not np.array_equal(codes, f):
-        raise ValueError("cube is not integer-valued within int16 (set radar.adc_bits: 16)")
+        raise SimulationError("cube is not integer-valued within int16 (set radar.adc_bits: 16)")
     return codes
 
 
 def from_int16_iq(codes: np.ndarray) -> np.ndarray:
-    """int16 (..., 2) of (I, Q) -> complex64 (...)."""
-    c = np.asarray(codes)
-    if c.shape[-1] != 2:
-        raise ValueError(f"expected a last axis of (I, Q), got shape {c.shape}")
+    """int16 (..., 2) of (I, Q) -> complex64 (...). Raises SimulationError for other input."""
+    c = checked_array(codes, "codes", SimulationError, where="from_int16_iq", kind="integer",
+                      min_ndim=1, lengths={-1: 2}, axes="ADC codes (..., 2) of (I, Q)")
     return np.ascontiguousarray(c.astype(np.float32)).view(np.complex64)[..., 0]
 
 
