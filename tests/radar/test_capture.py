@@ -299,14 +299,19 @@ def test_dca1000_xwr14xx_bytes_follow_ti_document(tmp_path, rng):
     assert raw.tolist() == want.tolist()
 
 
-def test_dca1000_partial_frame_dropped_with_warning(tmp_path, rng):
+def test_dca1000_extra_bytes_warn_with_their_possible_causes(tmp_path, rng):
     cube = random_codes(rng, (2, 5, 2, 4, 6))
     path = write_dca1000(tmp_path / "adc_data.bin", cube)
     with open(path, "ab") as fh:
         fh.write(b"\x01\x02" * 77)
-    with pytest.warns(UserWarning, match=r"adc_data.bin: 2074 bytes = 2 frames of 960 bytes.*154"):
+    with pytest.warns(UserWarning, match=r"adc_data.bin: size is not a whole number of frames.*"
+                      r"2074 bytes = 2 frames of 960 bytes \+ 154 bytes.*2 whole frames are read"
+                      r".*cut capture.*154 of 960 bytes.*lost packets: 806 bytes missing") as w:
         out = read_dca1000(path, 6, 5, 2, 4)
     assert np.array_equal(out, cube)
+    assert "dropped" not in str(w[0].message)  # a headerless file cannot prove a cut end
+    with pytest.raises(CaptureError, match=r"not a whole number of frames.*found 2074 bytes"):
+        read_dca1000(path, 6, 5, 2, 4, strict=True)
 
 
 def test_dca1000_smaller_than_one_frame(tmp_path):
@@ -359,7 +364,8 @@ def test_openradar_virtual_channels_split_tx_major(tmp_path, rng):
 def small_profile(**over) -> RadarConfig:
     base = dict(name="small", start_freq_hz=77e9, bandwidth_hz=300e6, ramp_time_s=30e-6,
                 idle_time_s=5e-6, adc_rate_hz=S / 30e-6, n_samples=S, n_chirps=L, n_tx=C,
-                n_rx=16, tx_order=[11, 10, 9], frame_period_s=0.1, array="mmwcas")
+                n_rx=16, tx_order=[11, 10, 9], frame_period_s=0.1, array="mmwcas",
+                adc_bits=16)
     return RadarConfig.from_mapping({**base, **over})
 
 

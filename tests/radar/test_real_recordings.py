@@ -103,8 +103,11 @@ def dca_cube(dca_path):
 def test_dca1000_whole_frames_and_the_cut_one(dca_path):
     r = profile("dca1000_awr1843")
     assert dca_path.stat().st_size == DCA_SIZE
-    with pytest.warns(UserWarning, match=rf"adc_data.bin: {DCA_SIZE} bytes = 4 frames of "
-                      rf"{DCA_FRAME} bytes.*{DCA_SIZE - 4 * DCA_FRAME} bytes of a partial"):
+    with pytest.warns(UserWarning, match=rf"adc_data.bin: size is not a whole number of frames"
+                      rf".*{DCA_SIZE} bytes = 4 frames of {DCA_FRAME} bytes \+ "
+                      rf"{DCA_SIZE - 4 * DCA_FRAME} bytes.*a cut capture.*lost packets: "
+                      rf"{5 * DCA_FRAME - DCA_SIZE} bytes missing to 5 whole frames, not a whole "
+                      r"number of 1456-byte.*ends inside a sample"):
         cube = read_dca1000(dca_path, r.n_samples, r.n_chirps, r.n_tx, r.n_rx)
     assert cube.shape == (4, 255, 2, 4, 128) and cube.dtype == np.complex64
     # two's-complement ADC codes of a few thousand at most, not offset-binary (~32768)
@@ -143,7 +146,7 @@ def test_dca1000_other_interleavings_are_clearly_worse(dca_path, dca_cube):
 
 def test_dca1000_recording_source(dca_path, dca_cube):
     r = profile("dca1000_awr1843")
-    with pytest.warns(UserWarning, match="partial frame"):
+    with pytest.warns(UserWarning, match="not a whole number of frames"):
         src = DCA1000Recording(dca_path, r)
     assert isinstance(src, FrameSource) and src.n_frames == 4 and src.array.n_ula == 8
     assert np.array_equal(src.frame(2), dca_cube[2])
