@@ -17,6 +17,7 @@ import pytest
 from blindspot.radar.capture import (
     RECORDING_KINDS,
     CaptureError,
+    DCA1000PacketRecording,
     DCA1000Recording,
     OpenRadarRecording,
     TICascadeCapture,
@@ -28,6 +29,7 @@ from blindspot.radar.capture import (
     read_ti_cascade,
     to_int16_iq,
     write_dca1000,
+    write_dca1000_packets,
     write_ti_cascade,
 )
 from blindspot.radar.config import RadarConfig
@@ -380,7 +382,7 @@ def test_cascade_recording_is_a_lazy_frame_source(tmp_path, rng):
     np.testing.assert_allclose(src.times_s, np.arange(99) * 0.1, atol=1e-9)
     with pytest.raises(IndexError):
         src.frame(99)
-    with pytest.raises(ValueError, match="n_rx = 4"):
+    with pytest.raises(ValueError, match="radar.n_rx.* = 4.*expected 16"):
         TICascadeRecording(tmp_path, small_profile(n_rx=4))
 
 
@@ -450,6 +452,7 @@ def test_open_recording_gives_a_frame_source_for_every_kind(tmp_path, rng):
     dca_radar = small_profile(n_tx=2, n_rx=4, tx_order=[0, 1], array="ula")
     dca_cube = random_codes(rng, (2, L, 2, 4, S))
     write_dca1000(tmp_path / "adc_data.bin", dca_cube)
+    write_dca1000_packets(tmp_path / "adc_data_Raw_0.bin", dca_cube, payload_bytes=96)
     npy_cube = random_codes(rng, (1, L, 2, 4, S))
     stored = npy_cube.reshape(L, 8, S).astype(np.complex128)
     np.save(tmp_path / "a.npy", np.where(stored.real < 0, stored.real + 65536, stored.real)
@@ -459,6 +462,9 @@ def test_open_recording_gives_a_frame_source_for_every_kind(tmp_path, rng):
                                       skip_first_frame=False), cascade_cube, TICascadeRecording),
         "dca1000": (open_recording("dca1000", tmp_path / "adc_data.bin", dca_radar), dca_cube,
                     DCA1000Recording),
+        "dca1000_packets": (open_recording("dca1000_packets", tmp_path / "adc_data_Raw_0.bin",
+                                           dca_radar, payload_bytes=96, strict=True), dca_cube,
+                            DCA1000PacketRecording),
         "openradar_npy": (open_recording("openradar_npy", tmp_path / "a.npy", dca_radar),
                           npy_cube, OpenRadarRecording),
     }

@@ -6,8 +6,8 @@ same way whatever the format:
 
 - :class:`CaptureError` names the file, the problem, the size (or value) found and expected;
 - :func:`to_int16_iq` turns complex values into the (I, Q) int16 codes every writer stores;
-- :func:`check_dims`, :func:`check_range` are the profile and frame-range checks (one frame's
-  index: :func:`blindspot.radar.source.check_frame_index`);
+- :func:`check_dims`, :func:`check_adc_bits`, :func:`check_range` are the profile and
+  frame-range checks (one frame's index: :func:`blindspot.radar.source.check_frame_index`);
 - :func:`iter_frames_of` walks a stacked cube or any iterable of frames (a frame source);
 - :func:`atomic_files` writes several files through :func:`blindspot.io.atomic_path`, renaming
   them into place only when all are complete.
@@ -24,12 +24,14 @@ from typing import Any, Literal
 import numpy as np
 
 from blindspot.io import atomic_path
+from blindspot.typed_config import ConfigError
 
 __all__ = [
     "BYTES_PER_IQ",
     "CaptureError",
     "Int16Conversion",
     "atomic_files",
+    "check_adc_bits",
     "check_dims",
     "check_range",
     "iter_frames_of",
@@ -103,6 +105,16 @@ def check_dims(**dims: int) -> tuple[int, ...]:
         if int(v) < 1:
             raise ValueError(f"{key} = {v}: expected a positive integer")
     return tuple(int(v) for v in dims.values())
+
+
+def check_adc_bits(adc_bits: int | None, supported: tuple[int, ...], fmt: str) -> int:
+    """``adc_bits`` as an int if the format can honour it, else ``ConfigError('radar.adc_bits')``
+    naming what ``fmt`` supports."""
+    if adc_bits is None or int(adc_bits) not in supported:
+        raise ConfigError("radar.adc_bits", adc_bits,
+                          f"one of {list(supported)} ({fmt} files hold integer ADC codes in "
+                          "16-bit words; null means unquantised simulator output, not a file)")
+    return int(adc_bits)
 
 
 def check_range(start: int, stop: int | None, n: int) -> tuple[int, int]:

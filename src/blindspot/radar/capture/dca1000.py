@@ -78,6 +78,7 @@ from blindspot.radar.capture.common import (
     CaptureError,
     Int16Conversion,
     atomic_files,
+    check_adc_bits,
     check_dims,
     check_range,
     iter_frames_of,
@@ -85,7 +86,6 @@ from blindspot.radar.capture.common import (
 )
 from blindspot.radar.config import RadarConfig
 from blindspot.radar.source import RecordingFrames, check_frame_index
-from blindspot.typed_config import ConfigError
 
 __all__ = [
     "DCA1000_PAYLOAD_BYTES",
@@ -114,16 +114,6 @@ ADC_BITS_DCA = (12, 14, 16)  # the xWR ADC's output widths (adcCfg numADCBits)
 def dca1000_frame_bytes(n_samples: int, n_chirps: int, n_tx: int, n_rx: int) -> int:
     """Bytes of one frame: samples * loops * TX * RX * 4 (complex int16)."""
     return int(n_samples) * int(n_chirps) * int(n_tx) * int(n_rx) * BYTES_PER_IQ
-
-
-def check_adc_bits(adc_bits: int | None, supported: tuple[int, ...], fmt: str) -> int:
-    """``adc_bits`` as an int if the format can honour it, else ``ConfigError('radar.adc_bits')``
-    naming what ``fmt`` supports."""
-    if adc_bits is None or int(adc_bits) not in supported:
-        raise ConfigError("radar.adc_bits", adc_bits,
-                          f"one of {list(supported)} ({fmt} files hold integer ADC codes in "
-                          "16-bit words; null means unquantised simulator output, not a file)")
-    return int(adc_bits)
 
 
 def _dca_file_shape(layout: str, n_samples: int, n_chirps: int, n_tx: int,
@@ -331,8 +321,8 @@ class DCA1000Capture:
         self.size = size = self.path.stat().st_size
         extra = size % fb
         window = min(size, max(extra, 2 * ZERO_RUN_CODES) + fb)
-        raw = np.memmap(self.path, np.uint8, mode="r", shape=(size,)) if size else np.zeros(0,
-                                                                                            np.uint8)
+        raw = (np.memmap(self.path, np.uint8, mode="r", shape=(size,)) if size
+               else np.zeros(0, np.uint8))
         self.leading_zero_bytes = _zero_prefix(raw[:window])
         self.trailing_zero_bytes = _zero_prefix(raw[size - window:][::-1])
         del raw

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from blindspot.radar.capture.common import CaptureError
+from blindspot.radar.capture.common import CaptureError, check_adc_bits
 from blindspot.radar.config import RadarConfig
 from blindspot.radar.source import ArrayRecording
 
@@ -66,9 +66,22 @@ def read_openradar_npy(path: str | os.PathLike, *, n_tx: int | None = None,
 
 class OpenRadarRecording(ArrayRecording):
     """An OpenRadar ``.npy`` (chirps, n_tx * n_rx, samples) as a frame source of one frame
-    (chirps, tx, rx, samples), channels split TX-major with ``radar.n_tx``; the frame shape must
-    match ``radar`` (``ValueError`` naming the file)."""
+    (chirps, tx, rx, samples), channels split TX-major with ``radar.n_tx``.
+
+    Of the profile, n_chirps, n_tx, n_rx and n_samples must match the stored shape
+    (:class:`CaptureError` naming the key, the file's value and the profile's), adc_bits must be
+    16 (the files hold 16-bit codes; else ``ConfigError``); tx_order and the array keys shape
+    ``array``.
+    """
 
     def __init__(self, path: str | os.PathLike, radar: RadarConfig, *, unsigned: bool = True):
-        super().__init__(read_openradar_npy(path, n_tx=radar.n_tx, unsigned=unsigned), radar,
-                         str(path))
+        check_adc_bits(radar.adc_bits, (16,), "OpenRadar .npy")
+        cube = read_openradar_npy(path, n_tx=radar.n_tx, unsigned=unsigned)
+        _, c, t, r, s = cube.shape
+        for key, value in (("n_chirps", c), ("n_tx", t), ("n_rx", r), ("n_samples", s)):
+            if value != getattr(radar, key):
+                raise CaptureError(path, f"radar.{key} of profile '{radar.name}' does not match "
+                                   f"the file (stored (chirps, n_tx * n_rx, samples) = "
+                                   f"{(c, t * r, s)})", f"{key} = {value} in the file",
+                                   f"{key} = {getattr(radar, key)}")
+        super().__init__(cube, radar, str(path))
