@@ -78,10 +78,11 @@ class OpenRadarRecording(ArrayRecording):
         check_adc_bits(radar.adc_bits, (16,), "OpenRadar .npy")
         cube = read_openradar_npy(path, n_tx=radar.n_tx, unsigned=unsigned)
         _, c, t, r, s = cube.shape
-        for key, value in (("n_chirps", c), ("n_tx", t), ("n_rx", r), ("n_samples", s)):
-            if value != getattr(radar, key):
+        for key, value, want in (("n_chirps", c, radar.n_chirps),
+                                 ("n_tx * radar.n_rx", t * r, radar.n_tx * radar.n_rx),
+                                 ("n_samples", s, radar.n_samples)):
+            if value != want:
                 raise CaptureError(path, f"radar.{key} of profile '{radar.name}' does not match "
                                    f"the file (stored (chirps, n_tx * n_rx, samples) = "
-                                   f"{(c, t * r, s)})", f"{key} = {value} in the file",
-                                   f"{key} = {getattr(radar, key)}")
+                                   f"{(c, t * r, s)})", f"{value} in the file", f"{want}")
         super().__init__(cube, radar, str(path))
