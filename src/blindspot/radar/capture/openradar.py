@@ -34,12 +34,18 @@ def read_openradar_npy(path: str | os.PathLike, *, n_tx: int | None = None,
     Returns the stored shape, e.g. (chirps, samples) or (chirps, channels, samples), unless
     ``n_tx`` reshapes it. Raises :class:`CaptureError` (file, what was found, what was expected)
     for a missing file, a real array, values that are not integer codes or lie outside the code
-    range, or channels that do not split into ``n_tx`` TX.
+    range, or channels that do not split into ``n_tx`` TX, and for a file ``np.load`` cannot read
+    as a plain array (cut, not .npy, pickled objects).
     """
     path = Path(path)
     if not path.is_file():
         raise CaptureError(path, "OpenRadar .npy file not found")
-    a = np.load(path, allow_pickle=False)
+    try:  # memory-mapped: a header that claims more data than the file holds fails here
+        a = np.load(path, allow_pickle=False, mmap_mode="r")
+    except Exception as err:  # np.load's many ways to fail (ValueError, EOFError, SyntaxError..)
+        raise CaptureError(path, "not a readable .npy file", f"{type(err).__name__}: {err}",
+                           "a NumPy .npy array (no pickled objects)") from err
+    a = np.array(a)
     if not np.iscomplexobj(a):
         raise CaptureError(path, "expected a complex array", str(a.dtype), "complex I + jQ")
     iq = np.stack([a.real, a.imag], axis=-1)
