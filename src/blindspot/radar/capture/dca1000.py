@@ -340,9 +340,9 @@ class DCA1000Capture:
                                f"{size} bytes" + (f" ({self.skip_bytes} skipped)"
                                                   if self.skip_bytes else ""),
                                f"at least {fb} bytes")
-        self.causes = self._causes(lead_pad, trail_pad)
         self.profiles = (_nearest_profiles(size, self.n_samples, self.n_chirps, self.n_tx,
-                                           self.n_rx, layout) if self.causes else ())
+                                           self.n_rx, layout) if self.extra_bytes else ())
+        self.causes = self._causes(lead_pad, trail_pad)
         if self.causes:
             self._report_size()
         self._map: np.memmap | None = None
@@ -378,21 +378,19 @@ class DCA1000Capture:
                       "every frame after a lost packet is shifted and a headerless file cannot "
                       "tell where the gap is (the packet-level recording adc_data_Raw_0.bin, "
                       "read_dca1000_packets, masks lost samples)")
+        if self.profiles:
+            causes.append("a wrong profile: " + "; ".join(
+                f"n_samples={s}, n_chirps={c} gives {f} whole frames" for s, c, f in self.profiles))
+        else:
+            causes.append("a wrong profile: no n_samples / n_chirps within a factor 2 of the "
+                          "profile's (same TX, RX) divides the file size")
         if self.size % BYTES_PER_IQ:
             causes.append(f"the size is not a whole number of {BYTES_PER_IQ}-byte complex "
                           "samples: the file ends inside a sample")
         return tuple(causes)
 
     def _report_size(self) -> None:
-        causes = list(self.causes)
-        if self.extra_bytes:
-            if self.profiles:
-                causes.append("a wrong profile: " + "; ".join(
-                    f"n_samples={s}, n_chirps={c} gives {f} whole frames"
-                    for s, c, f in self.profiles))
-            else:
-                causes.append("a wrong profile: no n_samples / n_chirps within a factor 2 of "
-                              "the profile's (same TX, RX) divides the file size")
+        causes = self.causes
         terms = ([f"{self.skip_bytes} skipped"] if self.skip_bytes else []) + [
             f"{self.n_frames} frames of {self.frame_bytes} bytes"] + (
             [f"{self.extra_bytes} bytes"] if self.extra_bytes else [])

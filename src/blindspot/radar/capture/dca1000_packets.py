@@ -263,10 +263,15 @@ class DCA1000PacketCapture:
     def _report(self, where: str | Path) -> None:
         r, fb = self.report, self.frame_bytes
         if r.tail_bytes:
-            warnings.warn(f"{where}: the stream ends {r.tail_bytes} bytes into frame "
-                          f"{self.first_frame + self.n_frames} ({fb} bytes per frame): a cut "
-                          "capture or lost final packets (the byte counts cannot tell); that "
-                          f"frame is not read, {self.n_frames} frames are", stacklevel=4)
+            msg = (f"{where}: the stream ends {r.tail_bytes} bytes into frame "
+                   f"{self.first_frame + self.n_frames} ({fb} bytes per frame): a cut capture "
+                   "or lost final packets (the byte counts cannot tell); that frame is not "
+                   f"read, {self.n_frames} frames are")
+            if self.strict:
+                raise CaptureError(where, "stream ends inside a frame", f"{r.tail_bytes} bytes "
+                                   f"of frame {self.first_frame + self.n_frames}",
+                                   f"{fb} bytes", msg)
+            warnings.warn(msg, stacklevel=4)
         damaged = r.damaged_frames
         if damaged.size:
             lost = int(r.missing_bytes.sum())
@@ -366,8 +371,8 @@ def read_dca1000_packets(path: str | os.PathLike | Sequence[str | os.PathLike], 
     in ``missing``. Framing and frame selection: module docstring; ``layout`` and ``adc_bits``
     as :func:`~blindspot.radar.capture.dca1000.read_dca1000`.
 
-    Warnings (``UserWarning``; a :class:`CaptureError` with ``strict=True``): lost packets in
-    the frames read; a stream that ends inside a frame (not read); a file cut inside a header.
+    Warnings (``UserWarning``; each a :class:`CaptureError` with ``strict=True``): lost packets
+    in the frames read; a stream that ends inside a frame (not read); a file cut inside a header.
     Errors: :class:`CaptureError` (file, found, expected) for a missing file, a file with no
     packet, byte counts that are not multiples of ``payload_bytes`` or disagree with the
     sequence numbers, more than half the span lost, no whole frame, codes outside ``adc_bits``;
