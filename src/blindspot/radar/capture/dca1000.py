@@ -63,9 +63,10 @@ range a ``bits``-bit ADC can give raise :class:`CaptureError`.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import warnings
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal
@@ -487,12 +488,10 @@ def read_dca1000(path: str | os.PathLike, n_samples: int, n_chirps: int, n_tx: i
     ``ValueError`` for a profile the layout cannot carry; ``ConfigError`` (a ``ValueError``) for
     an unsupported ``adc_bits``.
     """
-    cap = DCA1000Capture(path, n_samples, n_chirps, n_tx, n_rx, layout=layout,
-                         adc_bits=adc_bits, skip_bytes=skip_bytes, strict=strict)
-    try:
+    with contextlib.closing(DCA1000Capture(
+            path, n_samples, n_chirps, n_tx, n_rx, layout=layout, adc_bits=adc_bits,
+            skip_bytes=skip_bytes, strict=strict)) as cap:
         return cap.read()
-    finally:
-        cap.close()
 
 
 def write_dca1000(path: str | os.PathLike, cube: np.ndarray | Iterable[np.ndarray], *,
@@ -514,17 +513,19 @@ class DCA1000Recording(RecordingFrames):
     radar : the capture's chirp profile: n_samples, n_chirps, n_tx, n_rx, adc_bits (12, 14 or
         16) and frame_period_s are read from it; tx_order and the array keys shape ``array``.
     array : the virtual array; default ``array_for(radar)``.
-    layout, skip_bytes, strict : as :func:`read_dca1000`.
+    layout, strict, options : as :func:`read_dca1000` (options: ``skip_bytes``).
     """
 
-    def __init__(self, path: str | os.PathLike, radar: RadarConfig, *,
-                 array: VirtualArray | None = None, layout: DcaLayout = "xwr16xx",
-                 skip_bytes: int | None = None, strict: bool = False):
+    _capture_class: type = DCA1000Capture
+
+    def __init__(self, path: str | os.PathLike | Sequence[str | os.PathLike], radar: RadarConfig,
+                 *, array: VirtualArray | None = None, layout: DcaLayout = "xwr16xx",
+                 strict: bool = False, **options):
         self.radar = radar
         self.array = array_for(radar) if array is None else array
-        self.capture = DCA1000Capture(path, radar.n_samples, radar.n_chirps, radar.n_tx,
-                                      radar.n_rx, layout=layout, adc_bits=radar.adc_bits,
-                                      skip_bytes=skip_bytes, strict=strict)
+        self.capture = self._capture_class(path, radar.n_samples, radar.n_chirps, radar.n_tx,
+                                           radar.n_rx, layout=layout, adc_bits=radar.adc_bits,
+                                           strict=strict, **options)
 
     @property
     def times_s(self) -> np.ndarray:

@@ -42,6 +42,7 @@ more than half of the span lost is an error (no usable capture, or not this form
 
 from __future__ import annotations
 
+import contextlib
 import os
 import warnings
 from collections.abc import Iterable, Sequence
@@ -50,7 +51,6 @@ from pathlib import Path
 
 import numpy as np
 
-from blindspot.radar.array import VirtualArray, array_for
 from blindspot.radar.capture.common import (
     CaptureError,
     Int16Conversion,
@@ -62,6 +62,7 @@ from blindspot.radar.capture.common import (
 from blindspot.radar.capture.dca1000 import (
     ADC_BITS_DCA,
     DCA1000_PAYLOAD_BYTES,
+    DCA1000Recording,
     DcaLayout,
     _dca_file_shape,
     _dca_to_complex,
@@ -69,8 +70,7 @@ from blindspot.radar.capture.dca1000 import (
     dca1000_frame_bytes,
     encode_frames,
 )
-from blindspot.radar.config import RadarConfig
-from blindspot.radar.source import RecordingFrames, check_frame_index
+from blindspot.radar.source import check_frame_index
 
 __all__ = [
     "PACKET_HEADER_BYTES",
@@ -379,12 +379,10 @@ def read_dca1000_packets(path: str | os.PathLike | Sequence[str | os.PathLike], 
     ``ValueError`` for a profile the layout cannot carry or a bad ``payload_bytes``;
     ``ConfigError`` for an unsupported ``adc_bits``.
     """
-    cap = DCA1000PacketCapture(path, n_samples, n_chirps, n_tx, n_rx, layout=layout,
-                               adc_bits=adc_bits, payload_bytes=payload_bytes, strict=strict)
-    try:
+    with contextlib.closing(DCA1000PacketCapture(
+            path, n_samples, n_chirps, n_tx, n_rx, layout=layout, adc_bits=adc_bits,
+            payload_bytes=payload_bytes, strict=strict)) as cap:
         return cap.read_masked()
-    finally:
-        cap.close()
 
 
 def write_dca1000_packets(path: str | os.PathLike, cube: np.ndarray | Iterable[np.ndarray], *,
@@ -432,23 +430,17 @@ def write_dca1000_packets(path: str | os.PathLike, cube: np.ndarray | Iterable[n
     return path
 
 
-class DCA1000PacketRecording(RecordingFrames):
+class DCA1000PacketRecording(DCA1000Recording):
     """A DCA1000 packet-level record as a frame source (lazy; times from the stream frame
     numbers, ``frame_numbers * radar.frame_period_s``, so lost whole frames keep their time).
 
+    path : the record's file, or its files in order.
     radar : the chirp profile (n_samples, n_chirps, n_tx, n_rx, adc_bits, frame_period_s).
-    layout, payload_bytes, strict : as :func:`read_dca1000_packets`.
+    layout, strict, options : as :func:`read_dca1000_packets` (options: ``payload_bytes``).
     ``missing(i)`` : bool (loops, tx, rx, samples) of frame i.
     """
 
-    def __init__(self, path: str | os.PathLike | Sequence[str | os.PathLike], radar: RadarConfig,
-                 *, array: VirtualArray | None = None, layout: DcaLayout = "xwr16xx",
-                 payload_bytes: int = DCA1000_PAYLOAD_BYTES, strict: bool = False):
-        self.radar = radar
-        self.array = array_for(radar) if array is None else array
-        self.capture = DCA1000PacketCapture(path, radar.n_samples, radar.n_chirps, radar.n_tx,
-                                            radar.n_rx, layout=layout, adc_bits=radar.adc_bits,
-                                            payload_bytes=payload_bytes, strict=strict)
+    _capture_class = DCA1000PacketCapture
 
     @property
     def times_s(self) -> np.ndarray:

@@ -452,12 +452,10 @@ def read_ti_cascade(folder: str | os.PathLike, n_samples: int, n_chirps: int, n_
         naming the file, the size found and the size expected: a missing folder, part or device
         file, a gap in the part numbers, an index that disagrees with its data, no frame left.
     """
-    cap = TICascadeCapture(folder, n_samples, n_chirps, n_tx, skip_first_frame=skip_first_frame,
-                           part=part, capture_index=capture_index)
-    try:
+    with contextlib.closing(TICascadeCapture(
+            folder, n_samples, n_chirps, n_tx, skip_first_frame=skip_first_frame, part=part,
+            capture_index=capture_index)) as cap:
         return cap.read()
-    finally:
-        cap.close()
 
 
 def write_ti_cascade(folder: str | os.PathLike, cube: np.ndarray | Iterable[np.ndarray], *,
