@@ -17,6 +17,7 @@ import pytest
 from blindspot.radar.capture import (
     RECORDING_KINDS,
     CaptureError,
+    DCA1000PacketRecording,
     DCA1000Recording,
     OpenRadarRecording,
     TICascadeCapture,
@@ -28,6 +29,7 @@ from blindspot.radar.capture import (
     read_ti_cascade,
     to_int16_iq,
     write_dca1000,
+    write_dca1000_packets,
     write_ti_cascade,
 )
 from blindspot.radar.config import RadarConfig
@@ -299,14 +301,19 @@ def test_dca1000_xwr14xx_bytes_follow_ti_document(tmp_path, rng):
     assert raw.tolist() == want.tolist()
 
 
-def test_dca1000_partial_frame_dropped_with_warning(tmp_path, rng):
+def test_dca1000_extra_bytes_warn_with_their_possible_causes(tmp_path, rng):
     cube = random_codes(rng, (2, 5, 2, 4, 6))
     path = write_dca1000(tmp_path / "adc_data.bin", cube)
     with open(path, "ab") as fh:
         fh.write(b"\x01\x02" * 77)
-    with pytest.warns(UserWarning, match=r"adc_data.bin: 2074 bytes = 2 frames of 960 bytes.*154"):
+    with pytest.warns(UserWarning, match=r"adc_data.bin: size is not a whole number of frames.*"
+                      r"2074 bytes = 2 frames of 960 bytes \+ 154 bytes.*2 whole frames are read"
+                      r".*cut capture.*154 of 960 bytes.*lost packets: 806 bytes missing") as w:
         out = read_dca1000(path, 6, 5, 2, 4)
     assert np.array_equal(out, cube)
+    assert "dropped" not in str(w[0].message)  # a headerless file cannot prove a cut end
+    with pytest.raises(CaptureError, match=r"not a whole number of frames.*found 2074 bytes"):
+        read_dca1000(path, 6, 5, 2, 4, strict=True)
 
 
 def test_dca1000_smaller_than_one_frame(tmp_path):
@@ -359,7 +366,8 @@ def test_openradar_virtual_channels_split_tx_major(tmp_path, rng):
 def small_profile(**over) -> RadarConfig:
     base = dict(name="small", start_freq_hz=77e9, bandwidth_hz=300e6, ramp_time_s=30e-6,
                 idle_time_s=5e-6, adc_rate_hz=S / 30e-6, n_samples=S, n_chirps=L, n_tx=C,
-                n_rx=16, tx_order=[11, 10, 9], frame_period_s=0.1, array="mmwcas")
+                n_rx=16, tx_order=[11, 10, 9], frame_period_s=0.1, array="mmwcas",
+                adc_bits=16)
     return RadarConfig.from_mapping({**base, **over})
 
 
@@ -374,7 +382,7 @@ def test_cascade_recording_is_a_lazy_frame_source(tmp_path, rng):
     np.testing.assert_allclose(src.times_s, np.arange(99) * 0.1, atol=1e-9)
     with pytest.raises(IndexError):
         src.frame(99)
-    with pytest.raises(ValueError, match="n_rx = 4"):
+    with pytest.raises(ValueError, match="radar.n_rx.* = 4.*expected 16"):
         TICascadeRecording(tmp_path, small_profile(n_rx=4))
 
 
@@ -444,6 +452,7 @@ def test_open_recording_gives_a_frame_source_for_every_kind(tmp_path, rng):
     dca_radar = small_profile(n_tx=2, n_rx=4, tx_order=[0, 1], array="ula")
     dca_cube = random_codes(rng, (2, L, 2, 4, S))
     write_dca1000(tmp_path / "adc_data.bin", dca_cube)
+    write_dca1000_packets(tmp_path / "adc_data_Raw_0.bin", dca_cube, payload_bytes=96)
     npy_cube = random_codes(rng, (1, L, 2, 4, S))
     stored = npy_cube.reshape(L, 8, S).astype(np.complex128)
     np.save(tmp_path / "a.npy", np.where(stored.real < 0, stored.real + 65536, stored.real)
@@ -453,6 +462,9 @@ def test_open_recording_gives_a_frame_source_for_every_kind(tmp_path, rng):
                                       skip_first_frame=False), cascade_cube, TICascadeRecording),
         "dca1000": (open_recording("dca1000", tmp_path / "adc_data.bin", dca_radar), dca_cube,
                     DCA1000Recording),
+        "dca1000_packets": (open_recording("dca1000_packets", tmp_path / "adc_data_Raw_0.bin",
+                                           dca_radar, payload_bytes=96, strict=True), dca_cube,
+                            DCA1000PacketRecording),
         "openradar_npy": (open_recording("openradar_npy", tmp_path / "a.npy", dca_radar),
                           npy_cube, OpenRadarRecording),
     }

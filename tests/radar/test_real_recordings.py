@@ -19,7 +19,13 @@ import numpy as np
 import pytest
 from omegaconf import OmegaConf
 
-from blindspot.radar.capture import DCA1000Recording, read_dca1000, read_openradar_npy
+from blindspot.radar.capture import (
+    CaptureError,
+    DCA1000Capture,
+    DCA1000Recording,
+    read_dca1000,
+    read_openradar_npy,
+)
 from blindspot.radar.config import RadarConfig
 from blindspot.radar.source import FrameSource
 from tests.conftest import REPO_ROOT
@@ -103,12 +109,38 @@ def dca_cube(dca_path):
 def test_dca1000_whole_frames_and_the_cut_one(dca_path):
     r = profile("dca1000_awr1843")
     assert dca_path.stat().st_size == DCA_SIZE
-    with pytest.warns(UserWarning, match=rf"adc_data.bin: {DCA_SIZE} bytes = 4 frames of "
-                      rf"{DCA_FRAME} bytes.*{DCA_SIZE - 4 * DCA_FRAME} bytes of a partial"):
+    with pytest.warns(UserWarning, match=rf"adc_data.bin: size is not a whole number of frames"
+                      rf".*{DCA_SIZE} bytes = 4 frames of {DCA_FRAME} bytes \+ "
+                      rf"{DCA_SIZE - 4 * DCA_FRAME} bytes.*a cut capture.*lost packets: "
+                      rf"{5 * DCA_FRAME - DCA_SIZE} bytes missing to 5 whole frames, not a whole "
+                      r"number of 1456-byte.*ends inside a sample"):
         cube = read_dca1000(dca_path, r.n_samples, r.n_chirps, r.n_tx, r.n_rx)
     assert cube.shape == (4, 255, 2, 4, 128) and cube.dtype == np.complex64
     # two's-complement ADC codes of a few thousand at most, not offset-binary (~32768)
     assert 500 < np.abs(cube.real).max() < 8192 and 500 < np.abs(cube.imag).max() < 8192
+
+
+def test_dca1000_wrong_loop_count_is_reported_with_its_causes(dca_path):
+    """256 loops instead of 255: the file is then 3 frames + 1,045,134 bytes (99.7 % of a
+    frame); no cut end is claimed, the numbers of each possible cause are given."""
+    r = profile("dca1000_awr1843")
+    frame = 128 * 256 * 2 * 4 * 4
+    with pytest.warns(UserWarning, match=rf"{DCA_SIZE} bytes = 3 frames of {frame} bytes \+ "
+                      rf"{DCA_SIZE - 3 * frame} bytes.*a cut capture.*lost packets: "
+                      rf"{4 * frame - DCA_SIZE} bytes missing to 4 whole frames.*a wrong profile"
+                      ) as w:
+        cube = read_dca1000(dca_path, r.n_samples, 256, r.n_tx, r.n_rx)
+    assert cube.shape[0] == 3 and "dropped" not in str(w[0].message)
+    with pytest.raises(CaptureError, match="not a whole number of frames"):
+        read_dca1000(dca_path, r.n_samples, 256, r.n_tx, r.n_rx, strict=True)
+
+
+def test_dca1000_real_frames_hold_no_zero_runs(dca_path):
+    with pytest.warns(UserWarning, match="not a whole number"):
+        cap = DCA1000Capture(dca_path, 128, 255, 2, 4)
+    report = cap.diagnose()
+    assert report.frames.longest_zero_run.max() <= 2  # a real ADC: no long runs of exact zeros
+    assert report.skip_bytes == 0 and report.leading_zero_bytes < 8
 
 
 def test_dca1000_strong_returns_consistent_across_chirps_and_frames(dca_cube):
@@ -143,7 +175,7 @@ def test_dca1000_other_interleavings_are_clearly_worse(dca_path, dca_cube):
 
 def test_dca1000_recording_source(dca_path, dca_cube):
     r = profile("dca1000_awr1843")
-    with pytest.warns(UserWarning, match="partial frame"):
+    with pytest.warns(UserWarning, match="not a whole number of frames"):
         src = DCA1000Recording(dca_path, r)
     assert isinstance(src, FrameSource) and src.n_frames == 4 and src.array.n_ula == 8
     assert np.array_equal(src.frame(2), dca_cube[2])

@@ -6,8 +6,8 @@ same way whatever the format:
 
 - :class:`CaptureError` names the file, the problem, the size (or value) found and expected;
 - :func:`to_int16_iq` turns complex values into the (I, Q) int16 codes every writer stores;
-- :func:`check_dims`, :func:`whole_frames`, :func:`check_range` are the profile, file-size
-  and frame-range checks (one frame's index: :func:`blindspot.radar.source.check_frame_index`);
+- :func:`check_dims`, :func:`check_adc_bits`, :func:`check_range` are the profile and
+  frame-range checks (one frame's index: :func:`blindspot.radar.source.check_frame_index`);
 - :func:`iter_frames_of` walks a stacked cube or any iterable of frames (a frame source);
 - :func:`atomic_files` writes several files through :func:`blindspot.io.atomic_path`, renaming
   them into place only when all are complete.
@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import contextlib
 import os
-import warnings
 from collections.abc import Iterable, Iterator, Sequence
 from pathlib import Path
 from typing import Any, Literal
@@ -25,17 +24,18 @@ from typing import Any, Literal
 import numpy as np
 
 from blindspot.io import atomic_path
+from blindspot.typed_config import ConfigError
 
 __all__ = [
     "BYTES_PER_IQ",
     "CaptureError",
     "Int16Conversion",
     "atomic_files",
+    "check_adc_bits",
     "check_dims",
     "check_range",
     "iter_frames_of",
     "to_int16_iq",
-    "whole_frames",
 ]
 
 BYTES_PER_IQ = 4  # int16 I + int16 Q
@@ -107,22 +107,14 @@ def check_dims(**dims: int) -> tuple[int, ...]:
     return tuple(int(v) for v in dims.values())
 
 
-def whole_frames(path: Path, size: int, frame_bytes: int, profile: str) -> int:
-    """Whole frames of ``frame_bytes`` in a headerless file of ``size`` bytes.
-
-    A trailing partial frame (a cut recording) is dropped with a ``UserWarning`` naming the file
-    and the sizes; a file smaller than one frame raises :class:`CaptureError` (file, size found,
-    size expected). ``profile`` describes the chirp profile in the messages.
-    """
-    n_frames, extra = divmod(int(size), int(frame_bytes))
-    if n_frames == 0:
-        raise CaptureError(path, f"file smaller than one frame ({profile})",
-                           f"{size} bytes", f"at least {frame_bytes} bytes")
-    if extra:
-        warnings.warn(f"{path}: {size} bytes = {n_frames} frames of {frame_bytes} bytes "
-                      f"({profile}) + {extra} bytes of a partial frame, which is dropped",
-                      stacklevel=3)
-    return n_frames
+def check_adc_bits(adc_bits: int | None, supported: tuple[int, ...], fmt: str) -> int:
+    """``adc_bits`` as an int if the format can honour it, else ``ConfigError('radar.adc_bits')``
+    naming what ``fmt`` supports."""
+    if adc_bits is None or int(adc_bits) not in supported:
+        raise ConfigError("radar.adc_bits", adc_bits,
+                          f"one of {list(supported)} ({fmt} files hold integer ADC codes in "
+                          "16-bit words; null means unquantised simulator output, not a file)")
+    return int(adc_bits)
 
 
 def check_range(start: int, stop: int | None, n: int) -> tuple[int, int]:

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from blindspot.radar.capture.common import CaptureError
+from blindspot.radar.capture.common import CaptureError, check_adc_bits
 from blindspot.radar.config import RadarConfig
 from blindspot.radar.source import ArrayRecording
 
@@ -34,12 +34,18 @@ def read_openradar_npy(path: str | os.PathLike, *, n_tx: int | None = None,
     Returns the stored shape, e.g. (chirps, samples) or (chirps, channels, samples), unless
     ``n_tx`` reshapes it. Raises :class:`CaptureError` (file, what was found, what was expected)
     for a missing file, a real array, values that are not integer codes or lie outside the code
-    range, or channels that do not split into ``n_tx`` TX.
+    range, or channels that do not split into ``n_tx`` TX, and for a file ``np.load`` cannot read
+    as a plain array (cut, not .npy, pickled objects).
     """
     path = Path(path)
     if not path.is_file():
         raise CaptureError(path, "OpenRadar .npy file not found")
-    a = np.load(path, allow_pickle=False)
+    try:  # memory-mapped: a header that claims more data than the file holds fails here
+        a = np.load(path, allow_pickle=False, mmap_mode="r")
+    except Exception as err:  # np.load's many ways to fail (ValueError, EOFError, SyntaxError..)
+        raise CaptureError(path, "not a readable .npy file", f"{type(err).__name__}: {err}",
+                           "a NumPy .npy array (no pickled objects)") from err
+    a = np.array(a)
     if not np.iscomplexobj(a):
         raise CaptureError(path, "expected a complex array", str(a.dtype), "complex I + jQ")
     iq = np.stack([a.real, a.imag], axis=-1)
@@ -66,9 +72,23 @@ def read_openradar_npy(path: str | os.PathLike, *, n_tx: int | None = None,
 
 class OpenRadarRecording(ArrayRecording):
     """An OpenRadar ``.npy`` (chirps, n_tx * n_rx, samples) as a frame source of one frame
-    (chirps, tx, rx, samples), channels split TX-major with ``radar.n_tx``; the frame shape must
-    match ``radar`` (``ValueError`` naming the file)."""
+    (chirps, tx, rx, samples), channels split TX-major with ``radar.n_tx``.
+
+    Of the profile, n_chirps, n_tx, n_rx and n_samples must match the stored shape
+    (:class:`CaptureError` naming the key, the file's value and the profile's), adc_bits must be
+    16 (the files hold 16-bit codes; else ``ConfigError``); tx_order and the array keys shape
+    ``array``.
+    """
 
     def __init__(self, path: str | os.PathLike, radar: RadarConfig, *, unsigned: bool = True):
-        super().__init__(read_openradar_npy(path, n_tx=radar.n_tx, unsigned=unsigned), radar,
-                         str(path))
+        check_adc_bits(radar.adc_bits, (16,), "OpenRadar .npy")
+        cube = read_openradar_npy(path, n_tx=radar.n_tx, unsigned=unsigned)
+        _, c, t, r, s = cube.shape
+        for key, value, want in (("n_chirps", c, radar.n_chirps),
+                                 ("n_tx * radar.n_rx", t * r, radar.n_tx * radar.n_rx),
+                                 ("n_samples", s, radar.n_samples)):
+            if value != want:
+                raise CaptureError(path, f"radar.{key} of profile '{radar.name}' does not match "
+                                   f"the file (stored (chirps, n_tx * n_rx, samples) = "
+                                   f"{(c, t * r, s)})", f"{value} in the file", f"{want}")
+        super().__init__(cube, radar, str(path))

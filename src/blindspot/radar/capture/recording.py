@@ -6,6 +6,7 @@ import os
 from typing import Any
 
 from blindspot.radar.capture.dca1000 import DCA1000Recording
+from blindspot.radar.capture.dca1000_packets import DCA1000PacketRecording
 from blindspot.radar.capture.openradar import OpenRadarRecording
 from blindspot.radar.capture.ti_cascade import TICascadeRecording
 from blindspot.radar.config import RadarConfig
@@ -16,6 +17,7 @@ __all__ = ["RECORDING_KINDS", "open_recording"]
 _RECORDINGS: dict[str, type] = {
     "ti_cascade": TICascadeRecording,
     "dca1000": DCA1000Recording,
+    "dca1000_packets": DCA1000PacketRecording,
     "openradar_npy": OpenRadarRecording,
 }
 RECORDING_KINDS: tuple[str, ...] = tuple(_RECORDINGS)
@@ -26,7 +28,11 @@ def open_recording(kind: str, path: str | os.PathLike, radar: RadarConfig,
     """A recording on disk as a frame source: ``kind`` in :data:`RECORDING_KINDS`.
 
     ``options`` go to the format's recording class as keywords (e.g. ``layout`` for
-    ``dca1000``). Raises ``ValueError`` for an unknown kind; the format's errors otherwise.
+    ``dca1000`` and ``dca1000_packets``, ``strict=True`` for the DCA1000 kinds to raise
+    :class:`~blindspot.radar.capture.common.CaptureError` where they would warn about the size,
+    zero runs or lost packets, ``part`` for ``ti_cascade``). ``path`` is a file, the cascade's
+    folder, or for ``dca1000_packets`` a list of the record's files in order. Raises
+    ``ValueError`` for an unknown kind; the format's errors otherwise.
     """
     if kind not in _RECORDINGS:
         raise ValueError(f"recording kind {kind!r} unknown: expected one of {RECORDING_KINDS}")

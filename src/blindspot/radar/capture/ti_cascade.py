@@ -62,6 +62,7 @@ from blindspot.radar.capture.common import (
     CaptureError,
     Int16Conversion,
     atomic_files,
+    check_adc_bits,
     check_dims,
     check_range,
     iter_frames_of,
@@ -69,6 +70,7 @@ from blindspot.radar.capture.common import (
 )
 from blindspot.radar.config import RadarConfig
 from blindspot.radar.source import RecordingFrames, check_frame_index
+from blindspot.typed_config import ConfigError
 
 __all__ = [
     "CASCADE_DEVICES",
@@ -80,6 +82,7 @@ __all__ = [
     "TICascadeRecording",
     "cascade_frame_bytes",
     "CascadePart",
+    "find_cascade_captures",
     "find_cascade_parts",
     "read_cascade_index",
     "read_ti_cascade",
@@ -117,6 +120,20 @@ def find_cascade_parts(folder: str | os.PathLike) -> list[int]:
     if not folder.is_dir():
         raise CaptureError(folder, "cascade capture folder not found")
     return sorted(int(m.group(1)) for p in folder.iterdir() if (m := _PART_RE.match(p.name)))
+
+
+def find_cascade_captures(folder: str | os.PathLike) -> list[int]:
+    """Alias of :func:`find_cascade_parts`, under the name other MMWCAS readers use for the parts
+    ("captures") of one recording: the part numbers NNNN in ``folder``, ascending."""
+    return find_cascade_parts(folder)
+
+
+def _part_or_capture_index(part: int | None, capture_index: int | None) -> int | None:
+    """``part``, or ``capture_index`` (its alias); ``TypeError`` if both are given."""
+    if part is not None and capture_index is not None:
+        raise TypeError(f"part = {part} and capture_index = {capture_index} given: "
+                        "capture_index is an alias of part, give one")
+    return part if capture_index is None else capture_index
 
 
 def _cascade_paths(folder: Path, part: int) -> tuple[list[Path], list[Path]]:
@@ -198,7 +215,9 @@ class TICascadeCapture:
     """
 
     def __init__(self, folder: str | os.PathLike, n_samples: int, n_chirps: int, n_tx: int, *,
-                 skip_first_frame: bool = True, part: int | None = None):
+                 skip_first_frame: bool = True, part: int | None = None,
+                 capture_index: int | None = None):
+        part = _part_or_capture_index(part, capture_index)
         self.folder = Path(folder)
         self.n_samples, self.n_chirps, self.n_tx = check_dims(n_samples=n_samples,
                                                               n_chirps=n_chirps, n_tx=n_tx)
@@ -407,7 +426,8 @@ class TICascadeCapture:
 
 
 def read_ti_cascade(folder: str | os.PathLike, n_samples: int, n_chirps: int, n_tx: int, *,
-                    skip_first_frame: bool = True, part: int | None = None) -> np.ndarray:
+                    skip_first_frame: bool = True, part: int | None = None,
+                    capture_index: int | None = None) -> np.ndarray:
     """Read a TI MMWCAS cascade recording, all its parts or one.
 
     Parameters
@@ -418,6 +438,8 @@ def read_ti_cascade(folder: str | os.PathLike, n_samples: int, n_chirps: int, n_
         processing does; applied once, however many parts are read.
     part : None (default) reads every part 0000, 0001, ... in order as one recording (empty
         parts skipped with a warning); N reads part N alone.
+    capture_index : alias of ``part`` (the name other MMWCAS readers use); ``TypeError`` if both
+        are given.
 
     Returns
     -------
@@ -430,12 +452,10 @@ def read_ti_cascade(folder: str | os.PathLike, n_samples: int, n_chirps: int, n_
         naming the file, the size found and the size expected: a missing folder, part or device
         file, a gap in the part numbers, an index that disagrees with its data, no frame left.
     """
-    cap = TICascadeCapture(folder, n_samples, n_chirps, n_tx, skip_first_frame=skip_first_frame,
-                           part=part)
-    try:
+    with contextlib.closing(TICascadeCapture(
+            folder, n_samples, n_chirps, n_tx, skip_first_frame=skip_first_frame, part=part,
+            capture_index=capture_index)) as cap:
         return cap.read()
-    finally:
-        cap.close()
 
 
 def write_ti_cascade(folder: str | os.PathLike, cube: np.ndarray | Iterable[np.ndarray], *,
@@ -523,10 +543,13 @@ def _cascade_index_bytes(n_frames: int, frame_bytes: int, n_samples: int, chirps
 class TICascadeRecording(RecordingFrames):
     """A TI MMWCAS capture on disk as a frame source (frames read lazily, one at a time).
 
-    radar : the capture's chirp profile (n_samples, n_chirps, n_tx, n_rx = 16, frame_period_s).
+    radar : the capture's chirp profile: n_samples, n_chirps, n_tx and frame_period_s are read
+        from it; n_rx must be 16 and adc_bits 16 (the MMWCAS stores 16-bit codes), else
+        :class:`~blindspot.typed_config.ConfigError` naming the key; tx_order and the array keys
+        shape ``array``.
     array : the virtual array; default ``array_for(radar)``.
-    skip_first_frame, part : as :func:`read_ti_cascade` (default: every part, joined in order,
-        the recording's first frame skipped).
+    skip_first_frame, part, capture_index : as :func:`read_ti_cascade` (default: every part,
+        joined in order, the recording's first frame skipped).
     times_s : index timestamps (ns, relative to the first frame read) when they increase and agree
         with ``radar.frame_period_s`` within 50 %; otherwise ``i * frame_period_s`` (with a
         warning if the timestamps were usable but disagreed).
@@ -535,15 +558,16 @@ class TICascadeRecording(RecordingFrames):
 
     def __init__(self, folder: str | os.PathLike, radar: RadarConfig, *,
                  array: VirtualArray | None = None, skip_first_frame: bool = True,
-                 part: int | None = None):
+                 part: int | None = None, capture_index: int | None = None):
         if radar.n_rx != CASCADE_N_RX:
-            raise ValueError(f"radar '{radar.name}' has n_rx = {radar.n_rx}; an MMWCAS capture "
-                             f"has {CASCADE_N_RX} RX")
+            raise ConfigError("radar.n_rx", radar.n_rx, f"{CASCADE_N_RX} (an MMWCAS capture holds "
+                              f"{CASCADE_N_RX} RX, 4 per device; profile '{radar.name}')")
+        check_adc_bits(radar.adc_bits, (16,), "MMWCAS")
         self.radar = radar
         self.array = array_for(radar) if array is None else array
         self.capture = TICascadeCapture(folder, radar.n_samples, radar.n_chirps, radar.n_tx,
                                         skip_first_frame=skip_first_frame,
-                                        part=part)
+                                        part=part, capture_index=capture_index)
         self._times = _frame_times(self.capture.timestamps_ns, radar.frame_period_s,
                                    self.capture.idx_paths[0])
 
