@@ -26,6 +26,7 @@ start ranges. :func:`random_path_set` returns the per-path draws so callers can 
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -248,15 +249,77 @@ def radar_like_noise(
     return out
 
 
-def table_to_arrays(table: pd.DataFrame) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+class PathDataError(ValueError):
+    """A path table or path array is not what the paths stage writes / a function expects."""
+
+
+class PathSkipWarning(UserWarning):
+    """Paths of a path table were dropped (``bad_paths="skip"``); one warning per table."""
+
+
+TABLE_COLUMNS = ("path_id", "point", "motion", "x_true_m", "y_true_m", "x_m", "y_m")
+
+
+def table_to_arrays(table: pd.DataFrame, *, source: str = "path table",
+                    bad_paths: str = "raise") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(truth (P, T, 2), measured (P, T, 2), motion (P,)) of the path table the ``paths`` stage
     writes (:func:`blindspot.synth.path_dataset.path_table`: one row per path point, columns
-    path_id, point, motion, x_true_m, y_true_m, x_m, y_m, ...); measured points are NaN where the
-    radar gave none. Raises ValueError when the rows are not whole paths of equal length."""
-    t = table.sort_values(["path_id", "point"])
-    p, n = t.path_id.nunique(), t.point.nunique()
-    if p * n != len(t):
-        raise ValueError(f"path table: {len(t)} rows are not {p} paths x {n} points")
-    truth = t[["x_true_m", "y_true_m"]].to_numpy().reshape(p, n, 2)
-    meas = t[["x_m", "y_m"]].to_numpy().reshape(p, n, 2)
-    return truth, meas, t.motion.to_numpy()[::n]
+    path_id, point, motion, x_true_m, y_true_m, x_m, y_m, ...; metres); measured points are NaN
+    where the radar gave none. Paths are ordered by ``path_id``, points by ``point``.
+
+    A path is defective when a (path_id, point) pair appears twice, its points are not
+    0 .. T-1 with T the longest path's length (missing or extra points), a truth coordinate is
+    not finite, or a measured coordinate is infinite.
+
+    Args:
+        table: the long table (any row order).
+        source: the file name used in messages.
+        bad_paths: "raise" (default: the table is a stage output, a defect is a bug upstream)
+            or "skip": drop the defective paths with one :class:`PathSkipWarning` giving the
+            count for each reason.
+
+    Raises:
+        PathDataError: a missing column, an empty table, a defective path (with "raise"), or no
+            path left (with "skip"); the message names ``source`` and the counts.
+    """
+    if bad_paths not in ("raise", "skip"):
+        raise PathDataError(f"bad_paths: expected 'raise' or 'skip', found {bad_paths!r}")
+    missing = [c for c in TABLE_COLUMNS if c not in table.columns]
+    if missing:
+        raise PathDataError(f"{source}: expected the columns {list(TABLE_COLUMNS)}, "
+                            f"missing {missing}")
+    if len(table) == 0:
+        raise PathDataError(f"{source}: the table holds no rows")
+    t = table.sort_values(["path_id", "point"], kind="stable")
+    pid, point = t.path_id.to_numpy(), t.point.to_numpy()
+    truth = t[["x_true_m", "y_true_m"]].to_numpy(dtype=float)
+    meas = t[["x_m", "y_m"]].to_numpy(dtype=float)
+    ids, inv, counts = np.unique(pid, return_inverse=True, return_counts=True)
+    # defects, one boolean per path (vectorised over rows with bincount)
+    repeat = np.zeros(len(t), bool)
+    repeat[1:] = (pid[1:] == pid[:-1]) & (point[1:] == point[:-1])
+    distinct = np.bincount(inv, weights=~repeat).astype(np.int64)   # distinct points per path
+    n = int(distinct.max())
+    # rank of each distinct row within its path (0, 1, ...): must equal its point index
+    seen = np.cumsum(~repeat)
+    rank = seen - 1 - np.repeat(seen[np.cumsum(counts) - 1] - distinct, counts)
+    reasons = {
+        "repeated (path_id, point) rows": np.bincount(inv, weights=repeat) > 0,
+        f"points not 0..{n - 1}": (distinct != n) | (np.bincount(
+            inv, weights=(point != rank) & ~repeat) > 0),
+        "non-finite truth": np.bincount(inv, weights=~np.isfinite(truth).all(axis=1)) > 0,
+        "infinite measured points": np.bincount(inv, weights=np.isinf(meas).any(axis=1)) > 0,
+    }
+    bad = np.logical_or.reduce(list(reasons.values()))
+    if bad.any():
+        counted = ", ".join(f"{int(v.sum())} with {k}" for k, v in reasons.items() if v.any())
+        what = f"{int(bad.sum())} of {ids.size} paths are defective ({counted})"
+        if bad_paths == "raise" or bad.all():
+            first = ids[np.flatnonzero(bad)[0]].item()
+            raise PathDataError(f"{source}: {what}; the first is path_id {first!r}"
+                                + ("" if bad.all() else "; pass bad_paths='skip' to drop them"))
+        warnings.warn(f"{source}: dropped {what}", PathSkipWarning, stacklevel=2)
+    keep = ~bad[inv]
+    p = int((~bad).sum())
+    motion = t.motion.to_numpy()[keep][::n]
+    return truth[keep].reshape(p, n, 2), meas[keep].reshape(p, n, 2), motion
