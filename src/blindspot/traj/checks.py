@@ -35,12 +35,15 @@ def check_array(value: Any, name: str, shape: Sequence[Any], *, error: type[Valu
     Args:
         value: the argument as given (array or nested sequence).
         name: the argument's name, used in the message.
-        shape: the expected shape: an int is a fixed size, a str an axis name of any size, and a
-            leading ``"..."`` any number (>= 0) of leading axes.
+        shape: the expected shape: an int is a fixed size, a str an axis name of any size (an
+            axis name used twice, as in ``("n", "n")``, means equal sizes), and a leading
+            ``"..."`` any number (>= 0) of leading axes.
         error: the exception class to raise (the calling module's own ``ValueError`` subclass).
         who: the function or file named at the start of the message.
         allow_nan: NaN stands for a missing value here (inf is refused all the same).
-        dtype: ``float`` (real numbers: integers or floats, returned as float64) or ``bool``.
+        dtype: ``float`` (real numbers: integers or floats, returned as float64), ``int``
+            (integers, or floats holding whole numbers, returned as int64; ids and indices) or
+            ``bool``.
 
     Returns:
         The checked array (a view of ``value`` when it already had the right dtype).
@@ -51,7 +54,7 @@ def check_array(value: Any, name: str, shape: Sequence[Any], *, error: type[Valu
     """
     prefix = f"{who}: " if who else ""
     want = describe_shape(shape)
-    kind = "booleans" if dtype is bool else "real numbers"
+    kind = {bool: "booleans", int: "integers"}.get(dtype, "real numbers")
     try:
         arr = np.asarray(value)
     except (ValueError, TypeError) as exc:   # ragged nested sequences
@@ -67,12 +70,22 @@ def check_array(value: Any, name: str, shape: Sequence[Any], *, error: type[Valu
     if (arr.ndim < len(fixed)) if batch else (arr.ndim != len(fixed)):
         raise error(f"{prefix}{name}: expected shape {want}, found shape {arr.shape}")
     tail = arr.shape[arr.ndim - len(fixed):]
-    for axis, (size, found) in enumerate(zip(fixed, tail)):
-        if isinstance(size, (int, np.integer)) and size != found:
-            raise error(f"{prefix}{name}: expected shape {want} (axis {fixed[axis]!s} of size "
-                        f"{size}), found shape {arr.shape}")
+    named: dict[str, int] = {}
+    for size, found in zip(fixed, tail):
+        if isinstance(size, str):               # an axis name: the same name, the same size
+            size = named.setdefault(size, found)
+        if size != found:
+            raise error(f"{prefix}{name}: expected shape {want}, found shape {arr.shape}")
     if dtype is bool:
         return arr
+    if dtype is int:
+        if arr.dtype.kind == "f":
+            whole = np.isfinite(arr) & (arr == np.round(arr))
+            if not whole.all():
+                where = tuple(int(i) for i in np.argwhere(~whole)[0])
+                raise error(f"{prefix}{name}: expected {kind}, found {arr[where].item()!r} at index "
+                            f"{where}")
+        return arr.astype(np.int64, copy=False)
     arr = arr.astype(np.float64, copy=False)
     finite = np.isfinite(arr)
     if not finite.all():
@@ -80,7 +93,7 @@ def check_array(value: Any, name: str, shape: Sequence[Any], *, error: type[Valu
         if bad.any():
             where = tuple(int(i) for i in np.argwhere(bad)[0])
             what = "finite values" if not allow_nan else "finite values or NaN (missing)"
-            raise error(f"{prefix}{name}: expected {what}, found {arr[where]!r} at index "
+            raise error(f"{prefix}{name}: expected {what}, found {arr[where].item()!r} at index "
                         f"{where} ({int(bad.sum())} such values)")
     return arr
 

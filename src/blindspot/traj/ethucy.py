@@ -46,7 +46,7 @@ from pathlib import Path
 
 import numpy as np
 
-from blindspot.traj.checks import check_array
+from blindspot.traj.checks import check_array, check_count
 from blindspot.traj.config import ETHUCY_FOLDS as FOLDS
 
 __all__ = [
@@ -292,8 +292,7 @@ def _scene_tracks(rows: np.ndarray, frame_step: int, source: str, bad_rows: str,
     rows = check_array(rows, "rows", ("R", 4), error=EthUcyDataError, who=source)
     if bad_rows not in BAD_ROWS:
         raise EthUcyDataError(f"bad_rows: expected one of {BAD_ROWS}, found {bad_rows!r}")
-    if not (isinstance(frame_step, (int, np.integer)) and frame_step >= 1):
-        raise EthUcyDataError(f"frame_step: expected an integer >= 1, found {frame_step!r}")
+    frame_step = check_count(frame_step, "frame_step", ge=1, error=EthUcyDataError, who=source)
     report = report if report is not None else SkipReport(source=source, rows=rows.shape[0])
     if rows.shape[0] == 0:
         raise EthUcyDataError(f"{source}: no rows")
@@ -351,9 +350,8 @@ def sliding_windows(tracks: SceneTracks, seq_len: int, *, min_peds: int = 2,
     Raises:
         EthUcyDataError: ``seq_len`` or ``min_peds`` not an integer >= 1.
     """
-    for key, value in (("seq_len", seq_len), ("min_peds", min_peds)):
-        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
-            raise EthUcyDataError(f"{key}: expected an integer >= 1, found {value!r}")
+    seq_len = check_count(seq_len, "seq_len", ge=1, error=EthUcyDataError, who=tracks.source)
+    min_peds = check_count(min_peds, "min_peds", ge=1, error=EthUcyDataError, who=tracks.source)
     present = np.isfinite(tracks.xy).all(axis=-1)                        # (P, F)
     P, F = present.shape
     csum = np.concatenate([np.zeros((P, 1), np.int64), np.cumsum(present, axis=1)], axis=1)
@@ -499,9 +497,12 @@ def random_rotations(xy: np.ndarray, copies: int, rng: np.random.Generator) -> n
 
     Returns:
         (copies * N, T, 2), copy-major (all windows of copy 0, then copy 1, ...).
+
+    Raises:
+        EthUcyDataError: ``xy`` not a finite real (N, T, 2) array, ``copies`` not an integer >= 0.
     """
-    if int(copies) != copies or copies < 0:
-        raise ValueError(f"copies: expected an integer >= 0, found {copies!r}")
+    xy = check_array(xy, "xy", ("N", "T", 2), error=EthUcyDataError, who="random_rotations")
+    copies = check_count(copies, "copies", error=EthUcyDataError, who="random_rotations")
     theta = rng.uniform(0.0, 2.0 * np.pi, size=(int(copies), xy.shape[0]))
     c, s = np.cos(theta)[..., None], np.sin(theta)[..., None]          # (copies, N, 1)
     x, y = xy[None, ..., 0], xy[None, ..., 1]                          # (1, N, T)
