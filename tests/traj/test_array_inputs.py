@@ -29,6 +29,7 @@ from blindspot.traj.paths import (
 )
 from blindspot.traj.predictor import HistoryError, from_frame, heading_frame, heading_frame_pairs
 from blindspot.traj.predictor import to_frame
+from blindspot.traj.train import rmse_euclidean
 from blindspot.traj.windows import WindowError, WindowSet, interpolate_gaps, make_windows
 
 RNG = np.random.default_rng(0)
@@ -37,6 +38,15 @@ BATCH = np.stack([TRACK, TRACK + 1.0])                          # (B, T, 2)
 KF = KalmanCV().matrices()
 ROT = np.broadcast_to(np.eye(2), (2, 2, 2))
 OBS = np.array([True, True, False, False, True, True, False, True])
+
+def _lstm():
+    """A small untrained LSTM predictor (window 4): only its input checks are exercised."""
+    from blindspot.traj.config import LSTMConfig
+    from blindspot.traj.lstm import LSTMPredictor, LSTMRegressor, NormStats
+
+    cfg = LSTMConfig(window=4, hidden_size=4, head_hidden=0)
+    return LSTMPredictor(LSTMRegressor(cfg), NormStats.fit(BATCH[:, :4], BATCH[:, 4], cfg))
+
 
 # (id, call with the argument x, good x, argument name, error class, NaN means "missing" here)
 FLOAT_CASES = [
@@ -48,6 +58,11 @@ FLOAT_CASES = [
     ("per_step_error.pred", lambda x: per_step_error(x, BATCH), BATCH, "pred", MetricShapeError,
      True),
     ("path_error.actual", lambda x: path_error(TRACK, x), TRACK, "actual", MetricShapeError, True),
+    ("rmse_euclidean.truth", lambda x: rmse_euclidean(TRACK, x), TRACK, "truth",
+     MetricShapeError, True),
+    ("lstm.predict", lambda x: _lstm().predict(x, 2), BATCH, "history", HistoryError, True),
+    ("lstm.predict_next", lambda x: _lstm().predict_next(x), BATCH[:, -4:], "windows",
+     HistoryError, False),
     ("cvm.predict", lambda x: ConstantVelocity().predict(x, 3), BATCH, "history", HistoryError,
      True),
     ("kalman.predict", lambda x: KalmanCV().predict(x, 3), BATCH, "history", HistoryError, True),

@@ -92,7 +92,8 @@ def check_array(value: Any, name: str, shape: Sequence[Any], *, error: type[Valu
         bad = ~finite if not allow_nan else np.isinf(arr)
         if bad.any():
             where = tuple(int(i) for i in np.argwhere(bad)[0])
-            what = "finite values" if not allow_nan else "finite values or NaN (missing)"
+            what = ("finite values (no NaN, no inf)" if not allow_nan
+                    else "finite values or NaN (missing), no inf")
             raise error(f"{prefix}{name}: expected {what}, found {arr[where].item()!r} at index "
                         f"{where} ({int(bad.sum())} such values)")
     return arr
