@@ -10,7 +10,12 @@ from hypothesis import strategies as st
 from blindspot.traj.baselines import ConstantVelocity, KalmanCV, kalman_filter, last_valid_index
 from blindspot.traj.checks import check_array
 from blindspot.traj.config import PathSpec
-from blindspot.traj.ethucy import EthUcyDataError, random_rotations, scene_tracks
+from blindspot.traj.ethucy import (
+    EthUcyDataError,
+    infer_frame_step,
+    random_rotations,
+    scene_tracks,
+)
 from blindspot.traj.evaluation import (
     EvaluationError,
     errors_at_horizons,
@@ -100,6 +105,8 @@ FLOAT_CASES = [
     ("scene_tracks", lambda x: scene_tracks(x), np.array(
         [[0, 1, 0.0, 0.0], [10, 1, 1.0, 0.0], [10, 2, 2.0, 1.0]]), "rows", EthUcyDataError,
      False),
+    ("infer_frame_step", lambda x: infer_frame_step(x), np.array(
+        [[0, 1, 0.0, 0.0], [10, 1, 1.0, 0.0]]), "rows", EthUcyDataError, False),
     ("radar_like_noise", lambda x: radar_like_noise(x), BATCH, "paths", PathDataError, False),
     ("in_field_of_view", lambda x: in_field_of_view(x, PathSpec()), BATCH, "xy", PathDataError,
      False),

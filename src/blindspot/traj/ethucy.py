@@ -235,7 +235,11 @@ def infer_frame_step(rows: np.ndarray) -> tuple[int | None, int, int, int]:
         ``(step, n_peds, n_pairs, n_all_pairs)``: the inferred step (None when no pedestrian is
         seen twice), how many pedestrians and consecutive-frame pairs step by it, and the number
         of consecutive pairs in all.
+
+    Raises:
+        EthUcyDataError: ``rows`` not a finite real (R, 4) array.
     """
+    rows = check_array(rows, "rows", ("R", 4), error=EthUcyDataError, who="infer_frame_step")
     r = rows[np.lexsort((rows[:, 0], rows[:, 1]))]
     same = np.diff(r[:, 1]) == 0
     diff = np.diff(r[:, 0])[same]
