@@ -13,7 +13,8 @@ Every failure raises one :class:`ConfigError` naming the dotted config key (``cf
 value found and what is allowed.
 
 Conversions (and nothing else): an OmegaConf node becomes plain containers (interpolations
-resolved); a list becomes a tuple; an int becomes a float where a float is declared; a mapping
+resolved); a list becomes a tuple; an int becomes a float where a float is declared (only when
+exact: an integer beyond 2**53 that a float would round is refused); a mapping
 becomes the nested config class of its field; a mapping of records (``{torso: {...}, head:
 {...}}``) becomes a tuple of records with ``name`` taken from each key. ``True`` is never an
 integer and a float is never an integer.
@@ -237,9 +238,22 @@ def _coerce(value: Any, tp: Any, rule: Rule, key: str) -> Any:
         if not isinstance(value, Mapping):
             raise ConfigError(key, value, "a mapping")
         return dict(value)
+    if tp is float and isinstance(value, int) and not isinstance(value, bool) \
+            and not _exact_float(value):
+        # 10**30 would silently become 1.0000000000000000199e30: refuse rather than round
+        raise ConfigError(key, value, _describe(tp, rule) + " (an integer this large has no "
+                          "exact float value; write it as a float, e.g. 1e30)")
     if not _scalar_ok(value, tp, rule):
         raise ConfigError(key, value, _describe(tp, rule))
     return float(value) if tp is float else value
+
+
+def _exact_float(v: int) -> bool:
+    """True when the integer ``v`` converts to a float without rounding or overflow."""
+    try:
+        return float(v) == v
+    except OverflowError:
+        return False
 
 
 def _is_config_tuple(tp: Any) -> bool:

@@ -177,5 +177,37 @@ def test_path_table_back_to_arrays_in_any_row_order():
     np.testing.assert_array_equal(t, truth)
     np.testing.assert_array_equal(m, meas)
     assert list(motion) == ["approaching", "receding", "perpendicular"]
-    with pytest.raises(ValueError, match="not 3 paths x 4 points"):
+    with pytest.raises(ValueError, match=r"1 of 3 paths are defective \(1 with points not 0..3\)"):
         table_to_arrays(table.iloc[:-1])
+
+
+def test_path_table_defects_are_refused_or_dropped_with_one_warning():
+    """Each kind of defective path is counted; "skip" drops them with one warning."""
+    import pandas as pd
+
+    from blindspot.traj.paths import PathDataError, PathSkipWarning, table_to_arrays
+
+    rng = np.random.default_rng(0)
+    truth = rng.normal(size=(6, 4, 2))
+    table = pd.DataFrame({
+        "path_id": np.repeat(np.arange(6), 4), "point": np.tile(np.arange(4), 6),
+        "motion": "receding", "x_true_m": truth[..., 0].ravel(),
+        "y_true_m": truth[..., 1].ravel(), "x_m": truth[..., 0].ravel(),
+        "y_m": truth[..., 1].ravel()})
+    table.loc[1, "x_true_m"] = np.nan               # path 0: non-finite truth
+    table.loc[6, "y_m"] = np.inf                    # path 1: infinite measured point
+    table.loc[9, "x_m"] = np.nan                    # path 2: a missed point (fine)
+    table = table.drop(index=13)                    # path 3: a point missing
+    table = pd.concat([table, table[table.path_id == 4].iloc[:1]])   # path 4: a repeated row
+    with pytest.raises(PathDataError, match=r"paths.parquet: 4 of 6 paths are defective "
+                       r"\(1 with repeated \(path_id, point\) rows, 1 with points not 0..3, "
+                       r"1 with non-finite truth, 1 with infinite measured points\); the first "
+                       r"is path_id 0"):
+        table_to_arrays(table, source="paths.parquet")
+    with pytest.warns(PathSkipWarning, match="dropped 4 of 6 paths") as caught:
+        t, m, _ = table_to_arrays(table, source="paths.parquet", bad_paths="skip")
+    assert len(caught) == 1
+    np.testing.assert_array_equal(t, truth[[2, 5]])
+    assert np.isnan(m[0, 1, 0]) and np.isfinite(m[1]).all()
+    with pytest.raises(PathDataError, match="missing \\['motion'\\]"):
+        table_to_arrays(table.drop(columns="motion"))

@@ -169,7 +169,20 @@ def load_scenes(group: Any, where: str = "scene") -> dict[str, SceneConfig]:
         merged = _deep_merge(g.shared, over)
         merged.setdefault("name", str(name))
         out[str(name)] = SceneConfig.from_mapping(merged, where=f"{where}.scenes.{name}")
+    if g.shared and out:
+        # a bad value in ``shared`` is an error even where every scene overrides it (it would
+        # otherwise sit unchecked until a new scene uses it): check the shared settings laid
+        # over the first scene, errors named ``scene.shared.<key>``
+        first = next(iter(out.values()))
+        SceneConfig.from_mapping(_deep_merge(_as_mapping(first), g.shared), where=f"{where}.shared")
     return out
+
+
+def _as_mapping(scene: SceneConfig) -> dict[str, Any]:
+    """A built scene as the mapping it came from (body parts as a list of records)."""
+    from dataclasses import asdict
+
+    return asdict(scene)
 
 
 # ----------------------------------------------------------------------------- kinematics

@@ -19,6 +19,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from blindspot.traj.checks import check_array
 from blindspot.traj.predictor import HistoryError, check_history
 
 __all__ = [
@@ -32,7 +33,13 @@ __all__ = [
 
 
 def last_valid_index(valid: np.ndarray) -> np.ndarray:
-    """Index of the last True along the last axis of ``valid`` (B, T); -1 where none is True."""
+    """Index of the last True along the last axis of ``valid`` (B, T); -1 where none is True.
+
+    Raises:
+        HistoryError: ``valid`` not a boolean (B, T) array.
+    """
+    valid = check_array(valid, "valid", ("B", "T"), error=HistoryError, who="last_valid_index",
+                        dtype=bool)
     T = valid.shape[-1]
     idx = T - 1 - np.argmax(valid[..., ::-1], axis=-1)
     return np.where(valid.any(axis=-1), idx, -1)
@@ -138,18 +145,23 @@ def cv_model(dt: float, process_psd: float, meas_std: float) -> tuple[np.ndarray
     Returns:
         ``(F (4, 4), Q (4, 4), H (2, 4), R (2, 2))``.
     """
-    if not dt > 0:
-        raise ValueError(f"KalmanCV.dt: expected a positive frame period in s, found {dt!r}")
-    if not process_psd > 0:
-        raise ValueError(f"KalmanCV.process_psd: expected > 0 (m^2/s^3), found {process_psd!r}")
-    if not meas_std > 0:
-        raise ValueError(f"KalmanCV.meas_std: expected > 0 (m), found {meas_std!r}")
+    for key, value, unit in (("dt", dt, "s"), ("process_psd", process_psd, "m^2/s^3"),
+                             ("meas_std", meas_std, "m")):
+        _check_positive(f"KalmanCV.{key}", value, unit)
     I2 = np.eye(2)
     F = np.block([[I2, dt * I2], [np.zeros((2, 2)), I2]])
     Q = process_psd * np.block([[dt**3 / 3 * I2, dt**2 / 2 * I2], [dt**2 / 2 * I2, dt * I2]])
     H = np.hstack([I2, np.zeros((2, 2))])
     R = meas_std**2 * I2
     return F, Q, H, R
+
+
+def _check_positive(key: str, value, unit: str) -> None:
+    """A finite real number > 0 (not a bool, string or complex), else ValueError naming key."""
+    if (isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer,
+                                                                     np.floating))
+            or not np.isfinite(value) or not value > 0):
+        raise ValueError(f"{key}: expected a finite number > 0 ({unit}), found {value!r}")
 
 
 def _unique_rows(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -191,15 +203,24 @@ def kalman_filter(obs: np.ndarray, F: np.ndarray, Q: np.ndarray, H: np.ndarray, 
     Returns:
         :class:`FilterResult` with filtered means (B, T, n), covariances (B, T, n, n) and the
         per-sequence log-likelihood (B,) (sum over observed rows of log N(z_t; H m_t|t-1, S_t)).
+
+    Raises:
+        HistoryError: an argument not real, of the wrong shape, or not finite (``obs`` and
+            ``m0`` may hold NaN: missing rows, tracks without a valid row).
     """
-    z = np.asarray(obs, dtype=float)
-    if z.ndim != 3:
-        raise ValueError(f"kalman_filter: obs must be (B, T, d), found shape {z.shape}")
-    B, T, d = z.shape
+    who = "kalman_filter"
+    F = check_array(F, "F", ("n", "n"), error=HistoryError, who=who)
     n = F.shape[0]
-    P0 = np.asarray(P0, float)
-    if P0.shape != (n, n):
-        raise ValueError(f"kalman_filter: P0 must be ({n}, {n}), found {P0.shape}")
+    Q = check_array(Q, "Q", (n, n), error=HistoryError, who=who)
+    H = check_array(H, "H", ("d", n), error=HistoryError, who=who)
+    z = check_array(obs, "obs", ("B", "T", H.shape[0]), error=HistoryError, who=who,
+                    allow_nan=True)
+    B, T, d = z.shape
+    R = check_array(R, "R", (d, d), error=HistoryError, who=who)
+    m0 = check_array(m0, "m0", ("...", n), error=HistoryError, who=who, allow_nan=True)
+    P0 = check_array(P0, "P0", (n, n), error=HistoryError, who=who)
+    if m0.shape not in ((n,), (B, n)):
+        raise HistoryError(f"{who}: m0 must be ({n},) or ({B}, {n}), found {m0.shape}")
     observed = np.isfinite(z).all(axis=-1)                               # (B, T)
     patterns, which = _unique_rows(observed)                             # (U, T), (B,)
     U = patterns.shape[0]
@@ -266,8 +287,7 @@ class KalmanCV:
     def __post_init__(self) -> None:
         cv_model(self.dt, self.process_psd, self.meas_std)   # validates the three values
         for key in ("init_pos_std", "init_vel_std"):
-            if not getattr(self, key) > 0:
-                raise ValueError(f"KalmanCV.{key}: expected > 0, found {getattr(self, key)!r}")
+            _check_positive(f"KalmanCV.{key}", getattr(self, key), "m" if "pos" in key else "m/s")
 
     # -- model --------------------------------------------------------------------------------
     def matrices(self) -> tuple[np.ndarray, ...]:
@@ -319,13 +339,14 @@ class KalmanCV:
 
         Returns:
             (T, 2) smoothed positions at every frame, missing frames included.
+
+        Raises:
+            HistoryError: ``track`` not real (T, 2), an inf value, or no valid row.
         """
         from pykalman import KalmanFilter
 
-        x = np.asarray(track, dtype=float)
-        if x.ndim != 2 or x.shape[1] != 2:
-            raise HistoryError(f"{self.name}.smooth: expected one track shaped (T, 2), "
-                               f"found shape {x.shape}")
+        x = check_array(track, "track", ("T", 2), error=HistoryError, who=f"{self.name}.smooth",
+                        allow_nan=True)
         valid = _valid_rows(x[None])[0]
         if not valid.any():
             raise HistoryError(f"{self.name}.smooth: the track has no valid (non-NaN) row to "

@@ -33,6 +33,7 @@ OPTIMIZERS: tuple[str, ...] = ("adam", "adamw")
 SCHEDULES: tuple[str, ...] = ("constant", "cosine")
 PREDICTION_METHODS: tuple[str, ...] = ("lstm", "constant_velocity", "kalman")
 ETHUCY_MODELS: tuple[str, ...] = ("cvm", "kalman", "lstm")
+SEED_MAX = 2**63 - 1     # the largest seed numpy and torch both take
 
 
 # ----------------------------------------------------------------------------- dataset
@@ -63,7 +64,8 @@ class PathSpec(TypedConfig):
 
     points_per_path: int = setting(200, ge=2)
     frame_period_s: float = setting(0.1, gt=0.0)
-    speed_mps: tuple[float, float] = setting((0.5, 2.0), ge=0.0, ordered=True)
+    # a walker, like the scenes' pedestrian (radar.scene.PedestrianConfig.speed_mps <= 10 m/s)
+    speed_mps: tuple[float, float] = setting((0.5, 2.0), ge=0.0, le=10.0, ordered=True)
     start_range_m: tuple[float, float] = setting((5.0, 45.0), ge=0.0, ordered=True)
     start_angle_deg: tuple[float, float] = setting((-60.0, 60.0), ge=-90.0, le=90.0, ordered=True)
     turn_rate_deg_s: tuple[float, float] = setting((-4.0, 4.0), ordered=True)
@@ -138,7 +140,8 @@ class DatasetConfig(PathSpec):
     fill_gaps: str = setting(choices=("linear", "none"), kw_only=True)
     target: str = setting(choices=("measured", "truth"), kw_only=True)
     split: SplitConfig = setting(kw_only=True)
-    seed: int = setting(ge=0, kw_only=True)
+    # seeds feed numpy and torch generators, which take at most 64-bit seeds
+    seed: int = setting(ge=0, le=SEED_MAX, kw_only=True)
 
 
 # ----------------------------------------------------------------------------- model, training
@@ -203,7 +206,7 @@ class TrainConfig(TypedConfig):
     batch_size: int = setting(64, ge=1)
     optimizer: str = setting("adam", choices=OPTIMIZERS)
     lr_schedule: str = setting("constant", choices=SCHEDULES)
-    seed: int = setting(0, ge=0)
+    seed: int = setting(0, ge=0, le=SEED_MAX)       # torch.manual_seed takes a 64-bit seed
     weight_decay: float = setting(0.0, ge=0.0)
     grad_clip: float | None = setting(None, ge=0.0)
     num_threads: int | None = setting(None, ge=1)
@@ -221,8 +224,11 @@ class KalmanConfig(TypedConfig):
         meas_std: measurement noise of a point, m (per coordinate).
     """
 
-    process_psd: float = setting(gt=0.0)
-    meas_std: float = setting(gt=0.0)
+    # Bounds of a walking pedestrian's model: q above 1e4 m^2/s^3 (an acceleration noise of
+    # ~100 m/s^2 over a second) or a position noise above 1 km describe no pedestrian and
+    # overflow the covariance (meas_std**2) long before 1e300; KalmanCV.fit searches far inside.
+    process_psd: float = setting(gt=0.0, le=1e4)
+    meas_std: float = setting(gt=0.0, le=1e3)
 
 
 @dataclass(frozen=True)

@@ -15,16 +15,38 @@ eth 181, hotel 1053, univ 24334, zara1 2253, zara2 5833 windows.
 Frames here are *physical* frames (``(frame - first_frame) / step``); the reference loader
 indexes the distinct frame ids present in the file instead. The two agree on this data set
 because no pedestrian's track spans an empty frame.
+
+What the loaders leave out, and how they say so (issue 9, item 5):
+
+* *Defective rows* (a non-finite value, a (frame, pedestrian) pair listed twice, a frame id off
+  the ``frame_step`` grid) are refused with :class:`EthUcyDataError` by default
+  (``bad_rows="raise"``, the benchmark must not change silently); with ``bad_rows="skip"`` they
+  are dropped and one :class:`EthUcySkipWarning` per file gives the counts.
+* *Protocol exclusions* (a pedestrian whose track has a gap, one too short for a window, a
+  window start without ``min_peds`` pedestrians) are how the standard benchmark is defined and
+  occur in every real file, so they are not warned about: they are counted in a
+  :class:`SkipReport` per file (``Windows.skipped``, ``sliding_windows(..., report=True)``).
+* A scene annotated on another frame step than the declared one (e.g. every 20 frame ids, a copy
+  at 1.25 fps; Trajectron++ issue 67) is refused, never windowed: the step is inferred as the
+  most common difference between a pedestrian's consecutive frame ids (gaps give multiples of
+  it and do not move the mode) and :class:`EthUcyDataError` names the file, both steps and how
+  many pedestrians and frame pairs support the inferred one. Refusing rather than warning: at
+  another step a 20-frame window is another duration, so no number computed from it is the
+  benchmark's. Pass ``frame_step`` to read such a file on purpose.
+* A split that yields no window at all is an :class:`EthUcyDataError` saying why (the files,
+  their track counts, the longest track against the window length needed).
 """
 
 from __future__ import annotations
 
 import os
-from dataclasses import dataclass
+import warnings
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
+from blindspot.traj.checks import check_array, check_count
 from blindspot.traj.config import ETHUCY_FOLDS as FOLDS
 
 __all__ = [
@@ -36,6 +58,10 @@ __all__ = [
     "PRED_LEN",
     "TEST_WINDOWS",
     "EthUcyDataError",
+    "EthUcySkipWarning",
+    "SkipReport",
+    "BAD_ROWS",
+    "infer_frame_step",
     "SceneTracks",
     "Windows",
     "default_data_dir",
@@ -58,8 +84,70 @@ TEST_WINDOWS: dict[str, int] = {"eth": 181, "hotel": 1053, "univ": 24334, "zara1
                                 "zara2": 5833}
 
 
+BAD_ROWS: tuple[str, ...] = ("raise", "skip")   # what a loader does with a defective row
+
+
 class EthUcyDataError(ValueError):
     """An ETH/UCY file or folder is missing or not in the expected format."""
+
+
+class EthUcySkipWarning(UserWarning):
+    """Defective rows of an ETH/UCY file were dropped (``bad_rows="skip"``); one per file."""
+
+
+@dataclass(frozen=True)
+class SkipReport:
+    """What one scene file lost on its way to windows, and why (counts).
+
+    Attributes:
+        source: the file.
+        rows: data rows read.
+        nan_rows: rows with a non-finite value (dropped with ``bad_rows="skip"``).
+        duplicate_rows: repeated (frame, pedestrian) rows dropped (the first in file order kept).
+        off_grid_rows: rows whose frame id is off the ``frame_step`` grid (dropped).
+        pedestrians: pedestrians left after the row checks.
+        peds_with_gaps: pedestrians absent in a frame between their first and last (windows
+            across the gap are not formed).
+        peds_too_short: pedestrians with no run of ``seq_len`` consecutive frames (no window).
+        peds_without_neighbour: pedestrians with such a run but no start where ``min_peds``
+            pedestrians are fully present (no window).
+        longest_track: longest run of consecutive present frames of any pedestrian, frames.
+        seq_len: frames per window (None before windowing).
+        windows: windows formed.
+    """
+
+    source: str
+    rows: int = 0
+    nan_rows: int = 0
+    duplicate_rows: int = 0
+    off_grid_rows: int = 0
+    pedestrians: int = 0
+    peds_with_gaps: int = 0
+    peds_too_short: int = 0
+    peds_without_neighbour: int = 0
+    longest_track: int = 0
+    seq_len: int | None = None
+    windows: int = 0
+
+    def defects(self) -> str:
+        """The dropped defective rows in words ('' when none)."""
+        parts = [f"{n} {what}" for n, what in (
+            (self.nan_rows, "rows with a non-finite value"),
+            (self.duplicate_rows, "repeated (frame, pedestrian) rows"),
+            (self.off_grid_rows, "rows with a frame id off the grid")) if n]
+        return ", ".join(parts)
+
+    def summary(self) -> str:
+        """One line: the file, its tracks, the longest one and what was left out."""
+        text = (f"{self.source}: {self.pedestrians} tracks, longest {self.longest_track} "
+                f"consecutive frames")
+        if self.seq_len is not None:
+            text += (f" (a window needs {self.seq_len}); {self.windows} windows; "
+                     f"{self.peds_too_short} tracks too short, {self.peds_with_gaps} with gaps, "
+                     f"{self.peds_without_neighbour} without a neighbour over a full window")
+        if self.defects():
+            text += f"; dropped {self.defects()}"
+        return text
 
 
 def default_data_dir() -> Path:
@@ -71,19 +159,31 @@ def default_data_dir() -> Path:
     return (repo / ".." / "shared" / "data" / "ethucy").resolve()
 
 
-def read_scene(path: str | Path) -> np.ndarray:
-    """Read one scene file.
+def read_scene(path: str | Path, *, bad_rows: str = "raise") -> np.ndarray:
+    """Read one scene file (ETH: Pellegrini et al. 2009; UCY: Lerner et al. 2007).
 
     Args:
-        path: a tab/space-separated text file with rows ``frame ped_id x y``.
+        path: a tab/space-separated text file with rows ``frame ped_id x y`` (x, y in metres).
+        bad_rows: "raise" (default) refuses a row with a non-finite value or a (frame,
+            pedestrian) pair listed twice; "skip" drops them (a repeated pair keeps its first
+            row in file order) with one :class:`EthUcySkipWarning` giving the counts.
 
     Returns:
-        (R, 4) float64 array of the rows, sorted by (frame, ped_id).
+        (R, 4) float64 array of the rows (frame, ped_id, x_m, y_m), sorted by (frame, ped_id).
 
     Raises:
-        EthUcyDataError: missing file, wrong column count, non-numeric or non-finite values,
-            or a (frame, pedestrian) pair that appears twice.
+        EthUcyDataError: missing file, wrong column count, non-numeric values, no row, or (with
+            ``bad_rows="raise"``) a non-finite value or a repeated (frame, pedestrian) pair.
     """
+    rows, report = _read_rows(path, bad_rows)
+    _warn_defects(report)
+    return rows
+
+
+def _read_rows(path: str | Path, bad_rows: str) -> tuple[np.ndarray, SkipReport]:
+    """:func:`read_scene` without the warning: the rows and their :class:`SkipReport`."""
+    if bad_rows not in BAD_ROWS:
+        raise EthUcyDataError(f"bad_rows: expected one of {BAD_ROWS}, found {bad_rows!r}")
     p = Path(path)
     if not p.is_file():
         raise EthUcyDataError(f"{p}: no such ETH/UCY scene file")
@@ -95,16 +195,62 @@ def read_scene(path: str | Path) -> np.ndarray:
         raise EthUcyDataError(f"{p}: the file holds no rows")
     if rows.shape[1] != 4:
         raise EthUcyDataError(f"{p}: expected 4 columns 'frame ped_id x y', found {rows.shape[1]}")
-    if not np.isfinite(rows).all():
-        bad = int(np.flatnonzero(~np.isfinite(rows).all(axis=1))[0]) + 1
-        raise EthUcyDataError(f"{p}: non-finite value in data row {bad}")
-    order = np.lexsort((rows[:, 1], rows[:, 0]))
+    n_rows = rows.shape[0]
+    finite = np.isfinite(rows).all(axis=1)
+    if not finite.all() and bad_rows == "raise":
+        bad = np.flatnonzero(~finite)
+        raise EthUcyDataError(f"{p}: {bad.size} of {n_rows} data rows hold a non-finite value "
+                              f"(first: data row {bad[0] + 1}); pass bad_rows='skip' to drop them")
+    rows = rows[finite]
+    order = np.lexsort((np.arange(rows.shape[0]), rows[:, 1], rows[:, 0]))   # stable: file order
     rows = rows[order]
-    dup = (np.diff(rows[:, 0]) == 0) & (np.diff(rows[:, 1]) == 0)
-    if dup.any():
+    dup = np.concatenate([[False], (np.diff(rows[:, 0]) == 0) & (np.diff(rows[:, 1]) == 0)])
+    if dup.any() and bad_rows == "raise":
         i = int(np.flatnonzero(dup)[0])
-        raise EthUcyDataError(f"{p}: frame {rows[i, 0]:g} lists pedestrian {rows[i, 1]:g} twice")
-    return rows
+        raise EthUcyDataError(f"{p}: frame {rows[i, 0]:g} lists pedestrian {rows[i, 1]:g} twice "
+                              f"({int(dup.sum())} repeated (frame, pedestrian) rows in all); "
+                              "pass bad_rows='skip' to keep the first of each")
+    if not rows[~dup].size:
+        raise EthUcyDataError(f"{p}: no valid row left of {n_rows} "
+                              f"({int((~finite).sum())} with a non-finite value)")
+    report = SkipReport(source=str(p), rows=n_rows, nan_rows=int((~finite).sum()),
+                        duplicate_rows=int(dup.sum()))
+    return rows[~dup], report
+
+
+def _warn_defects(report: SkipReport) -> None:
+    if report.defects():
+        warnings.warn(f"{report.source}: dropped {report.defects()} of {report.rows} rows",
+                      EthUcySkipWarning, stacklevel=3)
+
+
+def infer_frame_step(rows: np.ndarray) -> tuple[int | None, int, int, int]:
+    """The frame-id step of a scene: the most common difference between a pedestrian's
+    consecutive frame ids (a gap gives a multiple of the step and does not move the mode).
+
+    Args:
+        rows: (R, 4) rows ``frame ped_id x y`` (any order).
+
+    Returns:
+        ``(step, n_peds, n_pairs, n_all_pairs)``: the inferred step (None when no pedestrian is
+        seen twice), how many pedestrians and consecutive-frame pairs step by it, and the number
+        of consecutive pairs in all.
+
+    Raises:
+        EthUcyDataError: ``rows`` not a finite real (R, 4) array.
+    """
+    rows = check_array(rows, "rows", ("R", 4), error=EthUcyDataError, who="infer_frame_step")
+    r = rows[np.lexsort((rows[:, 0], rows[:, 1]))]
+    same = np.diff(r[:, 1]) == 0
+    diff = np.diff(r[:, 0])[same]
+    diff = diff[diff > 0]
+    if diff.size == 0:
+        return None, 0, 0, 0
+    steps, counts = np.unique(diff, return_counts=True)
+    step = steps[np.argmax(counts)]
+    peds = np.unique(r[1:, 1][same][np.diff(r[:, 0])[same] == step])
+    step_out = int(step) if float(step).is_integer() else float(step)
+    return step_out, int(peds.size), int(counts.max()), int(diff.size)
 
 
 @dataclass(frozen=True)
@@ -125,30 +271,71 @@ class SceneTracks:
 
 
 def scene_tracks(rows: np.ndarray, *, frame_step: int = FRAME_STEP,
-                 source: str = "<array>") -> SceneTracks:
-    """Put the rows of a scene (R, 4) on a dense (pedestrian, frame) grid.
+                 source: str = "<array>", bad_rows: str = "raise") -> SceneTracks:
+    """Put the rows of a scene (R, 4) ``frame ped_id x y`` on a dense (pedestrian, frame) grid.
+
+    Args:
+        rows: (R, 4) rows as :func:`read_scene` returns them.
+        frame_step: the declared frame-id step between annotated frames (ETH/UCY: 10 = 0.4 s).
+        source: the file name used in errors and warnings.
+        bad_rows: "raise" refuses a frame id off the grid; "skip" drops those rows with one
+            :class:`EthUcySkipWarning` giving the count.
 
     Raises:
-        EthUcyDataError: a frame id that is not on the ``frame_step`` grid.
+        EthUcyDataError: rows not shaped (R, 4) or not finite; a frame step inferred from the
+            data (:func:`infer_frame_step`) that is not ``frame_step``; a frame id off the grid.
     """
-    f0 = rows[:, 0].min()
+    tracks, report = _scene_tracks(rows, frame_step, source, bad_rows)
+    _warn_defects(report)
+    return tracks
+
+
+def _scene_tracks(rows: np.ndarray, frame_step: int, source: str, bad_rows: str,
+                  report: SkipReport | None = None) -> tuple[SceneTracks, SkipReport]:
+    """:func:`scene_tracks` without the warning: the grid and the :class:`SkipReport`."""
+    rows = check_array(rows, "rows", ("R", 4), error=EthUcyDataError, who=source)
+    if bad_rows not in BAD_ROWS:
+        raise EthUcyDataError(f"bad_rows: expected one of {BAD_ROWS}, found {bad_rows!r}")
+    frame_step = check_count(frame_step, "frame_step", ge=1, error=EthUcyDataError, who=source)
+    report = report if report is not None else SkipReport(source=source, rows=rows.shape[0])
+    if rows.shape[0] == 0:
+        raise EthUcyDataError(f"{source}: no rows")
+    step, n_peds, n_pairs, n_all = infer_frame_step(rows)
+    # the grid's phase is the most common frame id modulo the step, so one stray first row
+    # cannot push every other row off the grid
+    residue = np.mod(rows[:, 0], frame_step)
+    phases, counts = np.unique(residue, return_counts=True)
+    f0 = rows[residue == phases[np.argmax(counts)], 0].min()
     offset = (rows[:, 0] - f0) / frame_step
     fidx = np.rint(offset).astype(np.int64)
-    off_grid = np.abs(offset - fidx) > 1e-9
+    off_grid = (np.abs(offset - fidx) > 1e-9) | (fidx < 0)
+    first_off = (f" (frame id {rows[np.flatnonzero(off_grid)[0], 0]:g} is not on the grid of "
+                 f"step {frame_step} starting at {f0:g}; {int(off_grid.sum())} of "
+                 f"{rows.shape[0]} rows off the grid)") if off_grid.any() else ""
+    if step is not None and step != frame_step:
+        total = np.unique(rows[:, 1]).size
+        raise EthUcyDataError(
+            f"{source}: frame ids step by {step:g}, not the declared {frame_step}: "
+            f"{n_pairs} of {n_all} consecutive-frame pairs of {n_peds} of {total} pedestrians "
+            f"step by {step:g} ({n_all - n_pairs} by other amounts){first_off}. At another "
+            f"step a window of 20 frames is not the protocol's 8 s (0.4 s per frame); resample "
+            "the file, or pass frame_step to read it on purpose")
     if off_grid.any():
-        bad = rows[np.flatnonzero(off_grid)[0], 0]
-        raise EthUcyDataError(f"{source}: frame id {bad:g} is not on the grid of step "
-                              f"{frame_step} starting at {f0:g}")
+        if bad_rows == "raise":
+            raise EthUcyDataError(f"{source}: {first_off[2:-1]}; pass bad_rows='skip' to drop "
+                                  "them")
+        rows, fidx = rows[~off_grid], fidx[~off_grid]
     ped_ids, pidx = np.unique(rows[:, 1], return_inverse=True)
     n_frames = int(fidx.max()) + 1
     xy = np.full((ped_ids.size, n_frames, 2), np.nan)
     xy[pidx, fidx] = rows[:, 2:4]
     frames = f0 + frame_step * np.arange(n_frames)
-    return SceneTracks(xy=xy, frames=frames, ped_ids=ped_ids, source=source)
+    report = replace(report, off_grid_rows=int(off_grid.sum()), pedestrians=int(ped_ids.size))
+    return SceneTracks(xy=xy, frames=frames, ped_ids=ped_ids, source=source), report
 
 
-def sliding_windows(tracks: SceneTracks, seq_len: int, *, min_peds: int = 2
-                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def sliding_windows(tracks: SceneTracks, seq_len: int, *, min_peds: int = 2,
+                    report: bool = False):
     """All fully observed windows of ``seq_len`` consecutive frames (stride 1).
 
     Args:
@@ -156,23 +343,49 @@ def sliding_windows(tracks: SceneTracks, seq_len: int, *, min_peds: int = 2
         seq_len: frames per window (20 for observe 8 + predict 12).
         min_peds: a window start counts only if at least this many pedestrians are present in
             all of its frames (2 = the Social-GAN loader's ``num_peds > 1``; 1 = no filter).
+        report: also return a :class:`SkipReport` counting the pedestrians left out (gaps, too
+            short, no neighbour) and the longest track.
 
     Returns:
         ``(xy (N, seq_len, 2), ped (N,) row index into tracks.ped_ids, start (N,) first frame
-        index)``, ordered by start frame then pedestrian.
+        index)``, ordered by start frame then pedestrian; with ``report`` a fourth item, the
+        :class:`SkipReport`.
+
+    Raises:
+        EthUcyDataError: ``seq_len`` or ``min_peds`` not an integer >= 1.
     """
-    if seq_len < 1:
-        raise ValueError(f"seq_len: expected >= 1, found {seq_len}")
+    seq_len = check_count(seq_len, "seq_len", ge=1, error=EthUcyDataError, who=tracks.source)
+    min_peds = check_count(min_peds, "min_peds", ge=1, error=EthUcyDataError, who=tracks.source)
     present = np.isfinite(tracks.xy).all(axis=-1)                        # (P, F)
     P, F = present.shape
-    if F < seq_len:
-        return np.empty((0, seq_len, 2)), np.empty(0, np.int64), np.empty(0, np.int64)
     csum = np.concatenate([np.zeros((P, 1), np.int64), np.cumsum(present, axis=1)], axis=1)
-    full = (csum[:, seq_len:] - csum[:, :-seq_len]) == seq_len           # (P, F - seq_len + 1)
+    if F >= seq_len:
+        full = (csum[:, seq_len:] - csum[:, :-seq_len]) == seq_len       # (P, F - seq_len + 1)
+    else:
+        full = np.zeros((P, 0), bool)
+    has_run = full.any(axis=1)
     full &= (full.sum(axis=0) >= min_peds)[None, :]
     start, ped = np.nonzero(full.T)
     idx = start[:, None] + np.arange(seq_len)[None, :]
-    return tracks.xy[ped[:, None], idx], ped, start
+    xy = tracks.xy[ped[:, None], idx].reshape(-1, seq_len, 2)
+    if not report:
+        return xy, ped, start
+    # gaps: absent frames between a pedestrian's first and last present frame
+    seen = present.any(axis=1)
+    first = np.argmax(present, axis=1)
+    last = F - 1 - np.argmax(present[:, ::-1], axis=1)
+    gaps = seen & (csum[:, -1] < last - first + 1)
+    # longest run of consecutive present frames (vectorised: distance to the last reset)
+    frame = np.arange(F)[None, :]
+    reset = np.maximum.accumulate(np.where(present, -1, frame), axis=1)
+    run = np.where(present, frame - reset, 0)
+    skips = SkipReport(
+        source=tracks.source, pedestrians=int(P), peds_with_gaps=int(gaps.sum()),
+        peds_too_short=int((~has_run).sum()),
+        peds_without_neighbour=int((has_run & ~full.any(axis=1)).sum()),
+        longest_track=int(run.max()) if run.size else 0, seq_len=int(seq_len),
+        windows=int(ped.size))
+    return xy, ped, start, skips
 
 
 @dataclass(frozen=True)
@@ -185,6 +398,7 @@ class Windows:
         start: (N,) first frame index of each window within its file.
         file_index: (N,) index into ``files``.
         files: the scene files read, sorted by name.
+        skipped: one :class:`SkipReport` per file, in ``files`` order.
     """
 
     xy: np.ndarray
@@ -192,6 +406,7 @@ class Windows:
     start: np.ndarray
     file_index: np.ndarray
     files: tuple[str, ...]
+    skipped: tuple[SkipReport, ...] = field(default=())
 
     def __len__(self) -> int:
         return int(self.xy.shape[0])
@@ -225,28 +440,52 @@ def split_files(data_dir: str | Path, fold: str, split: str) -> list[Path]:
 
 
 def load_split(data_dir: str | Path, fold: str, split: str, *, seq_len: int = OBS_LEN + PRED_LEN,
-               min_peds: int = 2) -> Windows:
+               min_peds: int = 2, frame_step: int = FRAME_STEP, bad_rows: str = "raise"
+               ) -> Windows:
     """Windows of one fold and split, Social-GAN style (see :func:`sliding_windows`).
 
     Args:
         data_dir: folder holding ``eth/ hotel/ univ/ zara1/ zara2/``.
         fold: one of :data:`FOLDS`; split: one of :data:`SPLITS`.
         seq_len: frames per window; min_peds: see :func:`sliding_windows`.
+        frame_step: declared frame-id step (:func:`scene_tracks`); bad_rows: "raise" or "skip"
+            defective rows (:func:`read_scene`, :func:`scene_tracks`).
+
+    Returns:
+        :class:`Windows` with ``xy`` (N, seq_len, 2) metres and one :class:`SkipReport` per file
+        in ``skipped``. Defective rows dropped with ``bad_rows="skip"`` give one
+        :class:`EthUcySkipWarning` per file.
+
+    Raises:
+        EthUcyDataError: see :func:`split_files`, :func:`read_scene`, :func:`scene_tracks`; and
+            when no file of the split yields a window (the message lists each file's tracks
+            and its longest track against ``seq_len``).
     """
-    parts, ids, starts, file_idx = [], [], [], []
+    parts, ids, starts, file_idx, reports = [], [], [], [], []
     offset = 0
     files = split_files(data_dir, fold, split)
     for i, path in enumerate(files):
-        tracks = scene_tracks(read_scene(path), source=str(path))
-        xy, ped, start = sliding_windows(tracks, seq_len, min_peds=min_peds)
+        rows, read = _read_rows(path, bad_rows)
+        tracks, grid = _scene_tracks(rows, frame_step, str(path), bad_rows, read)
+        _warn_defects(grid)
+        xy, ped, start, skips = sliding_windows(tracks, seq_len, min_peds=min_peds, report=True)
+        reports.append(replace(skips, rows=grid.rows, nan_rows=grid.nan_rows,
+                               duplicate_rows=grid.duplicate_rows,
+                               off_grid_rows=grid.off_grid_rows))
         parts.append(xy)
         ids.append(ped + offset)
         starts.append(start)
         file_idx.append(np.full(ped.size, i, np.int64))
         offset += tracks.ped_ids.size
-    return Windows(xy=np.concatenate(parts), track_id=np.concatenate(ids),
-                   start=np.concatenate(starts), file_index=np.concatenate(file_idx),
-                   files=tuple(str(f) for f in files))
+    windows = Windows(xy=np.concatenate(parts), track_id=np.concatenate(ids),
+                      start=np.concatenate(starts), file_index=np.concatenate(file_idx),
+                      files=tuple(str(f) for f in files), skipped=tuple(reports))
+    if len(windows) == 0:
+        raise EthUcyDataError(
+            f"{Path(data_dir) / fold / split}: no window of {seq_len} consecutive frames with "
+            f"at least {min_peds} pedestrians present in {len(files)} files: "
+            + "; ".join(r.summary() for r in reports))
+    return windows
 
 
 def random_rotations(xy: np.ndarray, copies: int, rng: np.random.Generator) -> np.ndarray:
@@ -262,9 +501,12 @@ def random_rotations(xy: np.ndarray, copies: int, rng: np.random.Generator) -> n
 
     Returns:
         (copies * N, T, 2), copy-major (all windows of copy 0, then copy 1, ...).
+
+    Raises:
+        EthUcyDataError: ``xy`` not a finite real (N, T, 2) array, ``copies`` not an integer >= 0.
     """
-    if int(copies) != copies or copies < 0:
-        raise ValueError(f"copies: expected an integer >= 0, found {copies!r}")
+    xy = check_array(xy, "xy", ("N", "T", 2), error=EthUcyDataError, who="random_rotations")
+    copies = check_count(copies, "copies", error=EthUcyDataError, who="random_rotations")
     theta = rng.uniform(0.0, 2.0 * np.pi, size=(int(copies), xy.shape[0]))
     c, s = np.cos(theta)[..., None], np.sin(theta)[..., None]          # (copies, N, 1)
     x, y = xy[None, ..., 0], xy[None, ..., 1]                          # (1, N, T)

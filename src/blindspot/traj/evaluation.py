@@ -20,16 +20,37 @@ from collections.abc import Mapping
 import numpy as np
 import pandas as pd
 
-from blindspot.traj.interpolation import find_gaps
+from blindspot.traj.checks import check_array
 from blindspot.traj.metrics import displacement, path_error
 
 PER_STEP_ARRAYS = ("per_step_m", "path_error_m", "path_error_radar_m")
 
 
+class EvaluationError(ValueError):
+    """An array or setting handed to a scoring function is malformed, or there is nothing to
+    score (names the argument, what was expected and what was found)."""
+
+
+def _check_dt(dt_s, horizons_s, who: str) -> tuple[float, tuple[float, ...]]:
+    dt = check_array(dt_s, "dt_s", (), error=EvaluationError, who=who)
+    hs = check_array(horizons_s, "horizons_s", ("K",), error=EvaluationError, who=who)
+    if not dt > 0 or (hs <= 0).any():
+        raise EvaluationError(f"{who}: expected dt_s > 0 and horizons_s > 0 (s), found "
+                              f"{dt_s!r}, {list(horizons_s)!r}")
+    return float(dt), tuple(float(h) for h in hs)
+
+
 def errors_at_horizons(err_per_step: np.ndarray, dt_s: float,
                        horizons_s: tuple[float, ...]) -> dict[str, float]:
     """ADE and FDE up to each horizon: ``ade_<h>s`` = mean error over steps 1..n, ``fde_<h>s`` the
-    error at step n, n = round(h / dt). Horizons longer than the prediction give NaN."""
+    error at step n, n = round(h / dt). Horizons longer than the prediction give NaN.
+
+    err_per_step : (H,) errors in m (NaN allowed); dt_s : frame period in s; horizons_s in s.
+    Raises EvaluationError for a malformed array, or dt_s / a horizon not > 0.
+    """
+    err_per_step = check_array(err_per_step, "err_per_step", ("H",), error=EvaluationError,
+                               who="errors_at_horizons", allow_nan=True)
+    dt_s, horizons_s = _check_dt(dt_s, horizons_s, "errors_at_horizons")
     out: dict[str, float] = {}
     for h in horizons_s:
         n = int(round(h / dt_s))
@@ -49,7 +70,19 @@ def score_prediction(pred: np.ndarray, truth: np.ndarray, radar_track: np.ndarra
     pred : (H, 2) predicted positions; truth : (H, 2) true positions at the same frames;
     radar_track : (M, 2) the radar's points of the same walk without the car (NaN rows allowed),
     or None. Returns a flat dict of floats plus ``per_step_m`` (H,) and ``path_error_m`` (H,).
+    Raises EvaluationError: an array not real of its shape (H >= 1), pred and truth of
+    different lengths, inf values (NaN rows allowed), or dt_s / a horizon not > 0.
     """
+    who = "score_prediction"
+    pred = check_array(pred, "pred", ("H", 2), error=EvaluationError, who=who, allow_nan=True)
+    truth = check_array(truth, "truth", (len(pred), 2), error=EvaluationError, who=who,
+                        allow_nan=True)
+    if radar_track is not None:
+        radar_track = check_array(radar_track, "radar_track", ("M", 2), error=EvaluationError,
+                                  who=who, allow_nan=True)
+    if len(pred) == 0:
+        raise EvaluationError(f"{who}: pred: expected at least one predicted point, found none")
+    _check_dt(dt_s, horizons_s, who)
     per_step = displacement(pred, truth)
     to_truth = path_error(pred, truth)
     out = {
@@ -77,12 +110,16 @@ def gap_mask(observed: np.ndarray) -> np.ndarray:
     """(T,) bool: the frames inside the track's interior gaps (what interpolation fills).
 
     observed : (T,) bool, True where the track has a point. Frames missing before the first or
-    after the last point are not a gap (nothing on both sides).
+    after the last point are not a gap (nothing on both sides); the same frames as
+    :func:`blindspot.traj.interpolation.find_gaps`, as a mask. Raises EvaluationError when
+    ``observed`` is not a 1-D boolean array.
     """
-    gap = np.zeros(len(observed), bool)
-    for a, b in find_gaps(np.asarray(observed, bool)):
-        gap[a:b] = True
-    return gap
+    obs = check_array(observed, "observed", ("T",), error=EvaluationError, who="gap_mask",
+                      dtype=bool)
+    if not obs.any():
+        return np.zeros(obs.shape, bool)
+    seen = np.cumsum(obs)                       # observed frames up to and including each frame
+    return ~obs & (seen > 0) & (seen < seen[-1])   # a point before and a point after
 
 
 def score_interpolation(filled: np.ndarray, truth: np.ndarray, observed: np.ndarray,
@@ -93,14 +130,22 @@ def score_interpolation(filled: np.ndarray, truth: np.ndarray, observed: np.ndar
     hidden : (T,) bool, frames where the pedestrian was hidden behind the car.
     Returns ``hidden_mean_m``, ``hidden_median_m``, ``hidden_max_m`` (over the filled frames
     that were hidden), ``all_gaps_mean_m`` (over every filled frame), ``n_hidden_filled``,
-    ``n_filled``. Raises ``ValueError`` when no hidden frame was filled (nothing to score).
+    ``n_filled``. Raises :class:`EvaluationError` when no hidden frame was filled (nothing to
+    score), or an array is not real / boolean of its shape (T, 2) / (T,) or holds inf.
     """
+    who = "score_interpolation"
+    filled = check_array(filled, "filled", ("T", 2), error=EvaluationError, who=who,
+                         allow_nan=True)          # NaN before the first / after the last point
+    T = len(filled)
+    truth = check_array(truth, "truth", (T, 2), error=EvaluationError, who=who, allow_nan=True)
+    observed = check_array(observed, "observed", (T,), error=EvaluationError, who=who, dtype=bool)
+    hidden = check_array(hidden, "hidden", (T,), error=EvaluationError, who=who, dtype=bool)
     gap = gap_mask(observed)
-    hidden_gap = gap & np.asarray(hidden, bool)
+    hidden_gap = gap & hidden
     if not hidden_gap.any():
-        raise ValueError("score_interpolation: no hidden frame lies in a gap of the track "
+        raise EvaluationError("score_interpolation: no hidden frame lies in a gap of the track "
                          f"({int(gap.sum())} filled frames, {int(np.sum(hidden))} hidden)")
-    err = np.hypot(*(np.asarray(filled) - np.asarray(truth)).T)
+    err = np.hypot(*(filled - truth).T)
     return {
         "hidden_mean_m": float(err[hidden_gap].mean()),
         "hidden_median_m": float(np.median(err[hidden_gap])),

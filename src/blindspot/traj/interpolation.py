@@ -21,9 +21,13 @@ from collections.abc import Callable
 
 import numpy as np
 
+from blindspot.traj.checks import check_array, check_count
+from blindspot.traj.config import INTERPOLATION_METHODS as METHODS
 from blindspot.traj.predictor import PathPredictor
 
-from blindspot.traj.config import INTERPOLATION_METHODS as METHODS
+
+class InterpolationError(ValueError):
+    """A track, mask or method handed to a gap filler is malformed (names the argument)."""
 
 
 def find_gaps(observed: np.ndarray) -> np.ndarray:
@@ -31,10 +35,10 @@ def find_gaps(observed: np.ndarray) -> np.ndarray:
 
     observed : (T,) bool. Returns (G, 2) int array of [start, stop) frame indices of each run of
     False that has a True on both sides (leading and trailing runs are not gaps: nothing bounds them).
+    Raises InterpolationError when ``observed`` is not a 1-D boolean array.
     """
-    obs = np.asarray(observed, dtype=bool)
-    if obs.ndim != 1:
-        raise ValueError(f"observed must be 1-D (T,), got shape {obs.shape}")
+    obs = check_array(observed, "observed", ("T",), error=InterpolationError, who="find_gaps",
+                      dtype=bool)
     edges = np.diff(np.concatenate([[1], obs.astype(np.int8), [1]]))
     starts = np.flatnonzero(edges == -1)
     stops = np.flatnonzero(edges == 1)
@@ -45,11 +49,9 @@ def find_gaps(observed: np.ndarray) -> np.ndarray:
     return np.stack([starts[interior], stops[interior]], axis=1).reshape(-1, 2)
 
 
-def _check_track(track: np.ndarray) -> np.ndarray:
-    t = np.asarray(track, dtype=float)
-    if t.ndim != 2 or t.shape[1] != 2:
-        raise ValueError(f"track must have shape (T, 2) of (x, y) metres, got {t.shape}")
-    return t
+def _check_track(track: np.ndarray, who: str, name: str = "track") -> np.ndarray:
+    """(T, 2) float64 (x, y) metres, NaN rows = no point; InterpolationError otherwise."""
+    return check_array(track, name, ("T", 2), error=InterpolationError, who=who, allow_nan=True)
 
 
 def _rollout(predictor: PathPredictor, history: np.ndarray, horizon: int) -> np.ndarray:
@@ -68,10 +70,13 @@ def pad_history(history: np.ndarray, length: int, fit_points: int = 10) -> np.nd
     """Extend a (T, 2) history at its start to ``length`` rows by walking its first observed
     points backwards at their mean velocity (a least-squares line over the first ``fit_points``
     observed rows). Rows already there are kept as they are, NaN included."""
-    h = _check_track(history)
+    h = _check_track(history, "pad_history", "history")
+    length = check_count(length, "length", error=InterpolationError, who="pad_history")
+    fit_points = check_count(fit_points, "fit_points", ge=1, error=InterpolationError,
+                             who="pad_history")
     seen = np.flatnonzero(~np.isnan(h).any(axis=1))
     if len(seen) == 0:
-        raise ValueError("cannot pad a history with no observed point")
+        raise InterpolationError("pad_history: cannot pad a history with no observed point")
     n_pad = length - len(h)
     if n_pad <= 0:
         return h
@@ -88,7 +93,7 @@ def pad_history(history: np.ndarray, length: int, fit_points: int = 10) -> np.nd
 
 def fill_forward(track: np.ndarray, predictor: PathPredictor) -> np.ndarray:
     """Fill each gap by rolling ``predictor`` forward from everything seen (or filled) before it."""
-    out = _check_track(track).copy()
+    out = _check_track(track, "fill_forward").copy()
     for start, stop in find_gaps(~np.isnan(out).any(axis=1)):
         out[start:stop] = _rollout(predictor, _observed_prefix(out[:start]), stop - start)
     return out
@@ -96,7 +101,7 @@ def fill_forward(track: np.ndarray, predictor: PathPredictor) -> np.ndarray:
 
 def fill_bidirectional(track: np.ndarray, predictor: PathPredictor) -> np.ndarray:
     """Fill each gap with a blend of a forward rollout and a backward rollout (time-reversed)."""
-    out = _check_track(track).copy()
+    out = _check_track(track, "fill_bidirectional").copy()
     observed = ~np.isnan(out).any(axis=1)
     for start, stop in find_gaps(observed):
         n = stop - start
@@ -110,7 +115,7 @@ def fill_bidirectional(track: np.ndarray, predictor: PathPredictor) -> np.ndarra
 
 def fill_kalman(track: np.ndarray, smoother: Callable[[np.ndarray], np.ndarray]) -> np.ndarray:
     """Fill the gaps with a smoother's estimate (e.g. ``KalmanCV.smooth``); seen rows stay as seen."""
-    out = _check_track(track).copy()
+    out = _check_track(track, "fill_kalman").copy()
     smoothed = np.asarray(smoother(out))
     for start, stop in find_gaps(~np.isnan(out).any(axis=1)):
         out[start:stop] = smoothed[start:stop]
@@ -121,24 +126,30 @@ def _observed_prefix(history: np.ndarray) -> np.ndarray:
     """Drop the leading unobserved rows of a history (a predictor needs a first point to start)."""
     seen = np.flatnonzero(~np.isnan(history).any(axis=1))
     if len(seen) == 0:
-        raise ValueError("no observed point on this side of the gap to roll out from")
+        raise InterpolationError("no observed point on this side of the gap to roll out from")
     return history[seen[0]:]
 
 
 def interpolate(track: np.ndarray, method: str, *, predictor: PathPredictor | None = None,
                 smoother: Callable[[np.ndarray], np.ndarray] | None = None) -> np.ndarray:
-    """Fill the gaps of ``track`` (T, 2) with ``method`` in METHODS."""
+    """Fill the gaps of ``track`` (T, 2) with ``method`` in METHODS.
+
+    Raises:
+        InterpolationError: ``track`` not a real (T, 2) array (NaN rows are the frames to fill,
+            inf is refused), an unknown method, or a missing predictor / smoother.
+    """
     if method == "forward":
         return fill_forward(track, _need(predictor, method))
     if method == "bidirectional":
         return fill_bidirectional(track, _need(predictor, method))
     if method == "kalman":
         return fill_kalman(track, _need(smoother, method))
-    raise ValueError(f"interpolation method {method!r} unknown: expected one of {METHODS}")
+    raise InterpolationError(f"interpolation method {method!r} unknown: expected one of "
+                             f"{METHODS}")
 
 
 def _need(obj, method):
     if obj is None:
-        raise ValueError(f"interpolation method {method!r} needs a "
+        raise InterpolationError(f"interpolation method {method!r} needs a "
                          f"{'smoother' if method == 'kalman' else 'predictor'}")
     return obj

@@ -32,7 +32,9 @@ import torch
 from torch import nn
 
 from blindspot.io import atomic_path
+from blindspot.traj.checks import check_array, check_count
 from blindspot.traj.config import LSTMConfig
+from blindspot.traj.predictor import HistoryError
 from blindspot.traj.windows import interpolate_gaps
 
 _FORMAT = "blindspot.lstm/1"
@@ -58,9 +60,10 @@ class NormStats:
 
     @classmethod
     def fit(cls, x: np.ndarray, y: np.ndarray, cfg: LSTMConfig) -> NormStats:
-        """Fit on training windows x (N, W, 2) and targets y (N, 2) (float64 accumulation)."""
-        x = np.asarray(x, dtype=np.float64)
-        y = np.asarray(y, dtype=np.float64)
+        """Fit on training windows x (N, W, 2) and targets y (N, 2) (float64 accumulation).
+        Raises HistoryError when they are not finite real arrays of those shapes."""
+        x = check_array(x, "x", ("N", "W", 2), error=HistoryError, who="NormStats.fit")
+        y = check_array(y, "y", (len(x), 2), error=HistoryError, who="NormStats.fit")
         if not cfg.normalise:
             return cls(cfg.translate, cfg.target)
         if cfg.translate:
@@ -131,10 +134,9 @@ class LSTMRegressor(nn.Module):
 
 
 def _as_windows(arr: Any, window: int, what: str) -> torch.Tensor:
-    t = torch.as_tensor(np.asarray(arr, dtype=np.float32))
-    if t.ndim != 3 or t.shape[1] != window or t.shape[2] != 2:
-        raise ValueError(f"{what}: expected shape (B, {window}, 2), found {tuple(t.shape)}")
-    return t
+    """(B, window, 2) finite real windows as float32; HistoryError naming ``what`` otherwise."""
+    arr = check_array(arr, what, ("B", window, 2), error=HistoryError, who="lstm")
+    return torch.as_tensor(arr.astype(np.float32))
 
 
 def fill_history(history: np.ndarray) -> np.ndarray:
@@ -192,10 +194,11 @@ class LSTMPredictor:
             return self.stats.decode(x, self.model(self.stats.encode(x)))
 
     def predict_next(self, windows: np.ndarray) -> np.ndarray:
-        """One-step prediction: windows (B, W, 2) in metres -> (B, 2) float64 next points."""
-        x = _as_windows(windows, self.window, "windows")
-        if not torch.isfinite(x).all():
-            raise ValueError("windows: contain NaN/inf; fill gaps first (blindspot.traj.windows.interpolate_gaps)")
+        """One-step prediction: windows (B, W, 2) in metres -> (B, 2) float64 next points.
+
+        Raises HistoryError when ``windows`` is not a finite real (B, W, 2) array (fill gaps
+        first: :func:`blindspot.traj.windows.interpolate_gaps`)."""
+        x = _as_windows(windows, self.window, "windows")   # no NaN: fill gaps first
         return self.step(x).double().numpy()
 
     def predict(self, history: np.ndarray, horizon: int) -> np.ndarray:
@@ -210,14 +213,17 @@ class LSTMPredictor:
 
         Returns:
             (B, horizon, 2) float64 predicted points.
+
+        Raises:
+            HistoryError: ``history`` not real (B, T >= W, 2) (NaN rows allowed, inf not),
+                ``horizon`` not an integer >= 0; ValueError from :func:`fill_history`.
         """
-        history = np.asarray(history, dtype=float)
-        if history.ndim != 3 or history.shape[-1] != 2:
-            raise ValueError(f"history: expected shape (B, T, 2), found {history.shape}")
+        history = check_array(history, "history", ("B", "T", 2), error=HistoryError,
+                              who="lstm.predict", allow_nan=True)
         if history.shape[1] < self.window:
-            raise ValueError(f"history: needs at least window={self.window} points, found T={history.shape[1]}")
-        if int(horizon) != horizon or horizon < 0:
-            raise ValueError(f"horizon: expected an integer >= 0, found {horizon!r}")
+            raise HistoryError(f"lstm.predict: history needs at least window={self.window} "
+                               f"points, found T={history.shape[1]}")
+        horizon = check_count(horizon, "horizon", error=HistoryError, who="lstm.predict")
         x = torch.from_numpy(fill_history(history)[:, -self.window :].astype(np.float32))
         out = torch.empty((x.shape[0], int(horizon), 2), dtype=torch.float32)
         for k in range(int(horizon)):  # one batched network call per future step

@@ -11,26 +11,28 @@ Two families of error live here:
 
 Arrays hold (x, y) in metres in their last axis. A NaN row in the *actual* / *truth* array means
 "no ground truth at that step" and is left out of every mean; a NaN in a prediction propagates
-(a model that returns NaN must not look good).
+(a model that returns NaN must not look good). Every input is checked by
+:func:`blindspot.traj.checks.check_array`: real numbers (not complex, object, strings or bools),
+shape (..., T, 2), no inf; otherwise :class:`MetricShapeError` names the argument, the expected
+and the found shape or dtype.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["path_error", "displacement", "ade", "fde", "per_step_error"]
+from blindspot.traj.checks import check_array
+
+__all__ = ["MetricShapeError", "path_error", "displacement", "ade", "fde", "per_step_error"]
 
 
 class MetricShapeError(ValueError):
-    """Inputs to a metric do not have the shapes the metric needs."""
+    """Inputs to a metric do not have the shapes, dtype or values the metric needs."""
 
 
-def _as_points(a: np.ndarray, name: str) -> np.ndarray:
-    arr = np.asarray(a, dtype=float)
-    if arr.ndim < 2 or arr.shape[-1] != 2:
-        raise MetricShapeError(f"{name}: expected an array of (x, y) points shaped (..., T, 2), "
-                               f"found shape {arr.shape}")
-    return arr
+def _as_points(a: np.ndarray, name: str, who: str) -> np.ndarray:
+    """(..., T, 2) float64 points; NaN allowed (missing truth / a NaN prediction), inf not."""
+    return check_array(a, name, ("...", "T", 2), error=MetricShapeError, who=who, allow_nan=True)
 
 
 def path_error(pred: np.ndarray, actual: np.ndarray) -> np.ndarray:
@@ -41,13 +43,16 @@ def path_error(pred: np.ndarray, actual: np.ndarray) -> np.ndarray:
         actual: (M, 2) points of the actual path (or (..., M, 2), leading dims matching
             ``pred``'s); NaN rows are missing points and are ignored.
 
+    Raises:
+        MetricShapeError: not real (..., N, 2) / (..., M, 2) arrays, leading dims differ, or inf.
+
     Returns:
         (N,) (or (..., N)) distances in metres, ``d_i = min_j ||pred_i - actual_j||`` over the
         non-NaN rows ``j``. NaN where the predicted point is NaN or the actual path has no valid
         point at all.
     """
-    p = _as_points(pred, "pred")
-    a = _as_points(actual, "actual")
+    p = _as_points(pred, "pred", "path_error")
+    a = _as_points(actual, "actual", "path_error")
     if p.shape[:-2] != a.shape[:-2]:
         raise MetricShapeError(f"path_error: leading dims of pred {p.shape} and actual "
                                f"{a.shape} differ")
@@ -61,7 +66,8 @@ def path_error(pred: np.ndarray, actual: np.ndarray) -> np.ndarray:
     return np.where(np.isinf(nearest), np.nan, nearest)
 
 
-def displacement(pred: np.ndarray, truth: np.ndarray) -> np.ndarray:
+def displacement(pred: np.ndarray, truth: np.ndarray, *, who: str = "displacement"
+                 ) -> np.ndarray:
     """Time-aligned Euclidean error ``||pred_t - truth_t||``.
 
     Args:
@@ -69,11 +75,14 @@ def displacement(pred: np.ndarray, truth: np.ndarray) -> np.ndarray:
 
     Returns:
         (..., T) errors in metres (NaN where either point is NaN).
+
+    Raises:
+        MetricShapeError: not real (..., T, 2) arrays of the same shape, or an inf value.
     """
-    p = _as_points(pred, "pred")
-    t = _as_points(truth, "truth")
+    p = _as_points(pred, "pred", who)
+    t = _as_points(truth, "truth", who)
     if p.shape != t.shape:
-        raise MetricShapeError(f"pred shape {p.shape} differs from truth shape {t.shape}")
+        raise MetricShapeError(f"{who}: pred shape {p.shape} differs from truth shape {t.shape}")
     d = p - t
     return np.hypot(d[..., 0], d[..., 1])
 
@@ -96,7 +105,7 @@ def ade(pred: np.ndarray, truth: np.ndarray) -> float:
     Returns:
         The mean error in metres (NaN if a prediction is NaN where truth exists).
     """
-    err = displacement(pred, truth)
+    err = displacement(pred, truth, who="ade")
     return float(_mean_over_truth(err, np.isnan(np.asarray(truth, float)).any(axis=-1)))
 
 
@@ -109,7 +118,7 @@ def fde(pred: np.ndarray, truth: np.ndarray) -> float:
     Returns:
         The mean final error in metres.
     """
-    err = displacement(pred, truth)[..., -1]
+    err = displacement(pred, truth, who="fde")[..., -1]
     return float(_mean_over_truth(err, np.isnan(np.asarray(truth, float)[..., -1, :]).any(axis=-1)))
 
 
@@ -124,7 +133,7 @@ def per_step_error(pred: np.ndarray, truth: np.ndarray) -> np.ndarray:
         entries left out). ``per_step_error(p, t).mean()`` equals ``ade(p, t)`` when no truth
         is missing.
     """
-    err = displacement(pred, truth)
+    err = displacement(pred, truth, who="per_step_error")
     missing = np.isnan(np.asarray(truth, float)).any(axis=-1)
     T = err.shape[-1]
     return _mean_over_truth(err.reshape(-1, T), missing.reshape(-1, T), axis=0)

@@ -26,15 +26,25 @@ start ranges. :func:`random_path_set` returns the per-path draws so callers can 
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
 
+from blindspot.traj.checks import check_array, check_count
 from blindspot.traj.config import PathSpec
 from blindspot.typed_config import ConfigError
 
 MOTIONS: tuple[str, ...] = ("approaching", "receding", "perpendicular")
+
+
+class PathDataError(ValueError):
+    """A path table or path array is not what the paths stage writes / a function expects."""
+
+
+class PathSkipWarning(UserWarning):
+    """Paths of a path table were dropped (``bad_paths="skip"``); one warning per table."""
 
 
 @dataclass(frozen=True)
@@ -78,7 +88,20 @@ def integrate_constant_turn(
 
     Returns:
         (P, T, 2) positions.
+
+    Raises:
+        PathDataError: an array not finite real numbers of its shape, n_points not an integer
+            >= 1, dt_s not > 0.
     """
+    who = "integrate_constant_turn"
+    start_xy = check_array(start_xy, "start_xy", ("P", 2), error=PathDataError, who=who)
+    P = start_xy.shape[0]
+    speed_mps, heading0_rad, turn_rate_rad_s = (
+        check_array(v, name, (P,), error=PathDataError, who=who) for v, name in (
+            (speed_mps, "speed_mps"), (heading0_rad, "heading0_rad"),
+            (turn_rate_rad_s, "turn_rate_rad_s")))
+    n_points = check_count(n_points, "n_points", ge=1, error=PathDataError, who=who)
+    _check_period(dt_s, who)
     k = np.arange(n_points - 1)
     mid_heading = heading0_rad[:, None] + turn_rate_rad_s[:, None] * (k + 0.5) * dt_s  # (P, T-1)
     chord = speed_mps * dt_s * np.sinc(turn_rate_rad_s * dt_s / (2.0 * np.pi))  # np.sinc(x)=sin(pi x)/(pi x)
@@ -87,6 +110,12 @@ def integrate_constant_turn(
     xy[:, 0] = start_xy
     xy[:, 1:] = start_xy[:, None, :] + np.cumsum(steps, axis=1)
     return xy
+
+
+def _check_period(dt_s, who: str) -> None:
+    dt = check_array(dt_s, "dt_s", (), error=PathDataError, who=who)
+    if not dt > 0:
+        raise PathDataError(f"{who}: dt_s: expected a time step > 0 s, found {dt_s!r}")
 
 
 def _draw(spec: PathSpec, motion: int, n: int, rng: np.random.Generator) -> tuple[np.ndarray, ...]:
@@ -123,7 +152,16 @@ def add_sharp_turn(xy: np.ndarray, at_s: np.ndarray, angle_rad: np.ndarray, dura
 
     Each step of the path is rotated by the extra heading reached at its mid-time, so speed and
     the gentle turn already in the path are kept; the path before ``at_s`` is unchanged.
+    ``at_s``, ``angle_rad``, ``duration_s``: (P,). Raises PathDataError for an array that is not
+    finite real numbers of its shape, or dt_s not > 0.
     """
+    who = "add_sharp_turn"
+    xy = check_array(xy, "xy", ("P", "T", 2), error=PathDataError, who=who)
+    P = xy.shape[0]
+    at_s, angle_rad, duration_s = (
+        check_array(v, name, (P,), error=PathDataError, who=who) for v, name in (
+            (at_s, "at_s"), (angle_rad, "angle_rad"), (duration_s, "duration_s")))
+    _check_period(dt_s, who)
     steps = np.diff(xy, axis=1)                                           # (P, T-1, 2)
     t_mid = (np.arange(steps.shape[1]) + 0.5) * dt_s
     frac = np.clip((t_mid[None, :] - at_s[:, None]) / np.maximum(duration_s[:, None], 1e-9), 0.0, 1.0)
@@ -138,7 +176,10 @@ def add_sharp_turn(xy: np.ndarray, at_s: np.ndarray, angle_rad: np.ndarray, dura
 
 
 def in_field_of_view(xy: np.ndarray, spec: PathSpec) -> np.ndarray:
-    """(P,) True where every point of a (P, T, 2) path lies inside the spec's field of view."""
+    """(P,) True where every point of a (P, T, 2) path lies inside the spec's field of view.
+
+    Raises PathDataError when ``xy`` is not a finite real (P, T, 2) array."""
+    xy = check_array(xy, "xy", ("P", "T", 2), error=PathDataError, who="in_field_of_view")
     rng_m = np.hypot(xy[..., 0], xy[..., 1])
     ang = np.degrees(np.arctan2(xy[..., 0], xy[..., 1]))
     ok = (rng_m >= spec.min_range_m) & (rng_m <= spec.max_range_m) & (np.abs(ang) <= spec.max_abs_angle_deg)
@@ -223,12 +264,14 @@ def radar_like_noise(
 
     Returns:
         (P, T, 2) float64 measured positions with NaN rows for missed points.
+
+    Raises:
+        PathDataError: ``paths`` not a finite real (P, T, 2) array, or a setting out of range.
     """
-    paths = np.asarray(paths, dtype=float)
-    if paths.ndim != 3 or paths.shape[-1] != 2:
-        raise ValueError(f"paths: expected shape (P, T, 2), found {paths.shape}")
-    if range_step_m < 0 or angle_std_deg < 0 or not (0.0 <= miss_prob <= 1.0):
-        raise ValueError(
+    paths = check_array(paths, "paths", ("P", "T", 2), error=PathDataError, who="radar_like_noise")
+    if not (range_step_m >= 0 and angle_std_deg >= 0 and 0.0 <= miss_prob <= 1.0
+            and np.isfinite([range_step_m, angle_std_deg]).all()):
+        raise PathDataError(
             f"radar_like_noise: expected range_step_m >= 0, angle_std_deg >= 0, 0 <= miss_prob <= 1; "
             f"found {range_step_m}, {angle_std_deg}, {miss_prob}"
         )
@@ -241,22 +284,76 @@ def radar_like_noise(
         elif range_mode == "uniform":
             r = r + rng.uniform(-range_step_m / 2, range_step_m / 2, size=r.shape)
         else:
-            raise ValueError(f"range_mode: expected 'quantise' or 'uniform', found {range_mode!r}")
+            raise PathDataError(f"range_mode: expected 'quantise' or 'uniform', found {range_mode!r}")
     th = th + np.deg2rad(angle_std_deg) * rng.standard_normal(th.shape)
     out = np.stack([r * np.sin(th), r * np.cos(th)], axis=-1)
     out[rng.random(r.shape) < miss_prob] = np.nan
     return out
 
 
-def table_to_arrays(table: pd.DataFrame) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+TABLE_COLUMNS = ("path_id", "point", "motion", "x_true_m", "y_true_m", "x_m", "y_m")
+
+
+def table_to_arrays(table: pd.DataFrame, *, source: str = "path table",
+                    bad_paths: str = "raise") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(truth (P, T, 2), measured (P, T, 2), motion (P,)) of the path table the ``paths`` stage
     writes (:func:`blindspot.synth.path_dataset.path_table`: one row per path point, columns
-    path_id, point, motion, x_true_m, y_true_m, x_m, y_m, ...); measured points are NaN where the
-    radar gave none. Raises ValueError when the rows are not whole paths of equal length."""
-    t = table.sort_values(["path_id", "point"])
-    p, n = t.path_id.nunique(), t.point.nunique()
-    if p * n != len(t):
-        raise ValueError(f"path table: {len(t)} rows are not {p} paths x {n} points")
-    truth = t[["x_true_m", "y_true_m"]].to_numpy().reshape(p, n, 2)
-    meas = t[["x_m", "y_m"]].to_numpy().reshape(p, n, 2)
-    return truth, meas, t.motion.to_numpy()[::n]
+    path_id, point, motion, x_true_m, y_true_m, x_m, y_m, ...; metres); measured points are NaN
+    where the radar gave none. Paths are ordered by ``path_id``, points by ``point``.
+
+    A path is defective when a (path_id, point) pair appears twice, its points are not
+    0 .. T-1 with T the longest path's length (missing or extra points), a truth coordinate is
+    not finite, or a measured coordinate is infinite.
+
+    Args:
+        table: the long table (any row order).
+        source: the file name used in messages.
+        bad_paths: "raise" (default: the table is a stage output, a defect is a bug upstream)
+            or "skip": drop the defective paths with one :class:`PathSkipWarning` giving the
+            count for each reason.
+
+    Raises:
+        PathDataError: a missing column, an empty table, a defective path (with "raise"), or no
+            path left (with "skip"); the message names ``source`` and the counts.
+    """
+    if bad_paths not in ("raise", "skip"):
+        raise PathDataError(f"bad_paths: expected 'raise' or 'skip', found {bad_paths!r}")
+    missing = [c for c in TABLE_COLUMNS if c not in table.columns]
+    if missing:
+        raise PathDataError(f"{source}: expected the columns {list(TABLE_COLUMNS)}, "
+                            f"missing {missing}")
+    if len(table) == 0:
+        raise PathDataError(f"{source}: the table holds no rows")
+    t = table.sort_values(["path_id", "point"], kind="stable")
+    pid, point = t.path_id.to_numpy(), t.point.to_numpy()
+    truth = t[["x_true_m", "y_true_m"]].to_numpy(dtype=float)
+    meas = t[["x_m", "y_m"]].to_numpy(dtype=float)
+    ids, inv, counts = np.unique(pid, return_inverse=True, return_counts=True)
+    # defects, one boolean per path (vectorised over rows with bincount)
+    repeat = np.zeros(len(t), bool)
+    repeat[1:] = (pid[1:] == pid[:-1]) & (point[1:] == point[:-1])
+    distinct = np.bincount(inv, weights=~repeat).astype(np.int64)   # distinct points per path
+    n = int(distinct.max())
+    # rank of each distinct row within its path (0, 1, ...): must equal its point index
+    seen = np.cumsum(~repeat)
+    rank = seen - 1 - np.repeat(seen[np.cumsum(counts) - 1] - distinct, counts)
+    reasons = {
+        "repeated (path_id, point) rows": np.bincount(inv, weights=repeat) > 0,
+        f"points not 0..{n - 1}": (distinct != n) | (np.bincount(
+            inv, weights=(point != rank) & ~repeat) > 0),
+        "non-finite truth": np.bincount(inv, weights=~np.isfinite(truth).all(axis=1)) > 0,
+        "infinite measured points": np.bincount(inv, weights=np.isinf(meas).any(axis=1)) > 0,
+    }
+    bad = np.logical_or.reduce(list(reasons.values()))
+    if bad.any():
+        counted = ", ".join(f"{int(v.sum())} with {k}" for k, v in reasons.items() if v.any())
+        what = f"{int(bad.sum())} of {ids.size} paths are defective ({counted})"
+        if bad_paths == "raise" or bad.all():
+            first = ids[np.flatnonzero(bad)[0]].item()
+            raise PathDataError(f"{source}: {what}; the first is path_id {first!r}"
+                                + ("" if bad.all() else "; pass bad_paths='skip' to drop them"))
+        warnings.warn(f"{source}: dropped {what}", PathSkipWarning, stacklevel=2)
+    keep = ~bad[inv]
+    p = int((~bad).sum())
+    motion = t.motion.to_numpy()[keep][::n]
+    return truth[keep].reshape(p, n, 2), meas[keep].reshape(p, n, 2), motion

@@ -12,6 +12,8 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
+from blindspot.traj.checks import check_array, check_count
+
 __all__ = [
     "PathPredictor",
     "HistoryError",
@@ -54,18 +56,17 @@ def check_history(history: np.ndarray, horizon: int, *, who: str = "predict") ->
     """Validate a predictor's input and return it as a float64 (B, T, 2) array.
 
     A single track (T, 2) is not silently promoted: batching is explicit in this interface.
+    NaN rows are missing frames; inf is refused.
 
     Raises:
-        HistoryError: wrong rank/last axis, empty time axis, or ``horizon < 1``.
+        HistoryError: not real numbers (complex, object, strings, bools), wrong rank or last
+            axis, an inf value, an empty time axis, or ``horizon`` not an integer >= 1.
     """
-    h = np.asarray(history, dtype=float)
-    if h.ndim != 3 or h.shape[-1] != 2:
-        raise HistoryError(f"{who}: history must be shaped (B, T, 2) (x, y in metres), "
-                           f"found shape {h.shape}")
+    h = check_array(history, "history", ("B", "T", 2), error=HistoryError, who=who,
+                    allow_nan=True)
     if h.shape[1] < 1:
         raise HistoryError(f"{who}: history has no time steps (shape {h.shape})")
-    if int(horizon) != horizon or horizon < 1:
-        raise HistoryError(f"{who}: horizon must be a positive integer, found {horizon!r}")
+    check_count(horizon, "horizon", ge=1, error=HistoryError, who=who)
     return h
 
 
@@ -101,7 +102,16 @@ def heading_frame(windows: np.ndarray, speed_floor: float | None = None
         coordinates (``q = rot @ (p - origin)``; with a speed floor ``rot`` includes the
         ``1 / scale`` factor). A window whose last step is zero (standing still) gets the
         world orientation.
+
+    Raises:
+        HistoryError: ``windows`` not real (B, W, 2) with W >= 2, or not finite in its last two
+            rows.
     """
+    windows = check_array(windows, "windows", ("B", "W", 2), error=HistoryError,
+                          who="heading_frame", allow_nan=True)
+    if windows.shape[1] < 2 or not np.isfinite(windows[:, -2:]).all():
+        raise HistoryError(f"heading_frame: windows must be (B, W, 2) with W >= 2 and finite "
+                           f"last two rows, found shape {windows.shape}")
     origin = windows[:, -1]
     step = windows[:, -1] - windows[:, -2]
     theta = np.arctan2(step[:, 1], step[:, 0])
@@ -115,14 +125,36 @@ def heading_frame(windows: np.ndarray, speed_floor: float | None = None
     return origin, rot
 
 
+def _frame_args(points, origin, rot, who: str) -> tuple[np.ndarray, ...]:
+    """(points (B, ..., 2), origin (B, 2), rot (B, 2, 2)) checked, sharing B."""
+    points = check_array(points, "points", ("...", 2), error=HistoryError, who=who,
+                         allow_nan=True)
+    origin = check_array(origin, "origin", ("B", 2), error=HistoryError, who=who)
+    rot = check_array(rot, "rot", ("B", 2, 2), error=HistoryError, who=who)
+    if points.ndim < 2 or not points.shape[0] == origin.shape[0] == rot.shape[0]:
+        raise HistoryError(f"{who}: points (B, ..., 2), origin (B, 2) and rot (B, 2, 2) must "
+                           f"share B, found shapes {points.shape}, {origin.shape}, {rot.shape}")
+    return points, origin, rot
+
+
 def to_frame(points: np.ndarray, origin: np.ndarray, rot: np.ndarray) -> np.ndarray:
-    """World points (B, ..., 2) -> frame coordinates ``rot @ (p - origin)`` per batch row."""
+    """World points (B, ..., 2) -> frame coordinates ``rot @ (p - origin)`` per batch row.
+
+    Raises:
+        HistoryError: arrays not real, of the wrong shapes or B, or inf (NaN points propagate).
+    """
+    points, origin, rot = _frame_args(points, origin, rot, "to_frame")
     flat = points.reshape(points.shape[0], -1, 2) - origin[:, None, :]
     return np.einsum("bij,bnj->bni", rot, flat).reshape(points.shape)
 
 
 def from_frame(points: np.ndarray, origin: np.ndarray, rot: np.ndarray) -> np.ndarray:
-    """Frame coordinates (B, ..., 2) -> world points ``rot^-1 q + origin``."""
+    """Frame coordinates (B, ..., 2) -> world points ``rot^-1 q + origin``.
+
+    Raises:
+        HistoryError: as :func:`to_frame`.
+    """
+    points, origin, rot = _frame_args(points, origin, rot, "from_frame")
     flat = points.reshape(points.shape[0], -1, 2)
     inv = np.linalg.inv(rot)
     return (np.einsum("bij,bnj->bni", inv, flat) + origin[:, None, :]).reshape(points.shape)
@@ -142,8 +174,9 @@ def heading_frame_pairs(sequences: np.ndarray, *, residual: bool = True, mirror:
     Returns:
         ``(x (N', W, 2), y (N', 2))`` in each window's heading frame (``N' = 2N`` with mirror).
     """
-    seq = np.asarray(sequences, dtype=float)
-    if seq.ndim != 3 or seq.shape[1] < 3 or seq.shape[2] != 2:
+    seq = check_array(sequences, "sequences", ("N", "W + 1", 2), error=HistoryError,
+                      who="heading_frame_pairs")
+    if seq.shape[1] < 3:
         raise HistoryError(f"heading_frame_pairs: sequences must be (N, W + 1, 2) with W >= 2, "
                            f"found shape {seq.shape}")
     origin, rot = heading_frame(seq[:, :-1], speed_floor)

@@ -37,8 +37,10 @@ import torch
 from torch import nn
 from tqdm.auto import tqdm
 
+from blindspot.traj.checks import check_array
 from blindspot.traj.config import LSTMConfig, TrainConfig
 from blindspot.traj.lstm import LSTMPredictor, LSTMRegressor, NormStats
+from blindspot.traj.metrics import MetricShapeError
 from blindspot.traj.windows import WindowSet
 
 _CKPT_FORMAT = "blindspot.train-checkpoint/1"
@@ -61,15 +63,24 @@ class TrainResult:
     val_rmse_m: float
 
 
+def _difference(pred, truth, who: str) -> np.ndarray:
+    """pred - truth for (N, 2) real arrays (NaN propagates, inf is refused)."""
+    p = check_array(pred, "pred", ("N", 2), error=MetricShapeError, who=who, allow_nan=True)
+    t = check_array(truth, "truth", (len(p), 2), error=MetricShapeError, who=who, allow_nan=True)
+    return p - t
+
+
 def rmse_per_coordinate(pred: np.ndarray, truth: np.ndarray) -> float:
-    """sqrt(mean of squared error over all points and both coordinates); (N, 2) inputs, metres."""
-    d = np.asarray(pred, dtype=np.float64) - np.asarray(truth, dtype=np.float64)
+    """sqrt(mean of squared error over all points and both coordinates); (N, 2) inputs, metres.
+    Raises MetricShapeError for inputs that are not real (N, 2) arrays of one shape, or inf."""
+    d = _difference(pred, truth, "rmse_per_coordinate")
     return float(np.sqrt(np.mean(d**2)))
 
 
 def rmse_euclidean(pred: np.ndarray, truth: np.ndarray) -> float:
-    """sqrt(mean over points of the squared Euclidean error); (N, 2) inputs, metres."""
-    d = np.asarray(pred, dtype=np.float64) - np.asarray(truth, dtype=np.float64)
+    """sqrt(mean over points of the squared Euclidean error); (N, 2) inputs, metres.
+    Raises MetricShapeError as :func:`rmse_per_coordinate`."""
+    d = _difference(pred, truth, "rmse_euclidean")
     return float(np.sqrt(np.mean(np.sum(d**2, axis=-1))))
 
 

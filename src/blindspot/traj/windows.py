@@ -28,8 +28,14 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from blindspot.io import atomic_path
+from blindspot.traj.checks import check_array, check_count
 
 _WINDOW_KEY = b"blindspot.window"
+
+
+class WindowError(ValueError):
+    """Paths, windows or split counts handed to this module are malformed (names the argument,
+    the expected and the found shape, dtype or value)."""
 
 
 @dataclass(frozen=True)
@@ -41,6 +47,9 @@ class WindowSet:
         y: (N, 2) float32 response: the point right after each window.
         path_id: (N,) int64 id of the path each window came from.
         start: (N,) int64 index (within its path) of each window's first point, or None.
+
+    Raises:
+        WindowError: an array not real (ids: whole numbers), of the wrong shape, or not finite.
     """
 
     x: np.ndarray
@@ -49,22 +58,19 @@ class WindowSet:
     start: np.ndarray | None = None
 
     def __post_init__(self) -> None:
-        x, y, pid = np.asarray(self.x), np.asarray(self.y), np.asarray(self.path_id)
-        if x.ndim != 3 or x.shape[-1] != 2:
-            raise ValueError(f"WindowSet.x: expected shape (N, W, 2), found {x.shape}")
+        who = "WindowSet"
+        x = check_array(self.x, "WindowSet.x", ("N", "W", 2), error=WindowError, who=who)
         n = x.shape[0]
-        if y.shape != (n, 2):
-            raise ValueError(f"WindowSet.y: expected shape ({n}, 2) to match x {x.shape}, found {y.shape}")
-        if pid.shape != (n,):
-            raise ValueError(f"WindowSet.path_id: expected shape ({n},), found {pid.shape}")
+        y = check_array(self.y, "WindowSet.y", (n, 2), error=WindowError, who=who)
+        pid = check_array(self.path_id, "WindowSet.path_id", (n,), error=WindowError, who=who,
+                          dtype=int)
         object.__setattr__(self, "x", x.astype(np.float32, copy=False))
         object.__setattr__(self, "y", y.astype(np.float32, copy=False))
-        object.__setattr__(self, "path_id", pid.astype(np.int64, copy=False))
+        object.__setattr__(self, "path_id", pid)
         if self.start is not None:
-            st = np.asarray(self.start)
-            if st.shape != (n,):
-                raise ValueError(f"WindowSet.start: expected shape ({n},) or None, found {st.shape}")
-            object.__setattr__(self, "start", st.astype(np.int64, copy=False))
+            st = check_array(self.start, "WindowSet.start", (n,), error=WindowError, who=who,
+                             dtype=int)
+            object.__setattr__(self, "start", st)
 
     def __len__(self) -> int:
         return int(self.x.shape[0])
@@ -167,24 +173,25 @@ def make_windows(
 
     Returns:
         :class:`WindowSet` with x (N, W, 2), y (N, 2), path_id (N,), start (N,).
+
+    Raises:
+        WindowError: ``paths`` not real (P, T, 2) (NaN rows allowed, inf not), window/stride not
+            integers >= 1, paths too short, an unknown option, or NaN with ``nan_policy="raise"``.
     """
-    paths = np.asarray(paths)
-    if paths.ndim != 3 or paths.shape[-1] != 2:
-        raise ValueError(f"paths: expected shape (P, T, 2), found {paths.shape}")
-    if int(window) != window or window < 1:
-        raise ValueError(f"window: expected an integer >= 1, found {window!r}")
-    if int(stride) != stride or stride < 1:
-        raise ValueError(f"stride: expected an integer >= 1, found {stride!r}")
+    who = "make_windows"
+    paths = check_array(paths, "paths", ("P", "T", 2), error=WindowError, who=who, allow_nan=True)
+    window = check_count(window, "window", ge=1, error=WindowError, who=who)
+    stride = check_count(stride, "stride", ge=1, error=WindowError, who=who)
     if target != "next":
-        raise ValueError(f"target: expected 'next', found {target!r}")
+        raise WindowError(f"{who}: target: expected 'next', found {target!r}")
     if nan_policy not in ("drop", "raise"):
-        raise ValueError(f"nan_policy: expected 'drop' or 'raise', found {nan_policy!r}")
+        raise WindowError(f"{who}: nan_policy: expected 'drop' or 'raise', found {nan_policy!r}")
     n_paths, n_points, _ = paths.shape
     if n_points < window + 1:
-        raise ValueError(f"paths have {n_points} points; a window of {window} plus its target needs {window + 1}")
-    ids = np.arange(n_paths) if path_ids is None else np.asarray(path_ids)
-    if ids.shape != (n_paths,):
-        raise ValueError(f"path_ids: expected shape ({n_paths},), found {ids.shape}")
+        raise WindowError(f"{who}: paths have {n_points} points; a window of {window} plus its "
+                          f"target needs {window + 1}")
+    ids = (np.arange(n_paths) if path_ids is None else
+           check_array(path_ids, "path_ids", (n_paths,), error=WindowError, who=who, dtype=int))
 
     # (P, T-W, 2, W+1) view -> every stride-th start -> (P, K, W+1, 2)
     view = np.lib.stride_tricks.sliding_window_view(paths, window + 1, axis=1)[:, ::stride]
@@ -196,7 +203,7 @@ def make_windows(
     if not finite.all():
         if nan_policy == "raise":
             bad = np.flatnonzero(~finite)
-            raise ValueError(
+            raise WindowError(
                 f"{bad.size} of {finite.size} windows contain NaN (first: path {pid[bad[0]]}, start {start[bad[0]]}); "
                 "fill gaps (interpolate_gaps) or use nan_policy='drop'"
             )
@@ -215,13 +222,18 @@ def interpolate_gaps(paths: np.ndarray) -> np.ndarray:
 
     Returns:
         float64 array of the same shape.
+
+    Raises:
+        WindowError: ``paths`` not real (P, T, 2) or (T, 2), or an inf value.
     """
-    arr = np.asarray(paths, dtype=float)
+    arr = check_array(paths, "paths", ("...", "T", 2), error=WindowError, who="interpolate_gaps",
+                      allow_nan=True)
     squeeze = arr.ndim == 2
     if squeeze:
         arr = arr[None]
-    if arr.ndim != 3 or arr.shape[-1] != 2:
-        raise ValueError(f"paths: expected shape (P, T, 2) or (T, 2), found {np.shape(paths)}")
+    if arr.ndim != 3:
+        raise WindowError(f"interpolate_gaps: paths: expected shape (P, T, 2) or (T, 2), found "
+                          f"{arr.shape}")
     n_points = arr.shape[1]
     valid = np.isfinite(arr).all(axis=-1)  # (P, T)
     t = np.broadcast_to(np.arange(n_points), valid.shape)
@@ -248,11 +260,11 @@ def split_by_path(
     original order), so at most one path per split is partly used. Leftover paths go unused.
 
     Raises:
-        ValueError: the windows' paths cannot cover the counts; says how many windows were found.
+        WindowError: a count not an integer >= 0, or the windows' paths cannot cover the counts
+            (says how many windows were found).
     """
-    counts = [int(c) for c in counts]
-    if any(c < 0 for c in counts):
-        raise ValueError(f"counts: expected non-negative integers, found {counts}")
+    counts = [check_count(c, f"counts[{i}]", error=WindowError, who="split_by_path")
+              for i, c in enumerate(counts)]
     rng = np.random.default_rng(seed)
     ids, inverse = np.unique(ws.path_id, return_inverse=True)
     order = rng.permutation(ids.size)  # shuffled position -> unique path index
@@ -265,7 +277,7 @@ def split_by_path(
     for i, need in enumerate(counts):
         last = int(np.searchsorted(cum, cum[first] + need, side="left"))  # paths [first, last) cover need
         if cum[min(last, ids.size)] - cum[first] < need:
-            raise ValueError(
+            raise WindowError(
                 f"split_by_path: {len(ws)} windows from {ids.size} paths cannot fill counts {counts} "
                 f"(split {i} wants {need}, {int(cum[-1] - cum[first])} windows left); generate more paths"
             )
