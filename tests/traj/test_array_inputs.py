@@ -8,7 +8,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from blindspot.traj.baselines import ConstantVelocity, KalmanCV, kalman_filter, last_valid_index
-from blindspot.traj.checks import check_array
+from blindspot.arrays import check_array
 from blindspot.traj.config import PathSpec
 from blindspot.traj.ethucy import (
     EthUcyDataError,

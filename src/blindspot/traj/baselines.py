@@ -19,7 +19,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from blindspot.traj.checks import check_array
+from blindspot.arrays import check_array
 from blindspot.traj.predictor import HistoryError, check_history
 
 __all__ = [

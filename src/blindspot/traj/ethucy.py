@@ -46,7 +46,7 @@ from pathlib import Path
 
 import numpy as np
 
-from blindspot.traj.checks import check_array, check_count
+from blindspot.arrays import check_array, check_count
 from blindspot.traj.config import ETHUCY_FOLDS as FOLDS
 
 __all__ = [

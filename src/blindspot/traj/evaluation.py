@@ -20,7 +20,7 @@ from collections.abc import Mapping
 import numpy as np
 import pandas as pd
 
-from blindspot.traj.checks import check_array
+from blindspot.arrays import check_array
 from blindspot.traj.metrics import displacement, path_error
 
 PER_STEP_ARRAYS = ("per_step_m", "path_error_m", "path_error_radar_m")

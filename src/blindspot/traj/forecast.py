@@ -12,7 +12,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from blindspot.traj.checks import check_array, check_count
+from blindspot.arrays import check_array, check_count
 from blindspot.traj.interpolation import pad_history
 from blindspot.traj.predictor import PathPredictor
 

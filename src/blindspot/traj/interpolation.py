@@ -21,7 +21,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from blindspot.traj.checks import check_array, check_count
+from blindspot.arrays import check_array, check_count
 from blindspot.traj.config import INTERPOLATION_METHODS as METHODS
 from blindspot.traj.predictor import PathPredictor
 

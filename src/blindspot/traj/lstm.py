@@ -32,7 +32,7 @@ import torch
 from torch import nn
 
 from blindspot.io import atomic_path
-from blindspot.traj.checks import check_array, check_count
+from blindspot.arrays import check_array, check_count
 from blindspot.traj.config import LSTMConfig
 from blindspot.traj.predictor import HistoryError
 from blindspot.traj.windows import interpolate_gaps

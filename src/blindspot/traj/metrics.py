@@ -12,7 +12,7 @@ Two families of error live here:
 Arrays hold (x, y) in metres in their last axis. A NaN row in the *actual* / *truth* array means
 "no ground truth at that step" and is left out of every mean; a NaN in a prediction propagates
 (a model that returns NaN must not look good). Every input is checked by
-:func:`blindspot.traj.checks.check_array`: real numbers (not complex, object, strings or bools),
+:func:`blindspot.arrays.check_array`: real numbers (not complex, object, strings or bools),
 shape (..., T, 2), no inf; otherwise :class:`MetricShapeError` names the argument, the expected
 and the found shape or dtype.
 """
@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from blindspot.traj.checks import check_array
+from blindspot.arrays import check_array
 
 __all__ = ["MetricShapeError", "path_error", "displacement", "ade", "fde", "per_step_error"]
 

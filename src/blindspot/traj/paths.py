@@ -32,7 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from blindspot.traj.checks import check_array, check_count
+from blindspot.arrays import check_array, check_count
 from blindspot.traj.config import PathSpec
 from blindspot.typed_config import ConfigError
 

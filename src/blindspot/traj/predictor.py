@@ -12,7 +12,7 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
-from blindspot.traj.checks import check_array, check_count
+from blindspot.arrays import check_array, check_count
 
 __all__ = [
     "PathPredictor",

@@ -37,7 +37,7 @@ import torch
 from torch import nn
 from tqdm.auto import tqdm
 
-from blindspot.traj.checks import check_array
+from blindspot.arrays import check_array
 from blindspot.traj.config import LSTMConfig, TrainConfig
 from blindspot.traj.lstm import LSTMPredictor, LSTMRegressor, NormStats
 from blindspot.traj.metrics import MetricShapeError

@@ -28,7 +28,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from blindspot.io import atomic_path
-from blindspot.traj.checks import check_array, check_count
+from blindspot.arrays import check_array, check_count
 
 _WINDOW_KEY = b"blindspot.window"
 
