@@ -3,12 +3,15 @@ PYTHON ?= python3.11
 VENV := .venv
 STAMP := $(VENV)/.installed
 
-.PHONY: setup test test-slow repro bench clean-venv
+.PHONY: setup test test-slow repro bench lock clean-venv
 
-$(STAMP): pyproject.toml
+# The exact versions of requirements.lock first, then the project itself without resolving again:
+# a fresh clone gets the environment the committed dvc.lock was made with.
+$(STAMP): pyproject.toml requirements.lock
 	@test -x $(VENV)/bin/python || $(PYTHON) -m venv $(VENV) || python3 -m venv $(VENV)
 	$(VENV)/bin/python -m pip install --quiet --upgrade pip
-	$(VENV)/bin/python -m pip install --quiet -e '.[test]'
+	$(VENV)/bin/python -m pip install --quiet -r requirements.lock
+	$(VENV)/bin/python -m pip install --quiet --no-deps -e '.[test]'
 	@touch $(STAMP)
 
 setup: $(STAMP)  ## create or reuse .venv and install the project
@@ -24,6 +27,15 @@ repro: $(STAMP)  ## the full paper reproduction
 
 bench: $(STAMP)
 	$(VENV)/bin/python -m blindspot.bench.dsp --threads 1
+
+LOCK_VENV := .lock-venv
+lock:  ## re-resolve requirements.lock from pyproject.toml in a throwaway venv
+	rm -rf $(LOCK_VENV) && $(PYTHON) -m venv $(LOCK_VENV)
+	$(LOCK_VENV)/bin/python -m pip install --quiet --upgrade pip
+	$(LOCK_VENV)/bin/python -m pip install --quiet -e '.[test]'
+	{ sed -n '1,3p' requirements.lock; $(LOCK_VENV)/bin/python -m pip freeze --exclude-editable \
+	  | sed 's/^torch==\(.*\)+cpu$$/torch==\1/'; } > requirements.lock.new
+	mv requirements.lock.new requirements.lock && rm -rf $(LOCK_VENV)
 
 clean-venv:
 	rm -rf $(VENV)
