@@ -19,7 +19,7 @@ from tests.dsp.test_bad_arrays import _only, arrays
 RADAR, _ = mmwcas()
 
 
-@given(arrays(max_ndim=3), arrays(max_ndim=2))
+@given(arrays(max_ndim=3, fits=(None, 2)), arrays(max_ndim=2, fits=(4, 2)))
 def test_occlusion_takes_finite_points_and_a_polygon(points, polygon):
     res = _only(occlusion.GeometryError, occlusion.segment_crosses_polygon, points, polygon)
     if res is not None:
@@ -30,7 +30,7 @@ def test_occlusion_takes_finite_points_and_a_polygon(points, polygon):
         assert res.shape == points.shape[:-1]
 
 
-@given(arrays(max_ndim=2), arrays(max_ndim=2))
+@given(arrays(max_ndim=2, fits=(3,)), arrays(max_ndim=2, fits=(3,)))
 def test_radar_equation_takes_finite_rcs_and_positive_ranges(rcs, rng_m):
     res = _only(radar_equation.RadarEquationError, radar_equation.received_power_w, RADAR, rcs,
                 rng_m)
@@ -39,7 +39,7 @@ def test_radar_equation_takes_finite_rcs_and_positive_ranges(rcs, rng_m):
         assert np.isfinite(res).all() and (np.asarray(res) >= 0).all()
 
 
-@given(arrays())
+@given(arrays(fits=(None, 2), kinds=("int", "complex64", "float", "str")))
 def test_adc_codecs_take_codes_or_integer_valued_samples(x):
     res = _only(simulator.SimulationError, simulator.quantise, x, 12)
     if res is not None:
@@ -53,7 +53,7 @@ def test_adc_codecs_take_codes_or_integer_valued_samples(x):
         assert back.shape == x.shape[:-1] and x.dtype.kind in "iu"
 
 
-@given(arrays())
+@given(arrays(fits=(None, 2, 3, None)))
 def test_ula_selection_takes_channels_of_the_array(x):
     array = ula_array(2, 3)
     res = _only(ArrayShapeError, array.ula_snapshots, x)
