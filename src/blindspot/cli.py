@@ -14,6 +14,7 @@ How to run things (from anywhere inside the repository)::
     python -m blindspot params                  # regenerate params.yaml from conf/
     python -m blindspot check-params            # fail (exit 1) if params.yaml != conf/
     python -m blindspot stages                  # list the stages
+    python -m blindspot close-stale-runs        # end KILLED the runs of SIGKILLed processes
 
 Every stage run is one MLflow run (params = the flattened config, metrics, artifacts); a sweep
 is a parent run with one nested child run per job. The store is ``<repo>/mlflow.db`` (SQLite,
@@ -48,7 +49,7 @@ from types import ModuleType
 from omegaconf import DictConfig, OmegaConf
 
 from blindspot import config as bconfig
-from blindspot import tracking
+from blindspot import io, tracking
 from blindspot.stage import StageContext, StageResult, declared_files
 
 __all__ = [
@@ -68,6 +69,7 @@ COMMANDS = {
     "params": "regenerate params.yaml from conf/",
     "check-params": "fail if params.yaml is not what conf/ composes to",
     "stages": "list the stages",
+    "close-stale-runs": "end KILLED the RUNNING runs whose process on this host is gone",
 }
 
 # Hydra flags that take a value (moved in front of the overrides together with their value).
@@ -128,7 +130,8 @@ def run_stage(
     """Call ``run(cfg, ctx)`` inside ``tracking.stage_run(name, cfg)`` from the repo root and log
     the :class:`StageResult` it returns (metrics, artifacts, model files, tags) to that run.
 
-    ``cfg`` is resolved and put in struct mode (a misspelt key raises instead of reading None).
+    Temporary files a SIGKILLed earlier run left next to the stage's outs are removed first
+    (:func:`blindspot.io.remove_stale_temps`). ``cfg`` is resolved and put in struct mode (a misspelt key raises instead of reading None).
     ``ctx`` carries the stage's files declared in ``dvc.yaml`` and ``ctx.log_step``, bound to the
     run. ``check_outs``: afterwards, require that the stage wrote every declared out
     (:meth:`StageContext.check_outs`). Raises ``TypeError`` if ``run`` returns something else
@@ -139,6 +142,9 @@ def run_stage(
     cfg = OmegaConf.create(OmegaConf.to_container(cfg, resolve=True))
     OmegaConf.set_struct(cfg, True)
     files = declared_files(root, name)
+    for debris in io.remove_stale_temps(files.outs):  # left by a SIGKILLed run of the stage
+        print(f"[blindspot] stage {name}: removed {debris}, a killed writer's temporary file",
+              file=sys.stderr)
     with tracking.stage_run(name, cfg, repo_root=root) as tracker:
         ctx = StageContext(files, log_step=lambda metrics, step: tracker.log_metrics(metrics, step))
         result = run(cfg, ctx)
@@ -289,10 +295,16 @@ def main(argv: Sequence[str] | None = None) -> int:
     if command == "stages":
         print("\n".join(available_stages(root)))
         return 0
-    if command in {"params", "check-params"} and rest:
+    if command in {"params", "check-params", "close-stale-runs"} and rest:
         print(f"[blindspot] `{command}` takes no arguments (got {' '.join(rest)}); "
               "change values in conf/", file=sys.stderr)
         return 2
+    if command == "close-stale-runs":
+        params = root / bconfig.PARAMS_FILE
+        closed = tracking.close_stale_runs_of(bconfig.load_params(root) if params.is_file()
+                                              else None, root)
+        print(f"closed {len(closed)} stale run(s) KILLED" + "".join(f"\n  {r}" for r in closed))
+        return 0
     if command in {"params", "check-params"}:
         from hydra.errors import HydraException
 

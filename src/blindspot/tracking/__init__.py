@@ -12,6 +12,8 @@ By concern:
 - :mod:`~blindspot.tracking.runs`: :func:`stage_run` (one run per stage run, always closed
   FINISHED / FAILED / KILLED), :class:`Tracker` and :class:`NullTracker`, :func:`current`.
 - :mod:`~blindspot.tracking.tags`: git commit, DVC experiment and Hydra job tags of a run.
+- :mod:`~blindspot.tracking.stale`: runs left RUNNING by a SIGKILLed process, closed KILLED when
+  the next run starts (:func:`close_stale_runs`) or by ``python -m blindspot close-stale-runs``.
 - :mod:`~blindspot.tracking.signals`: SIGTERM -> :class:`Terminated` (exit status 143).
 - :mod:`~blindspot.tracking.sweep`: :class:`SweepCallback`, Hydra's callback for a multirun (one
   parent run, a nested child per job); ``python -m blindspot`` registers it by the name
@@ -20,6 +22,7 @@ By concern:
 
 from blindspot.tracking.runs import PARENT_RUN_ENV, NullTracker, Tracker, current, stage_run
 from blindspot.tracking.signals import Terminated, sigterm_as_exit
+from blindspot.tracking.stale import close_stale_runs, close_stale_runs_of
 from blindspot.tracking.store import (
     DEFAULT_EXPERIMENT,
     TrackingSettings,
@@ -46,4 +49,6 @@ __all__ = [
     "SweepCallback",
     "end_open_sweep",
     "sigterm_as_exit",
+    "close_stale_runs",
+    "close_stale_runs_of",
 ]

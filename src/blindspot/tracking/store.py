@@ -23,6 +23,7 @@ from typing import TYPE_CHECKING, Any, TypeVar
 from omegaconf import DictConfig, OmegaConf
 
 from blindspot.config import ConfigNotFound, find_repo_root, original_repo_root
+from blindspot.io import fault_point
 from blindspot.typed_config import plain
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -151,7 +152,7 @@ def _retry(fn: Callable[[], T], what: str, attempts: int = 30) -> T:
     delay = 0.05
     for i in range(attempts):
         try:
-            return fn()
+            result = fn()
         except Exception as exc:  # noqa: BLE001 - filtered below
             text = f"{type(exc).__name__}: {exc}".lower()
             if i == attempts - 1 or not any(t in text for t in _TRANSIENT):
@@ -159,6 +160,9 @@ def _retry(fn: Callable[[], T], what: str, attempts: int = 30) -> T:
             log.debug("retrying %s after %s", what, exc)
             time.sleep(delay)
             delay = min(delay * 1.6, 1.0)
+            continue
+        fault_point("mlflow", what)  # a test may kill the process after any store write
+        return result
     raise AssertionError("unreachable")  # pragma: no cover
 
 
