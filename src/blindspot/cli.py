@@ -142,6 +142,7 @@ def run_stage(
     cfg = OmegaConf.create(OmegaConf.to_container(cfg, resolve=True))
     OmegaConf.set_struct(cfg, True)
     files = declared_files(root, name)
+    tracking.children_die_with_this_process()  # a SIGKILLed stage's pool workers die with it
     for debris in io.remove_stale_temps(files.outs):  # left by a SIGKILLed run of the stage
         print(f"[blindspot] stage {name}: removed {debris}, a killed writer's temporary file",
               file=sys.stderr)

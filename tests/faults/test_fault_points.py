@@ -8,6 +8,7 @@ import os
 import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 from mlflow.tracking import MlflowClient
@@ -96,3 +97,37 @@ def test_run_of_a_sigkilled_process_is_closed_killed_on_the_next_start(tmp_path:
     note = client.get_run(victim.info.run_id).data.tags[tracking.stale.CLOSED_TAG]
     assert f"process {pid} " in note and "closed KILLED" in note
     client.set_terminated(live.info.run_id)
+
+
+POOL = """
+import os, sys, time
+from concurrent.futures import ProcessPoolExecutor
+import multiprocessing as mp
+from blindspot import tracking
+tracking.children_die_with_this_process()
+def work(i):
+    time.sleep(60)
+with ProcessPoolExecutor(2, mp_context=mp.get_context("fork")) as pool:
+    futures = [pool.submit(work, i) for i in range(2)]
+    time.sleep(1)
+    print(" ".join(str(p) for p in pool._processes), flush=True)
+    os.kill(os.getpid(), 9)
+"""
+
+
+def test_pool_workers_die_with_a_sigkilled_stage(tmp_path: Path) -> None:
+    proc = _run(POOL, tmp_path)
+    assert proc.returncode == -signal.SIGKILL, proc.stderr
+    workers = [int(p) for p in proc.stdout.split()]
+    assert len(workers) == 2
+    deadline = time.time() + 10
+    while any(Path(f"/proc/{p}").exists() and "Z" not in _state(p) for p in workers):
+        assert time.time() < deadline, f"workers {workers} outlived their SIGKILLed parent"
+        time.sleep(0.1)
+
+
+def _state(pid: int) -> str:
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().rpartition(")")[2].split()[0]
+    except OSError:
+        return "Z"
