@@ -14,7 +14,7 @@ How to run things (from anywhere inside the repository)::
     python -m blindspot params                  # regenerate params.yaml from conf/
     python -m blindspot check-params            # fail (exit 1) if params.yaml != conf/
     python -m blindspot stages                  # list the stages
-    python -m blindspot close-stale-runs        # end KILLED the runs of SIGKILLed processes
+    python -m blindspot cleanup                 # after a SIGKILL: close its run, remove its temps
 
 Every stage run is one MLflow run (params = the flattened config, metrics, artifacts); a sweep
 is a parent run with one nested child run per job. The store is ``<repo>/mlflow.db`` (SQLite,
@@ -50,7 +50,7 @@ from omegaconf import DictConfig, OmegaConf
 
 from blindspot import config as bconfig
 from blindspot import io, tracking
-from blindspot.stage import StageContext, StageResult, declared_files
+from blindspot.stage import StageContext, StageResult, declared_files, read_dvc_stages
 
 __all__ = [
     "StageFunction",
@@ -69,7 +69,7 @@ COMMANDS = {
     "params": "regenerate params.yaml from conf/",
     "check-params": "fail if params.yaml is not what conf/ composes to",
     "stages": "list the stages",
-    "close-stale-runs": "end KILLED the RUNNING runs whose process on this host is gone",
+    "cleanup": "end KILLED the runs of processes gone (SIGKILL); remove their temporary files",
 }
 
 # Hydra flags that take a value (moved in front of the overrides together with their value).
@@ -267,6 +267,20 @@ def _run_with_hydra(root: Path, name: str, args: Sequence[str]) -> None:
         tracking.end_open_sweep(status)  # no-op unless a sweep died before on_multirun_end
 
 
+def _cleanup(root: Path) -> None:
+    """What a SIGKILLed stage could not do itself, for when nothing reruns it (DVC restored its
+    outputs from the run cache, say): end its MLflow run KILLED and remove its temporaries next
+    to every out of dvc.yaml. The next stage run does the same, for its own outs."""
+    params = root / bconfig.PARAMS_FILE
+    closed = tracking.close_stale_runs_of(bconfig.load_params(root) if params.is_file() else None,
+                                          root)
+    outs = [out for files in read_dvc_stages(root).values() for out in files.outs]
+    removed = io.remove_stale_temps(root / out for out in outs)
+    print(f"closed {len(closed)} stale run(s) KILLED" + "".join(f"\n  {r}" for r in closed))
+    print(f"removed {len(removed)} temporary file(s) of killed writers"
+          + "".join(f"\n  {p}" for p in removed))
+
+
 def _usage(root: Path | None) -> str:
     stages = ", ".join(available_stages(root)) if root else "(not inside a blindspot repo)"
     cmds = "\n".join(f"  {k:<13} {v}" for k, v in COMMANDS.items())
@@ -296,15 +310,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     if command == "stages":
         print("\n".join(available_stages(root)))
         return 0
-    if command in {"params", "check-params", "close-stale-runs"} and rest:
+    if command in {"params", "check-params", "cleanup"} and rest:
         print(f"[blindspot] `{command}` takes no arguments (got {' '.join(rest)}); "
               "change values in conf/", file=sys.stderr)
         return 2
-    if command == "close-stale-runs":
-        params = root / bconfig.PARAMS_FILE
-        closed = tracking.close_stale_runs_of(bconfig.load_params(root) if params.is_file()
-                                              else None, root)
-        print(f"closed {len(closed)} stale run(s) KILLED" + "".join(f"\n  {r}" for r in closed))
+    if command == "cleanup":
+        _cleanup(root)
         return 0
     if command in {"params", "check-params"}:
         from hydra.errors import HydraException

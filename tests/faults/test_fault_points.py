@@ -71,7 +71,7 @@ def test_a_bad_fault_spec_names_the_variable(tmp_path: Path) -> None:
 
 def test_run_of_a_sigkilled_process_is_closed_killed_on_the_next_start(tmp_path: Path) -> None:
     toy = make_toy_repo(tmp_path / "repo")
-    # points: open store, experiment, stale search, create run, params, (log_text is no point),
+    # points: open store, experiment, create run, params, (log_text is no point),
     # metrics, then the write: kill at the write, inside the run
     trace = _run(KILLED_RUN, toy, BLINDSPOT_FAULT_TRACE=str(tmp_path / "t"))
     assert trace.returncode == 0, trace.stderr
@@ -89,7 +89,7 @@ def test_run_of_a_sigkilled_process_is_closed_killed_on_the_next_start(tmp_path:
     live = client.create_run(exp, tags=tracking.stale.owner_tags())
     recycled = client.create_run(exp, tags={**tracking.stale.owner_tags(),
                                             tracking.stale.PID_START_TAG: "1"})
-    out = blindspot(["close-stale-runs"], toy).stdout
+    out = blindspot(["cleanup"], toy).stdout
     assert out.startswith("closed 2 stale run(s) KILLED"), out
     status = {r.info.run_id: r.info.status for r in runs(toy)}
     assert status[victim.info.run_id] == "KILLED" and status[recycled.info.run_id] == "KILLED"

@@ -13,7 +13,7 @@ By concern:
   FINISHED / FAILED / KILLED), :class:`Tracker` and :class:`NullTracker`, :func:`current`.
 - :mod:`~blindspot.tracking.tags`: git commit, DVC experiment and Hydra job tags of a run.
 - :mod:`~blindspot.tracking.stale`: runs left RUNNING by a SIGKILLed process, closed KILLED when
-  the next run starts (:func:`close_stale_runs`) or by ``python -m blindspot close-stale-runs``.
+  the next run starts (:func:`close_stale_runs`) or by ``python -m blindspot cleanup``.
 - :mod:`~blindspot.tracking.signals`: SIGTERM -> :class:`Terminated` (exit status 143); forked
   workers die with their stage (:func:`children_die_with_this_process`).
 - :mod:`~blindspot.tracking.sweep`: :class:`SweepCallback`, Hydra's callback for a multirun (one

@@ -4,7 +4,7 @@ SIGKILL cannot be caught, so no ``finally`` of :func:`blindspot.tracking.stage_r
 Every run therefore records who owns it (:func:`owner_tags`: host, pid and the pid's start time,
 so a recycled pid is not taken for the owner), and :func:`close_stale_runs` ends KILLED each
 RUNNING run whose owner on this host is gone. The stage runner and the sweep callback call it
-when a run starts; ``python -m blindspot close-stale-runs`` does it by hand. Runs owned by another
+when a run starts; ``python -m blindspot cleanup`` does it by hand. Runs owned by another
 host are left alone: whether their process lives cannot be seen from here.
 """
 
@@ -69,7 +69,7 @@ def close_stale_runs(client: MlflowClient, experiment_ids: list[str]) -> list[st
     host = socket.gethostname()
     query = f"attributes.status = 'RUNNING' and tags.`{HOST_TAG}` = '{host}'"
     found = _retry(lambda: client.search_runs(experiment_ids, query, max_results=1000),
-                   "searching for stale runs")
+                   "searching for stale runs", counted=False)
     closed = []
     for run in found:
         tags = run.data.tags
@@ -78,8 +78,10 @@ def close_stale_runs(client: MlflowClient, experiment_ids: list[str]) -> list[st
             continue
         note = (f"left RUNNING by process {pid} on {host}, which is gone (killed); "
                 f"closed KILLED by process {os.getpid()}")
-        _retry(lambda r=run: client.set_tag(r.info.run_id, CLOSED_TAG, note), "tagging a stale run")
-        _retry(lambda r=run: client.set_terminated(r.info.run_id, "KILLED"), "closing a stale run")
+        _retry(lambda r=run: client.set_tag(r.info.run_id, CLOSED_TAG, note),
+               "tagging a stale run", counted=False)
+        _retry(lambda r=run: client.set_terminated(r.info.run_id, "KILLED"),
+               "closing a stale run", counted=False)
         closed.append(run.info.run_id)
     return closed
 
@@ -87,7 +89,7 @@ def close_stale_runs(client: MlflowClient, experiment_ids: list[str]) -> list[st
 def close_stale_runs_of(cfg: DictConfig | Mapping[str, Any] | None,
                         repo_root: str | os.PathLike[str] | None = None) -> list[str]:
     """:func:`close_stale_runs` in the store and experiment ``cfg.tracking`` names (what
-    ``python -m blindspot close-stale-runs`` does); [] when tracking is off or nothing was run."""
+    ``python -m blindspot cleanup`` does); [] when tracking is off or nothing was run."""
     settings = settings_from_cfg(cfg, repo_root)
     if not settings.enabled:
         return []
