@@ -15,6 +15,7 @@ import socket
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from blindspot.io import _pid_alive
 from blindspot.tracking.store import _retry, get_client, settings_from_cfg
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -54,13 +55,7 @@ def owner_tags() -> dict[str, str]:
 
 
 def _owner_alive(pid: int, start: str | None) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        pass  # alive, someone else's
-    return start is None or _start_time(pid) in (None, start)
+    return _pid_alive(pid) and (start is None or _start_time(pid) in (None, start))
 
 
 def close_stale_runs(client: MlflowClient, experiment_ids: list[str]) -> list[str]:
