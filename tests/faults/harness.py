@@ -61,9 +61,10 @@ class Kill:
     point: FaultPoint | None = None
 
     def __str__(self) -> str:
-        where = (f"point {self.k} ({self.point.event} {Path(self.point.detail).name or self.point.detail})"
-                 if self.point else f"{self.after_s:.2f} s")
-        return f"{self.signal.name} at {where}"
+        if self.point is None:
+            return f"{self.signal.name} at {self.after_s:.2f} s"
+        what = re.sub(r"\S*/", "", self.point.detail)  # file names without their folders
+        return f"{self.signal.name} at point {self.k} ({self.point.event} {what})"
 
 
 def stage_specs(root: Path) -> dict[str, dict]:
