@@ -31,16 +31,29 @@ def test_failed_write_keeps_previous_file_and_leaves_no_temp(tmp_path: Path) -> 
     assert _leftovers(target.parent) == []
 
 
-def test_temp_name_keeps_suffix_for_format_sniffing(tmp_path: Path) -> None:
+def test_temp_file_keeps_the_target_name_in_a_hidden_folder_beside_it(tmp_path: Path) -> None:
     seen = []
     with io.atomic_path(tmp_path / "fig04.png") as tmp:
         seen.append(tmp)
         tmp.write_bytes(b"png")
-    assert seen[0].suffix == ".png" and seen[0].parent == tmp_path
-    assert seen[0].name.startswith(".") and not seen[0].exists()
+    # the very name: format sniffing works, and torch.save (which names its archive after the
+    # file) writes the same bytes on every run
+    assert seen[0].name == "fig04.png" and seen[0].parent.parent == tmp_path
+    assert seen[0].parent.name.startswith(".fig04.tmp-") and not seen[0].parent.exists()
+    assert _leftovers(tmp_path) == []
     with pytest.raises(FileNotFoundError, match="nothing was written"):
         with io.atomic_path(tmp_path / "empty.bin"):
             pass
+
+
+def test_torch_save_through_atomic_path_gives_the_same_bytes_twice(tmp_path: Path) -> None:
+    torch = pytest.importorskip("torch")
+    blobs = []
+    for _ in range(2):
+        with io.atomic_path(tmp_path / "model.pt") as tmp:
+            torch.save({"w": torch.arange(4.0)}, tmp)
+        blobs.append((tmp_path / "model.pt").read_bytes())
+    assert blobs[0] == blobs[1]
 
 
 def test_write_json_is_deterministic_numpy_aware_and_rejects_nan(tmp_path: Path) -> None:

@@ -14,6 +14,7 @@ How to run things (from anywhere inside the repository)::
     python -m blindspot params                  # regenerate params.yaml from conf/
     python -m blindspot check-params            # fail (exit 1) if params.yaml != conf/
     python -m blindspot stages                  # list the stages
+    python -m blindspot cleanup                 # after a SIGKILL: close its run, remove its temps
 
 Every stage run is one MLflow run (params = the flattened config, metrics, artifacts); a sweep
 is a parent run with one nested child run per job. The store is ``<repo>/mlflow.db`` (SQLite,
@@ -48,8 +49,8 @@ from types import ModuleType
 from omegaconf import DictConfig, OmegaConf
 
 from blindspot import config as bconfig
-from blindspot import tracking
-from blindspot.stage import StageContext, StageResult, declared_files
+from blindspot import io, tracking
+from blindspot.stage import StageContext, StageResult, declared_files, read_dvc_stages
 
 __all__ = [
     "StageFunction",
@@ -68,6 +69,7 @@ COMMANDS = {
     "params": "regenerate params.yaml from conf/",
     "check-params": "fail if params.yaml is not what conf/ composes to",
     "stages": "list the stages",
+    "cleanup": "end KILLED the runs of processes gone (SIGKILL); remove their temporary files",
 }
 
 # Hydra flags that take a value (moved in front of the overrides together with their value).
@@ -128,7 +130,8 @@ def run_stage(
     """Call ``run(cfg, ctx)`` inside ``tracking.stage_run(name, cfg)`` from the repo root and log
     the :class:`StageResult` it returns (metrics, artifacts, model files, tags) to that run.
 
-    ``cfg`` is resolved and put in struct mode (a misspelt key raises instead of reading None).
+    Temporary files a SIGKILLed earlier run left next to the stage's outs are removed first
+    (:func:`blindspot.io.remove_stale_temps`). ``cfg`` is resolved and put in struct mode (a misspelt key raises instead of reading None).
     ``ctx`` carries the stage's files declared in ``dvc.yaml`` and ``ctx.log_step``, bound to the
     run. ``check_outs``: afterwards, require that the stage wrote every declared out
     (:meth:`StageContext.check_outs`). Raises ``TypeError`` if ``run`` returns something else
@@ -139,6 +142,10 @@ def run_stage(
     cfg = OmegaConf.create(OmegaConf.to_container(cfg, resolve=True))
     OmegaConf.set_struct(cfg, True)
     files = declared_files(root, name)
+    tracking.children_die_with_this_process()  # a SIGKILLed stage's pool workers die with it
+    for debris in io.remove_stale_temps(files.outs):  # left by a SIGKILLed run of the stage
+        print(f"[blindspot] stage {name}: removed {debris}, a killed writer's temporary file",
+              file=sys.stderr)
     with tracking.stage_run(name, cfg, repo_root=root) as tracker:
         ctx = StageContext(files, log_step=lambda metrics, step: tracker.log_metrics(metrics, step))
         result = run(cfg, ctx)
@@ -260,6 +267,20 @@ def _run_with_hydra(root: Path, name: str, args: Sequence[str]) -> None:
         tracking.end_open_sweep(status)  # no-op unless a sweep died before on_multirun_end
 
 
+def _cleanup(root: Path) -> None:
+    """What a SIGKILLed stage could not do itself, for when nothing reruns it (DVC restored its
+    outputs from the run cache, say): end its MLflow run KILLED and remove its temporaries next
+    to every out of dvc.yaml. The next stage run does the same, for its own outs."""
+    params = root / bconfig.PARAMS_FILE
+    closed = tracking.close_stale_runs_of(bconfig.load_params(root) if params.is_file() else None,
+                                          root)
+    outs = [out for files in read_dvc_stages(root).values() for out in files.outs]
+    removed = io.remove_stale_temps(root / out for out in outs)
+    print(f"closed {len(closed)} stale run(s) KILLED" + "".join(f"\n  {r}" for r in closed))
+    print(f"removed {len(removed)} temporary file(s) of killed writers"
+          + "".join(f"\n  {p}" for p in removed))
+
+
 def _usage(root: Path | None) -> str:
     stages = ", ".join(available_stages(root)) if root else "(not inside a blindspot repo)"
     cmds = "\n".join(f"  {k:<13} {v}" for k, v in COMMANDS.items())
@@ -289,10 +310,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     if command == "stages":
         print("\n".join(available_stages(root)))
         return 0
-    if command in {"params", "check-params"} and rest:
+    if command in {"params", "check-params", "cleanup"} and rest:
         print(f"[blindspot] `{command}` takes no arguments (got {' '.join(rest)}); "
               "change values in conf/", file=sys.stderr)
         return 2
+    if command == "cleanup":
+        _cleanup(root)
+        return 0
     if command in {"params", "check-params"}:
         from hydra.errors import HydraException
 

@@ -1,13 +1,16 @@
 """Atomic output helpers: a killed stage never leaves a half-written file that looks complete.
 
-Every writer writes to a hidden temporary name in the *same directory* as the target (so the
-final ``os.replace`` is a rename on one file system, atomic on POSIX), flushes and ``fsync``s the
-data, renames it into place and ``fsync``s the directory. On any exception (including the
-``SystemExit`` raised by the SIGTERM handler of :mod:`blindspot.tracking`) the temporary file or
-directory is removed and the previous target, if any, is left untouched.
+Every writer writes into a hidden temporary folder in the *same directory* as the target (so the
+final ``os.replace`` is a rename on one file system, atomic on POSIX), under the target's own
+name, flushes and ``fsync``s the data, renames it into place and ``fsync``s the directory. On any
+exception (including the ``SystemExit`` raised by the SIGTERM handler of
+:mod:`blindspot.tracking`) the temporary folder is removed and the previous target, if any, is
+left untouched.
 
-Temporary names keep the target's suffix (``.fig04.tmp-1a2b3c.png``) so libraries that infer the
-format from the extension (matplotlib ``savefig``, pandas) still work.
+The temporary file keeps the target's very name (``.fig04.tmp-<pid>-<token>/fig04.png``): libraries
+that infer the format from the extension (matplotlib ``savefig``, pandas) still work, and those
+that record the file name inside the file (``torch.save`` names its zip archive's root after it)
+give the same bytes on every run.
 
 Public API::
 
@@ -20,6 +23,20 @@ Public API::
     write_yaml(path, obj) -> Path
     write_parquet(path, df, *, index=False, **kw) -> Path
     save_figure(fig, path, **savefig_kw) -> Path
+    remove_stale_temps(paths) -> list[Path]         # temp files of writers that died (SIGKILL)
+    fault_point(event, detail)                       # where a test may kill the process
+
+A SIGKILL cannot be caught, so its temporary file stays behind. Such debris can never be taken
+for an output: its folder's name is hidden and marked (``.<stem>.tmp-<pid>-<token>``, matched by
+``.dvcignore`` so DVC never counts it inside a directory output), and the next stage run removes
+the temporaries of dead writers (:func:`remove_stale_temps`, called by the stage runner).
+
+Fault injection (for tests, see ``tests/faults/``): every commit of an atomic write and every
+MLflow call of the stage runner is a *fault point*. ``BLINDSPOT_FAULT=<SIGNAL>@<k>`` (``KILL@3``,
+``TERM@7``) makes the process send itself that signal at its k-th fault point (1-based; the main
+process only, never a worker); ``BLINDSPOT_FAULT_TRACE=<dir>`` appends one line per fault point
+to ``<dir>/<pid>.trace`` (first line: the command), so a test can count a stage's points in an
+undisturbed run and then kill it at a chosen one, deterministically.
 """
 
 from __future__ import annotations
@@ -30,7 +47,10 @@ import math
 import os
 import secrets
 import shutil
-from collections.abc import Iterator, Mapping
+import signal
+import sys
+import time
+from collections.abc import Iterable, Iterator, Mapping
 from pathlib import Path
 from typing import IO, TYPE_CHECKING, Any
 
@@ -49,16 +69,126 @@ __all__ = [
     "write_parquet",
     "save_figure",
     "to_jsonable",
+    "remove_stale_temps",
+    "fault_point",
+    "FAULT_ENV",
+    "FAULT_TRACE_ENV",
+    "TEMP_MARK",
 ]
 
 PathLike = str | os.PathLike[str]
 
+TEMP_MARK = ".tmp-"
+"""Marks a temporary name: ``.<stem>.tmp-<pid>-<token>`` (the pattern in ``.dvcignore``)."""
+FAULT_ENV = "BLINDSPOT_FAULT"
+FAULT_TRACE_ENV = "BLINDSPOT_FAULT_TRACE"
+
 
 def _temp_sibling(target: Path) -> Path:
-    """Hidden, unique name next to ``target`` that keeps its suffix."""
+    """Hidden, unique name next to ``target`` that names the writer's pid."""
     token = secrets.token_hex(4)
     stem = target.stem if target.suffix else target.name
-    return target.with_name(f".{stem}.tmp-{os.getpid()}-{token}{target.suffix}")
+    return target.with_name(f".{stem}{TEMP_MARK}{os.getpid()}-{token}")
+
+
+def _temp_writer_pid(name: str) -> int | None:
+    """The writer's pid encoded in a temporary name of :func:`_temp_sibling`, else None."""
+    if not name.startswith(".") or TEMP_MARK not in name:
+        return None
+    pid, _, rest = name.rpartition(TEMP_MARK)[2].partition("-")
+    return int(pid) if pid.isdigit() and rest else None
+
+
+def _pid_alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # someone else's live process
+        return True
+    return True
+
+
+def remove_stale_temps(paths: Iterable[PathLike]) -> list[Path]:
+    """Remove the temporary files/folders that writers now dead left next to (or, for a
+    directory, inside) each of ``paths``; returns what was removed.
+
+    A temporary name carries its writer's pid; one whose process still lives (a parallel writer)
+    is kept. Called by the stage runner before a stage, so debris of a SIGKILLed run never
+    accumulates next to the outputs.
+    """
+    removed: list[Path] = []
+    folders: set[Path] = set()
+    for path in map(Path, paths):
+        folders.add(path.parent)
+        if path.is_dir() and not path.is_symlink():
+            folders.update(Path(root) for root, _dirs, _files in os.walk(path))
+    for folder in sorted(folders):
+        if not folder.is_dir():
+            continue
+        for entry in folder.iterdir():
+            pid = _temp_writer_pid(entry.name)
+            if pid is not None and pid != os.getpid() and not _pid_alive(pid):
+                _remove(entry)
+                removed.append(entry)
+    return removed
+
+
+class _Faults:
+    """The armed fault (``$BLINDSPOT_FAULT``) and the fault-point counter of this process."""
+
+    def __init__(self) -> None:
+        self.count = 0
+        self.pid = os.getpid()
+
+    def hit(self, event: str, detail: str) -> None:
+        spec = os.environ.get(FAULT_ENV)
+        trace = os.environ.get(FAULT_TRACE_ENV)
+        if not (spec or trace) or _in_worker():
+            return
+        if os.getpid() != self.pid:  # a forked child counts its own points
+            self.count, self.pid = 0, os.getpid()
+        self.count += 1
+        if trace:
+            _append_trace(Path(trace), self.count, event, detail)
+        if spec:
+            sig, k = _parse_fault(spec)
+            if k == self.count:
+                os.kill(os.getpid(), sig)
+
+
+def _in_worker() -> bool:
+    import multiprocessing
+
+    return multiprocessing.parent_process() is not None
+
+
+def _parse_fault(spec: str) -> tuple[int, int]:
+    name, _, k = spec.partition("@")
+    try:
+        sig = signal.Signals["SIG" + name.upper().removeprefix("SIG")]
+        return int(sig), int(k)
+    except (KeyError, ValueError):
+        raise ValueError(f"${FAULT_ENV}={spec!r}: expected <SIGNAL>@<k>, e.g. KILL@3 or TERM@7 "
+                         "(k = the 1-based fault point at which to send the signal)") from None
+
+
+def _append_trace(folder: Path, k: int, event: str, detail: str) -> None:
+    folder.mkdir(parents=True, exist_ok=True)
+    path = folder / f"{os.getpid()}.trace"
+    head = "" if path.exists() else "cmd " + " ".join(sys.argv) + "\n"
+    with open(path, "a", encoding="utf-8") as fh:
+        fh.write(f"{head}{k} {time.time():.3f} {event} {detail}\n")
+
+
+_FAULTS = _Faults()
+
+
+def fault_point(event: str, detail: str = "") -> None:
+    """A point where a test may kill this process (see the module docstring); a no-op unless
+    ``$BLINDSPOT_FAULT`` or ``$BLINDSPOT_FAULT_TRACE`` is set. ``event`` names the kind
+    (``write``, ``mlflow``), ``detail`` what is being done (the target path, the call)."""
+    _FAULTS.hit(event, detail)
 
 
 def _fsync_file(path: Path) -> None:
@@ -93,15 +223,18 @@ def _remove(path: Path) -> None:
 
 @contextlib.contextmanager
 def atomic_path(path: PathLike) -> Iterator[Path]:
-    """Yield a temporary path next to ``path``; on success rename it onto ``path``.
+    """Yield a temporary path with the name of ``path``, in a hidden folder next to it; on
+    success rename it onto ``path``.
 
     The caller writes the file at the yielded path (any library, any format). Parent
-    directories are created. If the body raises, the temporary file is deleted and ``path`` is
+    directories are created. If the body raises, the temporary folder is deleted and ``path`` is
     left as it was. Raises ``FileNotFoundError`` naming the path if the body wrote nothing.
     """
     target = Path(path)
     target.parent.mkdir(parents=True, exist_ok=True)
-    tmp = _temp_sibling(target)
+    folder = _temp_sibling(target)
+    folder.mkdir()
+    tmp = folder / target.name
     try:
         yield tmp
         if not tmp.exists():
@@ -113,11 +246,11 @@ def atomic_path(path: PathLike) -> Iterator[Path]:
                 f"atomic write of {target}: a directory was written; use atomic_dir() for that"
             )
         _fsync_file(tmp)
+        fault_point("write", str(target))
         os.replace(tmp, target)
         _fsync_dir(target.parent)
-    except BaseException:
-        _remove(tmp)
-        raise
+    finally:
+        _remove(folder)
 
 
 @contextlib.contextmanager
@@ -156,6 +289,7 @@ def atomic_dir(path: PathLike) -> Iterator[Path]:
             for name in files:
                 _fsync_file(Path(root, name))
             _fsync_dir(Path(root))
+        fault_point("write", str(target))
         if target.exists() or target.is_symlink():
             old = _temp_sibling(target)
             os.replace(target, old)

@@ -37,14 +37,13 @@ def copy_worktree(dest: Path) -> Path:
     return dest
 
 
-@pytest.fixture(scope="module")
-def tiny_repo(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    if not (SHARED / "data" / "radar").is_dir():
-        pytest.skip(f"shared recordings not found at {SHARED}")
-    root = copy_worktree(tmp_path_factory.mktemp("repro") / "repo")
+def make_tiny_repo(dest: Path, env: dict[str, str]) -> Path:
+    """A git repository at ``dest``: this working tree (no data, no dvc.lock) on the tiny profile,
+    params.yaml composed, all committed."""
+    root = copy_worktree(dest)
+    (root / "dvc.lock").unlink(missing_ok=True)  # the paper profile's: what runs gets locked
     cfg = root / "conf" / "config.yaml"
     cfg.write_text(cfg.read_text().replace("  - profile: paper", "  - profile: tiny"))
-    env = clean_env(BLINDSPOT_SHARED=str(SHARED))
     for cmd in (["git", "init", "-q", "-b", "main"], ["git", "config", "user.email", "t@example.com"],
                 ["git", "config", "user.name", "t"]):
         run(cmd, root, env=env)
@@ -52,6 +51,14 @@ def tiny_repo(tmp_path_factory: pytest.TempPathFactory) -> Path:
     run(["git", "add", "-A"], root, env=env)
     run(["git", "commit", "-qm", "tiny"], root, env=env)
     return root
+
+
+@pytest.fixture(scope="module")
+def tiny_repo(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    if not (SHARED / "data" / "radar").is_dir():
+        pytest.skip(f"shared recordings not found at {SHARED}")
+    return make_tiny_repo(tmp_path_factory.mktemp("repro") / "repo",
+                          clean_env(BLINDSPOT_SHARED=str(SHARED)))
 
 
 def test_dvc_repro_tiny_profile_end_to_end(tiny_repo: Path) -> None:

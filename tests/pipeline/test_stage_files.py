@@ -102,11 +102,15 @@ def test_stage_names_only_declared_files_and_every_declared_out(stage: str) -> N
 
 
 def _out_roots(tree: ast.AST) -> set[str]:
-    """Names assigned from an expression holding ``ctx.out(...)`` (a declared folder)."""
+    """Names bound to an expression holding ``ctx.out(...)`` (a declared folder): assigned, or
+    ``with atomic_dir(ctx.out("folder")) as name``."""
     roots = set()
     for node in ast.walk(tree):
         if isinstance(node, ast.Assign) and _ctx_calls(node.value):
             roots.update(t.id for t in node.targets if isinstance(t, ast.Name))
+        if isinstance(node, ast.withitem) and isinstance(node.optional_vars, ast.Name) \
+                and _ctx_calls(node.context_expr):
+            roots.add(node.optional_vars.id)
     return roots
 
 

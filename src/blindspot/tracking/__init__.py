@@ -12,14 +12,18 @@ By concern:
 - :mod:`~blindspot.tracking.runs`: :func:`stage_run` (one run per stage run, always closed
   FINISHED / FAILED / KILLED), :class:`Tracker` and :class:`NullTracker`, :func:`current`.
 - :mod:`~blindspot.tracking.tags`: git commit, DVC experiment and Hydra job tags of a run.
-- :mod:`~blindspot.tracking.signals`: SIGTERM -> :class:`Terminated` (exit status 143).
+- :mod:`~blindspot.tracking.stale`: runs left RUNNING by a SIGKILLed process, closed KILLED when
+  the next run starts (:func:`close_stale_runs`) or by ``python -m blindspot cleanup``.
+- :mod:`~blindspot.tracking.signals`: SIGTERM -> :class:`Terminated` (exit status 143); forked
+  workers die with their stage (:func:`children_die_with_this_process`).
 - :mod:`~blindspot.tracking.sweep`: :class:`SweepCallback`, Hydra's callback for a multirun (one
   parent run, a nested child per job); ``python -m blindspot`` registers it by the name
   ``blindspot.tracking.SweepCallback``.
 """
 
 from blindspot.tracking.runs import PARENT_RUN_ENV, NullTracker, Tracker, current, stage_run
-from blindspot.tracking.signals import Terminated, sigterm_as_exit
+from blindspot.tracking.signals import Terminated, children_die_with_this_process, sigterm_as_exit
+from blindspot.tracking.stale import close_stale_runs, close_stale_runs_of
 from blindspot.tracking.store import (
     DEFAULT_EXPERIMENT,
     TrackingSettings,
@@ -46,4 +50,7 @@ __all__ = [
     "SweepCallback",
     "end_open_sweep",
     "sigterm_as_exit",
+    "children_die_with_this_process",
+    "close_stale_runs",
+    "close_stale_runs_of",
 ]

@@ -3,6 +3,8 @@
 Every stage run is wrapped in :func:`stage_run`, which opens an MLflow run, logs the flattened
 config as params and a few tags, hands out a :class:`Tracker`, and always closes the run:
 FINISHED on success, FAILED on an exception, KILLED on SIGTERM (exit code 143) or Ctrl-C.
+A run whose process was SIGKILLed (no handler can run) is closed KILLED when the next run starts
+(:mod:`~blindspot.tracking.stale`).
 The stage runner (:func:`blindspot.cli.run_stage`) is the one caller: it logs what the stage
 returns. :func:`current` gives the tracker of the innermost active run (a no-op tracker when none
 is active or tracking is disabled).
@@ -23,7 +25,9 @@ from typing import TYPE_CHECKING, Any
 from omegaconf import DictConfig, OmegaConf
 
 from blindspot.config import flatten
+from blindspot.io import fault_point
 from blindspot.tracking.signals import Terminated, sigterm_as_exit, sigterm_deferred
+from blindspot.tracking.stale import close_stale_runs, owner_tags
 from blindspot.tracking.store import (
     _plain,
     _repo_roots,
@@ -175,6 +179,7 @@ class Tracker(NullTracker):
             self.client.log_artifact(self.run_id, str(p), artifact_path)
         else:
             raise FileNotFoundError(f"cannot log artifact {p}: no such file or directory")
+        fault_point("mlflow", f"logging the artifact {p}")
 
     def log_model_file(self, path: str | os.PathLike[str], artifact_path: str = "model") -> None:
         """Log a saved model (e.g. a torch checkpoint file or directory) as an artifact."""
@@ -228,8 +233,9 @@ def stage_run(
     DVC's baseline rev inside an experiment), ``dvc.exp_name``, ``hydra.job_num``... The run is
     nested under ``parent_run_id``, else under an enclosing stage_run, else under the sweep
     parent named by ``$BLINDSPOT_MLFLOW_PARENT_RUN_ID``. Ends FINISHED / FAILED / KILLED
-    (SIGTERM -> KILLED and exit status 143). With ``cfg.tracking.enabled: false`` yields a
-    :class:`NullTracker` and touches no store.
+    (SIGTERM -> KILLED and exit status 143); tagged with its owner process, so that a run left
+    RUNNING by a SIGKILL is closed KILLED by the next stage_run (:func:`close_stale_runs`).
+    With ``cfg.tracking.enabled: false`` yields a :class:`NullTracker` and touches no store.
     """
     settings = settings_from_cfg(cfg, repo_root)
     if not settings.enabled:
@@ -251,7 +257,8 @@ def stage_run(
             experiment_id = client.get_run(parent_run_id).info.experiment_id
         else:
             experiment_id = ensure_experiment(settings)
-        tags = run_tags(stage, work, original)
+        close_stale_runs(client, [experiment_id])
+        tags = {**run_tags(stage, work, original), **owner_tags()}
         if parent_run_id:
             tags["mlflow.parentRunId"] = parent_run_id
         if run_name is None:

@@ -23,6 +23,7 @@ from typing import TYPE_CHECKING, Any, TypeVar
 from omegaconf import DictConfig, OmegaConf
 
 from blindspot.config import ConfigNotFound, find_repo_root, original_repo_root
+from blindspot.io import fault_point
 from blindspot.typed_config import plain
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -146,12 +147,16 @@ def _file_lock(path: Path | None) -> Iterator[None]:
 _TRANSIENT = ("database is locked", "unique constraint", "already exists", "integrityerror")
 
 
-def _retry(fn: Callable[[], T], what: str, attempts: int = 30) -> T:
-    """Call ``fn``; retry (with backoff) on SQLite lock/creation races, re-raise otherwise."""
+def _retry(fn: Callable[[], T], what: str, attempts: int = 30, *, counted: bool = True) -> T:
+    """Call ``fn``; retry (with backoff) on SQLite lock/creation races, re-raise otherwise.
+
+    Each success is a fault point (:func:`blindspot.io.fault_point`) unless ``counted`` is
+    False: housekeeping whose calls depend on what earlier runs left behind, so that a stage's
+    k-th fault point is the same call in every run."""
     delay = 0.05
     for i in range(attempts):
         try:
-            return fn()
+            result = fn()
         except Exception as exc:  # noqa: BLE001 - filtered below
             text = f"{type(exc).__name__}: {exc}".lower()
             if i == attempts - 1 or not any(t in text for t in _TRANSIENT):
@@ -159,6 +164,10 @@ def _retry(fn: Callable[[], T], what: str, attempts: int = 30) -> T:
             log.debug("retrying %s after %s", what, exc)
             time.sleep(delay)
             delay = min(delay * 1.6, 1.0)
+            continue
+        if counted:
+            fault_point("mlflow", what)  # a test may kill the process after any store call
+        return result
     raise AssertionError("unreachable")  # pragma: no cover
 
 

@@ -19,6 +19,7 @@ from omegaconf import DictConfig, OmegaConf
 
 from blindspot.tracking import runs
 from blindspot.tracking.runs import PARENT_RUN_ENV
+from blindspot.tracking.stale import close_stale_runs, owner_tags
 from blindspot.tracking.store import _repo_roots, _retry, ensure_experiment, get_client, settings_from_cfg
 from blindspot.tracking.tags import run_tags
 
@@ -79,7 +80,8 @@ class SweepCallback(Callback):
         work, original = _repo_roots(None)
         client = get_client(settings)
         experiment_id = ensure_experiment(settings)
-        tags = run_tags(stage, work, original)
+        close_stale_runs(client, [experiment_id])
+        tags = {**run_tags(stage, work, original), **owner_tags()}
         tags.pop("hydra.job_num", None)
         tags["blindspot.sweep"] = "true"
         tags["hydra.overrides"] = " ".join(overrides)
