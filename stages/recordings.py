@@ -1,7 +1,8 @@
 """recordings: real radar recordings through the same detection chain (range-Doppler, CFAR, MUSIC).
 
 Each entry of cfg.recordings (conf/recordings/) names a capture (kind: ti_cascade | dca1000 |
-openradar_npy, path relative to paths.shared_dir or absolute) and its radar profile. For each:
+dca1000_packets | openradar_npy, path relative to paths.shared_dir or absolute), its radar profile
+and optionally the reader's options (``options: {strict: true}``, ``{part: 1}``, ...). For each:
 the detections of every frame, the maps of the first frame, and a range-Doppler figure with the
 detections. Your own capture: add a conf/recordings/<name>.yaml, declare its figure
 reports/figures/recording_<name>.png among the recordings stage's outs in dvc.yaml (and the
@@ -50,7 +51,14 @@ def process_recording(cfg, name, rec):
         path = shared_dir(cfg) / path
     where = f"recordings.{name}"
     radar = RadarConfig.from_mapping(rec.radar, where=f"{where}.radar")
-    source = open_recording(rec.kind, path, radar)
+    # reader options of the kind (e.g. strict: true to refuse a DCA1000 file with lost packets)
+    options = OmegaConf.to_container(rec.get("options") or OmegaConf.create({}))
+    try:
+        source = open_recording(rec.kind, path, radar, **options)
+    except ValueError as exc:
+        if "has no option" not in str(exc):
+            raise
+        raise ValueError(f"config key '{where}.options': {exc}") from None
     # per-recording overrides of the chain's groups (e.g. a smaller array needs doa.subarray)
     chain = DetectionChain.from_config(radar, array_for(radar), *(
         kind.from_mapping(OmegaConf.merge(cfg[g], rec.get(g) or {}), where=f"{where}.{g}")

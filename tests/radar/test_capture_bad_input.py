@@ -206,3 +206,25 @@ def test_c10_multipart_cascade_with_an_empty_last_part(tmp_path):
         read_ti_cascade(tmp_path, s, loops, ntx, capture_index=2, skip_first_frame=False)
     with pytest.raises(TypeError, match="capture_index is an alias of part"):
         read_ti_cascade(tmp_path, s, loops, ntx, part=1, capture_index=1)
+
+
+def test_reader_options_reach_the_recording_by_config(tmp_path):
+    """conf/recordings entries pass ``options`` to open_recording: strict mode refuses the cut
+    file the default only warns about, and an option the kind does not take is named."""
+    from blindspot.radar.capture import open_recording
+    from blindspot.radar.config import RadarConfig
+    from tests.dsp._synth import mmwcas
+
+    base, _ = mmwcas()
+    radar = RadarConfig.from_mapping({**base.__dict__, "n_samples": S, "n_chirps": L, "n_tx": T,
+                                      "n_rx": R, "tx_order": None, "array": "ula"})
+    write_dca1000(tmp_path / "whole.bin", tone_cube(2))
+    path = tmp_path / "adc_data.bin"
+    path.write_bytes((tmp_path / "whole.bin").read_bytes()[:-DCA1000_PAYLOAD_BYTES])
+    with pytest.warns(UserWarning, match="not a whole number of frames"):
+        assert open_recording("dca1000", path, radar).n_frames == 1
+    with pytest.raises(CaptureError, match="not a whole number of frames"):
+        open_recording("dca1000", path, radar, strict=True)
+    with pytest.raises(ValueError, match=r"'dca1000' has no option\(s\) \['stict'\]: it takes "
+                                         r"\[.*'strict'.*\]"):
+        open_recording("dca1000", path, radar, stict=True)

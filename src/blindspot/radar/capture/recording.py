@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import inspect
 import os
 from typing import Any
 
@@ -32,8 +33,14 @@ def open_recording(kind: str, path: str | os.PathLike, radar: RadarConfig,
     :class:`~blindspot.radar.capture.common.CaptureError` where they would warn about the size,
     zero runs or lost packets, ``part`` for ``ti_cascade``). ``path`` is a file, the cascade's
     folder, or for ``dca1000_packets`` a list of the record's files in order. Raises
-    ``ValueError`` for an unknown kind; the format's errors otherwise.
+    ``ValueError`` for an unknown kind or an option the kind does not take (naming the options it
+    takes); the format's errors otherwise.
     """
     if kind not in _RECORDINGS:
         raise ValueError(f"recording kind {kind!r} unknown: expected one of {RECORDING_KINDS}")
-    return _RECORDINGS[kind](path, radar, **options)
+    cls = _RECORDINGS[kind]
+    takes = [name for name, p in inspect.signature(cls).parameters.items()
+             if p.kind is inspect.Parameter.KEYWORD_ONLY]
+    if unknown := sorted(set(options) - set(takes)):
+        raise ValueError(f"recording kind {kind!r} has no option(s) {unknown}: it takes {takes}")
+    return cls(path, radar, **options)
