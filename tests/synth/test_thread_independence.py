@@ -55,6 +55,7 @@ def run_detect(threads: int, jobs: int) -> dict:
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
+@pytest.mark.slow  # two fresh interpreters simulating and detecting: about 1 min
 @pytest.mark.timeout(900)
 def test_detections_and_frames_do_not_depend_on_thread_settings():
     one = run_detect(threads=1, jobs=1)

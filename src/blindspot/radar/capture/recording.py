@@ -39,8 +39,25 @@ def open_recording(kind: str, path: str | os.PathLike, radar: RadarConfig,
     if kind not in _RECORDINGS:
         raise ValueError(f"recording kind {kind!r} unknown: expected one of {RECORDING_KINDS}")
     cls = _RECORDINGS[kind]
-    takes = [name for name, p in inspect.signature(cls).parameters.items()
-             if p.kind is inspect.Parameter.KEYWORD_ONLY]
+    takes = _options_of(cls)
     if unknown := sorted(set(options) - set(takes)):
         raise ValueError(f"recording kind {kind!r} has no option(s) {unknown}: it takes {takes}")
     return cls(path, radar, **options)
+
+
+def _keyword_only(fn: Any) -> tuple[list[str], bool]:
+    """(keyword-only parameter names of ``fn``, whether it takes ``**kwargs`` too)."""
+    params = inspect.signature(fn).parameters.values()
+    return ([p.name for p in params if p.kind is inspect.Parameter.KEYWORD_ONLY],
+            any(p.kind is inspect.Parameter.VAR_KEYWORD for p in params))
+
+
+def _options_of(cls: type) -> list[str]:
+    """The options a recording class takes: its keyword-only parameters and, when it passes
+    ``**options`` on to its capture class, that class's (but those the profile sets)."""
+    names, passes_on = _keyword_only(cls)
+    capture = getattr(cls, "_capture_class", None)
+    if passes_on and capture is not None:
+        inner, _ = _keyword_only(capture)
+        names += [n for n in inner if n not in names and n != "adc_bits"]
+    return names
