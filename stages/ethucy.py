@@ -19,7 +19,7 @@ from blindspot.traj.ethucy_benchmark import EthUcySettings, run_benchmark
 def run(cfg, ctx):
     settings = EthUcySettings.from_config(experiment.ethucy(cfg), shared_dir=shared_dir(cfg),
                                           seed=int(cfg.seed))
-    bench = run_benchmark(settings, progress=bool(cfg.progress))
+    bench = run_benchmark(settings, progress=bool(cfg.progress), jobs=int(cfg.jobs))
     write_json(ctx.out("ethucy.json"), bench.results)
     lstm = asdict(settings.lstm) if "lstm" in settings.models else None
     report = write_text(ctx.out("ethucy.md"), format_report(
