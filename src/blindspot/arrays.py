@@ -1,7 +1,7 @@
 """One place for the checks of array arguments: axes, element kind, finiteness, axis lengths.
 
-Every public function of the library rooms that takes arrays calls :func:`checked_array` on them
-and raises its own module's error class (a ``ValueError`` subclass, e.g.
+Every public function of the library rooms that takes arrays checks them here and raises its
+own module's error class (a ``ValueError`` subclass, e.g.
 :class:`blindspot.dsp.cfar.CfarError`), so a user sees one kind of message wherever the bad
 array enters:
 
@@ -20,8 +20,9 @@ Two entry points over the same kind and finiteness rules:
   :func:`check_count` for an integer argument.
 
 Non-finite values are counted only when the cheap test fails: the sum of a finite float array is
-finite unless it overflows, so a finite array costs one reduction (about 1 ms for one MMWCAS
-frame, 3.1 M complex64 samples) instead of an ``isfinite`` mask of its size.
+finite unless it overflows, so a finite array costs one reduction (about 3 ms for one MMWCAS
+frame, 3.1 M complex64 samples, against 5.7 ms for an ``isfinite`` mask; measured on the project's
+machine). The detection chain avoids even that: see :mod:`blindspot.dsp.range_doppler`.
 """
 
 from __future__ import annotations
