@@ -32,8 +32,8 @@ from typing import Any, Literal
 
 import numpy as np
 
-__all__ = ["ArrayKind", "check_array", "check_count", "checked_array", "count_nonfinite",
-           "describe_shape"]
+__all__ = ["ArrayKind", "check_array", "check_count", "check_same_shape", "checked_array",
+           "count_nonfinite", "describe_shape"]
 
 ArrayKind = Literal["real", "numeric", "integer", "bool", "index"]
 
@@ -55,6 +55,14 @@ def count_nonfinite(x: np.ndarray) -> int:
         if np.isfinite(np.sum(x)):
             return 0
     return int(x.size - np.count_nonzero(np.isfinite(x)))
+
+
+def check_same_shape(error: type[Exception], where: str, what: str, **arrays: np.ndarray) -> None:
+    """``error`` unless every array of ``arrays`` (name=array) has one shape, e.g. the
+    per-detection arrays of one call: ``"{where}: {what} must have one shape; found a (3,), b (4,)"``."""
+    if len({a.shape for a in arrays.values()}) > 1:
+        shapes = ", ".join(f"{name} {a.shape}" for name, a in arrays.items())
+        raise error(f"{where}: {what} must have one shape; found {shapes}")
 
 
 def _describe_found(x: np.ndarray) -> str:

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from blindspot.arrays import checked_array
+from blindspot.arrays import check_same_shape, checked_array
 
 __all__ = ["DetectionError", "local_maxima", "detection_order", "rank_in_frame"]
 
@@ -86,9 +86,7 @@ def _per_detection(where: str, **arrays: tuple[np.ndarray, str]) -> list[np.ndar
     """Each ``name=(array, kind)`` checked as (D,) of its kind, all of one length D."""
     out = [checked_array(a, name, DetectionError, where=where, axes="one value per detection (D,)",
                          ndim=1, kind=kind) for name, (a, kind) in arrays.items()]
-    if len({a.size for a in out}) > 1:
-        sizes = ", ".join(f"{name} {a.shape}" for name, a in zip(arrays, out))
-        raise DetectionError(f"{where}: the per-detection arrays must have one length; found {sizes}")
+    check_same_shape(DetectionError, where, "the per-detection arrays", **dict(zip(arrays, out)))
     return out
 
 

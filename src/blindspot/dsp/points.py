@@ -22,7 +22,7 @@ import pandas as pd
 import scipy.sparse
 import scipy.sparse.csgraph
 
-from blindspot.arrays import checked_array
+from blindspot.arrays import check_same_shape, checked_array
 
 DETECTION_COLUMNS = ("frame", "range_bin", "doppler_bin", "range_m", "velocity_mps", "power",
                      "snr_db", "angle_deg")
@@ -47,12 +47,6 @@ def _values(where: str, name: str, value: np.ndarray, *, nan_ok: bool = False,
     return a
 
 
-def _one_length(where: str, **arrays: np.ndarray) -> None:
-    if len({a.shape for a in arrays.values()}) > 1:
-        shapes = ", ".join(f"{k} {a.shape}" for k, a in arrays.items())
-        raise PointError(f"{where}: the per-detection arrays must have one shape; found {shapes}")
-
-
 def _threshold(where: str, name: str, value: float, *, positive: bool = False) -> float:
     ok = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool)
     if not ok or not np.isfinite(value) or value < 0 or (positive and value == 0):
@@ -69,7 +63,7 @@ def to_cartesian(range_m: np.ndarray, angle_deg: np.ndarray) -> tuple[np.ndarray
     Returns (x_m, y_m), float64 of that shape. Raises PointError for other input."""
     r = _values("to_cartesian", "range_m", range_m, nonnegative=True)
     a = _values("to_cartesian", "angle_deg", angle_deg, nan_ok=True)
-    _one_length("to_cartesian", range_m=r, angle_deg=a)
+    check_same_shape(PointError, "to_cartesian", "the per-detection arrays", range_m=r, angle_deg=a)
     th = np.radians(a)
     return np.asarray(r * np.sin(th)), np.asarray(r * np.cos(th))
 
@@ -87,7 +81,7 @@ def cluster_labels(x: np.ndarray, y: np.ndarray, gap_m: float) -> np.ndarray:
     x, y: (N,) metres, finite -> (N,) int labels. Raises PointError for other input."""
     x = _values("cluster_labels", "x", x)
     y = _values("cluster_labels", "y", y)
-    _one_length("cluster_labels", x=x, y=y)
+    check_same_shape(PointError, "cluster_labels", "the per-detection arrays", x=x, y=y)
     gap_m = _threshold("cluster_labels", "gap_m", gap_m, positive=True)
     xy = np.stack([x.ravel(), y.ravel()], axis=1)
     if len(xy) <= 1:
@@ -133,8 +127,8 @@ def group_points(frame: np.ndarray, range_m: np.ndarray, velocity_mps: np.ndarra
     range_m, velocity_mps, snr_db = (_values(where, k, v) for k, v in (
         ("range_m", range_m), ("velocity_mps", velocity_mps), ("snr_db", snr_db)))
     angle_deg = _values(where, "angle_deg", angle_deg, nan_ok=True)
-    _one_length(where, frame=f_all, range_m=range_m, velocity_mps=velocity_mps,
-                angle_deg=angle_deg, snr_db=snr_db)
+    check_same_shape(PointError, where, "the per-detection arrays", frame=f_all, range_m=range_m,
+                     velocity_mps=velocity_mps, angle_deg=angle_deg, snr_db=snr_db)
     cluster_gap_m = _threshold(where, "cluster_gap_m", cluster_gap_m, positive=True)
     keep = moving(velocity_mps, min_speed_mps) & np.isfinite(angle_deg)
     order = np.argsort(f_all[keep], kind="stable")

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from blindspot.arrays import checked_array
+from blindspot.arrays import check_same_shape, checked_array
 from blindspot.dsp.config import SNAPSHOT_MODES
 
 
@@ -45,9 +45,7 @@ def _indices(where: str, data: np.ndarray, frame: np.ndarray | None,
             raise SnapshotError(f"{where}: {name} must index {n} bins (0..{n - 1}); found "
                                 f"{a.max()}")
         out.append(a)
-    if len({a.size for a in out}) > 1:
-        sizes = ", ".join(f"{k} {a.shape}" for k, a in zip(named, out))
-        raise SnapshotError(f"{where}: the detection indices must have one length; found {sizes}")
+    check_same_shape(SnapshotError, where, "the detection indices", **dict(zip(named, out)))
     return (out[0], out[1:]) if frame is not None else (None, out)
 
 
