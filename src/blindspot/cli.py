@@ -49,7 +49,7 @@ from types import ModuleType
 from omegaconf import DictConfig, OmegaConf
 
 from blindspot import config as bconfig
-from blindspot import io, tracking
+from blindspot import io, kernels, tracking
 from blindspot.stage import StageContext, StageResult, declared_files, read_dvc_stages
 
 __all__ = [
@@ -188,6 +188,13 @@ def main_stage(run: StageFunction, name: str, argv: Sequence[str] | None = None)
             file=sys.stderr,
         )
         raise SystemExit(2)
+    if kernels.needs_reexec():
+        # numpy/torch were imported before blindspot pinned their kernels (see blindspot.kernels):
+        # start again with the pins in the environment, so the outputs match the committed lock
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os.environ[kernels.REEXEC_ENV] = "1"
+        os.execv(sys.executable, [sys.executable, *sys.orig_argv[1:]])
     stage_file = Path(getattr(run, "__code__").co_filename)
     try:
         root = bconfig.find_repo_root(stage_file.parent)

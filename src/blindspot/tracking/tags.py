@@ -1,10 +1,12 @@
-"""The tags of a run: stage, working copy, git commit and dirtiness, DVC experiment, Hydra job."""
+"""The tags of a run: stage, working copy, git commit and dirtiness, DVC experiment, Hydra job, CPU kernels."""
 
 from __future__ import annotations
 
 import os
 import subprocess
 from pathlib import Path
+
+from blindspot import kernels
 
 __all__ = ["run_tags"]
 
@@ -35,6 +37,7 @@ def run_tags(stage: str, work: Path, original: Path) -> dict[str, str]:
         dirty = _git(work, "status", "--porcelain", "--untracked-files=no")
         tags["git.dirty"] = "true" if dirty else "false"
     tags["mlflow.source.name"] = f"stages/{stage}.py"
+    tags["blindspot.kernels"] = kernels.STATE.summary()
     tags["mlflow.source.type"] = "LOCAL"
     try:
         from hydra.core.hydra_config import HydraConfig

@@ -1,0 +1,112 @@
+"""Do the CPU kernel selectors change our bytes? Hashes of the radar chain and of LSTM training.
+
+    python benchmarks/bench_kernels.py [--only radar|train]
+
+Runs the detect stage's work on the tiny profile (2 scenes x 4 frames: simulated frames and
+detections) and 30 Adam steps of a 64-unit LSTM in fresh interpreters, once with blindspot's
+pinned kernels (blindspot.kernels.PINS) and once per selector set to another kernel family this
+machine can run, and prints a table of hashes. Rows that differ from the pinned row show that
+the selector reaches our bytes, i.e. that a CPU choosing another kernel family by itself would
+compute other bytes; the pins make every AVX2 x86-64 machine choose the same family.
+(The radar rows take about a minute each on the project's 2-core machine.)
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO / "src"))
+
+from blindspot import kernels  # noqa: E402  (after the path set-up)
+
+RADAR = r"""
+import blindspot, hashlib, json, sys
+import numpy as np, pandas as pd
+from blindspot import config, experiment
+from blindspot.radar.simulator import SimulatedSource
+from blindspot.synth.scene_detection import detect_scenes
+
+cfg = config.compose(["profile=tiny", "scene.shared.n_frames=4"], config_dir=sys.argv[1])
+scenes = dict(list(experiment.scenes(cfg).items())[:2])
+radar, sim = experiment.radar(cfg), experiment.sim(cfg)
+res = detect_scenes(scenes, radar, experiment.cfar(cfg), experiment.doa(cfg), experiment.detect(cfg),
+                    sim, jobs=int(sys.argv[2]))
+det = pd.concat([r.detections for r in res], ignore_index=True)
+frames = SimulatedSource.from_config(next(iter(scenes.values())), radar, sim)
+cube = np.stack([frames.frame(i) for i in range(2)])
+print(json.dumps({
+    "n_detections": len(det),
+    "n_moving": int(det["moving"].sum()),
+    "detections": hashlib.sha256(pd.util.hash_pandas_object(det, index=True).to_numpy().tobytes()
+                                 + det.to_numpy(dtype=str).tobytes()).hexdigest(),
+    "frames": hashlib.sha256(cube.tobytes()).hexdigest(),
+}))
+"""
+
+TRAIN = r"""
+import blindspot, hashlib, json, torch
+torch.manual_seed(0); torch.set_num_threads(1)
+lstm = torch.nn.LSTM(2, 64, batch_first=True); head = torch.nn.Linear(64, 2)
+opt = torch.optim.Adam([*lstm.parameters(), *head.parameters()], 1e-3)
+x, y = torch.randn(256, 8, 2), torch.randn(256, 2)
+for _ in range(30):
+    opt.zero_grad()
+    out, _ = lstm(x)
+    ((head(out[:, -1]) - y) ** 2).mean().backward()
+    opt.step()
+print(json.dumps({"weights": hashlib.sha256(b"".join(p.detach().numpy().tobytes()
+                                                     for p in lstm.parameters())).hexdigest()}))
+"""
+
+# another kernel family per selector, each runnable on any x86-64 CPU with AVX2
+VARIANTS = {
+    "radar": {"OPENBLAS_CORETYPE": "Sandybridge", "NPY_DISABLE_CPU_FEATURES": "X86_V3"},
+    "train": {"ATEN_CPU_CAPABILITY": "default", "MKL_CBWR": "COMPATIBLE",
+              "ONEDNN_MAX_CPU_ISA": "SSE41"},
+}
+THREAD_VARS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
+
+
+def run(code: str, args: list[str], override: dict[str, str], threads: int = 1) -> dict:
+    """Run ``code`` in a fresh interpreter with the pins plus ``override``; its JSON line."""
+    env = {k: v for k, v in os.environ.items() if k not in kernels.PINS}
+    env.update(kernels.PINS, **override)
+    env.update({k: str(threads) for k in THREAD_VARS})
+    env["PYTHONPATH"] = os.pathsep.join([str(REPO / "src"), str(REPO)])
+    out = subprocess.run([sys.executable, "-c", code, *args], env=env, capture_output=True,
+                         text=True, timeout=900)
+    if out.returncode:
+        raise RuntimeError(out.stderr[-3000:])
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def radar_hashes(override: dict[str, str], threads: int = 1, jobs: int = 1) -> dict:
+    """Hashes of the tiny profile's simulated frames and detections (see module docstring)."""
+    return run(RADAR, [str(REPO / "conf"), str(jobs)], override, threads)
+
+
+def main(argv: list[str] | None = None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--only", choices=sorted(VARIANTS))
+    a = ap.parse_args(argv)
+    print(f"{'work':6} {'selector':40} hashes (first 12 hex)   same as pinned")
+    for work in [a.only] if a.only else sorted(VARIANTS):
+        code, args = (RADAR, [str(REPO / "conf"), "1"]) if work == "radar" else (TRAIN, [])
+        pinned = run(code, args, {})
+        print(f"{work:6} {'pinned (blindspot.kernels.PINS)':40} "
+              + " ".join(str(v)[:12] for v in pinned.values()), flush=True)
+        for name, value in VARIANTS[work].items():
+            got = run(code, args, {name: value})
+            print(f"{work:6} {name + '=' + value:40} "
+                  + " ".join(str(v)[:12] for v in got.values())
+                  + f"   {'yes' if got == pinned else 'NO'}", flush=True)
+
+
+if __name__ == "__main__":
+    main()
