@@ -21,7 +21,8 @@ def run(cfg, ctx):
     text = table1_lstm(
         asdict(model), asdict(training),
         counts, val_rmse_m=train["lstm"]["val"]["rmse_m"], test_rmse_m=train["lstm"]["test"]["rmse_m"],
-        baselines={label: train[key]["val"]["rmse_m"] for key, label in BASELINES.items() if key in train})
+        baselines={label: train[key]["val"]["rmse_m"] for key, label in BASELINES.items() if key in train},
+        member_val_rmse_m={m["seed"]: m["val"]["rmse_m"] for m in train["lstm"].get("members", [])})
     text += ("\nRMSE here is over both coordinates (root of the mean squared x and y error, metres), what "
              "Keras' RMSE metric reports on (x, y) targets; the Euclidean one-step RMSE of the LSTM "
              f"is {train['lstm']['val']['rmse_euclid_m']:.4f} m (validation).\n")

@@ -1,5 +1,9 @@
 """train: the many-to-one LSTM of the paper's Table 1 on the radar-measured windows.
 
+``train.ensemble`` networks are trained with seeds ``train.seed + i`` (``train.jobs`` at a time)
+and averaged; train.json gives the ensemble's errors and each member's, so the spread a single
+training run would carry is on record.
+
 Per-epoch metrics go to MLflow as they come (``ctx.log_step``, the training's ``on_epoch``);
 the model, the history and the final metrics are returned for the runner to log; checkpoints
 every epoch under data/train/checkpoints (resume with train.resume=true). Validation and test
@@ -12,7 +16,7 @@ from blindspot.io import write_json, write_text
 from blindspot.report.paper_values import VAL_RMSE
 from blindspot.stage import StageResult
 from blindspot.traj.baselines import ConstantVelocity
-from blindspot.traj.train import evaluate, rmse_euclidean, rmse_per_coordinate, train_lstm
+from blindspot.traj.train import evaluate, rmse_euclidean, rmse_per_coordinate, train_ensemble
 from blindspot.traj.windows import WindowSet
 
 
@@ -25,7 +29,7 @@ def run(cfg, ctx):
     split = {s: WindowSet.load(ctx.dep(f"{s}.parquet")) for s in ("train", "val", "test")}
     model_cfg = experiment.model(cfg)
     train_cfg = experiment.training(cfg)
-    result = train_lstm(
+    result = train_ensemble(
         split["train"], split["val"], model_cfg, train_cfg,
         on_epoch=lambda epoch, m: ctx.log_step(m, epoch),
         checkpoint_dir=ctx.out("checkpoints"),
@@ -38,7 +42,12 @@ def run(cfg, ctx):
     metrics = {
         "lstm": {"val": evaluate(result.predictor, split["val"]),
                  "test": evaluate(result.predictor, split["test"]),
-                 "seconds_per_epoch": float(result.history.seconds.mean())},
+                 "seconds_per_epoch": float(result.history.seconds.mean()),
+                 "n_members": len(result.members),
+                 "members": [{"seed": seed,
+                              "val": evaluate(m.predictor, split["val"]),
+                              "test": evaluate(m.predictor, split["test"])}
+                             for seed, m in zip(result.seeds, result.members)]},
         **{name: {"val": baseline_rmse(p, split["val"]), "test": baseline_rmse(p, split["test"])}
            for name, p in baselines.items()},
         "n_windows": {s: len(w) for s, w in split.items()},
@@ -49,7 +58,11 @@ def run(cfg, ctx):
           f"test {metrics['lstm']['test']['rmse_m']:.4f} m; constant velocity val "
           f"{metrics['constant_velocity']['val']['rmse_m']:.4f} m, Kalman "
           f"{metrics['kalman']['val']['rmse_m']:.4f} m")
-    return StageResult(metrics={k: v for k, v in metrics.items() if k != "paper"},
+    logged = {k: v for k, v in metrics.items() if k != "paper"}
+    logged["lstm"] = {**{k: v for k, v in metrics["lstm"].items() if k != "members"},
+                      **{f"seed{m['seed']}": {"val": m["val"], "test": m["test"]}
+                         for m in metrics["lstm"]["members"]}}
+    return StageResult(metrics=logged,
                        artifacts=[history_path], model_files=[model_path])
 
 

@@ -61,10 +61,13 @@ def table2_radar(radar: RadarConfig) -> str:
 
 def table1_lstm(model: Mapping[str, Any], train: Mapping[str, Any], counts: Mapping[str, int],
                 val_rmse_m: float, test_rmse_m: float | None = None,
-                baselines: Mapping[str, float] | None = None) -> str:
+                baselines: Mapping[str, float] | None = None,
+                member_val_rmse_m: Mapping[int, float] | None = None) -> str:
     """Table 1 (LSTM hyper-parameters and validation RMSE), paper beside ours.
 
     baselines: validation RMSE of other predictors on the same windows, e.g. {"constant velocity": ..}.
+    member_val_rmse_m: validation RMSE of each member of a seed ensemble, by seed (a row with
+        their range, what a single training run would have given).
     """
     rows: list[tuple[Any, ...]] = [
         ("Window size", paper.WINDOW.value, model.get("window", counts.get("window"))),
@@ -82,6 +85,12 @@ def table1_lstm(model: Mapping[str, Any], train: Mapping[str, Any], counts: Mapp
     ]
     if test_rmse_m is not None:
         rows.insert(5, ("Test RMSE", "not stated", f"{test_rmse_m:.4f} m"))
+    if member_val_rmse_m and len(member_val_rmse_m) > 1:
+        v = list(member_val_rmse_m.values())
+        rows.insert(5, (f"Validation RMSE, each of {len(v)} seeds alone", "one run",
+                        f"{min(v):.4f} - {max(v):.4f} m (seeds {min(member_val_rmse_m)}-"
+                        f"{max(member_val_rmse_m)}; the row above is their ensemble)"))
+        rows.append(("Seed ensemble", "not stated", f"{len(v)} networks, next points averaged"))
     for name, value in (baselines or {}).items():
         rows.append((f"Validation RMSE, {name}", "not reported", f"{value:.4f} m"))
     return ("## Table 1: LSTM hyper-parameters\n\n"

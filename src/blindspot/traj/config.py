@@ -196,6 +196,9 @@ class TrainConfig(TypedConfig):
         num_threads: torch intra-op threads during training (None = leave as is; conf/ sets 1).
         eval_batch_size: windows per forward pass when evaluating.
         resume: continue from the last checkpoint (not part of what a checkpoint must match).
+        ensemble: networks trained with seeds ``seed, seed + 1, ...``; the predictor averages
+            their next points (1 = one network, the paper's setting).
+        jobs: worker processes training ensemble members side by side (1 = in this process).
     """
 
     GROUP = "train"
@@ -212,6 +215,8 @@ class TrainConfig(TypedConfig):
     num_threads: int | None = setting(None, ge=1)
     eval_batch_size: int = setting(4096, ge=1)
     resume: bool = setting(False)
+    ensemble: int = setting(1, ge=1)
+    jobs: int = setting(1, ge=1)
 
 
 # ----------------------------------------------------------------------------- evaluation

@@ -17,8 +17,9 @@ Normalisation (:class:`NormStats`, fitted on the training windows only):
   centred on the last point, so the two targets coincide; they differ only with
   ``translate=False`` (absolute = next point minus the fitted mean position).
 
-:class:`LSTMPredictor` wraps a model and its statistics, predicts one step from windows and rolls
-out several steps (predict, append, slide) for a whole batch at once.
+:class:`LSTMPredictor` wraps a model (or a seed ensemble of models) and its statistics, predicts
+one step from windows and rolls out several steps (predict, append, slide) for a whole batch at
+once.
 """
 
 from __future__ import annotations
@@ -38,6 +39,7 @@ from blindspot.traj.predictor import HistoryError
 from blindspot.traj.windows import interpolate_gaps
 
 _FORMAT = "blindspot.lstm/1"
+_ENSEMBLE_FORMAT = "blindspot.lstm-ensemble/1"
 _ACTIVATIONS = {"relu": nn.ReLU, "tanh": nn.Tanh, "identity": nn.Identity}
 
 
@@ -168,30 +170,60 @@ def fill_history(history: np.ndarray) -> np.ndarray:
 
 
 class LSTMPredictor:
-    """A trained :class:`LSTMRegressor` with its normalisation, usable as a PathPredictor.
+    """Trained :class:`LSTMRegressor` (s) with their normalisation, usable as a PathPredictor.
+
+    One network, or an ensemble of networks of one config trained with different seeds (see
+    :func:`blindspot.traj.train.train_ensemble`): every step predicts the mean of the members'
+    next points, so the rollout feeds back the ensemble's point, not each member's own. An
+    ensemble lowers the variance a single training run carries (weight init, batch order, the
+    last bits of the CPU's kernels), which three test walks otherwise turn into large swings of
+    the scene numbers (issue 10; Lakshminarayanan et al. 2017 for deep ensembles).
 
     Attributes:
         name: "lstm".
-        config: the :class:`LSTMConfig`.
-        stats: the :class:`NormStats` fitted on the training windows.
-        model: the network (kept in eval mode here).
+        config: the members' :class:`LSTMConfig`.
+        model, stats: the first member's network (eval mode) and :class:`NormStats`.
+        members: all ``(model, stats)`` pairs, at least one.
     """
 
     name = "lstm"
 
-    def __init__(self, model: LSTMRegressor, stats: NormStats) -> None:
-        self.model = model.eval()
+    def __init__(self, model: LSTMRegressor, stats: NormStats,
+                 more: list[tuple[LSTMRegressor, NormStats]] | None = None) -> None:
+        self.members = [(model.eval(), stats)] + [(m.eval(), st) for m, st in (more or [])]
+        configs = {asdict(m.cfg).__repr__() for m, _ in self.members}
+        if len(configs) != 1:
+            raise ValueError(f"LSTMPredictor: ensemble members must share one model config, "
+                             f"found {len(configs)} different ones")
+        self.model, self.stats = self.members[0]
         self.config: LSTMConfig = model.cfg
-        self.stats = stats
+
+    @classmethod
+    def ensemble(cls, predictors: list[LSTMPredictor]) -> LSTMPredictor:
+        """One predictor averaging the members of ``predictors`` (each one or more networks)."""
+        if not predictors:
+            raise ValueError("LSTMPredictor.ensemble: expected at least one predictor, found none")
+        pairs = [pair for p in predictors for pair in p.members]
+        return cls(*pairs[0], more=pairs[1:])
 
     @property
     def window(self) -> int:
         return self.config.window
 
+    @property
+    def n_members(self) -> int:
+        return len(self.members)
+
+    def member(self, i: int) -> LSTMPredictor:
+        """The ``i``-th network alone, as a predictor (for per-seed scores)."""
+        return LSTMPredictor(*self.members[i])
+
     def step(self, x: torch.Tensor) -> torch.Tensor:
-        """(B, W, 2) float32 windows in metres -> (B, 2) next points in metres (torch, no grad)."""
+        """(B, W, 2) float32 windows in metres -> (B, 2) next points in metres (torch, no grad);
+        the mean over the members."""
         with torch.inference_mode():
-            return self.stats.decode(x, self.model(self.stats.encode(x)))
+            out = [st.decode(x, m(st.encode(x))) for m, st in self.members]
+            return out[0] if len(out) == 1 else torch.stack(out).mean(dim=0)
 
     def predict_next(self, windows: np.ndarray) -> np.ndarray:
         """One-step prediction: windows (B, W, 2) in metres -> (B, 2) float64 next points.
@@ -233,30 +265,41 @@ class LSTMPredictor:
         return out.double().numpy()
 
     def save(self, path: str | Path) -> Path:
-        """Write weights, config and statistics with ``torch.save`` (temp name, then rename)."""
+        """Write weights, config and statistics with ``torch.save`` (temp name, then rename).
+
+        One network is written as format ``blindspot.lstm/1`` (one blob); an ensemble as
+        ``blindspot.lstm-ensemble/1`` holding one such blob per member, in member order."""
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
-        blob = {
-            "format": _FORMAT,
-            "config": asdict(self.config),
-            "stats": asdict(self.stats),
-            "state_dict": self.model.state_dict(),
-        }
+        blobs = [{"format": _FORMAT, "config": asdict(m.cfg), "stats": asdict(st),
+                  "state_dict": m.state_dict()} for m, st in self.members]
+        blob = blobs[0] if len(blobs) == 1 else {"format": _ENSEMBLE_FORMAT, "members": blobs}
         with atomic_path(path) as tmp:
             torch.save(blob, tmp)
         return path
 
     @classmethod
     def load(cls, path: str | Path) -> LSTMPredictor:
-        """Read a file written by :meth:`save`; ValueError naming the file if it is not one."""
+        """Read a file written by :meth:`save` (one network or an ensemble); ValueError naming
+        the file if it is neither."""
         path = Path(path)
         blob = torch.load(path, map_location="cpu", weights_only=True)
-        if not isinstance(blob, dict) or blob.get("format") != _FORMAT:
-            found = blob.get("format") if isinstance(blob, dict) else type(blob).__name__
-            raise ValueError(f"{path}: not an LSTMPredictor file (expected format {_FORMAT!r}, found {found!r})")
-        cfg = LSTMConfig(**blob["config"])
-        st = blob["stats"]
-        stats = NormStats(st["translate"], st["target"], tuple(st["in_offset"]), st["in_scale"], st["out_scale"])
-        model = LSTMRegressor(cfg)
-        model.load_state_dict(blob["state_dict"])
-        return cls(model, stats)
+        found = blob.get("format") if isinstance(blob, dict) else type(blob).__name__
+        if found == _ENSEMBLE_FORMAT and blob.get("members"):
+            pairs = [_member_from_blob(b, path) for b in blob["members"]]
+            return cls(*pairs[0], more=pairs[1:])
+        if found != _FORMAT:
+            raise ValueError(f"{path}: not an LSTMPredictor file (expected format {_FORMAT!r} or "
+                             f"{_ENSEMBLE_FORMAT!r}, found {found!r})")
+        return cls(*_member_from_blob(blob, path))
+
+
+def _member_from_blob(blob: Any, path: Path) -> tuple[LSTMRegressor, NormStats]:
+    if not isinstance(blob, dict) or blob.get("format") != _FORMAT:
+        raise ValueError(f"{path}: an ensemble member is not a {_FORMAT!r} blob")
+    cfg = LSTMConfig(**blob["config"])
+    st = blob["stats"]
+    stats = NormStats(st["translate"], st["target"], tuple(st["in_offset"]), st["in_scale"], st["out_scale"])
+    model = LSTMRegressor(cfg)
+    model.load_state_dict(blob["state_dict"])
+    return model, stats

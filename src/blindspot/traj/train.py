@@ -27,7 +27,8 @@ import os
 import tempfile
 import time
 from collections.abc import Callable
-from dataclasses import asdict, dataclass
+from functools import partial
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -46,6 +47,28 @@ from blindspot.traj.windows import WindowSet
 _CKPT_FORMAT = "blindspot.train-checkpoint/1"
 CHECKPOINT_NAME = "last.pt"
 HISTORY_COLUMNS = ("epoch", "train_loss", "train_rmse_m", "val_rmse_m", "val_rmse_euclid_m", "seconds")
+
+
+@dataclass
+class EnsembleResult:
+    """Outcome of :func:`train_ensemble`.
+
+    Attributes:
+        predictor: one :class:`LSTMPredictor` averaging every member.
+        members: each member's :class:`TrainResult`, in seed order.
+        seeds: the members' seeds.
+    """
+
+    predictor: LSTMPredictor
+    members: list[TrainResult]
+    seeds: list[int]
+
+    @property
+    def history(self) -> pd.DataFrame:
+        """Every member's history, with ``member`` and ``seed`` columns in front."""
+        return pd.concat([r.history.assign(member=i, seed=s)[["member", "seed", *HISTORY_COLUMNS]]
+                          for i, (r, s) in enumerate(zip(self.members, self.seeds))],
+                         ignore_index=True)
 
 
 @dataclass
@@ -114,7 +137,8 @@ def _resume_key(model_cfg: LSTMConfig, train_cfg: TrainConfig, fingerprint: str)
     """What must match between a checkpoint and the run resuming it (epochs may grow, unless the
     learning-rate schedule depends on them)."""
     tc = asdict(train_cfg)
-    tc.pop("resume")  # whether to resume is not part of what a checkpoint must match
+    for key in ("resume", "ensemble", "jobs"):  # how to run, not what one network learns
+        tc.pop(key)
     if train_cfg.lr_schedule == "constant":
         tc.pop("epochs")
     return {"model": asdict(model_cfg), "train": tc, "data": fingerprint}
@@ -183,6 +207,54 @@ def train_lstm(
     finally:
         torch.set_num_threads(prev_threads)
         torch.use_deterministic_algorithms(prev_det)
+
+
+def train_ensemble(
+    train: WindowSet,
+    val: WindowSet,
+    model_cfg: LSTMConfig,
+    train_cfg: TrainConfig,
+    *,
+    on_epoch: Callable[[int, dict[str, float]], None] | None = None,
+    checkpoint_dir: str | Path | None = None,
+    resume: bool = False,
+    progress: bool = True,
+) -> EnsembleResult:
+    """Train ``train_cfg.ensemble`` networks with seeds ``seed + i`` and average them.
+
+    Each member is exactly :func:`train_lstm` with its own seed, so member ``i`` has the same
+    weights whether trained alone, in sequence or in a worker process (``train_cfg.jobs``
+    processes, one torch thread each as ``num_threads`` says). Checkpoints go to
+    ``checkpoint_dir/member<i>/`` (``checkpoint_dir`` itself for a single network).
+    ``on_epoch(epoch, metrics)`` is called live in this process only (``jobs == 1``); metric
+    names carry a ``member<i>.`` prefix when there are several members.
+    """
+    from blindspot.parallel import parallel_map
+
+    n = int(train_cfg.ensemble)
+    seeds = [int(train_cfg.seed) + i for i in range(n)]
+    ckpt = None if checkpoint_dir is None else Path(checkpoint_dir)
+    members = [(replace(train_cfg, seed=seeds[i]),
+                None if ckpt is None else (ckpt if n == 1 else ckpt / f"member{i}")) for i in range(n)]
+    if n == 1 or train_cfg.jobs <= 1:
+        def callback(i: int):
+            if on_epoch is None or n == 1:
+                return on_epoch
+            return lambda e, m: on_epoch(e, {f"member{i}.{k}": v for k, v in m.items()})
+        results = [train_lstm(train, val, model_cfg, cfg, on_epoch=callback(i), checkpoint_dir=d,
+                              resume=resume, progress=progress) for i, (cfg, d) in enumerate(members)]
+    else:
+        results = parallel_map(partial(_train_member, train, val, model_cfg, resume), members,
+                               int(train_cfg.jobs), progress="ensemble" if progress else None)
+    return EnsembleResult(LSTMPredictor.ensemble([r.predictor for r in results]), results, seeds)
+
+
+def _train_member(train: WindowSet, val: WindowSet, model_cfg: LSTMConfig, resume: bool,
+                  member: tuple[TrainConfig, Path | None]) -> TrainResult:
+    """One ensemble member in a worker process (module level, so it pickles)."""
+    cfg, checkpoint_dir = member
+    return train_lstm(train, val, model_cfg, cfg, checkpoint_dir=checkpoint_dir, resume=resume,
+                      progress=False)
 
 
 def _train(
