@@ -29,7 +29,7 @@ Geometry and units follow the project: radar at the origin, boresight +y, x to t
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -426,7 +426,8 @@ class PathMeasurement:
 def measure_paths(truth_paths: np.ndarray, radar: RadarConfig, array=None, cfar_cfg=None,
                   doa_cfg=None, detect_cfg=None, *, pedestrian: PedestrianModel, seed: int = 0,
                   paths_per_batch: int = 8, core_half_rows: int = 8, full_chain: bool = False,
-                  adc_headroom_db: float = 60.0, progress: bool = True) -> PathMeasurement:
+                  adc_headroom_db: float = 60.0, attenuation_db: np.ndarray | None = None,
+                  progress: bool = True) -> PathMeasurement:
     """Every point of every truth path through the radar chain.
 
     Args:
@@ -446,6 +447,9 @@ def measure_paths(truth_paths: np.ndarray, radar: RadarConfig, array=None, cfar_
             (the reference; a few frames/s) instead of the reduced chain.
         adc_headroom_db: the simulator's ADC full scale above the noise (sets the cube units
             when ``radar.adc_bits`` is set, as the dB-domain CFAR needs).
+        attenuation_db: (P, T, n_parts) extra loss of each body part's received power, dB >= 0
+            (occlusion by a parked car, as ``Scene.scatterers_at`` applies it: the amplitude is
+            scaled by ``10 ** (-dB / 20)``); None = no loss. Reduced chain only.
         progress: show a progress bar.
 
     Returns:
@@ -481,6 +485,16 @@ def measure_paths(truth_paths: np.ndarray, radar: RadarConfig, array=None, cfar_
         raise ValueError(f"paths_per_batch: expected a positive integer, found {paths_per_batch!r}")
     if not (isinstance(core_half_rows, (int, np.integer)) and core_half_rows >= 1):
         raise ValueError(f"core_half_rows: expected a positive integer, found {core_half_rows!r}")
+    if attenuation_db is not None:
+        att = np.asarray(attenuation_db, dtype=np.float64)
+        if att.shape != (p_count, t_count, pedestrian.n_parts) or not np.all(np.isfinite(att)) \
+                or np.any(att < 0):
+            raise ValueError(f"attenuation_db: expected finite dB >= 0 of shape (P, T, n_parts) = "
+                             f"{(p_count, t_count, pedestrian.n_parts)}, found shape {att.shape}")
+        if full_chain:
+            raise ValueError("attenuation_db: only the reduced chain applies a per-part loss; "
+                             "use full_chain=False")
+        gain = 10.0 ** (-att / 20.0)
     # the gait phase offset of each path (drawn for all paths at once: batch-independent)
     gait0 = np.random.default_rng(np.random.SeedSequence([seed, 1])).uniform(0, 2 * np.pi, p_count)
     gait = gait0[:, None] + 2.0 * np.pi * dist / pedestrian.stride_length_m
@@ -505,6 +519,9 @@ def measure_paths(truth_paths: np.ndarray, radar: RadarConfig, array=None, cfar_
             else:
                 sc = point_scatterers(pos, v3, pedestrian.rcs_m2, radar,
                                       output_scale=setup.output_scale)
+                if attenuation_db is not None:
+                    sc = replace(sc, amplitude=sc.amplitude
+                                 * gain[lo:hi].reshape(-1, pedestrian.n_parts))
                 rng = np.random.default_rng(np.random.SeedSequence([seed, 2, batch]))
                 res = _measure_batch_reduced(setup, sc, rng)
             for key in _FRAME_FIELDS:

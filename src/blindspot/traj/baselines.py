@@ -361,6 +361,31 @@ class KalmanCV:
         means, _ = kf.smooth(masked)
         return np.asarray(means[:, :2])
 
+    def smooth_batch(self, tracks: np.ndarray) -> np.ndarray:
+        """The Rauch-Tung-Striebel smoother of :meth:`smooth` for B tracks at once (numpy).
+
+        Forward pass :func:`kalman_filter`; backward pass (Rauch, Tung & Striebel 1965)
+        ``m_s[t] = m_f[t] + C_t (m_s[t+1] - F m_f[t])``, ``C_t = P_f[t] F^T (F P_f[t] F^T +
+        Q)^-1``, vectorised over tracks, a loop over frames only.
+
+        Args:
+            tracks: (B, T, 2) positions in metres, NaN rows missing.
+
+        Returns:
+            (B, T, 2) smoothed positions at every frame (NaN for a track with no valid row).
+        """
+        h = check_history(tracks, 1, who=f"{self.name}.smooth_batch")
+        F, Q, _, _ = self.matrices()
+        res = self.filter(h)
+        m, P = res.means, res.covs                                       # (B, T, 4), (B, T, 4, 4)
+        out = np.empty_like(m)
+        out[:, -1] = m[:, -1]
+        for t in range(h.shape[1] - 2, -1, -1):
+            pred_P = F @ P[:, t] @ F.T + Q
+            C = P[:, t] @ F.T @ np.linalg.inv(pred_P)
+            out[:, t] = m[:, t] + np.einsum("bij,bj->bi", C, out[:, t + 1] - m[:, t] @ F.T)
+        return out[..., :2]
+
     # -- fitting -------------------------------------------------------------------------------
     def log_likelihood(self, tracks: np.ndarray) -> float:
         """Total log-likelihood of (B, T, 2) tracks under this model (NaN rows missing)."""
