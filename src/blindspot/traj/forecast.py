@@ -63,7 +63,42 @@ def forecast_tracks(tracks: np.ndarray, start: np.ndarray, predictor: PathPredic
     Raises ForecastError: malformed arrays, start / end out of range, or no point seen before
     a track's start.
     """
-    who = "forecast_tracks"
+    history, lead, n = _batched_histories(tracks, start, predictor, fill, end,
+                                          "forecast_tracks")
+    horizon = int((lead + n).max())
+    pred = np.asarray(predictor.predict(history, horizon))              # (B, horizon, 2)
+    idx, inside = _steps(lead, n, horizon)
+    out = np.take_along_axis(pred, idx[..., None], axis=1)
+    return np.where(inside[..., None], out, np.nan)
+
+
+def forecast_distributions(tracks: np.ndarray, start: np.ndarray, predictor,
+                           fill: Callable[[np.ndarray], np.ndarray] | None = None,
+                           end: np.ndarray | None = None):
+    """:func:`forecast_tracks` for a predictor's Gaussian forecast (``predict_distribution``,
+    :class:`blindspot.traj.distribution.GaussianForecast`): the same histories, the same
+    frames. Returns a GaussianForecast (B, max(end - start), ...); a step after a track's end
+    repeats its last step (mask it with ``end - start``)."""
+    from blindspot.traj.distribution import GaussianForecast
+
+    history, lead, n = _batched_histories(tracks, start, predictor, fill, end,
+                                          "forecast_distributions")
+    horizon = int((lead + n).max())
+    fc = predictor.predict_distribution(history, horizon)
+    idx, inside = _steps(lead, n, horizon)
+    idx = np.where(inside, idx, (lead + n - 1)[:, None])
+    return GaussianForecast(np.take_along_axis(fc.mean, idx[..., None], axis=1),
+                            np.take_along_axis(fc.cov, idx[..., None, None], axis=1))
+
+
+def _steps(lead: np.ndarray, n: np.ndarray, horizon: int) -> tuple[np.ndarray, np.ndarray]:
+    j = np.arange(int(n.max()))[None, :]
+    return np.clip(lead[:, None] + j, 0, horizon - 1), j < n[:, None]
+
+
+def _batched_histories(tracks, start, predictor, fill, end, who):
+    """Right-aligned histories (B, L, 2), frames from the last point seen to the start (B,),
+    frames to predict (B,); see :func:`forecast_tracks`."""
     t = check_array(tracks, "tracks", ("B", "T", 2), error=ForecastError, who=who,
                     allow_nan=True)
     B, T = t.shape[:2]
@@ -76,11 +111,12 @@ def forecast_tracks(tracks: np.ndarray, start: np.ndarray, predictor: PathPredic
         raise ForecastError(f"{who}: prediction start {start[b]} / end {end[b]} of track {b}: "
                             f"expected 0 < start < end <= {T}")
     T_past = int(start.max())
+    future = np.arange(T_past)[None, :] >= start[:, None]
     past = t[:, :T_past].copy()
-    past[np.arange(T_past)[None, :] >= start[:, None]] = np.nan
+    past[future] = np.nan
     if fill is not None:
         past = np.asarray(fill(past))
-        past[np.arange(T_past)[None, :] >= start[:, None]] = np.nan
+        past[future] = np.nan
     seen = np.isfinite(past).all(axis=-1)
     if not seen.any(axis=1).all():
         b = int(np.flatnonzero(~seen.any(axis=1))[0])
@@ -92,11 +128,4 @@ def forecast_tracks(tracks: np.ndarray, start: np.ndarray, predictor: PathPredic
     history = gather_histories(past, first, last + 1, window or 1)
     if window is not None:
         history = pad_histories(history, window)
-    lead = start - (last + 1)            # frames between the last point seen and the start
-    n = end - start
-    horizon = int((lead + n).max())
-    pred = np.asarray(predictor.predict(history, horizon))              # (B, horizon, 2)
-    j = np.arange(int(n.max()))[None, :]
-    idx = np.clip(lead[:, None] + j, 0, horizon - 1)
-    out = np.take_along_axis(pred, idx[..., None], axis=1)
-    return np.where((j < n[:, None])[..., None], out, np.nan)
+    return history, start - (last + 1), end - start
