@@ -98,14 +98,31 @@ def distribution_scores(predictor, tracks: np.ndarray, start: np.ndarray, end: n
                         truth: np.ndarray) -> dict[str, np.ndarray]:
     """Per-walk share of the true future points (N, H, 2) inside the 50/90/95 % ellipses, and
     the mean NLL (nats per point), of a predictor's Gaussian forecast from the same histories
-    as its point prediction (:func:`blindspot.traj.forecast.forecast_distributions`)."""
+    as its point prediction (:func:`blindspot.traj.forecast.forecast_distributions`).
+
+    A predictor calibrated for ``predictor.horizon`` steps (``ScaledPredictor``) scores only
+    the walks whose forecast, counted from the last point seen (missed frames just before the
+    start add steps), stays within it; the others get NaN."""
     from blindspot.traj.distribution import chi2_2dof_radius_sq, mahalanobis_sq
 
-    fc = forecast_distributions(tracks, start, predictor, end=end)
-    d2 = mahalanobis_sq(fc, truth)                                         # (N, H)
-    out = {f"coverage_{round(level * 100)}": np.nanmean(d2 <= chi2_2dof_radius_sq(level), axis=1)
-           for level in COVERAGE_LEVELS}
+    n = len(start)
+    steps = start - _last_seen_before(tracks, start) - 1 + (end - start)
+    ok = steps <= getattr(predictor, "horizon", np.inf)
+    keys = [f"coverage_{round(level * 100)}" for level in COVERAGE_LEVELS] + ["nll"]
+    out = {k: np.full(n, np.nan) for k in keys}
+    if not ok.any():
+        return out
+    fc = forecast_distributions(tracks[ok], start[ok], predictor, end=end[ok])
+    d2 = mahalanobis_sq(fc, truth[ok])                                     # (n_ok, H)
+    for level, key in zip(COVERAGE_LEVELS, keys):
+        out[key][ok] = np.nanmean(d2 <= chi2_2dof_radius_sq(level), axis=1)
     c = fc.cov
     logdet = np.log(c[..., 0, 0] * c[..., 1, 1] - c[..., 0, 1] ** 2)
-    out["nll"] = np.nanmean(0.5 * d2 + 0.5 * logdet + np.log(2 * np.pi), axis=1)
+    out["nll"][ok] = np.nanmean(0.5 * d2 + 0.5 * logdet + np.log(2 * np.pi), axis=1)
     return out
+
+
+def _last_seen_before(tracks: np.ndarray, start: np.ndarray) -> np.ndarray:
+    seen = np.isfinite(tracks).all(axis=-1) & (np.arange(tracks.shape[1])[None, :]
+                                                < start[:, None])
+    return tracks.shape[1] - 1 - np.argmax(seen[:, ::-1], axis=1)

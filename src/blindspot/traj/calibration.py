@@ -128,6 +128,11 @@ class ScaledPredictor:
     def window(self):
         return getattr(self.base, "window", None)
 
+    @property
+    def horizon(self) -> int:
+        """Steps the distribution is calibrated for."""
+        return int(len(self.scale))
+
     def predict(self, history: np.ndarray, horizon: int) -> np.ndarray:
         return np.asarray(self.base.predict(history, horizon))
 
