@@ -32,15 +32,19 @@ def run(cfg, ctx):
     c = experiment.calibration(cfg)
     window = experiment.dataset(cfg).window
     truth, measured, _ = table_to_arrays(pd.read_parquet(ctx.dep("paths.parquet")))
-    pairs = {}
-    for split in ("val", "test"):
-        ids = np.unique(WindowSet.load(ctx.dep(f"{split}.parquet")).path_id)
-        pairs[split] = path_pairs(measured[ids], truth[ids], window, c.horizon_frames, c.stride)
+    ids = {split: np.unique(WindowSet.load(ctx.dep(f"{split}.parquet")).path_id)
+           for split in ("train", "val")}
+    # held out: every path neither trained nor validated on (the test split's paths and the
+    # spare paths the split did not need)
+    ids["test"] = np.setdiff1d(np.arange(len(truth)), np.concatenate([ids["train"], ids["val"]]))
+    pairs = {split: path_pairs(measured[ids[split]], truth[ids[split]], window, c.horizon_frames,
+                               c.stride) for split in ("val", "test")}
     lstm = LSTMPredictor.load(ctx.dep("model.pt"))
     calibrated = calibrate(experiment.predictors(cfg, lstm), *pairs["val"],
                            scale_method=c.scale_method, scale_level=c.scale_level,
                            cv_fit_points=experiment.evaluation(cfg).cv_fit_points)
-    metrics = {name: {"sim_paths": calibration_scores(p, *pairs["test"])}
+    metrics = {name: {"sim_paths": {**calibration_scores(p, *pairs["test"]),
+                                    "n_paths": int(len(ids["test"]))}}
                for name, p in calibrated.items()}
     for path in ctx.files.deps:                 # the ETH/UCY folds, where the stage declares them
         if path.endswith(ETHUCY_FILE):
@@ -53,7 +57,7 @@ def run(cfg, ctx):
         if s:
             print(f"calibration {name}: coverage 50/90/95 {s['coverage_50']:.3f} / "
                   f"{s['coverage_90']:.3f} / {s['coverage_95']:.3f}, NLL {s['nll']:.3f} "
-                  f"({s['n_points']} test points)")
+                  f"({s['n_points']} points of {s['n_paths']} held-out paths)")
     return StageResult(metrics=metrics)
 
 

@@ -32,7 +32,7 @@ def tiny(tmp_path_factory):
     """Composed config (tiny profile, 4 walks) and a work dir holding an untrained LSTM, its
     calibration records and the three-walk metrics the benchmark's figure shows."""
     root = tmp_path_factory.mktemp("bench")
-    cfg = config.compose(["profile=tiny", "benchmark.n_walks=4", "benchmark.n_bootstrap=200",
+    cfg = config.compose(["profile=tiny", "benchmark.n_walks=3", "benchmark.n_bootstrap=200",
                           "jobs=1", "progress=false"], config_dir=REPO / "conf")
     torch.manual_seed(0)
     lstm = LSTMPredictor(LSTMRegressor(experiment.model(cfg)), NormStats(True, "displacement"))
@@ -74,7 +74,7 @@ def test_calibration_then_benchmark_on_a_tiny_setting(tiny):
     (root / "data/paths").mkdir(parents=True, exist_ok=True)
     table.to_parquet(root / "data/paths/paths.parquet")
     (root / "data/windows").mkdir(parents=True, exist_ok=True)
-    for split, ids in (("val", [0, 1, 2, 3]), ("test", [4, 5])):
+    for split, ids in (("train", [0]), ("val", [1, 2, 3]), ("test", [4])):
         x = np.zeros((len(ids), 50, 2), np.float32)
         WindowSet(x, np.zeros((len(ids), 2), np.float32), np.array(ids),
                   np.zeros(len(ids), np.int64)).save(root / f"data/windows/{split}.parquet")
@@ -84,12 +84,13 @@ def test_calibration_then_benchmark_on_a_tiny_setting(tiny):
     cal = json.loads((root / "reports/metrics/calibration.json").read_text())
     assert set(cal) == {"lstm", "constant_velocity", "kalman"}
     assert set(cal["kalman"]["sim_paths"]) >= {"coverage_50", "coverage_90", "coverage_95", "nll"}
+    assert cal["kalman"]["sim_paths"]["n_paths"] == 2          # test path 4 and spare path 5
 
     ctx = _context("benchmark", root)
     _load_stage("benchmark").run(cfg, ctx)
     ctx.check_outs()
     m = json.loads((root / "reports/metrics/benchmark.json").read_text())
-    assert m["n_walks"] == 4
+    assert m["n_walks"] == 3
     for method in ("lstm", "constant_velocity", "kalman", "fill_bidirectional"):
         for entry in m[method].values():
             assert set(entry) >= {"mean", "ci95"} and len(entry["ci95"]) == 2
