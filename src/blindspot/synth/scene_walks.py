@@ -25,6 +25,7 @@ children, so no benchmark walk shares a random stream with a training path.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from types import SimpleNamespace
 
 import numpy as np
 
@@ -141,12 +142,9 @@ def measure_scene_walks(walks_: SceneWalks, radar, cfar, doa, detect, *, pedestr
     T_meas = int(walks_.start.max())
     noise_seed = int(np.random.SeedSequence([seed, BENCHMARK_STREAM, 1])
                      .generate_state(1, dtype=np.uint32)[0])
-
-    class _Paths:  # measure_path_set reads .xy
-        xy = walks_.truth[:, :T_meas]
-
+    paths = SimpleNamespace(xy=walks_.truth[:, :T_meas])      # what measure_path_set reads
     past = np.arange(T_meas)[None, :] < walks_.start[:, None]
-    measured = measure_path_set(_Paths, radar, cfar, doa, detect, pedestrian=pedestrian,
+    measured = measure_path_set(paths, radar, cfar, doa, detect, pedestrian=pedestrian,
                                 seed=noise_seed, jobs=jobs, progress=progress,
                                 occluders=walks_.car, occlusion_db=occlusion_db, frames=past)
     xy = np.full(walks_.truth.shape, np.nan)
