@@ -18,7 +18,7 @@ from blindspot import experiment
 from blindspot.cli import main_stage
 from blindspot.io import write_json
 from blindspot.stage import StageResult
-from blindspot.traj.calibration import (ETHUCY_FILE, calibrate, calibration_scores, path_pairs,
+from blindspot.traj.calibration import (ETHUCY_FILE, ETHUCY_NAMES, calibrate, calibration_scores, path_pairs,
                                         to_record)
 from blindspot.traj.lstm import LSTMPredictor
 from blindspot.traj.paths import table_to_arrays
@@ -49,7 +49,7 @@ def run(cfg, ctx):
     for path in ctx.files.deps:                 # the ETH/UCY folds, where the stage declares them
         if path.endswith(ETHUCY_FILE):
             for name, folds in json.loads(Path(path).read_text()).items():
-                metrics.setdefault(name, {}).update(folds)
+                metrics.setdefault(ETHUCY_NAMES.get(name, name), {}).update(folds)
     write_json(ctx.out("calibration.json"), metrics)
     write_json(ctx.out("models.json"), {n: to_record(p) for n, p in calibrated.items()})
     for name, m in metrics.items():

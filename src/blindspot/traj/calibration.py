@@ -34,13 +34,15 @@ from blindspot.traj.distribution import (DistributionError, GaussianForecast, el
                                          fit_step_scale, gaussian_nll)
 from blindspot.traj.windows import interpolate_gaps
 
-__all__ = ["ETHUCY_FILE", "CalibrationError", "path_pairs", "ErrorModelPredictor", "ScaledPredictor",
+__all__ = ["ETHUCY_FILE", "ETHUCY_NAMES", "CalibrationError", "path_pairs", "ErrorModelPredictor", "ScaledPredictor",
            "calibrate", "calibration_scores", "to_record", "from_record"]
 
 LEVELS = (0.5, 0.9, 0.95)
 # The ETH/UCY folds' calibration (same shape, written by the ethucy work): merged into
 # calibration.json when the calibration stage declares it as a dep.
 ETHUCY_FILE = "calibration_ethucy.json"
+# Its model names that are the scene predictors' under another name (ethucy's "cvm").
+ETHUCY_NAMES = {"cvm": "constant_velocity"}
 
 
 class CalibrationError(ValueError):
