@@ -18,8 +18,8 @@ from blindspot import experiment
 from blindspot.cli import main_stage
 from blindspot.io import write_json
 from blindspot.stage import StageResult
-from blindspot.traj.calibration import (ETHUCY_FILE, ETHUCY_NAMES, calibrate, calibration_scores, path_pairs,
-                                        to_record)
+from blindspot.traj.calibration import (ETHUCY_FILE, ETHUCY_NAMES, calibrate,
+                                        calibration_scores, path_pairs, to_record)
 from blindspot.traj.lstm import LSTMPredictor
 from blindspot.traj.paths import table_to_arrays
 from blindspot.traj.windows import WindowSet
