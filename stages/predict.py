@@ -4,8 +4,11 @@ From eval.prediction_start_s on, every method in eval.prediction_methods (the LS
 autoregressively, constant velocity, Kalman) predicts the rest of the scene (or
 eval.horizon_frames) from the points seen before the start, their gaps filled by
 eval.prediction_input (the paper: its own forward LSTM interpolation) without look-ahead.
+Each method's predictive distribution, calibrated on validation paths by the calibration stage
+(data/calibration/models.json), gives the covariance of every predicted point (cov_*_m2 columns).
 """
 
+import json
 from functools import partial
 
 import numpy as np
@@ -15,7 +18,9 @@ from blindspot import experiment
 from blindspot.cli import main_stage
 from blindspot.io import write_parquet
 from blindspot.stage import StageResult
-from blindspot.traj.forecast import forecast_track
+from blindspot.traj.calibration import from_record
+from blindspot.traj.distribution import DistributionError
+from blindspot.traj.forecast import forecast_distributions, forecast_track
 from blindspot.traj.interpolation import interpolate
 from blindspot.traj.lstm import LSTMPredictor
 
@@ -27,6 +32,7 @@ def run(cfg, ctx):
     fill = partial(interpolate, method=str(cfg.eval.prediction_input), predictor=lstm,
                    smoother=experiment.kalman(cfg).smooth)
     methods = experiment.predictors(cfg, lstm)
+    records = json.loads(ctx.dep("models.json").read_text())   # the calibration stage's fits
     rows = []
     for name, sc in experiment.scenes(cfg).items():
         if not sc.with_car:
@@ -41,9 +47,19 @@ def run(cfg, ctx):
         for method, predictor in methods.items():
             pred = forecast_track(track, start, predictor, fill=fill, end=end)
             frames = np.arange(start, end)
+            cov = np.full((len(frames), 2, 2), np.nan)
+            if method in records:           # the calibrated predictive distribution, same input
+                try:
+                    cov = forecast_distributions(
+                        track[None], np.array([start]), from_record(records[method], predictor,
+                                                                    method),
+                        fill=lambda b: fill(b[0])[None], end=np.array([end])).cov[0]
+                except DistributionError as err:   # more steps than calibrated: no ellipse
+                    print(f"predict {name} {method}: no distribution ({err})")
             rows.append(pd.DataFrame({
                 "scene": name, "method": method, "step": np.arange(1, len(frames) + 1),
                 "frame": frames, "time_s": frames * dt, "x_m": pred[:, 0], "y_m": pred[:, 1],
+                "cov_xx_m2": cov[:, 0, 0], "cov_xy_m2": cov[:, 0, 1], "cov_yy_m2": cov[:, 1, 1],
             }))
     predictions = pd.concat(rows, ignore_index=True)
     write_parquet(ctx.out("predictions.parquet"), predictions)

@@ -10,7 +10,7 @@ from blindspot.io import write_text
 from blindspot.report.page import FigureEntry, build_page
 from blindspot.stage import StageResult, UndeclaredPath
 
-METRICS = ("localise", "train", "interpolate", "evaluate", "ethucy")
+METRICS = ("localise", "train", "interpolate", "evaluate", "ethucy", "benchmark", "calibration")
 
 
 def read_json(path: Path) -> dict | None:
@@ -40,7 +40,7 @@ def recording_figures(ctx) -> list[FigureEntry]:
 def run(cfg, ctx):
     metrics = {name: read_json(ctx.dep(f"{name}.json")) for name in METRICS}
     tables = {}
-    for name in ("table1", "table2"):
+    for name in ("table1", "table2", "benchmark"):
         path = ctx.dep(f"{name}.md")
         tables[name] = path.read_text() if path.is_file() else None
     page = build_page(metrics, tables, extra_figures=recording_figures(ctx))

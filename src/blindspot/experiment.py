@@ -15,7 +15,8 @@ from blindspot.dsp.config import CfarConfig, DetectConfig, DoaConfig
 from blindspot.radar.array import VirtualArray, array_for
 from blindspot.radar.config import RadarConfig, SimConfig
 from blindspot.radar.scene import SceneConfig, load_scenes
-from blindspot.traj.config import DatasetConfig, EthUcyConfig, EvalConfig, LSTMConfig, TrainConfig
+from blindspot.traj.config import (BenchmarkConfig, CalibrationConfig, DatasetConfig,
+                                   EthUcyConfig, EvalConfig, LSTMConfig, TrainConfig)
 
 
 # One builder per config group: stages hand these typed objects to the library, never raw groups.
@@ -67,6 +68,16 @@ def ethucy(cfg: DictConfig) -> EthUcyConfig:
 def evaluation(cfg: DictConfig) -> EvalConfig:
     """The interpolation / prediction / evaluation settings of ``cfg.eval``."""
     return EvalConfig.from_mapping(cfg.eval)
+
+
+def benchmark(cfg: DictConfig):
+    """The many-walk benchmark settings of ``cfg.benchmark``."""
+    return BenchmarkConfig.from_mapping(cfg.benchmark)
+
+
+def calibration(cfg: DictConfig):
+    """The predictive-distribution calibration settings of ``cfg.calibration``."""
+    return CalibrationConfig.from_mapping(cfg.calibration)
 
 
 def array(cfg: DictConfig) -> VirtualArray:

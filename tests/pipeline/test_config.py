@@ -173,7 +173,8 @@ def _builders():
         "radar": experiment.radar, "scene": experiment.scenes, "sim": experiment.sim,
         "cfar": experiment.cfar, "doa": experiment.doa, "detect": experiment.detect,
         "dataset": experiment.dataset, "model": experiment.model, "train": experiment.training,
-        "eval": experiment.evaluation, "ethucy": experiment.ethucy, "recordings": _build_recordings,
+        "eval": experiment.evaluation, "ethucy": experiment.ethucy,
+        "benchmark": experiment.benchmark, "calibration": experiment.calibration, "recordings": _build_recordings,
     }
 
 

@@ -301,7 +301,7 @@ def test_page_without_ethucy_has_paper_values_and_figures():
     row = table_row(page, "One-step validation RMSE (Table 1)")
     assert row[1].startswith("0.07") and row[2] == "LSTM 0.0664 m" and "Kalman (CV) 0.0940 m" in row[3]
     assert row[4] == "`dvc repro train`"
-    row = table_row(page, "Paper's metric, mean over the prediction (vs simulated truth)")
+    row = table_row(page, "Paper's metric, mean over the prediction (vs simulated truth), three paper walks")
     assert row[1] == f"{PATH_ERROR_MEAN_M.value} m" and row[2] == "LSTM 0.200 m"
     row = table_row(page, "ETH/UCY average ADE / FDE (observe 8, predict 12)")
     assert row[1] == "CVM 0.52 / 1.14 m (published)" and row[2].startswith("not run yet")
@@ -327,7 +327,27 @@ def test_differences_name_the_baseline_that_wins():
     assert "2.2x the paper's 0.09 m" in text  # 0.2 / 0.09
 
 
+def test_benchmark_and_calibration_rows_carry_their_intervals():
+    bench = {"n_walks": 300, "paired": {},
+             **{m: {"path_error_mean_m": {"mean": v, "ci95": [v - 0.05, v + 0.05]},
+                    "ade_1s": {"mean": v / 2, "ci95": [v / 2 - 0.02, v / 2 + 0.02]}}
+                for m, v in (("lstm", 0.6), ("kalman", 0.35))},
+             "fill_kalman": {"hidden_mean_m": {"mean": 0.25, "ci95": [0.22, 0.28]}}}
+    cal = {"lstm": {"sim_paths": {"coverage_50": 0.6, "coverage_90": 0.85, "coverage_95": 0.87,
+                                  "nll": 0.7}}}
+    page = build_page(page_metrics(benchmark=bench, calibration=cal),
+                      {"benchmark": "| method | x |\n|---|---|\n| LSTM | 1 |\n"})
+    row = table_row(page, "Paper's metric, mean over the prediction, 300-walk benchmark (95 % interval)")
+    assert row[2] == "LSTM (paper) 0.600 [0.550, 0.650] m"
+    assert row[3] == "Kalman (CV) 0.350 [0.300, 0.400] m"
+    row = table_row(page, "ADE up to 1 s, 300-walk benchmark (95 % interval)")
+    assert row[2] == "LSTM (paper) 0.300 [0.280, 0.320] m"
+    row = table_row(page, "Coverage of the 50/90/95 % ellipses and NLL (nats), sim_paths")
+    assert row[2] == "LSTM (paper) 0.600 / 0.850 / 0.870, NLL 0.70"
+    assert "](figures/benchmark.png)" in page and "| LSTM | 1 |" in page
+
+
 def test_summary_rows_when_nothing_has_run():
     rows = summary_rows({})
     assert all(len(r) == 5 for r in rows)
-    assert sum("not run yet" in r[2] for r in rows) == 5
+    assert sum("not run yet" in r[2] for r in rows) == 7   # + benchmark, calibration

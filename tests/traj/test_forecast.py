@@ -32,3 +32,29 @@ def test_no_point_before_start_is_an_error():
     track = np.full((10, 2), np.nan)
     with pytest.raises(ValueError, match="no point seen"):
         forecast_track(track, 5, ConstantVelocity())
+
+
+def test_a_batch_is_forecast_as_each_track_alone():
+    from functools import partial
+
+    from blindspot.traj.baselines import KalmanCV
+    from blindspot.traj.forecast import forecast_tracks
+    from blindspot.traj.interpolation import fill_gaps, interpolate
+
+    rng = np.random.default_rng(1)
+    tracks = np.stack([line(v=(rng.uniform(-1, 1), rng.uniform(-1, 1))) for _ in range(6)])
+    tracks += rng.normal(0, 0.02, tracks.shape)
+    tracks[rng.random(tracks.shape[:2]) < 0.2] = np.nan
+    tracks[:, :3] = 0.0
+    start = rng.integers(40, 70, 6)
+    end = np.minimum(start + 12, 80)
+    for predictor, tol in ((ConstantVelocity(k=4), 1e-9), (KalmanCV(dt=0.1), 1e-4)):  # Kalman: see forecast_tracks
+        batch = forecast_tracks(tracks, start, predictor,
+                                fill=partial(fill_gaps, method="forward", predictor=predictor),
+                                end=end)
+        for i in range(6):
+            alone = forecast_track(tracks[i], int(start[i]), predictor,
+                                   fill=partial(interpolate, method="forward",
+                                                predictor=predictor), end=int(end[i]))
+            np.testing.assert_allclose(batch[i, : len(alone)], alone, atol=tol)
+            assert np.isnan(batch[i, len(alone):]).all()

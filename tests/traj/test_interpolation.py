@@ -86,3 +86,26 @@ def test_fixed_window_predictors_get_a_long_enough_history():
     track[15:30] = np.nan  # only 10 points before the gap, the window is 50
     filled = interpolate(track, "forward", predictor=_WindowedCV())
     assert np.abs(filled[15:30] - truth[15:30]).max() < 1e-9
+
+
+def test_a_batch_is_filled_as_each_track_alone():
+    """fill_gaps on many tracks (different gaps, misses, lengths of history) gives each track
+    what interpolate gives it alone; the batched Kalman smoother is pykalman's."""
+    from blindspot.traj.interpolation import fill_gaps
+
+    rng = np.random.default_rng(0)
+    n, T = 12, 70
+    truth = np.cumsum(rng.normal(0, 0.05, (n, T, 2)) + [0.12, 0.03], axis=1)
+    tracks = truth + rng.normal(0, 0.02, truth.shape)
+    tracks[rng.random((n, T)) < 0.15] = np.nan
+    for i in range(n):
+        a = rng.integers(3, 30)
+        tracks[i, a: a + rng.integers(5, 25)] = np.nan
+    tracks[:, :2] = truth[:, :2]
+    kalman = KalmanCV(dt=0.1, meas_std=0.05)
+    for method in ("forward", "bidirectional", "kalman"):
+        batch = fill_gaps(tracks, method, predictor=ConstantVelocity(k=3),
+                          smoother=kalman.smooth_batch)
+        alone = np.stack([interpolate(t, method, predictor=ConstantVelocity(k=3),
+                                      smoother=kalman.smooth) for t in tracks])
+        np.testing.assert_allclose(batch, alone, atol=1e-9, equal_nan=True)

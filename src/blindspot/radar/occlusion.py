@@ -71,6 +71,31 @@ def segment_crosses_polygon(points: np.ndarray, polygon: np.ndarray,
     return crosses.any(axis=-1)
 
 
+def segment_crosses_polygons(points: np.ndarray, polygons: np.ndarray) -> np.ndarray:
+    """:func:`segment_crosses_polygon` for N scenes at once, each with its own footprint.
+
+    points : (N, ..., 2) end points (x, y), m, of scene n in ``points[n]``.
+    polygons : (N, E, 2) vertices of each scene's occluding footprint, in order.
+    Returns bool (N, ...): True where the line of sight from the radar (origin) is blocked.
+    Raises GeometryError for arrays of another shape or kind, N that differ, or non-finite values.
+    """
+    p = _points(points)
+    poly = checked_array(polygons, "polygons", GeometryError, kind="real", ndim=3,
+                         lengths={2: 2}, min_lengths={1: 3}, axes="vertices (N, E >= 3, 2) in m")
+    if p.ndim < 2 or p.shape[0] != poly.shape[0]:
+        raise GeometryError(f"segment_crosses_polygons: points {p.shape} must be (N, ..., 2) "
+                            f"with N = {poly.shape[0]} polygons")
+    n, e = poly.shape[:2]
+    flat = p.reshape(n, -1, 1, 2)                                        # (N, M, 1, 2)
+    q0 = poly.astype(float)[:, None, :, :]                               # (N, 1, E, 2)
+    q1 = np.roll(q0, -1, axis=2)
+    s0, s1 = _cross(flat, q0), _cross(flat, q1)                          # (N, M, E)
+    d = q1 - q0
+    t0, t1 = _cross(d, -q0), _cross(d, flat - q0)
+    crosses = (s0 * s1 < 0) & (t0 * t1 < 0)
+    return crosses.any(axis=-1).reshape(p.shape[:-1])
+
+
 def point_in_polygon(points: np.ndarray, polygon: np.ndarray) -> np.ndarray:
     """Even-odd rule inside test: (..., 2) points, (E, 2) polygon -> bool (...).
     Raises GeometryError as :func:`segment_crosses_polygon`."""

@@ -208,32 +208,59 @@ class WalkState(NamedTuple):
 
 def walk(ped: PedestrianConfig, t: np.ndarray) -> WalkState:
     """Body-centre path at times ``t`` (F,) s: straight, a constant-radius arc of ``turn_deg``,
-    straight again, at constant speed. Closed form, continuous in position and heading."""
+    straight again, at constant speed. Closed form, continuous in position and heading.
+    One walk of :func:`walks` (the same formula)."""
     t = np.asarray(t, dtype=float)
-    u0 = np.asarray(ped.direction_xy, dtype=float)
-    u0 = u0 / np.linalg.norm(u0)
+    w = walks(np.asarray(ped.start_xy_m, float)[None], np.asarray(ped.direction_xy, float)[None],
+              np.array([ped.speed_mps]), np.array([ped.turn_after_m]),
+              np.radians([ped.turn_deg]), np.array([ped.turn_radius_m]), t)
+    return WalkState(*(a[0] for a in w))
+
+
+def walks(start_xy_m: np.ndarray, direction_xy: np.ndarray, speed_mps: np.ndarray,
+          turn_after_m: np.ndarray, turn_rad: np.ndarray, turn_radius_m: np.ndarray,
+          t: np.ndarray) -> WalkState:
+    """N walks of the scene's kind at once: straight for ``turn_after_m``, a constant-radius arc
+    turning the heading counter-clockwise by ``turn_rad``, straight again, at constant speed.
+
+    Args:
+        start_xy_m: (N, 2) start positions, m. direction_xy: (N, 2) initial walking directions
+            (any non-zero length). speed_mps, turn_after_m, turn_rad, turn_radius_m: (N,) speed
+            (m/s), path length before the turn (m), turn angle (rad), arc radius (m; 0 = an
+            instantaneous turn). t: (F,) times, s.
+
+    Returns:
+        :class:`WalkState` with a leading N axis: position (N, F, 2), velocity (N, F, 2),
+        heading (N, F, 2), turn rate (N, F) rad/s. Closed form (arc of curvature
+        ``turn_rad / (radius |turn_rad|)``), continuous in position and heading.
+    """
+    t = np.asarray(t, dtype=float)[None, :]                              # (1, F)
+    u0 = np.asarray(direction_xy, dtype=float)
+    u0 = (u0 / np.linalg.norm(u0, axis=-1, keepdims=True))[:, None, :]  # (N, 1, 2)
     n0 = _rot90(u0)
-    s = ped.speed_mps * t
-    s1 = ped.turn_after_m
-    delta = math.radians(ped.turn_deg)
-    arc_len = ped.turn_radius_m * abs(delta)
+    speed = np.asarray(speed_mps, float)[:, None]
+    s1 = np.asarray(turn_after_m, float)[:, None]
+    delta = np.asarray(turn_rad, float)[:, None]
+    radius = np.asarray(turn_radius_m, float)[:, None]
+    s = speed * t                                                        # (N, F)
+    arc_len = radius * np.abs(delta)
     before = np.minimum(s, s1)
-    if arc_len > 0:
-        kappa = delta / arc_len
-        on_arc = np.clip(s - s1, 0.0, arc_len)
-        phi = kappa * on_arc
-        arc = (np.sin(phi) / kappa)[:, None] * u0 + ((1 - np.cos(phi)) / kappa)[:, None] * n0
-        turning = (s > s1) & (s < s1 + arc_len)
-        rate = np.where(turning, ped.speed_mps * kappa, 0.0)
-    else:  # straight on, or an instantaneous turn
-        phi = np.where(s > s1, delta, 0.0)
-        arc = np.zeros(t.shape + (2,))
-        rate = np.zeros_like(t)
+    curved = arc_len > 0
+    safe_len = np.where(curved, arc_len, 1.0)
+    kappa = np.where(curved, delta / safe_len, 1.0)                     # 1/m (dummy if straight)
+    on_arc = np.clip(s - s1, 0.0, arc_len)
+    phi = np.where(curved, kappa * on_arc, np.where(s > s1, delta, 0.0))
+    arc = np.where(curved[..., None],
+                   (np.sin(phi) / kappa)[..., None] * u0
+                   + ((1 - np.cos(phi)) / kappa)[..., None] * n0, 0.0)
+    turning = curved & (s > s1) & (s < s1 + arc_len)
+    rate = np.where(turning, speed * kappa, 0.0)
     after = np.maximum(s - s1 - arc_len, 0.0)
     u2 = _rotate(u0, delta)
-    pos = np.asarray(ped.start_xy_m) + before[:, None] * u0 + arc + after[:, None] * u2
+    pos = (np.asarray(start_xy_m, float)[:, None, :] + before[..., None] * u0 + arc
+           + after[..., None] * u2)
     heading = _rotate(u0, phi)
-    return WalkState(pos, ped.speed_mps * heading, heading, rate)
+    return WalkState(pos, speed[..., None] * heading, heading, rate)
 
 
 # ----------------------------------------------------------------------------- the scene

@@ -150,7 +150,7 @@ def summary_rows(metrics: Mapping[str, Metrics]) -> list[tuple[str, str, str, st
     interp = metrics.get("interpolate")
     if interp:
         ours = "forward" if "forward" in interp else next(iter(interp))
-        rows.append(("Interpolation error on hidden frames (mean of car scenes)",
+        rows.append(("Interpolation error on hidden frames (mean of car scenes), three paper walks",
                      "no number (Fig. 8 only)",
                      f"{method_label(ours)} {_m(_get(interp, ours, 'all_scenes', 'hidden_mean_m'))}",
                      _baselines(interp, ours, ("all_scenes", "hidden_mean_m")), command("interpolate")))
@@ -162,17 +162,19 @@ def summary_rows(metrics: Mapping[str, Metrics]) -> list[tuple[str, str, str, st
     methods = _methods(ev)
     if ev and "lstm" in methods:
         spec = [
-            ("Paper's metric, mean over the prediction (vs simulated truth)", f"{PATH_ERROR_MEAN_M.value} m",
-             "path_error_mean_m"),
+            ("Paper's metric, mean over the prediction (vs simulated truth), three paper walks",
+             f"{PATH_ERROR_MEAN_M.value} m", "path_error_mean_m"),
             ("Paper's metric vs radar track of the walk without the car (what the paper measured)",
              f"{PATH_ERROR_MEAN_M.value} m", "path_error_radar_mean_m"),
-            ("Paper's metric at the first step", f"< {PATH_ERROR_FIRST_BELOW_M.value} m", "path_error_first_m"),
-            ("ADE over the whole horizon", "not reported", "ade_m"),
-            ("FDE over the whole horizon", "not reported", "fde_m"),
+            ("Paper's metric at the first step, three paper walks", f"< {PATH_ERROR_FIRST_BELOW_M.value} m",
+             "path_error_first_m"),
+            ("ADE over the whole horizon, three paper walks", "not reported", "ade_m"),
+            ("FDE over the whole horizon, three paper walks", "not reported", "fde_m"),
         ]
         horizons = sorted({k.split("_", 1)[1] for k in ev["lstm"] if k.startswith("ade_") and k != "ade_m"},
                           key=lambda h: float(h.rstrip("s")))
-        spec += [(f"ADE / FDE up to {h[:-1]} s", "not reported", (f"ade_{h}", f"fde_{h}")) for h in horizons]
+        spec += [(f"ADE / FDE up to {h[:-1]} s, three paper walks", "not reported", (f"ade_{h}", f"fde_{h}"))
+                 for h in horizons]
         for quantity, paper, key in spec:
             if isinstance(key, tuple):
                 ours = f"{_m(ev['lstm'].get(key[0]))} / {_m(ev['lstm'].get(key[1]))}"
@@ -187,6 +189,9 @@ def summary_rows(metrics: Mapping[str, Metrics]) -> list[tuple[str, str, str, st
                      "not run yet", "",
                      command("evaluate")))
 
+    rows += benchmark_rows(metrics.get("benchmark"))
+    rows += calibration_rows(metrics.get("calibration"))
+
     eth = metrics.get("ethucy")
     published = f"CVM {ETHUCY_CVM['ade']} / {ETHUCY_CVM['fde']} m (published)"
     if eth:
@@ -200,6 +205,66 @@ def summary_rows(metrics: Mapping[str, Metrics]) -> list[tuple[str, str, str, st
     else:
         rows.append(("ETH/UCY average ADE / FDE (observe 8, predict 12)", published,
                      "not run yet (reports/metrics/ethucy.json absent)", "", command("ethucy")))
+    return rows
+
+
+def _ci(entry: Mapping[str, Any] | None, digits: int = 3) -> str:
+    """``mean [lo, hi] m`` of a benchmark entry ({"mean", "ci95"})."""
+    if not entry or entry.get("mean") is None or not math.isfinite(entry["mean"]):
+        return "n/a"
+    lo, hi = entry["ci95"]
+    return f"{entry['mean']:.{digits}f} [{lo:.{digits}f}, {hi:.{digits}f}] m"
+
+
+def benchmark_rows(bench: Metrics) -> list[tuple[str, str, str, str, str]]:
+    """Summary rows of reports/metrics/benchmark.json: LSTM and baselines, mean [95 % interval]
+    over the walks, for the paper's metric, its first point, ADE/FDE at each horizon and the
+    interpolation error on hidden frames."""
+    if not bench:
+        return [("Many-walk benchmark of the paper's scene", "not in the paper", "not run yet", "",
+                 command("benchmark"))]
+    n = bench.get("n_walks")
+    tag = f", {n}-walk benchmark (95 % interval)"
+    preds = [m for m, v in bench.items() if isinstance(v, Mapping) and m != "paired"
+             and not m.startswith("fill_")]
+    ours = "lstm" if "lstm" in preds else (preds[0] if preds else None)
+    rows = []
+    if ours:
+        keys = [("Paper's metric, mean over the prediction", f"{PATH_ERROR_MEAN_M.value} m",
+                 "path_error_mean_m"),
+                ("Paper's metric at the first step", f"< {PATH_ERROR_FIRST_BELOW_M.value} m",
+                 "path_error_first_m")]
+        keys += [(f"{k.split('_')[0].upper()} up to {k.split('_')[1][:-1]} s", "not reported", k)
+                 for k in bench[ours] if k.split("_")[0] in ("ade", "fde") and k[-1] == "s"]
+        for quantity, paper, key in keys:
+            rows.append((quantity + tag, paper, f"{method_label(ours)} {_ci(bench[ours].get(key))}",
+                         "; ".join(f"{method_label(m)} {_ci(bench[m].get(key))}"
+                                   for m in preds if m != ours), command("benchmark")))
+    fills = [m for m in bench if m.startswith("fill_")]
+    if fills:
+        rows.append(("Interpolation error on hidden frames" + tag, "no number (Fig. 8 only)",
+                     "; ".join(f"{m[len('fill_'):]} {_ci(bench[m].get('hidden_mean_m'))}"
+                               for m in fills), "", command("benchmark")))
+    return rows
+
+
+def calibration_rows(cal: Metrics) -> list[tuple[str, str, str, str, str]]:
+    """Summary rows of reports/metrics/calibration.json: coverage of the 50/90/95 % ellipses and
+    NLL of each method's calibrated distribution on every data set there (test paths: sim_paths;
+    ETH/UCY folds where merged)."""
+    if not cal:
+        return [("Coverage of the 50/90/95 % prediction ellipses", "not in the paper", "not run yet",
+                 "", command("calibration"))]
+    rows = []
+    datasets = list(dict.fromkeys(d for per in cal.values() for d in per))
+    order = sorted(cal, key=lambda m: m != "lstm")          # the LSTM first, as in the rows above
+    for d in datasets:
+        cells = [f"{method_label(m)} {cal[m][d]['coverage_50']:.3f} / "
+                 f"{cal[m][d]['coverage_90']:.3f} / {cal[m][d]['coverage_95']:.3f}, "
+                 f"NLL {cal[m][d]['nll']:.2f}" for m in order if d in cal[m]]
+        rows.append((f"Coverage of the 50/90/95 % ellipses and NLL (nats), {d}",
+                     "not in the paper (nominal 0.50 / 0.90 / 0.95)", cells[0] if cells else "n/a",
+                     "; ".join(cells[1:]), command("calibration")))
     return rows
 
 
@@ -278,9 +343,9 @@ def build_page(metrics: Mapping[str, Metrics], tables: Mapping[str, str | None],
     """The Markdown of reports/README.md.
 
     Args:
-        metrics: parsed metrics JSON by name (localise, train, interpolate, evaluate, ethucy);
-            ``None`` or absent for files that do not exist.
-        tables: Markdown of table1 and table2 by stage name (``None`` if not built).
+        metrics: parsed metrics JSON by name (localise, train, interpolate, evaluate, ethucy,
+            benchmark, calibration); ``None`` or absent for files that do not exist.
+        tables: Markdown of table1, table2 and benchmark by stage name (``None`` if not built).
         figures: the paper's figures to show, in order.
         extra_figures: more figures (e.g. the real recordings), shown after the paper's.
     """
@@ -308,6 +373,17 @@ def build_page(metrics: Mapping[str, Metrics], tables: Mapping[str, str | None],
     for f in (*figures, *extra_figures):
         lines += [f"### {f.title}", "", f"![{f.title}]({f.path})", "", f"{f.caption} Regenerate: "
                   f"{command(f.stage)}.", ""]
+    if tables.get("benchmark"):
+        lines += ["## Many-walk benchmark of the paper's scene", "",
+                  "Randomised occluded walks (car pose and size, speed 1.0-1.5 m/s, turn -60..60 "
+                  "deg, where the walk turns and when the prediction starts; "
+                  "conf/benchmark/scene_walks.yaml) through the paths stage's radar chain, "
+                  "then the interpolate and predict stages' code. Mean over walks with the 95 % "
+                  "percentile-bootstrap interval; paired differences are the bootstrap of "
+                  "per-walk differences. The three paper walks (Figs. 8-10) are one draw of this "
+                  "kind: their numbers above are not an estimate of these means.", "",
+                  "![many-walk benchmark](figures/benchmark.png)", "",
+                  tables["benchmark"].strip(), "", f"Regenerate: {command('benchmark')}.", ""]
     lines += ["## Tables", ""]
     for stage, title in TABLE_STAGES.items():
         text = tables.get(stage)

@@ -269,6 +269,34 @@ def fig08_interpolation(tracks: pd.DataFrame, truth: pd.DataFrame,
 # ----------------------------------------------------------------------------- Fig. 9
 
 
+# Squared Mahalanobis radius of the 90 % ellipse of a 2-D Gaussian: the chi-square(2) quantile
+# -2 ln(1 - 0.9) (e.g. Bar-Shalom, Li & Kirubarajan 2001, section 1.4.17).
+ELLIPSE_LEVEL = 0.9
+ELLIPSE_R2 = -2.0 * np.log(1.0 - ELLIPSE_LEVEL)
+
+
+def draw_ellipses(ax, pred: pd.DataFrame, colour: str, every: int = 5) -> None:
+    """The 90 % ellipse of every ``every``-th predicted point (and the last), from the
+    ``cov_xx_m2``, ``cov_xy_m2``, ``cov_yy_m2`` columns of the predictions where present."""
+    from matplotlib.patches import Ellipse
+
+    if not {"cov_xx_m2", "cov_xy_m2", "cov_yy_m2"} <= set(pred.columns):
+        return
+    p = pred.sort_values("step")
+    keep = (p.step.to_numpy() % every == 0) | (p.step.to_numpy() == p.step.max())
+    p = p[keep & np.isfinite(p.cov_xx_m2.to_numpy())]
+    if p.empty:
+        return
+    cov = np.stack([np.stack([p.cov_xx_m2, p.cov_xy_m2], -1),
+                    np.stack([p.cov_xy_m2, p.cov_yy_m2], -1)], -2)     # (n, 2, 2)
+    w, v = np.linalg.eigh(cov)                                          # ascending
+    for (x, y), (minor, major), vec in zip(xy_of(p), w, v):
+        ax.add_patch(Ellipse((x, y), 2 * np.sqrt(ELLIPSE_R2 * major),
+                             2 * np.sqrt(ELLIPSE_R2 * minor),
+                             angle=np.degrees(np.arctan2(vec[1, 1], vec[0, 1])),
+                             facecolor="none", edgecolor=colour, lw=0.8, alpha=0.7, zorder=4))
+
+
 def fig09_prediction(inputs: pd.DataFrame, predictions: pd.DataFrame, truth: pd.DataFrame,
                      scenes: Mapping[str, Mapping[str, Any]],
                      metrics: Mapping[str, Any]) -> Figure:
@@ -278,7 +306,8 @@ def fig09_prediction(inputs: pd.DataFrame, predictions: pd.DataFrame, truth: pd.
         inputs: the input track per scene (scene, frame, x_m, y_m, observed), e.g. the rows of
             ``data/interpolate/tracks.parquet`` of the prediction input method before the
             prediction start.
-        predictions: ``data/predict/predictions.parquet`` (scene, method, step, frame, x_m, y_m).
+        predictions: ``data/predict/predictions.parquet`` (scene, method, step, frame, x_m, y_m;
+            with cov_xx_m2, cov_xy_m2, cov_yy_m2 the 90 % ellipses of every 5th step are drawn).
         truth: ``data/simulate/truth.parquet``.
         scenes: ``data/simulate/scenes.json``.
         metrics: ``reports/metrics/evaluate.json`` ({method: {per_scene: {scene: {...}}}}).
@@ -318,6 +347,7 @@ def fig09_prediction(inputs: pd.DataFrame, predictions: pd.DataFrame, truth: pd.
             label = method_label(method) + (f": {val:.2f} m" if val is not None else "") + (
                 f" (ADE {ade:.2f} m)" if ade is not None else "")
             lines.append(ax.plot(*joined.T, "-", color=method_colour(method), lw=1.8, zorder=5, label=label)[0])
+            draw_ellipses(ax, p, method_colour(method))
             ax.plot(*xy[-1], "x", color=method_colour(method), ms=8, mew=2, zorder=5)
         set_xy_limits(ax, everything, margin_m=0.4)
         label_xy_axes(ax)
@@ -335,5 +365,6 @@ def fig09_prediction(inputs: pd.DataFrame, predictions: pd.DataFrame, truth: pd.
     ] + [plt.Line2D([], [], color=method_colour(m), lw=1.8, label=method_label(m)) for m in methods]
     fig.legend(handles=handles, loc="outside lower center", ncol=len(handles), fontsize=8)
     fig.suptitle("Fig. 9: future path predicted from the interpolated track (black: input, red: LSTM "
-                 "as in the paper)", fontsize=12)
+                 "as in the paper; ellipses: 90 % of the calibrated predictive distribution, "
+                 "every 5th step)", fontsize=12)
     return fig

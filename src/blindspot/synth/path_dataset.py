@@ -23,22 +23,33 @@ CHUNK_PATHS = 16
 def measure_path_set(paths: PathSet, radar: RadarConfig, cfar: CfarConfig, doa: DoaConfig,
                      detect: DetectConfig, *,
                      pedestrian: PedestrianModel, seed: int, jobs: int = 1,
-                     progress: bool = False) -> PathMeasurement:
-    """:func:`measure_paths` over chunks of :data:`CHUNK_PATHS` paths in ``jobs`` processes."""
+                     progress: bool = False, occluders: np.ndarray | None = None,
+                     occlusion_db: float = 50.0,
+                     frames: np.ndarray | None = None) -> PathMeasurement:
+    """:func:`measure_paths` over chunks of :data:`CHUNK_PATHS` paths in ``jobs`` processes.
+
+    ``paths``: a :class:`PathSet` or anything with an ``xy`` (P, T, 2) array of truth paths;
+    ``occluders``: (P, E, 2) footprint per path and ``occlusion_db`` its loss (see
+    :func:`measure_paths`), or None; ``frames`` (P, T) bool, the frames to measure, or None."""
     xy = paths.xy
     starts = list(range(0, len(xy), CHUNK_PATHS))
     seeds = np.random.SeedSequence(seed).generate_state(len(starts), dtype=np.uint32)
     work = partial(_measure_chunk, radar=radar, cfar=cfar, doa=doa, detect=detect,
-                   pedestrian=pedestrian)
-    items = [(xy[s:s + CHUNK_PATHS], int(k)) for s, k in zip(starts, seeds)]
+                   pedestrian=pedestrian, occlusion_db=occlusion_db)
+    items = [(xy[s:s + CHUNK_PATHS], int(k),
+              None if occluders is None else occluders[s:s + CHUNK_PATHS],
+              None if frames is None else frames[s:s + CHUNK_PATHS])
+             for s, k in zip(starts, seeds)]
     parts = parallel_map(work, items, jobs, progress="paths (chunks)" if progress else None)
     return PathMeasurement(**{f: np.concatenate([getattr(p, f) for p in parts])
                               for f in PathMeasurement.__dataclass_fields__})
 
 
-def _measure_chunk(item, *, radar, cfar, doa, detect, pedestrian) -> PathMeasurement:
-    xy, seed = item
+def _measure_chunk(item, *, radar, cfar, doa, detect, pedestrian, occlusion_db
+                   ) -> PathMeasurement:
+    xy, seed, occ, frames = item
     return measure_paths(xy, radar, None, cfar, doa, detect, pedestrian=pedestrian, seed=seed,
+                         occluders=occ, occlusion_db=occlusion_db, frames=frames,
                          progress=False)
 
 

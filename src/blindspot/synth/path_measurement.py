@@ -29,7 +29,7 @@ Geometry and units follow the project: radar at the origin, boresight +y, x to t
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -379,6 +379,13 @@ def _measure_batch_reduced(setup: _ReducedSetup, sc: PointScatterers,
     return out
 
 
+def _take_frames(sc: PointScatterers, keep: np.ndarray) -> PointScatterers:
+    """The scatterers of frames ``keep`` (indices into the B axis)."""
+    return PointScatterers(range_m=sc.range_m[keep], velocity_mps=sc.velocity_mps[keep],
+                           azimuth_rad=sc.azimuth_rad[keep], amplitude=sc.amplitude[keep],
+                           elevation_rad=sc.elevation_rad[keep])
+
+
 def _measure_batch_full(chain, simulator, pos: np.ndarray, vel: np.ndarray, rcs: np.ndarray,
                         seed: int, frame_ids: np.ndarray) -> dict[str, np.ndarray]:
     """Measured point of each frame through the simulator's cube and DetectionChain.process."""
@@ -426,7 +433,9 @@ class PathMeasurement:
 def measure_paths(truth_paths: np.ndarray, radar: RadarConfig, array=None, cfar_cfg=None,
                   doa_cfg=None, detect_cfg=None, *, pedestrian: PedestrianModel, seed: int = 0,
                   paths_per_batch: int = 8, core_half_rows: int = 8, full_chain: bool = False,
-                  adc_headroom_db: float = 60.0, progress: bool = True) -> PathMeasurement:
+                  adc_headroom_db: float = 60.0, occluders: np.ndarray | None = None,
+                  occlusion_db: float = 50.0, frames: np.ndarray | None = None,
+                  progress: bool = True) -> PathMeasurement:
     """Every point of every truth path through the radar chain.
 
     Args:
@@ -446,6 +455,16 @@ def measure_paths(truth_paths: np.ndarray, radar: RadarConfig, array=None, cfar_
             (the reference; a few frames/s) instead of the reduced chain.
         adc_headroom_db: the simulator's ADC full scale above the noise (sets the cube units
             when ``radar.adc_bits`` is set, as the dB-domain CFAR needs).
+        occluders: (P, E, 2) footprint of an occluding object per path (a parked car,
+            :func:`blindspot.radar.scene.car_footprint`), or None. A body part whose line of
+            sight crosses its path's footprint loses ``occlusion_db`` of received power, as
+            ``Scene.scatterers_at`` applies it (amplitude times ``10 ** (-dB / 20)``; a hard
+            shadow, no diffraction; the car's own static returns are not added: at zero Doppler
+            they fall below ``detect.min_speed_mps`` and are never the pedestrian's point).
+            Reduced chain only.
+        occlusion_db: that loss, dB >= 0.
+        frames: (P, T) bool, the frames to measure (the others are returned as missed, NaN,
+            and cost nothing); None = all. Reduced chain only.
         progress: show a progress bar.
 
     Returns:
@@ -481,6 +500,25 @@ def measure_paths(truth_paths: np.ndarray, radar: RadarConfig, array=None, cfar_
         raise ValueError(f"paths_per_batch: expected a positive integer, found {paths_per_batch!r}")
     if not (isinstance(core_half_rows, (int, np.integer)) and core_half_rows >= 1):
         raise ValueError(f"core_half_rows: expected a positive integer, found {core_half_rows!r}")
+    if occluders is not None:
+        occluders = np.asarray(occluders, dtype=np.float64)
+        if occluders.ndim != 3 or occluders.shape[0] != p_count or occluders.shape[2] != 2:
+            raise ValueError(f"occluders: expected footprints of shape (P, E, 2) with P = "
+                             f"{p_count}, found shape {occluders.shape}")
+        if not (np.isfinite(occlusion_db) and occlusion_db >= 0):
+            raise ValueError(f"occlusion_db: expected a finite loss >= 0 dB, found {occlusion_db!r}")
+        if full_chain:
+            raise ValueError("occluders: only the reduced chain applies the per-part loss; "
+                             "use full_chain=False")
+        from blindspot.radar.occlusion import segment_crosses_polygons
+    if frames is not None:
+        frames = np.asarray(frames)
+        if frames.shape != (p_count, t_count) or frames.dtype != bool:
+            raise ValueError(f"frames: expected a boolean mask of shape (P, T) = "
+                             f"{(p_count, t_count)}, found {frames.dtype} {frames.shape}")
+        if full_chain:
+            raise ValueError("frames: only the reduced chain measures a subset of frames; "
+                             "use full_chain=False")
     # the gait phase offset of each path (drawn for all paths at once: batch-independent)
     gait0 = np.random.default_rng(np.random.SeedSequence([seed, 1])).uniform(0, 2 * np.pi, p_count)
     gait = gait0[:, None] + 2.0 * np.pi * dist / pedestrian.stride_length_m
@@ -505,8 +543,21 @@ def measure_paths(truth_paths: np.ndarray, radar: RadarConfig, array=None, cfar_
             else:
                 sc = point_scatterers(pos, v3, pedestrian.rcs_m2, radar,
                                       output_scale=setup.output_scale)
+                if occluders is not None:
+                    parts_xy = pos[..., :2].reshape(hi - lo, -1, 2)       # (paths, T * parts, 2)
+                    hidden = segment_crosses_polygons(parts_xy, occluders[lo:hi])
+                    gain = np.where(hidden, 10.0 ** (-occlusion_db / 20.0), 1.0)
+                    sc = replace(sc, amplitude=sc.amplitude * gain.reshape(sc.amplitude.shape))
                 rng = np.random.default_rng(np.random.SeedSequence([seed, 2, batch]))
-                res = _measure_batch_reduced(setup, sc, rng)
+                if frames is None:
+                    res = _measure_batch_reduced(setup, sc, rng)
+                else:
+                    keep = np.flatnonzero(frames[lo:hi].reshape(-1))
+                    res = _empty_frames(sc.range_m.shape[0])
+                    if keep.size:
+                        sub = _measure_batch_reduced(setup, _take_frames(sc, keep), rng)
+                        for key in _FRAME_FIELDS:
+                            res[key][keep] = sub[key]
             for key in _FRAME_FIELDS:
                 fields[key][lo:hi] = res[key].reshape(hi - lo, t_count)
             bar.update((hi - lo) * t_count)

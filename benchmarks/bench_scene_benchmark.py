@@ -1,0 +1,71 @@
+"""Speed of the many-walk benchmark stage: prints figures, asserts nothing.
+
+    .venv/bin/python benchmarks/bench_scene_benchmark.py [--walks N] [--jobs J] [--model FILE]
+
+Draws N walks of ``conf/benchmark/scene_walks.yaml``, measures them through the reduced radar
+chain in J processes (the stage's ``jobs``), then fills and predicts them with the stage's
+methods (the LSTM of ``data/train/model.pt``, constant velocity, Kalman) on the stage's torch
+threads, and prints the seconds of each part, walks/s and the time projected for the stage's
+``n_walks`` (the bootstrap and the figure add about a second). Also prints the load average,
+since the machine is shared.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import time
+from dataclasses import replace
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--walks", type=int, default=48, help="walks to time (default 48)")
+    ap.add_argument("--jobs", type=int, default=2, help="radar worker processes (default 2)")
+    ap.add_argument("--model", default=str(REPO / "data/train/model.pt"),
+                    help="LSTM checkpoint (default data/train/model.pt)")
+    args = ap.parse_args()
+
+    from blindspot import config, experiment
+    from blindspot.synth.path_measurement import PedestrianModel
+    from blindspot.synth.scene_benchmark import score_scene_walks
+    from blindspot.synth.scene_walks import draw_scene_walks, measure_scene_walks
+    from blindspot.traj.lstm import LSTMPredictor
+
+    cfg = config.compose([], config_dir=REPO / "conf")
+    full = experiment.benchmark(cfg)
+    bench = replace(full, n_walks=args.walks)
+    ev = experiment.evaluation(cfg)
+    radar = experiment.radar(cfg)
+    car = next(s for s in experiment.scenes(cfg).values() if s.with_car)
+    t0 = time.perf_counter()
+    walks = draw_scene_walks(bench, radar.frame_period_s, seed=0)
+    measured = measure_scene_walks(walks, radar, experiment.cfar(cfg), experiment.doa(cfg),
+                                   experiment.detect(cfg),
+                                   pedestrian=PedestrianModel.from_scene(car),
+                                   occlusion_db=car.occlusion_db, seed=0, jobs=args.jobs)
+    t1 = time.perf_counter()
+    lstm = LSTMPredictor.load(args.model)
+    score_scene_walks(walks, measured, predictors=experiment.predictors(cfg, lstm),
+                      interpolation_methods=ev.interpolation_methods,
+                      prediction_input=ev.prediction_input, gap_predictor=lstm,
+                      smoother=experiment.kalman(cfg).smooth_batch,
+                      horizon=bench.horizon_frames, dt_s=radar.frame_period_s,
+                      horizons_s=ev.horizons_s, threads=bench.threads)
+    t2 = time.perf_counter()
+    frames = int((walks.start).sum())
+    radar_s, score_s = t1 - t0, t2 - t1
+    per_walk = (radar_s + score_s) / args.walks
+    print(f"walks {args.walks}: radar {radar_s:.1f} s ({frames / radar_s:.0f} frames/s, "
+          f"{frames} frames, jobs {args.jobs}), interpolation + prediction {score_s:.1f} s")
+    print(f"{args.walks / (radar_s + score_s):.2f} walks/s; projected for n_walks = "
+          f"{full.n_walks}: {per_walk * full.n_walks:.0f} s (scoring grows less than linearly: "
+          f"one batched LSTM call per step)")
+    print(f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores")
+
+
+if __name__ == "__main__":
+    main()

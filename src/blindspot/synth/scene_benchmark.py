@@ -1,0 +1,128 @@
+"""Score interpolation and prediction on many measured walks of the paper's scene.
+
+The same library calls as the ``interpolate`` and ``predict`` stages, batched over walks:
+:func:`blindspot.traj.interpolation.fill_gaps` fills each walk's track (measured up to its
+prediction start) with every interpolation method, scored on the hidden frames
+(:func:`blindspot.traj.benchmark.hidden_gap_error`, as ``score_interpolation``);
+:func:`blindspot.traj.forecast.forecast_tracks` predicts from the track filled by
+``prediction_input`` (what ``forecast_track`` with that fill computes), scored against the
+truth (:func:`blindspot.traj.benchmark.prediction_scores`, as ``score_prediction``).
+Predictors that give a distribution (``predict_distribution``) are also scored on ellipse
+coverage and NLL (:mod:`blindspot.traj.distribution`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+
+import numpy as np
+
+from blindspot.synth.scene_walks import SceneWalks
+from blindspot.traj.benchmark import hidden_gap_error, prediction_scores
+from blindspot.traj.forecast import forecast_distributions, forecast_tracks
+from blindspot.traj.interpolation import fill_gaps
+
+__all__ = ["COVERAGE_LEVELS", "score_scene_walks", "future_truth"]
+
+COVERAGE_LEVELS = (0.5, 0.9, 0.95)
+
+
+def future_truth(walks: SceneWalks, horizon: int) -> np.ndarray:
+    """(N, horizon, 2) true positions at frames start .. start + horizon - 1 of each walk."""
+    idx = walks.start[:, None] + np.arange(horizon)[None, :]
+    return np.take_along_axis(walks.truth, idx[..., None], axis=1)
+
+
+def score_scene_walks(walks: SceneWalks, measured: np.ndarray, *,
+                      predictors: Mapping[str, object], interpolation_methods: tuple[str, ...],
+                      prediction_input: str, gap_predictor,
+                      smoother: Callable[[np.ndarray], np.ndarray], horizon: int, dt_s: float,
+                      horizons_s: tuple[float, ...],
+                      distributions: Mapping[str, object] | None = None, threads: int = 1,
+                      ) -> tuple[dict[str, dict[str, np.ndarray]], dict[str, np.ndarray]]:
+    """Per-walk scores of every interpolation and prediction method.
+
+    Args:
+        walks: the drawn walks (truth, hidden frames, prediction starts).
+        measured: (N, T, 2) radar points, NaN where none and from each walk's start on.
+        predictors: {name: PathPredictor} (``experiment.predictors``).
+        interpolation_methods: ``eval.interpolation_methods``; ``prediction_input`` the one the
+            predictions start from (``eval.prediction_input``).
+        gap_predictor: the predictor the forward/bidirectional fills roll out (the LSTM).
+        smoother: batched smoother for the kalman fill, (N, T, 2) -> (N, T, 2).
+        horizon: frames predicted. dt_s: frame period. horizons_s: ADE/FDE horizons.
+        distributions: {name: predictor with ``predict_distribution``} for the methods that
+            give a Gaussian forecast (scored on the same histories as their point prediction).
+        threads: torch threads while scoring (restored after).
+
+    Returns:
+        ``(scores, predictions)``: scores {method or ``fill_<method>``: {metric: (N,)}};
+        predictions {method: (N, horizon, 2)} (for figures).
+    """
+    import torch
+
+    previous = torch.get_num_threads()
+    torch.set_num_threads(int(threads))
+    try:
+        return _score(walks, measured, predictors, interpolation_methods, prediction_input,
+                      gap_predictor, smoother, horizon, dt_s, horizons_s, distributions)
+    finally:
+        torch.set_num_threads(previous)
+
+
+def _score(walks, measured, predictors, interpolation_methods, prediction_input, gap_predictor,
+           smoother, horizon, dt_s, horizons_s, distributions):
+    observed = np.isfinite(measured).all(axis=-1)
+    scores: dict[str, dict[str, np.ndarray]] = {}
+    filled = {}
+    methods = tuple(dict.fromkeys((*interpolation_methods, prediction_input)))
+    for m in methods:
+        filled[m] = fill_gaps(measured, m, predictor=gap_predictor, smoother=smoother)
+        if m in interpolation_methods:
+            scores[f"fill_{m}"] = {"hidden_mean_m": hidden_gap_error(
+                filled[m], walks.truth, observed, walks.hidden)}
+    truth = future_truth(walks, horizon)
+    end = walks.start + horizon
+    predictions = {}
+    for name, predictor in predictors.items():
+        pred = forecast_tracks(filled[prediction_input], walks.start, predictor, end=end)
+        predictions[name] = pred
+        scores[name] = prediction_scores(pred, truth, dt_s, horizons_s)
+        if distributions and name in distributions:
+            scores[name].update(distribution_scores(
+                distributions[name], filled[prediction_input], walks.start, end, truth))
+    return scores, predictions
+
+
+def distribution_scores(predictor, tracks: np.ndarray, start: np.ndarray, end: np.ndarray,
+                        truth: np.ndarray) -> dict[str, np.ndarray]:
+    """Per-walk share of the true future points (N, H, 2) inside the 50/90/95 % ellipses, and
+    the mean NLL (nats per point), of a predictor's Gaussian forecast from the same histories
+    as its point prediction (:func:`blindspot.traj.forecast.forecast_distributions`).
+
+    A predictor calibrated for ``predictor.horizon`` steps (``ScaledPredictor``) scores only
+    the walks whose forecast, counted from the last point seen (missed frames just before the
+    start add steps), stays within it; the others get NaN."""
+    from blindspot.traj.distribution import chi2_2dof_radius_sq, mahalanobis_sq
+
+    n = len(start)
+    steps = start - _last_seen_before(tracks, start) - 1 + (end - start)
+    ok = steps <= getattr(predictor, "horizon", np.inf)
+    keys = [f"coverage_{round(level * 100)}" for level in COVERAGE_LEVELS] + ["nll"]
+    out = {k: np.full(n, np.nan) for k in keys}
+    if not ok.any():
+        return out
+    fc = forecast_distributions(tracks[ok], start[ok], predictor, end=end[ok])
+    d2 = mahalanobis_sq(fc, truth[ok])                                     # (n_ok, H)
+    for level, key in zip(COVERAGE_LEVELS, keys):
+        out[key][ok] = np.nanmean(d2 <= chi2_2dof_radius_sq(level), axis=1)
+    c = fc.cov
+    logdet = np.log(c[..., 0, 0] * c[..., 1, 1] - c[..., 0, 1] ** 2)
+    out["nll"][ok] = np.nanmean(0.5 * d2 + 0.5 * logdet + np.log(2 * np.pi), axis=1)
+    return out
+
+
+def _last_seen_before(tracks: np.ndarray, start: np.ndarray) -> np.ndarray:
+    seen = np.isfinite(tracks).all(axis=-1) & (np.arange(tracks.shape[1])[None, :]
+                                                < start[:, None])
+    return tracks.shape[1] - 1 - np.argmax(seen[:, ::-1], axis=1)

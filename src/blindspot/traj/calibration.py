@@ -1,0 +1,207 @@
+"""Calibrated predictive distributions of the scene predictors, fitted on validation paths.
+
+Every prediction method gets a :class:`~blindspot.traj.distribution.GaussianForecast`:
+
+* ``kalman``: the filter's own propagated covariance (``KalmanCV.predict_distribution`` with
+  ``measured=False``: the simulated paths are scored against the true position);
+* ``constant_velocity``: its :class:`~blindspot.traj.baselines.CVNoise` error model fitted on the
+  validation pairs (``ConstantVelocity.fit``);
+* ``lstm`` (a next-point rollout, no likelihood of its own): the same kind of error model,
+  fitted on the LSTM's own validation errors: a covariance per future step in the walker's
+  (along-track, cross-track) frame, scaled per track by its speed and acceleration
+  (:class:`ErrorModelPredictor`).
+
+Then a per-step scale ``s_h`` (:func:`blindspot.traj.distribution.fit_step_scale`) is fitted on
+the same validation pairs, so the covariances cover what they claim at the step's own horizon;
+the test paths (and the benchmark's walks) are never used to fit anything.
+
+Pairs (:func:`path_pairs`): from each measured path, windows of ``window`` measured points
+(interior misses linearly interpolated, as the windows stage does) and the next ``horizon``
+true positions, one every ``stride`` points.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+
+from blindspot.arrays import check_array
+from blindspot.traj.baselines import ConstantVelocity, CVNoise, KalmanCV, cv_error_frame, \
+    cv_noise_features
+from blindspot.traj.distribution import (DistributionError, GaussianForecast, ellipse_coverage,
+                                         fit_step_scale, gaussian_nll)
+from blindspot.traj.windows import interpolate_gaps
+
+__all__ = ["ETHUCY_FILE", "ETHUCY_NAMES", "CalibrationError", "path_pairs", "ErrorModelPredictor", "ScaledPredictor",
+           "calibrate", "calibration_scores", "to_record", "from_record"]
+
+LEVELS = (0.5, 0.9, 0.95)
+# The ETH/UCY folds' calibration (same shape, written by the ethucy work): merged into
+# calibration.json when the calibration stage declares it as a dep.
+ETHUCY_FILE = "calibration_ethucy.json"
+# Its model names that are the scene predictors' under another name (ethucy's "cvm").
+ETHUCY_NAMES = {"cvm": "constant_velocity"}
+
+
+class CalibrationError(ValueError):
+    """Pairs, a method name or a stored calibration record is malformed."""
+
+
+def path_pairs(measured: np.ndarray, truth: np.ndarray, window: int, horizon: int,
+               stride: int) -> tuple[np.ndarray, np.ndarray]:
+    """(history (N, window, 2), future (N, horizon, 2)) pairs of measured paths.
+
+    measured, truth: (P, T, 2), m; measured NaN where the radar gave no point. History windows
+    start every ``stride`` points; a window that still holds a miss after linear interpolation
+    of interior gaps (path start / end) is dropped. Vectorised (sliding windows).
+    """
+    who = "path_pairs"
+    m = check_array(measured, "measured", ("P", "T", 2), error=CalibrationError, who=who,
+                    allow_nan=True)
+    t = check_array(truth, "truth", m.shape, error=CalibrationError, who=who)
+    if not (window >= 2 and horizon >= 1 and stride >= 1 and window + horizon <= m.shape[1]):
+        raise CalibrationError(f"{who}: window {window} + horizon {horizon} must fit in paths "
+                               f"of {m.shape[1]} points (window >= 2, stride {stride} >= 1)")
+    filled = interpolate_gaps(m)
+    starts = np.arange(0, m.shape[1] - window - horizon + 1, stride)
+    idx = starts[:, None] + np.arange(window)[None, :]                       # (S, W)
+    fut = starts[:, None] + window + np.arange(horizon)[None, :]             # (S, H)
+    hist = filled[:, idx].reshape(-1, window, 2)
+    future = t[:, fut].reshape(-1, horizon, 2)
+    keep = np.isfinite(hist).all(axis=(1, 2))
+    return hist[keep], future[keep]
+
+
+@dataclass(frozen=True, eq=False)
+class ErrorModelPredictor:
+    """A point predictor with a Gaussian model of its own errors (:class:`CVNoise`): the error
+    covariance per step in the (along-track, cross-track) frame of the history's
+    constant-velocity velocity (least squares over the last ``k`` points), scaled per track by
+    its speed and acceleration.
+
+    Attributes:
+        predictor: any PathPredictor (the scene LSTM). noise: the fitted CVNoise.
+        k: points of the velocity that sets the frame. name: label.
+    """
+
+    predictor: Any
+    noise: CVNoise
+    k: int = 5
+    name: str = "lstm"
+
+    @property
+    def window(self):
+        return getattr(self.predictor, "window", None)
+
+    def predict(self, history: np.ndarray, horizon: int) -> np.ndarray:
+        return np.asarray(self.predictor.predict(history, horizon))
+
+    def predict_distribution(self, history: np.ndarray, horizon: int) -> GaussianForecast:
+        """Mean = the predictor's rollout (B, horizon, 2); covariance (B, horizon, 2, 2) from
+        the error model."""
+        v, _ = ConstantVelocity(k=self.k).velocity(history)
+        cov = self.noise.covariance(cv_noise_features(history, v), cv_error_frame(v), horizon)
+        return GaussianForecast(self.predict(history, horizon), cov)
+
+    @classmethod
+    def fit(cls, predictor, history: np.ndarray, future: np.ndarray, *, k: int = 5,
+            name: str = "lstm") -> ErrorModelPredictor:
+        """Fit the error model on the predictor's errors on (history, future) pairs."""
+        pred = np.asarray(predictor.predict(history, future.shape[1]))
+        v, _ = ConstantVelocity(k=k).velocity(history)
+        noise = CVNoise.fit(future - pred, cv_noise_features(history, v), cv_error_frame(v))
+        return cls(predictor, noise, k, name)
+
+
+@dataclass(frozen=True, eq=False)
+class ScaledPredictor:
+    """A probabilistic predictor whose covariances are multiplied by a per-step scale (H,)
+    fitted on validation data (:func:`fit_step_scale`); ``options`` go to its
+    ``predict_distribution`` (e.g. ``measured=False`` for the Kalman filter)."""
+
+    base: Any
+    scale: np.ndarray
+    options: tuple = ()
+    name: str = ""
+
+    @property
+    def window(self):
+        return getattr(self.base, "window", None)
+
+    @property
+    def horizon(self) -> int:
+        """Steps the distribution is calibrated for."""
+        return int(len(self.scale))
+
+    def predict(self, history: np.ndarray, horizon: int) -> np.ndarray:
+        return np.asarray(self.base.predict(history, horizon))
+
+    def predict_distribution(self, history: np.ndarray, horizon: int) -> GaussianForecast:
+        if horizon > len(self.scale):
+            raise DistributionError(f"{self.name}: calibrated for {len(self.scale)} steps, asked "
+                                    f"for {horizon}")
+        fc = self.base.predict_distribution(history, horizon, **dict(self.options))
+        return fc.scaled(self.scale[:horizon])
+
+
+def calibrate(predictors: dict[str, Any], history: np.ndarray, future: np.ndarray, *,
+              scale_method: str = "quantile", scale_level: float = 0.9,
+              cv_fit_points: int = 5) -> dict[str, ScaledPredictor]:
+    """Give every predictor (``lstm``, ``constant_velocity``, ``kalman``) a distribution fitted
+    on the validation pairs (history (N, W, 2), future (N, H, 2)) and a per-step scale."""
+    out = {}
+    for name, p in predictors.items():
+        options: tuple = ()
+        if isinstance(p, KalmanCV):
+            base, options = p, (("measured", False),)
+        elif isinstance(p, ConstantVelocity):
+            base = p.fit(history, future)
+        else:
+            base = ErrorModelPredictor.fit(p, history, future, k=cv_fit_points, name=name)
+        fc = base.predict_distribution(history, future.shape[1], **dict(options))
+        scale = fit_step_scale(fc, future, method=scale_method, level=scale_level)
+        out[name] = ScaledPredictor(base, scale, options, name)
+    return out
+
+
+def calibration_scores(predictor, history: np.ndarray, future: np.ndarray) -> dict[str, float]:
+    """``coverage_50``, ``coverage_90``, ``coverage_95`` (share of true positions inside the
+    ellipses) and ``nll`` (nats per point) of a predictor's forecast on (history, future)."""
+    fc = predictor.predict_distribution(history, future.shape[1])
+    cov = ellipse_coverage(fc, future, LEVELS)
+    return {"coverage_50": float(cov[0]), "coverage_90": float(cov[1]),
+            "coverage_95": float(cov[2]), "nll": float(gaussian_nll(fc, future)),
+            "n_points": int(np.isfinite(future).all(axis=-1).sum())}
+
+
+def to_record(p: ScaledPredictor) -> dict:
+    """A calibrated predictor's fitted numbers as plain JSON (the point model is not stored)."""
+    noise = p.base.noise if isinstance(p.base, (ErrorModelPredictor, ConstantVelocity)) else None
+    return {"scale": p.scale.tolist(), "options": dict(p.options),
+            "noise": None if noise is None else {"step_cov": noise.step_cov.tolist(),
+                                                 "beta": noise.beta.tolist(),
+                                                 "n_fit": noise.n_fit},
+            "k": getattr(p.base, "k", None)}
+
+
+def from_record(record: dict, predictor, name: str) -> ScaledPredictor:
+    """Rebuild :func:`to_record`'s calibrated predictor around the same point ``predictor``."""
+    try:
+        noise = record["noise"]
+        scale = np.asarray(record["scale"], float)
+        options = tuple(record.get("options", {}).items())
+        if isinstance(predictor, KalmanCV):
+            base = predictor
+        elif isinstance(predictor, ConstantVelocity):
+            base = replace(predictor, noise=CVNoise(np.asarray(noise["step_cov"]),
+                                                    np.asarray(noise["beta"]), noise["n_fit"]))
+        else:
+            base = ErrorModelPredictor(predictor, CVNoise(np.asarray(noise["step_cov"]),
+                                                          np.asarray(noise["beta"]),
+                                                          noise["n_fit"]), int(record["k"]), name)
+    except (KeyError, TypeError) as e:
+        raise CalibrationError(f"calibration record of {name!r}: missing or malformed field "
+                               f"{e}") from None
+    return ScaledPredictor(base, scale, options, name)

@@ -1,0 +1,86 @@
+"""benchmark: many randomised occluded walks of the paper's scene (issue 10, section 3).
+
+``benchmark.n_walks`` walks (car pose and size, speed, turn angle, where the walk turns and when
+the prediction starts drawn per walk; blindspot.synth.scene_walks) go through the paths stage's
+validated reduced radar chain with the car as occluder, then through the interpolate and predict
+stages' own library calls batched over walks (blindspot.synth.scene_benchmark). Every metric's
+mean over walks gets a 95 % percentile-bootstrap interval, and the differences between methods a
+paired bootstrap of per-walk differences (blindspot.traj.benchmark). The predictive distributions
+calibrated on validation paths by the calibration stage are scored on the walks too (coverage
+of the 50/90/95 % ellipses, NLL): the walks are never used to fit them.
+"""
+
+import json
+import time
+
+import pandas as pd
+
+from blindspot import experiment
+from blindspot.cli import main_stage
+from blindspot.io import save_figure, write_json, write_parquet, write_text
+from blindspot.report.benchmark_report import benchmark_figure, benchmark_table
+from blindspot.stage import StageResult
+from blindspot.synth.path_measurement import PedestrianModel
+from blindspot.synth.scene_benchmark import score_scene_walks
+from blindspot.synth.scene_walks import draw_scene_walks, measure_scene_walks
+from blindspot.traj.benchmark import bootstrap_means, paired_differences
+from blindspot.traj.calibration import from_record
+from blindspot.traj.lstm import LSTMPredictor
+
+COMMAND = "dvc repro benchmark"
+
+
+def run(cfg, ctx):
+    t0 = time.perf_counter()
+    bench = experiment.benchmark(cfg)
+    ev = experiment.evaluation(cfg)
+    radar = experiment.radar(cfg)
+    dt = radar.frame_period_s
+    car_scene = next(s for s in experiment.scenes(cfg).values() if s.with_car)
+    walks = draw_scene_walks(bench, dt, seed=int(cfg.seed))
+    measured = measure_scene_walks(
+        walks, radar, experiment.cfar(cfg), experiment.doa(cfg), experiment.detect(cfg),
+        pedestrian=PedestrianModel.from_scene(car_scene), occlusion_db=car_scene.occlusion_db,
+        seed=int(cfg.seed), jobs=int(cfg.jobs), progress=bool(cfg.progress))
+    t_radar = time.perf_counter() - t0
+    lstm = LSTMPredictor.load(ctx.dep("model.pt"))
+    kalman = experiment.kalman(cfg)
+    predictors = experiment.predictors(cfg, lstm)
+    records = json.loads(ctx.dep("models.json").read_text())   # fitted by the calibration stage
+    distributions = {n: from_record(records[n], p, n) for n, p in predictors.items()
+                     if n in records}
+    scores, _ = score_scene_walks(
+        walks, measured, predictors=predictors, interpolation_methods=ev.interpolation_methods,
+        prediction_input=ev.prediction_input, gap_predictor=lstm, smoother=kalman.smooth_batch,
+        horizon=bench.horizon_frames, dt_s=dt, horizons_s=ev.horizons_s,
+        distributions=distributions, threads=bench.threads)
+    boot = dict(n_boot=bench.n_bootstrap, level=bench.ci_level, seed=int(cfg.seed))
+    names = list(predictors)
+    pairs = [(a, b) for i, a in enumerate(names) for b in names[i + 1:]]
+    fills = [f"fill_{m}" for m in ev.interpolation_methods]
+    pairs += [(a, b) for i, a in enumerate(fills) for b in fills[i + 1:]]
+    metrics = {"n_walks": len(walks), **bootstrap_means(scores, **boot),
+               "paired": paired_differences(scores, pairs, **boot)}
+    write_json(ctx.out("benchmark.json"), metrics)
+    per_walk = pd.DataFrame({f"{m}.{k}": v for m, per in scores.items() for k, v in per.items()})
+    per_walk.insert(0, "walk", range(len(walks)))
+    per_walk.insert(1, "speed_mps", walks.speed_mps)
+    per_walk.insert(2, "turn_deg", walks.turn_deg)
+    write_parquet(ctx.out("per_walk.parquet"), per_walk)
+    write_text(ctx.out("benchmark.md"), benchmark_table(metrics, COMMAND))
+    three_walks = json.loads(ctx.dep("evaluate.json").read_text())   # the paper's three walks
+    save_figure(benchmark_figure(metrics, three_walks), ctx.out("benchmark.png"), dpi=110)
+    seconds = time.perf_counter() - t0
+    for name in names:
+        m = metrics[name]
+        print(f"benchmark {name}: paper's metric {m['path_error_mean_m']['mean']:.3f} m "
+              f"{m['path_error_mean_m']['ci95']}, ADE 1 s {m['ade_1s']['mean']:.3f} m, "
+              f"FDE 2 s {m['fde_2s']['mean']:.3f} m")
+    print(f"benchmark: {len(walks)} walks in {seconds:.0f} s ({t_radar:.0f} s radar)")
+    return StageResult(metrics={"n_walks": len(walks), "seconds": seconds,
+                                **{n: {k: v["mean"] for k, v in metrics[n].items()}
+                                   for n in (*names, *fills)}})
+
+
+if __name__ == "__main__":
+    main_stage(run, "benchmark")

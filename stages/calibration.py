@@ -1,0 +1,65 @@
+"""calibration: every scene predictor's predictive distribution, calibrated on validation paths.
+
+LSTM (an error model of its own validation errors in the walker's heading frame), constant
+velocity (its fitted noise model) and Kalman (its own covariance) each get a per-step scale
+fitted on (history, future) pairs of the windows split's validation paths
+(blindspot.traj.calibration); coverage of the 50/90/95 % ellipses and NLL are scored on the test
+paths ("sim_paths"). A declared dep ending in calibration_ethucy.json (the ETH/UCY folds, same
+shape) is merged in. The fitted numbers go to data/calibration/models.json for the benchmark.
+"""
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from blindspot import experiment
+from blindspot.cli import main_stage
+from blindspot.io import write_json
+from blindspot.stage import StageResult
+from blindspot.traj.calibration import (ETHUCY_FILE, ETHUCY_NAMES, calibrate,
+                                        calibration_scores, path_pairs, to_record)
+from blindspot.traj.lstm import LSTMPredictor
+from blindspot.traj.paths import table_to_arrays
+from blindspot.traj.windows import WindowSet
+
+
+def run(cfg, ctx):
+    import torch
+
+    torch.set_num_threads(1)      # a 64-unit LSTM on a few hundred windows: one thread is fastest
+    c = experiment.calibration(cfg)
+    window = experiment.dataset(cfg).window
+    truth, measured, _ = table_to_arrays(pd.read_parquet(ctx.dep("paths.parquet")))
+    ids = {split: np.unique(WindowSet.load(ctx.dep(f"{split}.parquet")).path_id)
+           for split in ("train", "val")}
+    # held out: every path neither trained nor validated on (the test split's paths and the
+    # spare paths the split did not need)
+    ids["test"] = np.setdiff1d(np.arange(len(truth)), np.concatenate([ids["train"], ids["val"]]))
+    pairs = {split: path_pairs(measured[ids[split]], truth[ids[split]], window, c.horizon_frames,
+                               c.stride) for split in ("val", "test")}
+    lstm = LSTMPredictor.load(ctx.dep("model.pt"))
+    calibrated = calibrate(experiment.predictors(cfg, lstm), *pairs["val"],
+                           scale_method=c.scale_method, scale_level=c.scale_level,
+                           cv_fit_points=experiment.evaluation(cfg).cv_fit_points)
+    metrics = {name: {"sim_paths": {**calibration_scores(p, *pairs["test"]),
+                                    "n_paths": int(len(ids["test"]))}}
+               for name, p in calibrated.items()}
+    for path in ctx.files.deps:                 # the ETH/UCY folds, where the stage declares them
+        if path.endswith(ETHUCY_FILE):
+            for name, folds in json.loads(Path(path).read_text()).items():
+                metrics.setdefault(ETHUCY_NAMES.get(name, name), {}).update(folds)
+    write_json(ctx.out("calibration.json"), metrics)
+    write_json(ctx.out("models.json"), {n: to_record(p) for n, p in calibrated.items()})
+    for name, m in metrics.items():
+        s = m.get("sim_paths")
+        if s:
+            print(f"calibration {name}: coverage 50/90/95 {s['coverage_50']:.3f} / "
+                  f"{s['coverage_90']:.3f} / {s['coverage_95']:.3f}, NLL {s['nll']:.3f} "
+                  f"({s['n_points']} points of {s['n_paths']} held-out paths)")
+    return StageResult(metrics=metrics)
+
+
+if __name__ == "__main__":
+    main_stage(run, "calibration")
