@@ -49,8 +49,12 @@ def run(cfg, ctx):
     records = json.loads(ctx.dep("models.json").read_text())   # fitted by the calibration stage
     distributions = {n: from_record(records[n], p, n) for n, p in predictors.items()
                      if n in records}
+    # each network of the seed ensemble alone too (member i: seed train.seed + i), on the same
+    # walks and the same filled histories: the spread a single training run would carry
+    members = ({f"lstm_member{i}": lstm.member(i) for i in range(lstm.n_members)}
+               if lstm.n_members > 1 else {})
     scores, _ = score_scene_walks(
-        walks, measured, predictors=predictors, interpolation_methods=ev.interpolation_methods,
+        walks, measured, predictors={**predictors, **members}, interpolation_methods=ev.interpolation_methods,
         prediction_input=ev.prediction_input, gap_predictor=lstm, smoother=kalman.smooth_batch,
         horizon=bench.horizon_frames, dt_s=dt, horizons_s=ev.horizons_s,
         distributions=distributions, threads=bench.threads)
@@ -61,6 +65,11 @@ def run(cfg, ctx):
     pairs += [(a, b) for i, a in enumerate(fills) for b in fills[i + 1:]]
     metrics = {"n_walks": len(walks), **bootstrap_means(scores, **boot),
                "paired": paired_differences(scores, pairs, **boot)}
+    if members:
+        spread = {k: [metrics[m][k]["mean"] for m in members]
+                  for k in ("path_error_mean_m", "ade_1s", "ade_2s", "fde_2s")}
+        metrics["lstm_members"] = {"n_members": len(members), "seeds_from": int(cfg.train.seed),
+                                   **{k: {"min": min(v), "max": max(v)} for k, v in spread.items()}}
     write_json(ctx.out("benchmark.json"), metrics)
     per_walk = pd.DataFrame({f"{m}.{k}": v for m, per in scores.items() for k, v in per.items()})
     per_walk.insert(0, "walk", range(len(walks)))

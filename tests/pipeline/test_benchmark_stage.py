@@ -35,7 +35,9 @@ def tiny(tmp_path_factory):
     cfg = config.compose(["profile=tiny", "benchmark.n_walks=3", "benchmark.n_bootstrap=200",
                           "jobs=1", "progress=false"], config_dir=REPO / "conf")
     torch.manual_seed(0)
-    lstm = LSTMPredictor(LSTMRegressor(experiment.model(cfg)), NormStats(True, "displacement"))
+    stats = NormStats(True, "displacement")
+    lstm = LSTMPredictor(LSTMRegressor(experiment.model(cfg)), stats,  # a 2-seed ensemble
+                         more=[(LSTMRegressor(experiment.model(cfg)), stats)])
     lstm.save(root / "data/train/model.pt")
     (root / "reports/metrics").mkdir(parents=True)
     (root / "reports/metrics/evaluate.json").write_text(json.dumps(
@@ -96,4 +98,10 @@ def test_calibration_then_benchmark_on_a_tiny_setting(tiny):
             assert set(entry) >= {"mean", "ci95"} and len(entry["ci95"]) == 2
     assert {"ade_0.5s", "fde_2s", "path_error_mean_m", "coverage_90", "nll"} <= set(m["kalman"])
     assert "lstm - kalman" in m["paired"]
+    # each ensemble member scored alone, its range summarised, no pairs of members
+    assert set(m["lstm_member1"]) >= {"path_error_mean_m", "ade_1s"}
+    assert m["lstm_members"]["n_members"] == 2
+    lo, hi = (m["lstm_members"]["path_error_mean_m"][k] for k in ("min", "max"))
+    assert lo <= hi and not any("member" in pair for pair in m["paired"])
+    assert "seed 1 |" in (root / "reports/tables/benchmark.md").read_text()
     assert (root / "reports/tables/benchmark.md").read_text().count("|") > 20

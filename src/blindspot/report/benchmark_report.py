@@ -32,9 +32,15 @@ def _fmt(entry: Mapping[str, Any] | None, digits: int = 3) -> str:
 
 
 def _methods(metrics: Mapping[str, Any]) -> tuple[list[str], list[str]]:
-    keys = [k for k, v in metrics.items() if isinstance(v, Mapping) and k != "paired"]
+    """(prediction methods, fill methods); the seed-ensemble members are left to their own rows."""
+    keys = [k for k, v in metrics.items() if isinstance(v, Mapping)
+            and k not in ("paired", "lstm_members") and not k.startswith("lstm_member")]
     fills = [k for k in keys if k.startswith("fill_")]
     return [k for k in keys if k not in fills], fills
+
+
+def _members(metrics: Mapping[str, Any]) -> list[str]:
+    return [k for k in metrics if k.startswith("lstm_member") and k != "lstm_members"]
 
 
 def benchmark_table(metrics: Mapping[str, Any], command: str) -> str:
@@ -49,6 +55,16 @@ def benchmark_table(metrics: Mapping[str, Any], command: str) -> str:
     for p in preds:
         lines.append(f"| {method_label(p)} | " + " | ".join(_fmt(metrics[p].get(m))
                                                           for m in PREDICTION_METRICS) + " |")
+    members = _members(metrics)
+    if members:
+        seed0 = metrics.get("lstm_members", {}).get("seeds_from", 0)
+        lines += ["", f"Each network of the LSTM's seed ensemble alone (seeds {seed0}-"
+                  f"{seed0 + len(members) - 1}), on the same walks: what one training run gives.", "",
+                  "| network | " + " | ".join(_NAMES.get(m, m) for m in PREDICTION_METRICS) + " |",
+                  "|---|" + "---|" * len(PREDICTION_METRICS)]
+        lines += [f"| seed {seed0 + i} | " + " | ".join(_fmt(metrics[p].get(m))
+                                                      for m in PREDICTION_METRICS) + " |"
+                  for i, p in enumerate(members)]
     if fills:
         lines += ["", "| interpolation | error on hidden frames (m) |", "|---|---|"]
         lines += [f"| {f[len('fill_'):]} | {_fmt(metrics[f].get('hidden_mean_m'))} |"
