@@ -14,6 +14,7 @@ from omegaconf import DictConfig
 from blindspot.dsp.config import CfarConfig, DetectConfig, DoaConfig
 from blindspot.radar.array import VirtualArray, array_for
 from blindspot.radar.config import RadarConfig, SimConfig
+from blindspot.radar.driving import DrivingScene, ScenarioGroup, load_scenarios
 from blindspot.radar.scene import SceneConfig, load_scenes
 from blindspot.traj.config import DatasetConfig, EthUcyConfig, EvalConfig, LSTMConfig, TrainConfig
 
@@ -67,6 +68,17 @@ def ethucy(cfg: DictConfig) -> EthUcyConfig:
 def evaluation(cfg: DictConfig) -> EvalConfig:
     """The interpolation / prediction / evaluation settings of ``cfg.eval``."""
     return EvalConfig.from_mapping(cfg.eval)
+
+
+def scenarios(cfg: DictConfig) -> tuple[ScenarioGroup, dict[str, DrivingScene]]:
+    """The driving-scenario group of ``cfg.scenario`` and its named scenes, in file order."""
+    return load_scenarios(cfg.scenario)
+
+
+def driving_radar(cfg: DictConfig) -> RadarConfig:
+    """The driving radar profile of ``cfg.driving_radar`` (a ``radar`` group option placed under
+    its own key, so the paper's stages keep ``cfg.radar``)."""
+    return RadarConfig.from_mapping(cfg.driving_radar, where="driving_radar")
 
 
 def array(cfg: DictConfig) -> VirtualArray:

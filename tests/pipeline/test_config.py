@@ -131,6 +131,7 @@ def _real_groups_present() -> bool:
         if entry == "_self_":
             continue
         ((group, option),) = entry.items()
+        group = group.split("@")[0]           # radar@driving_radar: a radar option elsewhere
         if not (REPO / "conf" / group / f"{option}.yaml").is_file():
             return False
     return True
@@ -174,6 +175,7 @@ def _builders():
         "cfar": experiment.cfar, "doa": experiment.doa, "detect": experiment.detect,
         "dataset": experiment.dataset, "model": experiment.model, "train": experiment.training,
         "eval": experiment.evaluation, "ethucy": experiment.ethucy, "recordings": _build_recordings,
+        "scenario": experiment.scenarios,
     }
 
 
