@@ -12,6 +12,7 @@ from typing import Any
 from omegaconf import DictConfig
 
 from blindspot.dsp.config import CfarConfig, DetectConfig, DoaConfig
+from blindspot.dsp.ego_motion import EgoMotionConfig
 from blindspot.radar.array import VirtualArray, array_for
 from blindspot.radar.config import RadarConfig, SimConfig
 from blindspot.radar.driving import DrivingScene, ScenarioGroup, load_scenarios
@@ -79,6 +80,11 @@ def driving_radar(cfg: DictConfig) -> RadarConfig:
     """The driving radar profile of ``cfg.driving_radar`` (a ``radar`` group option placed under
     its own key, so the paper's stages keep ``cfg.radar``)."""
     return RadarConfig.from_mapping(cfg.driving_radar, where="driving_radar")
+
+
+def ego_motion(cfg: DictConfig) -> EgoMotionConfig:
+    """The moving-car radar settings of ``cfg.ego_motion`` (odometry, robust fit, budget)."""
+    return EgoMotionConfig.from_mapping(cfg.ego_motion)
 
 
 def array(cfg: DictConfig) -> VirtualArray:

@@ -175,7 +175,7 @@ def _builders():
         "cfar": experiment.cfar, "doa": experiment.doa, "detect": experiment.detect,
         "dataset": experiment.dataset, "model": experiment.model, "train": experiment.training,
         "eval": experiment.evaluation, "ethucy": experiment.ethucy, "recordings": _build_recordings,
-        "scenario": experiment.scenarios,
+        "scenario": experiment.scenarios, "ego_motion": experiment.ego_motion,
     }
 
 

@@ -77,7 +77,8 @@ __all__ = [
     "StaticClutter", "DrivingScene", "ScenarioGroup", "MonteCarloConfig",
     "load_scenarios", "draw_scenarios", "scene_truth", "ego_pose", "pedestrian_states",
     "collision_without_braking", "car_polygon", "vehicle_to_world", "world_to_vehicle",
-    "TRUTH_COLUMNS",
+    "TRUTH_COLUMNS", "static_scatterers", "body_parts", "scatterers_in_vehicle_frame",
+    "frame_times", "car_polygons",
 ]
 
 BEHAVIOURS = ("cross", "stop_at_kerb", "along_kerb", "turn_back", "cross_after")
@@ -433,6 +434,12 @@ def pedestrian_states(scene: DrivingScene, group: ScenarioGroup, t: np.ndarray
     """Reference-point positions (P, F, 2), velocities (P, F, 2) (world frame, m, m/s) and unit
     headings (P, F, 2) (the walking direction, kept while at rest) of every pedestrian at times
     ``t`` (F,). Vectorised over pedestrians and times."""
+    pos, vel, heading, _ = _pedestrian_kinematics(scene, group, t)
+    return pos, vel, heading
+
+
+def _pedestrian_kinematics(scene: DrivingScene, group: ScenarioGroup, t: np.ndarray):
+    """:func:`pedestrian_states` plus the distance walked (P, F), m."""
     t = np.asarray(t, dtype=float)
     routes = [_route(p, group.body(p.body), group, scene) for p in scene.pedestrians]
     wp = np.stack([r[0] for r in routes])                       # (P, K, 2)
@@ -473,7 +480,7 @@ def pedestrian_states(scene: DrivingScene, group: ScenarioGroup, t: np.ndarray
     unit = np.divide(seg, seg_len[..., None], out=np.zeros_like(seg), where=seg_len[..., None] > 0)
     last_nonempty = np.maximum.accumulate(np.where(seg_len > 0, np.arange(seg.shape[1]), 0), axis=1)
     heading = unit[pi, last_nonempty[pi, idx]]
-    return pos, sp[..., None] * heading, heading
+    return pos, sp[..., None] * heading, heading, s
 
 
 def car_polygon(car: ParkedCar) -> np.ndarray:
@@ -628,3 +635,106 @@ def scene_truth(scene: DrivingScene, group: ScenarioGroup, frame_period_s: float
         "impact_point_pct": np.tile(col["impact_point_pct"].to_numpy(), n_f),
         "ttc_s": rows(ttc),
     }, columns=list(TRUTH_COLUMNS))
+
+
+# ----------------------------------------------------------------------------- scatterers
+FIELD_OF_VIEW_DEG = 75.0   # scatterers outside +-75 deg of boresight are not simulated (the
+                           # MMWCAS patch antennas' beam; the isotropic model would fold them)
+
+
+def static_scatterers(scene: DrivingScene, group: ScenarioGroup) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The static world in the world frame: points every ``car_face_spacing_m`` along every
+    face of every parked car (the car's RCS shared equally) and the clutter lines.
+
+    Returns xyz (K, 3) (z above the radar: height - radar height), rcs (K,) m^2, and the index
+    (K,) of the car each point belongs to (-1 for clutter), for self-occlusion."""
+    xy, rcs, owner, z = [], [], [], []
+    for ci, car in enumerate(scene.parked_cars):
+        poly = car_polygon(car)
+        q0, q1 = poly, np.roll(poly, -1, axis=0)
+        lengths = np.linalg.norm(q1 - q0, axis=1)
+        counts = np.maximum(1, np.ceil(lengths / group.car_face_spacing_m).astype(int))
+        edge = np.repeat(np.arange(4), counts)
+        frac = (np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts) + 0.5) / counts[edge]
+        pts = q0[edge] + frac[:, None] * (q1 - q0)[edge]
+        xy.append(pts)
+        rcs.append(np.full(len(pts), 10 ** (car.rcs_dbsm / 10) / len(pts)))
+        owner.append(np.full(len(pts), ci))
+        z.append(np.full(len(pts), 0.5 - group.ego.radar_height_m))   # bumper / wheel level
+    for cl in scene.clutter:
+        ys = np.arange(cl.y_from_m, cl.y_to_m + 1e-9, cl.spacing_m)
+        xy.append(np.stack([np.full_like(ys, cl.x_m), ys], axis=1))
+        rcs.append(np.full(len(ys), 10 ** (cl.rcs_dbsm / 10)))
+        owner.append(np.full(len(ys), -1))
+        z.append(np.full(len(ys), cl.height_m - group.ego.radar_height_m))
+    if not xy:
+        return np.zeros((0, 3)), np.zeros(0), np.zeros(0, dtype=int)
+    xy = np.concatenate(xy)
+    return (np.concatenate([xy, np.concatenate(z)[:, None]], axis=1), np.concatenate(rcs),
+            np.concatenate(owner))
+
+
+def body_parts(scene: DrivingScene, group: ScenarioGroup, t: np.ndarray
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Body-part scatterers of every pedestrian at times ``t`` (F,), world frame.
+
+    Each part sits ``lateral_m`` to the walker's left and swings ``swing_m sin(gait + phase)``
+    along the heading, gait = 2 pi distance / stride (the scene model of
+    :mod:`blindspot.radar.scene`, on the driving routes). Returns positions (F, Q, 3) (z above
+    the radar), velocities (F, Q, 3), rcs (Q,) m^2, pedestrian index (Q,)."""
+    t = np.asarray(t, dtype=float)
+    pos, vel, heading, dist = _pedestrian_kinematics(scene, group, t)   # (P, F, ...)
+    xyz, v3, rcs, who = [], [], [], []
+    for i, p in enumerate(scene.pedestrians):
+        b = group.body(p.body)
+        u = heading[i][:, None, :]                                     # (F, 1, 2)
+        n = np.stack([-u[..., 1], u[..., 0]], axis=-1)
+        lat = np.array([q.lateral_m for q in b.parts])[None, :, None]
+        amp = np.array([q.swing_m for q in b.parts])[None, :]
+        ph = np.radians([q.phase_deg for q in b.parts])[None, :]
+        arg = 2 * np.pi * dist[i][:, None] / b.stride_length_m + ph     # (F, parts)
+        speed = np.linalg.norm(vel[i], axis=-1)[:, None]
+        d = (amp * np.sin(arg))[..., None]
+        d_dot = (amp * np.cos(arg) * 2 * np.pi * speed / b.stride_length_m)[..., None]
+        pxy = pos[i][:, None, :] + d * u + lat * n
+        vxy = vel[i][:, None, :] + d_dot * u
+        z = np.broadcast_to(np.array([q.height_m for q in b.parts]) - group.ego.radar_height_m,
+                            pxy.shape[:2])[..., None]
+        xyz.append(np.concatenate([pxy, z], axis=-1))
+        v3.append(np.concatenate([vxy, np.zeros_like(z)], axis=-1))
+        rcs.append(b.rcs_m2)
+        who.append(np.full(len(b.parts), i))
+    return (np.concatenate(xyz, axis=1), np.concatenate(v3, axis=1), np.concatenate(rcs),
+            np.concatenate(who))
+
+
+def scatterers_in_vehicle_frame(scene: DrivingScene, group: ScenarioGroup, t: float
+                                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Every scatterer the radar sees at time ``t``, relative to the moving radar.
+
+    Returns position (K, 3) and velocity (K, 3) in the vehicle frame (static points move at
+    -v_ego), rcs (K,) m^2, attenuation (K,) dB (``occlusion_db`` where the line of sight crosses
+    a parked car, including a car's own far faces) and a label (K,) int: -1 static world, p >= 0
+    body part of pedestrian p. Scatterers outside the +-75 deg field of view or behind the
+    radar are left out."""
+    pose = ego_pose(scene, group, np.array([t]))[0]
+    sxyz, srcs, _ = static_scatterers(scene, group)
+    pxyz, pv, prcs, who = body_parts(scene, group, np.array([t]))
+    xyz = np.concatenate([sxyz, pxyz[0]])
+    vw = np.concatenate([np.zeros_like(sxyz), pv[0]])
+    rcs = np.concatenate([srcs, prcs])
+    label = np.concatenate([np.full(len(srcs), -1), who])
+    rel_xy = world_to_vehicle(xyz[:, :2], pose)
+    c, s = math.cos(pose[2]), math.sin(pose[2])
+    dv = vw[:, :2] - np.array([-s, c]) * scene.speed_mps          # minus the ego's velocity
+    rel_v = np.stack([c * dv[:, 0] + s * dv[:, 1], -s * dv[:, 0] + c * dv[:, 1]], axis=-1)
+    az = np.degrees(np.arctan2(rel_xy[:, 0], rel_xy[:, 1]))
+    keep = (rel_xy[:, 1] > 0.2) & (np.abs(az) <= FIELD_OF_VIEW_DEG)
+    # line of sight, stopped 1 mm short of each point, against every parked car
+    r = np.linalg.norm(rel_xy, axis=1, keepdims=True)
+    short = xyz[:, :2] - (xyz[:, :2] - pose[:2]) * (1e-3 / np.maximum(r, 1e-9))
+    hidden = segments_blocked(short, pose[None, :2], car_polygons(scene))
+    att = np.where(hidden, group.occlusion_db, 0.0)
+    pos = np.concatenate([rel_xy, xyz[:, 2:]], axis=1)
+    vel = np.concatenate([rel_v, np.zeros((len(xyz), 1))], axis=1)
+    return pos[keep], vel[keep], rcs[keep], att[keep], label[keep]
