@@ -11,12 +11,12 @@ from typing import Any
 
 from omegaconf import DictConfig
 
-from blindspot.dsp.config import CfarConfig, DetectConfig, DoaConfig
-from blindspot.dsp.ego_motion import EgoMotionConfig
+from blindspot.dsp.config import CfarConfig, DetectConfig, DoaConfig, EgoMotionConfig
 from blindspot.radar.array import VirtualArray, array_for
 from blindspot.radar.config import RadarConfig, SimConfig
-from blindspot.radar.driving import DrivingScene, ScenarioGroup, load_scenarios
-from blindspot.radar.scene import SceneConfig, load_scenes
+from blindspot.radar.scene import (
+    DrivingScene, ScenarioGroup, SceneConfig, load_scenarios, load_scenes,
+)
 from blindspot.traj.config import DatasetConfig, EthUcyConfig, EvalConfig, LSTMConfig, TrainConfig
 
 

@@ -178,7 +178,7 @@ def test_frame_times_cover_lead_and_tail(loaded):
      "scenario.scenes.cpnco.pedestrians[0].body"),
     (lambda c: c.update(figure_scene="nowhere"), "scenario.figure_scene"),
     (lambda c: c["shared"]["pedestrians"][0].update(behaviour="dance"),
-     "scenario.scenes.cpnco.pedestrians"),
+     "scenario.shared.pedestrians[0].behaviour"),
     (lambda c: c["monte_carlo"].update(front_gap_m=[3.0, 1.0]), "scenario.monte_carlo.front_gap_m"),
     (lambda c: c["bodies"]["child"].update(ref_from_front_m=2.0), "scenario.bodies"),
     (lambda c: c["scenes"]["cpnco"].update(pedestrians=[{"body": "child", "behaviour": "cross"}] * 4),

@@ -8,15 +8,15 @@ Per batch of frames (every step vectorised over the batch's detections):
    :class:`blindspot.dsp.chain.DetectionChain` (same configuration groups).
 2. The ``max_detections`` strongest peaks of each frame get angles (the static world gives most
    of them: the ego-motion fit needs them).
-3. Ambiguity order: the Doppler bin gives v modulo 2 v_max. For each candidate order m (those
-   that can reach the static world's ``-v_odo cos(theta)`` for some azimuth, +-v_max),
-   the snapshots are TDM-compensated with ``v_m = v_wrapped + 2 m v_max``
-   (:func:`~blindspot.dsp.doppler_compensation.compensate_tdm_velocity`) and the angle
-   ``theta_m`` estimated; the order kept is the one whose velocity is nearest the static world's
-   at its own angle, ``|v_m + v_odo cos(theta_m)|`` smallest: the order
-   :func:`~blindspot.dsp.ego_motion.unwrap_doppler` chooses at the angle estimated under it.
-   A wrong order compensates with a phase error ``2 pi m t_k / T_loop`` that shifts and smears
-   the angle; the velocity it implies is ``2 m v_max`` away from the curve, so it loses.
+3. Ambiguity order (:func:`unwrap_and_angles`): the Doppler bin gives v modulo 2 v_max. For
+   each candidate order m the snapshots are TDM-compensated with ``v_m = v_wrapped + 2 m v_max``
+   (:func:`~blindspot.dsp.doppler_compensation.compensate_tdm_velocity`) and a Bartlett scan
+   gives ``theta_m``; the order kept is the one whose velocity is nearest the static world's at
+   its own angle, ``|v_m + v_odo cos(theta_m)|`` smallest: the order
+   :func:`~blindspot.dsp.ego_motion.unwrap_doppler` chooses at the angle found under it. A
+   wrong order compensates with a phase error ``2 pi m t_k / T_loop`` that shifts the angle by
+   ~3 deg per order; the velocity it implies is ``2 m v_max`` away from the curve, so it loses.
+   The angle is then the configured estimator's (MUSIC) with the chosen velocity.
 4. Ego speed from the radar: :func:`~blindspot.dsp.ego_motion.estimate_ego_speed` (RANSAC,
    Kellner et al. 2013) per frame; detections within ``static_tolerance_mps`` of
    ``-v_radar cos(theta)`` are static (clutter on a moving car), the others moving.
@@ -38,6 +38,55 @@ from blindspot.dsp.ego_motion import EgoMotionConfig, estimate_ego_speed, static
 from blindspot.dsp.snapshots import cell_snapshots
 from blindspot.radar.array import VirtualArray
 from blindspot.radar.config import RadarConfig
+
+ORDER_GRID_DEG = np.arange(-80.0, 80.01, 0.5)   # Bartlett grid of the order choice
+
+
+def unwrap_and_angles(ula: np.ndarray, v_wrapped: np.ndarray, odometry_mps: np.ndarray,
+                      chain: DetectionChain, v_max_mps: float
+                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Doppler ambiguity order, unwrapped radial velocity and angle of each detection.
+
+    ula: (D, n_ula, L) snapshots on the ULA elements; v_wrapped: (D,) the Doppler bins'
+    velocities in [-v_max, v_max); odometry_mps: (D,) the ego speed each detection's frame
+    unwraps with; chain: the configured :class:`DetectionChain` (array, slot times, DOA).
+
+    For every candidate order m (those that can reach ``-v cos(theta)`` +- v_max), the snapshots
+    are compensated with ``v_m = v_wrapped + 2 m v_max`` and a Bartlett beam scan
+    (``sum_l |a(theta)^H x_l|^2`` on a 0.5 deg grid, cheap) gives ``theta_m``; the order kept
+    minimises ``|v_m + v_odo cos(theta_m)|`` (:func:`~blindspot.dsp.ego_motion.unwrap_doppler` at
+    the angle found under that order). The final angle is the configured estimator (MUSIC) on
+    the snapshots compensated with the chosen velocity.
+
+    Returns (order (D,) int64, velocity (D,) m/s, angle (D,) deg, NaN without a peak).
+    """
+    from blindspot.dsp.doa import steering_matrix
+
+    d = len(v_wrapped)
+    odo = np.asarray(odometry_mps, dtype=float)
+    if d == 0:
+        return np.zeros(0, np.int64), np.zeros(0), np.zeros(0)
+    lo = int(np.floor((-np.max(np.abs(odo)) - 2 * v_max_mps) / (2 * v_max_mps)))
+    orders = np.arange(lo, 2)
+    v_m = v_wrapped[:, None] + 2 * v_max_mps * orders[None, :]               # (D, M)
+    wl = chain.radar.wavelength_m
+    comp = compensate_tdm_velocity(np.repeat(ula, len(orders), axis=0), v_m.reshape(-1), wl,
+                                   chain.slot_times_s, chain.ula_tx)          # (D*M, E, L)
+    a = steering_matrix(chain.ula_pos, ORDER_GRID_DEG).conj().T.astype(np.complex64)  # (G, E)
+    beam = np.abs(a @ comp.astype(np.complex64)) ** 2                         # (D*M, G, L)
+    theta = ORDER_GRID_DEG[np.argmax(beam.sum(-1), axis=-1)].reshape(d, len(orders))
+    resid = np.abs(v_m - static_radial_velocity(theta, 1.0) * odo[:, None])
+    best = np.argmin(resid, axis=1)
+    rows = np.arange(d)
+    v = v_m[rows, best]
+    x = compensate_tdm_velocity(ula, v, wl, chain.slot_times_s, chain.ula_tx)
+    o = chain.doa
+    angle = doa_angles(x, chain.ula_pos, 1, o.n_signals, chain.grid_deg, method=o.method,
+                       forward_backward=o.forward_backward, subarray=o.subarray,
+                       loading=o.loading,
+                       backend="torch" if o.method == "music" and o.loading == 0 else "numpy")[:, 0]
+    return orders[best].astype(np.int64), v, angle
+
 
 DRIVING_DETECTION_COLUMNS = (
     "frame", "range_bin", "doppler_bin", "range_m", "velocity_wrapped_mps", "ambiguity_order",
@@ -70,13 +119,6 @@ class DrivingChain:
         self.radar, self.ego = radar, ego
         self.v_max = radar.max_velocity_mps
 
-    def candidate_orders(self, odometry_mps: float) -> np.ndarray:
-        """Orders m that can bring a wrapped velocity within +-v_max of the static world's value
-        ``-v cos(theta)``, theta in +-90 deg (values in [-v - v_max, v_max])."""
-        lo = int(np.floor((-abs(odometry_mps) - 2 * self.v_max) / (2 * self.v_max)))
-        hi = int(np.ceil(2 * self.v_max / (2 * self.v_max)))
-        return np.arange(lo, hi + 1)
-
     def process_batch(self, cubes: np.ndarray, odometry_mps: np.ndarray, frames: np.ndarray,
                       *, keep_maps: bool = False) -> DrivingBatch:
         """cubes (F, chirps, tx, rx, samples), odometry speed (F,) m/s, frame numbers (F,)."""
@@ -96,25 +138,8 @@ class DrivingChain:
         v_w = ch.velocity_axis_mps[db]
         x = cell_snapshots(rd, rb, db, ch.detect.cell_half, frame=fi)
         ula = x[:, ch.ula_tx, ch.ula_rx, :]                    # (D, n_ula, L)
-        orders = self.candidate_orders(float(np.max(np.abs(odo), initial=0.0)))
-        n_d, n_m = len(fi), len(orders)
-        v_m = v_w[:, None] + 2 * self.v_max * orders[None, :]  # (D, M)
-        comp = compensate_tdm_velocity(np.repeat(ula, n_m, axis=0), v_m.reshape(-1),
-                                       self.radar.wavelength_m, ch.slot_times_s, ch.ula_tx)
-        o = ch.doa
-        ang = np.full(n_d * n_m, np.nan)
-        if n_d:
-            ang = doa_angles(comp, ch.ula_pos, 1, o.n_signals, ch.grid_deg, method=o.method,
-                             forward_backward=o.forward_backward, subarray=o.subarray,
-                             loading=o.loading,
-                             backend="torch" if o.method == "music" and o.loading == 0 else "numpy")[:, 0]
-        ang = ang.reshape(n_d, n_m)
-        resid = np.abs(v_m - static_radial_velocity(np.nan_to_num(ang), 1.0) * odo[fi][:, None])
-        resid = np.where(np.isfinite(ang), resid, np.inf)
-        best = np.argmin(resid, axis=1) if n_m else np.zeros(0, int)
-        rows = np.arange(n_d)
-        angle = ang[rows, best]
-        v = v_m[rows, best]
+        order_m, v, angle = unwrap_and_angles(ula, v_w, odo[fi], ch, self.v_max)
+        n_d = len(fi)
         # ego speed per frame from the radar (RANSAC), static = on its Doppler curve
         ego_speed = np.full(len(frames), np.nan)
         n_static = np.zeros(len(frames), dtype=np.int64)
@@ -139,7 +164,7 @@ class DrivingChain:
         det = pd.DataFrame({
             "frame": frames[fi], "range_bin": rb.astype(np.int64), "doppler_bin": db.astype(np.int64),
             "range_m": rng_m, "velocity_wrapped_mps": v_w,
-            "ambiguity_order": orders[best] if n_m else np.zeros(0, np.int64),
+            "ambiguity_order": order_m,
             "velocity_mps": v, "angle_deg": angle, "power": pw, "snr_db": snr, "static": static,
             "x_vehicle_m": rng_m * np.sin(th), "y_vehicle_m": rng_m * np.cos(th),
         }, columns=list(DRIVING_DETECTION_COLUMNS))

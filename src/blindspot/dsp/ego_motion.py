@@ -28,32 +28,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from dataclasses import dataclass
-
 from blindspot.arrays import check_same_shape, checked_array
-from blindspot.typed_config import TypedConfig, setting
+from blindspot.dsp.config import EgoMotionConfig  # noqa: F401 - re-exported
 
 __all__ = [
     "EgoMotionConfig", "EgoMotionError", "static_radial_velocity", "unwrap_doppler", "ambiguity_order",
     "estimate_ego_speed", "estimate_sensor_velocity", "static_mask", "odometry_speed",
 ]
-
-
-@dataclass(frozen=True)
-class EgoMotionConfig(TypedConfig):
-    """The Hydra group ``ego_motion`` (``conf/ego_motion/default.yaml``): odometry model,
-    robust fit, static-world tolerance and the driving chain's detection budget."""
-
-    GROUP = "ego_motion"
-
-    odometry_noise_mps: float = setting(ge=0.0, le=10.0)
-    odometry_bias_mps: float = setting(ge=-10.0, le=10.0)
-    ransac_threshold_mps: float = setting(gt=0.0, le=10.0)
-    min_inliers: int = setting(ge=2, le=10_000)
-    static_tolerance_mps: float = setting(ge=0.0, le=10.0)
-    max_detections: int = setting(ge=1, le=10_000)
-    max_range_m: float = setting(gt=1.0, le=1e4)
-    seed: int = setting(0, ge=0, le=2**63 - 1)
 
 
 class EgoMotionError(ValueError):
