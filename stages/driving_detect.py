@@ -52,7 +52,21 @@ def run(cfg, ctx):
     write_json(ctx.out("ego_motion.json"), metrics)
     print("driving_detect: radar ego-speed RMS error (m/s) by speed: "
           + ", ".join(f"{k} km/h {v:.3f}" for k, v in metrics["rms_error_mps"].items()))
-    return StageResult(metrics=metrics)
+    return StageResult(metrics=_numbers(metrics))
+
+
+def _numbers(tree):
+    """The numeric leaves of a metrics tree (MLflow logs numbers only; nulls and names stay in
+    the JSON file)."""
+    out = {}
+    for k, v in tree.items():
+        if isinstance(v, dict):
+            sub = _numbers(v)
+            if sub:
+                out[k] = sub
+        elif isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(v):
+            out[k] = v
+    return out
 
 
 if __name__ == "__main__":

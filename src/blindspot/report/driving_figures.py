@@ -39,7 +39,7 @@ def fig_driving_bev(truth: pd.DataFrame, detections: pd.DataFrame,
     from matplotlib.patches import Polygon, Rectangle
 
     for i, poly in enumerate(car_polygons):
-        ax.add_patch(Polygon(np.asarray(poly), closed=True, facecolor=CAR_COLOUR, edgecolor="0.35",
+        ax.add_patch(Polygon(np.asarray(poly)[:, ::-1], closed=True, facecolor=CAR_COLOUR, edgecolor="0.35",
                              zorder=0, label="parked cars" if i == 0 else None))
     ego = truth.drop_duplicates("frame")
     ax.plot(ego.ego_y_m, ego.ego_x_m, "k-", lw=1.0, label="ego radar (front bumper) path")
@@ -57,7 +57,7 @@ def fig_driving_bev(truth: pd.DataFrame, detections: pd.DataFrame,
         ax.plot(p.y_m, p.x_m * seen, "-", color="tab:blue", lw=2.0,
                 label=f"pedestrian truth (solid: visible), {name}")
     ax.set_xlabel("y along the road (m)")
-    ax.set_ylabel("x (m, kerb side up)")
+    ax.set_ylabel("x (m; the ego's right, kerb side, down)")
     ax.set_aspect("equal", adjustable="datalim")
     ax.invert_yaxis()  # kerb side (x > 0) drawn below the ego path, as seen from above
     y_lo = float(min(ego.ego_y_m.min(), truth.y_m.min())) - 2
@@ -83,7 +83,7 @@ def fig_driving_range_doppler(frame: Mapping[str, np.ndarray], detections: pd.Da
     radial_velocity_mps, range_m of the pedestrian at that frame (or None)."""
     require_columns(detections, ["range_m", "velocity_wrapped_mps", "velocity_mps", "angle_deg",
                                  "static"], "detections")
-    fig, axes = new_grid(1, 2, 12.0, 4.8)
+    fig, axes = new_grid(1, 2, 14.0, 4.8)
     ax = axes[0, 0]
     p = to_db(frame["power"])
     ax.pcolormesh(cell_edges(frame["velocity_axis_mps"]), cell_edges(frame["range_axis_m"]), p,
@@ -115,7 +115,7 @@ def fig_driving_range_doppler(frame: Mapping[str, np.ndarray], detections: pd.Da
     ax.set_xlabel("azimuth θ (deg)")
     ax.set_ylabel("radial velocity (m/s, negative = approaching)")
     ax.grid(True, lw=0.4, alpha=0.5)
-    ax.legend(fontsize=7, loc="lower center")
+    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
     panel_title(ax, 1, f"Doppler unwrapped with odometry {odometry_mps:.2f} m/s")
     fig.suptitle(title, fontsize=10)
     return fig
