@@ -12,7 +12,8 @@ from blindspot.io import atomic_path, write_json, write_parquet
 from blindspot.radar.driving import scene_truth
 from blindspot.stage import StageResult
 from blindspot.synth.driving_detection import (
-    detect_driving_scene, ego_motion_metrics, ego_speed_sweep, pedestrian_detection_stats,
+    detect_driving_scene, ego_motion_metrics, ego_speed_sweep, numeric_leaves,
+    pedestrian_detection_stats,
 )
 
 
@@ -52,21 +53,7 @@ def run(cfg, ctx):
     write_json(ctx.out("ego_motion.json"), metrics)
     print("driving_detect: radar ego-speed RMS error (m/s) by speed: "
           + ", ".join(f"{k} km/h {v:.3f}" for k, v in metrics["rms_error_mps"].items()))
-    return StageResult(metrics=_numbers(metrics))
-
-
-def _numbers(tree):
-    """The numeric leaves of a metrics tree (MLflow logs numbers only; nulls and names stay in
-    the JSON file)."""
-    out = {}
-    for k, v in tree.items():
-        if isinstance(v, dict):
-            sub = _numbers(v)
-            if sub:
-                out[k] = sub
-        elif isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(v):
-            out[k] = v
-    return out
+    return StageResult(metrics=numeric_leaves(metrics))
 
 
 if __name__ == "__main__":

@@ -12,6 +12,7 @@ from blindspot.cli import main_stage
 from blindspot.io import write_json, write_parquet
 from blindspot.radar.driving import draw_scenarios
 from blindspot.stage import StageResult
+from blindspot.synth.driving_detection import numeric_leaves
 from blindspot.synth.driving_measurement import measure_driving_scenes
 
 
@@ -47,7 +48,7 @@ def run(cfg, ctx):
     write_json(ctx.out("driving_measure.json"), metrics)
     print("driving_measure: first seen (median TTC, s) by speed: "
           + ", ".join(f"{k} km/h {v['first_seen_ttc_s_median']}" for k, v in per_speed.items()))
-    return StageResult(metrics=metrics)
+    return StageResult(metrics=numeric_leaves(metrics))
 
 
 if __name__ == "__main__":

@@ -58,7 +58,7 @@ def fig_driving_bev(truth: pd.DataFrame, detections: pd.DataFrame,
                 label=f"pedestrian truth (solid: visible), {name}")
     ax.set_xlabel("y along the road (m)")
     ax.set_ylabel("x (m; the ego's right, kerb side, down)")
-    ax.set_aspect("equal", adjustable="datalim")
+    ax.set_aspect("equal", adjustable="box")
     ax.invert_yaxis()  # kerb side (x > 0) drawn below the ego path, as seen from above
     y_lo = float(min(ego.ego_y_m.min(), truth.y_m.min())) - 2
     ax.set_xlim(y_lo, float(max(truth.y_m.max(), ego.ego_y_m.max())) + 4)

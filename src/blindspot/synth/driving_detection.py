@@ -198,3 +198,17 @@ def point_error_statistics(points: pd.DataFrame, truth: pd.DataFrame, gate_m: fl
         "range_error_sd_m": float(np.std((j.range_m - j.range_m_t).to_numpy()[hit])) if e.size else float("nan"),
         "angle_error_sd_deg": float(np.std((j.angle_deg - j.angle_deg_t).to_numpy()[hit])) if e.size else float("nan"),
     }
+
+
+def numeric_leaves(tree: dict) -> dict:
+    """The finite numeric leaves of a nested metrics mapping (what MLflow can log); names and
+    nulls (no value) stay in the stage's JSON file only."""
+    out = {}
+    for k, v in tree.items():
+        if isinstance(v, dict):
+            sub = numeric_leaves(v)
+            if sub:
+                out[k] = sub
+        elif isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(v):
+            out[k] = v
+    return out
