@@ -3,7 +3,7 @@ figure scene (CPNCO, child crossing from behind the parked cars) at several ego 
 both, and the point-error statistics of each; then the time of the fast measurement on the
 whole Monte-Carlo set.
 
-    PYTHONPATH=src python benchmarks/bench_driving.py [--speeds 20 40 60] [--mc]
+    PYTHONPATH=src python benchmarks/bench_driving.py [--speeds 20 40 60] [--scene along_kerb] [--mc]
 
 Prints one line per statistic (full, fast, relative difference) and, with --mc, the wall time
 of the fast measurement of every Monte-Carlo scene.
@@ -31,13 +31,15 @@ from blindspot.synth.driving_measurement import measure_driving_scenes
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--speeds", type=float, nargs="+", default=[20.0, 40.0, 60.0])
+    ap.add_argument("--scene", default=None,
+                    help="a scene of conf/scenario (default: the figure scene, CPNCO)")
     ap.add_argument("--mc", action="store_true", help="also time the whole Monte-Carlo set")
     args = ap.parse_args()
     cfg = compose(config_dir="conf")
     group, named = ex.scenarios(cfg)
     radar, ego = ex.driving_radar(cfg), ex.ego_motion(cfg)
     chain = (ex.cfar(cfg), ex.doa(cfg), ex.detect(cfg))
-    base = named[group.figure_scene]
+    base = named[args.scene or group.figure_scene]
     full_pts, fast_pts, truths = [], [], []
     for kmh in args.speeds:
         sc = replace(base, speed_kmh=kmh, name=f"{base.name}_{kmh:g}")

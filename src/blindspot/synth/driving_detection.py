@@ -76,8 +76,12 @@ def detect_driving_scene(scene: DrivingScene, group: ScenarioGroup, radar: Radar
             kept, kept_i = res, int(np.flatnonzero(batch == keep_frame)[0])
         dets.append(res.detections)
         egos.append(res.ego)
-    det = pd.concat(dets, ignore_index=True)
-    ego_t = pd.concat(egos, ignore_index=True)
+    from blindspot.dsp.driving import DRIVING_DETECTION_COLUMNS, EGO_COLUMNS
+
+    det = (pd.concat(dets, ignore_index=True) if dets
+           else pd.DataFrame(columns=list(DRIVING_DETECTION_COLUMNS)).astype({"frame": np.int64}))
+    ego_t = (pd.concat(egos, ignore_index=True) if egos
+             else pd.DataFrame(columns=list(EGO_COLUMNS)).astype({"frame": np.int64}))
     pose = ego_pose(scene, group, times)
     f = det["frame"].to_numpy()
     world = vehicle_to_world(det[["x_vehicle_m", "y_vehicle_m"]].to_numpy(), pose[f])
