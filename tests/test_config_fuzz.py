@@ -242,11 +242,12 @@ def _accepted_as_given(built: Any, builder: str, path: tuple, value: Any,
 
 
 def _group_leaves(base: dict, group: str) -> list[tuple]:
-    """The leaves of a group; of ``scene.scenes`` only the first scene's (every scene has the
+    """The leaves of a group; of ``scene.scenes`` and ``scenario.scenes`` only the first
+    scene's (every scene has the
     same keys, and the builder stops at the first bad one), which keeps the test in seconds."""
-    first = next(iter(base["scene"]["scenes"]), None)
+    firsts = {g: next(iter(base[g]["scenes"]), None) for g in ("scene", "scenario") if g in base}
     return [p for p in _leaves(base[group], (group,))
-            if not (p[:2] == ("scene", "scenes") and len(p) > 2 and p[2] != first)]
+            if not (p[0] in firsts and len(p) > 2 and p[1] == "scenes" and p[2] != firsts[p[0]])]
 
 
 def _fuzz_group(base, groups_read, group: str, values, paths=None) -> int:

@@ -11,10 +11,12 @@ from typing import Any
 
 from omegaconf import DictConfig
 
-from blindspot.dsp.config import CfarConfig, DetectConfig, DoaConfig
+from blindspot.dsp.config import CfarConfig, DetectConfig, DoaConfig, EgoMotionConfig
 from blindspot.radar.array import VirtualArray, array_for
 from blindspot.radar.config import RadarConfig, SimConfig
-from blindspot.radar.scene import SceneConfig, load_scenes
+from blindspot.radar.scene import (
+    DrivingScene, ScenarioGroup, SceneConfig, load_scenarios, load_scenes,
+)
 from blindspot.traj.config import (BenchmarkConfig, CalibrationConfig, DatasetConfig,
                                    EthUcyConfig, EvalConfig, LSTMConfig, TrainConfig)
 
@@ -78,6 +80,22 @@ def benchmark(cfg: DictConfig):
 def calibration(cfg: DictConfig):
     """The predictive-distribution calibration settings of ``cfg.calibration``."""
     return CalibrationConfig.from_mapping(cfg.calibration)
+
+
+def scenarios(cfg: DictConfig) -> tuple[ScenarioGroup, dict[str, DrivingScene]]:
+    """The driving-scenario group of ``cfg.scenario`` and its named scenes, in file order."""
+    return load_scenarios(cfg.scenario)
+
+
+def driving_radar(cfg: DictConfig) -> RadarConfig:
+    """The driving radar profile of ``cfg.driving_radar`` (a ``radar`` group option placed under
+    its own key, so the paper's stages keep ``cfg.radar``)."""
+    return RadarConfig.from_mapping(cfg.driving_radar, where="driving_radar")
+
+
+def ego_motion(cfg: DictConfig) -> EgoMotionConfig:
+    """The moving-car radar settings of ``cfg.ego_motion`` (odometry, robust fit, budget)."""
+    return EgoMotionConfig.from_mapping(cfg.ego_motion)
 
 
 def array(cfg: DictConfig) -> VirtualArray:

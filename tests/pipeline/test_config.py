@@ -131,6 +131,7 @@ def _real_groups_present() -> bool:
         if entry == "_self_":
             continue
         ((group, option),) = entry.items()
+        group = group.split("@")[0]           # radar@driving_radar: a radar option elsewhere
         if not (REPO / "conf" / group / f"{option}.yaml").is_file():
             return False
     return True
@@ -175,6 +176,7 @@ def _builders():
         "dataset": experiment.dataset, "model": experiment.model, "train": experiment.training,
         "eval": experiment.evaluation, "ethucy": experiment.ethucy,
         "benchmark": experiment.benchmark, "calibration": experiment.calibration, "recordings": _build_recordings,
+        "scenario": experiment.scenarios, "ego_motion": experiment.ego_motion,
     }
 
 

@@ -105,3 +105,23 @@ class DetectConfig(TypedConfig):
         if self.max_range_m is not None and self.max_range_m <= self.min_range_m:
             raise ConfigError("max_range_m", self.max_range_m,
                               f"null or more than min_range_m = {self.min_range_m}")
+
+
+@dataclass(frozen=True)
+class EgoMotionConfig(TypedConfig):
+    """The Hydra group ``ego_motion`` (``conf/ego_motion/default.yaml``): odometry model,
+    robust fit, static-world tolerance, the driving chain's detection budget and range, and the
+    ego-speed evaluation's frames per speed (:mod:`blindspot.dsp.ego_motion`,
+    :mod:`blindspot.dsp.driving`). See the yaml file for the meaning of every key."""
+
+    GROUP = "ego_motion"
+
+    odometry_noise_mps: float = setting(ge=0.0, le=10.0)
+    odometry_bias_mps: float = setting(ge=-10.0, le=10.0)
+    ransac_threshold_mps: float = setting(gt=0.0, le=10.0)
+    min_inliers: int = setting(ge=2, le=10_000)
+    static_tolerance_mps: float = setting(ge=0.0, le=10.0)
+    max_detections: int = setting(ge=1, le=10_000)
+    max_range_m: float = setting(gt=1.0, le=1e4)
+    sweep_frames: int = setting(ge=1, le=10_000)
+    seed: int = setting(0, ge=0, le=2**63 - 1)

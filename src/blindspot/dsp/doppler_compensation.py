@@ -81,3 +81,41 @@ def compensate_tdm(x: np.ndarray, doppler_bin: np.ndarray, n_doppler: int, loop_
         raise CompensationError(f"{where}: x must be (D, n_tx={corr.shape[1]}, n_rx, L); found "
                                 f"shape {x.shape}")
     return x * corr[:, :, None, None]
+
+
+def compensate_tdm_velocity(x: np.ndarray, velocity_mps: np.ndarray, wavelength_m: float,
+                            slot_times_s: np.ndarray, tx_of_element: np.ndarray) -> np.ndarray:
+    """Remove the TDM slot phase using each detection's *unwrapped* radial velocity.
+
+    On a moving car the Doppler bin gives the radial velocity only modulo ``2 v_max``; the slot
+    phase ``2 pi f_d t_k`` with ``f_d = 2 v / lambda`` needs the true velocity (with the wrapped
+    one the correction is off by ``2 pi m t_k / T_loop`` for m wraps, an error that grows with
+    the TX slot and biases the angle). Choose the order first
+    (:func:`blindspot.dsp.ego_motion.unwrap_doppler`), then compensate here.
+
+    x : (D, E, L) snapshots on the elements, each element of TX slot ``tx_of_element`` (E,)
+    velocity_mps : (D,) unwrapped radial velocity of each detection, m/s (+ = receding)
+    wavelength_m : carrier wavelength, m; slot_times_s : (n_tx,) TX slot start times, s
+    returns x times exp(-j 2 pi (2 v / lambda) t_k), same shape (complex)
+    raises CompensationError for arrays of the wrong shape or kind or not finite, a wavelength
+    that is not a positive number, or a ``tx_of_element`` entry outside the slots
+    """
+    where = "compensate_tdm_velocity"
+    x = checked_array(x, "x", CompensationError, where=where, kind="numeric", ndim=3,
+                      axes="snapshots (D, elements, L)")
+    v = checked_array(velocity_mps, "velocity_mps", CompensationError, where=where, kind="real",
+                      ndim=1, lengths={0: x.shape[0]},
+                      axes=f"an unwrapped radial velocity per detection (D={x.shape[0]},)")
+    slot_times_s = checked_array(slot_times_s, "slot_times_s", CompensationError, where=where,
+                                 kind="real", ndim=1, axes="the TX slot times (n_tx,) in s")
+    tx = checked_array(tx_of_element, "tx_of_element", CompensationError, where=where,
+                       kind="index", ndim=1, lengths={0: x.shape[1]},
+                       axes=f"a TX slot per element (E={x.shape[1]},)")
+    if not (np.isfinite(wavelength_m) and wavelength_m > 0):
+        raise CompensationError(f"{where}: wavelength_m must be a positive length; found "
+                                f"{wavelength_m!r}")
+    if tx.size and tx.max() >= slot_times_s.size:
+        raise CompensationError(f"{where}: tx_of_element must name one of the "
+                                f"{slot_times_s.size} TX slots; found {tx.max()}")
+    corr = tdm_phase_correction(2.0 * v / wavelength_m, slot_times_s)     # (D, n_tx)
+    return x * corr[:, tx][:, :, None]

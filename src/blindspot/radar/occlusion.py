@@ -106,3 +106,34 @@ def point_in_polygon(points: np.ndarray, polygon: np.ndarray) -> np.ndarray:
         x_at = q0[:, 0] + (p[..., 1] - q0[:, 1]) * (q1[:, 0] - q0[:, 0]) / (q1[:, 1] - q0[:, 1])
     hits = straddles & (p[..., 0] < x_at)
     return (hits.sum(axis=-1) % 2) == 1
+
+
+def segments_blocked(points: np.ndarray, origins: np.ndarray, polygons: np.ndarray) -> np.ndarray:
+    """Whether the segment origin->point crosses any of several polygons, for a moving origin.
+
+    points : (..., 2) end points (x, y), m.
+    origins : (..., 2) start of each segment (a moving radar: one origin per time), broadcast
+        against ``points``.
+    polygons : (C, E, 2) footprints of C occluders (C may be 0: nothing is blocked).
+    Returns bool (broadcast shape of points and origins without the last axis). The same
+    orientation test as :func:`segment_crosses_polygon` (touching does not count), vectorised
+    over points, origins, occluders and edges.
+    Raises GeometryError for arrays of another shape or kind, or not finite.
+    """
+    p = _points(points)
+    o = checked_array(origins, "origins", GeometryError, kind="real", min_ndim=1,
+                      lengths={-1: 2}, axes="origins (..., 2) of (x, y) in m").astype(float)
+    polys = checked_array(polygons, "polygons", GeometryError, kind="real", ndim=3,
+                          lengths={2: 2}, axes="polygons (C, E, 2) in m").astype(float)
+    shape = np.broadcast_shapes(p.shape, o.shape)[:-1]
+    if polys.shape[0] == 0:
+        return np.zeros(shape, dtype=bool)
+    q0, q1 = polys, np.roll(polys, -1, axis=1)                      # (C, E, 2)
+    d = (np.broadcast_to(p, shape + (2,)) - np.broadcast_to(o, shape + (2,)))[..., None, None, :]
+    oo = np.broadcast_to(o, shape + (2,))[..., None, None, :]
+    a0, a1 = q0 - oo, q1 - oo                                       # edges relative to origin
+    s0, s1 = _cross(d, a0), _cross(d, a1)
+    e = q1 - q0
+    t0 = _cross(e, -a0)
+    t1 = _cross(e, d - a0)
+    return ((s0 * s1 < 0) & (t0 * t1 < 0)).any(axis=(-1, -2))

@@ -308,19 +308,33 @@ def _empty_frames(n: int) -> dict[str, np.ndarray]:
     return out
 
 
-def _measure_batch_reduced(setup: _ReducedSetup, sc: PointScatterers,
-                           rng: np.random.Generator) -> dict[str, np.ndarray]:
-    """Measured point of each of B frames through the reduced chain (see measure_paths): the
-    patches are synthesised here, every detection step is the chain's own."""
-    import torch
+@dataclass
+class _ReducedDetections:
+    """Steps 1-2 of the reduced chain on B frames: the patches' terms and the CFAR detections
+    (frame b, patch row k, Doppler bin d, power, SNR), in the chain's per-frame order (moving
+    first, then strongest, by the chain's own ``order_detections``)."""
 
+    first: np.ndarray
+    r_t: np.ndarray
+    d_t: np.ndarray
+    c_all: np.ndarray
+    bi: np.ndarray
+    ki: np.ndarray
+    di: np.ndarray
+    pw: np.ndarray
+    snr_db: np.ndarray
+    moving: np.ndarray
+
+
+def _reduced_detections(setup: _ReducedSetup, sc: PointScatterers,
+                        rng: np.random.Generator) -> _ReducedDetections:
+    """Range-Doppler patches of B frames (exact signal energy + one noise draw per cell), the
+    chain's CFAR on them as on the full map, range window, local maxima, detection order."""
     from blindspot.radar.rd_patch import patch_terms, separable_channel_energy
 
     chain = setup.chain
     radar, det = chain.radar, chain.detect
-    b = sc.shape[0]
     n_rows = chain.range_axis_m.size
-    m = radar.n_chirps
     h, core = setup.half_rows, setup.core_half_rows
     k = 2 * (core + h) + 1
     centre = np.rint(np.mean(sc.range_m, axis=1) / radar.range_bin_m).astype(np.int64)
@@ -342,37 +356,65 @@ def _measure_batch_reduced(setup: _ReducedSetup, sc: PointScatterers,
     pw = power[bi, ki, di]
     order, mov = chain.order_detections(bi, pw, di)   # per frame: moving first, then strongest
     bi, ki, di, pw = bi[order], ki[order], di[order], pw[order]
-    vel = chain.velocity_axis_mps[di]
     snr_db = 10.0 * np.log10(pw / noise[bi, ki, di])
+    return _ReducedDetections(first, r_t, d_t, c_all, bi, ki, di, pw, snr_db, mov)
+
+
+def _reduced_snapshots(setup: _ReducedSetup, red: _ReducedDetections, sel: np.ndarray,
+                       rng: np.random.Generator) -> np.ndarray:
+    """(len(sel), n_ula, L) cell snapshots of the detections ``sel`` on the ULA elements:
+    the exact signal of every scatterer in the 3 x 3 neighbourhood plus noise correlated across
+    cells as the windowed FFTs correlate it."""
+    import torch
+
+    chain = setup.chain
+    det = chain.detect
+    n_rows = chain.range_axis_m.size
+    m = chain.radar.n_chirps
+    hr, hd = det.cell_half
+    dr, dd = np.meshgrid(np.arange(-hr, hr + 1), np.arange(-hd, hd + 1), indexing="ij")
+    dr, dd = dr.ravel(), dd.ravel()
+    b_s, k_s, d_s = red.bi[sel], red.ki[sel], red.di[sel]
+    first = red.first
+    g_rows = np.clip(first[b_s, None] + k_s[:, None] + dr, 0, n_rows - 1)   # as the chain
+    kk = g_rows - first[b_s, None]                                        # (D, L) patch row
+    dop = (d_s[:, None] + dd) % m                                         # (D, L)
+    coef = (np.take_along_axis(red.r_t[b_s], kk[:, None, :], axis=2)
+            * np.take_along_axis(red.d_t[b_s], dop[:, None, :], axis=2))  # (D, S, L)
+    c_ula = red.c_all[b_s][:, :, setup.ula_flat]                          # (D, S, E)
+    x = (torch.from_numpy(np.ascontiguousarray(c_ula.transpose(0, 2, 1)))
+         @ torch.from_numpy(coef)).numpy()                                # (D, E, L)
+    n_el, n_l = x.shape[1], dr.size
+    z = rng.standard_normal((sel.size, n_el, n_l, 2)).view(np.complex128)[..., 0]
+    z *= np.sqrt(setup.sample_noise_power / 2.0)
+    blk = z @ setup.block_chol.T                  # cells correlated as the FFTs make them
+    # a clipped neighbour repeats its row's noise, exactly as the chain repeats the cell
+    cell = (kk - k_s[:, None] + hr) * (2 * hd + 1) + (dd + hd)
+    return x + np.take_along_axis(blk, cell[:, None, :], axis=2)
+
+
+def _measure_batch_reduced(setup: _ReducedSetup, sc: PointScatterers,
+                           rng: np.random.Generator) -> dict[str, np.ndarray]:
+    """Measured point of each of B frames through the reduced chain (see measure_paths): the
+    patches are synthesised here, every detection step is the chain's own."""
+    chain = setup.chain
+    det = chain.detect
+    b = sc.shape[0]
+    n_rows = chain.range_axis_m.size
+    red = _reduced_detections(setup, sc, rng)
+    bi, ki, di = red.bi, red.ki, red.di
+    vel = chain.velocity_axis_mps[di]
     # 3. angles of the moving detections within each frame's DOA budget (static ones cannot
     # become the pedestrian's point, so their angles are not needed)
-    sel = np.flatnonzero(chain.doa_budget(bi) & mov)
+    sel = np.flatnonzero(chain.doa_budget(bi) & red.moving)
     angle = np.full(bi.size, np.nan)
     if sel.size:
-        hr, hd = det.cell_half
-        dr, dd = np.meshgrid(np.arange(-hr, hr + 1), np.arange(-hd, hd + 1), indexing="ij")
-        dr, dd = dr.ravel(), dd.ravel()
-        b_s, k_s, d_s = bi[sel], ki[sel], di[sel]
-        g_rows = np.clip(first[b_s, None] + k_s[:, None] + dr, 0, n_rows - 1)   # as the chain
-        kk = g_rows - first[b_s, None]                                        # (D, L) patch row
-        dop = (d_s[:, None] + dd) % m                                         # (D, L)
-        coef = (np.take_along_axis(r_t[b_s], kk[:, None, :], axis=2)
-                * np.take_along_axis(d_t[b_s], dop[:, None, :], axis=2))      # (D, S, L)
-        c_ula = c_all[b_s][:, :, setup.ula_flat]                              # (D, S, E)
-        x = (torch.from_numpy(np.ascontiguousarray(c_ula.transpose(0, 2, 1)))
-             @ torch.from_numpy(coef)).numpy()                                # (D, E, L)
-        n_el, n_l = x.shape[1], dr.size
-        z = rng.standard_normal((sel.size, n_el, n_l, 2)).view(np.complex128)[..., 0]
-        z *= np.sqrt(setup.sample_noise_power / 2.0)
-        blk = z @ setup.block_chol.T                  # cells correlated as the FFTs make them
-        # a clipped neighbour repeats its row's noise, exactly as the chain repeats the cell
-        cell = (kk - k_s[:, None] + hr) * (2 * hd + 1) + (dd + hd)
-        x = x + np.take_along_axis(blk, cell[:, None, :], axis=2)
+        x = _reduced_snapshots(setup, red, sel, rng)
         backend = "torch" if chain.doa.method == "music" and chain.doa.loading == 0.0 else "numpy"
-        angle[sel] = chain.angles(x, d_s, backend=backend)
+        angle[sel] = chain.angles(x, di[sel], backend=backend)
     # 4. the pedestrian's point per frame (the chain's grouping)
-    range_m = chain.range_axis_m[np.clip(first[bi] + ki, 0, n_rows - 1)]
-    pts = group_points(bi, range_m, vel, angle, snr_db, det.min_speed_mps, det.cluster_gap_m)
+    range_m = chain.range_axis_m[np.clip(red.first[bi] + ki, 0, n_rows - 1)]
+    pts = group_points(bi, range_m, vel, angle, red.snr_db, det.min_speed_mps, det.cluster_gap_m)
     out = _empty_frames(b)
     for key in _FRAME_FIELDS:
         out[key][pts["frame"]] = pts[key]

@@ -1,0 +1,175 @@
+"""The detection chain on a moving car: range-Doppler, CFAR, Doppler unwrapping with the ego
+speed, TDM-MIMO compensation with the unwrapped velocity, angles, ego-motion, static clutter
+removal on the ego-motion Doppler curve, points in the vehicle frame.
+
+Per batch of frames (every step vectorised over the batch's detections):
+
+1. Range and Doppler FFTs, detection map, CFAR and local maxima: the steps of
+   :class:`blindspot.dsp.chain.DetectionChain` (same configuration groups).
+2. The ``max_detections`` strongest peaks of each frame get angles (the static world gives most
+   of them: the ego-motion fit needs them).
+3. Ambiguity order (:func:`unwrap_and_angles`): the Doppler bin gives v modulo 2 v_max. For
+   each candidate order m the snapshots are TDM-compensated with ``v_m = v_wrapped + 2 m v_max``
+   (:func:`~blindspot.dsp.doppler_compensation.compensate_tdm_velocity`) and a Bartlett scan
+   gives ``theta_m``; the order kept is the one whose velocity is nearest the static world's at
+   its own angle, ``|v_m + v_odo cos(theta_m)|`` smallest: the order
+   :func:`~blindspot.dsp.ego_motion.unwrap_doppler` chooses at the angle found under it. A
+   wrong order compensates with a phase error ``2 pi m t_k / T_loop`` that shifts the angle by
+   ~3 deg per order; the velocity it implies is ``2 m v_max`` away from the curve, so it loses.
+   The angle is then the configured estimator's (MUSIC) with the chosen velocity.
+4. Ego speed from the radar: :func:`~blindspot.dsp.ego_motion.estimate_ego_speed` (RANSAC,
+   Kellner et al. 2013) per frame; detections within ``static_tolerance_mps`` of
+   ``-v_radar cos(theta)`` are static (clutter on a moving car), the others moving.
+5. Points ``x = R sin(theta)``, ``y = R cos(theta)`` in the vehicle frame (radar at the bumper,
+   boresight +y); the world frame needs the ego pose (:func:`blindspot.radar.driving.vehicle_to_world`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+import pandas as pd
+
+from blindspot.dsp.chain import DetectionChain
+from blindspot.dsp.doa import doa_angles
+from blindspot.dsp.doppler_compensation import compensate_tdm_velocity
+from blindspot.dsp.ego_motion import EgoMotionConfig, estimate_ego_speed, static_radial_velocity
+from blindspot.dsp.snapshots import cell_snapshots
+from blindspot.radar.array import VirtualArray
+from blindspot.radar.config import RadarConfig
+
+ORDER_GRID_DEG = np.arange(-80.0, 80.01, 0.5)   # Bartlett grid of the order choice
+
+
+def unwrap_and_angles(ula: np.ndarray, v_wrapped: np.ndarray, odometry_mps: np.ndarray,
+                      chain: DetectionChain, v_max_mps: float
+                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Doppler ambiguity order, unwrapped radial velocity and angle of each detection.
+
+    ula: (D, n_ula, L) snapshots on the ULA elements; v_wrapped: (D,) the Doppler bins'
+    velocities in [-v_max, v_max); odometry_mps: (D,) the ego speed each detection's frame
+    unwraps with; chain: the configured :class:`DetectionChain` (array, slot times, DOA).
+
+    For every candidate order m (those that can reach ``-v cos(theta)`` +- v_max), the snapshots
+    are compensated with ``v_m = v_wrapped + 2 m v_max`` and a Bartlett beam scan
+    (``sum_l |a(theta)^H x_l|^2`` on a 0.5 deg grid, cheap) gives ``theta_m``; the order kept
+    minimises ``|v_m + v_odo cos(theta_m)|`` (:func:`~blindspot.dsp.ego_motion.unwrap_doppler` at
+    the angle found under that order). The final angle is the configured estimator (MUSIC) on
+    the snapshots compensated with the chosen velocity.
+
+    Returns (order (D,) int64, velocity (D,) m/s, angle (D,) deg, NaN without a peak).
+    """
+    from blindspot.dsp.doa import steering_matrix
+
+    d = len(v_wrapped)
+    odo = np.asarray(odometry_mps, dtype=float)
+    if d == 0:
+        return np.zeros(0, np.int64), np.zeros(0), np.zeros(0)
+    lo = int(np.floor((-np.max(np.abs(odo)) - 2 * v_max_mps) / (2 * v_max_mps)))
+    orders = np.arange(lo, 2)
+    v_m = v_wrapped[:, None] + 2 * v_max_mps * orders[None, :]               # (D, M)
+    wl = chain.radar.wavelength_m
+    comp = compensate_tdm_velocity(np.repeat(ula, len(orders), axis=0), v_m.reshape(-1), wl,
+                                   chain.slot_times_s, chain.ula_tx)          # (D*M, E, L)
+    a = steering_matrix(chain.ula_pos, ORDER_GRID_DEG).conj().T.astype(np.complex64)  # (G, E)
+    beam = np.abs(a @ comp.astype(np.complex64)) ** 2                         # (D*M, G, L)
+    theta = ORDER_GRID_DEG[np.argmax(beam.sum(-1), axis=-1)].reshape(d, len(orders))
+    resid = np.abs(v_m - static_radial_velocity(theta, 1.0) * odo[:, None])
+    best = np.argmin(resid, axis=1)
+    rows = np.arange(d)
+    v = v_m[rows, best]
+    x = compensate_tdm_velocity(ula, v, wl, chain.slot_times_s, chain.ula_tx)
+    o = chain.doa
+    angle = doa_angles(x, chain.ula_pos, 1, o.n_signals, chain.grid_deg, method=o.method,
+                       forward_backward=o.forward_backward, subarray=o.subarray,
+                       loading=o.loading,
+                       backend="torch" if o.method == "music" and o.loading == 0 else "numpy")[:, 0]
+    return orders[best].astype(np.int64), v, angle
+
+
+DRIVING_DETECTION_COLUMNS = (
+    "frame", "range_bin", "doppler_bin", "range_m", "velocity_wrapped_mps", "ambiguity_order",
+    "velocity_mps", "angle_deg", "power", "snr_db", "static", "x_vehicle_m", "y_vehicle_m",
+)
+EGO_COLUMNS = ("frame", "odometry_mps", "ego_speed_mps", "n_detections", "n_static")
+
+
+@dataclass
+class DrivingBatch:
+    """Detections (``DRIVING_DETECTION_COLUMNS``) and per-frame ego speeds (``EGO_COLUMNS``) of a
+    batch; the maps (F, range, doppler) when asked for."""
+
+    detections: pd.DataFrame
+    ego: pd.DataFrame
+    power: np.ndarray | None = None
+    threshold: np.ndarray | None = None
+
+
+class DrivingChain:
+    """The moving-car chain for one radar profile (e.g. ``conf/radar/mmwcas_driving.yaml``)."""
+
+    def __init__(self, radar: RadarConfig, array: VirtualArray, cfar, doa, detect,
+                 ego: EgoMotionConfig):
+        base = DetectionChain.from_config(radar, array, cfar, doa, detect)
+        # the driving chain's own range window and angle budget (static detections are wanted)
+        self.base = DetectionChain(radar, array, base.cfar, base.doa,
+                                   replace(base.detect, max_range_m=ego.max_range_m,
+                                           max_detections=ego.max_detections))
+        self.radar, self.ego = radar, ego
+        self.v_max = radar.max_velocity_mps
+
+    def process_batch(self, cubes: np.ndarray, odometry_mps: np.ndarray, frames: np.ndarray,
+                      *, keep_maps: bool = False) -> DrivingBatch:
+        """cubes (F, chirps, tx, rx, samples), odometry speed (F,) m/s, frame numbers (F,)."""
+        ch = self.base
+        odo = np.asarray(odometry_mps, dtype=float)
+        frames = np.asarray(frames, dtype=np.int64)
+        rd, _ = ch.range_doppler(cubes)
+        power = ch.detection_map(rd)
+        mask, threshold, noise = ch.run_cfar(power)
+        fi, rb, db = ch.select_cells(power, mask)
+        pw = power[fi, rb, db]
+        order = np.lexsort((-pw, fi))                        # per frame strongest first
+        fi, rb, db, pw = fi[order], rb[order], db[order], pw[order]
+        keep = ch.doa_budget(fi)
+        fi, rb, db, pw = fi[keep], rb[keep], db[keep], pw[keep]
+        snr = 10 * np.log10(pw / noise[fi, rb, db])
+        v_w = ch.velocity_axis_mps[db]
+        x = cell_snapshots(rd, rb, db, ch.detect.cell_half, frame=fi)
+        ula = x[:, ch.ula_tx, ch.ula_rx, :]                    # (D, n_ula, L)
+        order_m, v, angle = unwrap_and_angles(ula, v_w, odo[fi], ch, self.v_max)
+        n_d = len(fi)
+        # ego speed per frame from the radar (RANSAC), static = on its Doppler curve
+        ego_speed = np.full(len(frames), np.nan)
+        n_static = np.zeros(len(frames), dtype=np.int64)
+        static = np.zeros(n_d, dtype=bool)
+        starts = np.searchsorted(fi, np.arange(len(frames) + 1))
+        for f in range(len(frames)):      # one RANSAC fit per frame (sklearn)
+            sl = slice(starts[f], starts[f + 1])
+            ok = np.isfinite(angle[sl])
+            if ok.sum() >= self.ego.min_inliers:
+                speed, _ = estimate_ego_speed(v[sl][ok], angle[sl][ok],
+                                              threshold_mps=self.ego.ransac_threshold_mps,
+                                              min_inliers=self.ego.min_inliers,
+                                              seed=self.ego.seed)
+                ego_speed[f] = speed
+            ref = ego_speed[f] if np.isfinite(ego_speed[f]) else odo[f]
+            st_ = np.abs(v[sl] - static_radial_velocity(np.nan_to_num(angle[sl]), ref)) \
+                <= self.ego.static_tolerance_mps
+            static[sl] = st_ & ok
+            n_static[f] = int(static[sl].sum())
+        rng_m = ch.range_axis_m[rb]
+        th = np.radians(angle)
+        det = pd.DataFrame({
+            "frame": frames[fi], "range_bin": rb.astype(np.int64), "doppler_bin": db.astype(np.int64),
+            "range_m": rng_m, "velocity_wrapped_mps": v_w,
+            "ambiguity_order": order_m,
+            "velocity_mps": v, "angle_deg": angle, "power": pw, "snr_db": snr, "static": static,
+            "x_vehicle_m": rng_m * np.sin(th), "y_vehicle_m": rng_m * np.cos(th),
+        }, columns=list(DRIVING_DETECTION_COLUMNS))
+        ego = pd.DataFrame({"frame": frames, "odometry_mps": odo, "ego_speed_mps": ego_speed,
+                            "n_detections": np.diff(starts), "n_static": n_static},
+                           columns=list(EGO_COLUMNS))
+        return DrivingBatch(det, ego, power if keep_maps else None,
+                            threshold if keep_maps else None)

@@ -1,0 +1,218 @@
+"""Driving scenes through the full FMCW simulator and the moving-car detection chain.
+
+Each frame of a :class:`~blindspot.radar.driving.DrivingScene` is simulated at its time
+(``blindspot.radar.driving.scatterers_in_vehicle_frame``: static world moving at -v_ego relative
+to the radar, pedestrians' body parts, occlusion by the parked cars) with the noise stream
+(scene seed, frame), and processed by :class:`blindspot.dsp.driving.DrivingChain` in batches.
+Odometry readings (true speed + bias + noise, ``ego_motion`` group) are drawn from the scene's
+seed. Detections get world coordinates from the ego pose.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+
+from blindspot.dsp.driving import DrivingBatch, DrivingChain
+from blindspot.dsp.ego_motion import EgoMotionConfig, odometry_speed
+from blindspot.radar.array import array_for
+from blindspot.radar.config import RadarConfig, SimConfig
+from blindspot.radar.driving import (
+    DrivingScene, ScenarioGroup, ego_pose, frame_times, scatterers_in_vehicle_frame,
+    vehicle_to_world,
+)
+from blindspot.radar.simulator import FmcwSimulator, frame_bit_generator
+
+BATCH_FRAMES = 4
+
+
+@dataclass
+class DrivingDetections:
+    """detections: the chain's columns + scene, time_s, x_m, y_m (world frame);
+    ego: per frame + scene, time_s, true_speed_mps; kept: the batch holding ``keep_frame``
+    with its maps (or None) and that frame's row in it."""
+
+    detections: pd.DataFrame
+    ego: pd.DataFrame
+    kept: DrivingBatch | None
+    kept_index: int | None
+
+
+def simulate_frame(scene: DrivingScene, group: ScenarioGroup, simulator: FmcwSimulator,
+                   t: float, frame: int) -> np.ndarray:
+    """complex64 (chirps, tx, rx, samples) of one driving frame (noise stream (seed, frame))."""
+    pos, vel, rcs, att, _ = scatterers_in_vehicle_frame(scene, group, t)
+    bits = frame_bit_generator(scene.seed, frame) if simulator.noise else None
+    return simulator.frame(pos, vel, rcs, att, bit_generator=bits)
+
+
+def detect_driving_scene(scene: DrivingScene, group: ScenarioGroup, radar: RadarConfig,
+                         cfar, doa, detect, ego: EgoMotionConfig, sim: SimConfig, *,
+                         frames: np.ndarray | None = None, keep_frame: int | None = None,
+                         progress: bool = False) -> DrivingDetections:
+    """Simulate and detect the given frames (default all) of a driving scene."""
+    from tqdm.auto import tqdm
+
+    times = frame_times(scene, radar.frame_period_s)
+    idx = np.arange(len(times)) if frames is None else np.asarray(frames, dtype=np.int64)
+    if idx.size and (idx.min() < 0 or idx.max() >= len(times)):
+        raise ValueError(f"frames {idx.min()}..{idx.max()} outside scene {scene.name!r} "
+                         f"(0..{len(times) - 1})")
+    array = array_for(radar)
+    chain = DrivingChain(radar, array, cfar, doa, detect, ego)
+    simulator = FmcwSimulator(radar, array, noise=sim.noise, adc_headroom_db=sim.adc_headroom_db)
+    rng = np.random.default_rng(np.random.SeedSequence([scene.seed, 21]))
+    odo_all = odometry_speed(np.full(len(times), scene.speed_mps), ego.odometry_noise_mps,
+                             ego.odometry_bias_mps, rng)
+    dets, egos, kept, kept_i = [], [], None, None
+    for lo in tqdm(range(0, len(idx), BATCH_FRAMES), disable=not progress, desc=scene.name):
+        batch = idx[lo:lo + BATCH_FRAMES]
+        cubes = np.stack([simulate_frame(scene, group, simulator, times[i], int(i)) for i in batch])
+        want = keep_frame is not None and keep_frame in batch
+        res = chain.process_batch(cubes, odo_all[batch], batch, keep_maps=want)
+        if want:
+            kept, kept_i = res, int(np.flatnonzero(batch == keep_frame)[0])
+        dets.append(res.detections)
+        egos.append(res.ego)
+    from blindspot.dsp.driving import DRIVING_DETECTION_COLUMNS, EGO_COLUMNS
+
+    det = (pd.concat(dets, ignore_index=True) if dets
+           else pd.DataFrame(columns=list(DRIVING_DETECTION_COLUMNS)).astype({"frame": np.int64}))
+    ego_t = (pd.concat(egos, ignore_index=True) if egos
+             else pd.DataFrame(columns=list(EGO_COLUMNS)).astype({"frame": np.int64}))
+    pose = ego_pose(scene, group, times)
+    f = det["frame"].to_numpy()
+    world = vehicle_to_world(det[["x_vehicle_m", "y_vehicle_m"]].to_numpy(), pose[f])
+    det = det.assign(scene=scene.name, time_s=times[f], x_m=world[:, 0], y_m=world[:, 1])
+    ego_t = ego_t.assign(scene=scene.name, time_s=times[ego_t["frame"].to_numpy()],
+                         true_speed_mps=scene.speed_mps)
+    return DrivingDetections(det, ego_t, kept, kept_i)
+
+
+def ego_speed_sweep(scene: DrivingScene, group: ScenarioGroup, radar: RadarConfig, cfar, doa,
+                    detect, ego: EgoMotionConfig, sim: SimConfig, speeds_kmh, *,
+                    progress: bool = False) -> pd.DataFrame:
+    """The radar's ego-speed estimate on ``ego.sweep_frames`` frames (evenly spread over the
+    scene) of ``scene`` driven at each of ``speeds_kmh``: one row per frame with speed_kmh,
+    frame, true_speed_mps, odometry_mps, ego_speed_mps, error_mps (radar - truth),
+    odometry_error_mps, n_detections, n_static."""
+    from dataclasses import replace
+
+    rows = []
+    for kmh in speeds_kmh:
+        sc = replace(scene, speed_kmh=float(kmh))
+        n = len(frame_times(sc, radar.frame_period_s))
+        idx = np.unique(np.linspace(0, n - 1, min(ego.sweep_frames, n)).round().astype(int))
+        res = detect_driving_scene(sc, group, radar, cfar, doa, detect, ego, sim, frames=idx,
+                                   progress=progress)
+        rows.append(res.ego.assign(speed_kmh=float(kmh)))
+    out = pd.concat(rows, ignore_index=True)
+    return out.assign(error_mps=out.ego_speed_mps - out.true_speed_mps,
+                      odometry_error_mps=out.odometry_mps - out.true_speed_mps)
+
+
+def _num(x: float) -> float | None:
+    """A finite float, or None (JSON null) where there is no value."""
+    return float(x) if np.isfinite(x) else None
+
+
+def ego_motion_metrics(sweep: pd.DataFrame) -> dict:
+    """``{"rms_error_mps": {speed_kmh: ..}, "odometry_rms_error_mps": {..}, "bias_mps": {..},
+    "n_frames": {..}, "failed_frames": {..}}`` (speed keys as ``"10"``; a frame without a
+    consensus counts as failed and is left out of the RMS)."""
+    out: dict = {k: {} for k in ("rms_error_mps", "odometry_rms_error_mps", "bias_mps",
+                                 "n_frames", "failed_frames")}
+    for kmh, g in sweep.groupby("speed_kmh"):
+        key = f"{kmh:g}"
+        ok = g.error_mps.notna()
+        e = g.error_mps[ok].to_numpy()
+        out["rms_error_mps"][key] = _num(np.sqrt(np.mean(e**2))) if e.size else None
+        out["bias_mps"][key] = _num(np.mean(e)) if e.size else None
+        out["odometry_rms_error_mps"][key] = float(np.sqrt(np.mean(g.odometry_error_mps**2)))
+        out["n_frames"][key] = int(len(g))
+        out["failed_frames"][key] = int((~ok).sum())
+    return out
+
+
+def pedestrian_detection_stats(detections: pd.DataFrame, truth: pd.DataFrame,
+                               gate_m: float = 1.5) -> dict:
+    """How the chain sees each pedestrian of one scene: per frame, the moving detections within
+    ``gate_m`` of its reference point (world frame); the frame counts as detected when there is
+    one. Returns per pedestrian: n_frames_visible, detection_rate_visible (frames while not
+    occluded and within the processed range), detected_while_occluded (frames),
+    median_error_m (nearest moving detection, detected frames)."""
+    out = {}
+    mv = detections[~detections["static"].to_numpy(bool)]
+    by_frame = {f: d[["x_m", "y_m"]].to_numpy() for f, d in mv.groupby("frame")}
+    for name, tr in truth.groupby("pedestrian", sort=False):
+        err = np.full(len(tr), np.nan)
+        for i, (f, x, y) in enumerate(zip(tr.frame, tr.x_m, tr.y_m)):  # per frame: the frame's few moving detections
+            pts = by_frame.get(f)
+            if pts is not None and len(pts):
+                err[i] = np.min(np.hypot(pts[:, 0] - x, pts[:, 1] - y))
+        hit = err <= gate_m
+        vis = ~tr.occluded.to_numpy(bool)
+        out[str(name)] = {
+            "n_frames_visible": int(vis.sum()),
+            "detection_rate_visible": _num(hit[vis].mean()) if vis.any() else None,
+            "detected_while_occluded": int(hit[~vis].sum()),
+            "median_error_m": _num(np.median(err[hit])) if hit.any() else None,
+        }
+    return out
+
+
+def points_from_detections(detections: pd.DataFrame, ego: pd.DataFrame, *, scene: str,
+                           cluster_gap_m: float, static_tolerance_mps: float) -> pd.DataFrame:
+    """The full chain's point per frame, grouped as the fast measurement groups it: detections
+    off the static world's Doppler curve (the frame's true ego speed) by more than
+    ``static_tolerance_mps``, clustered (single linkage, ``cluster_gap_m``), the largest cluster's
+    SNR-weighted centroid (:func:`blindspot.dsp.points.group_points`). Columns: scene, frame,
+    range_m, angle_deg, snr_db, n_detections, x_vehicle_m, y_vehicle_m."""
+    from blindspot.dsp.ego_motion import static_radial_velocity
+    from blindspot.dsp.points import group_points
+
+    d = detections[detections.angle_deg.notna()]
+    speed = ego.set_index("frame").true_speed_mps.reindex(d.frame).to_numpy()
+    off = d.velocity_mps.to_numpy() - static_radial_velocity(d.angle_deg.to_numpy(), 1.0) * speed
+    pts = group_points(d.frame.to_numpy(), d.range_m.to_numpy(), off, d.angle_deg.to_numpy(),
+                       d.snr_db.to_numpy(), static_tolerance_mps, cluster_gap_m)
+    th = np.radians(pts["angle_deg"])
+    return pd.DataFrame({"scene": scene, "frame": pts["frame"], "range_m": pts["range_m"],
+                         "angle_deg": pts["angle_deg"], "snr_db": pts["snr_db"],
+                         "n_detections": pts["n_detections"],
+                         "x_vehicle_m": pts["range_m"] * np.sin(th),
+                         "y_vehicle_m": pts["range_m"] * np.cos(th)})
+
+
+def point_error_statistics(points: pd.DataFrame, truth: pd.DataFrame, gate_m: float = 1.5) -> dict:
+    """Point-error statistics of one pedestrian's points (vehicle frame) against its truth rows
+    (frames in range and in view): detection_rate (frames with a point within ``gate_m``),
+    median_error_m, p90_error_m, range_error_sd_m, angle_error_sd_deg (points within the gate)."""
+    j = truth.merge(points, on=["scene", "frame"], how="left", suffixes=("_t", ""))
+    err = np.hypot(j.x_vehicle_m - j.x_vehicle_m_t, j.y_vehicle_m - j.y_vehicle_m_t).to_numpy()
+    hit = err <= gate_m
+    e = err[hit]
+    return {
+        "n_frames": int(len(j)),
+        "detection_rate": float(hit.mean()) if len(j) else float("nan"),
+        "median_error_m": float(np.median(e)) if e.size else float("nan"),
+        "p90_error_m": float(np.percentile(e, 90)) if e.size else float("nan"),
+        "range_error_sd_m": float(np.std((j.range_m - j.range_m_t).to_numpy()[hit])) if e.size else float("nan"),
+        "angle_error_sd_deg": float(np.std((j.angle_deg - j.angle_deg_t).to_numpy()[hit])) if e.size else float("nan"),
+    }
+
+
+def numeric_leaves(tree: dict) -> dict:
+    """The finite numeric leaves of a nested metrics mapping (what MLflow can log); names and
+    nulls (no value) stay in the stage's JSON file only."""
+    out = {}
+    for k, v in tree.items():
+        if isinstance(v, dict):
+            sub = numeric_leaves(v)
+            if sub:
+                out[k] = sub
+        elif isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(v):
+            out[k] = v
+    return out
