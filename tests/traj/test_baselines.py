@@ -156,3 +156,105 @@ def test_smooth_refuses_a_track_without_points():
         KalmanCV().smooth(np.full((5, 2), np.nan))
     with pytest.raises(HistoryError, match=r"\(T, 2\)"):
         KalmanCV().smooth(np.zeros((2, 5, 2)))
+
+
+# --------------------------------------------------------------------------------------------
+# predictive distributions: nominal coverage when the truth follows the model (theory)
+# --------------------------------------------------------------------------------------------
+
+LEVELS = (0.5, 0.9, 0.95)
+
+
+def simulate_cv_tracks(rng, B, T, q, r, *, q_scale=None):
+    """Noisy tracks of the white-noise-acceleration CV process; ``q_scale`` (B,) multiplies
+    each track's process noise density (a heteroscedastic population)."""
+    F, Q, H, R = cv_model(DT, q, r)
+    L = np.linalg.cholesky(Q)
+    k = np.ones(B) if q_scale is None else np.sqrt(q_scale)
+    s = np.concatenate([rng.uniform(-5, 5, (B, 2)), rng.normal(0, 1.0, (B, 2))], axis=1)
+    states = np.empty((B, T, 4))
+    for t in range(T):
+        if t:
+            s = s @ F.T + k[:, None] * (rng.normal(size=(B, 4)) @ L.T)
+        states[:, t] = s
+    return states[..., :2] + rng.normal(0, r, (B, T, 2))
+
+
+def test_kalman_distribution_covers_truth_of_its_own_model_at_nominal_rate():
+    from blindspot.traj.distribution import ellipse_coverage
+
+    rng = np.random.default_rng(11)
+    z = simulate_cv_tracks(rng, 4000, 20, q=0.5, r=0.05)
+    kf = KalmanCV(process_psd=0.5, meas_std=0.05, init_vel_std=1.0)
+    fc = kf.predict_distribution(z[:, :8], 12)
+    assert np.allclose(fc.mean, kf.predict(z[:, :8], 12))
+    cov = ellipse_coverage(fc, z[:, 8:])
+    # 4000 independent tracks: the coverage's standard error is < 0.008 at every level
+    assert np.allclose(cov, LEVELS, atol=0.025), cov
+    # the spread grows with the horizon, as F P F^T + Q must
+    tr = np.trace(fc.cov, axis1=-2, axis2=-1)
+    assert np.all(np.diff(tr, axis=1) > 0)
+
+
+def test_kalman_distribution_without_measurement_noise_is_narrower():
+    rng = np.random.default_rng(12)
+    z = simulate_cv_tracks(rng, 10, 10, q=0.5, r=0.1)
+    kf = KalmanCV(process_psd=0.5, meas_std=0.1)
+    a = kf.predict_distribution(z, 3).cov
+    b = kf.predict_distribution(z, 3, measured=False).cov
+    assert np.allclose(a - b, 0.01 * np.eye(2))
+
+
+def test_cv_noise_model_fitted_on_one_set_covers_another_at_nominal_rate():
+    from blindspot.traj.distribution import ellipse_coverage
+
+    rng = np.random.default_rng(13)
+    fit_set = simulate_cv_tracks(rng, 4000, 20, q=0.5, r=0.05)
+    test_set = simulate_cv_tracks(rng, 4000, 20, q=0.5, r=0.05)
+    cv = ConstantVelocity().fit(fit_set[:, :8], fit_set[:, 8:])
+    fc = cv.predict_distribution(test_set[:, :8], 12)
+    assert np.allclose(fc.mean, cv.predict(test_set[:, :8], 12))
+    assert np.allclose(ellipse_coverage(fc, test_set[:, 8:]), LEVELS, atol=0.025)
+    # homoscedastic truth: the fitted feature exponents stay near zero
+    assert np.all(np.abs(cv.noise.beta) < 0.15), cv.noise.beta
+
+
+def test_cv_noise_model_follows_a_heteroscedastic_population():
+    """Process noise density q differing 100-fold between tracks. Theory: the CV error's
+    covariance is proportional to q, and so is the expected squared second difference of the
+    history (measurement noise kept small), so the fitted exponent of the acceleration feature
+    is 1 and that of speed 0. One covariance per step is too wide for the steady tracks and too
+    narrow for the erratic ones (50 % ellipse over-covers, 95 % under-covers); the fitted model
+    is much closer to nominal and more likely. (Not exactly nominal: q is read off six second
+    differences, a noisy estimate, which leaves a Student-t-like tail.)"""
+    from blindspot.traj.distribution import ellipse_coverage, gaussian_nll
+
+    rng = np.random.default_rng(14)
+
+    def population(n):
+        return simulate_cv_tracks(rng, n, 20, q=0.5, r=0.02,
+                                  q_scale=10 ** rng.uniform(-1, 1, n))
+
+    fit_set, test_set = population(4000), population(4000)
+    hetero = ConstantVelocity().fit(fit_set[:, :8], fit_set[:, 8:])
+    homo = ConstantVelocity().fit(fit_set[:, :8], fit_set[:, 8:], heteroscedastic=False)
+    f_het = hetero.predict_distribution(test_set[:, :8], 12)
+    f_hom = homo.predict_distribution(test_set[:, :8], 12)
+    c_het = ellipse_coverage(f_het, test_set[:, 8:])
+    c_hom = ellipse_coverage(f_hom, test_set[:, 8:])
+    assert abs(hetero.noise.beta[1] - 1.0) < 0.15 and abs(hetero.noise.beta[0]) < 0.15
+    assert c_hom[0] > 0.5 + 0.1 and c_hom[2] < 0.95 - 0.02, c_hom
+    assert np.max(np.abs(c_het - LEVELS)) < 0.5 * np.max(np.abs(c_hom - LEVELS)), c_het
+    assert gaussian_nll(f_het, test_set[:, 8:]) < gaussian_nll(f_hom, test_set[:, 8:]) - 0.3
+
+
+def test_cv_distribution_refuses_an_unfitted_model_and_a_longer_horizon():
+    rng = np.random.default_rng(15)
+    z = simulate_cv_tracks(rng, 50, 14, q=0.5, r=0.05)
+    with pytest.raises(HistoryError, match="fit it first"):
+        ConstantVelocity().predict_distribution(z[:, :8], 6)
+    cv = ConstantVelocity().fit(z[:, :8], z[:, 8:])
+    with pytest.raises(HistoryError, match="fitted for 6 steps"):
+        cv.predict_distribution(z[:, :8], 7)
+    with pytest.raises(HistoryError, match="tracks"):
+        cv.fit(z[:10, :8], z[:, 8:])

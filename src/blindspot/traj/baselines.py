@@ -9,21 +9,31 @@
   filling uses pykalman's RTS smoother (:meth:`KalmanCV.smooth`). Noise levels can be fitted by
   maximum likelihood on training tracks (:meth:`KalmanCV.fit`).
 
+Both give a predictive distribution (:class:`~blindspot.traj.distribution.GaussianForecast`,
+``predict_distribution``): the Kalman filter its own propagated covariance ``F P F^T + Q`` (+ R);
+constant velocity a noise model of its errors (:class:`CVNoise`) fitted on validation pairs
+with :meth:`ConstantVelocity.fit`.
+
 All arrays are (x, y) in metres; histories are (B, T, 2), NaN rows = missing frames.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from typing import NamedTuple
 
 import numpy as np
 
 from blindspot.arrays import check_array
+from blindspot.traj.distribution import GaussianForecast
 from blindspot.traj.predictor import HistoryError, check_history
 
 __all__ = [
     "ConstantVelocity",
+    "CVNoise",
+    "CV_FEATURE_FLOOR_M2",
+    "cv_error_frame",
+    "cv_noise_features",
     "KalmanCV",
     "FilterResult",
     "cv_model",
@@ -51,6 +61,136 @@ def _valid_rows(history: np.ndarray) -> np.ndarray:
 
 
 # --------------------------------------------------------------------------------------------
+# Constant velocity: noise model of its forecast errors
+# --------------------------------------------------------------------------------------------
+
+#: Floors (m^2 per frame^2) inside the logarithms of the noise model's features, so a standing
+#: pedestrian (zero speed, zero acceleration) keeps a finite, non-zero spread: 0.03 m per frame
+#: is about the annotation jitter of ETH/UCY positions.
+CV_FEATURE_FLOOR_M2 = 1e-3
+
+
+def cv_error_frame(velocity: np.ndarray) -> np.ndarray:
+    """(B, 2, 2) rotations from world offsets to the (along-track, cross-track) frame of each
+    velocity (B, 2); a zero velocity gets the world orientation."""
+    theta = np.arctan2(velocity[:, 1], velocity[:, 0])
+    c, s = np.cos(theta), np.sin(theta)
+    return np.stack([np.stack([c, s], axis=-1), np.stack([-s, c], axis=-1)], axis=-2)
+
+
+def cv_noise_features(history: np.ndarray, velocity: np.ndarray) -> np.ndarray:
+    """(B, 2) log features of how predictable each track is: ``log(|v|^2 + f)`` and
+    ``log(mean |a|^2 + f)``, with v the CV velocity (m/frame), a the second differences of the
+    valid consecutive history rows (m/frame^2; 0 where there are none) and f =
+    :data:`CV_FEATURE_FLOOR_M2`."""
+    d = np.diff(history, axis=1)                                          # (B, T-1, 2)
+    acc = np.diff(d, axis=1)                                              # (B, T-2, 2)
+    a2 = np.sum(acc**2, axis=-1)                                          # NaN across gaps
+    seen = np.isfinite(a2)
+    n = seen.sum(axis=1)
+    mean_a2 = np.where(n > 0, np.where(seen, a2, 0.0).sum(axis=1) / np.maximum(n, 1), 0.0)
+    speed2 = np.sum(velocity**2, axis=-1)
+    return np.stack([np.log(speed2 + CV_FEATURE_FLOOR_M2),
+                     np.log(mean_a2 + CV_FEATURE_FLOOR_M2)], axis=-1)
+
+
+@dataclass(frozen=True, eq=False)
+class CVNoise:
+    """Gaussian model of the constant-velocity model's forecast errors.
+
+    The error ``e_h = x_true(T-1+h) - x_cv(T-1+h)`` of track b at future step h is modelled as
+    ``N(0, g_b * R_b^T S_h R_b)``, where
+
+    * ``R_b`` rotates world offsets into the track's (along-track, cross-track) frame, given by
+      the direction of its CV velocity (a pedestrian's error along the walk, a speed change, and
+      across it, a turn, differ in size);
+    * ``S_h`` (H, 2, 2) is the error covariance per step in that frame, m^2;
+    * ``g_b = exp(beta . phi_b)`` scales it per track from the features ``phi_b`` of
+      :func:`cv_noise_features` (log squared speed, log mean squared acceleration of the
+      history): a fast or erratic walker's future is less certain than a slow, steady one's.
+      ``beta = 0`` is one covariance per step for every track (``heteroscedastic=False``).
+
+    This is a heteroscedastic regression of the error covariance (as in the GLM-for-variance
+    literature, e.g. Aitkin 1987, "Modelling variance heterogeneity in normal regression using
+    GLIM"); it is fitted by maximum likelihood on (history, future) pairs the CV model did not
+    see being scored on (a validation split): for fixed ``beta`` the MLE of ``S_h`` is the
+    ``1/g``-weighted mean of ``R e e^T R^T`` (closed form), and ``beta`` maximises the profile
+    likelihood (Nelder-Mead).
+
+    Attributes:
+        step_cov: (H, 2, 2) ``S_h``, m^2 (along-track, cross-track).
+        beta: (2,) exponents of the two features (zeros when homoscedastic).
+        n_fit: windows it was fitted on.
+    """
+
+    step_cov: np.ndarray
+    beta: np.ndarray
+    n_fit: int = 0
+
+    def __post_init__(self) -> None:
+        who = "CVNoise"
+        S = check_array(self.step_cov, "step_cov", ("H", 2, 2), error=HistoryError, who=who)
+        b = check_array(self.beta, "beta", (2,), error=HistoryError, who=who)
+        det = S[:, 0, 0] * S[:, 1, 1] - S[:, 0, 1] * S[:, 1, 0]
+        if not np.all((S[:, 0, 0] > 0) & (det > 0)) or not np.allclose(S, np.swapaxes(S, 1, 2)):
+            raise HistoryError(f"{who}: step_cov must hold symmetric positive definite 2x2 "
+                               f"matrices, found {S.tolist()}")
+        object.__setattr__(self, "step_cov", S)
+        object.__setattr__(self, "beta", b)
+
+    @property
+    def horizon(self) -> int:
+        return int(self.step_cov.shape[0])
+
+    def covariance(self, features: np.ndarray, rot: np.ndarray, horizon: int) -> np.ndarray:
+        """(B, horizon, 2, 2) world covariances for features (B, 2) and rotations (B, 2, 2).
+
+        Raises HistoryError: ``horizon`` beyond the fitted one.
+        """
+        if horizon > self.horizon:
+            raise HistoryError(f"CVNoise: the noise model was fitted for {self.horizon} steps, "
+                               f"asked for horizon {horizon}; fit it on futures of that length")
+        g = np.exp(features @ self.beta)                                   # (B,)
+        S = self.step_cov[:horizon]
+        return g[:, None, None, None] * np.einsum("bji,hjk,bkl->bhil", rot, S, rot)
+
+    @classmethod
+    def fit(cls, errors: np.ndarray, features: np.ndarray, rot: np.ndarray, *,
+            heteroscedastic: bool = True, max_iter: int = 400) -> "CVNoise":
+        """Maximum-likelihood fit on world errors (N, H, 2) (NaN rows left out), features
+        (N, 2) and rotations (N, 2, 2). See the class docstring."""
+        from scipy.optimize import minimize
+
+        e = np.einsum("nij,nhj->nhi", rot, errors)                        # along/cross frame
+        seen = np.isfinite(e).all(axis=-1)                                 # (N, H)
+        if np.any(seen.sum(axis=0) < 3):
+            raise HistoryError("CVNoise.fit: every future step needs at least 3 observed "
+                               f"errors, found {seen.sum(axis=0).tolist()}")
+        e = np.where(seen[..., None], e, 0.0)
+        n_h = seen.sum(axis=0)                                             # (H,)
+        outer = np.einsum("nhi,nhj->nhij", e, e)                           # (N, H, 2, 2)
+        phi = features - features.mean(axis=0)          # centred: S_h keeps the typical scale
+
+        def profile(beta: np.ndarray) -> tuple[float, np.ndarray]:
+            lg = phi @ beta                                                # (N,) log g
+            S = np.einsum("n,nhij->hij", np.exp(-lg), outer) / n_h[:, None, None]
+            S = S + 1e-9 * np.eye(2)
+            Si = np.linalg.inv(S)
+            d2 = np.einsum("nhi,hij,nhj->nh", e, Si, e) * np.exp(-lg)[:, None]
+            nll = 0.5 * (d2 + 2 * lg[:, None] + np.linalg.slogdet(S)[1][None, :])
+            return float(np.sum(np.where(seen, nll, 0.0)) / seen.sum()), S
+
+        beta = np.zeros(2)
+        if heteroscedastic:
+            res = minimize(lambda b: profile(b)[0], beta, method="Nelder-Mead",
+                           options={"maxiter": max_iter, "xatol": 1e-4, "fatol": 1e-8})
+            beta = np.asarray(res.x, float)
+        S = profile(beta)[1]
+        # g = exp(beta . (phi - mean)) = exp(beta . phi) * exp(-beta . mean): fold the constant
+        return cls(S * np.exp(-features.mean(axis=0) @ beta), beta, int(errors.shape[0]))
+
+
+# --------------------------------------------------------------------------------------------
 # Constant velocity
 # --------------------------------------------------------------------------------------------
 
@@ -66,6 +206,8 @@ class ConstantVelocity:
             least-squares line position-vs-frame over the last ``k`` valid observations and
             uses its slope (less sensitive to measurement noise).
         name: label used in reports.
+        noise: the :class:`CVNoise` model of its errors, set by :meth:`fit` (None until then);
+            needed by :meth:`predict_distribution` only.
 
     Tracks with a single valid observation are predicted to stand still; tracks with none give
     NaN predictions.
@@ -73,6 +215,7 @@ class ConstantVelocity:
 
     k: int = 2
     name: str = "cvm"
+    noise: CVNoise | None = field(default=None, compare=False, repr=False)
 
     def __post_init__(self) -> None:
         if int(self.k) != self.k or self.k < 2:
@@ -124,6 +267,69 @@ class ConstantVelocity:
         x_last = np.where((last >= 0)[:, None], x_last, np.nan)
         steps = (T - 1 - last)[:, None] + np.arange(1, horizon + 1)[None, :]   # (B, horizon)
         return x_last[:, None, :] + steps[..., None] * v[:, None, :]
+
+    # -- predictive distribution ---------------------------------------------------------------
+    def fit(self, history: np.ndarray, future: np.ndarray, *,
+            heteroscedastic: bool = True) -> "ConstantVelocity":
+        """Fit the noise model of the forecast errors on (history, future) pairs.
+
+        Use data the model will not be scored on (e.g. a validation split): the fitted
+        covariances are what :meth:`predict_distribution` reports for new tracks.
+
+        Args:
+            history: (N, T, 2) observed positions in metres, NaN rows missing.
+            future: (N, H, 2) the true next H positions (NaN rows are left out).
+            heteroscedastic: scale each track's covariance by its speed and acceleration
+                (:class:`CVNoise`); False fits one covariance per step for every track.
+
+        Returns:
+            A new :class:`ConstantVelocity` (same ``k``, ``name``) carrying the fitted
+            :class:`CVNoise`; it predicts up to H steps ahead.
+
+        Raises:
+            HistoryError: malformed arrays, N differing, or a step with fewer than 3 truths.
+        """
+        who = f"{self.name}.fit"
+        fut = check_array(future, "future", ("N", "H", 2), error=HistoryError, who=who,
+                          allow_nan=True)
+        h = check_history(history, fut.shape[1], who=who)
+        if h.shape[0] != fut.shape[0]:
+            raise HistoryError(f"{who}: history has {h.shape[0]} tracks, future {fut.shape[0]}")
+        v, last = self.velocity(h)
+        keep = last >= 0
+        errors = fut[keep] - self.predict(h[keep], fut.shape[1])
+        noise = CVNoise.fit(errors, cv_noise_features(h[keep], v[keep]), cv_error_frame(v[keep]),
+                            heteroscedastic=heteroscedastic)
+        return replace(self, noise=noise)
+
+    def predict_distribution(self, history: np.ndarray, horizon: int) -> GaussianForecast:
+        """Per-step Gaussian of the next ``horizon`` positions: mean :meth:`predict`,
+        covariance from the fitted :class:`CVNoise` (rotated into each track's heading, scaled
+        by its speed and acceleration).
+
+        Args:
+            history: (B, T, 2) positions in metres, NaN rows missing (each track needs at least
+                one valid row).
+            horizon: future steps, at most the horizon the noise model was fitted for.
+
+        Returns:
+            :class:`~blindspot.traj.distribution.GaussianForecast`, mean (B, horizon, 2) m,
+            cov (B, horizon, 2, 2) m^2.
+
+        Raises:
+            HistoryError: not fitted (call :meth:`fit`), horizon beyond the fitted one, a track
+                without a valid row, or malformed input.
+        """
+        who = f"{self.name}.predict_distribution"
+        if self.noise is None:
+            raise HistoryError(f"{who}: no noise model; fit it first with "
+                               "ConstantVelocity.fit(history, future) on validation data")
+        h = check_history(history, horizon, who=who)
+        v, last = self.velocity(h)
+        if np.any(last < 0):
+            raise HistoryError(f"{who}: {int(np.sum(last < 0))} tracks have no valid row")
+        cov = self.noise.covariance(cv_noise_features(h, v), cv_error_frame(v), horizon)
+        return GaussianForecast(self.predict(h, horizon), cov)
 
 
 # --------------------------------------------------------------------------------------------
@@ -329,6 +535,46 @@ class KalmanCV:
         state = self.filter(h).means[:, -1]                                  # (B, 4)
         lead = self.dt * np.arange(1, horizon + 1)[None, :, None]            # (1, horizon, 1)
         return state[:, None, :2] + lead * state[:, None, 2:]
+
+    def predict_distribution(self, history: np.ndarray, horizon: int, *,
+                             measured: bool = True) -> GaussianForecast:
+        """The filter's own predictive distribution of the next ``horizon`` positions.
+
+        From the last filtered state ``(m, P)`` the standard prediction step is applied h times
+        (Bar-Shalom, Li & Kirubarajan 2001, *Estimation with Applications to Tracking and
+        Navigation*, eq. 5.2.3-5): ``m_h = F^h m``, ``P_h = F P_(h-1) F^T + Q``; the position
+        covariance is ``H P_h H^T``, plus ``R`` when ``measured`` (the truth compared against is
+        itself a measured position, e.g. an annotation; False = the true position).
+
+        Args:
+            history: (B, T, 2) positions in metres, NaN rows missing.
+            horizon: number of future frames.
+            measured: add the measurement noise ``R`` (see above).
+
+        Returns:
+            :class:`~blindspot.traj.distribution.GaussianForecast`: mean (B, horizon, 2) in m
+            (equal to :meth:`predict`), cov (B, horizon, 2, 2) in m^2.
+
+        Raises:
+            HistoryError: malformed history, or a track without any valid row (its state is
+                undefined).
+        """
+        who = f"{self.name}.predict_distribution"
+        h = check_history(history, horizon, who=who)
+        res = self.filter(h)
+        m, P = res.means[:, -1], res.covs[:, -1]                              # (B, 4), (B, 4, 4)
+        if not np.isfinite(m).all():
+            raise HistoryError(f"{who}: {int(np.sum(~np.isfinite(m).all(axis=1)))} tracks "
+                               "have no valid row")
+        F, Q, H, R = self.matrices()
+        means = np.empty((h.shape[0], horizon, 2))
+        covs = np.empty((h.shape[0], horizon, 2, 2))
+        for k in range(horizon):                           # loop over the horizon only
+            m = m @ F.T
+            P = F @ P @ F.T + Q
+            means[:, k] = m @ H.T
+            covs[:, k] = H @ P @ H.T + (R if measured else 0.0)
+        return GaussianForecast(means, covs)
 
     # -- gap filling ---------------------------------------------------------------------------
     def smooth(self, track: np.ndarray) -> np.ndarray:
