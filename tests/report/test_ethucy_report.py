@@ -99,3 +99,17 @@ def test_calibration_table_marks_cells_off_nominal():
     page = format_report({"cvm": RESULTS["cvm"]}, {"cvm": VALIDATION["cvm"]}, details(), FOLDS,
                          None, "cmd", 1.0, calibration=cal, calibration_method="quantile")
     assert "## Calibration (test scenes)" in page and "method `quantile`" in page
+
+
+def test_reliability_figure_draws_one_panel_per_fold_and_one_line_per_method():
+    from blindspot.report.calibration_figures import reliability_figure
+
+    curve = {"levels": [0.5, 0.9, 0.95], "coverage": [0.55, 0.88, 0.93]}
+    data = {m: {f: {"reliability": curve} for f in FOLDS} for m in ("cvm", "lstm")}
+    fig = reliability_figure(data, FOLDS)
+    axes = fig.axes
+    assert len(axes) == len(FOLDS)
+    labels = [ln.get_label() for ln in axes[0].get_lines()]
+    assert "cvm" in labels and "lstm" in labels
+    xs, ys = axes[1].get_lines()[1].get_data()       # [0] is the diagonal
+    assert list(xs) == curve["levels"] and list(ys) == curve["coverage"]
