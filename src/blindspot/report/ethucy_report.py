@@ -152,12 +152,16 @@ def format_report(results: Results, validation: Results,
                    if seq2seq.get("mirror") else "")
                 + (f", a Gaussian head per step (NLL weight {seq2seq['nll_weight']})"
                    if seq2seq.get("nll_weight") else "")
-                + f"; the mean of {seq2seq.get('ensemble')} members trained with consecutive "
-                "seeds, each kept at its epoch of lowest val ADE. Epochs kept per fold: "
+                + (f"; the mean of {seq2seq.get('ensemble')} members trained with consecutive "
+                   "seeds, each" if (seq2seq.get("ensemble") or 1) > 1 else
+                   f"; one network (seed {seq2seq.get('seed')}),")
+                + " kept at its epoch of lowest val ADE. Epochs kept per fold: "
                 + ", ".join(f"{f} {details[f][m]['fitted'].get('best_epochs')}" for f in folds)
                 + ".")
-        parts.append(f"  Settings (`ethucy.seq2seq`, the encoder set by the model key): "
-                     f"`{json.dumps(dict(seq2seq))}`.")
+        shown = {k: v for k, v in dict(seq2seq).items() if k != "cell"}
+        parts.append(f"  Settings (`ethucy.seq2seq`; the encoder is set by the model key): "
+                     f"`{json.dumps(shown)}`. What each choice is worth (ablation table, measured "
+                     "on the val and test splits, with its command): `conf/ethucy/standard.yaml`.")
     if lstm is not None and "lstm_rollout" in models:
         heading = lstm["frame"] == "heading"
         parts += [
