@@ -1,8 +1,13 @@
-"""ethucy: the standard ETH/UCY benchmark (observe 8, predict 12) for CVM, Kalman and the LSTM.
+"""ethucy: the standard ETH/UCY benchmark (observe 8, predict 12): CVM, Kalman and our learned
+predictors, their ADE/FDE and the calibration of their predictive distributions.
 
 The protocol of blindspot.traj.ethucy_benchmark with the settings of cfg.ethucy (conf/ethucy/);
 the same as `python -m blindspot.bench.ethucy` with the matching flags. Writes
-reports/metrics/ethucy.json and the page reports/ethucy.md.
+reports/metrics/ethucy.json (ADE/FDE per model and fold, "best"),
+reports/metrics/calibration_ethucy.json ({method: {fold: {coverage_50, coverage_90,
+coverage_95, nll}}}, the ETH/UCY part of calibration.json), the reliability curves behind the
+figure (reports/metrics/reliability_ethucy.json), the figure reports/figures/ethucy_reliability.png
+and the page reports/ethucy.md.
 """
 
 from dataclasses import asdict
@@ -10,10 +15,11 @@ from dataclasses import asdict
 from blindspot import experiment
 from blindspot.cli import main_stage
 from blindspot.config import shared_dir
-from blindspot.io import write_json, write_text
+from blindspot.io import save_figure, write_json, write_text
+from blindspot.report.calibration_figures import reliability_figure
 from blindspot.report.ethucy_report import format_report
 from blindspot.stage import StageResult
-from blindspot.traj.ethucy_benchmark import EthUcySettings, run_benchmark
+from blindspot.traj.ethucy_benchmark import EthUcySettings, calibration_table, run_benchmark
 
 
 def run(cfg, ctx):
@@ -21,12 +27,19 @@ def run(cfg, ctx):
                                           seed=int(cfg.seed))
     bench = run_benchmark(settings, progress=bool(cfg.progress), jobs=int(cfg.jobs))
     write_json(ctx.out("ethucy.json"), bench.results)
-    lstm = asdict(settings.lstm) if "lstm" in settings.models else None
+    calibration = calibration_table(bench.per_fold)
+    write_json(ctx.out("calibration_ethucy.json"), calibration)
+    detail = calibration_table(bench.per_fold, reliability=True)
+    write_json(ctx.out("reliability_ethucy.json"), detail)
+    figure = save_figure(reliability_figure(detail, settings.folds),
+                         ctx.out("ethucy_reliability.png"), dpi=130)
+    lstm = asdict(settings.lstm) if "lstm_rollout" in settings.models else None
     report = write_text(ctx.out("ethucy.md"), format_report(
         bench.results, bench.validation(), bench.details(), settings.folds, lstm,
-        "python -m blindspot ethucy", bench.seconds))
-    return StageResult(metrics={m: r["avg"] for m, r in bench.results.items()},
-                       artifacts=[report])
+        "python -m blindspot ethucy", bench.seconds, seq2seq=asdict(settings.seq2seq),
+        calibration=calibration, calibration_method=settings.calibration))
+    metrics = {m: r["avg"] for m, r in bench.results.items() if isinstance(r, dict)}
+    return StageResult(metrics=metrics, artifacts=[report, figure])
 
 
 if __name__ == "__main__":

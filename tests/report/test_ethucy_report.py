@@ -4,7 +4,12 @@ from __future__ import annotations
 
 import json
 
-from blindspot.report.ethucy_report import compare_to_cvm, format_report, format_table
+from blindspot.report.ethucy_report import (
+    compare_to_cvm,
+    format_calibration,
+    format_report,
+    format_table,
+)
 from blindspot.report.paper_values import ETHUCY_PUBLISHED
 
 FOLDS = ("eth", "hotel")
@@ -18,9 +23,10 @@ def scores(eth, hotel) -> dict:
 
 
 RESULTS = {"cvm": scores((1.0, 2.2), (0.3, 0.6)), "kalman": scores((1.1, 2.4), (0.3, 0.6)),
-           "lstm": scores((0.9, 2.1), (0.32, 0.5))}
+           "lstm_rollout": scores((0.9, 2.1), (0.32, 0.5)), "best": "lstm_rollout"}
+MODELS = ("cvm", "kalman", "lstm_rollout")
 VALIDATION = {m: {"eth": {"ade": 0.45, "fde": 0.99}, "hotel": {"ade": 0.2, "fde": 0.4},
-                  "avg": {"ade": 0.325, "fde": 0.695}} for m in RESULTS}
+                  "avg": {"ade": 0.325, "fde": 0.695}} for m in MODELS}
 LSTM = {"hidden_size": 64, "frame": "heading", "residual": True, "mirror": True,
         "speed_floor": None, "ensemble": 5}
 
@@ -29,9 +35,10 @@ def details() -> dict:
     out = {}
     for fold, n in (("eth", 181), ("hotel", 1053)):
         out[fold] = {m: {"ade": 0.0, "fde": 0.0, "n_windows": n, "seconds": 2.0, "fitted": {}}
-                     for m in RESULTS}
+                     for m in MODELS}
         out[fold]["kalman"]["fitted"] = {"process_psd_m2_s3": 2.61, "meas_std_m": 0.05}
-        out[fold]["lstm"]["fitted"] = {"val_rmse_m": 0.0421, "val_ade_m": 0.45, "val_fde_m": 1.0}
+        out[fold]["lstm_rollout"]["fitted"] = {"val_rmse_m": 0.0421, "val_ade_m": 0.45,
+                                               "val_fde_m": 1.0}
     return out
 
 
@@ -43,7 +50,9 @@ def table_row(text: str, first: str) -> list[str]:
 def test_table_ours_then_published():
     text = format_table(RESULTS, FOLDS)
     assert text.splitlines()[0] == "| model | eth | hotel | avg |"
-    assert table_row(text, "lstm (ours)") == ["lstm (ours)", "0.90 / 2.10", "0.32 / 0.50", "0.61 / 1.30"]
+    assert table_row(text, "lstm_rollout (ours)") == ["lstm_rollout (ours)", "0.90 / 2.10",
+                                                      "0.32 / 0.50", "0.61 / 1.30"]
+    assert "best" not in text
     cvm = ETHUCY_PUBLISHED["cvm (Schöller et al. 2020)"]
     assert table_row(text, "published: cvm (Schöller et al. 2020)")[1:] == [
         f"{cvm[f]['ade']:.2f} / {cvm[f]['fde']:.2f}" for f in (*FOLDS, "avg")]
@@ -54,8 +63,8 @@ def test_table_ours_then_published():
 def test_verdicts_against_cvm():
     lines = compare_to_cvm(RESULTS)
     assert lines[0].startswith("- kalman does not beat CVM") and "ADE +0.050 m" in lines[0]
-    assert lines[1].startswith("- lstm beats CVM")
-    assert compare_to_cvm({"lstm": RESULTS["lstm"]}) == []
+    assert lines[1].startswith("- lstm_rollout beats CVM") and len(lines) == 3
+    assert compare_to_cvm({"lstm": RESULTS["lstm_rollout"]}) == []
 
 
 def test_report_page():
@@ -66,15 +75,41 @@ def test_report_page():
     assert "Fitted process noise q (m^2/s^3), meas_std 0.05 m: eth 2.61, hotel 2.61." in page
     assert "in each window's heading frame" in page and "the mean of 5 LSTMs" in page
     assert f"Settings: `{json.dumps(LSTM)}`." in page
-    assert "one-step RMSE per coordinate (m) eth 0.0421, hotel 0.0421" in page
+    assert "One-step val RMSE per coordinate (m) eth 0.0421, hotel 0.0421" in page
+    assert "chosen without the test scenes): **lstm_rollout**" in page
     validation = page.split("## Validation splits")[1]
     assert table_row(validation, "cvm (ours)")[1:] == ["0.45 / 0.99", "0.20 / 0.40", "0.33 / 0.69"]
     assert "published" not in validation.split("## Run")[0]
     assert "Command: `python -m blindspot ethucy`" in page
-    assert "Wall time 61 s (cvm 4 s, kalman 4 s, lstm 4 s)." in page
+    assert "Wall time 61 s (cvm 4 s, kalman 4 s, lstm_rollout 4 s)." in page
 
 
 def test_report_without_lstm_settings():
     page = format_report({"cvm": RESULTS["cvm"]}, {"cvm": VALIDATION["cvm"]}, details(), FOLDS,
                          None, "cmd", 1.0)
-    assert "**lstm**" not in page and "**kalman**" not in page and "**cvm**" in page
+    assert "**lstm" not in page and "**kalman**" not in page and "**cvm**" in page
+    assert "## Calibration" not in page
+
+
+def test_calibration_table_marks_cells_off_nominal():
+    cal = {"cvm": {"eth": {"coverage_50": 0.51, "coverage_90": 0.85, "coverage_95": 0.95,
+                           "nll": 1.234}}}
+    text = format_calibration(cal, FOLDS)
+    assert table_row(text, "cvm") == ["cvm", "0.510 / 0.850* / 0.950; NLL 1.23", "-"]
+    page = format_report({"cvm": RESULTS["cvm"]}, {"cvm": VALIDATION["cvm"]}, details(), FOLDS,
+                         None, "cmd", 1.0, calibration=cal, calibration_method="quantile")
+    assert "## Calibration (test scenes)" in page and "method `quantile`" in page
+
+
+def test_reliability_figure_draws_one_panel_per_fold_and_one_line_per_method():
+    from blindspot.report.calibration_figures import reliability_figure
+
+    curve = {"levels": [0.5, 0.9, 0.95], "coverage": [0.55, 0.88, 0.93]}
+    data = {m: {f: {"reliability": curve} for f in FOLDS} for m in ("cvm", "lstm")}
+    fig = reliability_figure(data, FOLDS)
+    axes = fig.axes
+    assert len(axes) == len(FOLDS)
+    labels = [ln.get_label() for ln in axes[0].get_lines()]
+    assert "cvm" in labels and "lstm" in labels
+    xs, ys = axes[1].get_lines()[1].get_data()       # [0] is the diagonal
+    assert list(xs) == curve["levels"] and list(ys) == curve["coverage"]

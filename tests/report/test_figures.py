@@ -313,9 +313,11 @@ def test_page_without_ethucy_has_paper_values_and_figures():
 def test_page_with_ethucy_reports_averages_and_verdict():
     eth = {m: {"eth": {"ade": 1.0, "fde": 2.0, "n_windows": 10}, "avg": {"ade": a, "fde": f}}
            for m, a, f in (("cvm", 0.52, 1.14), ("kalman", 0.54, 1.17), ("lstm", 0.50, 1.20))}
+    eth["best"] = "lstm"                     # the model chosen on val (ethucy.json's "best")
     page = build_page(page_metrics(ethucy=eth), {})
     row = table_row(page, "ETH/UCY average ADE / FDE (observe 8, predict 12)")
     assert row[2] == "LSTM 0.50 / 1.20 m" and "CVM 0.52 / 1.14 m" in row[3]
+    assert "best" not in row[3]
     assert "does not beat CVM on FDE (it does on ADE)" in page
 
 

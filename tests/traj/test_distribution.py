@@ -103,3 +103,50 @@ def test_truth_of_another_shape_is_refused():
         ellipse_coverage(f, np.zeros((2, 4, 2)))
     with pytest.raises(DistributionError, match="level"):
         ellipse_coverage(f, np.zeros((2, 3, 2)), levels=(1.0,))
+
+
+def test_scale_mixture_recovers_a_heavy_tailed_truth_and_covers_it_at_nominal_rate():
+    """Truth drawn from 0.8 N(0, 0.5 C) + 0.2 N(0, 6 C): one scale cannot cover it at 50 % and
+    95 % together; the fitted mixture recovers weights and scales and covers new draws at
+    nominal rate at every level."""
+    from blindspot.traj.distribution import fit_scale_mixture
+
+    rng = np.random.default_rng(7)
+
+    def draws(f):
+        heavy = rng.random(f.mean.shape[:2]) < 0.2
+        scale = np.where(heavy, 6.0, 0.5)[..., None, None]
+        L = np.linalg.cholesky(f.cov * scale)
+        return f.mean + np.einsum("bhij,bhj->bhi", L, rng.normal(size=f.mean.shape))
+
+    f_val, f_test = _random_forecast(rng, B=6000, H=2), _random_forecast(rng, B=6000, H=2)
+    val, test = draws(f_val), draws(f_test)
+    mix = fit_scale_mixture(f_val, val, n_components=2)
+    assert np.allclose(mix.weights, [[0.8, 0.2]] * 2, atol=0.03), mix.weights
+    assert np.allclose(mix.scales, [[0.5, 6.0]] * 2, rtol=0.1), mix.scales
+    levels = (0.5, 0.9, 0.95)
+    assert np.allclose(mix.coverage(f_test, test, levels), levels, atol=0.015)
+    one = f_test.scaled(fit_step_scale(f_val, val))
+    single = ellipse_coverage(one, test, levels)
+    assert single[0] > 0.5 + 0.1 and single[2] < 0.95 - 0.01, single
+    assert mix.nll(f_test, test) < gaussian_nll(one, test) - 0.05
+    # the moment-matched Gaussian has the mixture's covariance 0.8 * 0.5 + 0.2 * 6 = 1.6 C
+    np.testing.assert_allclose(mix.moment_matched(f_test).cov / f_test.cov,
+                               np.broadcast_to(np.sum(mix.weights * mix.scales, axis=1)
+                                               [None, :, None, None], f_test.cov.shape))
+
+
+def test_one_component_is_the_mle_step_scale_and_its_nll_the_gaussian_one():
+    from blindspot.traj.distribution import fit_scale_mixture
+
+    rng = np.random.default_rng(8)
+    f = _random_forecast(rng, B=500, H=3)
+    truth = _draw(rng, f, scale=2.5)
+    mix = fit_scale_mixture(f, truth, n_components=1)
+    np.testing.assert_allclose(mix.scales[:, 0], fit_step_scale(f, truth), rtol=1e-9)
+    scaled = f.scaled(mix.scales[:, 0])
+    assert mix.nll(f, truth) == pytest.approx(gaussian_nll(scaled, truth), rel=1e-9)
+    np.testing.assert_allclose(mix.radius_sq(0.9)[0], chi2_2dof_radius_sq(0.9) * mix.scales[:, 0],
+                               rtol=1e-8)
+    with pytest.raises(DistributionError, match="n_components"):
+        fit_scale_mixture(f, truth, n_components=0)

@@ -84,10 +84,13 @@ def test_bad_files_are_named(tmp_path):
         load_split(tmp_path, "nowhere", "test")
 
 
-def test_settings_from_the_config_group_equal_the_flags_the_stage_used_to_pass(tmp_path):
-    """conf/ethucy/standard.yaml, typed (EthUcyConfig), gives the settings of the command line
-    the ethucy stage ran before it called the library (--models, --folds, --epochs, --ensemble,
-    --threads, --seed)."""
+def test_settings_from_the_config_group_equal_the_flags_of_the_command_line(tmp_path):
+    """conf/ethucy/standard.yaml, typed (EthUcyConfig), gives the settings the command line
+    builds from the same values (--models, --folds, --epochs, --ensemble, --threads, --seed,
+    --calibration): the committed direct-predictor settings are Seq2SeqConfig's defaults but the
+    encoder (set per model key)."""
+    from dataclasses import replace
+
     from blindspot.traj.config import EthUcyConfig
 
     group = OmegaConf.load(REPO / "conf" / "ethucy" / "standard.yaml")
@@ -95,11 +98,15 @@ def test_settings_from_the_config_group_equal_the_flags_the_stage_used_to_pass(t
                                           seed=7)
     argv = ["--data", str(tmp_path / group.data), "--out", "x.json",
             "--models", ",".join(group.models), "--folds", ",".join(group.folds),
-            "--epochs", str(group.epochs), "--ensemble", str(group.ensemble),
-            "--threads", str(group.threads), "--seed", "7"]
-    assert settings == settings_from_args(build_parser().parse_args(argv))
-    assert settings.lstm.seed == 7 and settings.lstm.num_threads == group.threads
-    assert settings.models == tuple(group.models) and settings.data_dir == tmp_path / group.data
+            "--epochs", str(group.seq2seq.epochs), "--ensemble", str(group.seq2seq.ensemble),
+            "--threads", str(group.threads), "--seed", "7",
+            "--calibration", group.calibration]
+    flags = settings_from_args(build_parser().parse_args(argv))
+    assert replace(settings.seq2seq, cell="gru") == replace(flags.seq2seq, cell="gru")
+    assert (settings.models, settings.folds, settings.data_dir, settings.calibration) == (
+        flags.models, flags.folds, flags.data_dir, flags.calibration)
+    assert settings.seq2seq.seed == settings.lstm.seed == 7
+    assert settings.seq2seq.threads == settings.lstm.num_threads == group.threads
 
 
 def test_settings_name_the_bad_value(tmp_path):
@@ -165,8 +172,8 @@ def test_bench_cli_smoke_on_the_eth_fold(ethucy_dir, tmp_path):
                      "--models", "cvm,kalman", "--folds", "eth", "--quiet"])
     assert rc == 0
     result = json.loads(out.read_text())
-    assert set(result) == {"cvm", "kalman"}
-    for model in result.values():
+    assert set(result) == {"cvm", "kalman", "best"} and result["best"] in ("cvm", "kalman")
+    for model in (result["cvm"], result["kalman"]):
         assert set(model) == {"eth", "avg"}
         assert model["eth"]["n_windows"] == 181
         assert model["avg"]["ade"] == model["eth"]["ade"]
@@ -175,6 +182,7 @@ def test_bench_cli_smoke_on_the_eth_fold(ethucy_dir, tmp_path):
     text = report.read_text()
     assert "| cvm (ours) |" in text and "published" in text
     assert "Fitted process noise q (m^2/s^3), meas_std 0.05 m: eth " in text
+    assert "## Calibration (test scenes)" in text and "| cvm | " in text.split("## Calibration")[1]
     assert not [p.name for p in out.parent.iterdir() if p.name.startswith(".")]   # no temporaries
     # the library called with typed settings gives the same scores; its validation scores and
     # details are the plain dicts the report page reads
@@ -218,4 +226,4 @@ def test_bench_cli_trains_and_scores_the_lstm(ethucy_dir, tmp_path):
     assert rc == 0
     lstm = json.loads(out.read_text())["lstm"]
     assert lstm["eth"]["n_windows"] == 181
-    assert 0.5 < lstm["eth"]["ade"] < 2.0     # CVM: 1.00; a broken rollout lands far outside
+    assert 0.5 < lstm["eth"]["ade"] < 2.0     # CVM: 1.00; a broken predictor lands far outside

@@ -1,7 +1,13 @@
-"""ETH/UCY benchmark from the command line: CVM, Kalman and the LSTM under the standard protocol.
+"""ETH/UCY benchmark from the command line: CVM, Kalman and the learned predictors under the
+standard protocol.
 
     python -m blindspot.bench.ethucy --data DIR --out FILE.json [--report FILE.md]
-        [--models cvm,kalman,lstm] [--folds eth,hotel,...] [--epochs N] [--quiet]
+        [--models cvm,kalman,lstm,mlp] [--folds eth,hotel,...] [--epochs N] [--ensemble K]
+        [--calibration mle|quantile|mixture] [--quiet]
+
+``--epochs``, ``--ensemble``, ``--seed``, ``--threads`` apply to every learned model (the direct
+predictors ``lstm``/``mlp``, whose other settings are ``Seq2SeqConfig``'s defaults, and the
+next-point ``lstm_rollout``, configured by the remaining flags).
 
 The protocol is :mod:`blindspot.traj.ethucy_benchmark` (the pipeline's ``ethucy`` stage calls it
 with the settings of ``conf/ethucy/``); the page is :mod:`blindspot.report.ethucy_report`. This
@@ -22,6 +28,7 @@ from pathlib import Path
 from blindspot.io import write_json, write_text
 from blindspot.report.ethucy_report import format_report, format_table
 from blindspot.traj.ethucy import FOLDS, EthUcyDataError, default_data_dir
+from blindspot.traj.config import Seq2SeqConfig
 from blindspot.traj.ethucy_benchmark import MODELS, EthUcySettings, LSTMBenchSettings, run_benchmark
 
 
@@ -70,6 +77,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="average this many LSTMs (seeds seed, seed+1, ...) at every step")
     p.add_argument("--seed", type=int, default=d.seed)
     p.add_argument("--threads", type=int, default=None, help="torch threads for the LSTM")
+    p.add_argument("--calibration", choices=("mle", "quantile", "mixture"), default="mixture",
+                   help="calibration fitted on val: per-step scale (mle, quantile) or scale mixture")
     p.add_argument("--quiet", action="store_true", help="no progress bars")
     return p
 
@@ -83,9 +92,11 @@ def settings_from_args(args: argparse.Namespace) -> EthUcySettings:
                              mirror=args.mirror, speed_floor=args.speed_floor,
                              rotations=args.rotations, ensemble=args.ensemble,
                              num_threads=args.threads)
+    s2s = Seq2SeqConfig(epochs=args.epochs, ensemble=args.ensemble, seed=args.seed,
+                        threads=args.threads if args.threads is not None else 1)
     data_dir = args.data if args.data is not None else default_data_dir()
     return EthUcySettings(data_dir=data_dir, models=tuple(args.models), folds=tuple(args.folds),
-                          lstm=lstm)
+                          lstm=lstm, seq2seq=s2s, calibration=args.calibration)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -109,9 +120,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.report is not None:
         command = "python -m blindspot.bench.ethucy " + " ".join(
             str(a) for a in (argv if argv is not None else sys.argv[1:]))
-        lstm = asdict(settings.lstm) if "lstm" in settings.models else None
-        write_text(args.report, format_report(run.results, run.validation(), run.details(),
-                                              settings.folds, lstm, command, run.seconds))
+        from blindspot.traj.ethucy_benchmark import calibration_table
+
+        lstm = asdict(settings.lstm) if "lstm_rollout" in settings.models else None
+        write_text(args.report, format_report(
+            run.results, run.validation(), run.details(), settings.folds, lstm, command,
+            run.seconds, seq2seq=asdict(settings.seq2seq),
+            calibration=calibration_table(run.per_fold),
+            calibration_method=settings.calibration))
     print(f"wrote {args.out}" + (f" and {args.report}" if args.report else "")
           + f" in {run.seconds:.0f} s")
     return 0

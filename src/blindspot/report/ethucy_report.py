@@ -15,9 +15,34 @@ from typing import Any
 
 from blindspot.report.paper_values import ETHUCY_PUBLISHED
 
-__all__ = ["format_table", "compare_to_cvm", "format_report"]
+__all__ = ["format_table", "compare_to_cvm", "format_calibration", "format_report"]
 
 Results = Mapping[str, Mapping[str, Mapping[str, float]]]
+
+
+def _models(results: Mapping[str, Any]) -> dict[str, Any]:
+    """The per-model rows of a results dict (``"best"``, a model name, left out)."""
+    return {m: r for m, r in results.items() if isinstance(r, Mapping)}
+
+
+def format_calibration(calibration: Mapping[str, Mapping[str, Mapping[str, Any]]],
+                       folds: Sequence[str]) -> str:
+    """Markdown table: per method and fold, the empirical coverage of the 50 / 90 / 95 %
+    ellipses and the NLL (nats per point), from ``calibration.json``-shaped values; a cell is
+    marked ``*`` where a coverage is more than 2 percentage points from nominal."""
+    lines = ["| method | " + " | ".join(folds) + " |", "|---|" + "---|" * len(folds)]
+    for m, rows in calibration.items():
+        cells = []
+        for f in folds:
+            r = rows.get(f)
+            if r is None:
+                cells.append("-")
+                continue
+            cov = [(r[f"coverage_{k}"], k / 100) for k in (50, 90, 95)]
+            txt = " / ".join(f"{c:.3f}" + ("*" if abs(c - n) > 0.02 else "") for c, n in cov)
+            cells.append(f"{txt}; NLL {r['nll']:.2f}")
+        lines.append(f"| {m} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
 
 
 def _cell(d: Mapping[str, float] | None) -> str:
@@ -29,7 +54,7 @@ def format_table(results: Results, folds: Sequence[str], published: bool = True)
     literature's."""
     cols = [*folds, "avg"]
     lines = ["| model | " + " | ".join(cols) + " |", "|---|" + "---|" * len(cols)]
-    for m, rows in results.items():
+    for m, rows in _models(results).items():
         lines.append(f"| {m} (ours) | " + " | ".join(_cell(rows.get(c)) for c in cols) + " |")
     if published:
         for m, rows in ETHUCY_PUBLISHED.items():
@@ -44,7 +69,7 @@ def compare_to_cvm(results: Results) -> list[str]:
         return []
     base = results["cvm"]["avg"]
     lines = []
-    for m, rows in results.items():
+    for m, rows in _models(results).items():
         if m == "cvm":
             continue
         d_ade, d_fde = rows["avg"]["ade"] - base["ade"], rows["avg"]["fde"] - base["fde"]
@@ -57,20 +82,33 @@ def compare_to_cvm(results: Results) -> list[str]:
 
 def format_report(results: Results, validation: Results,
                   details: Mapping[str, Mapping[str, Mapping[str, Any]]], folds: Sequence[str],
-                  lstm: Mapping[str, Any] | None, command: str, seconds: float) -> str:
-    """The Markdown page: table, protocol, fitted values, validation splits, command.
+                  lstm: Mapping[str, Any] | None, command: str, seconds: float, *,
+                  seq2seq: Mapping[str, Any] | None = None,
+                  calibration: Mapping[str, Mapping[str, Mapping[str, Any]]] | None = None,
+                  calibration_method: str | None = None,
+                  ablation: str | None = None) -> str:
+    """The Markdown page: table, protocol, fitted values, validation splits, calibration,
+    command.
 
     Args:
-        results: the benchmark's results (the content of ``reports/metrics/ethucy.json``).
+        results: the benchmark's results (the content of ``reports/metrics/ethucy.json``; its
+            ``"best"`` entry names the model chosen on the val splits).
         validation: the same scores on each fold's val split, in the same shape.
         details: ``{fold: {model: {"n_windows", "seconds", "fitted": {...}}}}``; ``fitted``
-            holds ``process_psd_m2_s3`` for the Kalman filter, ``val_rmse_m``, ``val_ade_m``
-            and ``val_fde_m`` for the LSTM.
+            holds ``process_psd_m2_s3`` for the Kalman filter; ``val_rmse_m`` for the
+            next-point LSTM (``lstm_rollout``); ``best_epochs`` for the direct predictors
+            (``lstm``, ``mlp``); ``step_scale`` for every model with a distribution.
         folds: the folds run, in column order.
-        lstm: the LSTM's settings as a dict (field name -> value), or None when it was not run.
+        lstm: the next-point LSTM's settings as a dict, or None when it was not run.
         command: how the run was started, quoted on the page.
         seconds: wall time of the run.
+        seq2seq: the direct predictor's settings as a dict, or None.
+        calibration: ``{method: {fold: {"coverage_50", "coverage_90", "coverage_95", "nll",
+            ...}}}`` (the calibration on the test scenes), or None.
+        calibration_method: how the per-step scale was fitted on val (quoted).
+        ablation: a Markdown block (the measured ablation table and its command), or None.
     """
+    models = _models(results)
     parts = [
         "# ETH/UCY benchmark",
         "",
@@ -84,26 +122,52 @@ def format_report(results: Results, validation: Results,
         + ", ".join(f"{f} {next(iter(details[f].values()))['n_windows']}" for f in folds) + ".",
         "",
         *compare_to_cvm(results),
-        "## Models",
-        "",
     ]
-    if "cvm" in results:
+    if isinstance(results.get("best"), str):
+        parts += [f"Best model (lowest mean ADE on the folds' val splits, chosen without the "
+                  f"test scenes): **{results['best']}**.", ""]
+    parts += ["## Models", ""]
+    if "cvm" in models:
         parts.append("- **cvm**: constant velocity from the last two observed positions, "
                      "`x_t - x_(t-1)` (Schöller et al. 2020).")
-    if "kalman" in results:
+    if "kalman" in models:
         parts.append("- **kalman**: constant-velocity Kalman filter (white-noise acceleration, "
                      "dt = 0.4 s), process noise fitted per fold on that fold's train windows "
                      "to minimise their ADE.")
-    if "kalman" in results:
         fitted = ", ".join(f"{f} {details[f]['kalman']['fitted']['process_psd_m2_s3']:.3g}"
                            for f in folds)
         parts.append(f"  Fitted process noise q (m^2/s^3), meas_std 0.05 m: {fitted}.")
-    if lstm is not None and "lstm" in results:
+    direct = [m for m in ("lstm", "mlp") if m in models]
+    if seq2seq is not None and direct:
+        enc = {"lstm": "an LSTM encoder", "mlp": "a dense (MLP) encoder over the flattened inputs"}
+        for m in direct:
+            parts.append(
+                f"- **{m}**: direct multi-step predictor (`blindspot.traj.seq2seq`) with "
+                f"{enc[m]}: the 8 observed positions in each track's heading frame"
+                + (" as displacements" if seq2seq.get("inputs") == "displacement" else "")
+                + ", all 12 future positions emitted at once"
+                + (" as the correction to constant velocity" if seq2seq.get("residual") else "")
+                + ", trained on the 8 -> 12 " + str(seq2seq.get("loss", "ade")).upper()
+                + (" with mirrored copies and left/right-symmetrised predictions"
+                   if seq2seq.get("mirror") else "")
+                + (f", a Gaussian head per step (NLL weight {seq2seq['nll_weight']})"
+                   if seq2seq.get("nll_weight") else "")
+                + (f"; the mean of {seq2seq.get('ensemble')} members trained with consecutive "
+                   "seeds, each" if (seq2seq.get("ensemble") or 1) > 1 else
+                   f"; one network (seed {seq2seq.get('seed')}),")
+                + " kept at its epoch of lowest val ADE. Epochs kept per fold: "
+                + ", ".join(f"{f} {details[f][m]['fitted'].get('best_epochs')}" for f in folds)
+                + ".")
+        shown = {k: v for k, v in dict(seq2seq).items() if k != "cell"}
+        parts.append(f"  Settings (`ethucy.seq2seq`; the encoder is set by the model key): "
+                     f"`{json.dumps(shown)}`. What each choice is worth (ablation table, measured "
+                     "on the val and test splits, with its command): `conf/ethucy/standard.yaml`.")
+    if lstm is not None and "lstm_rollout" in models:
         heading = lstm["frame"] == "heading"
         parts += [
-            "- **lstm**: the project's next-point LSTM (window 8), trained per fold on every "
-            "fully observed 9-frame stretch of the train split, validated on the val split, "
-            "rolled out 12 steps autoregressively"
+            "- **lstm_rollout**: the project's next-point LSTM (window 8), trained per fold on "
+            "every fully observed 9-frame stretch of the train split, validated on the val "
+            "split, rolled out 12 steps autoregressively"
             + (" in each window's heading frame (origin at the last point, +x along the last "
                "step; recomputed at every rollout step)" if heading else "")
             + (", predicting the correction to constant velocity" if heading
@@ -115,19 +179,31 @@ def format_report(results: Results, validation: Results,
             + (f"; the mean of {lstm['ensemble']} LSTMs trained with consecutive seeds"
                if lstm["ensemble"] > 1 else "")
             + f". Settings: `{json.dumps(dict(lstm))}`.",
-            "  On each fold's val split (for model selection; never the test scene): one-step "
-            "RMSE per coordinate (m) "
-            + ", ".join(f"{f} {details[f]['lstm']['fitted']['val_rmse_m']:.4f}" for f in folds)
-            + "; 12-step ADE / FDE (m) "
-            + ", ".join(f"{f} {details[f]['lstm']['fitted']['val_ade_m']:.2f} / "
-                        f"{details[f]['lstm']['fitted']['val_fde_m']:.2f}" for f in folds)
-            + ".",
+            "  One-step val RMSE per coordinate (m) "
+            + ", ".join(f"{f} {details[f]['lstm_rollout']['fitted']['val_rmse_m']:.4f}"
+                        for f in folds) + ".",
         ]
     parts += ["", "## Validation splits", "",
               "The same metrics on each fold's val split (parts of the training scenes, never "
               "the test scene): settings are to be chosen on these, not on the test table.",
               "", format_table(validation, folds, published=False)]
-    timing = ", ".join(f"{m} {sum(details[f][m]['seconds'] for f in folds):.0f} s" for m in results)
+    if calibration:
+        parts += ["", "## Calibration (test scenes)", "",
+                  "Empirical coverage of the 50 / 90 / 95 % ellipses of each predicted point "
+                  "(all 12 steps) and the mean negative log-likelihood (nats per point) on each "
+                  "test scene, after a per-step covariance scale fitted on the fold's val split"
+                  + (f" (`fit_step_scale`, method `{calibration_method}`)"
+                     if calibration_method else "")
+                  + ". `*`: more than 2 percentage points from nominal. cvm: a heteroscedastic "
+                  "noise model of its errors (along/cross-track covariance per step, scaled "
+                  "by the history's speed and acceleration) fitted on val; kalman: the filter's "
+                  "own F P F^T + Q + R; lstm / mlp: the Gaussian head plus the ensemble spread.",
+                  "", format_calibration(calibration, folds),
+                  "", "Reliability figure: `reports/figures/ethucy_reliability.png`."]
+    if ablation:
+        parts += ["", "## What helped (ablations)", "", ablation.strip()]
+    timing = ", ".join(f"{m} {sum(details[f][m]['seconds'] for f in folds):.0f} s"
+                       for m in models)
     parts += ["", "## Run", "", f"Command: `{command}`", "",
               f"Wall time {seconds:.0f} s ({timing}).", ""]
     return "\n".join(parts)

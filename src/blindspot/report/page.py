@@ -199,7 +199,8 @@ def summary_rows(metrics: Mapping[str, Metrics]) -> list[tuple[str, str, str, st
             a = _get(eth, model, "avg")
             return "n/a" if not a else f"{a['ade']:.2f} / {a['fde']:.2f} m"
 
-        base = "; ".join(f"{m.upper() if m == 'cvm' else method_label(m)} {avg(m)}" for m in eth if m != "lstm")
+        base = "; ".join(f"{m.upper() if m == 'cvm' else method_label(m)} {avg(m)}" for m in eth
+                         if m != "lstm" and isinstance(eth[m], dict))
         rows.append(("ETH/UCY average ADE / FDE (observe 8, predict 12)", published,
                      f"LSTM {avg('lstm')}" if "lstm" in eth else "n/a", base, command("ethucy")))
     else:

@@ -24,7 +24,9 @@ INTERPOLATION_METHODS = ("forward", "kalman", "bidirectional")
 
 __all__ = [
     "ACTIVATIONS", "DatasetConfig", "ETHUCY_MODELS", "EthUcyConfig", "EvalConfig", "KalmanConfig", "LSTMConfig", "OPTIMIZERS",
-    "PREDICTION_METHODS", "PathSpec", "SCHEDULES", "SplitConfig", "TARGETS", "TrainConfig",
+    "PREDICTION_METHODS", "PathSpec", "SCHEDULES", "SEQ2SEQ_CELLS", "SEQ2SEQ_FRAMES",
+    "SEQ2SEQ_INPUTS", "SEQ2SEQ_LOSSES", "SEQ2SEQ_OUTPUTS", "Seq2SeqConfig", "SplitConfig", "TARGETS",
+    "TrainConfig",
 ]
 
 ACTIVATIONS: tuple[str, ...] = ("relu", "tanh", "identity")
@@ -32,7 +34,7 @@ TARGETS: tuple[str, ...] = ("displacement", "absolute")
 OPTIMIZERS: tuple[str, ...] = ("adam", "adamw")
 SCHEDULES: tuple[str, ...] = ("constant", "cosine")
 PREDICTION_METHODS: tuple[str, ...] = ("lstm", "constant_velocity", "kalman")
-ETHUCY_MODELS: tuple[str, ...] = ("cvm", "kalman", "lstm")
+ETHUCY_MODELS: tuple[str, ...] = ("cvm", "kalman", "lstm", "mlp", "lstm_rollout")
 SEED_MAX = 2**63 - 1     # the largest seed numpy and torch both take
 
 
@@ -255,17 +257,87 @@ class EvalConfig(TypedConfig):
     fig06_frame: int = setting(ge=0)
 
 
+# ----------------------------------------------------------------------------- seq2seq
+SEQ2SEQ_CELLS: tuple[str, ...] = ("gru", "lstm", "mlp")
+SEQ2SEQ_FRAMES: tuple[str, ...] = ("heading", "world")
+SEQ2SEQ_INPUTS: tuple[str, ...] = ("displacement", "position")
+SEQ2SEQ_OUTPUTS: tuple[str, ...] = ("displacement", "position")
+SEQ2SEQ_LOSSES: tuple[str, ...] = ("ade", "mse")
+
+
+@dataclass(frozen=True)
+class Seq2SeqConfig(TypedConfig):
+    """The direct multi-step predictor and its training (nested in the ``ethucy`` group as
+    ``ethucy.seq2seq``; every field is measured in ``benchmarks/bench_ethucy_models.py``).
+
+    Attributes:
+        cell: recurrent encoder, ``"gru"`` or ``"lstm"``.
+        hidden_size: encoder state size.
+        num_layers: encoder layers.
+        head_hidden: width of the dense head's hidden layer.
+        obs_len: observed positions read (the ETH/UCY protocol: 8).
+        horizon: future steps emitted (12).
+        frame, inputs, outputs, residual, mirror, rotation_deg: see :mod:`blindspot.traj.seq2seq`.
+        speed_floor: > 0: the frame is also scaled by the last step's length, floored at this
+            many metres (:func:`~blindspot.traj.predictor.heading_frame`), so the network sees
+            the shape of the motion whatever the walking speed; 0 = metres.
+        loss: the mean's loss over all ``horizon`` steps: ``"ade"`` the mean Euclidean
+            error (the score itself), ``"mse"`` the mean squared error (the Gaussian
+            likelihood's, which chases the mean of a multimodal future).
+        nll_weight: weight of the Gaussian NLL of the (detached) mean in the loss; 0 = no
+            uncertainty head training (the covariance is then the ensemble spread only).
+        epochs: training epochs; the epoch with the lowest validation ADE is kept.
+        batch_size, lr, weight_decay: Adam(W) settings.
+        ensemble: members trained with seeds ``seed, seed + 1, ...``.
+        seed: first seed.
+        threads: torch threads while training and predicting.
+    """
+
+    GROUP = "ethucy.seq2seq"
+
+    cell: str = setting("gru", choices=SEQ2SEQ_CELLS)
+    hidden_size: int = setting(64, ge=1)
+    num_layers: int = setting(1, ge=1)
+    head_hidden: int = setting(128, ge=1)
+    obs_len: int = setting(8, ge=2)
+    horizon: int = setting(12, ge=1)
+    frame: str = setting("heading", choices=SEQ2SEQ_FRAMES)
+    inputs: str = setting("displacement", choices=SEQ2SEQ_INPUTS)
+    outputs: str = setting("position", choices=SEQ2SEQ_OUTPUTS)
+    residual: bool = setting(True)
+    mirror: bool = setting(True)
+    rotation_deg: float = setting(0.0, ge=0.0, le=180.0)
+    speed_floor: float = setting(0.0, ge=0.0)
+    loss: str = setting("ade", choices=SEQ2SEQ_LOSSES)
+    nll_weight: float = setting(0.1, ge=0.0)
+    epochs: int = setting(8, ge=1)
+    batch_size: int = setting(512, ge=1)
+    lr: float = setting(3e-3, gt=0.0)
+    weight_decay: float = setting(0.0, ge=0.0)
+    ensemble: int = setting(5, ge=1)
+    seed: int = setting(0, ge=0)
+    threads: int = setting(1, ge=1)
+
+
 @dataclass(frozen=True)
 class EthUcyConfig(TypedConfig):
     """The Hydra group ``ethucy`` (conf/ethucy/standard.yaml): the ETH/UCY benchmark.
 
     Attributes:
         data: folder of the ETH/UCY files, relative to ``paths.shared_dir`` (or absolute).
-        models: predictors to score, from :data:`ETHUCY_MODELS`.
+        models: predictors to score, from :data:`ETHUCY_MODELS` (``lstm`` / ``mlp``: the direct
+            multi-step predictor with an LSTM / MLP encoder; ``lstm_rollout``: the next-point
+            LSTM rolled out step by step).
         folds: leave-one-scene-out folds, from :data:`blindspot.traj.ethucy.FOLDS`.
-        epochs: LSTM training epochs per fold.
-        ensemble: LSTM seeds per fold (the best on validation ADE is kept).
         threads: torch threads.
+        calibration: how forecasts are calibrated on each fold's val split: a per-step
+            covariance scale (:func:`blindspot.traj.distribution.fit_step_scale`, ``"mle"`` or
+            ``"quantile"``: the 90 % ellipse covers 90 % of val) or a per-step scale mixture
+            of the forecast's Gaussians (``"mixture"``,
+            :func:`blindspot.traj.distribution.fit_scale_mixture`: heavy tails).
+        seq2seq: the direct predictor's model and training settings
+            (:class:`blindspot.traj.seq2seq.Seq2SeqConfig`; its ``cell`` is set by the model
+            key, its ``threads`` by ``threads``, its first seed by the top-level ``seed``).
     """
 
     GROUP = "ethucy"
@@ -273,9 +345,9 @@ class EthUcyConfig(TypedConfig):
     data: str = setting()
     models: tuple[str, ...] = setting(choices=ETHUCY_MODELS, min_items=1)
     folds: tuple[str, ...] = setting(choices=ETHUCY_FOLDS, min_items=1)
-    epochs: int = setting(ge=1)
-    ensemble: int = setting(ge=1)
     threads: int = setting(ge=1)
+    calibration: str = setting(choices=("mle", "quantile", "mixture"))
+    seq2seq: Seq2SeqConfig = setting()
 
 
 @dataclass(frozen=True)

@@ -13,12 +13,26 @@ anything learns it from its fold's ``train`` split (and ``val`` for the LSTM's v
 * ``cvm``: constant velocity from the last two observed positions (Schöller et al. 2020).
 * ``kalman``: constant-velocity Kalman filter, process noise fitted on the fold's train windows
   to minimise their 8 -> 12 ADE (``KalmanCV.fit(objective="forecast")``).
-* ``lstm``: the project's next-point LSTM with a window of 8, trained on every fully observed
-  9-frame stretch (8 in, 1 out) of the fold's train split, optionally augmented by random
-  rotations, validated on the val split, rolled out 12 steps.
+* ``lstm``: the direct multi-step predictor (:mod:`blindspot.traj.seq2seq`) with an LSTM
+  encoder: 8 observed positions in, all 12 future positions out with a Gaussian per step,
+  trained on the fold's train split (every fully observed 20-frame stretch of every pedestrian)
+  on the 8 -> 12 ADE, the epoch kept by the val split's ADE; an ensemble of seeds.
+* ``mlp``: the same predictor with a dense (MLP) encoder instead of the LSTM.
+* ``lstm_rollout``: the project's next-point LSTM with a window of 8, trained on every fully
+  observed 9-frame stretch (8 in, 1 out) of the fold's train split, validated on the val split,
+  rolled out 12 steps (today's paper model; slow, kept for the ablation).
 
-Results ``{model: {fold: {"ade", "fde", "n_windows"}, ..., "avg": {"ade", "fde"}}}`` (avg =
-unweighted mean over the folds run, as in the literature).
+Results ``{model: {fold: {"ade", "fde", "n_windows"}, ..., "avg": {"ade", "fde"}}, "best":
+model}`` (avg = unweighted mean over the folds run, as in the literature; ``best`` = the model
+with the lowest average ADE on the folds' *val* splits, so the choice never looks at a test
+scene).
+
+Predictive distributions (issue 10, section 2): every model but ``lstm_rollout`` gives a
+:class:`~blindspot.traj.distribution.GaussianForecast` (cvm: :class:`CVNoise` fitted on the
+fold's val split; kalman: its own propagated covariance; lstm/mlp: the Gaussian head and the
+ensemble spread). Each is calibrated by a per-step covariance scale fitted on the fold's val
+split (:func:`~blindspot.traj.distribution.fit_step_scale`, never on test) and scored on the
+test scene: coverage of the 50/90/95 % ellipses and the NLL (:func:`calibration_scores`).
 """
 
 from __future__ import annotations
@@ -33,7 +47,15 @@ from typing import Any
 import numpy as np
 
 from blindspot.traj.baselines import ConstantVelocity, KalmanCV
-from blindspot.traj.config import EthUcyConfig
+from blindspot.traj.config import ETHUCY_MODELS, EthUcyConfig, Seq2SeqConfig
+from blindspot.traj.distribution import (
+    GaussianForecast,
+    ScaleMixture,
+    ellipse_coverage,
+    fit_scale_mixture,
+    fit_step_scale,
+    gaussian_nll,
+)
 from blindspot.traj.ethucy import (
     FOLDS,
     OBS_LEN,
@@ -58,15 +80,30 @@ __all__ = [
     "FoldOutcome",
     "BenchmarkRun",
     "score",
+    "calibration_scores",
+    "train_fold_seq2seq",
     "lstm_window_set",
     "train_fold_lstm",
     "val_windows",
     "run_fold",
     "summarise",
+    "calibration_table",
     "run_benchmark",
 ]
 
-MODELS: tuple[str, ...] = ("cvm", "kalman", "lstm")
+MODELS: tuple[str, ...] = ETHUCY_MODELS
+#: models that give a predictive distribution (scored for calibration)
+PROBABILISTIC: tuple[str, ...] = ("cvm", "kalman", "lstm", "mlp")
+#: ellipse levels of ``calibration.json``
+CALIBRATION_LEVELS: tuple[float, ...] = (0.5, 0.9, 0.95)
+#: nominal levels of the reliability curve (figure)
+RELIABILITY_LEVELS: tuple[float, ...] = (0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 0.95, 0.99)
+#: ways to calibrate a forecast on val: a per-step scale (fit_step_scale's methods) or a
+#: per-step scale mixture (fit_scale_mixture, MIXTURE_COMPONENTS components)
+CALIBRATIONS: tuple[str, ...] = ("mle", "quantile", "mixture")
+MIXTURE_COMPONENTS = 3
+#: encoder of each direct-predictor model key
+SEQ2SEQ_CELL: dict[str, str] = {"lstm": "lstm", "mlp": "mlp"}
 
 
 @dataclass(frozen=True)
@@ -137,7 +174,12 @@ class EthUcySettings:
         data_dir: the folder holding ``eth/ hotel/ univ/ zara1/ zara2/``.
         models: models to score, a subset of :data:`MODELS` (in this order in the results).
         folds: test folds, a subset of :data:`~blindspot.traj.ethucy.FOLDS`.
-        lstm: the LSTM's settings (used when ``"lstm"`` is among ``models``).
+        lstm: the next-point LSTM's settings (``"lstm_rollout"``).
+        seq2seq: the direct predictor's settings (``"lstm"``, ``"mlp"``; the cell is set by
+            the model key).
+        calibration: how forecasts are calibrated on the val split: ``"mle"`` or
+            ``"quantile"`` (a per-step scale, :func:`fit_step_scale`) or ``"mixture"`` (a
+            per-step scale mixture, :func:`fit_scale_mixture`).
 
     Raises:
         ValueError: an unknown model or fold, or none (naming ``models`` / ``folds``).
@@ -147,8 +189,13 @@ class EthUcySettings:
     models: tuple[str, ...] = MODELS
     folds: tuple[str, ...] = FOLDS
     lstm: LSTMBenchSettings = field(default_factory=LSTMBenchSettings)
+    seq2seq: Seq2SeqConfig = field(default_factory=Seq2SeqConfig)
+    calibration: str = "mixture"
 
     def __post_init__(self) -> None:
+        if self.calibration not in CALIBRATIONS:
+            raise ValueError(f"calibration: expected one of {CALIBRATIONS}, found "
+                             f"{self.calibration!r}")
         object.__setattr__(self, "data_dir", Path(self.data_dir))
         object.__setattr__(self, "models", _choices(self.models, MODELS, "models"))
         object.__setattr__(self, "folds", _choices(self.folds, FOLDS, "folds"))
@@ -158,14 +205,15 @@ class EthUcySettings:
                     seed: int) -> EthUcySettings:
         """From the typed ``ethucy`` config group (:class:`~blindspot.traj.config.EthUcyConfig`,
         validated there): ``data`` relative to ``shared_dir`` (or absolute), the models, the
-        folds, and the LSTM's epochs, ensemble size and torch threads; ``seed`` (the config's
-        top-level seed) is the LSTM's first seed. The other LSTM settings keep the benchmark's
-        defaults (:class:`LSTMBenchSettings`)."""
+        folds, the calibration method, the direct predictor's settings (``seq2seq``) and the
+        torch threads; ``seed`` (the config's top-level seed) is every learned model's first
+        seed. The next-point LSTM (``lstm_rollout``) keeps :class:`LSTMBenchSettings`'
+        defaults."""
         return cls(data_dir=Path(shared_dir) / config.data, models=tuple(config.models),
                    folds=tuple(config.folds),
-                   lstm=LSTMBenchSettings(seed=int(seed), epochs=config.epochs,
-                                          ensemble=config.ensemble,
-                                          num_threads=config.threads))
+                   lstm=LSTMBenchSettings(seed=int(seed), num_threads=config.threads),
+                   seq2seq=replace(config.seq2seq, seed=int(seed), threads=config.threads),
+                   calibration=config.calibration)
 
 
 @dataclass
@@ -177,6 +225,7 @@ class FoldOutcome:
     n_windows: int
     seconds: float
     fitted: dict[str, Any] = field(default_factory=dict)
+    calibration: dict[str, Any] | None = None
 
 
 def score(predictor: PathPredictor, test: Windows, obs_len: int = OBS_LEN,
@@ -252,31 +301,95 @@ def val_windows(data_dir: Path, fold: str) -> Windows:
     return load_split(data_dir, fold, "val")
 
 
+def calibration_scores(forecast: GaussianForecast, truth: np.ndarray,
+                       mixture: ScaleMixture | None = None) -> dict[str, Any]:
+    """``{"coverage_50", "coverage_90", "coverage_95", "nll", "reliability": {"levels",
+    "coverage"}}`` of a forecast (B, H) against truth (B, H, 2): ellipse coverage at
+    :data:`CALIBRATION_LEVELS` and :data:`RELIABILITY_LEVELS`, mean NLL (nats per point) -
+    of the Gaussian forecast itself, or with ``mixture`` of its scale mixture."""
+    if mixture is not None:
+        cov = mixture.coverage(forecast, truth, CALIBRATION_LEVELS)
+        rel = mixture.coverage(forecast, truth, RELIABILITY_LEVELS)
+        nll = mixture.nll(forecast, truth)
+    else:
+        cov = ellipse_coverage(forecast, truth, CALIBRATION_LEVELS)
+        rel = ellipse_coverage(forecast, truth, RELIABILITY_LEVELS)
+        nll = gaussian_nll(forecast, truth)
+    out: dict[str, Any] = {f"coverage_{round(100 * lv)}": float(c)
+                           for lv, c in zip(CALIBRATION_LEVELS, cov)}
+    out["nll"] = float(nll)
+    out["reliability"] = {"levels": list(RELIABILITY_LEVELS), "coverage": [float(c) for c in rel]}
+    return out
+
+
+def train_fold_seq2seq(data_dir: Path, fold: str, cfg: Seq2SeqConfig, name: str,
+                       progress: bool = False):
+    """Train the direct predictor's ensemble on a fold's train split, keeping each member's
+    epoch with the lowest ADE on the fold's val split (Social-GAN windows).
+
+    Training windows: every fully observed 20-frame stretch of every pedestrian of the train
+    split (no neighbour filter: the model sees one pedestrian at a time).
+
+    Returns:
+        ``(ensemble, fitted)``: the :class:`~blindspot.traj.seq2seq.Seq2SeqEnsemble` and what
+        the report shows (members' kept epochs, training windows, seconds).
+    """
+    from blindspot.traj.seq2seq import train_ensemble
+
+    train = load_split(data_dir, fold, "train", min_peds=1)
+    val = val_windows(data_dir, fold)
+    say = (lambda line: print(f"[{fold}] {line}", flush=True)) if progress else None
+    ens, reports = train_ensemble(train.xy, val.xy, cfg, name=name, progress=say)
+    fitted = {"best_epochs": [r.best_epoch for r in reports], "n_train_windows": len(train),
+              "n_val_windows": len(val), "train_seconds": float(sum(r.seconds for r in reports))}
+    return ens, fitted
+
+
 def run_fold(data_dir: Path, fold: str, models: Sequence[str], lstm: LSTMBenchSettings,
-             progress: bool = True) -> dict[str, FoldOutcome]:
-    """Evaluate the requested models on one fold."""
+             progress: bool = True, seq2seq: Seq2SeqConfig | None = None,
+             calibration: str = "mixture") -> dict[str, FoldOutcome]:
+    """Evaluate the requested models on one fold: ADE/FDE on test and val, and (models with a
+    distribution) calibration on test after a per-step scale fitted on val."""
     test = load_split(data_dir, fold, "test")
+    val = val_windows(data_dir, fold)
+    seq2seq = seq2seq if seq2seq is not None else Seq2SeqConfig()
     out: dict[str, FoldOutcome] = {}
     for name in models:
         t0 = time.perf_counter()
         fitted: dict[str, Any] = {}
         if name == "cvm":
-            predictor: PathPredictor = ConstantVelocity()
+            predictor: Any = ConstantVelocity().fit(val.observed(), val.future())
+            fitted = {"noise_beta": predictor.noise.beta.tolist()}
         elif name == "kalman":
             train = load_split(data_dir, fold, "train")
             predictor = KalmanCV().fit(train.xy, objective="forecast", obs_len=OBS_LEN)
             fitted = {"process_psd_m2_s3": predictor.process_psd, "meas_std_m": predictor.meas_std}
-        elif name == "lstm":
+        elif name in SEQ2SEQ_CELL:
+            predictor, fitted = train_fold_seq2seq(
+                data_dir, fold, replace(seq2seq, cell=SEQ2SEQ_CELL[name]), name, progress)
+        elif name == "lstm_rollout":
             predictor, val_rmse, n_train, n_val = train_fold_lstm(data_dir, fold, lstm, progress)
-            val_ade, val_fde = score(predictor, val_windows(data_dir, fold))
-            fitted = {"val_rmse_m": val_rmse, "val_ade_m": val_ade, "val_fde_m": val_fde,
-                      "n_train_windows": n_train, "n_val_windows": n_val}
+            fitted = {"val_rmse_m": val_rmse, "n_train_windows": n_train, "n_val_windows": n_val}
         else:  # guarded by EthUcySettings
             raise ValueError(f"models: expected a subset of {MODELS}, found {name!r}")
         a, f = score(predictor, test)
-        if "val_ade_m" not in fitted:
-            fitted["val_ade_m"], fitted["val_fde_m"] = score(predictor, val_windows(data_dir, fold))
-        out[name] = FoldOutcome(a, f, len(test), time.perf_counter() - t0, fitted)
+        fitted["val_ade_m"], fitted["val_fde_m"] = score(predictor, val)
+        calib = None
+        if name in PROBABILISTIC:
+            raw_val = predictor.predict_distribution(val.observed(), PRED_LEN)
+            raw_test = predictor.predict_distribution(test.observed(), PRED_LEN)
+            if calibration == "mixture":
+                mix = fit_scale_mixture(raw_val, val.future(), n_components=MIXTURE_COMPONENTS)
+                fitted["mixture"] = {"weights": mix.weights.tolist(),
+                                     "scales": mix.scales.tolist()}
+                calib = calibration_scores(raw_test, test.future(), mix)
+            else:
+                scale = fit_step_scale(raw_val, val.future(), method=calibration)
+                fitted["step_scale"] = [float(x) for x in scale]
+                calib = calibration_scores(raw_test.scaled(scale), test.future())
+            calib["uncalibrated"] = {k: v for k, v in calibration_scores(
+                raw_test, test.future()).items() if k != "reliability"}
+        out[name] = FoldOutcome(a, f, len(test), time.perf_counter() - t0, fitted, calib)
     return out
 
 
@@ -305,7 +418,7 @@ class BenchmarkRun:
         """The scores on each fold's val split, shaped like :attr:`results`:
         ``{model: {fold: {"ade", "fde"}, "avg": {"ade", "fde"}}}`` (avg: unweighted mean)."""
         out: dict[str, dict[str, dict[str, float]]] = {}
-        for m in self.results:
+        for m in self.settings.models:
             rows = {f: {"ade": r[m].fitted["val_ade_m"], "fde": r[m].fitted["val_fde_m"]}
                     for f, r in self.per_fold.items()}
             rows["avg"] = {k: float(np.mean([v[k] for v in rows.values()])) for k in ("ade", "fde")}
@@ -314,15 +427,38 @@ class BenchmarkRun:
 
 
 def summarise(per_fold: dict[str, dict[str, FoldOutcome]], models: Sequence[str]
-              ) -> dict[str, dict[str, dict[str, float]]]:
-    """JSON-ready ``{model: {fold: {ade, fde, n_windows}, "avg": {ade, fde}}}``."""
-    out: dict[str, dict[str, dict[str, float]]] = {}
+              ) -> dict[str, Any]:
+    """JSON-ready ``{model: {fold: {ade, fde, n_windows}, "avg": {ade, fde}}, "best": model}``;
+    ``best`` is the model with the lowest mean *val* ADE over the folds (FDE breaks a tie), so
+    naming it never looks at a test scene."""
+    out: dict[str, Any] = {}
     for m in models:
         rows = {fold: {"ade": r[m].ade, "fde": r[m].fde, "n_windows": r[m].n_windows}
                 for fold, r in per_fold.items()}
         rows["avg"] = {"ade": float(np.mean([v["ade"] for v in rows.values()])),
                        "fde": float(np.mean([v["fde"] for v in rows.values()]))}
         out[m] = rows
+    val = {m: (float(np.mean([r[m].fitted["val_ade_m"] for r in per_fold.values()])),
+               float(np.mean([r[m].fitted["val_fde_m"] for r in per_fold.values()])))
+           for m in models}
+    out["best"] = min(models, key=lambda m: val[m])
+    return out
+
+
+def calibration_table(per_fold: dict[str, dict[str, FoldOutcome]], *, reliability: bool = False
+                      ) -> dict[str, dict[str, dict[str, Any]]]:
+    """``{method: {fold: {"coverage_50", "coverage_90", "coverage_95", "nll"}}}`` of the models
+    with a distribution (the shape of ``reports/metrics/calibration.json``); with
+    ``reliability`` each fold also holds ``{"levels", "coverage"}`` of the reliability curve
+    and the uncalibrated scores."""
+    out: dict[str, dict[str, dict[str, Any]]] = {}
+    for fold, rows in per_fold.items():
+        for m, o in rows.items():
+            if o.calibration is None:
+                continue
+            keep = {k: v for k, v in o.calibration.items()
+                    if reliability or k not in ("reliability", "uncalibrated")}
+            out.setdefault(m, {})[fold] = keep
     return out
 
 
@@ -340,7 +476,8 @@ def run_benchmark(settings: EthUcySettings, *, progress: bool = True,
 
     t0 = time.perf_counter()
     work = partial(run_fold, settings.data_dir, models=settings.models, lstm=settings.lstm,
-                   progress=progress and jobs <= 1)
+                   progress=progress and jobs <= 1, seq2seq=settings.seq2seq,
+                   calibration=settings.calibration)
     outcomes = parallel_map(work, list(settings.folds), jobs,
                             progress="ETH/UCY folds" if progress else None)
     per_fold = dict(zip(settings.folds, outcomes))

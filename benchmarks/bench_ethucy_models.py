@@ -1,0 +1,138 @@
+"""What helps a path predictor beat constant velocity on ETH/UCY: an ablation table.
+
+    PYTHONPATH=src BLINDSPOT_SHARED=/work/shared python benchmarks/bench_ethucy_models.py \
+        [--variants base,no_residual,...] [--folds eth,hotel,...] [--jobs 2] [--epochs N]
+
+Every variant is the direct multi-step predictor (:mod:`blindspot.traj.seq2seq`) with the
+benchmark's settings (conf/ethucy/standard.yaml, ``seq2seq``) and one change, trained per fold on
+the fold's train split with the epoch kept by the fold's val ADE, ONE member (seed 0) unless the
+variant says otherwise; ``next_point`` is the project's next-point LSTM rolled out 12 steps
+(:func:`blindspot.traj.ethucy_benchmark.train_fold_lstm`, one member). The table gives the
+average over the folds of val ADE/FDE (what settings are chosen on) and test ADE/FDE (reported,
+never chosen on), CVM beside them. ``ensemble_k`` rows are prefixes of one 5-member ensemble.
+Prints the table (Markdown) and, with ``--json``, the per-fold numbers.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from dataclasses import replace
+from functools import partial
+
+import numpy as np
+
+from blindspot.traj.baselines import ConstantVelocity
+from blindspot.traj.ethucy import FOLDS, default_data_dir, load_split
+from blindspot.traj.metrics import ade, fde
+from blindspot.traj.seq2seq import Seq2SeqConfig, Seq2SeqEnsemble, train_ensemble
+
+#: one change each from the base config
+VARIANTS: dict[str, dict] = {
+    "base": {},
+    "cell_gru": {"cell": "gru"},
+    "cell_lstm": {"cell": "lstm"},
+    "cell_mlp": {"cell": "mlp"},
+    "no_residual": {"residual": False},
+    "position_inputs": {"inputs": "position"},
+    "displacement_outputs": {"outputs": "displacement"},
+    "no_mirror": {"mirror": False},
+    "world_frame_rot180": {"frame": "world", "rotation_deg": 180.0},
+    "world_frame_no_aug": {"frame": "world", "rotation_deg": 0.0},
+    "heading_rot10": {"rotation_deg": 10.0},
+    "mse_loss": {"loss": "mse"},
+    "speed_norm": {"speed_floor": 0.05},
+    "no_nll_head": {"nll_weight": 0.0},
+}
+
+
+def base_config() -> Seq2SeqConfig:
+    from omegaconf import OmegaConf
+
+    from pathlib import Path
+    conf = OmegaConf.load(Path(__file__).resolve().parents[1] / "conf/ethucy/standard.yaml")
+    return Seq2SeqConfig.from_mapping(OmegaConf.to_container(conf.seq2seq))
+
+
+def run_variant(fold: str, name: str, cfg: Seq2SeqConfig, data_dir) -> dict:
+    t0 = time.perf_counter()
+    val = load_split(data_dir, fold, "val").xy
+    test = load_split(data_dir, fold, "test").xy
+    out = {}
+    if name == "next_point":
+        from blindspot.traj.ethucy_benchmark import LSTMBenchSettings, train_fold_lstm
+        pred, *_ = train_fold_lstm(data_dir, fold, LSTMBenchSettings(ensemble=1, num_threads=1),
+                                   progress=False)
+        preds = {name: pred}
+    else:
+        train = load_split(data_dir, fold, "train", min_peds=1).xy
+        ens, _ = train_ensemble(train, val, cfg)
+        preds = {name: ens}
+        if cfg.ensemble > 1:
+            for k in range(1, cfg.ensemble + 1):
+                preds[f"ensemble_{k}"] = Seq2SeqEnsemble(ens.members[:k])
+    preds["cvm"] = ConstantVelocity()
+    for key, p in preds.items():
+        pv, pt = p.predict(val[:, :8], 12), p.predict(test[:, :8], 12)
+        out[key] = {"val_ade": ade(pv, val[:, 8:]), "val_fde": fde(pv, val[:, 8:]),
+                    "test_ade": ade(pt, test[:, 8:]), "test_fde": fde(pt, test[:, 8:])}
+    out["_seconds"] = time.perf_counter() - t0
+    return out
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--variants", default=",".join(VARIANTS) + ",next_point,ensemble")
+    ap.add_argument("--folds", default=",".join(FOLDS))
+    ap.add_argument("--jobs", type=int, default=2)
+    ap.add_argument("--epochs", type=int, default=None, help="override the base epochs")
+    ap.add_argument("--set", default="", help="base overrides, e.g. cell=gru,epochs=8")
+    ap.add_argument("--json", default=None, help="write per-fold numbers to this file")
+    args = ap.parse_args()
+    from blindspot.parallel import parallel_map
+
+    base = base_config()
+    for item in filter(None, args.set.split(",")):
+        k, v = item.split("=")
+        typ = type(getattr(base, k))
+        base = replace(base, **{k: (v == "True") if typ is bool else typ(v)})
+    if args.epochs:
+        base = replace(base, epochs=args.epochs)
+    folds = args.folds.split(",")
+    rows: dict[str, dict[str, dict]] = {}
+    for v in args.variants.split(","):
+        if v == "ensemble":
+            cfg = base
+        elif v == "next_point":
+            cfg = base
+        else:
+            cfg = replace(base, ensemble=1, **VARIANTS[v])
+        work = partial(run_variant, name=v, cfg=cfg, data_dir=default_data_dir())
+        res = dict(zip(folds, parallel_map(work, folds, args.jobs)))
+        for key in res[folds[0]]:
+            if key.startswith("_"):
+                continue
+            rows[key if key not in ("cvm",) or "cvm" not in rows else "cvm"] = {
+                f: res[f][key] for f in folds}
+        print(f"# {v}: {sum(r['_seconds'] for r in res.values()):.0f} s of fold time",
+              flush=True)
+        _print(rows, folds)
+        if args.json:
+            with open(args.json, "w") as fh:
+                json.dump({"base": base.__dict__, "rows": rows}, fh, indent=1, default=str)
+
+
+def _print(rows, folds) -> None:
+    print("| variant | val ADE | val FDE | test ADE | test FDE | test per fold (ADE/FDE) |")
+    print("|---|---|---|---|---|---|")
+    for k, r in rows.items():
+        m = {s: np.mean([r[f][s] for f in folds]) for s in ("val_ade", "val_fde", "test_ade",
+                                                            "test_fde")}
+        per = ", ".join(f"{f} {r[f]['test_ade']:.2f}/{r[f]['test_fde']:.2f}" for f in folds)
+        print(f"| {k} | {m['val_ade']:.4f} | {m['val_fde']:.4f} | {m['test_ade']:.4f} | "
+              f"{m['test_fde']:.4f} | {per} |", flush=True)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,428 @@
+"""A direct multi-step path predictor: a recurrent encoder over the observed track and a head
+that emits every future step at once, with a Gaussian per step.
+
+Where the next-point LSTM (:mod:`blindspot.traj.lstm`) predicts one point and is rolled out step
+by step (its errors feed back, and it is trained on one-step errors it never makes at 4.8 s),
+this model reads the ``obs_len`` observed positions once and outputs all ``horizon`` future
+positions together, trained on the loss that is scored, the mean Euclidean error over the
+horizon (ADE), as in the sequence-to-sequence predictors of the ETH/UCY literature (e.g.
+Alahi et al. 2016's encoder without social pooling; Becker et al. 2018, "RED: a simple but
+effective baseline predictor for the TrajNet benchmark", an RNN encoder with a multi-step
+dense head, which beats constant velocity there).
+
+What the model sees and emits (each choice a :class:`Seq2SeqConfig` field, measured by
+``benchmarks/bench_ethucy_models.py``):
+
+* ``frame="heading"``: every track is moved to its own heading frame (origin at the last
+  observed point, +x along the last step, :func:`blindspot.traj.predictor.heading_frame`), so the
+  model is invariant to where the pedestrian is and which way they walk; ``"world"`` keeps world
+  axes (translated to the last point).
+* ``inputs``: the observed positions in that frame or their per-frame displacements.
+* ``outputs``: future positions, or per-frame displacements summed into positions.
+* ``residual``: the head predicts the deviation from constant velocity (the last step carried
+  on), so an untrained head is CVM.
+* ``mirror``: training copies reflected across the heading axis, and the prediction averaged
+  with that of the mirrored track (walking has no preferred side).
+* ``rotation_deg``: training copies rotated by a uniform random angle in
+  [-rotation_deg, rotation_deg] (180 = any direction, the usual world-frame augmentation).
+* Gaussian head (``nll_weight > 0``): per step, log standard deviations along both axes and a
+  correlation, trained by the Gaussian negative log-likelihood with the mean held fixed
+  (detached), so the uncertainty head never pulls the mean away from the ADE optimum.
+
+An ensemble (:class:`Seq2SeqEnsemble`) averages the members' means; its covariance is the
+moment-matched mixture (mean of the members' covariances plus the spread of their means), the
+"deep ensembles" estimate of Lakshminarayanan et al. 2017.
+
+Shapes: histories (B, T, 2) metres (the last ``obs_len`` rows used, no NaN there), predictions
+(B, horizon, 2) metres, covariances (B, horizon, 2, 2) m^2.
+
+Determinism: ``torch.manual_seed(seed)`` (weights), a private ``torch.Generator`` (batch order,
+augmentation), deterministic algorithms and a fixed thread count: the same data, config, seed
+and thread count give the same weights bit for bit.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+import torch
+from torch import nn
+
+from blindspot.arrays import check_array
+from blindspot.traj.config import (
+    SEQ2SEQ_CELLS as CELLS,
+    SEQ2SEQ_FRAMES as FRAMES,
+    SEQ2SEQ_INPUTS as INPUTS,
+    SEQ2SEQ_LOSSES as LOSSES,
+    SEQ2SEQ_OUTPUTS as OUTPUTS,
+    Seq2SeqConfig,
+)
+from blindspot.traj.distribution import GaussianForecast
+from blindspot.traj.predictor import HistoryError, check_history, heading_frame
+
+__all__ = [
+    "CELLS",
+    "FRAMES",
+    "INPUTS",
+    "OUTPUTS",
+    "LOSSES",
+    "Seq2SeqConfig",
+    "Seq2SeqNet",
+    "Seq2SeqModel",
+    "Seq2SeqEnsemble",
+    "FitReport",
+    "train_seq2seq",
+    "train_ensemble",
+]
+
+_MIRROR = np.array([1.0, -1.0])
+
+
+# --------------------------------------------------------------------------------------------
+# the network
+# --------------------------------------------------------------------------------------------
+
+
+class Seq2SeqNet(nn.Module):
+    """Encoder (GRU/LSTM over the (obs_len or obs_len - 1, 2) input sequence) -> dense head ->
+    (horizon, 5): mean offset (2) and Gaussian parameters (log std x, log std y, atanh rho)."""
+
+    def __init__(self, cfg: Seq2SeqConfig) -> None:
+        super().__init__()
+        self.cfg = cfg
+        self.embed = nn.Linear(2, cfg.hidden_size)
+        if cfg.cell == "mlp":     # the whole input sequence flattened (RED's dense variant)
+            n_in = 2 * (cfg.obs_len - (1 if cfg.inputs == "displacement" else 0))
+            self.encoder = nn.Sequential(nn.Linear(n_in, cfg.hidden_size), nn.ReLU())
+        else:
+            rnn = nn.GRU if cfg.cell == "gru" else nn.LSTM
+            self.encoder = rnn(cfg.hidden_size, cfg.hidden_size, num_layers=cfg.num_layers,
+                               batch_first=True)
+        self.head = nn.Sequential(nn.Linear(cfg.hidden_size + 2, cfg.head_hidden), nn.ReLU(),
+                                  nn.Linear(cfg.head_hidden, cfg.horizon * 5))
+        # start at CVM with unit-ish spread: zero the last layer
+        nn.init.zeros_(self.head[-1].weight)
+        nn.init.zeros_(self.head[-1].bias)
+
+    def forward(self, u: torch.Tensor, last_step: torch.Tensor) -> torch.Tensor:
+        """u: (B, L, 2) inputs; last_step: (B, 2) last observed step -> (B, horizon, 5)."""
+        if self.cfg.cell == "mlp":
+            enc = self.encoder(u.flatten(1))
+        else:
+            enc = self.encoder(torch.relu(self.embed(u)))[0][:, -1]
+        z = torch.cat([enc, last_step], dim=-1)
+        return self.head(z).view(-1, self.cfg.horizon, 5)
+
+
+# --------------------------------------------------------------------------------------------
+# frames and encodings (numpy, batched)
+# --------------------------------------------------------------------------------------------
+
+
+def _frames(obs: np.ndarray, cfg: Seq2SeqConfig) -> tuple[np.ndarray, np.ndarray]:
+    """origin (B, 2), rot (B, 2, 2) of each observed track (heading frame or world axes)."""
+    origin, rot = heading_frame(obs, cfg.speed_floor if cfg.speed_floor > 0 else None)
+    if cfg.frame == "world":
+        step = obs[:, -1] - obs[:, -2]
+        scale = (np.maximum(np.hypot(step[:, 0], step[:, 1]), cfg.speed_floor)
+                 if cfg.speed_floor > 0 else np.ones(obs.shape[0]))
+        rot = np.eye(2)[None] / scale[:, None, None]
+    return origin, rot
+
+
+def _to(points: np.ndarray, origin: np.ndarray, rot: np.ndarray) -> np.ndarray:
+    return np.einsum("bij,btj->bti", rot, points - origin[:, None, :])
+
+
+def _inputs(framed_obs: np.ndarray, cfg: Seq2SeqConfig) -> np.ndarray:
+    return np.diff(framed_obs, axis=1) if cfg.inputs == "displacement" else framed_obs
+
+
+def _cv_offsets(framed_obs: np.ndarray, horizon: int) -> np.ndarray:
+    """(B, horizon, 2) constant-velocity future in the frame (last step carried on)."""
+    step = framed_obs[:, -1] - framed_obs[:, -2]
+    return step[:, None, :] * np.arange(1, horizon + 1)[None, :, None]
+
+
+@dataclass
+class FitReport:
+    """What training one member did: the epoch kept, validation ADE/FDE per epoch (m), time."""
+
+    best_epoch: int
+    val_ade: list[float] = field(default_factory=list)
+    val_fde: list[float] = field(default_factory=list)
+    seconds: float = 0.0
+
+
+class Seq2SeqModel:
+    """One trained network with its config; predicts means and Gaussians in world metres."""
+
+    def __init__(self, net: Seq2SeqNet, cfg: Seq2SeqConfig, name: str = "seq2seq") -> None:
+        self.net = net.eval()
+        self.cfg = cfg
+        self.name = name
+
+    def _raw(self, obs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Framed mean (B, H, 2), framed cov (B, H, 2, 2), origin, rot of (B, obs_len, 2)."""
+        cfg = self.cfg
+        origin, rot = _frames(obs, cfg)
+        x = _to(obs, origin, rot)
+        mean, cov = self._framed(x)
+        if cfg.mirror:
+            m2, c2 = self._framed(x * _MIRROR)
+            flip = np.array([[1.0, -1.0], [-1.0, 1.0]])
+            mean = 0.5 * (mean + m2 * _MIRROR)
+            cov = 0.5 * (cov + c2 * flip)
+        return mean, cov, origin, rot
+
+    def _framed(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        cfg = self.cfg
+        with torch.no_grad(), _threads(cfg.threads):
+            u = torch.as_tensor(_inputs(x, cfg), dtype=torch.float32)
+            last = torch.as_tensor(x[:, -1] - x[:, -2], dtype=torch.float32)
+            out = self.net(u, last).double().numpy()
+        mean = _decode_mean(out[..., :2], x, cfg)
+        return mean, _covariance(out[..., 2:])
+
+    def predict_distribution(self, history: np.ndarray, horizon: int) -> GaussianForecast:
+        """(B, T, 2) history -> per-step Gaussian of the next ``horizon`` (<= cfg.horizon)
+        positions in world metres (the network's own head, not yet calibrated)."""
+        obs = self._observed(history, horizon)
+        mean, cov, origin, rot = self._raw(obs)
+        return _to_world(mean[:, :horizon], cov[:, :horizon], origin, rot)
+
+    def predict(self, history: np.ndarray, horizon: int) -> np.ndarray:
+        """(B, T, 2) history -> (B, horizon, 2) mean positions in metres."""
+        return self.predict_distribution(history, horizon).mean
+
+    def _observed(self, history: np.ndarray, horizon: int) -> np.ndarray:
+        return _observed(history, horizon, self.cfg, self.name)
+
+
+def _observed(history: np.ndarray, horizon: int, cfg: Seq2SeqConfig, name: str) -> np.ndarray:
+    h = check_history(history, horizon, who=f"{name}.predict")
+    if horizon > cfg.horizon:
+        raise HistoryError(f"{name}.predict: the model emits {cfg.horizon} steps, asked for "
+                           f"{horizon}")
+    if h.shape[1] < cfg.obs_len or not np.isfinite(h[:, -cfg.obs_len:]).all():
+        raise HistoryError(f"{name}.predict: needs the last obs_len={cfg.obs_len} rows observed "
+                           f"(no NaN), found T={h.shape[1]} with "
+                           f"{int(np.sum(~np.isfinite(h[:, -cfg.obs_len:])))} NaN values "
+                           "there; fill gaps first (e.g. KalmanCV.smooth)")
+    return h[:, -cfg.obs_len:]
+
+
+def _decode_mean(offset: np.ndarray, x: np.ndarray, cfg: Seq2SeqConfig) -> np.ndarray:
+    """Framed future positions (B, H, 2) from the head's offsets."""
+    if cfg.outputs == "displacement":
+        offset = np.cumsum(offset, axis=1)
+    return (_cv_offsets(x, cfg.horizon) if cfg.residual else 0.0) + offset + x[:, -1:, :]
+
+
+def _covariance(p: np.ndarray) -> np.ndarray:
+    """(B, H, 3) (log sx, log sy, atanh rho) -> (B, H, 2, 2) covariances."""
+    sx, sy = np.exp(p[..., 0]), np.exp(p[..., 1])
+    rho = np.tanh(p[..., 2])
+    c = np.empty(p.shape[:-1] + (2, 2))
+    c[..., 0, 0], c[..., 1, 1] = sx**2, sy**2
+    c[..., 0, 1] = c[..., 1, 0] = rho * sx * sy
+    return c + 1e-6 * np.eye(2)
+
+
+def _to_world(mean: np.ndarray, cov: np.ndarray, origin: np.ndarray, rot: np.ndarray
+              ) -> GaussianForecast:
+    inv = np.linalg.inv(rot)                            # rotation (and speed scaling)
+    m = np.einsum("bij,bhj->bhi", inv, mean) + origin[:, None, :]
+    c = np.einsum("bij,bhjk,blk->bhil", inv, cov, inv)
+    return GaussianForecast(m, 0.5 * (c + np.swapaxes(c, -1, -2)))
+
+
+class _threads:
+    """Context: torch thread count fixed (and deterministic algorithms on), then restored."""
+
+    def __init__(self, n: int) -> None:
+        self.n = int(n)
+
+    def __enter__(self) -> None:
+        self.prev = (torch.get_num_threads(), torch.are_deterministic_algorithms_enabled())
+        torch.set_num_threads(self.n)
+        torch.use_deterministic_algorithms(True)
+
+    def __exit__(self, *exc) -> None:
+        torch.set_num_threads(self.prev[0])
+        torch.use_deterministic_algorithms(self.prev[1])
+
+
+class Seq2SeqEnsemble:
+    """Members' mean and moment-matched covariance, optionally scaled per step.
+
+    Attributes:
+        members: trained :class:`Seq2SeqModel` s (same config but the seed).
+        step_scale: (H,) covariance multipliers fitted on validation data
+            (:func:`blindspot.traj.distribution.fit_step_scale`), or None.
+        name: label used in reports.
+    """
+
+    def __init__(self, members: Sequence[Seq2SeqModel], *, name: str = "seq2seq",
+                 step_scale: np.ndarray | None = None) -> None:
+        if not members:
+            raise ValueError("Seq2SeqEnsemble: expected at least one member, found none")
+        self.members = list(members)
+        self.cfg = self.members[0].cfg
+        self.name = name
+        self.step_scale = step_scale
+
+    def predict_distribution(self, history: np.ndarray, horizon: int, *,
+                             calibrated: bool = True) -> GaussianForecast:
+        """(B, T, 2) -> GaussianForecast over ``horizon`` steps: mean of the members' means;
+        covariance mean(cov_k) + cov(mean_k) (mixture moments), times ``step_scale`` when
+        ``calibrated`` and a scale was fitted."""
+        obs = _observed(history, horizon, self.cfg, self.name)
+        fcs = [m.predict_distribution(obs, horizon) for m in self.members]
+        means = np.stack([f.mean for f in fcs])                              # (K, B, H, 2)
+        mean = means.mean(axis=0)
+        d = means - mean
+        cov = np.mean([f.cov for f in fcs], axis=0) + np.einsum("kbhi,kbhj->bhij", d, d) / len(fcs)
+        fc = GaussianForecast(mean, 0.5 * (cov + np.swapaxes(cov, -1, -2)))
+        if calibrated and self.step_scale is not None:
+            fc = fc.scaled(self.step_scale[:horizon])
+        return fc
+
+    def predict(self, history: np.ndarray, horizon: int) -> np.ndarray:
+        """(B, T, 2) -> (B, horizon, 2) the ensemble's mean positions in metres."""
+        obs = _observed(history, horizon, self.cfg, self.name)
+        return np.mean([m.predict(obs, horizon) for m in self.members], axis=0)
+
+
+# --------------------------------------------------------------------------------------------
+# training
+# --------------------------------------------------------------------------------------------
+
+
+def _training_arrays(xy: np.ndarray, cfg: Seq2SeqConfig) -> tuple[np.ndarray, np.ndarray]:
+    """Framed observed (N', obs_len, 2) and future (N', horizon, 2) of windows (N, obs+H, 2),
+    mirrored copies appended when ``cfg.mirror``."""
+    obs, fut = xy[:, :cfg.obs_len], xy[:, cfg.obs_len:cfg.obs_len + cfg.horizon]
+    origin, rot = _frames(obs, cfg)
+    x, y = _to(obs, origin, rot), _to(fut, origin, rot)
+    if cfg.mirror:
+        x, y = np.concatenate([x, x * _MIRROR]), np.concatenate([y, y * _MIRROR])
+    return x, y
+
+
+def _torch_batch(x: torch.Tensor, cfg: Seq2SeqConfig) -> tuple[torch.Tensor, torch.Tensor,
+                                                               torch.Tensor]:
+    """(inputs, last step, constant-velocity-plus-last-point base) of framed windows."""
+    u = torch.diff(x, dim=1) if cfg.inputs == "displacement" else x
+    step = x[:, -1] - x[:, -2]
+    k = torch.arange(1, cfg.horizon + 1, dtype=x.dtype)[None, :, None]
+    base = x[:, -1:, :] + (step[:, None, :] * k if cfg.residual else 0.0)
+    return u, step, base
+
+
+def _loss(out: torch.Tensor, base: torch.Tensor, y: torch.Tensor, cfg: Seq2SeqConfig
+          ) -> tuple[torch.Tensor, torch.Tensor]:
+    """(total loss, ADE of the batch) for head output (B, H, 5) against framed truth y."""
+    off = out[..., :2]
+    if cfg.outputs == "displacement":
+        off = torch.cumsum(off, dim=1)
+    mean = base + off
+    err = y - mean
+    ade = torch.linalg.vector_norm(err, dim=-1).mean()
+    fit = ade if cfg.loss == "ade" else (err**2).sum(-1).mean()
+    if cfg.nll_weight <= 0:
+        return fit, ade
+    e = err.detach()
+    ls = out[..., 2:4].clamp(-7.0, 5.0)
+    rho = torch.tanh(out[..., 4]).clamp(-0.99, 0.99)
+    zx, zy = e[..., 0] * torch.exp(-ls[..., 0]), e[..., 1] * torch.exp(-ls[..., 1])
+    one = 1 - rho**2
+    nll = (0.5 * (zx**2 - 2 * rho * zx * zy + zy**2) / one + ls.sum(-1) + 0.5 * torch.log(one))
+    return fit + cfg.nll_weight * nll.mean(), ade
+
+
+def train_seq2seq(train_xy: np.ndarray, val_xy: np.ndarray, cfg: Seq2SeqConfig, *,
+                  seed: int | None = None, name: str = "seq2seq",
+                  progress: Callable[[str], None] | None = None
+                  ) -> tuple[Seq2SeqModel, FitReport]:
+    """Train one network on windows (N, obs_len + horizon, 2) metres; keep the epoch with the
+    lowest ADE on ``val_xy`` (model selection on validation data only).
+
+    Args:
+        train_xy, val_xy: (N, obs_len + horizon, 2) windows in metres, no NaN.
+        cfg: the model and training settings.
+        seed: overrides ``cfg.seed`` (ensemble members).
+        name: label of the model.
+        progress: called with one line per epoch (None = silent).
+
+    Returns:
+        ``(model, report)``.
+
+    Raises:
+        HistoryError: windows not (N, obs_len + horizon, 2) finite arrays, or none.
+    """
+    t0 = time.perf_counter()
+    seq = cfg.obs_len + cfg.horizon
+    for key, arr in (("train_xy", train_xy), ("val_xy", val_xy)):
+        a = check_array(arr, key, ("N", seq, 2), error=HistoryError, who="train_seq2seq")
+        if a.shape[0] == 0:
+            raise HistoryError(f"train_seq2seq: {key} holds no window")
+    seed = cfg.seed if seed is None else int(seed)
+    x_np, y_np = _training_arrays(np.asarray(train_xy, float), cfg)
+    val_obs = np.asarray(val_xy, float)[:, :cfg.obs_len]
+    val_fut = np.asarray(val_xy, float)[:, cfg.obs_len:]
+    with _threads(cfg.threads):
+        torch.manual_seed(seed)
+        gen = torch.Generator().manual_seed(seed)
+        net = Seq2SeqNet(cfg)
+        opt = torch.optim.AdamW(net.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
+        sched = torch.optim.lr_scheduler.CosineAnnealingLR(opt, T_max=cfg.epochs)
+        x_all = torch.as_tensor(x_np, dtype=torch.float32)
+        y_all = torch.as_tensor(y_np, dtype=torch.float32)
+        n = x_all.shape[0]
+        report = FitReport(best_epoch=0)
+        best_state, best_ade = None, np.inf
+        for epoch in range(1, cfg.epochs + 1):
+            net.train()
+            order = torch.randperm(n, generator=gen)
+            for i in range(0, n, cfg.batch_size):
+                idx = order[i:i + cfg.batch_size]
+                x, y = x_all[idx], y_all[idx]
+                if cfg.rotation_deg > 0:
+                    th = (torch.rand(x.shape[0], generator=gen) * 2 - 1) * np.deg2rad(
+                        cfg.rotation_deg)
+                    c, s = torch.cos(th), torch.sin(th)
+                    R = torch.stack([torch.stack([c, -s], -1), torch.stack([s, c], -1)], -2)
+                    x, y = x @ R.transpose(1, 2), y @ R.transpose(1, 2)
+                u, step, base = _torch_batch(x, cfg)
+                loss, _ = _loss(net(u, step), base, y, cfg)
+                opt.zero_grad()
+                loss.backward()
+                opt.step()
+            sched.step()
+            model = Seq2SeqModel(net, cfg, name)
+            pred = model.predict(val_obs, cfg.horizon)
+            err = np.linalg.norm(pred - val_fut, axis=-1)
+            report.val_ade.append(float(err.mean()))
+            report.val_fde.append(float(err[:, -1].mean()))
+            if report.val_ade[-1] < best_ade:
+                best_ade, report.best_epoch = report.val_ade[-1], epoch
+                best_state = {k: v.clone() for k, v in net.state_dict().items()}
+            if progress is not None:
+                progress(f"{name} seed {seed} epoch {epoch}: val ADE {report.val_ade[-1]:.4f} "
+                         f"FDE {report.val_fde[-1]:.4f}")
+        net.load_state_dict(best_state)
+    report.seconds = time.perf_counter() - t0
+    return Seq2SeqModel(net, cfg, name), report
+
+
+def train_ensemble(train_xy: np.ndarray, val_xy: np.ndarray, cfg: Seq2SeqConfig, *,
+                   name: str = "seq2seq", progress: Callable[[str], None] | None = None
+                   ) -> tuple[Seq2SeqEnsemble, list[FitReport]]:
+    """``cfg.ensemble`` members with seeds ``cfg.seed + k`` (see :func:`train_seq2seq`)."""
+    runs = [train_seq2seq(train_xy, val_xy, cfg, seed=cfg.seed + k, name=name,
+                          progress=progress) for k in range(cfg.ensemble)]
+    return Seq2SeqEnsemble([m for m, _ in runs], name=name), [r for _, r in runs]
