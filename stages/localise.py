@@ -19,7 +19,8 @@ def run(cfg, ctx):
     tables = []
     for scene, det in detections.groupby("scene", sort=False):
         times = truth[truth.scene == scene].set_index("frame")["time_s"]
-        pts = frame_points(det, times, detect.min_speed_mps, detect.cluster_gap_m)
+        pts = frame_points(det, times, detect.min_speed_mps, detect.cluster_gap_m,
+                           estimator=detect.point_estimator)
         tables.append(pts.assign(scene=scene))
     points = pd.concat(tables, ignore_index=True)
     metrics = localisation_errors(points, truth)

@@ -13,12 +13,16 @@ a leading frames axis:
    with ``peak_only`` only the local maxima of the map (:mod:`blindspot.dsp.detections`);
    ordered per frame moving first, then strongest; SNR = power / mean of the CFAR training cells
    (local noise-plus-interference: next to the parked car's returns it is lower than the SNR
-   over thermal noise).
+   over thermal noise). ``detection_range``: with ``range_interpolation: ipdft`` each
+   detection's range is refined between the bins from its two range neighbours in the map
+   (:mod:`blindspot.dsp.subbin`) and corrected for the FMCW range-Doppler coupling; the
+   integer ``range_bin`` stays the cell's.
 5. ``angles``: for the ``max_detections`` first detections of each frame: snapshots
    (``snapshots.py``), TDM-MIMO Doppler compensation with each detection's Doppler bin, ULA
    elements, batched MUSIC (or Bartlett / Capon); angle of the strongest peak. Others keep NaN.
 6. ``points``: static clutter removed by speed, each frame's pedestrian detections grouped into
-   one SNR-weighted point (:func:`blindspot.dsp.points.group_points`), or no point.
+   one point (``point_estimator``: the strongest detection, or the SNR-weighted centroid;
+   :func:`blindspot.dsp.points.group_points`), or no point.
 
 The reduced measurement of the synthesis room (:mod:`blindspot.synth.path_measurement`) runs
 steps 3-6 of this same chain on analytic patches. ``process_batch`` returns a
@@ -50,6 +54,7 @@ from blindspot.dsp.points import (
 from blindspot.arrays import checked_array
 from blindspot.dsp.range_doppler import RangeDoppler, RangeDopplerError, detection_map
 from blindspot.dsp.snapshots import cell_snapshots, chirp_snapshots
+from blindspot.dsp.subbin import ipdft_table, neighbour_offsets
 from blindspot.radar.array import VirtualArray
 from blindspot.radar.config import RadarConfig
 from blindspot.typed_config import ConfigError
@@ -156,6 +161,12 @@ class DetectionChain:
         r = self.range_axis_m
         hi = np.inf if detect.max_range_m is None else detect.max_range_m
         self.range_ok = (r >= detect.min_range_m) & (r <= hi)
+        self.range_table = (ipdft_table(detect.range_window, radar.n_samples)
+                            if detect.range_interpolation == "ipdft" else None)
+        # FMCW range-Doppler coupling: the beat frequency is 2 S R / c + f_D (f_D = 2 v / lambda,
+        # see radar.rd_patch), so a range read off the beat frequency is off by
+        # f_D c / (2 S) = v f_c / S: 7.7 mm per m/s on the MMWCAS profile
+        self.coupling_s = radar.center_freq_hz / radar.slope_hz_per_s
 
     @classmethod
     def from_config(cls, radar: RadarConfig, array: VirtualArray, cfg_cfar: Any, cfg_doa: Any,
@@ -231,6 +242,27 @@ class DetectionChain:
             keep &= local_maxima(power)
         return np.nonzero(keep)
 
+    def detection_range(self, power: np.ndarray, frame: np.ndarray, row: np.ndarray,
+                        doppler_bin: np.ndarray, range_bin: np.ndarray | None = None
+                        ) -> np.ndarray:
+        """(D,) range (m) of detections at cells (frame, row, doppler_bin) (D,) of
+        (frames, rows, doppler) power maps; ``range_bin`` (D,) is each cell's bin in the full
+        range axis (default ``row``: the maps are the chain's own; patches of a map pass it).
+
+        ``range_interpolation: none``: the bin's range ``range_bin * range_bin_m``. ``ipdft``:
+        ``(range_bin + delta) * range_bin_m - v f_c / S`` with delta the three-point IpDFT offset
+        of the range window (:func:`blindspot.dsp.subbin.neighbour_offsets`; 0 on the first and
+        last processed bin, where a neighbour is missing) and ``v f_c / S`` the range-Doppler
+        coupling of the beat frequency at the cell's Doppler-bin velocity v (chirp slope S,
+        centre frequency f_c)."""
+        rb = row if range_bin is None else range_bin
+        if self.range_table is None:
+            return self.range_axis_m[rb]
+        delta = neighbour_offsets(power, frame, row, doppler_bin, self.range_table)
+        delta = np.where((rb > 0) & (rb < self.range_axis_m.size - 1), delta, 0.0)
+        return ((rb + delta) * self.radar.range_bin_m
+                - self.velocity_axis_mps[doppler_bin] * self.coupling_s)
+
     def order_detections(self, frame: np.ndarray, power: np.ndarray, doppler_bin: np.ndarray
                          ) -> tuple[np.ndarray, np.ndarray]:
         """(permutation (D,): per frame moving first, then strongest; moving flags (D,) in the
@@ -299,6 +331,7 @@ class DetectionChain:
         order, mov = self.order_detections(fi, pw, db)
         fi, rb, db, pw = fi[order], rb[order], db[order], pw[order]
         snr_db = 10 * np.log10(pw / noise[fi, rb, db])
+        range_m = self.detection_range(power, fi, rb, db)
         budget = self.doa_budget(fi)
         lap("detections")
         sel = np.flatnonzero(budget)
@@ -312,12 +345,13 @@ class DetectionChain:
         lap("doa")
         det = pd.DataFrame({
             "frame": frame_ids[fi], "range_bin": rb.astype(np.int64),
-            "doppler_bin": db.astype(np.int64), "range_m": self.range_axis_m[rb],
+            "doppler_bin": db.astype(np.int64), "range_m": range_m,
             "velocity_mps": self.velocity_axis_mps[db], "power": pw, "snr_db": snr_db,
             "angle_deg": angles, "moving": mov,
         })
         pts = group_points(fi, det["range_m"].to_numpy(), det["velocity_mps"].to_numpy(), angles,
-                           snr_db, self.detect.min_speed_mps, self.detect.cluster_gap_m)
+                           snr_db, self.detect.min_speed_mps, self.detect.cluster_gap_m,
+                           estimator=self.detect.point_estimator)
         points = pd.DataFrame({"frame": frame_ids[pts["frame"]], "time_s": times[pts["frame"]],
                                **{k: pts[k] for k in POINT_FIELDS}}, columns=list(POINT_COLUMNS))
         lap("points")

@@ -22,6 +22,8 @@ CFAR_MODES = ("ca", "go", "so")           # cell averaging, greatest-of, smalles
 DOA_METHODS = ("music", "bartlett", "capon")
 WINDOW_NAMES = ("hann", "hamming", "blackman", "blackmanharris", "rect")
 SNAPSHOT_MODES = ("cells", "chirps")      # neighbourhood cells, or the range bin across chirps
+RANGE_INTERPOLATIONS = ("ipdft", "none")  # sub-bin range of a detection (dsp.subbin), or the bin
+POINT_ESTIMATORS = ("median", "strongest", "centroid")  # the body's point from its cluster (dsp.points)
 
 __all__ = ["CfarConfig", "DoaConfig", "DetectConfig"]
 
@@ -99,6 +101,8 @@ class DetectConfig(TypedConfig):
                                          doc="[range, doppler] cells, integers in [0, 16]")
     tdm_compensation: bool = setting()
     cluster_gap_m: float = setting(gt=0.0, le=1e3)
+    range_interpolation: str = setting(choices=RANGE_INTERPOLATIONS)
+    point_estimator: str = setting(choices=POINT_ESTIMATORS)
     workers: int = setting(ge=1, le=256)
 
     def validate(self) -> None:

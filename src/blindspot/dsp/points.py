@@ -9,10 +9,27 @@ and one pedestrian point per frame.
   coefficients), so a threshold between 1 and 2 Doppler bins removes it.
 * Grouping: the moving detections of one frame are clustered by single linkage in the x-y plane
   (two detections closer than ``cluster_gap_m`` belong together); the largest cluster (most
-  detections, then the largest summed SNR) is taken as the pedestrian, and its point is the
-  SNR-weighted centroid (weights = linear SNR) of its detections' x, y; range, angle and velocity
-  are those of the centroid (velocity SNR-weighted). A frame without a moving detection with an
-  angle gives no point: nothing is ever interpolated or invented here.
+  detections, then the largest summed SNR) is taken as the pedestrian. A frame without a moving
+  detection with an angle gives no point: nothing is ever interpolated or invented here.
+* The body's point from its cluster (``estimator``):
+
+  - ``"median"``: the SNR-weighted median of the cluster's ranges, and separately of its angles
+    (and velocities), turned into x, y by eq. 7. A walking body is an extended target: the
+    torso (-5.5 dBsm of the body's -3.1 dBsm) moves at the bulk velocity and the limbs swing
+    around it (Chen, *The Micro-Doppler Effect in Radar*, 2nd ed. 2019, ch. 5, Boulic walking
+    model), so the limbs' micro-Doppler splits the body into detections in several Doppler
+    cells, each at its own range and angle. The weighted median is the robust (L1) location
+    estimate of those scattering centres (Huber & Ronchetti, *Robust Statistics*, 2009): one
+    limb's detection cannot pull it as it pulls the centroid, and it works in the polar
+    coordinates where the chain's errors are independent (range from the beat frequency,
+    angle from the array). With two detections it is the stronger one.
+  - ``"strongest"``: the cluster's strongest detection (largest SNR): its range, angle, x, y and
+    velocity (the torso when it is the strongest cell).
+  - ``"centroid"``: the SNR-weighted centroid (weights = linear SNR) of the cluster's x, y; range
+    and angle those of the centroid, velocity SNR-weighted (the paper's step: each limb pulls
+    the point towards itself by its share of the SNR).
+
+  ``extent_m`` is the largest distance of a cluster detection from the point either way.
 """
 
 from __future__ import annotations
@@ -23,6 +40,7 @@ import scipy.sparse
 import scipy.sparse.csgraph
 
 from blindspot.arrays import check_same_shape, checked_array
+from blindspot.dsp.config import POINT_ESTIMATORS
 
 DETECTION_COLUMNS = ("frame", "range_bin", "doppler_bin", "range_m", "velocity_mps", "power",
                      "snr_db", "angle_deg")
@@ -95,9 +113,12 @@ def cluster_labels(x: np.ndarray, y: np.ndarray, gap_m: float) -> np.ndarray:
 POINT_FIELDS = POINT_COLUMNS[2:]  # the per-point values, without frame and time_s
 
 
+ESTIMATORS = POINT_ESTIMATORS  # the choices of detect.point_estimator
+
+
 def group_points(frame: np.ndarray, range_m: np.ndarray, velocity_mps: np.ndarray,
                  angle_deg: np.ndarray, snr_db: np.ndarray, min_speed_mps: float,
-                 cluster_gap_m: float) -> dict[str, np.ndarray]:
+                 cluster_gap_m: float, *, estimator: str = "centroid") -> dict[str, np.ndarray]:
     """The pedestrian's point of every frame, from the detections of many frames at once.
 
     Args:
@@ -106,6 +127,8 @@ def group_points(frame: np.ndarray, range_m: np.ndarray, velocity_mps: np.ndarra
             angle was estimated (outside the DOA budget): such detections are not grouped.
         min_speed_mps: static-clutter threshold (``|v| <=`` it is static).
         cluster_gap_m: single-linkage distance.
+        estimator: ``"strongest"`` or ``"centroid"`` (module docstring): the point of the
+            chosen cluster.
 
     Returns:
         dict of (P,) arrays, one entry per frame that has a point, sorted by frame: ``frame``
@@ -118,10 +141,12 @@ def group_points(frame: np.ndarray, range_m: np.ndarray, velocity_mps: np.ndarra
 
     Raises:
         PointError: arrays not (D,) of one length, a non-integer frame, NaN/inf in range,
-            velocity or SNR (inf in angle), a negative speed threshold or a gap that is not
-            positive.
+            velocity or SNR (inf in angle), a negative speed threshold, a gap that is not
+            positive or an unknown estimator.
     """
     where = "group_points"
+    if estimator not in ESTIMATORS:
+        raise PointError(f"{where}: estimator must be one of {ESTIMATORS}; found {estimator!r}")
     f_all = checked_array(frame, "frame", PointError, where=where, kind="integer", ndim=1,
                           axes="a frame index per detection (D,)")
     range_m, velocity_mps, snr_db = (_values(where, k, v) for k, v in (
@@ -154,26 +179,67 @@ def group_points(frame: np.ndarray, range_m: np.ndarray, velocity_mps: np.ndarra
     point_of = np.full(count.size, -1)
     point_of[best] = np.arange(best.size)             # cluster label -> point (frame order)
     sel = point_of[labels] >= 0
-    xs, ys, vs, ss, wsel = x[sel], y[sel], v[sel], s[sel], w[sel]
-    slot = point_of[labels[sel]]
-    wsum = np.bincount(slot, weights=wsel, minlength=best.size)
-    ws = wsel / wsum[slot]
-    cx = np.bincount(slot, weights=ws * xs, minlength=best.size)
-    cy = np.bincount(slot, weights=ws * ys, minlength=best.size)
-    ext2 = np.full(best.size, -np.inf)
-    np.maximum.at(ext2, slot, (xs - cx[slot]) ** 2 + (ys - cy[slot]) ** 2)
-    snr = np.full(best.size, -np.inf)
-    np.maximum.at(snr, slot, ss)
+    fields = cluster_points(point_of[labels[sel]], x[sel], y[sel], v[sel], s[sel], best.size,
+                            estimator)
+    return {"frame": c_frame[best].astype(np.int64), **fields}
+
+
+def cluster_points(slot: np.ndarray, x: np.ndarray, y: np.ndarray, v: np.ndarray,
+                   snr_db: np.ndarray, n_points: int, estimator: str) -> dict[str, np.ndarray]:
+    """The point of each of ``n_points`` groups of detections (the module docstring's
+    estimators).
+
+    slot: (N,) group of each detection in [0, n_points), every group non-empty; x, y (m),
+    v (m/s), snr_db: (N,) finite. Returns :data:`POINT_FIELDS` as (n_points,) arrays
+    (``n_detections`` int64)."""
+    w = 10 ** (snr_db / 10)
+    wsum = np.bincount(slot, weights=w, minlength=n_points)
+    ws = w / wsum[slot]
+    if estimator == "centroid":
+        cx = np.bincount(slot, weights=ws * x, minlength=n_points)
+        cy = np.bincount(slot, weights=ws * y, minlength=n_points)
+        cv = np.bincount(slot, weights=ws * v, minlength=n_points)
+    elif estimator == "strongest":  # largest SNR (the first of equals)
+        by_snr = np.lexsort((np.arange(slot.size)[::-1], snr_db, slot))
+        top = by_snr[np.r_[slot[by_snr][1:] != slot[by_snr][:-1], True]]
+        cx, cy, cv = x[top], y[top], v[top]
+    else:  # median: SNR-weighted median of range, of angle and of velocity, each on its own
+        r, a = np.hypot(x, y), np.degrees(np.arctan2(x, y))
+        rm, am, cv = (weighted_medians(slot, z, w, n_points) for z in (r, a, v))
+        cx, cy = to_cartesian(rm, am)
+    ext2 = np.full(n_points, -np.inf)
+    np.maximum.at(ext2, slot, (x - cx[slot]) ** 2 + (y - cy[slot]) ** 2)
+    snr = np.full(n_points, -np.inf)
+    np.maximum.at(snr, slot, snr_db)
     return {
-        "frame": c_frame[best].astype(np.int64),
         "range_m": np.hypot(cx, cy),
-        "velocity_mps": np.bincount(slot, weights=ws * vs, minlength=best.size),
+        "velocity_mps": cv,
         "angle_deg": np.degrees(np.arctan2(cx, cy)),
         "x_m": cx, "y_m": cy,
         "snr_db": snr,
-        "n_detections": np.bincount(slot, minlength=best.size).astype(np.int64),
+        "n_detections": np.bincount(slot, minlength=n_points).astype(np.int64),
         "extent_m": np.sqrt(ext2),
     }
+
+
+def weighted_medians(group: np.ndarray, values: np.ndarray, weights: np.ndarray,
+                     n_groups: int) -> np.ndarray:
+    """Weighted median of each group, all groups at once.
+
+    group: (N,) int in [0, n_groups), every group non-empty; values, weights: (N,) finite,
+    weights > 0. Returns (n_groups,): per group the smallest value whose cumulative weight (in
+    increasing order of value) reaches half the group's total weight, the minimiser of
+    sum_i w_i |v_i - m| (the lower one when two values tie for it)."""
+    order = np.lexsort((values, group))
+    g, v, w = group[order], values[order], weights[order]
+    cum = np.cumsum(w)
+    total = np.bincount(g, weights=w, minlength=n_groups)
+    before = np.concatenate([[0.0], np.cumsum(total)[:-1]])          # weight of earlier groups
+    # the tolerance keeps an exact half (two equal weights) from being lost to rounding
+    reached = cum - before[g] >= 0.5 * total[g] * (1.0 - 1e-12)
+    first = np.full(n_groups, v.size)
+    np.minimum.at(first, g, np.where(reached, np.arange(v.size), v.size))
+    return v[first]
 
 
 def _cluster_within_frames(frame_sorted: np.ndarray, x: np.ndarray, y: np.ndarray,
@@ -197,12 +263,13 @@ def _cluster_within_frames(frame_sorted: np.ndarray, x: np.ndarray, y: np.ndarra
 
 
 def group_point(range_m: np.ndarray, velocity_mps: np.ndarray, angle_deg: np.ndarray,
-                snr_db: np.ndarray, min_speed_mps: float, cluster_gap_m: float) -> dict | None:
+                snr_db: np.ndarray, min_speed_mps: float, cluster_gap_m: float, *,
+                estimator: str = "centroid") -> dict | None:
     """The pedestrian's point from one frame's detections (arrays (n,)), or None when no moving
     detection with a finite angle exists. Keys: POINT_COLUMNS without frame and time_s.
     (:func:`group_points` for one frame.)"""
     pts = group_points(np.zeros(len(range_m), dtype=np.int64), range_m, velocity_mps, angle_deg,
-                       snr_db, min_speed_mps, cluster_gap_m)
+                       snr_db, min_speed_mps, cluster_gap_m, estimator=estimator)
     if pts["frame"].size == 0:
         return None
     return {k: (int(pts[k][0]) if k == "n_detections" else float(pts[k][0]))
@@ -210,24 +277,26 @@ def group_point(range_m: np.ndarray, velocity_mps: np.ndarray, angle_deg: np.nda
 
 
 def pedestrian_point(detections: pd.DataFrame, min_speed_mps: float,
-                     cluster_gap_m: float) -> dict | None:
+                     cluster_gap_m: float, *, estimator: str = "centroid") -> dict | None:
     """:func:`group_point` on one frame's detection table (``DETECTION_COLUMNS``)."""
     return group_point(detections["range_m"].to_numpy(), detections["velocity_mps"].to_numpy(),
                        detections["angle_deg"].to_numpy(), detections["snr_db"].to_numpy(),
-                       min_speed_mps, cluster_gap_m)
+                       min_speed_mps, cluster_gap_m, estimator=estimator)
 
 
 def frame_points(detections: pd.DataFrame, times_s: dict | pd.Series | np.ndarray | None,
-                 min_speed_mps: float, cluster_gap_m: float) -> pd.DataFrame:
+                 min_speed_mps: float, cluster_gap_m: float, *,
+                 estimator: str = "centroid") -> pd.DataFrame:
     """One pedestrian point per frame that has one (``POINT_COLUMNS``), all frames grouped in
-    one pass (:func:`group_points`); ``times_s`` maps frame index -> time (array indexed by
-    frame, dict or Series), None gives NaN times."""
+    one pass (:func:`group_points` with ``estimator``); ``times_s`` maps frame index -> time
+    (array indexed by frame, dict or Series), None gives NaN times."""
     if len(detections) == 0:
         return pd.DataFrame(columns=list(POINT_COLUMNS)).astype(
             {"frame": np.int64, "n_detections": np.int64})
     pts = group_points(detections["frame"].to_numpy(), detections["range_m"].to_numpy(),
                        detections["velocity_mps"].to_numpy(), detections["angle_deg"].to_numpy(),
-                       detections["snr_db"].to_numpy(), min_speed_mps, cluster_gap_m)
+                       detections["snr_db"].to_numpy(), min_speed_mps, cluster_gap_m,
+                       estimator=estimator)
     if times_s is None:
         t = np.full(pts["frame"].size, np.nan)
     elif isinstance(times_s, dict | pd.Series):

@@ -3,8 +3,9 @@
 Every truth point of a path becomes a walking pedestrian (the scene model's body: torso, head,
 swinging arms and legs, from :mod:`blindspot.radar.scene`) seen by the FMCW radar in one frame;
 the frame goes through range FFT, Doppler FFT, CA-CFAR, Doppler compensation, MUSIC and the
-points step, and what comes out is the *measured* point: quantised to the 0.5 m range bins,
-with the angle error of MUSIC on a real body, or missing (NaN) when CFAR found nothing. This is
+points step, and what comes out is the *measured* point: its range interpolated between the
+0.5 m range bins (or quantised to them, ``detect.range_interpolation: none``), with the angle
+error of MUSIC on a real body, or missing (NaN) when CFAR found nothing. This is
 the measurement error the LSTM has to learn to live with.
 
 Two ways to get there
@@ -324,6 +325,7 @@ class _ReducedDetections:
     pw: np.ndarray
     snr_db: np.ndarray
     moving: np.ndarray
+    power: np.ndarray             # (B, K, M) the patches' detection map (sub-bin range reads it)
 
 
 def _reduced_detections(setup: _ReducedSetup, sc: PointScatterers,
@@ -357,7 +359,7 @@ def _reduced_detections(setup: _ReducedSetup, sc: PointScatterers,
     order, mov = chain.order_detections(bi, pw, di)   # per frame: moving first, then strongest
     bi, ki, di, pw = bi[order], ki[order], di[order], pw[order]
     snr_db = 10.0 * np.log10(pw / noise[bi, ki, di])
-    return _ReducedDetections(first, r_t, d_t, c_all, bi, ki, di, pw, snr_db, mov)
+    return _ReducedDetections(first, r_t, d_t, c_all, bi, ki, di, pw, snr_db, mov, power)
 
 
 def _reduced_snapshots(setup: _ReducedSetup, red: _ReducedDetections, sel: np.ndarray,
@@ -413,8 +415,12 @@ def _measure_batch_reduced(setup: _ReducedSetup, sc: PointScatterers,
         backend = "torch" if chain.doa.method == "music" and chain.doa.loading == 0.0 else "numpy"
         angle[sel] = chain.angles(x, di[sel], backend=backend)
     # 4. the pedestrian's point per frame (the chain's grouping)
-    range_m = chain.range_axis_m[np.clip(red.first[bi] + ki, 0, n_rows - 1)]
-    pts = group_points(bi, range_m, vel, angle, red.snr_db, det.min_speed_mps, det.cluster_gap_m)
+    # the chain's range of each detection (sub-bin with range_interpolation: ipdft) from the
+    # patch rows, the full map's bin numbers
+    range_m = chain.detection_range(red.power, bi, ki, di,
+                                    np.clip(red.first[bi] + ki, 0, n_rows - 1))
+    pts = group_points(bi, range_m, vel, angle, red.snr_db, det.min_speed_mps, det.cluster_gap_m,
+                       estimator=det.point_estimator)
     out = _empty_frames(b)
     for key in _FRAME_FIELDS:
         out[key][pts["frame"]] = pts[key]
