@@ -1,6 +1,7 @@
-"""localise: one pedestrian point per frame (Cartesian, eq. 7), static clutter removed, and the
-localisation error against the simulated truth (median and 90th percentile per scene;
-blindspot.dsp.localisation)."""
+"""localise: one pedestrian point per frame (Cartesian, eq. 7), static clutter removed, the
+frames where the pedestrian crossed the line of sight at zero Doppler bridged by track gating
+(blindspot.dsp.zero_doppler), and the localisation error against the simulated truth (median
+and 90th percentile per scene; blindspot.dsp.localisation)."""
 
 import pandas as pd
 
@@ -8,12 +9,13 @@ from blindspot import experiment
 from blindspot.cli import main_stage
 from blindspot.dsp.localisation import localisation_errors
 from blindspot.dsp.points import frame_points
+from blindspot.dsp.zero_doppler import bridge_zero_doppler
 from blindspot.io import write_json, write_parquet
 from blindspot.stage import StageResult
 
 
 def run(cfg, ctx):
-    detect = experiment.detect(cfg)
+    detect, bridge = experiment.detect(cfg), experiment.bridge(cfg)
     detections = pd.read_parquet(ctx.dep("detections.parquet"))
     truth = pd.read_parquet(ctx.dep("truth.parquet"))
     tables = []
@@ -21,14 +23,19 @@ def run(cfg, ctx):
         times = truth[truth.scene == scene].set_index("frame")["time_s"]
         pts = frame_points(det, times, detect.min_speed_mps, detect.cluster_gap_m,
                            estimator=detect.point_estimator)
-        tables.append(pts.assign(scene=scene))
+        pts, bridged = bridge_zero_doppler(det, pts, times, detect.min_speed_mps, bridge,
+                                           detect.point_estimator)
+        tables.append(pts.assign(scene=scene, zero_doppler=bridged))
     points = pd.concat(tables, ignore_index=True)
     metrics = localisation_errors(points, truth)
+    for scene, m in metrics.items():  # points added by the zero-Doppler bridge
+        m["n_points_zero_doppler"] = int(points.zero_doppler[points.scene == scene].sum())
     write_parquet(ctx.out("points.parquet"), points)
     write_json(ctx.out("localise.json"), metrics)
     for scene, m in metrics.items():
         print(f"localise {scene}: {m['n_points']}/{m['n_frames']} frames with a point "
-              f"({m['n_points_while_hidden']} while hidden), error median {m['error_median_m']:.3f} m, "
+              f"({m['n_points_while_hidden']} while hidden, {m['n_points_zero_doppler']} at zero "
+              f"Doppler), error median {m['error_median_m']:.3f} m, "
               f"p90 {m['error_p90_m']:.3f} m")
     return StageResult(metrics=metrics)
 

@@ -11,7 +11,9 @@ from typing import Any
 
 from omegaconf import DictConfig
 
-from blindspot.dsp.config import CfarConfig, DetectConfig, DoaConfig, EgoMotionConfig
+from blindspot.dsp.config import (
+    BridgeConfig, CfarConfig, DetectConfig, DoaConfig, EgoMotionConfig,
+)
 from blindspot.radar.array import VirtualArray, array_for
 from blindspot.radar.config import RadarConfig, SimConfig
 from blindspot.radar.scene import (
@@ -45,6 +47,11 @@ def doa(cfg: DictConfig) -> DoaConfig:
 def detect(cfg: DictConfig) -> DetectConfig:
     """The detection-chain settings of ``cfg.detect``."""
     return DetectConfig.from_mapping(cfg.detect)
+
+
+def bridge(cfg: DictConfig) -> BridgeConfig:
+    """The ``bridge`` group (zero-Doppler points of a target crossing the line of sight)."""
+    return BridgeConfig.from_mapping(cfg.bridge)
 
 
 def dataset(cfg: DictConfig) -> DatasetConfig:

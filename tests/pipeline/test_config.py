@@ -173,6 +173,7 @@ def _builders():
     return {
         "radar": experiment.radar, "scene": experiment.scenes, "sim": experiment.sim,
         "cfar": experiment.cfar, "doa": experiment.doa, "detect": experiment.detect,
+        "bridge": experiment.bridge,
         "dataset": experiment.dataset, "model": experiment.model, "train": experiment.training,
         "eval": experiment.evaluation, "ethucy": experiment.ethucy,
         "benchmark": experiment.benchmark, "calibration": experiment.calibration, "recordings": _build_recordings,

@@ -243,11 +243,13 @@ class DetectionChain:
         return np.nonzero(keep)
 
     def detection_range(self, power: np.ndarray, frame: np.ndarray, row: np.ndarray,
-                        doppler_bin: np.ndarray, range_bin: np.ndarray | None = None
-                        ) -> np.ndarray:
+                        doppler_bin: np.ndarray, range_bin: np.ndarray | None = None, *,
+                        column: np.ndarray | None = None) -> np.ndarray:
         """(D,) range (m) of detections at cells (frame, row, doppler_bin) (D,) of
         (frames, rows, doppler) power maps; ``range_bin`` (D,) is each cell's bin in the full
-        range axis (default ``row``: the maps are the chain's own; patches of a map pass it).
+        range axis (default ``row``: the maps are the chain's own; patches of a map pass it)
+        and ``column`` (D,) its column in ``power`` (default ``doppler_bin``; maps of a few
+        columns pass it).
 
         ``range_interpolation: none``: the bin's range ``range_bin * range_bin_m``. ``ipdft``:
         ``(range_bin + delta) * range_bin_m - v f_c / S`` with delta the three-point IpDFT offset
@@ -258,7 +260,8 @@ class DetectionChain:
         rb = row if range_bin is None else range_bin
         if self.range_table is None:
             return self.range_axis_m[rb]
-        delta = neighbour_offsets(power, frame, row, doppler_bin, self.range_table)
+        col = doppler_bin if column is None else column
+        delta = neighbour_offsets(power, frame, row, col, self.range_table)
         delta = np.where((rb > 0) & (rb < self.range_axis_m.size - 1), delta, 0.0)
         return ((rb + delta) * self.radar.range_bin_m
                 - self.velocity_axis_mps[doppler_bin] * self.coupling_s)

@@ -129,3 +129,24 @@ class EgoMotionConfig(TypedConfig):
     max_range_m: float = setting(gt=1.0, le=1e4)
     sweep_frames: int = setting(ge=1, le=10_000)
     seed: int = setting(0, ge=0, le=2**63 - 1)
+
+
+BRIDGE_METHODS = ("track_gate", "none")
+
+
+@dataclass(frozen=True)
+class BridgeConfig(TypedConfig):
+    """Hydra group ``bridge``: points of a target moving across the line of sight, whose radial
+    speed the static-clutter filter cannot tell from zero (blindspot.dsp.zero_doppler).
+    ``method``: track_gate | none; ``history_s``: points before a gap fitted by a constant
+    velocity line; ``max_gap_s``: longest extrapolation; ``gate_m``: gate radius around the
+    predicted position; ``margin_mps``: how far above the clutter threshold the predicted radial
+    speed may be."""
+
+    GROUP = "bridge"
+
+    method: str = setting(choices=BRIDGE_METHODS)
+    history_s: float = setting(gt=0.0, le=60.0)
+    max_gap_s: float = setting(gt=0.0, le=60.0)
+    gate_m: float = setting(gt=0.0, le=100.0)
+    margin_mps: float = setting(ge=0.0, le=100.0)

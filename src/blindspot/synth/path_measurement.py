@@ -271,6 +271,7 @@ class _ReducedSetup:
     half_rows: int
     core_half_rows: int
     block_chol: np.ndarray        # Cholesky factor of the snapshot block's noise covariance
+    range_chol: np.ndarray        # the same for a cell and its two range neighbours (3 x 3)
     ula_flat: np.ndarray          # ULA element -> flat virtual channel (tx * n_rx + rx)
 
 
@@ -291,12 +292,14 @@ def _reduced_setup(chain, core_half_rows: int, adc_headroom_db: float) -> _Reduc
     hr, hd = det.cell_half
     cov = block_noise_covariance(wr, wd, 2 * hr + 1, 2 * hd + 1)
     chol = np.linalg.cholesky(cov + 1e-12 * cov[0, 0].real * np.eye(cov.shape[0]))
+    cov3 = block_noise_covariance(wr, wd, 3, 1)
+    chol3 = np.linalg.cholesky(cov3 + 1e-12 * cov3[0, 0].real * np.eye(3))
     t, r = chain.array.ula_index
     return _ReducedSetup(chain=chain, range_window=wr, doppler_window=wd,
                          cell_noise_power=post_fft_noise_power(sample_noise, wr, wd),
                          sample_noise_power=sample_noise, output_scale=scale,
                          half_rows=int(chain.cfar.guard[0] + chain.cfar.train[0]),
-                         core_half_rows=int(core_half_rows), block_chol=chol,
+                         core_half_rows=int(core_half_rows), block_chol=chol, range_chol=chol3,
                          ula_flat=np.asarray(t) * radar.n_rx + np.asarray(r))
 
 
@@ -415,10 +418,18 @@ def _measure_batch_reduced(setup: _ReducedSetup, sc: PointScatterers,
         backend = "torch" if chain.doa.method == "music" and chain.doa.loading == 0.0 else "numpy"
         angle[sel] = chain.angles(x, di[sel], backend=backend)
     # 4. the pedestrian's point per frame (the chain's grouping)
-    # the chain's range of each detection (sub-bin with range_interpolation: ipdft) from the
-    # patch rows, the full map's bin numbers
-    range_m = chain.detection_range(red.power, bi, ki, di,
-                                    np.clip(red.first[bi] + ki, 0, n_rows - 1))
+    # the chain's range of each detection (sub-bin with range_interpolation: ipdft), from the
+    # full map's bin numbers; the pedestrian's candidates (``sel``) read their range neighbours
+    # from a fresh draw of the three cells with the noise correlation the range window gives
+    # them (-2/3 for Hann), since the map's cells were drawn independently
+    rows_full = np.clip(red.first[bi] + ki, 0, n_rows - 1)
+    range_m = chain.detection_range(red.power, bi, ki, di, rows_full)
+    if sel.size and chain.range_table is not None:
+        trio = _range_trio_power(setup, red.r_t, red.d_t, red.c_all, bi[sel], ki[sel], di[sel],
+                                 rng)
+        range_m[sel] = chain.detection_range(trio, np.arange(sel.size),
+                                             np.ones(sel.size, dtype=np.int64), di[sel],
+                                             rows_full[sel], column=np.zeros(sel.size, np.int64))
     pts = group_points(bi, range_m, vel, angle, red.snr_db, det.min_speed_mps, det.cluster_gap_m,
                        estimator=det.point_estimator)
     out = _empty_frames(b)
@@ -432,6 +443,24 @@ def _take_frames(sc: PointScatterers, keep: np.ndarray) -> PointScatterers:
     return PointScatterers(range_m=sc.range_m[keep], velocity_mps=sc.velocity_mps[keep],
                            azimuth_rad=sc.azimuth_rad[keep], amplitude=sc.amplitude[keep],
                            elevation_rad=sc.elevation_rad[keep])
+
+
+def _range_trio_power(setup: _ReducedSetup, r_t: np.ndarray, d_t: np.ndarray, c_all: np.ndarray,
+                      b: np.ndarray, k: np.ndarray, d: np.ndarray, rng: np.random.Generator
+                      ) -> np.ndarray:
+    """Detection-map values of cells (b, k - 1..k + 1, d) (D,) over every channel: exact signal
+    (the patch terms) plus channel noise correlated across the three range bins as the
+    windowed FFTs correlate it. Returns (D, 3, 1) maps (rows = the three range bins)."""
+    rows = k[:, None] + np.arange(-1, 2)                                         # (D, 3)
+    rows = np.clip(rows, 0, r_t.shape[2] - 1)
+    coef = (np.take_along_axis(r_t[b], rows[:, None, :], axis=2)
+            * d_t[b][np.arange(b.size), :, d][:, :, None])                      # (D, S, 3)
+    sig = np.einsum("dsj,dsc->djc", coef, c_all[b])                             # (D, 3, C)
+    z = rng.standard_normal(sig.shape[:1] + sig.shape[2:] + (3, 2)).view(np.complex128)[..., 0]
+    z *= np.sqrt(setup.sample_noise_power / 2.0)
+    noise = (z @ setup.range_chol.T).transpose(0, 2, 1)                         # (D, 3, C)
+    x = sig + noise
+    return (x.real ** 2 + x.imag ** 2).sum(axis=-1)[..., None]
 
 
 def _measure_batch_full(chain, simulator, pos: np.ndarray, vel: np.ndarray, rcs: np.ndarray,
