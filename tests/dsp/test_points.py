@@ -122,3 +122,43 @@ def test_batched_grouping_equals_the_one_frame_rule_on_random_frames():
             assert got[k][row[0]] == pytest.approx(val, rel=1e-12, abs=1e-12), (f, k)
     assert seen == got["frame"].size > 100
     assert np.all(np.diff(got["frame"]) > 0)
+
+
+# ------------------------------------------------------------------ the body's point estimators
+from hypothesis import given, settings, strategies as st  # noqa: E402
+
+from blindspot.dsp.points import PointError, weighted_medians  # noqa: E402
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.tuples(st.integers(0, 3), st.floats(-50, 50), st.floats(0.01, 100)),
+                min_size=1, max_size=30))
+def test_weighted_median_minimises_the_weighted_absolute_deviation(rows):
+    """Per group, the result is a value of the group whose sum_i w_i |v_i - m| is the least
+    over all the group's values (the L1 definition of the weighted median)."""
+    g = np.array([r[0] for r in rows])
+    _, g = np.unique(g, return_inverse=True)
+    v, w = np.array([r[1] for r in rows]), np.array([r[2] for r in rows])
+    med = weighted_medians(g, v, w, g.max() + 1)
+    for k in range(g.max() + 1):
+        vk, wk = v[g == k], w[g == k]
+        cost = lambda m: np.sum(wk * np.abs(vk - m))  # noqa: E731
+        assert med[k] in vk
+        assert cost(med[k]) <= min(cost(m) for m in vk) * (1 + 1e-9) + 1e-9
+
+
+def test_median_estimator_is_robust_to_one_limb_and_strongest_takes_the_peak():
+    """Torso at 12.0 m / 30 deg and two limb detections on either side in range, one far off
+    in angle: the weighted median keeps the torso's range and angle, the centroid is pulled
+    by the stray limb; 'strongest' is the strongest detection."""
+    ped = [(12.0, -0.7, 30.0, 25.0), (12.3, -1.4, 30.2, 20.0), (11.8, 0.3, 33.0, 20.0)]
+    med = pedestrian_point(dets(0, ped), 0.11, 1.0, estimator="median")
+    cen = pedestrian_point(dets(0, ped), 0.11, 1.0, estimator="centroid")
+    top = pedestrian_point(dets(0, ped), 0.11, 1.0, estimator="strongest")
+    assert med["range_m"] == pytest.approx(12.0) and med["angle_deg"] == pytest.approx(30.0)
+    assert med["velocity_mps"] == pytest.approx(-0.7)
+    assert abs(cen["angle_deg"] - 30.0) > 0.5
+    assert (top["range_m"], top["angle_deg"], top["velocity_mps"]) == pytest.approx((12.0, 30.0, -0.7))
+    assert med["n_detections"] == cen["n_detections"] == 3
+    with pytest.raises(PointError, match="estimator"):
+        pedestrian_point(dets(0, ped), 0.11, 1.0, estimator="mean")

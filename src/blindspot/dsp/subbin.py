@@ -28,8 +28,9 @@ root is what the chain passes).
 Noise: the estimate's variance approaches the Cramer-Rao bound of a tone's frequency in white
 noise (Rife & Boorstyn, IEEE Trans. Inf. Theory 20(5), 1974): ``var(f) >= 6 / ((2 pi)^2 SNR N
 (N^2 - 1))`` cycles/sample, i.e. ``6 N / ((2 pi)^2 SNR (N^2 - 1))`` bins^2 for a per-sample SNR;
-``tests/dsp/test_subbin.py`` measures how close it comes (a window widens the main lobe and
-costs a factor of about 2 in variance for Hann).
+``tests/dsp/test_subbin.py`` measures how close it comes: 4.0 times the bound with the Hann
+window (its 1.76 dB processing loss and the three-bin estimator's own loss), i.e. 0.012 m RMS
+at a post-FFT SNR of 30 dB, against 0.144 m RMS (0.5 m / sqrt(12)) for the bin alone.
 """
 
 from __future__ import annotations
