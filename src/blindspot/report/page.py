@@ -127,8 +127,19 @@ def summary_rows(metrics: Mapping[str, Metrics]) -> list[tuple[str, str, str, st
     if loc:
         for scene, m in loc.items():
             ours = f"{_m(m.get('error_median_m'))} / {_m(m.get('error_p90_m'))}"
-            rows.append((f"Localisation error median / p90, {scene}", "not reported", ours, "",
-                         command("localise")))
+            base = m.get("paper_chain") or {}
+            paper_chain = (f"paper's chain (range bins, SNR-weighted centroid) "
+                           f"{_m(base.get('error_median_m'))} / {_m(base.get('error_p90_m'))}"
+                           if base else "")
+            rows.append((f"Localisation error median / p90, {scene}", "not reported", ours,
+                         paper_chain, command("localise")))
+        for scene, m in loc.items():
+            if m.get("n_points_zero_doppler") is not None and m.get("paper_chain"):
+                rows.append((f"Frames with a point, {scene}", "not reported",
+                             f"{m['n_points']} of {m['n_frames']} ({m['n_points_zero_doppler']} "
+                             "at zero Doppler, bridged)",
+                             f"paper's chain {m['paper_chain']['n_points']} of {m['n_frames']}",
+                             command("localise")))
         for scene, m in loc.items():
             if m.get("n_hidden_frames"):
                 rows.append((f"Points while hidden behind the car, {scene}", "almost none (Fig. 7)",
