@@ -556,7 +556,9 @@ def measure_paths(truth_paths: np.ndarray, radar: RadarConfig, array=None, cfar_
     FFTs correlate it), TDM compensation, MUSIC (same estimate) and grouping (the chain's
     ``group_point``). Approximations: (1) the detection map's noise is independent between
     cells (the FFT correlates neighbours; with 192 channels summed the cell-to-cell fluctuation
-    it affects is +-7 % of the mean); (2) the snapshot noise is drawn afresh, not conditioned on
+    it affects is +-7 % of the mean); the sub-bin range of the pedestrian's candidates, which
+    reads a cell's two range neighbours, uses a fresh draw of those three cells over all
+    channels with the window's correlation (-2/3 between Hann neighbours) instead; (2) the snapshot noise is drawn afresh, not conditioned on
     the map value that made the cell a detection; (3) only cells within ``core_half_rows`` range
     bins of the pedestrian are searched, so false alarms elsewhere in the map (expected count
     n_cells x Pfa per frame, ~0 for the paper's dB-domain CFAR) are not produced; (4) no ADC
