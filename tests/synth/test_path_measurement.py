@@ -219,15 +219,24 @@ STAT_KEYS = ("detection_rate", "median_error_m", "p90_error_m", "range_error_std
 @pytest.mark.slow
 @pytest.mark.parametrize("cfar", ["paper", "ca_pfa"])
 def test_reduced_chain_error_statistics_match_full_chain(chain_cfg, walker, cfar):
-    """Issue 4's condition for using a reduced cube: on the same 300 truth frames (3-28 m, all
+    """Issue 4's condition for using a reduced cube: on the same truth frames (3-28 m, all
     headings) the point-error statistics of the reduced chain are within 10 % of the full
     chain's (detection rate, median and 90th-percentile Euclidean error, range and angle error
-    spread), for the paper's dB-domain CFAR and for CA-CFAR at Pfa 1e-6."""
+    spread), for the paper's dB-domain CFAR and for CA-CFAR at Pfa 1e-6.
+
+    Three walks, each measured three times (other gait phases and noise): 900 frames. With
+    sub-bin range the errors are noise, not the deterministic 0.5 m quantisation, and on 300
+    frames the p90 and the angle spread of one chain alone moved by +-15 % from one noise
+    seed to the next (reduced chain, seeds 5-10: p90 0.054-0.078 m, angle std 0.14-0.28 deg),
+    more than the 10 % being tested. Measured on 900 frames (issue 10 section 4 branch): CA-CFAR
+    passes; the paper's CFAR has every statistic within 10 % but p90, 0.0565 m reduced vs
+    0.0631 m full (-10.5 %; on 300 frames it was +13 %, 0.0779 vs 0.0688): the p90 of a few
+    hundred 2-8 cm errors is at the sampling noise of this criterion."""
     cfg = dict(chain_cfg, cfar_cfg=OmegaConf.load(REPO / "conf" / "cfar" / f"{cfar}.yaml"))
     paths = straight_paths(21, 12, 100, range_m=(3.0, 28.0), speed_mps=(0.5, 2.0))
     r = np.hypot(paths[..., 0], paths[..., 1])
-    paths = paths[np.all((r > 2.0) & (r < 29.0), axis=1)][:3]
-    assert paths.shape == (3, 100, 2)
+    paths = np.concatenate([paths[np.all((r > 2.0) & (r < 29.0), axis=1)][:3]] * 3)
+    assert paths.shape == (9, 100, 2)
     red = error_statistics(measure_paths(paths, **cfg, pedestrian=walker, seed=5,
                                          progress=False), paths)
     full = error_statistics(measure_paths(paths, **cfg, pedestrian=walker, seed=5,
