@@ -58,6 +58,7 @@ __all__ = [
     "available_stages",
     "load_stage",
     "run_stage",
+    "sweep_job_dir",
     "log_result",
     "main_stage",
     "main",
@@ -126,6 +127,7 @@ def run_stage(
     repo_root: str | os.PathLike[str] | None = None,
     *,
     check_outs: bool = False,
+    out_root: str | os.PathLike[str] | None = None,
 ) -> StageResult:
     """Call ``run(cfg, ctx)`` inside ``tracking.stage_run(name, cfg)`` from the repo root and log
     the :class:`StageResult` it returns (metrics, artifacts, model files, tags) to that run.
@@ -135,7 +137,8 @@ def run_stage(
     ``ctx`` carries the stage's files declared in ``dvc.yaml`` and ``ctx.log_step``, bound to the
     run. ``check_outs``: afterwards, require that the stage wrote every declared out
     (:meth:`StageContext.check_outs`). Raises ``TypeError`` if ``run`` returns something else
-    than a :class:`StageResult`.
+    than a :class:`StageResult`. ``out_root``: write the stage's outs under this folder (a sweep
+    job's output directory, see :func:`sweep_job_dir`) instead of over the pipeline's own.
     """
     root = Path(repo_root).resolve() if repo_root is not None else bconfig.find_repo_root()
     os.chdir(root)
@@ -143,11 +146,16 @@ def run_stage(
     OmegaConf.set_struct(cfg, True)
     files = declared_files(root, name)
     tracking.children_die_with_this_process()  # a SIGKILLed stage's pool workers die with it
-    for debris in io.remove_stale_temps(files.outs):  # left by a SIGKILLed run of the stage
+    out_dir = None if out_root is None else Path(out_root).resolve()
+    outs = files.outs if out_dir is None else [out_dir / o for o in files.outs]
+    for debris in io.remove_stale_temps(outs):  # left by a SIGKILLed run of the stage
         print(f"[blindspot] stage {name}: removed {debris}, a killed writer's temporary file",
               file=sys.stderr)
     with tracking.stage_run(name, cfg, repo_root=root) as tracker:
-        ctx = StageContext(files, log_step=lambda metrics, step: tracker.log_metrics(metrics, step))
+        if out_dir is not None:
+            tracker.set_tags({"blindspot.out_root": str(out_dir)})
+        ctx = StageContext(files, log_step=lambda metrics, step: tracker.log_metrics(metrics, step),
+                           out_root=out_dir)
         result = run(cfg, ctx)
         if not isinstance(result, StageResult):
             raise TypeError(f"stage {name!r}: run(cfg, ctx) returned {type(result).__name__}; "
@@ -213,7 +221,27 @@ class _StageTask:
         self.name = name
 
     def __call__(self, cfg: DictConfig) -> None:
-        run_stage(load_stage(self.repo_root, self.name), self.name, cfg, self.repo_root)
+        run_stage(load_stage(self.repo_root, self.name), self.name, cfg, self.repo_root,
+                  out_root=sweep_job_dir())
+
+
+def sweep_job_dir() -> Path | None:
+    """The output directory of the Hydra job this process runs, when it is one job of a
+    multirun sweep (``-m``; any launcher or sweeper); None for a single run.
+
+    A sweep's jobs write their stage outs there (``<sweep dir>/<job num>/data/train/model.pt``
+    ...), never over the DVC-tracked outputs of the pipeline, which a sweep of N jobs would
+    otherwise overwrite N times (at once, on a parallel launcher). Their comparison lives in
+    MLflow (one child run per job) and in the sweep's ``sweep_summary.csv``.
+    """
+    from hydra.core.hydra_config import HydraConfig
+
+    if not HydraConfig.initialized():
+        return None
+    hc = HydraConfig.get()
+    if hc.mode is None or hc.mode.name != "MULTIRUN" or not hc.runtime.output_dir:
+        return None
+    return Path(hc.runtime.output_dir).resolve()
 
 
 def _hydra_argv(args: Sequence[str], name: str) -> list[str]:
