@@ -9,6 +9,8 @@ How to run things (from anywhere inside the repository)::
     python -m blindspot <stage> key=value ...   # one stage outside DVC: conf/ + overrides
     python -m blindspot train -m model.hidden_size=32,64,128           # Hydra multirun sweep
     python -m blindspot train -m hydra/launcher=parallel model.hidden_size=32,64   # 2 processes
+    python -m blindspot train -m +search=lstm   # Optuna search (conf/search/lstm.yaml)
+    python -m blindspot train -m hydra/launcher=submitit|slurm|ray_cluster ...   # [cluster] extra
     python -m blindspot <stage> --cfg job       # print the composed config, run nothing
 
     python -m blindspot params                  # regenerate params.yaml from conf/
@@ -46,11 +48,15 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from types import ModuleType
 
+from dataclasses import dataclass
+from typing import ClassVar
+
 from omegaconf import DictConfig, OmegaConf
 
 from blindspot import config as bconfig
 from blindspot import io, tracking
 from blindspot.stage import StageContext, StageResult, declared_files, read_dvc_stages
+from blindspot.typed_config import TypedConfig, setting
 
 __all__ = [
     "StageFunction",
@@ -59,6 +65,8 @@ __all__ = [
     "load_stage",
     "run_stage",
     "sweep_job_dir",
+    "SearchConfig",
+    "objective_value",
     "log_result",
     "main_stage",
     "main",
@@ -220,9 +228,37 @@ class _StageTask:
         self.repo_root = repo_root
         self.name = name
 
-    def __call__(self, cfg: DictConfig) -> None:
-        run_stage(load_stage(self.repo_root, self.name), self.name, cfg, self.repo_root,
-                  out_root=sweep_job_dir())
+    def __call__(self, cfg: DictConfig) -> float | None:
+        search = SearchConfig.from_mapping(cfg.search) if cfg.get("search") is not None else None
+        result = run_stage(load_stage(self.repo_root, self.name), self.name, cfg, self.repo_root,
+                           out_root=sweep_job_dir())
+        return None if search is None else objective_value(result, search.objective, self.name)
+
+
+@dataclass(frozen=True)
+class SearchConfig(TypedConfig):
+    """``cfg.search`` (``conf/search/*.yaml``, given as ``+search=<name>``): what each job of a
+    hyper-parameter search (Hydra's Optuna sweeper) returns to the sweeper.
+
+    objective: dotted name of a metric of the swept stage's :class:`StageResult` (e.g.
+        ``lstm.val.rmse_m`` of ``train``); the job returns its value, which the sweeper's
+        ``direction`` minimises or maximises.
+    """
+
+    GROUP: ClassVar[str] = "search"
+    objective: str = setting(doc="dotted metric name of the stage's result")
+
+
+def objective_value(result: StageResult, objective: str, stage: str) -> float:
+    """The metric ``objective`` (dotted name) of ``result``; ``KeyError`` naming the config key
+    ``search.objective``, the stage and the metrics it has, when it has no such metric."""
+    from blindspot.config import flatten
+
+    metrics = flatten(dict(result.metrics))
+    if objective not in metrics:
+        raise KeyError(f"config key 'search.objective' is {objective!r}, but stage {stage!r} "
+                       f"returns no such metric; it has: {', '.join(sorted(metrics)) or '(none)'}")
+    return float(metrics[objective])
 
 
 def sweep_job_dir() -> Path | None:
