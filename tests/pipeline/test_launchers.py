@@ -87,3 +87,27 @@ def test_search_objective_not_a_metric_names_the_key() -> None:
     assert objective_value(result, "lstm.val.rmse_m", "train") == 0.2
     with pytest.raises(KeyError, match=r"search.objective.*lstm.val.ade.*lstm.val.rmse_m"):
         objective_value(result, "lstm.val.ade", "train")
+
+
+@pytest.mark.parametrize("launcher", ["slurm", "submitit", "ray_cluster"])
+def test_launcher_configs_compose_with_the_plugins_schema(launcher: str) -> None:
+    """Each launcher file extends the plugin's own (typed) config: a key the plugin does not
+    know, or a value of the wrong type, fails here, not on the cluster."""
+    needs({"ray_cluster": "hydra_ray_launcher"}.get(launcher, "hydra_submitit_launcher"))
+    from hydra import compose, initialize_config_dir
+    from omegaconf import OmegaConf
+
+    with initialize_config_dir(str(REPO_ROOT / "conf"), version_base=None):
+        cfg = compose("config", [f"hydra/launcher={launcher}", "jobs=3",
+                                 "hydra.launcher.mem_gb=16" if launcher != "ray_cluster" else
+                                 "hydra.launcher.ray.remote.num_cpus=4"],
+                      return_hydra_config=True)
+    hl = OmegaConf.to_container(cfg.hydra.launcher, resolve=False)
+    if launcher == "ray_cluster":
+        assert hl["_target_"].endswith("RayLauncher") and hl["ray"]["remote"]["num_cpus"] == 4
+        return
+    assert hl["_target_"].endswith("SlurmLauncher" if launcher == "slurm" else "LocalLauncher")
+    assert cfg.hydra.launcher.cpus_per_task == 3 and cfg.hydra.launcher.mem_gb == 16
+    assert cfg.hydra.launcher.timeout_min == 120
+    if launcher == "slurm":
+        assert "partition" in hl and cfg.hydra.launcher.array_parallelism == 64
