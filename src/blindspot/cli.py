@@ -277,7 +277,9 @@ def sweep_job_dir() -> Path | None:
     hc = HydraConfig.get()
     if hc.mode is None or hc.mode.name != "MULTIRUN" or not hc.runtime.output_dir:
         return None
-    return Path(hc.runtime.output_dir).resolve()
+    # A relative hydra.sweep.dir is taken from the cwd of the process that launched the sweep
+    # (hydra.runtime.cwd), not from the job's: a Ray worker runs in a folder of Ray's own.
+    return Path(hc.runtime.cwd, hc.sweep.dir, hc.sweep.subdir).resolve()
 
 
 def _hydra_argv(args: Sequence[str], name: str) -> list[str]:

@@ -31,7 +31,8 @@ from blindspot.tracking.tags import run_tags
 if TYPE_CHECKING:  # pragma: no cover
     from mlflow.tracking import MlflowClient
 
-__all__ = ["SweepCallback", "end_open_sweep", "write_sweep_summary", "SUMMARY_FILE"]
+__all__ = ["SweepCallback", "end_open_sweep", "write_sweep_summary", "pass_env_to_jobs",
+           "SUMMARY_FILE"]
 
 
 @dataclass
@@ -143,6 +144,10 @@ class SweepCallback(Callback):
         _SWEEP = _OpenSweep(client, run.info.run_id, os.environ.get(PARENT_RUN_ENV),
                             str(sweep_dir) if sweep_dir else None)
         os.environ[PARENT_RUN_ENV] = run.info.run_id
+        # Jobs on Ray or SLURM do not inherit this process's environment: the parent's id and
+        # the store travel in each job's own config (hydra.job.env_set, set by Hydra in the job).
+        pass_env_to_jobs(config, {PARENT_RUN_ENV: run.info.run_id,
+                                  "MLFLOW_TRACKING_URI": settings.uri})
 
     def on_multirun_end(self, config: DictConfig, **kwargs: Any) -> None:
         sweep = _SWEEP
@@ -157,6 +162,20 @@ class SweepCallback(Callback):
 
     def on_job_end(self, config: DictConfig, job_return: Any, **kwargs: Any) -> None:
         _end_leftover_runs()
+
+
+def pass_env_to_jobs(config: DictConfig, env: dict[str, str]) -> None:
+    """Have Hydra set ``env`` in every job of the multirun ``config``, whatever the launcher:
+    appended to ``hydra.overrides.hydra`` as ``++hydra.job.env_set.KEY='VALUE'``, from which
+    Hydra composes each job's config, and which ``run_job`` applies in the job's process (a
+    joblib worker, a submitit/SLURM job, a Ray task on another node)."""
+    from omegaconf import open_dict, read_write
+
+    with read_write(config), open_dict(config):
+        overrides = config.hydra.overrides.hydra
+        for key, value in env.items():
+            quoted = str(value).replace("\\", "\\\\").replace("'", "\\'")
+            overrides.append(f"++hydra.job.env_set.{key}='{quoted}'")
 
 
 def _plain_with_hydra(config: DictConfig) -> dict[str, Any]:
