@@ -97,8 +97,8 @@ def pipeline_parent(client: MlflowClient, experiment_id: str, settings: Tracking
         name = f"exp {exp}" if exp else "dvc repro"
         return client.create_run(experiment_id, tags=run_tags, run_name=name).info.run_id
 
-    with _file_lock(settings.lock_file):
-        return _retry(find_or_create, "finding the pipeline's run")
+    with _file_lock(settings.lock_file):  # housekeeping: not a fault point (runs under DVC only)
+        return _retry(find_or_create, "finding the pipeline's run", counted=False)
 
 
 def _matches(name: str, pattern: str) -> bool:

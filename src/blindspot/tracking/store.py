@@ -223,5 +223,6 @@ def ensure_experiment(settings: TrackingSettings) -> str:
         exp = client.get_experiment(experiment_id)
         if exp.tags.get(EXPERIMENT_KIND_TAG) != EXPERIMENT_KIND:  # a store made before the kind
             _retry(lambda: client.set_experiment_tag(experiment_id, EXPERIMENT_KIND_TAG,
-                                                     EXPERIMENT_KIND), "setting the kind")
+                                                     EXPERIMENT_KIND), "setting the kind",
+                   counted=False)
         return experiment_id
