@@ -111,3 +111,21 @@ def test_launcher_configs_compose_with_the_plugins_schema(launcher: str) -> None
     assert cfg.hydra.launcher.timeout_min == 120
     if launcher == "slurm":
         assert "partition" in hl and cfg.hydra.launcher.array_parallelism == 64
+
+
+def test_search_group_composes_a_typed_objective_and_an_optuna_space() -> None:
+    needs("hydra_optuna_sweeper")
+    from hydra import compose, initialize_config_dir
+
+    from blindspot.cli import SearchConfig
+    from blindspot.typed_config import ConfigError
+
+    with initialize_config_dir(str(REPO_ROOT / "conf"), version_base=None):
+        cfg = compose("config", ["+search=lstm"], return_hydra_config=True)
+    assert SearchConfig.from_mapping(cfg.search).objective == "lstm.val.rmse_m"
+    assert cfg.hydra.sweeper._target_.endswith("OptunaSweeper")
+    assert cfg.hydra.sweeper.direction == "minimize" and cfg.hydra.sweeper.sampler.seed == 0
+    assert set(cfg.hydra.sweeper.params) == {"model.hidden_size", "model.num_layers",
+                                             "model.head_hidden", "train.lr", "train.batch_size"}
+    with pytest.raises(ConfigError, match="search.objektive"):
+        SearchConfig.from_mapping({"objektive": "x"})
