@@ -3,7 +3,7 @@ PYTHON ?= python3.11
 VENV := .venv
 STAMP := $(VENV)/.installed
 
-.PHONY: setup test test-slow repro bench lock clean-venv
+.PHONY: setup setup-cluster test test-slow test-cluster repro bench lock clean-venv
 
 # The exact versions of requirements.lock first, then the project itself without resolving again:
 # a fresh clone gets the environment the committed dvc.lock was made with.
@@ -15,6 +15,23 @@ $(STAMP): pyproject.toml requirements.lock
 	@touch $(STAMP)
 
 setup: $(STAMP)  ## create or reuse .venv and install the project
+
+# The cluster pieces (Ray, submitit/SLURM and Optuna sweeps, the PostgreSQL MLflow server), never
+# part of `make setup` or `make test`. --no-deps: requirements-cluster.lock is complete, and
+# hydra-ray-launcher's cloudpickle<3 pin would otherwise downgrade requirements.lock's cloudpickle.
+# PostgreSQL 15 and Chromium (for the UI test) come from the system: apt-get install postgresql
+# chromium.
+CLUSTER_STAMP := $(VENV)/.installed-cluster
+$(CLUSTER_STAMP): $(STAMP) requirements-cluster.lock
+	$(VENV)/bin/python -m pip install --quiet --no-deps -r requirements-cluster.lock
+	@touch $(CLUSTER_STAMP)
+
+setup-cluster: $(CLUSTER_STAMP)  ## add the cluster extra (Ray, submitit, Optuna, PostgreSQL driver)
+
+test-cluster: $(CLUSTER_STAMP)  ## the scale-out tests: launchers, Optuna, Ray, PostgreSQL server, UI
+	$(VENV)/bin/python -m pytest -q -m slow tests/pipeline/test_launchers.py \
+	  tests/pipeline/test_ray_launcher.py tests/pipeline/test_tracking_server.py \
+	  tests/pipeline/test_mlflow_ui.py
 
 test: $(STAMP)  ## the default test suite (what CI runs)
 	$(VENV)/bin/python -m pytest -q

@@ -16,24 +16,46 @@ from packaging.version import Version
 from tests.conftest import REPO_ROOT
 
 
-def locked() -> dict[str, Version]:
+# Optional extras with a lock file of their own (not part of the default install).
+SEPARATE_LOCKS = {"cluster": "requirements-cluster.lock"}
+
+
+def locked(name: str = "requirements.lock") -> dict[str, Version]:
     pins = {}
-    for line in (REPO_ROOT / "requirements.lock").read_text().splitlines():
+    for line in (REPO_ROOT / name).read_text().splitlines():
         line = line.strip()
         if not line or line.startswith("#"):
             continue
-        name, sep, version = line.partition("==")
-        assert sep and version, f"requirements.lock: {line!r} is not an exact pin (name==version)"
-        pins[canonicalize_name(name)] = Version(version)
+        pkg, sep, version = line.partition("==")
+        assert sep and version, f"{name}: {line!r} is not an exact pin (name==version)"
+        pins[canonicalize_name(pkg)] = Version(version)
     return pins
 
 
-def requirements() -> list[Requirement]:
+def requirements(extra: str | None = None) -> list[Requirement]:
+    """pyproject's dependencies and extras (those with no lock of their own); or one extra."""
     project = tomllib.loads((REPO_ROOT / "pyproject.toml").read_text())["project"]
+    extras = project.get("optional-dependencies", {})
+    if extra is not None:
+        return [Requirement(r) for r in extras[extra]]
     reqs = list(project["dependencies"])
-    for extra in project.get("optional-dependencies", {}).values():
-        reqs += extra
+    for name, items in extras.items():
+        if name not in SEPARATE_LOCKS:
+            reqs += items
     return [Requirement(r) for r in reqs]
+
+
+def test_separately_locked_extras_are_pinned_within_their_range():
+    for extra, lock_file in SEPARATE_LOCKS.items():
+        pins = locked(lock_file)
+        base = locked()
+        assert not set(pins) & set(base), (
+            f"{lock_file} re-pins packages of requirements.lock: {sorted(set(pins) & set(base))}")
+        for req in requirements(extra):
+            name = canonicalize_name(req.name)
+            assert name in pins, f"{req} (extra {extra!r}) is not in {lock_file}"
+            assert req.specifier.contains(pins[name], prereleases=True), (
+                f"{lock_file} pins {name}=={pins[name]}, outside pyproject.toml's {req}")
 
 
 def test_every_requirement_is_pinned_within_its_range():

@@ -9,6 +9,8 @@ How to run things (from anywhere inside the repository)::
     python -m blindspot <stage> key=value ...   # one stage outside DVC: conf/ + overrides
     python -m blindspot train -m model.hidden_size=32,64,128           # Hydra multirun sweep
     python -m blindspot train -m hydra/launcher=parallel model.hidden_size=32,64   # 2 processes
+    python -m blindspot train -m +search=lstm   # Optuna search (conf/search/lstm.yaml)
+    python -m blindspot train -m hydra/launcher=submitit|slurm|ray_cluster ...   # [cluster] extra
     python -m blindspot <stage> --cfg job       # print the composed config, run nothing
 
     python -m blindspot params                  # regenerate params.yaml from conf/
@@ -46,11 +48,15 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from types import ModuleType
 
+from dataclasses import dataclass
+from typing import ClassVar
+
 from omegaconf import DictConfig, OmegaConf
 
 from blindspot import config as bconfig
 from blindspot import io, kernels, tracking
 from blindspot.stage import StageContext, StageResult, declared_files, read_dvc_stages
+from blindspot.typed_config import TypedConfig, setting
 
 __all__ = [
     "StageFunction",
@@ -58,6 +64,9 @@ __all__ = [
     "available_stages",
     "load_stage",
     "run_stage",
+    "sweep_job_dir",
+    "SearchConfig",
+    "objective_value",
     "log_result",
     "main_stage",
     "main",
@@ -126,6 +135,7 @@ def run_stage(
     repo_root: str | os.PathLike[str] | None = None,
     *,
     check_outs: bool = False,
+    out_root: str | os.PathLike[str] | None = None,
 ) -> StageResult:
     """Call ``run(cfg, ctx)`` inside ``tracking.stage_run(name, cfg)`` from the repo root and log
     the :class:`StageResult` it returns (metrics, artifacts, model files, tags) to that run.
@@ -135,7 +145,8 @@ def run_stage(
     ``ctx`` carries the stage's files declared in ``dvc.yaml`` and ``ctx.log_step``, bound to the
     run. ``check_outs``: afterwards, require that the stage wrote every declared out
     (:meth:`StageContext.check_outs`). Raises ``TypeError`` if ``run`` returns something else
-    than a :class:`StageResult`.
+    than a :class:`StageResult`. ``out_root``: write the stage's outs under this folder (a sweep
+    job's output directory, see :func:`sweep_job_dir`) instead of over the pipeline's own.
     """
     root = Path(repo_root).resolve() if repo_root is not None else bconfig.find_repo_root()
     os.chdir(root)
@@ -143,11 +154,16 @@ def run_stage(
     OmegaConf.set_struct(cfg, True)
     files = declared_files(root, name)
     tracking.children_die_with_this_process()  # a SIGKILLed stage's pool workers die with it
-    for debris in io.remove_stale_temps(files.outs):  # left by a SIGKILLed run of the stage
+    out_dir = None if out_root is None else Path(out_root).resolve()
+    outs = files.outs if out_dir is None else [out_dir / o for o in files.outs]
+    for debris in io.remove_stale_temps(outs):  # left by a SIGKILLed run of the stage
         print(f"[blindspot] stage {name}: removed {debris}, a killed writer's temporary file",
               file=sys.stderr)
     with tracking.stage_run(name, cfg, repo_root=root) as tracker:
-        ctx = StageContext(files, log_step=lambda metrics, step: tracker.log_metrics(metrics, step))
+        if out_dir is not None:
+            tracker.set_tags({"blindspot.out_root": str(out_dir)})
+        ctx = StageContext(files, log_step=lambda metrics, step: tracker.log_metrics(metrics, step),
+                           out_root=out_dir)
         result = run(cfg, ctx)
         if not isinstance(result, StageResult):
             raise TypeError(f"stage {name!r}: run(cfg, ctx) returned {type(result).__name__}; "
@@ -219,8 +235,58 @@ class _StageTask:
         self.repo_root = repo_root
         self.name = name
 
-    def __call__(self, cfg: DictConfig) -> None:
-        run_stage(load_stage(self.repo_root, self.name), self.name, cfg, self.repo_root)
+    def __call__(self, cfg: DictConfig) -> float | None:
+        search = SearchConfig.from_mapping(cfg.search) if cfg.get("search") is not None else None
+        result = run_stage(load_stage(self.repo_root, self.name), self.name, cfg, self.repo_root,
+                           out_root=sweep_job_dir())
+        return None if search is None else objective_value(result, search.objective, self.name)
+
+
+@dataclass(frozen=True)
+class SearchConfig(TypedConfig):
+    """``cfg.search`` (``conf/search/*.yaml``, given as ``+search=<name>``): what each job of a
+    hyper-parameter search (Hydra's Optuna sweeper) returns to the sweeper.
+
+    objective: dotted name of a metric of the swept stage's :class:`StageResult` (e.g.
+        ``lstm.val.rmse_m`` of ``train``); the job returns its value, which the sweeper's
+        ``direction`` minimises or maximises.
+    """
+
+    GROUP: ClassVar[str] = "search"
+    objective: str = setting(doc="dotted metric name of the stage's result")
+
+
+def objective_value(result: StageResult, objective: str, stage: str) -> float:
+    """The metric ``objective`` (dotted name) of ``result``; ``KeyError`` naming the config key
+    ``search.objective``, the stage and the metrics it has, when it has no such metric."""
+    from blindspot.config import flatten
+
+    metrics = flatten(dict(result.metrics))
+    if objective not in metrics:
+        raise KeyError(f"config key 'search.objective' is {objective!r}, but stage {stage!r} "
+                       f"returns no such metric; it has: {', '.join(sorted(metrics)) or '(none)'}")
+    return float(metrics[objective])
+
+
+def sweep_job_dir() -> Path | None:
+    """The output directory of the Hydra job this process runs, when it is one job of a
+    multirun sweep (``-m``; any launcher or sweeper); None for a single run.
+
+    A sweep's jobs write their stage outs there (``<sweep dir>/<job num>/data/train/model.pt``
+    ...), never over the DVC-tracked outputs of the pipeline, which a sweep of N jobs would
+    otherwise overwrite N times (at once, on a parallel launcher). Their comparison lives in
+    MLflow (one child run per job) and in the sweep's ``sweep_summary.csv``.
+    """
+    from hydra.core.hydra_config import HydraConfig
+
+    if not HydraConfig.initialized():
+        return None
+    hc = HydraConfig.get()
+    if hc.mode is None or hc.mode.name != "MULTIRUN" or not hc.runtime.output_dir:
+        return None
+    # A relative hydra.sweep.dir is taken from the cwd of the process that launched the sweep
+    # (hydra.runtime.cwd), not from the job's: a Ray worker runs in a folder of Ray's own.
+    return Path(hc.runtime.cwd, hc.sweep.dir, hc.sweep.subdir).resolve()
 
 
 def _hydra_argv(args: Sequence[str], name: str) -> list[str]:

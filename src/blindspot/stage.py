@@ -136,13 +136,24 @@ class StageContext:
 
     ``files`` : the stage's :class:`DeclaredFiles`; ``log_step`` : a :data:`StepLogger` bound to
     the stage's MLflow run. Paths are relative to the repository root (the stage's cwd).
+
+    ``out_root`` : None for a pipeline run (outs are the declared paths, what DVC tracks); for
+    one job of a Hydra multirun sweep, the job's own output directory: every out is then
+    ``out_root / <declared path>``, so sweep jobs never write over the pipeline's outputs nor
+    over each other's (deps are still read from the repository).
     """
 
-    def __init__(self, files: DeclaredFiles, log_step: StepLogger | None = None):
+    def __init__(self, files: DeclaredFiles, log_step: StepLogger | None = None,
+                 out_root: PathLike | None = None):
         self.files = files
         self.name = files.stage
         self._log_step = log_step
+        self.out_root = None if out_root is None else Path(out_root)
         self.requested_outs: set[str] = set()
+
+    def out_path(self, declared: str) -> Path:
+        """Where the declared out ``declared`` is written by this run (see ``out_root``)."""
+        return Path(declared) if self.out_root is None else self.out_root / declared
 
     def log_step(self, metrics: Mapping[str, Any], step: int) -> None:
         """Log ``metrics`` at ``step`` to the stage's run now (e.g. once per training epoch)."""
@@ -164,16 +175,21 @@ class StageContext:
         return Path(self._lookup(key, "dep", self.files.deps))
 
     def out(self, key: str) -> Path:
-        """The declared out (outs, metrics or plots) whose path is ``key`` or ends with ``/key``."""
+        """The declared out (outs, metrics or plots) whose path is ``key`` or ends with ``/key``;
+        under ``out_root`` (a sweep job's directory, its parent folders created) when set."""
         path = self._lookup(key, "out", self.files.outs)
         self.requested_outs.add(path)
-        return Path(path)
+        target = self.out_path(path)
+        if self.out_root is not None:
+            target.parent.mkdir(parents=True, exist_ok=True)
+        return target
 
     def check_outs(self) -> None:
         """Raise :class:`UndeclaredPath` unless the stage asked for every declared out, each of
         which now exists (what the stage wrote is what dvc.yaml declares)."""
         never = [p for p in self.files.outs if p not in self.requested_outs]
-        missing = [p for p in self.files.outs if p in self.requested_outs and not Path(p).exists()]
+        missing = [p for p in self.files.outs
+                   if p in self.requested_outs and not self.out_path(p).exists()]
         if never or missing:
             raise UndeclaredPath(
                 f"stage {self.name!r}: {DVC_FILE} declares outs the stage did not write: "

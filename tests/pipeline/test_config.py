@@ -182,8 +182,10 @@ def _builders():
 
 
 # Groups that are not library settings: profile only overlays the groups above (both of its
-# options are composed below); tracking is read by the MLflow runner glue (blindspot.tracking).
-NOT_LIBRARY_GROUPS = {"profile", "tracking", "hydra"}
+# options are composed below); tracking is read by the MLflow runner glue (blindspot.tracking);
+# search (a hyper-parameter search, +search=<name>) by the stage runner (blindspot.cli.SearchConfig,
+# tests/pipeline/test_launchers.py).
+NOT_LIBRARY_GROUPS = {"profile", "tracking", "hydra", "search"}
 
 
 def _options():

@@ -33,6 +33,8 @@ def dvc(*args: str, repo: Path, **kw: object):  # noqa: ANN201 - CompletedProces
 @pytest.fixture(scope="module")
 def repo(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Path]:
     root = make_toy_repo(tmp_path_factory.mktemp("dvc") / "repo")
+    with open(root / "conf" / "tracking" / "local.yaml", "a") as fh:  # below `headline:`
+        fh.write("  toy: [score]\n")
     env = clean_env()
     for cmd in (["git", "init", "-q", "-b", "main"],
                 ["git", "config", "user.email", "test@example.com"],
@@ -52,20 +54,33 @@ def _commit(root: Path, message: str) -> None:
     run(["git", "commit", "-qm", message, "--allow-empty"], root)
 
 
+def pipeline_and_stages(new: list) -> tuple[list, list]:
+    """(pipeline parent runs, stage runs) among ``new``."""
+    parents = [r for r in new if r.data.tags.get("blindspot.pipeline") == "true"]
+    return parents, [r for r in new if r not in parents]
+
+
 def test_dvc_repro_runs_the_stage_and_logs_it(repo: Path) -> None:
     before = len(runs(repo))
     dvc("repro", repo=repo)
-    new = runs(repo)[before:]
-    assert len(new) == 1
-    r = new[0]
+    parents, new = pipeline_and_stages(runs(repo)[before:])
+    assert len(new) == 1 and len(parents) == 1
+    r, parent = new[0], parents[0]
     assert r.info.status == "FINISHED"
+    # One parent run per `dvc repro`: the stages are its children, its headline metrics theirs.
+    assert r.data.tags["mlflow.parentRunId"] == parent.info.run_id
+    assert parent.info.status == "FINISHED" and parent.info.run_name == "dvc repro"
+    assert parent.data.tags["mlflow.source.git.commit"] == r.data.tags["mlflow.source.git.commit"]
+    # tracking.headline has toy: [score]; the child's last value (epoch 2: 2 x 0.1 x 16)
+    assert parent.data.metrics == {"toy.score": pytest.approx(r.data.metrics["score"])}
+    assert r.data.metrics["score"] == pytest.approx(3.2)
     assert r.data.tags["dvc.stage"] == "toy" and "dvc.exp_name" not in r.data.tags
     assert r.data.params["train.lr"] == "0.1" and r.data.params["model.hidden_size"] == "16"
     assert json.loads((repo / "out" / "toy.json").read_text())["score"] == pytest.approx(1.6)
     assert "score" in dvc("metrics", "show", repo=repo).stdout
     _commit(repo, "repro")
     dvc("repro", repo=repo)  # nothing changed: nothing runs, nothing logged
-    assert len(runs(repo)) == before + 1
+    assert len(runs(repo)) == before + 2
 
 
 def test_dvc_repro_refuses_params_stale_against_conf(repo: Path) -> None:
@@ -90,10 +105,13 @@ def test_dvc_exp_run_set_param_composes_conf_into_params(repo: Path) -> None:
     name = re.search(r"Ran experiment\(s\): (\S+)", proc.stdout + proc.stderr).group(1)
     params = config.load_params(repo)
     assert params.train.lr == 0.01 and params.model.hidden_size == 16
-    new = runs(repo)[before:]
-    assert len(new) == 1
+    parents, new = pipeline_and_stages(runs(repo)[before:])
+    assert len(new) == 1 and len(parents) == 1
     r = new[0]
     assert r.data.params["train.lr"] == "0.01" and r.data.tags["dvc.exp_name"] == name
+    assert parents[0].data.tags["dvc.exp_name"] == name and parents[0].info.run_name == f"exp {name}"
+    assert parents[0].data.tags["mlflow.source.git.commit"] == r.data.tags["dvc.baseline_rev"]
+    assert parents[0].data.metrics == {"toy.score": pytest.approx(0.32)}
     assert r.data.tags["mlflow.source.git.commit"] == r.data.tags["dvc.baseline_rev"]
     assert json.loads((repo / "out" / "toy.json").read_text())["lr"] == 0.01
     run(["git", "checkout", "--", "."], repo)  # back to the committed baseline (tmp repo)
@@ -120,12 +138,15 @@ def test_dvc_queue_runs_land_in_the_original_store(repo: Path) -> None:
     queued = re.findall(r"Queued experiment '([^']+)'", proc.stdout + proc.stderr)
     assert len(queued) == 2
     dvc("queue", "start", "-j", "2", repo=repo)
-    status = _wait_for_queue(repo, before + 2)
+    status = _wait_for_queue(repo, before + 4)  # two experiments: a parent and a stage run each
     for name in queued:
         assert re.search(rf"{re.escape(name)}\s+.*Success", status), status
 
-    new = runs(repo)[before:]
+    parents, new = pipeline_and_stages(runs(repo)[before:])
     by_name = {r.data.tags["dvc.exp_name"]: r for r in new}
+    parent_of = {r.data.tags["dvc.exp_name"]: r.info.run_id for r in parents}
+    assert sorted(parent_of) == sorted(queued)
+    assert all(r.data.tags["mlflow.parentRunId"] == parent_of[n] for n, r in by_name.items())
     assert sorted(by_name) == sorted(queued)
     assert sorted(r.data.params["model.hidden_size"] for r in new) == ["32", "64"]
     assert {r.info.status for r in new} == {"FINISHED"}

@@ -203,3 +203,30 @@ def test_sigterm_ends_run_killed_and_leaves_no_partial_file(toy: Path) -> None:
     assert [p.name for p in (toy / "out").iterdir() if ".tmp-" in p.name] == []
     assert (toy / "out" / "toy.json").exists()  # finished before the signal
     assert os.environ.get(tracking.PARENT_RUN_ENV) is None
+
+
+def test_experiment_opens_on_its_runs_not_the_genai_overview(toy: Path) -> None:
+    """MLflow 3.x shows an experiment of no declared kind on its GenAI "Overview" (traces) page;
+    the experiment is created, and an older one tagged, as a model-development experiment."""
+    with tracking.stage_run("train", CFG, repo_root=toy):
+        pass
+    client = _client(toy)
+    exp = client.get_experiment_by_name("blindspot")
+    assert exp.tags["mlflow.experimentKind"] == "custom_model_development"
+    client.delete_experiment_tag(exp.experiment_id, "mlflow.experimentKind")  # a store from before
+    with tracking.stage_run("train", CFG, repo_root=toy):
+        pass
+    assert client.get_experiment(exp.experiment_id).tags["mlflow.experimentKind"] == (
+        "custom_model_development")
+
+
+def test_headline_patterns_match_one_dotted_part_per_star(tmp_path: Path) -> None:
+    from blindspot.tracking.pipeline import headline_metrics
+
+    metrics = {"lstm.val.rmse_m": 0.1, "kalman.val.rmse_m": 0.2, "lstm.per_scene.a.val.rmse_m": 9,
+               "lstm.test.rmse_m": 0.3}
+    assert headline_metrics("train", metrics, {"train": ["*.val.rmse_m"]}) == {
+        "train.lstm.val.rmse_m": 0.1, "train.kalman.val.rmse_m": 0.2}
+    assert headline_metrics("evaluate", metrics, {"train": ["*.val.rmse_m"]}) == {}
+    with pytest.raises(ValueError, match="tracking.headline"):
+        tracking.settings_from_cfg({"tracking": {"headline": {"train": "*.val.rmse_m"}}}, tmp_path)

@@ -26,6 +26,8 @@ from omegaconf import DictConfig, OmegaConf
 
 from blindspot.config import flatten
 from blindspot.io import fault_point
+from blindspot.tracking import pipeline
+from blindspot.tracking.pipeline import dvc_process, pipeline_parent
 from blindspot.tracking.signals import Terminated, sigterm_as_exit, sigterm_deferred
 from blindspot.tracking.stale import close_stale_runs, owner_tags
 from blindspot.tracking.store import (
@@ -232,7 +234,9 @@ def stage_run(
     ``config/params.yaml``; tags: ``blindspot.stage``, git commit (``mlflow.source.git.commit``;
     DVC's baseline rev inside an experiment), ``dvc.exp_name``, ``hydra.job_num``... The run is
     nested under ``parent_run_id``, else under an enclosing stage_run, else under the sweep
-    parent named by ``$BLINDSPOT_MLFLOW_PARENT_RUN_ID``. Ends FINISHED / FAILED / KILLED
+    parent named by ``$BLINDSPOT_MLFLOW_PARENT_RUN_ID``, else, for a stage DVC runs, under the
+    pipeline run's parent (:mod:`~blindspot.tracking.pipeline`), which gets the stage's headline
+    metrics (``cfg.tracking.headline``) when it ends. Ends FINISHED / FAILED / KILLED
     (SIGTERM -> KILLED and exit status 143); tagged with its owner process, so that a run left
     RUNNING by a SIGKILL is closed KILLED by the next stage_run (:func:`close_stale_runs`).
     With ``cfg.tracking.enabled: false`` yields a :class:`NullTracker` and touches no store.
@@ -250,15 +254,22 @@ def stage_run(
     work, original = _repo_roots(repo_root)
     with sigterm_as_exit():  # from before the run exists: it can never be left RUNNING
         client = get_client(settings)
+        tags = {**run_tags(stage, work, original), **owner_tags()}
+        pipeline_run_id = None
         if parent_run_id is None:
             outer = next((t for t in reversed(_STACK) if t.run_id), None)
             parent_run_id = outer.run_id if outer else os.environ.get(PARENT_RUN_ENV) or None
         if parent_run_id:
             experiment_id = client.get_run(parent_run_id).info.experiment_id
+            close_stale_runs(client, [experiment_id])
         else:
             experiment_id = ensure_experiment(settings)
-        close_stale_runs(client, [experiment_id])
-        tags = {**run_tags(stage, work, original), **owner_tags()}
+            close_stale_runs(client, [experiment_id])
+            dvc_pid = dvc_process()
+            if dvc_pid is not None:  # a stage of `dvc repro` / `dvc exp run`: one parent run
+                pipeline_run_id = parent_run_id = pipeline_parent(
+                    client, experiment_id, settings, tags, dvc_pid)
+                pipeline.stage_started(client, pipeline_run_id)
         if parent_run_id:
             tags["mlflow.parentRunId"] = parent_run_id
         if run_name is None:
@@ -290,6 +301,10 @@ def stage_run(
             status = _status_for(error)
             with sigterm_deferred(), contextlib.suppress(Exception):
                 _retry(lambda: client.set_terminated(tracker.run_id, status), "ending the run")
+            if pipeline_run_id is not None:
+                with sigterm_deferred(), contextlib.suppress(Exception):
+                    pipeline.stage_ended(client, pipeline_run_id, stage, tracker.run_id, status,
+                                         settings.headline)
             if error is not None and status != "FINISHED":
                 print(
                     f"[blindspot] MLflow run {tracker.run_id} ({stage}) ended {status}",

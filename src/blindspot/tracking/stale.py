@@ -45,10 +45,11 @@ def _start_time(pid: int) -> str | None:
     return stat.rpartition(")")[2].split()[19]
 
 
-def owner_tags() -> dict[str, str]:
-    """Tags naming this process as the owner of a run."""
-    tags = {HOST_TAG: socket.gethostname(), PID_TAG: str(os.getpid())}
-    start = _start_time(os.getpid())
+def owner_tags(pid: int | None = None) -> dict[str, str]:
+    """Tags naming process ``pid`` (default: this process) as the owner of a run."""
+    pid = os.getpid() if pid is None else pid
+    tags = {HOST_TAG: socket.gethostname(), PID_TAG: str(pid)}
+    start = _start_time(pid)
     if start is not None:
         tags[PID_START_TAG] = start
     return tags

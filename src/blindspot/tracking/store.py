@@ -16,7 +16,7 @@ import logging
 import os
 import time
 from collections.abc import Callable, Iterator, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TypeVar
 
@@ -31,6 +31,8 @@ if TYPE_CHECKING:  # pragma: no cover
 
 __all__ = [
     "DEFAULT_EXPERIMENT",
+    "EXPERIMENT_KIND",
+    "EXPERIMENT_KIND_TAG",
     "TrackingSettings",
     "settings_from_cfg",
     "tracking_uri",
@@ -41,6 +43,10 @@ __all__ = [
 log = logging.getLogger(__name__)
 
 DEFAULT_EXPERIMENT = "blindspot"
+# MLflow 3.x opens an experiment of no declared kind on its GenAI "Overview" (traces) page; this
+# kind (the UI's "Machine learning" type) opens it on its runs.
+EXPERIMENT_KIND_TAG = "mlflow.experimentKind"
+EXPERIMENT_KIND = "custom_model_development"
 
 T = TypeVar("T")
 
@@ -54,6 +60,8 @@ class TrackingSettings:
     experiment: str
     artifact_location: str | None
     lock_file: Path | None  # serialises store/experiment creation for local SQLite stores
+    # stage -> metric-name patterns copied onto a pipeline's parent run (tracking.headline)
+    headline: Mapping[str, tuple[str, ...]] = field(default_factory=dict)
 
 
 def _repo_roots(repo_root: str | os.PathLike[str] | None) -> tuple[Path, Path]:
@@ -115,6 +123,13 @@ def settings_from_cfg(
     if not isinstance(enabled, bool):
         raise ValueError(f"config key 'tracking.enabled' must be true/false, found {enabled!r}")
     experiment = str(section.get("experiment") or DEFAULT_EXPERIMENT)
+    headline_cfg = section.get("headline") or {}
+    if not isinstance(headline_cfg, Mapping) or not all(
+            isinstance(v, list | tuple) and all(isinstance(x, str) for x in v)
+            for v in headline_cfg.values()):
+        raise ValueError("config key 'tracking.headline' must map stage names to lists of metric "
+                         f"name patterns (e.g. train: ['*.val.rmse_m']), found {headline_cfg!r}")
+    headline = {str(k): tuple(v) for k, v in headline_cfg.items()}
     uri = tracking_uri(cfg, repo_root)
     db = _sqlite_path(uri)
     if db is not None and str(db) != ":memory:":
@@ -122,7 +137,7 @@ def settings_from_cfg(
         lock: Path | None = db.with_name(db.name + ".lock")
     else:
         artifacts, lock = None, None
-    return TrackingSettings(enabled, uri, experiment, artifacts, lock)
+    return TrackingSettings(enabled, uri, experiment, artifacts, lock, headline)
 
 
 @contextlib.contextmanager
@@ -199,8 +214,15 @@ def ensure_experiment(settings: TrackingSettings) -> str:
                 client.restore_experiment(exp.experiment_id)
             return exp.experiment_id
         return client.create_experiment(
-            settings.experiment, artifact_location=settings.artifact_location
+            settings.experiment, artifact_location=settings.artifact_location,
+            tags={EXPERIMENT_KIND_TAG: EXPERIMENT_KIND},
         )
 
     with _file_lock(settings.lock_file):
-        return _retry(get_or_create, f"creating experiment {settings.experiment!r}")
+        experiment_id = _retry(get_or_create, f"creating experiment {settings.experiment!r}")
+        exp = client.get_experiment(experiment_id)
+        if exp.tags.get(EXPERIMENT_KIND_TAG) != EXPERIMENT_KIND:  # a store made before the kind
+            _retry(lambda: client.set_experiment_tag(experiment_id, EXPERIMENT_KIND_TAG,
+                                                     EXPERIMENT_KIND), "setting the kind",
+                   counted=False)
+        return experiment_id

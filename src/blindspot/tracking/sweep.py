@@ -1,5 +1,10 @@
 """Hydra multirun: one parent MLflow run per sweep, a nested child run per job.
 
+Each job writes its stage outs into its own job directory (:func:`blindspot.cli.sweep_job_dir`),
+never over the pipeline's DVC-tracked outputs; the comparison of the jobs lives in MLflow and, at
+the end of the sweep, in ``<sweep dir>/sweep_summary.csv`` (one row per job: job number, run id,
+status, overrides, params swept and every metric; also logged as an artifact of the parent run).
+
 :class:`SweepCallback` opens the parent run and exports its id in
 ``BLINDSPOT_MLFLOW_PARENT_RUN_ID``; each job's :func:`blindspot.tracking.stage_run` becomes a
 nested child of it. Since joblib/loky reuses worker processes, the callback ends any leftover
@@ -26,7 +31,8 @@ from blindspot.tracking.tags import run_tags
 if TYPE_CHECKING:  # pragma: no cover
     from mlflow.tracking import MlflowClient
 
-__all__ = ["SweepCallback", "end_open_sweep"]
+__all__ = ["SweepCallback", "end_open_sweep", "write_sweep_summary", "pass_env_to_jobs",
+           "SUMMARY_FILE"]
 
 
 @dataclass
@@ -34,6 +40,49 @@ class _OpenSweep:
     client: MlflowClient
     run_id: str
     previous_env: str | None
+    sweep_dir: str | None = None
+
+
+SUMMARY_FILE = "sweep_summary.csv"
+
+
+def write_sweep_summary(client: MlflowClient, parent_run_id: str, sweep_dir: str | os.PathLike[str]
+                        ) -> os.PathLike[str] | None:
+    """Write ``<sweep_dir>/sweep_summary.csv``: one row per child run of ``parent_run_id``
+    (columns ``job``, ``run_id``, ``status``, ``overrides``, ``out_root``, then every metric by
+    name, last value), sorted by Hydra job number; log it to the parent run. None when the sweep
+    has no child run."""
+    import csv
+    import io as _io
+    from pathlib import Path
+
+    from blindspot.io import write_text
+
+    children = _retry(lambda: client.search_runs(
+        [client.get_run(parent_run_id).info.experiment_id],
+        filter_string=f"tags.mlflow.parentRunId = '{parent_run_id}'", max_results=10000),
+        "listing the sweep's runs", counted=False)
+    if not children:
+        return None
+
+    def job(run: Any) -> int:
+        num = run.data.tags.get("hydra.job_num", "")
+        return int(num) if num.isdigit() else 1 << 30
+
+    children = sorted(children, key=job)
+    metrics = sorted({k for r in children for k in r.data.metrics})
+    buf = _io.StringIO()
+    writer = csv.writer(buf, lineterminator="\n")
+    writer.writerow(["job", "run_id", "status", "overrides", "out_root", *metrics])
+    for r in children:
+        tags = r.data.tags
+        writer.writerow([tags.get("hydra.job_num", ""), r.info.run_id, r.info.status,
+                         tags.get("hydra.overrides", ""), tags.get("blindspot.out_root", ""),
+                         *(r.data.metrics.get(k, "") for k in metrics)])
+    path = write_text(Path(sweep_dir) / SUMMARY_FILE, buf.getvalue())
+    with contextlib.suppress(Exception):  # the file is the summary; the artifact a convenience
+        client.log_artifact(parent_run_id, str(path))
+    return path
 
 
 _SWEEP: _OpenSweep | None = None
@@ -92,10 +141,20 @@ class SweepCallback(Callback):
             lambda: client.create_run(experiment_id, tags=tags, run_name=f"{stage}-sweep"),
             "creating the sweep run",
         )
-        _SWEEP = _OpenSweep(client, run.info.run_id, os.environ.get(PARENT_RUN_ENV))
+        _SWEEP = _OpenSweep(client, run.info.run_id, os.environ.get(PARENT_RUN_ENV),
+                            str(sweep_dir) if sweep_dir else None)
         os.environ[PARENT_RUN_ENV] = run.info.run_id
+        # Jobs on Ray or SLURM do not inherit this process's environment: the parent's id and
+        # the store travel in each job's own config (hydra.job.env_set, set by Hydra in the job).
+        pass_env_to_jobs(config, {PARENT_RUN_ENV: run.info.run_id,
+                                  "MLFLOW_TRACKING_URI": settings.uri})
 
     def on_multirun_end(self, config: DictConfig, **kwargs: Any) -> None:
+        sweep = _SWEEP
+        if sweep is not None and sweep.sweep_dir:
+            path = write_sweep_summary(sweep.client, sweep.run_id, sweep.sweep_dir)
+            if path is not None:
+                print(f"[blindspot] sweep summary: {path}", file=sys.stderr)
         end_open_sweep("FINISHED")
 
     def on_job_start(self, config: DictConfig, **kwargs: Any) -> None:
@@ -103,6 +162,20 @@ class SweepCallback(Callback):
 
     def on_job_end(self, config: DictConfig, job_return: Any, **kwargs: Any) -> None:
         _end_leftover_runs()
+
+
+def pass_env_to_jobs(config: DictConfig, env: dict[str, str]) -> None:
+    """Have Hydra set ``env`` in every job of the multirun ``config``, whatever the launcher:
+    appended to ``hydra.overrides.hydra`` as ``++hydra.job.env_set.KEY='VALUE'``, from which
+    Hydra composes each job's config, and which ``run_job`` applies in the job's process (a
+    joblib worker, a submitit/SLURM job, a Ray task on another node)."""
+    from omegaconf import open_dict, read_write
+
+    with read_write(config), open_dict(config):
+        overrides = config.hydra.overrides.hydra
+        for key, value in env.items():
+            quoted = str(value).replace("\\", "\\\\").replace("'", "\\'")
+            overrides.append(f"++hydra.job.env_set.{key}='{quoted}'")
 
 
 def _plain_with_hydra(config: DictConfig) -> dict[str, Any]:

@@ -1,0 +1,141 @@
+"""One parent MLflow run per pipeline run (``dvc repro``, ``dvc exp run``, a queued experiment).
+
+DVC runs each stage as its own process (``python stages/<name>.py``), so no process sees the
+whole pipeline but DVC's own. That process is found from inside a stage: the nearest ancestor
+whose environment lacks ``DVC_STAGE`` (DVC sets it for every stage command, and the shell DVC
+starts inherits it). Its host, pid and start time name the pipeline run: the first stage that
+runs creates the parent run with those as owner tags (so :mod:`~blindspot.tracking.stale`
+closes it KILLED if DVC is SIGKILLed), later stages of the same DVC process find it by them.
+
+The parent carries the DVC experiment name (``dvc.exp_name``), the git commit
+(``mlflow.source.git.commit``: the experiment's baseline inside an experiment) and, as each stage
+ends, that stage's headline metrics (``tracking.headline``) as ``<stage>.<metric>``, so two
+pipeline runs compare in one view of the runs page. Its status follows its stages: RUNNING while
+one runs, then the status the last one ended with.
+"""
+
+from __future__ import annotations
+
+import fnmatch
+import os
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from blindspot.tracking.stale import HOST_TAG, PID_START_TAG, PID_TAG, owner_tags
+from blindspot.tracking.store import _file_lock, _retry
+
+if TYPE_CHECKING:  # pragma: no cover
+    from mlflow.tracking import MlflowClient
+
+    from blindspot.tracking.store import TrackingSettings
+
+__all__ = ["PIPELINE_TAG", "dvc_process", "pipeline_parent", "headline_metrics",
+           "stage_started", "stage_ended"]
+
+PIPELINE_TAG = "blindspot.pipeline"
+
+
+def _ppid(pid: int) -> int | None:
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_text()
+    except OSError:
+        return None
+    return int(stat.rpartition(")")[2].split()[1])
+
+
+def _has_dvc_stage(pid: int) -> bool | None:
+    try:
+        env = Path(f"/proc/{pid}/environ").read_bytes()
+    except OSError:
+        return None
+    return any(item.startswith(b"DVC_STAGE=") for item in env.split(b"\0"))
+
+
+def dvc_process(environ: Mapping[str, str] | None = None) -> int | None:
+    """Pid of the DVC process running this stage (``dvc repro`` / ``dvc exp run`` / a queue
+    worker), or None outside DVC (no ``DVC_STAGE`` in ``environ``) or where ``/proc`` is
+    missing."""
+    environ = os.environ if environ is None else environ
+    if not environ.get("DVC_STAGE"):
+        return None
+    pid: int | None = os.getpid()
+    for _ in range(64):  # a chain of ancestors, never a cycle; bounded all the same
+        pid = _ppid(pid) if pid is not None else None
+        if pid is None or pid <= 1:
+            return None
+        inside = _has_dvc_stage(pid)
+        if inside is None:
+            return None
+        if not inside:
+            return pid
+    return None
+
+
+def pipeline_parent(client: MlflowClient, experiment_id: str, settings: TrackingSettings,
+                    tags: Mapping[str, str], dvc_pid: int) -> str:
+    """Id of the parent run of the pipeline run by ``dvc_pid``; created (once, under the store's
+    lock) by the first stage, with ``tags`` (git commit, DVC experiment...) and ``dvc_pid`` as
+    its owner."""
+    owner = owner_tags(dvc_pid)
+    query = " and ".join([f"tags.`{PIPELINE_TAG}` = 'true'",
+                          *(f"tags.`{k}` = '{owner[k]}'" for k in (HOST_TAG, PID_TAG, PID_START_TAG)
+                            if k in owner)])
+
+    def find_or_create() -> str:
+        found = client.search_runs([experiment_id], query, max_results=1)
+        if found:
+            return found[0].info.run_id
+        keep = ("mlflow.source.git.commit", "git.dirty", "dvc.exp_name", "dvc.baseline_rev",
+                "blindspot.repo", "blindspot.workdir")
+        run_tags = {k: v for k, v in tags.items() if k in keep}
+        exp = tags.get("dvc.exp_name")
+        run_tags.update(owner)
+        run_tags[PIPELINE_TAG] = "true"
+        run_tags["mlflow.source.name"] = "dvc exp run" if exp else "dvc repro"
+        run_tags["mlflow.source.type"] = "PROJECT"
+        name = f"exp {exp}" if exp else "dvc repro"
+        return client.create_run(experiment_id, tags=run_tags, run_name=name).info.run_id
+
+    with _file_lock(settings.lock_file):  # housekeeping: not a fault point (runs under DVC only)
+        return _retry(find_or_create, "finding the pipeline's run", counted=False)
+
+
+def _matches(name: str, pattern: str) -> bool:
+    parts, pats = name.split("."), pattern.split(".")
+    return len(parts) == len(pats) and all(fnmatch.fnmatchcase(a, b) for a, b in zip(parts, pats))
+
+
+def headline_metrics(stage: str, metrics: Mapping[str, float],
+                     headline: Mapping[str, Sequence[str]]) -> dict[str, float]:
+    """The metrics of ``stage`` named by ``headline[stage]`` (patterns in which ``*`` stands for
+    one dotted part of a name: ``*.val.rmse_m`` matches ``lstm.val.rmse_m``, not
+    ``lstm.per_scene.x.val.rmse_m``), renamed ``<stage>.<metric>``."""
+    patterns = headline.get(stage, ())
+    return {f"{stage}.{k}": float(v) for k, v in metrics.items()
+            if any(_matches(k, p) for p in patterns)}
+
+
+def stage_started(client: MlflowClient, parent_run_id: str) -> None:
+    """The parent shows RUNNING while one of its stages runs."""
+    _retry(lambda: client.update_run(parent_run_id, status="RUNNING"), "reopening the pipeline run",
+           counted=False)
+
+
+def stage_ended(client: MlflowClient, parent_run_id: str, stage: str, child_run_id: str,
+                status: str, headline: Mapping[str, Sequence[str]]) -> None:
+    """Copy the stage's headline metrics onto the parent and end the parent with the stage's
+    status (the next stage reopens it)."""
+    from mlflow.entities import Metric
+
+    metrics = client.get_run(child_run_id).data.metrics
+    picked = headline_metrics(stage, metrics, headline)
+    if picked:
+        import time
+
+        now = int(time.time() * 1000)
+        items = [Metric(k, v, now, 0) for k, v in picked.items()]
+        _retry(lambda: client.log_batch(parent_run_id, metrics=items), "logging headline metrics",
+               counted=False)
+    _retry(lambda: client.set_terminated(parent_run_id, status), "ending the pipeline run",
+           counted=False)

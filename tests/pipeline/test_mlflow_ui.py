@@ -1,0 +1,114 @@
+"""The MLflow UI a person opens, loaded in headless Chromium (Debian's `chromium` package) from a
+server this test starts on 127.0.0.1 and stops (issue 13).
+
+The store holds two runs written by blindspot.tracking (params, a metric, a figure). The checks
+read the DOM Chromium renders: the experiment opens on its runs (not the GenAI overview); the
+runs table lists both runs and orders them by the metric; a run's page shows the metric and its
+value; the artifact page shows the figure as an image. With ``BLINDSPOT_UI_SCREENSHOT=<png>`` the
+runs page is also saved there (reports/mlflow_runs_page.png was made so).
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import shutil
+import subprocess
+import tempfile
+from pathlib import Path
+
+import pytest
+
+from blindspot import tracking
+from tests.pipeline.scaleout import free_port, stop_group, wait_for_port
+from tests.pipeline.toy_repo import VENV_BIN, clean_env
+
+pytestmark = pytest.mark.slow  # a UI server and four page loads: ~1-2 min
+
+
+def chromium() -> str:
+    found = os.environ.get("BLINDSPOT_CHROMIUM") or shutil.which("chromium") or shutil.which(
+        "chromium-browser")
+    if not found:
+        pytest.skip("headless Chromium not found (Debian: apt-get install chromium; or set "
+                    "BLINDSPOT_CHROMIUM)")
+    return found
+
+
+def render(url: str, *, screenshot: Path | None = None) -> str:
+    """The DOM of ``url`` after its scripts ran (20 s of virtual time), as Chromium renders it."""
+    with tempfile.TemporaryDirectory(prefix="chromium-") as profile:
+        args = [chromium(), "--headless", "--no-sandbox", "--disable-gpu",
+                "--disable-dev-shm-usage", f"--user-data-dir={profile}",
+                "--virtual-time-budget=20000", "--window-size=1600,1000"]
+        if screenshot is not None:
+            subprocess.run([*args, f"--screenshot={screenshot}", url], capture_output=True,
+                           timeout=180, check=True)
+        return subprocess.run([*args, "--dump-dom", url], capture_output=True, text=True,
+                              timeout=180, check=True).stdout
+
+
+def texts(dom: str) -> list[str]:
+    return [t.strip() for t in re.findall(r">([^<>]+)</", dom) if t.strip()]
+
+
+@pytest.fixture(scope="module")
+def ui(tmp_path_factory: pytest.TempPathFactory) -> tuple[str, str, dict[str, str]]:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    root = tmp_path_factory.mktemp("ui")
+    run_ids = {}
+    for hidden, ade in ((16, 0.31), (32, 0.27)):
+        cfg = {"model": {"hidden_size": hidden}, "tracking": {"enabled": True, "uri": None}}
+        with tracking.stage_run("evaluate", cfg, repo_root=root, run_name=f"evaluate-h{hidden}") as t:
+            t.log_metrics({"lstm": {"ade_m": ade}})
+            fig, ax = plt.subplots()
+            ax.plot([0, 1, 2], [0, ade, 2 * ade])
+            t.log_figure(fig, "figures/fig08.png")
+            plt.close(fig)
+            run_ids[f"evaluate-h{hidden}"] = t.run_id
+    experiment_id = tracking.get_client(tracking.settings_from_cfg(cfg, root)).get_experiment_by_name(
+        "blindspot").experiment_id
+    port = free_port()
+    proc = subprocess.Popen(
+        [str(VENV_BIN / "mlflow"), "server", "--backend-store-uri",
+         f"sqlite:///{root / 'mlflow.db'}", "--host", "127.0.0.1", "--port", str(port),
+         "--workers", "1"], env=clean_env(), stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL, start_new_session=True)
+    try:
+        wait_for_port(port, proc, "mlflow server", timeout_s=180)
+        yield f"http://127.0.0.1:{port}", experiment_id, run_ids
+    finally:
+        stop_group(proc)
+
+
+def test_experiment_opens_on_its_runs(ui: tuple[str, str, dict[str, str]]) -> None:
+    base, exp, run_ids = ui
+    shot = os.environ.get("BLINDSPOT_UI_SCREENSHOT")
+    dom = render(f"{base}/#/experiments/{exp}?workflowType=machine_learning",
+                 screenshot=Path(shot) if shot else None)
+    shown = texts(dom)
+    assert "No data available" not in dom and "Run Name" in shown  # the runs table, no GenAI
+    assert set(run_ids) <= set(shown)
+
+
+def test_runs_table_orders_by_the_metric(ui: tuple[str, str, dict[str, str]]) -> None:
+    base, exp, _ = ui
+    for ascending, first in (("true", "evaluate-h32"), ("false", "evaluate-h16")):
+        dom = render(f"{base}/#/experiments/{exp}/runs?workflowType=machine_learning"
+                     f"&orderByKey=metrics.%60lstm.ade_m%60&orderByAsc={ascending}")
+        names = [t for t in texts(dom) if t.startswith("evaluate-h")]
+        assert names[0] == first, (ascending, names)
+
+
+def test_run_page_shows_metric_and_figure(ui: tuple[str, str, dict[str, str]]) -> None:
+    base, exp, run_ids = ui
+    run = run_ids["evaluate-h32"]
+    shown = texts(render(f"{base}/#/experiments/{exp}/runs/{run}"))
+    i = shown.index("lstm.ade_m")
+    assert shown[i + 1] == "0.27" and "model.hidden_size" in shown
+    dom = render(f"{base}/#/experiments/{exp}/runs/{run}/artifacts/figures/fig08.png")
+    assert re.search(r'<img[^>]*alt="figures/fig08.png"[^>]*src="blob:', dom), dom[-3000:]
