@@ -64,7 +64,7 @@ def tiny_repo(tmp_path_factory: pytest.TempPathFactory) -> Path:
 def test_dvc_repro_tiny_profile_end_to_end(tiny_repo: Path) -> None:
     env = clean_env(BLINDSPOT_SHARED=str(SHARED))
     t0 = time.monotonic()
-    proc = run([str(DVC), "repro"], tiny_repo, env=env, timeout=600)
+    proc = run([str(DVC), "repro"], tiny_repo, env=env, timeout=1800)
     first = time.monotonic() - t0
     reports = tiny_repo / "reports"
     for fig in ("fig04", "fig06", "fig07", "fig08", "fig09", "fig10"):
@@ -107,10 +107,10 @@ def test_dvc_exp_run_override_reruns_only_what_depends_on_it(tiny_repo: Path) ->
     what follows it, never the radar stages; the run logs the new value to MLflow."""
     env = clean_env(BLINDSPOT_SHARED=str(SHARED))
     if not (tiny_repo / "dvc.lock").exists():  # this test run alone
-        run([str(DVC), "repro"], tiny_repo, env=env, timeout=600)
+        run([str(DVC), "repro"], tiny_repo, env=env, timeout=1800)
     run(["git", "add", "-A"], tiny_repo, env=env)
     run(["git", "commit", "-qm", "baseline", "--allow-empty"], tiny_repo, env=env)
-    proc = run([str(DVC), "exp", "run", "-S", "train.lr=0.003"], tiny_repo, env=env, timeout=600)
+    proc = run([str(DVC), "exp", "run", "-S", "train.lr=0.003"], tiny_repo, env=env, timeout=1200)
     ran = {line.split("'")[1] for line in proc.stdout.splitlines() if line.startswith("Running stage")}
     assert {"train", "interpolate", "predict", "evaluate"} <= ran, proc.stdout
     assert not ran & {"simulate", "detect", "localise", "paths", "windows", "recordings"}, ran
