@@ -36,6 +36,12 @@ def run(cfg, ctx):
         resume=train_cfg.resume,
         progress=bool(cfg.progress),
     )
+    if len(result.members) > 1 and train_cfg.jobs > 1:
+        # members trained in worker processes could not log live: their epochs go to MLflow now
+        for i, member in enumerate(result.members):
+            for row in member.history.to_dict("records"):
+                ctx.log_step({f"member{i}.{k}": v for k, v in row.items() if k != "epoch"},
+                             int(row["epoch"]))
     model_path = result.predictor.save(ctx.out("model.pt"))
     history_path = write_text(ctx.out("history.csv"), result.history.to_csv(index=False))
     baselines = {"constant_velocity": ConstantVelocity(), "kalman": experiment.kalman(cfg)}
