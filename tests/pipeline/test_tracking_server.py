@@ -117,3 +117,29 @@ def test_sigkilled_sweep_job_ends_killed(server: str, tmp_path: Path) -> None:
     ended = {r["info"]["run_id"]: r for r in search(server) if tags(r).get("blindspot.pid") == pid}
     assert len(ended) == 2 and {r["info"]["status"] for r in ended.values()} == {"KILLED"}
     assert all("closed KILLED" in tags(r)["blindspot.closed_stale"] for r in ended.values())
+
+
+def test_ray_sweep_jobs_log_to_the_server(server: str, tmp_path: Path) -> None:
+    """The issue's set-up: sweep jobs running as Ray tasks (Ray workers do not inherit the
+    launching shell's environment) log to the shared server, each under the sweep's parent."""
+    pytest.importorskip("hydra_plugins.hydra_ray_launcher", reason="make setup-cluster")
+    from tests.conftest import REPO_ROOT
+    from tests.pipeline.scaleout import ray_head
+
+    root = make_toy_repo(tmp_path / "repo", store=False)
+    shutil.copy(REPO_ROOT / "conf" / "hydra" / "launcher" / "ray_cluster.yaml",
+                root / "conf" / "hydra" / "launcher")
+    with ray_head(num_cpus=2) as address:
+        blindspot(["toy", "-m", "hydra/launcher=ray_cluster", "hydra.launcher.ray.remote.num_cpus=1",
+                   "hydra.sweep.dir=multirun/ray", "model.hidden_size=8,32"], root,
+                  env=clean_env(MLFLOW_TRACKING_URI=server, RAY_ADDRESS=address,
+                                RAY_USAGE_STATS_ENABLED="0"), timeout=300)
+    assert not (root / "mlflow.db").exists()  # nothing fell back to the local SQLite file
+    found = search(server)
+    parents = [r for r in found if tags(r).get("blindspot.sweep") == "true"]
+    parent = max(parents, key=lambda r: r["info"]["start_time"])  # this test's sweep: the latest
+    children = [r for r in found if tags(r).get("mlflow.parentRunId") == parent["info"]["run_id"]]
+    sizes = sorted(int(p["value"]) for r in children for p in r["data"]["params"]
+                   if p["key"] == "model.hidden_size")
+    assert sizes == [8, 32] and all(r["info"]["status"] == "FINISHED" for r in children)
+    assert all(r["info"]["artifact_uri"].startswith("mlflow-artifacts:") for r in children)
