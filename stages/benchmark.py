@@ -10,6 +10,7 @@ calibrated on validation paths by the calibration stage are scored on the walks 
 of the 50/90/95 % ellipses, NLL): the walks are never used to fit them.
 """
 
+import blindspot  # noqa: F401  first: pins the CPU kernels before numpy loads (blindspot.kernels)
 import json
 import time
 

@@ -8,6 +8,7 @@ paths ("sim_paths"). A declared dep ending in calibration_ethucy.json (the ETH/U
 shape) is merged in. The fitted numbers go to data/calibration/models.json for the benchmark.
 """
 
+import blindspot  # noqa: F401  first: pins the CPU kernels before numpy loads (blindspot.kernels)
 import json
 from pathlib import Path
 

@@ -6,6 +6,7 @@ in memory (regenerating every frame in `localise` would double the simulation ti
 turns the detections into points. The maps of one frame are kept for Fig. 6 (a-c).
 """
 
+import blindspot  # noqa: F401  first: pins the CPU kernels before numpy loads (blindspot.kernels)
 import pandas as pd
 
 from blindspot import experiment

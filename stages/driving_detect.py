@@ -4,6 +4,7 @@ TDM compensation with the unwrapped velocity, RANSAC ego speed, static clutter o
 ego-motion curve), one frame's maps kept for the figure; and the ego-speed error of the radar
 at every Monte-Carlo speed (reports/metrics/ego_motion.json)."""
 
+import blindspot  # noqa: F401  first: pins the CPU kernels before numpy loads (blindspot.kernels)
 import numpy as np
 
 from blindspot import experiment

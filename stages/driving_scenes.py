@@ -3,6 +3,7 @@ conf/scenario and the seeded Monte-Carlo set around the figure scene; per frame 
 every pedestrian's position, velocity, occluded flag and the collision without braking
 (blindspot.radar.driving)."""
 
+import blindspot  # noqa: F401  first: pins the CPU kernels before numpy loads (blindspot.kernels)
 import numpy as np
 import pandas as pd
 

@@ -10,6 +10,7 @@ figure (reports/metrics/reliability_ethucy.json), the figure reports/figures/eth
 and the page reports/ethucy.md.
 """
 
+import blindspot  # noqa: F401  first: pins the CPU kernels before numpy loads (blindspot.kernels)
 from dataclasses import asdict
 
 from blindspot import experiment

@@ -7,6 +7,7 @@ horizons; the error per prediction step (plot data for `dvc plots`). The scoring
 blindspot.traj.evaluation.
 """
 
+import blindspot  # noqa: F401  first: pins the CPU kernels before numpy loads (blindspot.kernels)
 import pandas as pd
 
 from blindspot import experiment

@@ -9,6 +9,7 @@ exactly as in training (gaps filled) and is rolled out autoregressively for up t
 against the true continuation.
 """
 
+import blindspot  # noqa: F401  first: pins the CPU kernels before numpy loads (blindspot.kernels)
 import json
 
 import pandas as pd

@@ -2,6 +2,7 @@
 map, b CA-CFAR detections, c MUSIC spectrum, d the pedestrian's point) and (e) the points of the
 whole scene (eval.fig06_scene, frame eval.fig06_frame) accumulated over 100 frames."""
 
+import blindspot  # noqa: F401  first: pins the CPU kernels before numpy loads (blindspot.kernels)
 import json
 
 import numpy as np

@@ -1,6 +1,7 @@
 """fig07: the paper's Fig. 7, the pedestrian's points in the three directions without the car
 (a-c) and with it (d-f); with the car the frames where the pedestrian is hidden leave a gap."""
 
+import blindspot  # noqa: F401  first: pins the CPU kernels before numpy loads (blindspot.kernels)
 import json
 
 import pandas as pd

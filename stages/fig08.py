@@ -1,6 +1,7 @@
 """fig08: the paper's Fig. 8, the hidden part of each car scene's path filled by every
 interpolation method (errors on the hidden frames from reports/metrics/interpolate.json)."""
 
+import blindspot  # noqa: F401  first: pins the CPU kernels before numpy loads (blindspot.kernels)
 import json
 
 import pandas as pd

@@ -1,6 +1,7 @@
 """fig09: the paper's Fig. 9, the future path of each car scene predicted by every method from
 the interpolated input track (the eval.prediction_input rows of data/interpolate/tracks.parquet)."""
 
+import blindspot  # noqa: F401  first: pins the CPU kernels before numpy loads (blindspot.kernels)
 import json
 
 import pandas as pd

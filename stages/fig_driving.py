@@ -2,6 +2,7 @@
 parked cars, pedestrian truth, detections static / moving), the range-Doppler map of one frame
 with the static world's Doppler curve and the unwrapped pedestrian, ego-speed error vs speed."""
 
+import blindspot  # noqa: F401  first: pins the CPU kernels before numpy loads (blindspot.kernels)
 import json
 
 import numpy as np

@@ -6,6 +6,7 @@ LSTM blend); the filled points are scored against the simulated truth on the hid
 (blindspot.traj.evaluation.score_interpolation).
 """
 
+import blindspot  # noqa: F401  first: pins the CPU kernels before numpy loads (blindspot.kernels)
 import numpy as np
 import pandas as pd
 

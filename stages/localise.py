@@ -5,6 +5,7 @@ and 90th percentile per scene; blindspot.dsp.localisation). Beside them, as the 
 paper's chain on the same detections: each detection at its range bin, the SNR-weighted centroid,
 no bridge (``paper_chain`` in each scene's metrics)."""
 
+import blindspot  # noqa: F401  first: pins the CPU kernels before numpy loads (blindspot.kernels)
 import pandas as pd
 
 from blindspot import experiment

@@ -5,6 +5,7 @@ point then goes through the radar chain (target -> range-Doppler -> CFAR -> MUSI
 reduced-cube chain of blindspot.synth.path_measurement), so the data carry the radar's own errors.
 """
 
+import blindspot  # noqa: F401  first: pins the CPU kernels before numpy loads (blindspot.kernels)
 import numpy as np
 
 from blindspot import experiment

@@ -8,6 +8,7 @@ Each method's predictive distribution, calibrated on validation paths by the cal
 (data/calibration/models.json), gives the covariance of every predicted point (cov_*_m2 columns).
 """
 
+import blindspot  # noqa: F401  first: pins the CPU kernels before numpy loads (blindspot.kernels)
 import json
 from functools import partial
 

@@ -9,6 +9,7 @@ reports/figures/recording_<name>.png among the recordings stage's outs in dvc.ya
 report stage's deps), and run `python -m blindspot recordings recordings=<name>`.
 """
 
+import blindspot  # noqa: F401  first: pins the CPU kernels before numpy loads (blindspot.kernels)
 from pathlib import Path
 
 import numpy as np

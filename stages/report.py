@@ -2,6 +2,7 @@
 paper's and the command that regenerates each (blindspot.report.page). Metrics files that do not
 exist yet (e.g. the ETH/UCY benchmark's) are reported as not run; the page still builds."""
 
+import blindspot  # noqa: F401  first: pins the CPU kernels before numpy loads (blindspot.kernels)
 import json
 from pathlib import Path
 

@@ -6,6 +6,7 @@ under ``<paths.data_dir>/captures/<scene>``: an export for other tools, off by d
 DVC out (nothing in the pipeline reads it).
 """
 
+import blindspot  # noqa: F401  first: pins the CPU kernels before numpy loads (blindspot.kernels)
 from pathlib import Path
 
 import pandas as pd

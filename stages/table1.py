@@ -1,6 +1,7 @@
 """table1: the paper's Table 1 (LSTM hyper-parameters, validation RMSE 0.07) with ours beside it,
 including the constant-velocity and Kalman baselines' one-step RMSE on the same windows."""
 
+import blindspot  # noqa: F401  first: pins the CPU kernels before numpy loads (blindspot.kernels)
 import json
 from dataclasses import asdict
 

@@ -1,6 +1,7 @@
 """table2: the paper's Table 2 (radar parameters) beside the radar profile in cfg.radar, with the
 values the paper does not state and the derived resolutions."""
 
+import blindspot  # noqa: F401  first: pins the CPU kernels before numpy loads (blindspot.kernels)
 from blindspot import experiment
 from blindspot.cli import main_stage
 from blindspot.io import write_text

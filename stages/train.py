@@ -10,6 +10,7 @@ every epoch under data/train/checkpoints (resume with train.resume=true). Valida
 RMSE are reported beside the constant-velocity and Kalman one-step errors on the same windows.
 """
 
+import blindspot  # noqa: F401  first: pins the CPU kernels before numpy loads (blindspot.kernels)
 from blindspot import experiment
 from blindspot.cli import main_stage
 from blindspot.io import write_json, write_text

@@ -1,6 +1,7 @@
 """windows: windows of 50 measured points -> the next point, split 20,000 / 4,000 / 500 with no
 path in two splits (the paper's 24,500 pairs; path count and stride in conf/dataset)."""
 
+import blindspot  # noqa: F401  first: pins the CPU kernels before numpy loads (blindspot.kernels)
 import pandas as pd
 
 from blindspot import experiment

@@ -293,3 +293,17 @@ def stale_source_deps(stage: str) -> list[str]:
 def test_stage_deps_name_only_what_it_uses(stage: str) -> None:
     stale = stale_source_deps(stage)
     assert not stale, f"dvc.yaml stage {stage!r} lists deps it does not use: " + ", ".join(stale)
+
+
+@pytest.mark.parametrize("stage", STAGE_FILES)
+def test_stage_imports_blindspot_before_numpy(stage: str) -> None:
+    """A stage that imported numpy (pandas, ...) first would restart itself to get the pinned
+    CPU kernels (blindspot.kernels): one more round of every import, ~4 s a stage."""
+    import ast
+
+    tree = ast.parse((STAGES / f"{stage}.py").read_text())
+    imports = [n for n in tree.body if isinstance(n, (ast.Import, ast.ImportFrom))
+               and not (isinstance(n, ast.ImportFrom) and n.module == "__future__")]
+    first = imports[0]
+    names = [a.name for a in first.names] if isinstance(first, ast.Import) else [first.module]
+    assert names == ["blindspot"], f"stages/{stage}.py imports {names} before blindspot"
