@@ -162,13 +162,8 @@ def load_scenes(group: Any, where: str = "scene") -> dict[str, SceneConfig]:
         ConfigError: a missing or invalid key, named ``scene.scenes.<name>.<key>``.
     """
     g = SceneGroup.from_mapping(group, where)
-    out = {}
-    for name, over in g.scenes.items():
-        if not isinstance(over, Mapping):
-            raise ConfigError(f"{where}.scenes.{name}", over, "a mapping of scene settings")
-        merged = _deep_merge(g.shared, over)
-        merged.setdefault("name", str(name))
-        out[str(name)] = SceneConfig.from_mapping(merged, where=f"{where}.scenes.{name}")
+    out = {name: SceneConfig.from_mapping(merged, where=key)
+           for name, merged, key in _merged_scenes(g.scenes, g.shared, where)}
     if g.shared and out:
         # a bad value in ``shared`` is an error even where every scene overrides it (it would
         # otherwise sit unchecked until a new scene uses it): check the shared settings laid
@@ -590,22 +585,33 @@ def load_scenarios(group: Any, where: str = "scenario") -> tuple[ScenarioGroup, 
     # where every scene overrides it
     DrivingScene.from_mapping(g.shared, where=f"{where}.shared")
     out = {}
-    for name, over in g.scenes.items():
-        if not isinstance(over, Mapping):
-            raise ConfigError(f"{where}.scenes.{name}", over, "a mapping of scene settings")
-        merged = _deep_merge(g.shared, over)
-        merged.setdefault("name", str(name))
-        key = f"{where}.scenes.{name}"
+    for name, merged, key in _merged_scenes(g.scenes, g.shared, where):
         sc = DrivingScene.from_mapping(merged, where=key)
         for i, p in enumerate(sc.pedestrians):
             g.body(p.body, f"{key}.pedestrians[{i}].body")
-        out[str(name)] = sc
+        out[name] = sc
     return g, out
 
 
 
 
 # ----------------------------------------------------------------------------- parsing helpers
+def _merged_scenes(scenes: Mapping[str, Any], shared: Mapping[str, Any], where: str
+                   ) -> list[tuple[str, dict[str, Any], str]]:
+    """``(name, scene settings deep-merged over shared, config key)`` of each entry of a scene
+    group's ``scenes``, in file order; ConfigError naming ``<where>.scenes.<name>`` for an entry
+    that is not a mapping."""
+    out = []
+    for name, over in scenes.items():
+        key = f"{where}.scenes.{name}"
+        if not isinstance(over, Mapping):
+            raise ConfigError(key, over, "a mapping of scene settings")
+        merged = _deep_merge(shared, over)
+        merged.setdefault("name", str(name))
+        out.append((str(name), merged, key))
+    return out
+
+
 def _deep_merge(base: Mapping[str, Any], over: Mapping[str, Any]) -> dict[str, Any]:
     out = dict(base)
     for k, v in over.items():
