@@ -1,5 +1,8 @@
 """train: the many-to-one LSTM of the paper's Table 1 on the radar-measured windows.
 
+Beside the one-step RMSE, every predictor's ADE/FDE of a ``train.val_horizon_frames`` rollout
+from the validation (and test) windows (the hyper-parameter search's objective).
+
 ``train.ensemble`` networks are trained with seeds ``train.seed + i`` (``train.jobs`` at a time)
 and averaged; train.json gives the ensemble's errors and each member's, so the spread a single
 training run would carry is on record.
@@ -17,13 +20,16 @@ from blindspot.io import write_json, write_text
 from blindspot.report.paper_values import VAL_RMSE
 from blindspot.stage import StageResult
 from blindspot.traj.baselines import ConstantVelocity
-from blindspot.traj.train import evaluate, rmse_euclidean, rmse_per_coordinate, train_ensemble
+from blindspot.traj.train import (
+    evaluate, rmse_euclidean, rmse_per_coordinate, rollout_errors, train_ensemble,
+)
 from blindspot.traj.windows import WindowSet
 
 
-def baseline_rmse(predictor, ws: WindowSet) -> dict:
+def baseline_errors(predictor, ws: WindowSet, horizon: int) -> dict:
     pred = predictor.predict(ws.x, 1)[:, 0]
-    return {"rmse_m": rmse_per_coordinate(pred, ws.y), "rmse_euclid_m": rmse_euclidean(pred, ws.y)}
+    return {"rmse_m": rmse_per_coordinate(pred, ws.y), "rmse_euclid_m": rmse_euclidean(pred, ws.y),
+            **rollout_errors(predictor, ws, horizon)}
 
 
 def run(cfg, ctx):
@@ -46,25 +52,30 @@ def run(cfg, ctx):
     model_path = result.predictor.save(ctx.out("model.pt"))
     history_path = write_text(ctx.out("history.csv"), result.history.to_csv(index=False))
     baselines = {"constant_velocity": ConstantVelocity(), "kalman": experiment.kalman(cfg)}
+    horizon = train_cfg.val_horizon_frames
     metrics = {
-        "lstm": {"val": evaluate(result.predictor, split["val"]),
-                 "test": evaluate(result.predictor, split["test"]),
+        "lstm": {**{s: {**evaluate(result.predictor, split[s]),
+                        **rollout_errors(result.predictor, split[s], horizon)}
+                    for s in ("val", "test")},
                  "seconds_per_epoch": float(result.history.seconds.mean()),
                  "n_members": len(result.members),
                  "members": [{"seed": seed,
                               "val": evaluate(m.predictor, split["val"]),
                               "test": evaluate(m.predictor, split["test"])}
                              for seed, m in zip(result.seeds, result.members)]},
-        **{name: {"val": baseline_rmse(p, split["val"]), "test": baseline_rmse(p, split["test"])}
+        **{name: {s: baseline_errors(p, split[s], horizon) for s in ("val", "test")}
            for name, p in baselines.items()},
+        "val_horizon_frames": horizon,
         "n_windows": {s: len(w) for s, w in split.items()},
         "paper": {"val_rmse": VAL_RMSE.value},
     }
     write_json(ctx.out("train.json"), metrics)
-    print(f"train: val RMSE {metrics['lstm']['val']['rmse_m']:.4f} m (paper {VAL_RMSE.value}), "
+    val = {name: metrics[name]["val"] for name in ("lstm", *baselines)}
+    print(f"train: val RMSE {val['lstm']['rmse_m']:.4f} m (paper {VAL_RMSE.value}), "
           f"test {metrics['lstm']['test']['rmse_m']:.4f} m; constant velocity val "
-          f"{metrics['constant_velocity']['val']['rmse_m']:.4f} m, Kalman "
-          f"{metrics['kalman']['val']['rmse_m']:.4f} m")
+          f"{val['constant_velocity']['rmse_m']:.4f} m, Kalman {val['kalman']['rmse_m']:.4f} m; "
+          f"val ADE/FDE over {horizon} frames: "
+          + ", ".join(f"{k} {v['ade_m']:.3f}/{v['fde_m']:.3f} m" for k, v in val.items()))
     logged = {k: v for k, v in metrics.items() if k != "paper"}
     logged["lstm"] = {**{k: v for k, v in metrics["lstm"].items() if k != "members"},
                       **{f"seed{m['seed']}": {"val": m["val"], "test": m["test"]}

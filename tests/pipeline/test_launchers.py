@@ -55,14 +55,16 @@ def test_submitit_local_two_job_sweep(tmp_path: Path) -> None:
     assert not (root / "out" / "toy.json").exists()
 
 
-@pytest.mark.slow  # ~20 s on an idle 2-core machine (two 1-epoch trainings)
+@pytest.mark.slow  # ~45 s on an idle 2-core machine (two studies of two 1-epoch trainings)
 def test_optuna_two_trial_study_nested_under_its_parent(tmp_path: Path) -> None:
     needs("hydra_optuna_sweeper")
+    import optuna
+
     root = copy_code(tmp_path / "repo")
     synthetic_windows(root, window=50)
-    blindspot(["train", "-m", "+search=lstm", "hydra.sweeper.n_trials=2", "profile=tiny",
-               "train.epochs=1", "progress=false", "jobs=1", "hydra.sweep.dir=multirun/study"],
-              root, timeout=300)
+    args = ["train", "-m", "+search=lstm", "hydra.sweeper.n_trials=2", "profile=tiny",
+            "train.epochs=1", "train.val_horizon_frames=5", "progress=false", "jobs=1"]
+    blindspot([*args, "hydra.sweep.dir=multirun/study"], root, timeout=300)
     parent, trials = sweep_runs(root)
     assert parent.info.status == "FINISHED" and len(trials) == 2
     for r in trials:
@@ -70,13 +72,23 @@ def test_optuna_two_trial_study_nested_under_its_parent(tmp_path: Path) -> None:
         assert {"model.hidden_size", "model.num_layers", "train.lr", "train.batch_size"} <= set(
             r.data.params)
         assert 1e-4 <= float(r.data.params["train.lr"]) <= 1e-2
-        assert r.data.params["search.objective"] == "lstm.val.rmse_m"
+        assert r.data.params["search.objective"] == "lstm.val.ade_m"
+        assert r.data.metrics["lstm.val.ade_m"] > 0 and r.data.metrics["lstm.val.n_windows"] > 0
     study = root / "multirun" / "study"
     best = (study / "optimization_results.yaml").read_text()
-    best_value = min(r.data.metrics["lstm.val.rmse_m"] for r in trials)
+    best_value = min(r.data.metrics["lstm.val.ade_m"] for r in trials)
     assert f"best_value: {best_value}" in best  # the sweeper got each trial's objective
     with open(study / "sweep_summary.csv", newline="") as fh:
         assert [row["run_id"] for row in csv.DictReader(fh)] == [r.info.run_id for r in trials]
+
+    # the study is stored: a second search with the same name continues it (2 + 2 trials)
+    storage = f"sqlite:///{root / 'optuna.db'}"
+    assert len(optuna.load_study(study_name="lstm", storage=storage).trials) == 2
+    blindspot([*args, "hydra.sweep.dir=multirun/study2"], root, timeout=300)
+    stored = optuna.load_study(study_name="lstm", storage=storage)
+    assert [t.state.name for t in stored.trials] == ["COMPLETE"] * 4
+    assert sorted(t.value for t in stored.trials[:2]) == sorted(
+        r.data.metrics["lstm.val.ade_m"] for r in trials)
 
 
 def test_search_objective_not_a_metric_names_the_key() -> None:
@@ -122,7 +134,8 @@ def test_search_group_composes_a_typed_objective_and_an_optuna_space() -> None:
 
     with initialize_config_dir(str(REPO_ROOT / "conf"), version_base=None):
         cfg = compose("config", ["+search=lstm"], return_hydra_config=True)
-    assert SearchConfig.from_mapping(cfg.search).objective == "lstm.val.rmse_m"
+    assert SearchConfig.from_mapping(cfg.search).objective == "lstm.val.ade_m"
+    assert cfg.hydra.sweeper.storage == "sqlite:///optuna.db"  # a study that outlives the search
     assert cfg.hydra.sweeper._target_.endswith("OptunaSweeper")
     assert cfg.hydra.sweeper.direction == "minimize" and cfg.hydra.sweeper.sampler.seed == 0
     assert set(cfg.hydra.sweeper.params) == {"model.hidden_size", "model.num_layers",

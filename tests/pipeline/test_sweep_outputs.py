@@ -42,16 +42,19 @@ def copy_code(dest: Path) -> Path:
 
 
 def synthetic_windows(root: Path, window: int) -> None:
-    """Constant-velocity walks with noise, as train/val/test windows (what `windows` writes)."""
-    from blindspot.traj.windows import WindowSet
+    """Constant-velocity walks with noise, as train/val/test windows (what `windows` writes):
+    one walk of ``window + 28`` points per 8 windows (stride 3, the first 8 of its 10 windows),
+    so the split holds the next 20 points (the validation rollout) of each walk's first window."""
+    from blindspot.traj.windows import make_windows
 
     rng = np.random.default_rng(0)
     for split, n in (("train", 256), ("val", 64), ("test", 32)):
-        v = rng.uniform(-1.5, 1.5, (n, 1, 2)) * 0.1  # m per 0.1 s frame
-        t = np.arange(window + 1)[None, :, None]
-        xy = rng.uniform(-5, 5, (n, 1, 2)) + v * t + rng.normal(0, 0.02, (n, window + 1, 2))
-        WindowSet(xy[:, :-1], xy[:, -1], np.arange(n)).save(root / "data" / "windows"
-                                                            / f"{split}.parquet")
+        walks = n // 8
+        v = rng.uniform(-1.5, 1.5, (walks, 1, 2)) * 0.1  # m per 0.1 s frame
+        t = np.arange(window + 28)[None, :, None]
+        xy = rng.uniform(-5, 5, (walks, 1, 2)) + v * t + rng.normal(0, 0.02, (walks, t.size, 2))
+        ws = make_windows(xy, window, stride=3)             # 28 / 3 -> 10 windows per walk
+        ws.subset(np.arange(len(ws)) % 10 < 8).save(root / "data" / "windows" / f"{split}.parquet")
 
 
 def digest(root: Path) -> dict[str, str]:

@@ -15,6 +15,7 @@ from blindspot.traj.train import (
     evaluate,
     rmse_euclidean,
     rmse_per_coordinate,
+    rollout_errors,
     train_lstm,
 )
 from blindspot.traj.windows import make_windows, split_by_path
@@ -200,3 +201,23 @@ def test_seed_ensemble_members_are_the_single_runs_and_average_them(small_data, 
     back = LSTMPredictor.load(seq.predictor.save(tmp_path / "model.pt"))
     assert back.n_members == 2 and torch.equal(back.step(x), seq.predictor.step(x))
     assert set(seq.history["member"]) == {0, 1} and list(seq.history.columns[:2]) == ["member", "seed"]
+
+
+def test_rollout_errors_on_the_windows_own_futures(small_data):
+    """Constant velocity rolls a straight walk out exactly; standing still is off by the
+    distance walked, |v| k dt at step k, so its ADE is |v| dt (H + 1) / 2 and its FDE |v| dt H."""
+    from blindspot.traj.baselines import ConstantVelocity
+
+    _, val = small_data
+    cv = rollout_errors(ConstantVelocity(), val, 6)
+    assert cv["n_windows"] > 0 and cv["ade_m"] < 1e-4 and cv["fde_m"] < 1e-4
+
+    class StandStill:
+        def predict(self, history, horizon):
+            return np.repeat(history[:, -1:], horizon, axis=1)
+
+    index, _ = val.futures(6)
+    speed = np.linalg.norm(val.x[index, -1] - val.x[index, -2], axis=-1)  # m per 0.1 s step
+    still = rollout_errors(StandStill(), val, 6)
+    assert still["ade_m"] == pytest.approx(speed.mean() * 3.5, rel=1e-4)
+    assert still["fde_m"] == pytest.approx(speed.mean() * 6, rel=1e-4)

@@ -6,6 +6,7 @@ import pyarrow.parquet as pq
 import pytest
 
 from blindspot.traj.windows import (
+    WindowError,
     WindowSet,
     interpolate_gaps,
     make_windows,
@@ -144,3 +145,24 @@ def test_load_rejects_other_parquet(tmp_path):
     pq.write_table(pa.table({"a": [1, 2]}), bad)
     with pytest.raises(ValueError, match="other.parquet"):
         WindowSet.load(bad)
+
+
+def test_futures_are_the_points_after_each_window_in_its_path():
+    rng = np.random.default_rng(3)
+    paths = rng.normal(size=(3, 30, 2)).cumsum(axis=1)
+    ws = make_windows(paths, 5, path_ids=np.array([7, 8, 9]))
+    keep = rng.permutation(len(ws))[: len(ws) // 2]      # a random half, as a split keeps
+    sub = ws.subset(np.sort(keep))
+    index, future = sub.futures(4)
+    assert len(index) > 0
+    pid = sub.path_id[index] - 7
+    start = sub.start[index]
+    want = paths[pid[:, None], start[:, None] + 5 + np.arange(4)]
+    np.testing.assert_array_equal(future, want.astype(np.float32))
+    # every window left out lacks a future point the subset holds
+    every, _ = ws.futures(4)
+    assert len(every) == 3 * (30 - 5 - 4 + 1)  # starts 0..21 of each path: points s+5..s+8 <= 29
+    with pytest.raises(WindowError, match="start"):
+        WindowSet(ws.x, ws.y, ws.path_id).futures(2)
+    with pytest.raises(WindowError, match="horizon"):
+        ws.futures(0)

@@ -201,6 +201,8 @@ class TrainConfig(TypedConfig):
         ensemble: networks trained with seeds ``seed, seed + 1, ...``; the predictor averages
             their next points (1 = one network, the paper's setting).
         jobs: worker processes training ensemble members side by side (1 = in this process).
+        val_horizon_frames: future points of the validation rollout whose ADE/FDE the train
+            stage reports (``blindspot.traj.train.rollout_errors``; the search's objective).
     """
 
     GROUP = "train"
@@ -219,6 +221,7 @@ class TrainConfig(TypedConfig):
     resume: bool = setting(False)
     ensemble: int = setting(1, ge=1)
     jobs: int = setting(1, ge=1)
+    val_horizon_frames: int = setting(20, ge=1)
 
 
 # ----------------------------------------------------------------------------- evaluation

@@ -41,7 +41,7 @@ from tqdm.auto import tqdm
 from blindspot.arrays import check_array
 from blindspot.traj.config import LSTMConfig, TrainConfig
 from blindspot.traj.lstm import LSTMPredictor, LSTMRegressor, NormStats
-from blindspot.traj.metrics import MetricShapeError
+from blindspot.traj.metrics import MetricShapeError, ade, fde
 from blindspot.traj.windows import WindowSet
 
 _CKPT_FORMAT = "blindspot.train-checkpoint/1"
@@ -116,6 +116,33 @@ def evaluate(predictor: LSTMPredictor, ws: WindowSet, batch_size: int = 4096) ->
     return {"rmse_m": rmse_per_coordinate(pred, ws.y), "rmse_euclid_m": rmse_euclidean(pred, ws.y)}
 
 
+def rollout_errors(predictor, ws: WindowSet, horizon: int) -> dict[str, float]:
+    """Multi-step errors of a rollout from each window of ``ws`` whose next ``horizon`` points
+    the set holds (:meth:`WindowSet.futures`): {"ade_m", "fde_m", "n_windows"}.
+
+    The same measure as the evaluation's ADE/FDE (``blindspot.traj.metrics``), on windows instead
+    of the scenes, so a model can be selected on its validation split by the error a path
+    prediction makes (the hyper-parameter search's objective) rather than by the one-step RMSE.
+
+    Args:
+        predictor: anything with ``predict(history (B, T, 2), horizon) -> (B, H, 2)`` (the LSTM,
+            constant velocity, Kalman).
+        ws: windows (N, W, 2) with their start indices.
+        horizon: H >= 1 future points (frames).
+
+    Returns:
+        ADE and FDE in metres (NaN when no window has a whole future) and the windows used.
+
+    Raises:
+        WindowError: from :meth:`WindowSet.futures`.
+    """
+    index, future = ws.futures(horizon)
+    if len(index) == 0:
+        return {"ade_m": float("nan"), "fde_m": float("nan"), "n_windows": 0}
+    pred = predictor.predict(ws.x[index].astype(np.float64), horizon)
+    return {"ade_m": ade(pred, future), "fde_m": fde(pred, future), "n_windows": int(len(index))}
+
+
 def _check_windows(ws: WindowSet, window: int, what: str) -> None:
     if not isinstance(ws, WindowSet):
         raise TypeError(f"{what}: expected a WindowSet, found {type(ws).__name__}")
@@ -137,7 +164,7 @@ def _resume_key(model_cfg: LSTMConfig, train_cfg: TrainConfig, fingerprint: str)
     """What must match between a checkpoint and the run resuming it (epochs may grow, unless the
     learning-rate schedule depends on them)."""
     tc = asdict(train_cfg)
-    for key in ("resume", "ensemble", "jobs"):  # how to run, not what one network learns
+    for key in ("resume", "ensemble", "jobs", "val_horizon_frames"):  # not what a network learns
         tc.pop(key)
     if train_cfg.lr_schedule == "constant":
         tc.pop("epochs")

@@ -86,6 +86,45 @@ class WindowSet:
             self.x[index], self.y[index], self.path_id[index], None if self.start is None else self.start[index]
         )
 
+    def futures(self, horizon: int) -> tuple[np.ndarray, np.ndarray]:
+        """The ``horizon`` points that follow each window, where this set itself holds them.
+
+        Every window contributes its W inputs and its target to a table of known points per path
+        (index ``start + j``); a window's future is points ``start + W .. start + W + H - 1`` of
+        its path. Only windows whose whole future is known are returned, so a multi-step error
+        (ADE/FDE of a rollout) can be measured on the same split as the one-step error, e.g. the
+        validation windows, without the paths they came from.
+
+        Args:
+            horizon: H >= 1 future points.
+
+        Returns:
+            ``(index, future)``: index (M,) int64 into this set, future (M, H, 2) float32 points
+            in metres, oldest first.
+
+        Raises:
+            WindowError: ``horizon`` not an integer >= 1, or the set has no ``start`` indices
+                (they locate each window in its path).
+        """
+        horizon = check_count(horizon, "horizon", ge=1, error=WindowError, who="WindowSet.futures")
+        if self.start is None:
+            raise WindowError("WindowSet.futures: the windows carry no start index (start is None),"
+                              " so their futures cannot be located in their paths")
+        n, w = len(self), self.window
+        if n == 0:
+            return np.zeros(0, dtype=np.int64), np.zeros((0, horizon, 2), dtype=np.float32)
+        paths, row = np.unique(self.path_id, return_inverse=True)
+        length = int(self.start.max()) + w + 1
+        known = np.full((len(paths), length, 2), np.nan, dtype=np.float32)
+        idx = self.start[:, None] + np.arange(w + 1)                        # (N, W+1)
+        known[row[:, None], idx] = np.concatenate([self.x, self.y[:, None]], axis=1)
+        ahead = self.start[:, None] + w + np.arange(horizon)                # (N, H)
+        inside = (ahead < length).all(axis=1)
+        future = np.full((n, horizon, 2), np.nan, dtype=np.float32)
+        future[inside] = known[row[inside, None], ahead[inside]]
+        keep = np.flatnonzero(np.isfinite(future).all(axis=(1, 2)))
+        return keep, future[keep]
+
     def save(self, path: str | Path) -> Path:
         """Write to Parquet (temporary name in the same folder, then renamed into place).
 
