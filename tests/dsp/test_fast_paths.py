@@ -125,3 +125,24 @@ def test_unitary_scan_equals_the_complex_steering_scan(seed, subarray, method, n
         np.testing.assert_allclose(1 / spec, 1 / ref, rtol=0, atol=1e-12 * k)
     else:
         np.testing.assert_allclose(spec, ref, rtol=1e-9)
+
+
+@settings(max_examples=100, deadline=None)
+@given(st.integers(1, 40), st.integers(0, 2**32 - 1), st.floats(0.0, 0.3))
+def test_connected_labels_are_scipys(n, seed, density):
+    """Components and their numbering equal scipy's connected_components on random graphs
+    (chains, isolated nodes, dense clusters)."""
+    import scipy.sparse
+    import scipy.sparse.csgraph
+
+    from blindspot.dsp.points import connected_labels
+
+    rng = np.random.default_rng(seed)
+    m = int(density * n * n) + rng.integers(0, 3)
+    i, j = rng.integers(0, n, m), rng.integers(0, n, m)
+    if rng.random() < 0.3:  # a long chain in a random order: many propagation rounds
+        perm = rng.permutation(n)
+        i, j = np.r_[i, perm[:-1]], np.r_[j, perm[1:]]
+    graph = scipy.sparse.csr_matrix((np.ones(i.size, dtype=bool), (i, j)), shape=(n, n))
+    _, ref = scipy.sparse.csgraph.connected_components(graph, directed=False)
+    np.testing.assert_array_equal(connected_labels(n, i, j), ref)
