@@ -26,7 +26,7 @@ outermost axis in one streaming pass. The arrays handed out (``native``, ``__cal
 order (no transposing copy); :func:`detection_map` recognises the layout.
 
 * Full range (``n_range`` None or ``n_samples``): both FFTs by FFTW (pyFFTW), one 2-D plan per
-  cache-sized block of channels (8 MMWCAS channels, 1 MiB): the window multiply writes the block
+  cache-sized block of channels (2 MMWCAS channels, 256 KiB): the window multiply writes the block
   from the cube into a scratch buffer that stays in L2, and FFTW transforms it straight into its
   slice of the result, so the 25 MB cube is read once and the result written once (see
   ``RangeDoppler._fft2``). Measured on one thread (AMD EPYC, AVX2) it beat ``torch.fft.fft2``
@@ -62,9 +62,10 @@ import scipy.signal
 
 from blindspot.arrays import checked_array, count_nonfinite
 from blindspot.dsp.config import WINDOW_NAMES
-# Full-range FFT in blocks of about _BLOCK_BYTES of channels (8 MMWCAS channels of 64 x 256
-# complex64): the scratch block and FFTW's work on it stay in L2 (benchmarks/bench_fft.py).
-_BLOCK_BYTES = 1 << 20
+# Full-range FFT in blocks of about _BLOCK_BYTES of channels (2 MMWCAS channels of 64 x 256
+# complex64): the scratch block and its result fit a 512 KiB L2 together. Blocks of 1 to 8
+# channels measured alike, 32 channels (4 MiB) a quarter slower (benchmarks/bench_fft.py).
+_BLOCK_BYTES = 256 << 10
 _PLANS = threading.local()  # per thread: FFTW plans by (block shape, threads, alignment)
 
 
@@ -207,15 +208,14 @@ class RangeDoppler:
         """Window and both FFTs: complex64 C-contiguous (..., tx, rx, doppler, range) of a
         checked cube (..., chirps, tx, rx, samples), in cache-sized blocks of virtual channels.
 
-        A block (about ``_BLOCK_BYTES``: 8 MMWCAS channels of 64 x 256 complex64; whole frames
+        A block (about ``_BLOCK_BYTES``: 2 MMWCAS channels of 64 x 256 complex64; whole frames
         when a frame is smaller, otherwise a divisor of the frame's channels, so a block never
         spans two frames) is window-multiplied from the cube into a small scratch buffer (the
         layout change to channel-major and the window in one pass, the buffer stays in L2) and
         transformed by one FFTW plan (``FFTW_ESTIMATE``: a deterministic plan, so the result
         does not depend on timings) straight into its slice of the result. The cube is read
         once and the result written once; nothing else of cube size is allocated. The loop
-        runs over cache blocks, not over frames, chirps or channels (an MMWCAS frame is 24
-        blocks)."""
+        runs over cache blocks, not over chirps or samples (an MMWCAS frame is 96 blocks)."""
         lead, (c, t, r, n) = cube.shape[:-4], cube.shape[-4:]
         n_frames, n_ch = int(np.prod(lead, dtype=np.int64)), t * r
         per_ch = c * n * np.dtype(np.complex64).itemsize
