@@ -56,6 +56,8 @@ def local_maxima(power: np.ndarray, row_exists: np.ndarray | None = None) -> np.
             raise DetectionError(f"local_maxima: row_exists must be {p.shape[:-1]} (..., range), "
                                  f"found {rows_ok.shape}")
         p = np.where(rows_ok[..., None], p, -np.inf)
+    if p.size == 0:  # an empty map has no cells (and no column to wrap)
+        return np.zeros(p.shape, dtype=bool)
     # one padded copy: -inf rows beyond both range ends, the Doppler columns wrapped round
     n_rows, n_cols = p.shape[-2:]
     q = np.empty(p.shape[:-2] + (n_rows + 2, n_cols + 2))
