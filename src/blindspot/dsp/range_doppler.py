@@ -227,19 +227,19 @@ class RangeDoppler:
             k_f, k_c = min(n_frames, budget // n_ch), n_ch
         else:  # the largest divisor of the frame's channels within the budget
             k_f, k_c = 1, max(d for d in range(1, budget + 1) if n_ch % d == 0)
-        for f0 in range(0, n_frames, k_f):
-            f1 = min(f0 + k_f, n_frames)
-            # one frame per block: 3-D blocks (channels, chirps, samples), whose strides match
-            # the plan's whatever the frame's channel count
-            shape = (f1 - f0, k_c, c, n) if k_f > 1 else (k_c, c, n)
-            plan = _fft2_plan(shape, self.workers, aligned=per_ch % 64 == 0)
-            buf = plan.input_array
-            for c0 in range(0, n_ch, k_c):
-                block = (slice(f0, f1) if k_f > 1 else f0, slice(c0, c0 + k_c))
-                with np.errstate(invalid="ignore"):  # as in _windowed
+        with np.errstate(invalid="ignore"):  # inf * 0, as in _windowed
+            for f0 in range(0, n_frames, k_f):
+                f1 = min(f0 + k_f, n_frames)
+                # one frame per block: 3-D blocks (channels, chirps, samples), whose strides
+                # match the plan's whatever the frame's channel count
+                shape = (f1 - f0, k_c, c, n) if k_f > 1 else (k_c, c, n)
+                plan = _fft2_plan(shape, self.workers, aligned=per_ch % 64 == 0)
+                buf = plan.input_array
+                for c0 in range(0, n_ch, k_c):
+                    block = (slice(f0, f1) if k_f > 1 else f0, slice(c0, c0 + k_c))
                     np.multiply(src[block], self._w2d, out=buf)
-                plan.update_arrays(buf, dst[block])
-                plan.execute()
+                    plan.update_arrays(buf, dst[block])
+                    plan.execute()
         return out
 
     def _doppler_cut(self, profiles_cm: np.ndarray) -> np.ndarray:
