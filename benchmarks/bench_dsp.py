@@ -10,6 +10,15 @@ pinning, and prints both per-step tables and the ratio of frames/s. The machines
 only the ratio of two runs made together means something. Without the peer venv it runs ours
 alone and says how to get the peer. The peer processes the full 256-bin range: compare with
 ``--set detect.max_range_m=null`` (the default here) for like with like.
+
+The peer reports wall time only; its CPU time per frame is taken from the process CPU of two of
+its runs (13 frames minus 5 frames: start-up, frame synthesis and dump cancel) and printed beside
+ours (``time.thread_time``) with the CPU ratio, the steadier figure on a loaded machine.
+
+Measured 2026-11-30 with ``--threads 1`` (three runs, 2-core AMD EPYC shared with other jobs, load
+7.5-8.2): ours 96-115 ms wall, 38.6-46.7 ms CPU per frame; the peer 958-1181 ms wall, 347-423 ms
+CPU; ratio 10.0x / 10.0x / 10.3x (wall), 10.0x / 8.3x / 9.0x (CPU); batches of 64 frames 5.5-9.3
+frames/s (README, "Tests and benchmarks").
 """
 
 from __future__ import annotations
