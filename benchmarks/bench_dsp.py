@@ -10,6 +10,15 @@ pinning, and prints both per-step tables and the ratio of frames/s. The machines
 only the ratio of two runs made together means something. Without the peer venv it runs ours
 alone and says how to get the peer. The peer processes the full 256-bin range: compare with
 ``--set detect.max_range_m=null`` (the default here) for like with like.
+
+The peer reports wall time only; its CPU time per frame is taken from the process CPU of two of
+its runs (13 frames minus 5 frames: start-up, frame synthesis and dump cancel) and printed beside
+ours (``time.thread_time``) with the CPU ratio, the steadier figure on a loaded machine.
+
+Measured 2026-11-30 with ``--threads 1`` (three runs, 2-core AMD EPYC shared with other jobs, load
+7.5-8.2): ours 96-115 ms wall, 38.6-46.7 ms CPU per frame; the peer 958-1181 ms wall, 347-423 ms
+CPU; ratio 10.0x / 10.0x / 10.3x (wall), 10.0x / 8.3x / 9.0x (CPU); batches of 64 frames 5.5-9.3
+frames/s (README, "Tests and benchmarks").
 """
 
 from __future__ import annotations
@@ -17,6 +26,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import resource
 import subprocess
 import sys
 import tempfile
@@ -29,14 +39,24 @@ def _shared() -> Path:
     return Path(os.environ.get("BLINDSPOT_SHARED", REPO.parent / "shared")).resolve()
 
 
-def _run(cmd: list[str], threads: int) -> dict:
+def _children_cpu_s() -> float:
+    """User + system CPU seconds of all finished child processes so far."""
+    r = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return r.ru_utime + r.ru_stime
+
+
+def _run(cmd: list[str], threads: int, quiet: bool = False) -> tuple[dict, float]:
+    """(the JSON summary on the last stdout line, the child's CPU seconds)."""
     env = {**os.environ, "OMP_NUM_THREADS": str(threads), "OPENBLAS_NUM_THREADS": str(threads),
            "MKL_NUM_THREADS": str(threads)}
+    cpu0 = _children_cpu_s()
     out = subprocess.run(cmd, env=env, capture_output=True, text=True, check=False)
+    cpu = _children_cpu_s() - cpu0
     if out.returncode != 0:
         raise SystemExit(f"{' '.join(cmd)} failed ({out.returncode}):\n{out.stderr[-2000:]}")
-    print(out.stdout.rstrip())
-    return json.loads(out.stdout.strip().splitlines()[-1])
+    if not quiet:
+        print(out.stdout.rstrip())
+    return json.loads(out.stdout.strip().splitlines()[-1]), cpu
 
 
 def main() -> int:
@@ -60,15 +80,27 @@ def main() -> int:
               f"`PEERBENCH_VENV=... bash {_shared() / 'bench' / 'setup_peer_venv.sh'}`)")
         _run(ours, args.threads)
         return 0
+    peer_cmd = [str(peer_python), str(_shared() / "bench" / "peer_chain.py"), "--threads",
+                str(args.threads), "--json"]
     with tempfile.TemporaryDirectory() as tmp:
         frame = Path(tmp) / "frame.npz"
         print("== peer chain (OpenRadar + doa-py)")
-        peer = _run([str(peer_python), str(_shared() / "bench" / "peer_chain.py"), "--threads",
-                     str(args.threads), "--json", "--dump-frame", str(frame)], args.threads)
+        peer, cpu_long = _run(peer_cmd + ["--reps", "12", "--warmup", "1", "--dump-frame",
+                                          str(frame)], args.threads)
+        # the peer reports wall time only: its CPU time per frame is the difference of the
+        # process CPU of this run (13 frames) and of a run of 5 frames (start-up, the frame's
+        # synthesis and its dump cancel)
+        _, cpu_short = _run(peer_cmd + ["--reps", "5", "--warmup", "0", "--dump-frame",
+                                        str(Path(tmp) / "again.npz")], args.threads, quiet=True)
+        peer_cpu_ms = (cpu_long - cpu_short) / (13 - 5) * 1e3
+        print(f"peer CPU per frame: {peer_cpu_ms:.1f} ms (process CPU of 13 frames minus 5)")
         print("\n== blindspot chain, same frame")
-        mine = _run(ours + ["--frame", str(frame)], args.threads)
+        mine, _ = _run(ours + ["--frame", str(frame)], args.threads)
     print(f"\nratio (ours / peer), one frame, {args.threads} thread(s): "
           f"{mine['fps'] / peer['fps']:.1f}x ({mine['fps']:.1f} vs {peer['fps']:.1f} frames/s)")
+    print(f"ratio of CPU time per frame: {peer_cpu_ms / mine['cpu_ms_per_frame']:.1f}x "
+          f"({mine['cpu_ms_per_frame']:.1f} vs {peer_cpu_ms:.1f} ms; steadier than wall time "
+          f"on a loaded machine, load average {os.getloadavg()[0]:.1f})")
     if mine.get("batch_fps"):
         print(f"ratio, ours in batches of {args.batch}: {mine['batch_fps'] / peer['fps']:.1f}x "
               f"({mine['batch_fps']:.1f} frames/s)")

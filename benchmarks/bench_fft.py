@@ -17,7 +17,9 @@ disagrees beyond float32 rounding is flagged.
 
 Back-ends: ``numpy.fft`` (pocketfft C, float32 native since numpy 2), ``scipy.fft`` (pocketfft
 C++, SIMD over several transforms, ``workers`` and ``overwrite_x``), ``torch.fft`` (CPU build:
-MKL). Layouts: the cube's own ``(chirps, tx, rx, samples)`` order (the Doppler FFT then strides
+MKL), FFTW through pyFFTW (plans ``FFTW_ESTIMATE`` and ``FFTW_MEASURE``; the whole frame in place,
+or cache-sized blocks of channels that the window multiply writes and FFTW transforms into the
+result: the chain's way, ``RangeDoppler.native``). Layouts: the cube's own ``(chirps, tx, rx, samples)`` order (the Doppler FFT then strides
 by 12*16*256 elements) or channel-major ``(tx, rx, chirps, samples)`` (each channel's 64 x 256
 block contiguous, 128 KiB, so both FFTs of a channel run in L2), the window multiply fused into
 the copy that makes that layout. The input is complex baseband (I/Q), so no real-input (rfft)
@@ -204,6 +206,49 @@ def variants(cube: np.ndarray, threads: int, n_crop: int):
     def _():
         x = tcube.permute(1, 2, 0, 3).to(torch.complex128) * twcm
         return torch.fft.fft2(x, dim=(2, 3)).numpy().transpose(2, 0, 1, 3)
+
+    # FFTW (pyFFTW): plans made once here (FFTW_ESTIMATE: no timing runs, deterministic; and
+    # FFTW_MEASURE: timed planning, which may pick another algorithm in another process)
+    import pyfftw
+
+    def fftw_plan(shape, axes, flag, in_place=True):
+        a = pyfftw.empty_aligned(shape, dtype=np.complex64, n=64)
+        b = a if in_place else pyfftw.empty_aligned(shape, dtype=np.complex64, n=64)
+        flags = (flag,) if in_place else (flag, "FFTW_DESTROY_INPUT")
+        return pyfftw.FFTW(a, b, axes=axes, flags=flags, threads=w)
+
+    for flag in ("FFTW_ESTIMATE", "FFTW_MEASURE"):
+        whole = fftw_plan((t, r, c, n), (2, 3), flag)
+
+        @add("full range", f"fftw {flag[5:].lower()}: channel-major, fft2 in place")
+        def _(p=whole):
+            np.multiply(cube_cm, wcm, out=p.input_array)
+            p.execute()
+            return p.output_array.transpose(2, 0, 1, 3)
+
+        rng_p, dop_p = fftw_plan((t, r, c, n), (3,), flag), fftw_plan((t, r, c, n), (2,), flag)
+        dop_p.update_arrays(rng_p.input_array, rng_p.input_array)
+
+        @add("full range", f"fftw {flag[5:].lower()}: channel-major, range then Doppler")
+        def _(p1=rng_p, p2=dop_p):
+            np.multiply(cube_cm, wcm, out=p1.input_array)
+            p1.execute()
+            p2.execute()
+            return p1.output_array.transpose(2, 0, 1, 3)
+
+        for k in (1, 2, 4, 8, 32):
+            blk = fftw_plan((k, c, n), (1, 2), flag, in_place=False)
+            res = pyfftw.empty_aligned((t * r, c, n), dtype=np.complex64, n=64)
+            src = np.moveaxis(cube.reshape(c, t * r, n), 0, 1)  # (channels, c, n) view
+
+            @add("full range", f"fftw {flag[5:].lower()}: blocks of {k} channels, window "
+                               "into block")
+            def _(p=blk, k=k, res=res, src=src):
+                for c0 in range(0, t * r, k):
+                    np.multiply(src[c0:c0 + k], w2d, out=p.input_array)
+                    p.update_arrays(p.input_array, res[c0:c0 + k])
+                    p.execute()
+                return res.reshape(t, r, c, n).transpose(2, 0, 1, 3)
 
     rd_full = RangeDoppler(c, n, "hann", "hann", w, None)
 

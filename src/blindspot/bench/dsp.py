@@ -17,7 +17,7 @@ are; the paper CFAR's dB-domain scale needs those units).
 
 ``--threads N`` pins every thread pool to N threads: the OpenMP/BLAS environment variables are set
 before numpy is first imported, threadpoolctl limits the already-loaded BLAS/OpenMP libraries,
-the FFTs get ``workers=N`` and torch ``set_num_threads(N)``. ``--batch N`` also times
+the FFTs (FFTW, scipy.fft) get ``workers=N`` and torch ``set_num_threads(N)``. ``--batch N`` also times
 ``DetectionChain.process_batch`` on N copies of the frame (frames/s of a batch).
 
 The configuration is composed from conf/ through Hydra exactly as the stages compose it
@@ -106,7 +106,8 @@ def main(argv: list[str] | None = None) -> int:
         import torch
 
         torch.set_num_threads(args.threads)
-        pinned = f"{args.threads} thread(s): env vars + threadpoolctl + FFT workers + torch"
+        pinned = (f"{args.threads} thread(s): env vars + threadpoolctl + FFT workers (FFTW, "
+                  "scipy) + torch")
 
     from hydra.errors import HydraException
 

@@ -146,12 +146,20 @@ class _BoxSummer:
     def __init__(self, x: np.ndarray, a: int, b: int):
         self.shape = x.shape
         self.a, self.b = a, b
-        lead = ((0, 0),) * (x.ndim - 2)
-        padded = np.pad(x, lead + ((0, 0), (b, b)), mode="wrap") if b else x
-        padded = np.pad(padded, lead + ((a, a), (0, 0)), mode="constant")
-        integral = np.zeros(padded.shape[:-2] + (padded.shape[-2] + 1, padded.shape[-1] + 1))
+        n_rows, n_cols = x.shape[-2:]
+        # the integral image of the padded map, built in place: the map (with its wrapped
+        # Doppler columns) is cumulated down the range axis inside the image; the zero rows
+        # before it stay zero and the rows after it repeat its last row (adding zeros changes
+        # no bit), then the columns are cumulated. Bit for bit the cumsums of np.pad's copy.
+        integral = np.zeros(x.shape[:-2] + (n_rows + 2 * a + 1, n_cols + 2 * b + 1))
         inner = integral[..., 1:, 1:]
-        np.cumsum(padded, axis=-2, out=inner)
+        body = inner[..., a:a + n_rows, :]
+        body[..., b:b + n_cols] = x
+        if b:
+            body[..., :b] = x[..., n_cols - b:]
+            body[..., b + n_cols:] = x[..., :b]
+        np.cumsum(body, axis=-2, out=body)
+        inner[..., a + n_rows:, :] = body[..., -1:, :]
         np.cumsum(inner, axis=-1, out=inner)
         self.integral = integral
 

@@ -56,16 +56,21 @@ def local_maxima(power: np.ndarray, row_exists: np.ndarray | None = None) -> np.
             raise DetectionError(f"local_maxima: row_exists must be {p.shape[:-1]} (..., range), "
                                  f"found {rows_ok.shape}")
         p = np.where(rows_ok[..., None], p, -np.inf)
-    lead = ((0, 0),) * (p.ndim - 2)
-    padded = np.pad(p, lead + ((1, 1), (0, 0)), constant_values=-np.inf)
-    n_rows = p.shape[-2]
+    if p.size == 0:  # an empty map has no cells (and no column to wrap)
+        return np.zeros(p.shape, dtype=bool)
+    # one padded copy: -inf rows beyond both range ends, the Doppler columns wrapped round
+    n_rows, n_cols = p.shape[-2:]
+    q = np.empty(p.shape[:-2] + (n_rows + 2, n_cols + 2))
+    q[..., (0, -1), :] = -np.inf
+    q[..., 1:-1, 1:-1] = p
+    q[..., 1:-1, 0] = p[..., -1]
+    q[..., 1:-1, -1] = p[..., 0]
     is_max = np.ones(p.shape, dtype=bool)
-    for dr in (-1, 0, 1):  # the 8 neighbours, each one whole-batch comparison
-        rows = padded[..., 1 + dr:1 + dr + n_rows, :]
+    for dr in (-1, 0, 1):  # the 8 neighbours, each one whole-batch comparison of a shifted view
         for dd in (-1, 0, 1):
             if dr == 0 and dd == 0:
                 continue
-            is_max &= p >= np.roll(rows, -dd, axis=-1)
+            is_max &= p >= q[..., 1 + dr:1 + dr + n_rows, 1 + dd:1 + dd + n_cols]
     if row_exists is not None:
         is_max &= rows_ok[..., None]
     return is_max

@@ -270,6 +270,36 @@ def _g_on_grid(b: np.ndarray, p: np.ndarray, grid_deg: np.ndarray) -> np.ndarray
     return (z.real ** 2 + z.imag ** 2).sum(axis=1)
 
 
+def _fb_offsets(p: np.ndarray) -> np.ndarray:
+    """(K // 2,) offsets ``p_i - c / 2`` of the first half of a centro-symmetric array from its
+    centre (``c = p_0 + p_(K-1)``)."""
+    return p[:p.size // 2] - 0.5 * (p[0] + p[-1])
+
+
+def _fb_steering(p: np.ndarray, u: np.ndarray) -> np.ndarray:
+    """The real steering vector of unitary (forward-backward) MUSIC.
+
+    For a centro-symmetric array, ``Q^H a(u) = phi(u) r(u)`` with ``|phi| = 1`` and ``r`` real
+    (Huarng & Yeh 1991; Q as in :func:`_q_h`): ``r = [sqrt(2) cos(2 pi d u); (1); sqrt(2) sin(2 pi d u)]``
+    with ``d`` = :func:`_fb_offsets` (the middle 1 for odd K). So with ``B = Q E`` (E real),
+    ``g(u) = |B^H a(u)|^2 = |E^T r(u)|^2``: the same function of u in real arithmetic.
+
+    u : any shape; returns r, u.shape + (K,)."""
+    ph = np.multiply.outer(u, 2 * np.pi * _fb_offsets(p))
+    mid = [np.ones(u.shape + (1,))] if p.size % 2 else []  # the centre element: a_c / phi = 1
+    r2 = np.sqrt(2.0)
+    return np.concatenate([r2 * np.cos(ph), *mid, r2 * np.sin(ph)], axis=-1)
+
+
+@lru_cache(maxsize=16)
+def _fb_grid_cached(p_bytes: bytes, g_bytes: bytes) -> np.ndarray:
+    """(K, G) real steering matrix ``r(u)`` of :func:`_fb_steering` on a grid (degrees)."""
+    u = np.sin(np.radians(np.frombuffer(g_bytes)))
+    r = np.ascontiguousarray(_fb_steering(np.frombuffer(p_bytes), u).T)
+    r.setflags(write=False)
+    return r
+
+
 # ---------------------------------------------------------------------------------------------
 # spectra
 
@@ -404,12 +434,23 @@ def _angles_block(x: np.ndarray, p: np.ndarray, *, n_targets: int, n_signals: in
                   loading: float, backend: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """doa_angles' work on one block x (D, M, L): (angles (D, T), peak values (D, T),
     spectrum (D, G))."""
+    real_fb = backend == "numpy" and forward_backward
     if backend == "torch":
         b, p = _music_subspace_torch(x, p, n_signals, forward_backward, subarray)
         sense = 1
+    elif real_fb:  # unitary MUSIC / beamformers: E real, on the grid g = |E^T r(u)|^2
+        rr, p = _real_fb_covariance(x, p, subarray, loading)
+        e, sense = _factor(rr, method, n_signals)
+        b = _q(e)
     else:
         b, sense, p = _subspace(x, p, method, n_signals, forward_backward, subarray, loading)
-    g = _g_on_grid(b, p, grid)
+    grid = np.ascontiguousarray(grid, dtype=np.float64)
+    if real_fb:
+        z = e.transpose(0, 2, 1) @ _fb_grid_cached(np.ascontiguousarray(p).tobytes(),
+                                                   grid.tobytes())  # (D, rank, G)
+        g = (z * z).sum(axis=1)
+    else:
+        g = _g_on_grid(b, p, grid)
     spec = _spectrum_from_g(g, method, p.size)
     idx = _grid_peaks(spec, n_targets)
     safe = np.maximum(idx, 0)

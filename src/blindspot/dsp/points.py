@@ -36,8 +36,6 @@ from __future__ import annotations
 
 import numpy as np
 import pandas as pd
-import scipy.sparse
-import scipy.sparse.csgraph
 
 from blindspot.arrays import check_same_shape, checked_array
 from blindspot.dsp.config import POINT_ESTIMATORS
@@ -105,9 +103,8 @@ def cluster_labels(x: np.ndarray, y: np.ndarray, gap_m: float) -> np.ndarray:
     if len(xy) <= 1:
         return np.zeros(len(xy), dtype=np.int64)
     d2 = ((xy[:, None, :] - xy[None, :, :]) ** 2).sum(axis=-1)
-    graph = scipy.sparse.csr_matrix(d2 < gap_m ** 2)
-    _, labels = scipy.sparse.csgraph.connected_components(graph, directed=False)
-    return labels
+    i, j = np.nonzero(d2 < gap_m ** 2)
+    return connected_labels(len(xy), i, j)
 
 
 POINT_FIELDS = POINT_COLUMNS[2:]  # the per-point values, without frame and time_s
@@ -256,10 +253,29 @@ def _cluster_within_frames(frame_sorted: np.ndarray, x: np.ndarray, y: np.ndarra
     j = starts[block[i]] + offset
     d2 = (x[i] - x[j]) ** 2 + (y[i] - y[j]) ** 2
     near = d2 < gap_m ** 2
-    graph = scipy.sparse.csr_matrix((np.ones(int(near.sum()), dtype=bool), (i[near], j[near])),
-                                    shape=(n, n))
-    _, labels = scipy.sparse.csgraph.connected_components(graph, directed=False)
-    return labels
+    return connected_labels(n, i[near], j[near])
+
+
+def connected_labels(n: int, i: np.ndarray, j: np.ndarray) -> np.ndarray:
+    """Connected components of the undirected graph on nodes 0..n-1 with edges (i[e], j[e]):
+    labels (n,) int64 numbered in the order of each component's smallest node (the numbering
+    of ``scipy.sparse.csgraph.connected_components``, tested equal).
+
+    Min-label propagation with pointer jumping (Shiloach & Vishkin 1982): every node takes the
+    smallest label among its neighbours, then the label of its label; labels only decrease, and
+    the number of rounds grows with the logarithm of the components' diameter (one or two for
+    a frame's few detections). Each round is a few whole-array operations, so it costs less
+    than building scipy's sparse matrix for the tens of detections of a batch."""
+    lab = np.arange(n)
+    while True:
+        new = lab.copy()
+        np.minimum.at(new, i, lab[j])
+        np.minimum.at(new, j, lab[i])
+        new = new[new]  # pointer jumping: a label's own label
+        if np.array_equal(new, lab):
+            break
+        lab = new
+    return np.unique(lab, return_inverse=True)[1].astype(np.int64)
 
 
 def group_point(range_m: np.ndarray, velocity_mps: np.ndarray, angle_deg: np.ndarray,

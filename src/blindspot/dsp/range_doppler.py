@@ -25,12 +25,14 @@ outermost axis in one streaming pass. The arrays handed out (``native``, ``__cal
 ``range_profiles``) are transposed *views* of the channel-major result with the documented axis
 order (no transposing copy); :func:`detection_map` recognises the layout.
 
-* Full range (``n_range`` None or ``n_samples``): both FFTs in one call of ``torch.fft.fft2``
-  (CPU builds: MKL), which does each channel's 2-D transform while it is in cache; it beat
-  ``scipy.fft`` (pocketfft, two passes over the cube), ``numpy.fft`` and torch's own two 1-D
-  passes. torch's intra-op pool is set to ``workers`` for the call and restored after. Batches
-  larger than one MMWCAS frame go through it in cache-sized blocks of channels (see
-  ``RangeDoppler._fft2``).
+* Full range (``n_range`` None or ``n_samples``): both FFTs by FFTW (pyFFTW), one 2-D plan per
+  cache-sized block of channels (2 MMWCAS channels, 256 KiB): the window multiply writes the block
+  from the cube into a scratch buffer that stays in L2, and FFTW transforms it straight into its
+  slice of the result, so the 25 MB cube is read once and the result written once (see
+  ``RangeDoppler._fft2``). Measured on one thread (AMD EPYC, AVX2) it beat ``torch.fft.fft2``
+  (MKL) on the whole windowed frame, ``scipy.fft`` (pocketfft) and ``numpy.fft``, blocked or not.
+  The plan is ``FFTW_ESTIMATE`` (chosen without timing runs), so the result is the same on every
+  run. ``workers`` sets FFTW's threads.
 * Range window (``n_range`` < ``n_samples``): range FFT in place with ``scipy.fft``, then the
   Doppler window and FFT only on the kept range bins (``scipy.fft``; faster than torch here, and
   the same arithmetic as before, so the stages' detections are unchanged bit for bit).
@@ -50,6 +52,7 @@ chain; measured with ``np.sum`` / ``np.isfinite`` on this machine).
 
 from __future__ import annotations
 
+import threading
 from dataclasses import dataclass, field
 from functools import lru_cache
 
@@ -59,12 +62,39 @@ import scipy.signal
 
 from blindspot.arrays import checked_array, count_nonfinite
 from blindspot.dsp.config import WINDOW_NAMES
-# Full-range FFT of inputs whose result exceeds _DIRECT_BYTES: in blocks of _BLOCK_BYTES. glibc
-# serves allocations above 32 MiB by a fresh mmap, so torch's output of a larger batch in one call
-# was page-faulted in 4 KiB pages on every call (tripled its cost per frame); one MMWCAS frame is
-# 24 MiB and goes in one call (no copy).
-_DIRECT_BYTES = 24 << 20
-_BLOCK_BYTES = 4 << 20  # 32 MMWCAS channels (64 x 256 complex64 each)
+# Full-range FFT in blocks of about _BLOCK_BYTES of channels (2 MMWCAS channels of 64 x 256
+# complex64): the scratch block and its result fit a 512 KiB L2 together. Blocks of 1 to 8
+# channels measured alike, 32 channels (4 MiB) a quarter slower (benchmarks/bench_fft.py).
+_BLOCK_BYTES = 256 << 10
+_PLANS = threading.local()  # per thread: FFTW plans by (block shape, threads, alignment)
+
+
+def _aligned_empty(shape: tuple[int, ...]) -> np.ndarray:
+    """Uninitialised complex64 C-contiguous array whose data start on a 64-byte boundary (the
+    SIMD alignment FFTW's plans assume)."""
+    import pyfftw
+
+    return pyfftw.empty_aligned(shape, dtype=np.complex64, n=64)
+
+
+def _fft2_plan(shape: tuple[int, ...], threads: int, aligned: bool):
+    """FFTW plan (cached per thread: plans are not re-entrant) of the forward 2-D DFT over the
+    last two axes of complex64 C-contiguous blocks ``shape``, out of place, allowed to destroy its
+    scratch input (``plan.input_array``). ``aligned``: every output block starts 64-byte aligned
+    (else the plan is made for unaligned arrays)."""
+    import pyfftw
+
+    cache = getattr(_PLANS, "plans", None)
+    if cache is None:
+        cache = _PLANS.plans = {}
+    key = (shape, threads, aligned)
+    plan = cache.get(key)
+    if plan is None:
+        flags = ("FFTW_ESTIMATE", "FFTW_DESTROY_INPUT") + (() if aligned else ("FFTW_UNALIGNED",))
+        plan = pyfftw.FFTW(_aligned_empty(shape), _aligned_empty(shape), axes=(-2, -1),
+                           direction="FFTW_FORWARD", flags=flags, threads=threads)
+        cache[key] = plan
+    return plan
 
 
 class RangeDopplerError(ValueError):
@@ -124,7 +154,7 @@ class RangeDoppler:
     ``(tx, rx, doppler, range)`` (see :meth:`channel_major`), so nothing is copied. With
     ``n_range`` only the first ``n_range`` range bins are Doppler-processed and returned (a range
     window for scenes that end well before the profile's maximum range; saves most of the Doppler
-    FFT). ``workers``: threads of scipy.fft and of torch's pool during the call.
+    FFT). ``workers``: threads of FFTW and scipy.fft.
 
     Raises WindowError for an unknown window, RangeDopplerError for ``n_range`` outside
     [1, n_samples] and, from every method, for a cube of the wrong shape or kind or with NaN/inf
@@ -176,46 +206,41 @@ class RangeDoppler:
 
     def _fft2(self, cube: np.ndarray) -> np.ndarray:
         """Window and both FFTs: complex64 C-contiguous (..., tx, rx, doppler, range) of a
-        checked cube (..., chirps, tx, rx, samples), by ``torch.fft.fft2`` (MKL), which does each
-        channel's 2-D transform while it is in cache.
+        checked cube (..., chirps, tx, rx, samples), in cache-sized blocks of virtual channels.
 
-        Up to ``_DIRECT_BYTES`` of result (one MMWCAS frame): the windowed channel-major buffer
-        is transformed in one call and torch's output is returned (no copy). Larger batches go in
-        blocks of about ``_BLOCK_BYTES`` (whole frames when a frame is smaller; otherwise a
-        divisor of the frame's channels, so a block never spans two frames): a block is
-        window-multiplied into a small buffer, transformed, and copied into the result, so torch
-        never allocates more than a block. The loop runs over cache blocks, not over frames,
-        chirps or channels (an MMWCAS frame is 6 blocks)."""
-        import torch
-
+        A block (about ``_BLOCK_BYTES``: 2 MMWCAS channels of 64 x 256 complex64; whole frames
+        when a frame is smaller, otherwise a divisor of the frame's channels, so a block never
+        spans two frames) is window-multiplied from the cube into a small scratch buffer (the
+        layout change to channel-major and the window in one pass, the buffer stays in L2) and
+        transformed by one FFTW plan (``FFTW_ESTIMATE``: a deterministic plan, so the result
+        does not depend on timings) straight into its slice of the result. The cube is read
+        once and the result written once; nothing else of cube size is allocated. The loop
+        runs over cache blocks, not over chirps or samples (an MMWCAS frame is 96 blocks)."""
         lead, (c, t, r, n) = cube.shape[:-4], cube.shape[-4:]
         n_frames, n_ch = int(np.prod(lead, dtype=np.int64)), t * r
         per_ch = c * n * np.dtype(np.complex64).itemsize
-        threads = torch.get_num_threads()
-        torch.set_num_threads(self.workers)  # process-wide pool: pinned for the call only
-        try:
-            if n_frames * n_ch * per_ch <= _DIRECT_BYTES:
-                x = torch.from_numpy(self._windowed(cube, self._w2d))
-                return torch.fft.fft2(x, dim=(-2, -1)).numpy()
-            src = np.moveaxis(cube.reshape(n_frames, c, n_ch, n), 1, 2)  # (F, T*R, C, N) view
-            out = np.empty((*lead, t, r, c, n), np.complex64)
-            dst = out.reshape(n_frames, n_ch, c, n)
-            budget = max(1, _BLOCK_BYTES // per_ch)  # channels per block
-            if budget >= n_ch:  # whole frames per block
-                k_f, k_c = min(n_frames, budget // n_ch), n_ch
-            else:  # the largest divisor of the frame's channels within the budget
-                k_f, k_c = 1, max(d for d in range(1, budget + 1) if n_ch % d == 0)
-            buf = np.empty((k_f, k_c, c, n), np.complex64)
-            tbuf = torch.from_numpy(buf)
+        src = np.moveaxis(cube.reshape(n_frames, c, n_ch, n), 1, 2)  # (F, T*R, C, N) view
+        out = _aligned_empty((*lead, t, r, c, n))
+        dst = out.reshape(n_frames, n_ch, c, n)
+        budget = max(1, _BLOCK_BYTES // per_ch)  # channels per block
+        if budget >= n_ch:  # whole frames per block
+            k_f, k_c = min(n_frames, budget // n_ch), n_ch
+        else:  # the largest divisor of the frame's channels within the budget
+            k_f, k_c = 1, max(d for d in range(1, budget + 1) if n_ch % d == 0)
+        with np.errstate(invalid="ignore"):  # inf * 0, as in _windowed
             for f0 in range(0, n_frames, k_f):
                 f1 = min(f0 + k_f, n_frames)
+                # one frame per block: 3-D blocks (channels, chirps, samples), whose strides
+                # match the plan's whatever the frame's channel count
+                shape = (f1 - f0, k_c, c, n) if k_f > 1 else (k_c, c, n)
+                plan = _fft2_plan(shape, self.workers, aligned=per_ch % 64 == 0)
+                buf = plan.input_array
                 for c0 in range(0, n_ch, k_c):
-                    with np.errstate(invalid="ignore"):  # as in _windowed
-                        np.multiply(src[f0:f1, c0:c0 + k_c], self._w2d, out=buf[:f1 - f0])
-                    dst[f0:f1, c0:c0 + k_c] = torch.fft.fft2(tbuf[:f1 - f0], dim=(-2, -1)).numpy()
-            return out
-        finally:
-            torch.set_num_threads(threads)
+                    block = (slice(f0, f1) if k_f > 1 else f0, slice(c0, c0 + k_c))
+                    np.multiply(src[block], self._w2d, out=buf)
+                    plan.update_arrays(buf, dst[block])
+                    plan.execute()
+        return out
 
     def _doppler_cut(self, profiles_cm: np.ndarray) -> np.ndarray:
         """Doppler window and FFT of the kept range bins of channel-major range profiles
