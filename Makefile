@@ -33,8 +33,8 @@ test-cluster: $(CLUSTER_STAMP)  ## the scale-out tests: launchers, Optuna, Ray, 
 	  tests/pipeline/test_ray_launcher.py tests/pipeline/test_tracking_server.py \
 	  tests/pipeline/test_mlflow_ui.py
 
-test: $(STAMP)  ## the default test suite (what CI runs)
-	$(VENV)/bin/python -m pytest -q
+test: $(STAMP)  ## the default test suite (what CI runs), one worker per core
+	$(VENV)/bin/python -m pytest -q -n auto --dist loadfile
 
 test-slow: $(STAMP)  ## the long tests, on purpose
 	$(VENV)/bin/python -m pytest -q -m slow

@@ -173,3 +173,17 @@ def test_bad_input_is_named(paper):
     with pytest.raises(RangeDopplerError, match=r"rd must be range-Doppler data \(range, doppler, "
                        r"tx, rx\)"):
         detection_map(np.zeros((256, 64, 192), np.complex64))
+
+
+@pytest.mark.parametrize("block_bytes", [1, 2 * 12 * 16 * 32 * 8])
+def test_without_pyfftw_scipy_gives_the_same_transform(monkeypatch, block_bytes):
+    """pyFFTW (FFTW is GPL) is optional: without it the blocks go through scipy.fft, to the
+    same float32 reference, one channel or whole frames at a time."""
+    import blindspot.dsp.range_doppler as rd_mod
+
+    monkeypatch.setattr(rd_mod, "HAVE_FFTW", False)
+    monkeypatch.setattr(rd_mod, "_BLOCK_BYTES", block_bytes)
+    batch = noise_cube((3, 16, 3, 4, 32), seed=6)
+    proc = RangeDoppler(16, 32, "hann", "hamming")
+    assert_float32_close(np.moveaxis(proc.native(batch), -1, -4), numpy_reference(batch))
+    assert_float32_close(proc(batch[0]), numpy_reference(batch[0]))

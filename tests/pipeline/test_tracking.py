@@ -174,7 +174,7 @@ def test_parallel_first_runs_on_a_fresh_store_do_not_race(tmp_path: Path) -> Non
     procs = [subprocess.Popen([sys.executable, "-c", RACE, str(i), str(n), str(toy)],
                               env=clean_env(), stderr=subprocess.PIPE, text=True)
              for i in range(n)]
-    errors = [p.communicate(timeout=90)[1] for p in procs]
+    errors = [p.communicate(timeout=240)[1] for p in procs]
     assert [p.returncode for p in procs] == [0] * n, errors
     found = runs(toy)
     assert sorted(int(r.data.params["i"]) for r in found) == list(range(n))

@@ -141,7 +141,7 @@ def clean_env(**extra: str) -> dict[str, str]:
     return env
 
 
-def run(cmd: list[str], cwd: Path, *, timeout: float = 120, check: bool = True,
+def run(cmd: list[str], cwd: Path, *, timeout: float = 300, check: bool = True,
         env: dict[str, str] | None = None) -> subprocess.CompletedProcess[str]:
     """Run ``cmd`` in ``cwd``; on failure the assertion shows stdout and stderr."""
     proc = subprocess.run(cmd, cwd=cwd, env=env or clean_env(), capture_output=True, text=True,

@@ -52,6 +52,7 @@ chain; measured with ``np.sum`` / ``np.isfinite`` on this machine).
 
 from __future__ import annotations
 
+import importlib.util
 import threading
 from dataclasses import dataclass, field
 from functools import lru_cache
@@ -67,11 +68,17 @@ from blindspot.dsp.config import WINDOW_NAMES
 # channels measured alike, 32 channels (4 MiB) a quarter slower (benchmarks/bench_fft.py).
 _BLOCK_BYTES = 256 << 10
 _PLANS = threading.local()  # per thread: FFTW plans by (block shape, threads, alignment)
+# pyFFTW (BSD) wraps FFTW (GPL-2.0-or-later): installed by requirements.lock for speed, never
+# required. Without it the same blocks go through scipy.fft (pocketfft, BSD): the same transform
+# to float32 rounding, about twice the time of the range-Doppler step (benchmarks/bench_fft.py).
+HAVE_FFTW = importlib.util.find_spec("pyfftw") is not None
 
 
 def _aligned_empty(shape: tuple[int, ...]) -> np.ndarray:
     """Uninitialised complex64 C-contiguous array whose data start on a 64-byte boundary (the
-    SIMD alignment FFTW's plans assume)."""
+    SIMD alignment FFTW's plans assume; plain ``np.empty`` without pyFFTW)."""
+    if not HAVE_FFTW:
+        return np.empty(shape, dtype=np.complex64)
     import pyfftw
 
     return pyfftw.empty_aligned(shape, dtype=np.complex64, n=64)
@@ -233,6 +240,13 @@ class RangeDoppler:
                 # one frame per block: 3-D blocks (channels, chirps, samples), whose strides
                 # match the plan's whatever the frame's channel count
                 shape = (f1 - f0, k_c, c, n) if k_f > 1 else (k_c, c, n)
+                if not HAVE_FFTW:
+                    buf = np.empty(shape, dtype=np.complex64)
+                    for c0 in range(0, n_ch, k_c):
+                        block = (slice(f0, f1) if k_f > 1 else f0, slice(c0, c0 + k_c))
+                        np.multiply(src[block], self._w2d, out=buf)
+                        dst[block] = sfft.fft2(buf, axes=(-2, -1), workers=self.workers)
+                    continue
                 plan = _fft2_plan(shape, self.workers, aligned=per_ch % 64 == 0)
                 buf = plan.input_array
                 for c0 in range(0, n_ch, k_c):
