@@ -44,6 +44,9 @@ VARIANTS: dict[str, dict] = {
     "mse_loss": {"loss": "mse"},
     "speed_norm": {"speed_floor": 0.05},
     "no_nll_head": {"nll_weight": 0.0},
+    "social_k4": {"neighbours": 4},
+    "social_k8": {"neighbours": 8},
+    "lstm_social_k8": {"cell": "lstm", "neighbours": 8},
 }
 
 
@@ -57,8 +60,11 @@ def base_config() -> Seq2SeqConfig:
 
 def run_variant(fold: str, name: str, cfg: Seq2SeqConfig, data_dir) -> dict:
     t0 = time.perf_counter()
-    val = load_split(data_dir, fold, "val").xy
-    test = load_split(data_dir, fold, "test").xy
+    k = cfg.neighbours
+    val_w = load_split(data_dir, fold, "val", neighbours=k)
+    test_w = load_split(data_dir, fold, "test", neighbours=k)
+    val, test = val_w.xy, test_w.xy
+    nb = {"val": val_w.neighbours, "test": test_w.neighbours}
     out = {}
     if name == "next_point":
         from blindspot.traj.ethucy_benchmark import LSTMBenchSettings, train_fold_lstm
@@ -66,15 +72,20 @@ def run_variant(fold: str, name: str, cfg: Seq2SeqConfig, data_dir) -> dict:
                                    progress=False)
         preds = {name: pred}
     else:
-        train = load_split(data_dir, fold, "train", min_peds=1).xy
-        ens, _ = train_ensemble(train, val, cfg)
+        train_w = load_split(data_dir, fold, "train", min_peds=1, neighbours=k)
+        ens, _ = train_ensemble(train_w.xy, val, cfg, train_nb=train_w.neighbours,
+                                val_nb=nb["val"])
         preds = {name: ens}
         if cfg.ensemble > 1:
             for k in range(1, cfg.ensemble + 1):
                 preds[f"ensemble_{k}"] = Seq2SeqEnsemble(ens.members[:k])
     preds["cvm"] = ConstantVelocity()
     for key, p in preds.items():
-        pv, pt = p.predict(val[:, :8], 12), p.predict(test[:, :8], 12)
+        if getattr(p, "uses_neighbours", False):
+            pv = p.predict(val[:, :8], 12, neighbours=nb["val"])
+            pt = p.predict(test[:, :8], 12, neighbours=nb["test"])
+        else:
+            pv, pt = p.predict(val[:, :8], 12), p.predict(test[:, :8], 12)
         out[key] = {"val_ade": ade(pv, val[:, 8:]), "val_fde": fde(pv, val[:, 8:]),
                     "test_ade": ade(pt, test[:, 8:]), "test_fde": fde(pt, test[:, 8:])}
     out["_seconds"] = time.perf_counter() - t0

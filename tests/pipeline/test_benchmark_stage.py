@@ -33,6 +33,7 @@ def tiny(tmp_path_factory):
     calibration records and the three-walk metrics the benchmark's figure shows."""
     root = tmp_path_factory.mktemp("bench")
     cfg = config.compose(["profile=tiny", "benchmark.n_walks=3", "benchmark.n_bootstrap=200",
+                          "calibration.stride=2",   # enough val pairs for the scale mixture
                           "jobs=1", "progress=false"], config_dir=REPO / "conf")
     torch.manual_seed(0)
     stats = NormStats(True, "displacement")
@@ -62,7 +63,7 @@ def test_calibration_then_benchmark_on_a_tiny_setting(tiny):
     # a small path table as the paths stage writes it, and its val / test windows
     from blindspot.traj.windows import WindowSet
 
-    T, P = 90, 6
+    T, P = 120, 6
     t = np.arange(T) * 0.1
     heading = rng.uniform(0, 2 * np.pi, P)
     truth = np.stack([np.cos(heading)[:, None] * 1.2 * t, 8 + np.sin(heading)[:, None] * 1.2 * t],

@@ -74,3 +74,40 @@ def test_a_stored_calibration_gives_the_same_forecasts():
         np.testing.assert_allclose(b.cov, a.cov)
     with pytest.raises(CalibrationError, match="point"):
         from_record({"scale": [1.0]}, PointOnly(), "point")
+
+
+def test_a_mixture_calibration_covers_heavy_tailed_errors_where_one_scale_cannot():
+    """A point predictor whose error is 0.1 m (85 % of the tracks) or 1 m (15 %; a turn it did
+    not see coming), with no covariance of its own: a per-step scale covers either the 50 %
+    or the 95 % ellipse, the scale mixture covers both on independent paths; its record gives
+    back the same ellipses."""
+    tv, mv = cv_paths(300, 45, seed=4)
+    tt, mt = cv_paths(300, 45, seed=5)
+    hv, fv = path_pairs(mv, tv, 20, 10, 5)
+    ht, ft = path_pairs(mt, tt, 20, 10, 5)
+    rng = np.random.default_rng(6)
+
+    def heavy(f):
+        big = rng.random((len(f), 1, 1)) < 0.15
+        return f + rng.normal(0, 1, f.shape) * np.where(big, 1.0, 0.1)
+
+    class Oracle:
+        name = "oracle"
+
+        def predict(self, history, horizon):
+            return self.truth[:len(history), :horizon]
+
+    preds = {"oracle": Oracle()}
+    preds["oracle"].truth = fv
+    fv_noisy = heavy(fv)
+    one = calibrate(preds, hv, fv_noisy, scale_method="quantile", scale_level=0.9)["oracle"]
+    mix = calibrate(preds, hv, fv_noisy, scale_method="mixture")["oracle"]
+    preds["oracle"].truth = ft
+    ft_noisy = heavy(ft)
+    s1, sm = calibration_scores(one, ht, ft_noisy), calibration_scores(mix, ht, ft_noisy)
+    assert abs(s1["coverage_50"] - 0.5) > 0.1, s1
+    for level in (50, 90, 95):
+        assert sm[f"coverage_{level}"] == pytest.approx(level / 100, abs=0.025), (level, sm)
+    back = from_record(to_record(mix), preds["oracle"], "oracle")
+    np.testing.assert_allclose(back.radius_sq((0.5, 0.9), 10), mix.radius_sq((0.5, 0.9), 10))
+    assert calibration_scores(back, ht, ft_noisy) == sm

@@ -150,3 +150,43 @@ def test_one_component_is_the_mle_step_scale_and_its_nll_the_gaussian_one():
                                rtol=1e-8)
     with pytest.raises(DistributionError, match="n_components"):
         fit_scale_mixture(f, truth, n_components=0)
+
+
+def test_conditional_mixture_carries_over_to_a_scene_with_another_share_of_each_class():
+    """Two kinds of track told apart by a feature of the history (say standing, f < 0.2, and
+    walking): errors 0.2 C vs 3 C. Validation holds 70 % standing, test 20 % (the ETH/UCY
+    folds' situation). One mixture fitted on the pooled validation errors learns the 70/30
+    share and mis-covers the test scene's 50 % ellipse; one mixture per class covers it at
+    the nominal rate (theory: each class's d^2 is exponential with mean 2 s)."""
+    from blindspot.traj.distribution import (ConditionalScaleMixture,
+                                             fit_conditional_scale_mixture, fit_scale_mixture)
+
+    rng = np.random.default_rng(9)
+
+    def scene(share_standing, B=8000):
+        f = _random_forecast(rng, B=B, H=2)
+        standing = rng.random(B) < share_standing
+        feature = np.where(standing, rng.uniform(0.0, 0.2, B), rng.uniform(0.2, 2.0, B))
+        scale = np.where(standing, 0.2, 3.0)[:, None, None, None]
+        L = np.linalg.cholesky(f.cov * scale)
+        return f, f.mean + np.einsum("bhij,bhj->bhi", L, rng.normal(size=f.mean.shape)), feature
+
+    f_val, t_val, x_val = scene(0.7)
+    f_test, t_test, x_test = scene(0.2)
+    levels = (0.5, 0.9, 0.95)
+    pooled = fit_scale_mixture(f_val, t_val, n_components=2).coverage(f_test, t_test, levels)
+    assert abs(pooled[0] - 0.5) > 0.05, pooled
+    cond = fit_conditional_scale_mixture(f_val, t_val, x_val, [0.2], n_components=1)
+    np.testing.assert_allclose(cond.mixtures[0].scales, 0.2, rtol=0.08)
+    np.testing.assert_allclose(cond.mixtures[1].scales, 3.0, rtol=0.08)
+    np.testing.assert_allclose(cond.coverage(f_test, t_test, x_test, levels), levels, atol=0.015)
+    # stored and read back: the same ellipses and likelihood
+    back = ConditionalScaleMixture.from_dict(cond.to_dict())
+    np.testing.assert_allclose(back.radius_sq(0.9, x_test), cond.radius_sq(0.9, x_test))
+    assert back.nll(f_test, t_test, x_test) == cond.nll(f_test, t_test, x_test)
+    # a class with too few tracks falls back to the pooled fit
+    few = fit_conditional_scale_mixture(f_val, t_val, x_val, [0.2, 1.99], n_components=1)
+    np.testing.assert_allclose(few.mixtures[2].scales,
+                               fit_scale_mixture(f_val, t_val, n_components=1).scales)
+    with pytest.raises(DistributionError, match="edges"):
+        fit_conditional_scale_mixture(f_val, t_val, x_val, [1.0, 0.5])

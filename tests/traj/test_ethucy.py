@@ -227,3 +227,36 @@ def test_bench_cli_trains_and_scores_the_lstm(ethucy_dir, tmp_path):
     lstm = json.loads(out.read_text())["lstm"]
     assert lstm["eth"]["n_windows"] == 181
     assert 0.5 < lstm["eth"]["ade"] < 2.0     # CVM: 1.00; a broken predictor lands far outside
+
+
+def test_neighbours_are_the_nearest_others_over_the_observed_frames_only(tmp_path):
+    """Five pedestrians on parallel lines y = 0, 1, 3, -0.5, 10 (x = frame), one absent after
+    frame 5: each window's neighbours are the others sorted by distance at its last observed
+    frame, their positions over the observed frames only, NaN where absent or missing."""
+    from blindspot.traj.ethucy import neighbour_tracks
+
+    F = 30
+    ys = np.array([0.0, 1.0, 3.0, -0.5, 10.0])
+    xy = np.stack([np.broadcast_to(np.arange(F, dtype=float), (5, F)),
+                   np.broadcast_to(ys[:, None], (5, F))], axis=-1).copy()
+    xy[4, 6:] = np.nan                                # pedestrian 4 leaves after frame 5
+    tracks = scene_tracks(np.array([(10 * f, p, *xy[p, f]) for p in range(5) for f in range(F)
+                                    if np.isfinite(xy[p, f, 0])]))
+    nb = neighbour_tracks(tracks, np.array([0, 0, 2]), np.array([0, 10, 10]), k=5, obs_len=8)
+    assert nb.shape == (3, 5, 8, 2)
+    # window 0 (ped 0, frames 0-7): ped 4 is absent at the last observed frame, so it is no
+    # neighbour; the others sorted by distance are 3, 1, 2; the last two slots stay empty
+    np.testing.assert_allclose(nb[0, :3, :, 1], np.broadcast_to([[-0.5], [1.0], [3.0]], (3, 8)))
+    np.testing.assert_allclose(nb[0, 0, :, 0], np.arange(8.0))       # observed frames only
+    assert np.isnan(nb[0, 3:]).all()
+    # window 2 (ped 2 at y = 3, frames 10-17): 1 (2 m), 0 (3 m), 3 (3.5 m)
+    np.testing.assert_allclose(nb[2, :3, -1, 1], [1.0, 0.0, -0.5])
+    (tmp_path / "eth" / "val").mkdir(parents=True)
+    write_scene(tmp_path / "eth" / "val" / "s.txt", synthetic_rows())
+    w = load_split(tmp_path, "eth", "val", min_peds=1, neighbours=2)
+    assert w.neighbours.shape == (len(w), 2, 8, 2)
+    # synthetic_rows: y = pedestrian id; ped 1's window at start 0 has 2 (1 m away) and 3
+    # (2 m away, present from frame 3 on) as neighbours, nearest first
+    first = np.flatnonzero((w.start == 0) & (w.xy[:, 0, 1] == 1.0))[0]
+    np.testing.assert_allclose(w.neighbours[first, :, -1, 1], [2.0, 3.0])
+    assert np.isnan(w.neighbours[first, 1, :3]).all()          # 3 appears at frame 3

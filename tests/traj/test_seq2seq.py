@@ -116,3 +116,49 @@ def test_bad_histories_are_named():
         model.predict(xy[:, :8], 13)
     with pytest.raises(HistoryError, match="train_xy"):
         train_seq2seq(xy[:, :10], xy, CFG)
+
+
+def side_step_scenes(rng, n, T=20, dt=0.4):
+    """A walker along a straight line (1.0-1.4 m/s, any heading) and one neighbour 1-2 m to its
+    left or right at the last observed frame, walking alongside; over the future the walker
+    steps 0.8 m away from the neighbour's side (linearly). Without the neighbour the side is
+    a coin flip: the best a lone-walker model can do is go straight."""
+    speed = rng.uniform(1.0, 1.4, n)
+    h = rng.uniform(0, 2 * np.pi, n)
+    fwd = np.stack([np.cos(h), np.sin(h)], -1)
+    left = np.stack([-np.sin(h), np.cos(h)], -1)
+    t = np.arange(T)
+    side = rng.choice([-1.0, 1.0], n)
+    gap = rng.uniform(1.0, 2.0, n)
+    away = -side[:, None] * 0.8 * np.clip((t - 7) / 12, 0, 1)[None]          # (n, T)
+    walker = (speed[:, None, None] * dt * t[None, :, None] * fwd[:, None]
+              + away[..., None] * left[:, None])
+    nb = (walker[:, :8] - away[:, :8, None] * left[:, None]
+          + (side * gap)[:, None, None] * left[:, None])
+    origin = rng.uniform(-10, 10, (n, 1, 2))
+    return walker + origin, (nb + origin)[:, None]                          # (n, T, 2), (n, 1, 8, 2)
+
+
+def test_neighbours_as_context_predict_what_the_walker_alone_cannot():
+    rng = np.random.default_rng(6)
+    (tr, tr_nb), (va, va_nb), (te, te_nb) = (side_step_scenes(rng, m) for m in (2000, 300, 300))
+    alone = replace(CFG, neighbours=0)
+    social = replace(CFG, neighbours=2)
+    m0, _ = train_seq2seq(tr, va, alone)
+    m1, _ = train_seq2seq(tr, va, social, train_nb=tr_nb, val_nb=va_nb)
+    e0 = np.linalg.norm(m0.predict(te[:, :8], 12) - te[:, 8:], axis=-1).mean()
+    e1 = np.linalg.norm(m1.predict(te[:, :8], 12, neighbours=te_nb) - te[:, 8:], axis=-1).mean()
+    assert e1 < 0.5 * e0, (e1, e0)
+    # the neighbours move with the scene: rotation, translation and mirror
+    R, t = _rot(-1.1), np.array([1.0, 4.0])
+    obs, nb = te[:50, :8], te_nb[:50]
+    pred = m1.predict(obs, 12, neighbours=nb)
+    np.testing.assert_allclose(m1.predict(obs @ R.T + t, 12, neighbours=nb @ R.T + t),
+                               pred @ R.T + t, atol=1e-4)
+    np.testing.assert_allclose(m1.predict(obs * [1.0, -1.0], 12, neighbours=nb * [1.0, -1.0]),
+                               pred * [1.0, -1.0], atol=1e-4)
+    # nobody near: no neighbours given, or only absent ones, is the same input
+    np.testing.assert_allclose(m1.predict(obs, 12),
+                               m1.predict(obs, 12, neighbours=np.full_like(nb, np.nan)))
+    with pytest.raises(HistoryError, match="neighbours"):
+        m1.predict(obs, 12, neighbours=nb[:, :, :5])

@@ -3,7 +3,7 @@ standard protocol.
 
     python -m blindspot.bench.ethucy --data DIR --out FILE.json [--report FILE.md]
         [--models cvm,kalman,lstm,mlp] [--folds eth,hotel,...] [--epochs N] [--ensemble K]
-        [--calibration mle|quantile|mixture] [--quiet]
+        [--calibration mle|quantile|mixture|conditional] [--quiet]
 
 ``--epochs``, ``--ensemble``, ``--seed``, ``--threads`` apply to every learned model (the direct
 predictors ``lstm``/``mlp``, whose other settings are ``Seq2SeqConfig``'s defaults, and the
@@ -77,8 +77,11 @@ def build_parser() -> argparse.ArgumentParser:
                    help="average this many LSTMs (seeds seed, seed+1, ...) at every step")
     p.add_argument("--seed", type=int, default=d.seed)
     p.add_argument("--threads", type=int, default=None, help="torch threads for the LSTM")
-    p.add_argument("--calibration", choices=("mle", "quantile", "mixture"), default="mixture",
+    p.add_argument("--calibration", choices=("mle", "quantile", "mixture", "conditional"),
+                   default="conditional",
                    help="calibration fitted on val: per-step scale (mle, quantile) or scale mixture")
+    p.add_argument("--neighbours", type=int, default=Seq2SeqConfig.neighbours,
+                   help="nearest pedestrians the direct predictors read as context (0 = none)")
     p.add_argument("--quiet", action="store_true", help="no progress bars")
     return p
 
@@ -93,7 +96,8 @@ def settings_from_args(args: argparse.Namespace) -> EthUcySettings:
                              rotations=args.rotations, ensemble=args.ensemble,
                              num_threads=args.threads)
     s2s = Seq2SeqConfig(epochs=args.epochs, ensemble=args.ensemble, seed=args.seed,
-                        threads=args.threads if args.threads is not None else 1)
+                        threads=args.threads if args.threads is not None else 1,
+                        neighbours=args.neighbours)
     data_dir = args.data if args.data is not None else default_data_dir()
     return EthUcySettings(data_dir=data_dir, models=tuple(args.models), folds=tuple(args.folds),
                           lstm=lstm, seq2seq=s2s, calibration=args.calibration)

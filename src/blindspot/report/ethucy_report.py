@@ -80,6 +80,16 @@ def compare_to_cvm(results: Results) -> list[str]:
     return lines + [""] if lines else []
 
 
+#: how each ``ethucy.calibration`` method is described on the page
+_CALIBRATION_WORDS = {
+    "mle": "a per-step covariance scale, `fit_step_scale` method `mle`",
+    "quantile": "a per-step covariance scale, `fit_step_scale` method `quantile`",
+    "mixture": "a per-step scale mixture of the forecast's Gaussians, `fit_scale_mixture`",
+    "conditional": "one per-step scale mixture per class of observed speed (standing, slow, "
+                   "walking, brisk, fast), `fit_conditional_scale_mixture`",
+}
+
+
 def format_report(results: Results, validation: Results,
                   details: Mapping[str, Mapping[str, Mapping[str, Any]]], folds: Sequence[str],
                   lstm: Mapping[str, Any] | None, command: str, seconds: float, *,
@@ -191,8 +201,8 @@ def format_report(results: Results, validation: Results,
         parts += ["", "## Calibration (test scenes)", "",
                   "Empirical coverage of the 50 / 90 / 95 % ellipses of each predicted point "
                   "(all 12 steps) and the mean negative log-likelihood (nats per point) on each "
-                  "test scene, after a per-step covariance scale fitted on the fold's val split"
-                  + (f" (`fit_step_scale`, method `{calibration_method}`)"
+                  "test scene, after a calibration fitted on the fold's val split"
+                  + (f" ({_CALIBRATION_WORDS.get(calibration_method, calibration_method)})"
                      if calibration_method else "")
                   + ". `*`: more than 2 percentage points from nominal. cvm: a heteroscedastic "
                   "noise model of its errors (along/cross-track covariance per step, scaled "

@@ -114,8 +114,18 @@ def distribution_scores(predictor, tracks: np.ndarray, start: np.ndarray, end: n
         return out
     fc = forecast_distributions(tracks[ok], start[ok], predictor, end=end[ok])
     d2 = mahalanobis_sq(fc, truth[ok])                                     # (n_ok, H)
-    for level, key in zip(COVERAGE_LEVELS, keys):
-        out[key][ok] = np.nanmean(d2 <= chi2_2dof_radius_sq(level), axis=1)
+    levels = np.asarray(COVERAGE_LEVELS)
+    if getattr(predictor, "mixture", None) is not None:
+        # a mixture-calibrated predictor (ScaledPredictor with a ScaleMixture) has its own
+        # radius per forecast step; walk b's point j is step lead_b + j from the last point seen
+        lead = (start - _last_seen_before(tracks, start) - 1)[ok]
+        n_steps = int(steps[ok].max())
+        idx = np.clip(lead[:, None] + np.arange(fc.horizon)[None, :], 0, n_steps - 1)
+        r2 = predictor.radius_sq(levels, n_steps)[:, idx]                  # (L, n_ok, H)
+    else:
+        r2 = np.broadcast_to(chi2_2dof_radius_sq(levels)[:, None, None], (levels.size,) + d2.shape)
+    for i, key in enumerate(keys[:len(COVERAGE_LEVELS)]):
+        out[key][ok] = np.nanmean(d2 <= r2[i], axis=1)
     c = fc.cov
     logdet = np.log(c[..., 0, 0] * c[..., 1, 1] - c[..., 0, 1] ** 2)
     out["nll"][ok] = np.nanmean(0.5 * d2 + 0.5 * logdet + np.log(2 * np.pi), axis=1)

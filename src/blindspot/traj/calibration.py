@@ -12,8 +12,13 @@ Every prediction method gets a :class:`~blindspot.traj.distribution.GaussianFore
   (:class:`ErrorModelPredictor`).
 
 Then a per-step scale ``s_h`` (:func:`blindspot.traj.distribution.fit_step_scale`) is fitted on
-the same validation pairs, so the covariances cover what they claim at the step's own horizon;
-the test paths (and the benchmark's walks) are never used to fit anything.
+the same validation pairs, so the covariances cover what they claim at the step's own horizon,
+or (``scale_method="mixture"``) a per-step scale mixture
+(:func:`blindspot.traj.distribution.fit_scale_mixture`): errors heavier-tailed than a Gaussian
+(most walks go on, some turn) cannot get the 50 % and the 95 % ellipse right with one scale.
+The predictor then gives the mixture's moment-matched Gaussian (:meth:`ScaledPredictor.
+predict_distribution`) and the mixture's ellipse radii (:meth:`ScaledPredictor.radius_sq`).
+The test paths (and the benchmark's walks) are never used to fit anything.
 
 Pairs (:func:`path_pairs`): from each measured path, windows of ``window`` measured points
 (interior misses linearly interpolated, as the windows stage does) and the next ``horizon``
@@ -30,8 +35,10 @@ import numpy as np
 from blindspot.arrays import check_array
 from blindspot.traj.baselines import ConstantVelocity, CVNoise, KalmanCV, cv_error_frame, \
     cv_noise_features
-from blindspot.traj.distribution import (DistributionError, GaussianForecast, ellipse_coverage,
-                                         fit_step_scale, gaussian_nll)
+from blindspot.traj.distribution import (DistributionError, GaussianForecast, ScaleMixture,
+                                         chi2_2dof_radius_sq, ellipse_coverage,
+                                         fit_scale_mixture, fit_step_scale, gaussian_nll,
+                                         mahalanobis_sq)
 from blindspot.traj.windows import interpolate_gaps
 
 __all__ = ["ETHUCY_FILE", "ETHUCY_NAMES", "CalibrationError", "path_pairs", "ErrorModelPredictor", "ScaledPredictor",
@@ -118,13 +125,26 @@ class ErrorModelPredictor:
 @dataclass(frozen=True, eq=False)
 class ScaledPredictor:
     """A probabilistic predictor whose covariances are multiplied by a per-step scale (H,)
-    fitted on validation data (:func:`fit_step_scale`); ``options`` go to its
-    ``predict_distribution`` (e.g. ``measured=False`` for the Kalman filter)."""
+    fitted on validation data (:func:`fit_step_scale`), or calibrated by a per-step scale
+    mixture (``mixture``, :func:`fit_scale_mixture`; ``scale`` is then its moment-matched
+    scale ``sum_k w_hk s_hk``); ``options`` go to its ``predict_distribution`` (e.g.
+    ``measured=False`` for the Kalman filter)."""
 
     base: Any
     scale: np.ndarray
     options: tuple = ()
     name: str = ""
+    mixture: ScaleMixture | None = None
+
+    def radius_sq(self, levels: tuple[float, ...] | np.ndarray, horizon: int) -> np.ndarray:
+        """(L, horizon) squared Mahalanobis radius, under :meth:`predict_distribution`'s
+        covariance, of the ``levels`` ellipses: the chi-square(2) quantile for a Gaussian, the
+        mixture's quantile (:meth:`ScaleMixture.radius_sq`) divided by the moment-matched
+        scale for a mixture."""
+        lv = np.asarray(levels, float)
+        if self.mixture is None:
+            return np.broadcast_to(chi2_2dof_radius_sq(lv)[:, None], (lv.size, horizon)).copy()
+        return self.mixture.radius_sq(lv)[:, :horizon] / self.scale[None, :horizon]
 
     @property
     def window(self):
@@ -150,7 +170,8 @@ def calibrate(predictors: dict[str, Any], history: np.ndarray, future: np.ndarra
               scale_method: str = "quantile", scale_level: float = 0.9,
               cv_fit_points: int = 5) -> dict[str, ScaledPredictor]:
     """Give every predictor (``lstm``, ``constant_velocity``, ``kalman``) a distribution fitted
-    on the validation pairs (history (N, W, 2), future (N, H, 2)) and a per-step scale."""
+    on the validation pairs (history (N, W, 2), future (N, H, 2)) and a per-step scale
+    (``scale_method`` "mle" / "quantile") or scale mixture ("mixture")."""
     out = {}
     for name, p in predictors.items():
         options: tuple = ()
@@ -161,18 +182,30 @@ def calibrate(predictors: dict[str, Any], history: np.ndarray, future: np.ndarra
         else:
             base = ErrorModelPredictor.fit(p, history, future, k=cv_fit_points, name=name)
         fc = base.predict_distribution(history, future.shape[1], **dict(options))
-        scale = fit_step_scale(fc, future, method=scale_method, level=scale_level)
-        out[name] = ScaledPredictor(base, scale, options, name)
+        if scale_method == "mixture":
+            mix = fit_scale_mixture(fc, future)
+            scale = np.sum(mix.weights * mix.scales, axis=1)
+            out[name] = ScaledPredictor(base, scale, options, name, mix)
+        else:
+            scale = fit_step_scale(fc, future, method=scale_method, level=scale_level)
+            out[name] = ScaledPredictor(base, scale, options, name)
     return out
 
 
 def calibration_scores(predictor, history: np.ndarray, future: np.ndarray) -> dict[str, float]:
     """``coverage_50``, ``coverage_90``, ``coverage_95`` (share of true positions inside the
-    ellipses) and ``nll`` (nats per point) of a predictor's forecast on (history, future)."""
+    ellipses) and ``nll`` (nats per point) of a predictor's forecast on (history, future); a
+    mixture-calibrated :class:`ScaledPredictor` is scored by its mixture (ellipses and
+    likelihood)."""
     fc = predictor.predict_distribution(history, future.shape[1])
-    cov = ellipse_coverage(fc, future, LEVELS)
+    mix = getattr(predictor, "mixture", None)
+    if mix is not None:
+        base = GaussianForecast(fc.mean, fc.cov / predictor.scale[None, :fc.horizon, None, None])
+        cov, nll = mix.coverage(base, future, LEVELS), mix.nll(base, future)
+    else:
+        cov, nll = ellipse_coverage(fc, future, LEVELS), gaussian_nll(fc, future)
     return {"coverage_50": float(cov[0]), "coverage_90": float(cov[1]),
-            "coverage_95": float(cov[2]), "nll": float(gaussian_nll(fc, future)),
+            "coverage_95": float(cov[2]), "nll": float(nll),
             "n_points": int(np.isfinite(future).all(axis=-1).sum())}
 
 
@@ -180,6 +213,8 @@ def to_record(p: ScaledPredictor) -> dict:
     """A calibrated predictor's fitted numbers as plain JSON (the point model is not stored)."""
     noise = p.base.noise if isinstance(p.base, (ErrorModelPredictor, ConstantVelocity)) else None
     return {"scale": p.scale.tolist(), "options": dict(p.options),
+            "mixture": None if p.mixture is None else {"weights": p.mixture.weights.tolist(),
+                                                       "scales": p.mixture.scales.tolist()},
             "noise": None if noise is None else {"step_cov": noise.step_cov.tolist(),
                                                  "beta": noise.beta.tolist(),
                                                  "n_fit": noise.n_fit},
@@ -201,7 +236,10 @@ def from_record(record: dict, predictor, name: str) -> ScaledPredictor:
             base = ErrorModelPredictor(predictor, CVNoise(np.asarray(noise["step_cov"]),
                                                           np.asarray(noise["beta"]),
                                                           noise["n_fit"]), int(record["k"]), name)
+        mix = record.get("mixture")
+        mixture = (None if mix is None else
+                   ScaleMixture(np.asarray(mix["weights"], float), np.asarray(mix["scales"], float)))
     except (KeyError, TypeError) as e:
         raise CalibrationError(f"calibration record of {name!r}: missing or malformed field "
                                f"{e}") from None
-    return ScaledPredictor(base, scale, options, name)
+    return ScaledPredictor(base, scale, options, name, mixture)

@@ -294,6 +294,9 @@ class Seq2SeqConfig(TypedConfig):
         ensemble: members trained with seeds ``seed, seed + 1, ...``.
         seed: first seed.
         threads: torch threads while training and predicting.
+        neighbours: K > 0: the K pedestrians nearest at the last observed frame are context
+            (their observed tracks relative to the walker's, pooled by attention,
+            :class:`blindspot.traj.seq2seq.SocialAttention`); 0 = the walker alone.
     """
 
     GROUP = "ethucy.seq2seq"
@@ -320,6 +323,7 @@ class Seq2SeqConfig(TypedConfig):
     ensemble: int = setting(5, ge=1)
     seed: int = setting(0, ge=0)
     threads: int = setting(1, ge=1)
+    neighbours: int = setting(8, ge=0)
 
 
 @dataclass(frozen=True)
@@ -337,7 +341,11 @@ class EthUcyConfig(TypedConfig):
             covariance scale (:func:`blindspot.traj.distribution.fit_step_scale`, ``"mle"`` or
             ``"quantile"``: the 90 % ellipse covers 90 % of val) or a per-step scale mixture
             of the forecast's Gaussians (``"mixture"``,
-            :func:`blindspot.traj.distribution.fit_scale_mixture`: heavy tails).
+            :func:`blindspot.traj.distribution.fit_scale_mixture`: heavy tails), or one such
+            mixture per class of observed speed (``"conditional"``,
+            :func:`blindspot.traj.distribution.fit_conditional_scale_mixture`).
+        calibration_speed_edges: the observed-speed class edges of ``"conditional"``, m/s,
+            increasing.
         seq2seq: the direct predictor's model and training settings
             (:class:`blindspot.traj.seq2seq.Seq2SeqConfig`; its ``cell`` is set by the model
             key, its ``threads`` by ``threads``, its first seed by the top-level ``seed``).
@@ -349,7 +357,8 @@ class EthUcyConfig(TypedConfig):
     models: tuple[str, ...] = setting(choices=ETHUCY_MODELS, min_items=1)
     folds: tuple[str, ...] = setting(choices=ETHUCY_FOLDS, min_items=1)
     threads: int = setting(ge=1)
-    calibration: str = setting(choices=("mle", "quantile", "mixture"))
+    calibration: str = setting(choices=("mle", "quantile", "mixture", "conditional"))
+    calibration_speed_edges: tuple[float, ...] = setting(gt=0.0, ordered=True, min_items=1)
     seq2seq: Seq2SeqConfig = setting()
 
 
@@ -403,12 +412,14 @@ class CalibrationConfig(TypedConfig):
     """The Hydra group ``calibration`` (``conf/calibration/sim_paths.yaml``).
 
     horizon_frames: future points per pair; stride: points between pair starts;
-    scale_method / scale_level: :func:`fit_step_scale`'s method and level.
+    scale_method / scale_level: :func:`fit_step_scale`'s method and level, or ``"mixture"``:
+        a per-step scale mixture (:func:`blindspot.traj.distribution.fit_scale_mixture`,
+        heavy-tailed errors; ``scale_level`` unused).
     """
 
     GROUP = "calibration"
 
     horizon_frames: int = setting(ge=1, le=1000)
     stride: int = setting(ge=1, le=1000)
-    scale_method: str = setting(choices=("mle", "quantile"))
+    scale_method: str = setting(choices=("mle", "quantile", "mixture"))
     scale_level: float = setting(gt=0.0, lt=1.0)

@@ -71,6 +71,7 @@ __all__ = [
     "split_files",
     "load_split",
     "random_rotations",
+    "neighbour_tracks",
 ]
 
 SPLITS: tuple[str, ...] = ("train", "val", "test")
@@ -399,6 +400,10 @@ class Windows:
         file_index: (N,) index into ``files``.
         files: the scene files read, sorted by name.
         skipped: one :class:`SkipReport` per file, in ``files`` order.
+        neighbours: (N, K, obs_len, 2) the observed positions (metres, world frame) of the K
+            pedestrians nearest to each window's pedestrian at its last observed frame (NaN
+            where a neighbour is absent in a frame, or where fewer than K are in the scene);
+            None unless :func:`load_split` was asked for ``neighbours``.
     """
 
     xy: np.ndarray
@@ -407,6 +412,7 @@ class Windows:
     file_index: np.ndarray
     files: tuple[str, ...]
     skipped: tuple[SkipReport, ...] = field(default=())
+    neighbours: np.ndarray | None = None
 
     def __len__(self) -> int:
         return int(self.xy.shape[0])
@@ -440,8 +446,8 @@ def split_files(data_dir: str | Path, fold: str, split: str) -> list[Path]:
 
 
 def load_split(data_dir: str | Path, fold: str, split: str, *, seq_len: int = OBS_LEN + PRED_LEN,
-               min_peds: int = 2, frame_step: int = FRAME_STEP, bad_rows: str = "raise"
-               ) -> Windows:
+               min_peds: int = 2, frame_step: int = FRAME_STEP, bad_rows: str = "raise",
+               neighbours: int = 0, obs_len: int = OBS_LEN) -> Windows:
     """Windows of one fold and split, Social-GAN style (see :func:`sliding_windows`).
 
     Args:
@@ -450,6 +456,8 @@ def load_split(data_dir: str | Path, fold: str, split: str, *, seq_len: int = OB
         seq_len: frames per window; min_peds: see :func:`sliding_windows`.
         frame_step: declared frame-id step (:func:`scene_tracks`); bad_rows: "raise" or "skip"
             defective rows (:func:`read_scene`, :func:`scene_tracks`).
+        neighbours: K > 0 also gathers each window's K nearest other pedestrians over its
+            first ``obs_len`` frames (:func:`neighbour_tracks`, ``Windows.neighbours``).
 
     Returns:
         :class:`Windows` with ``xy`` (N, seq_len, 2) metres and one :class:`SkipReport` per file
@@ -461,7 +469,8 @@ def load_split(data_dir: str | Path, fold: str, split: str, *, seq_len: int = OB
             when no file of the split yields a window (the message lists each file's tracks
             and its longest track against ``seq_len``).
     """
-    parts, ids, starts, file_idx, reports = [], [], [], [], []
+    neighbours = check_count(neighbours, "neighbours", error=EthUcyDataError, who="load_split")
+    parts, ids, starts, file_idx, reports, nbs = [], [], [], [], [], []
     offset = 0
     files = split_files(data_dir, fold, split)
     for i, path in enumerate(files):
@@ -473,13 +482,16 @@ def load_split(data_dir: str | Path, fold: str, split: str, *, seq_len: int = OB
                                duplicate_rows=grid.duplicate_rows,
                                off_grid_rows=grid.off_grid_rows))
         parts.append(xy)
+        if neighbours:
+            nbs.append(neighbour_tracks(tracks, ped, start, neighbours, obs_len))
         ids.append(ped + offset)
         starts.append(start)
         file_idx.append(np.full(ped.size, i, np.int64))
         offset += tracks.ped_ids.size
     windows = Windows(xy=np.concatenate(parts), track_id=np.concatenate(ids),
                       start=np.concatenate(starts), file_index=np.concatenate(file_idx),
-                      files=tuple(str(f) for f in files), skipped=tuple(reports))
+                      files=tuple(str(f) for f in files), skipped=tuple(reports),
+                      neighbours=np.concatenate(nbs) if neighbours else None)
     if len(windows) == 0:
         raise EthUcyDataError(
             f"{Path(data_dir) / fold / split}: no window of {seq_len} consecutive frames with "
@@ -512,3 +524,57 @@ def random_rotations(xy: np.ndarray, copies: int, rng: np.random.Generator) -> n
     x, y = xy[None, ..., 0], xy[None, ..., 1]                          # (1, N, T)
     rotated = np.stack([c * x - s * y, s * x + c * y], axis=-1)        # (copies, N, T, 2)
     return rotated.reshape(-1, *xy.shape[1:])
+
+
+def neighbour_tracks(tracks: SceneTracks, ped: np.ndarray, start: np.ndarray, k: int,
+                     obs_len: int = OBS_LEN, *, chunk: int = 4096) -> np.ndarray:
+    """The observed tracks of the ``k`` pedestrians nearest to each window's pedestrian.
+
+    The social context of the ETH/UCY literature (Alahi et al. 2016, "Social LSTM"; Gupta et
+    al. 2018, "Social GAN") is every other pedestrian of the same frames; here the ``k`` nearest
+    (Euclidean distance at the window's last observed frame ``start + obs_len - 1``, among the
+    pedestrians present in that frame), nearest first, each with its positions over the
+    window's ``obs_len`` observed frames. Only observed frames are read: nothing of the future.
+
+    Args:
+        tracks: the scene (:func:`scene_tracks`), xy (P, F, 2) metres, NaN where absent.
+        ped: (N,) row of each window's pedestrian in ``tracks.xy``.
+        start: (N,) first frame index of each window.
+        k: neighbours kept (>= 1).
+        obs_len: observed frames per window.
+        chunk: windows handled at once (bounds the (chunk, P) distance matrix's memory).
+
+    Returns:
+        (N, k, obs_len, 2) positions in metres; NaN where the neighbour is absent in a frame and
+        for every frame of a slot left empty (fewer than ``k`` others present).
+
+    Raises:
+        EthUcyDataError: ``k`` or ``obs_len`` not an integer >= 1, a window reaching past the
+            scene's last frame.
+    """
+    k = check_count(k, "k", ge=1, error=EthUcyDataError, who=tracks.source)
+    obs_len = check_count(obs_len, "obs_len", ge=1, error=EthUcyDataError, who=tracks.source)
+    ped, start = np.asarray(ped, np.int64), np.asarray(start, np.int64)
+    P, F = tracks.xy.shape[:2]
+    if ped.size and (start.max() + obs_len > F or ped.max() >= P):
+        raise EthUcyDataError(f"{tracks.source}: a window reaches past the scene's {F} frames "
+                              f"or {P} pedestrians")
+    out = np.full((ped.size, k, obs_len, 2), np.nan)
+    kk = min(k, max(P - 1, 0))
+    if kk == 0:
+        return out
+    frames = np.arange(obs_len)
+    for lo in range(0, ped.size, chunk):                 # memory bound, not one loop per window
+        p, s = ped[lo:lo + chunk], start[lo:lo + chunk]
+        last = s + obs_len - 1
+        here = tracks.xy[:, last].transpose(1, 0, 2)                          # (n, P, 2)
+        d = np.linalg.norm(here - tracks.xy[p, last][:, None, :], axis=-1)    # (n, P)
+        d = np.where(np.isfinite(d), d, np.inf)
+        d[np.arange(p.size), p] = np.inf                                      # not oneself
+        near = np.argpartition(d, kk - 1, axis=1)[:, :kk] if kk < P else np.argsort(d, 1)
+        near = np.take_along_axis(near, np.argsort(np.take_along_axis(d, near, 1), 1), 1)[:, :kk]
+        dist = np.take_along_axis(d, near, 1)                                 # (n, kk)
+        nb = tracks.xy[near[:, :, None], (s[:, None] + frames[None, :])[:, None, :]]
+        nb[~np.isfinite(dist)] = np.nan                                       # empty slots
+        out[lo:lo + chunk, :kk] = nb
+    return out

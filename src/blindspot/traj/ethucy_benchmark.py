@@ -49,15 +49,19 @@ import numpy as np
 from blindspot.traj.baselines import ConstantVelocity, KalmanCV
 from blindspot.traj.config import ETHUCY_MODELS, EthUcyConfig, Seq2SeqConfig
 from blindspot.traj.distribution import (
+    ConditionalScaleMixture,
     GaussianForecast,
     ScaleMixture,
     ellipse_coverage,
+    fit_conditional_scale_mixture,
     fit_scale_mixture,
     fit_step_scale,
     gaussian_nll,
+    observed_speed,
 )
 from blindspot.traj.ethucy import (
     FOLDS,
+    FRAME_PERIOD_S,
     OBS_LEN,
     PRED_LEN,
     Windows,
@@ -98,10 +102,15 @@ PROBABILISTIC: tuple[str, ...] = ("cvm", "kalman", "lstm", "mlp")
 CALIBRATION_LEVELS: tuple[float, ...] = (0.5, 0.9, 0.95)
 #: nominal levels of the reliability curve (figure)
 RELIABILITY_LEVELS: tuple[float, ...] = (0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 0.95, 0.99)
-#: ways to calibrate a forecast on val: a per-step scale (fit_step_scale's methods) or a
-#: per-step scale mixture (fit_scale_mixture, MIXTURE_COMPONENTS components)
-CALIBRATIONS: tuple[str, ...] = ("mle", "quantile", "mixture")
+#: ways to calibrate a forecast on val: a per-step scale (fit_step_scale's methods), a
+#: per-step scale mixture (fit_scale_mixture, MIXTURE_COMPONENTS components) or one such
+#: mixture per class of observed speed (fit_conditional_scale_mixture)
+CALIBRATIONS: tuple[str, ...] = ("mle", "quantile", "mixture", "conditional")
 MIXTURE_COMPONENTS = 3
+#: class edges of the observed speed (m/s, mean of the last two steps) for "conditional":
+#: standing (< 0.2), slow, walking, brisk, fast (> 1.4; the preferred walking speed is about
+#: 1.3-1.4 m/s, Bohannon 1997, "Comfortable and maximum walking speed of adults aged 20-79")
+SPEED_EDGES_M_S: tuple[float, ...] = (0.2, 0.6, 1.0, 1.4)
 #: encoder of each direct-predictor model key
 SEQ2SEQ_CELL: dict[str, str] = {"lstm": "lstm", "mlp": "mlp"}
 
@@ -178,8 +187,10 @@ class EthUcySettings:
         seq2seq: the direct predictor's settings (``"lstm"``, ``"mlp"``; the cell is set by
             the model key).
         calibration: how forecasts are calibrated on the val split: ``"mle"`` or
-            ``"quantile"`` (a per-step scale, :func:`fit_step_scale`) or ``"mixture"`` (a
-            per-step scale mixture, :func:`fit_scale_mixture`).
+            ``"quantile"`` (a per-step scale, :func:`fit_step_scale`), ``"mixture"`` (a
+            per-step scale mixture, :func:`fit_scale_mixture`) or ``"conditional"`` (one
+            mixture per class of observed speed, :func:`fit_conditional_scale_mixture`).
+        speed_edges: the classes' observed-speed edges for ``"conditional"``, m/s.
 
     Raises:
         ValueError: an unknown model or fold, or none (naming ``models`` / ``folds``).
@@ -191,11 +202,17 @@ class EthUcySettings:
     lstm: LSTMBenchSettings = field(default_factory=LSTMBenchSettings)
     seq2seq: Seq2SeqConfig = field(default_factory=Seq2SeqConfig)
     calibration: str = "mixture"
+    speed_edges: tuple[float, ...] = SPEED_EDGES_M_S
 
     def __post_init__(self) -> None:
         if self.calibration not in CALIBRATIONS:
             raise ValueError(f"calibration: expected one of {CALIBRATIONS}, found "
                              f"{self.calibration!r}")
+        edges = tuple(float(e) for e in self.speed_edges)
+        if not edges or any(b <= a for a, b in zip(edges, edges[1:])) or edges[0] <= 0:
+            raise ValueError(f"speed_edges: expected increasing speeds > 0 (m/s), found "
+                             f"{self.speed_edges!r}")
+        object.__setattr__(self, "speed_edges", edges)
         object.__setattr__(self, "data_dir", Path(self.data_dir))
         object.__setattr__(self, "models", _choices(self.models, MODELS, "models"))
         object.__setattr__(self, "folds", _choices(self.folds, FOLDS, "folds"))
@@ -213,7 +230,8 @@ class EthUcySettings:
                    folds=tuple(config.folds),
                    lstm=LSTMBenchSettings(seed=int(seed), num_threads=config.threads),
                    seq2seq=replace(config.seq2seq, seed=int(seed), threads=config.threads),
-                   calibration=config.calibration)
+                   calibration=config.calibration,
+                   speed_edges=tuple(config.calibration_speed_edges))
 
 
 @dataclass
@@ -228,10 +246,21 @@ class FoldOutcome:
     calibration: dict[str, Any] | None = None
 
 
+def _context(predictor: Any, windows: Windows) -> dict[str, Any]:
+    """The keyword arguments giving a predictor that reads neighbours the windows' ones."""
+    if getattr(predictor, "uses_neighbours", False):
+        if windows.neighbours is None:
+            raise ValueError(f"{predictor.name}: reads neighbours; load the windows with "
+                             "load_split(..., neighbours=K)")
+        return {"neighbours": windows.neighbours}
+    return {}
+
+
 def score(predictor: PathPredictor, test: Windows, obs_len: int = OBS_LEN,
           pred_len: int = PRED_LEN) -> tuple[float, float]:
-    """ADE and FDE (m) of ``predictor`` on test windows (N, obs_len + pred_len, 2)."""
-    pred = predictor.predict(test.observed(obs_len), pred_len)
+    """ADE and FDE (m) of ``predictor`` on test windows (N, obs_len + pred_len, 2) (with
+    their neighbours when the predictor reads them)."""
+    pred = predictor.predict(test.observed(obs_len), pred_len, **_context(predictor, test))
     truth = test.future(obs_len)
     return ade(pred, truth), fde(pred, truth)
 
@@ -296,18 +325,25 @@ def train_fold_lstm(data_dir: Path, fold: str, s: LSTMBenchSettings, progress: b
     return predictor, val_rmse, len(train), len(val)
 
 
-def val_windows(data_dir: Path, fold: str) -> Windows:
-    """The fold's val split under the test protocol (20-frame Social-GAN windows)."""
-    return load_split(data_dir, fold, "val")
+def val_windows(data_dir: Path, fold: str, neighbours: int = 0) -> Windows:
+    """The fold's val split under the test protocol (20-frame Social-GAN windows), with each
+    window's ``neighbours`` nearest pedestrians when > 0."""
+    return load_split(data_dir, fold, "val", neighbours=neighbours)
 
 
 def calibration_scores(forecast: GaussianForecast, truth: np.ndarray,
-                       mixture: ScaleMixture | None = None) -> dict[str, Any]:
+                       mixture: ScaleMixture | ConditionalScaleMixture | None = None,
+                       feature: np.ndarray | None = None) -> dict[str, Any]:
     """``{"coverage_50", "coverage_90", "coverage_95", "nll", "reliability": {"levels",
     "coverage"}}`` of a forecast (B, H) against truth (B, H, 2): ellipse coverage at
     :data:`CALIBRATION_LEVELS` and :data:`RELIABILITY_LEVELS`, mean NLL (nats per point) -
-    of the Gaussian forecast itself, or with ``mixture`` of its scale mixture."""
-    if mixture is not None:
+    of the Gaussian forecast itself, or with ``mixture`` of its scale mixture (a
+    :class:`ConditionalScaleMixture` reads each track's ``feature`` (B,))."""
+    if isinstance(mixture, ConditionalScaleMixture):
+        cov = mixture.coverage(forecast, truth, feature, CALIBRATION_LEVELS)
+        rel = mixture.coverage(forecast, truth, feature, RELIABILITY_LEVELS)
+        nll = mixture.nll(forecast, truth, feature)
+    elif mixture is not None:
         cov = mixture.coverage(forecast, truth, CALIBRATION_LEVELS)
         rel = mixture.coverage(forecast, truth, RELIABILITY_LEVELS)
         nll = mixture.nll(forecast, truth)
@@ -336,10 +372,11 @@ def train_fold_seq2seq(data_dir: Path, fold: str, cfg: Seq2SeqConfig, name: str,
     """
     from blindspot.traj.seq2seq import train_ensemble
 
-    train = load_split(data_dir, fold, "train", min_peds=1)
-    val = val_windows(data_dir, fold)
+    train = load_split(data_dir, fold, "train", min_peds=1, neighbours=cfg.neighbours)
+    val = val_windows(data_dir, fold, cfg.neighbours)
     say = (lambda line: print(f"[{fold}] {line}", flush=True)) if progress else None
-    ens, reports = train_ensemble(train.xy, val.xy, cfg, name=name, progress=say)
+    ens, reports = train_ensemble(train.xy, val.xy, cfg, name=name, progress=say,
+                                  train_nb=train.neighbours, val_nb=val.neighbours)
     fitted = {"best_epochs": [r.best_epoch for r in reports], "n_train_windows": len(train),
               "n_val_windows": len(val), "train_seconds": float(sum(r.seconds for r in reports))}
     return ens, fitted
@@ -347,12 +384,16 @@ def train_fold_seq2seq(data_dir: Path, fold: str, cfg: Seq2SeqConfig, name: str,
 
 def run_fold(data_dir: Path, fold: str, models: Sequence[str], lstm: LSTMBenchSettings,
              progress: bool = True, seq2seq: Seq2SeqConfig | None = None,
-             calibration: str = "mixture") -> dict[str, FoldOutcome]:
+             calibration: str = "mixture",
+             speed_edges: Sequence[float] = SPEED_EDGES_M_S) -> dict[str, FoldOutcome]:
     """Evaluate the requested models on one fold: ADE/FDE on test and val, and (models with a
-    distribution) calibration on test after a per-step scale fitted on val."""
-    test = load_split(data_dir, fold, "test")
-    val = val_windows(data_dir, fold)
+    distribution) calibration on test after a calibration fitted on val."""
     seq2seq = seq2seq if seq2seq is not None else Seq2SeqConfig()
+    k = seq2seq.neighbours if any(m in SEQ2SEQ_CELL for m in models) else 0
+    test = load_split(data_dir, fold, "test", neighbours=k)
+    val = val_windows(data_dir, fold, k)
+    speed = {"val": observed_speed(val.observed(), FRAME_PERIOD_S),
+             "test": observed_speed(test.observed(), FRAME_PERIOD_S)}
     out: dict[str, FoldOutcome] = {}
     for name in models:
         t0 = time.perf_counter()
@@ -376,9 +417,16 @@ def run_fold(data_dir: Path, fold: str, models: Sequence[str], lstm: LSTMBenchSe
         fitted["val_ade_m"], fitted["val_fde_m"] = score(predictor, val)
         calib = None
         if name in PROBABILISTIC:
-            raw_val = predictor.predict_distribution(val.observed(), PRED_LEN)
-            raw_test = predictor.predict_distribution(test.observed(), PRED_LEN)
-            if calibration == "mixture":
+            raw_val = predictor.predict_distribution(val.observed(), PRED_LEN,
+                                                     **_context(predictor, val))
+            raw_test = predictor.predict_distribution(test.observed(), PRED_LEN,
+                                                      **_context(predictor, test))
+            if calibration == "conditional":
+                cmix = fit_conditional_scale_mixture(raw_val, val.future(), speed["val"],
+                                                     speed_edges, n_components=MIXTURE_COMPONENTS)
+                fitted["conditional_mixture"] = cmix.to_dict()
+                calib = calibration_scores(raw_test, test.future(), cmix, speed["test"])
+            elif calibration == "mixture":
                 mix = fit_scale_mixture(raw_val, val.future(), n_components=MIXTURE_COMPONENTS)
                 fitted["mixture"] = {"weights": mix.weights.tolist(),
                                      "scales": mix.scales.tolist()}
@@ -477,7 +525,7 @@ def run_benchmark(settings: EthUcySettings, *, progress: bool = True,
     t0 = time.perf_counter()
     work = partial(run_fold, settings.data_dir, models=settings.models, lstm=settings.lstm,
                    progress=progress and jobs <= 1, seq2seq=settings.seq2seq,
-                   calibration=settings.calibration)
+                   calibration=settings.calibration, speed_edges=settings.speed_edges)
     outcomes = parallel_map(work, list(settings.folds), jobs,
                             progress="ETH/UCY folds" if progress else None)
     per_fold = dict(zip(settings.folds, outcomes))

@@ -29,12 +29,22 @@ What the model sees and emits (each choice a :class:`Seq2SeqConfig` field, measu
   correlation, trained by the Gaussian negative log-likelihood with the mean held fixed
   (detached), so the uncertainty head never pulls the mean away from the ADE optimum.
 
+* ``neighbours`` (K > 0): social context. The K pedestrians nearest to the walker at the last
+  observed frame (:func:`blindspot.traj.ethucy.neighbour_tracks`) enter as, per neighbour and
+  observed step, its position relative to the walker and its own step, both in the walker's
+  frame, and a presence flag; a per-neighbour MLP embeds them and attention with the walker's
+  encoding as query pools them (:class:`SocialAttention`, the attention pooling of Vemula et
+  al. 2018, "Social Attention", and Sadeghian et al. 2019, "SoPhie", in place of Social LSTM's
+  occupancy grid, Alahi et al. 2016), with a learned "nobody" slot so an empty scene is a
+  valid input. Predicting without neighbours (``neighbours=None``) means nobody is near.
+
 An ensemble (:class:`Seq2SeqEnsemble`) averages the members' means; its covariance is the
 moment-matched mixture (mean of the members' covariances plus the spread of their means), the
 "deep ensembles" estimate of Lakshminarayanan et al. 2017.
 
-Shapes: histories (B, T, 2) metres (the last ``obs_len`` rows used, no NaN there), predictions
-(B, horizon, 2) metres, covariances (B, horizon, 2, 2) m^2.
+Shapes: histories (B, T, 2) metres (the last ``obs_len`` rows used, no NaN there), neighbours
+(B, K, obs_len, 2) metres (NaN = absent), predictions (B, horizon, 2) metres, covariances
+(B, horizon, 2, 2) m^2.
 
 Determinism: ``torch.manual_seed(seed)`` (weights), a private ``torch.Generator`` (batch order,
 augmentation), deterministic algorithms and a fixed thread count: the same data, config, seed
@@ -71,6 +81,8 @@ __all__ = [
     "LOSSES",
     "Seq2SeqConfig",
     "Seq2SeqNet",
+    "SocialAttention",
+    "social_features",
     "Seq2SeqModel",
     "Seq2SeqEnsemble",
     "FitReport",
@@ -86,13 +98,44 @@ _MIRROR = np.array([1.0, -1.0])
 # --------------------------------------------------------------------------------------------
 
 
+#: per neighbour and observed step: relative x, y, own step x, y, present
+SOCIAL_FEATURES = 5
+
+
+class SocialAttention(nn.Module):
+    """Attention pooling over neighbours: (B, K, obs_len * 5) features and a (B, D) query ->
+    (B, D) context. Each neighbour is embedded by an MLP; its score is
+    ``v . tanh(W_e e_k + W_q q)`` (additive attention, Bahdanau et al. 2015); a learned "nobody"
+    slot (key and value parameters) takes part in every softmax so a walker alone gets a valid,
+    learned context; absent neighbours (``mask`` False) are left out."""
+
+    def __init__(self, n_in: int, dim: int) -> None:
+        super().__init__()
+        self.embed = nn.Sequential(nn.Linear(n_in, dim), nn.ReLU(), nn.Linear(dim, dim), nn.ReLU())
+        self.key = nn.Linear(dim, dim)
+        self.query = nn.Linear(dim, dim, bias=False)
+        self.score = nn.Linear(dim, 1, bias=False)
+        self.nobody = nn.Parameter(torch.zeros(1, 1, dim))
+
+    def forward(self, feats: torch.Tensor, mask: torch.Tensor, q: torch.Tensor) -> torch.Tensor:
+        e = self.embed(feats)                                              # (B, K, D)
+        e = torch.cat([self.nobody.expand(e.shape[0], 1, -1), e], dim=1)   # (B, K + 1, D)
+        m = torch.cat([torch.ones_like(mask[:, :1]), mask], dim=1)
+        a = self.score(torch.tanh(self.key(e) + self.query(q)[:, None])).squeeze(-1)
+        a = torch.softmax(a.masked_fill(~m, float("-inf")), dim=1)
+        return (a[..., None] * e).sum(dim=1)
+
+
 class Seq2SeqNet(nn.Module):
     """Encoder (GRU/LSTM over the (obs_len or obs_len - 1, 2) input sequence) -> dense head ->
-    (horizon, 5): mean offset (2) and Gaussian parameters (log std x, log std y, atanh rho)."""
+    (horizon, 5): mean offset (2) and Gaussian parameters (log std x, log std y, atanh rho);
+    with ``cfg.neighbours`` the :class:`SocialAttention` context joins the head's input."""
 
     def __init__(self, cfg: Seq2SeqConfig) -> None:
         super().__init__()
         self.cfg = cfg
+        self.social = (SocialAttention(cfg.obs_len * SOCIAL_FEATURES, cfg.hidden_size)
+                       if cfg.neighbours > 0 else None)
         self.embed = nn.Linear(2, cfg.hidden_size)
         if cfg.cell == "mlp":     # the whole input sequence flattened (RED's dense variant)
             n_in = 2 * (cfg.obs_len - (1 if cfg.inputs == "displacement" else 0))
@@ -101,18 +144,26 @@ class Seq2SeqNet(nn.Module):
             rnn = nn.GRU if cfg.cell == "gru" else nn.LSTM
             self.encoder = rnn(cfg.hidden_size, cfg.hidden_size, num_layers=cfg.num_layers,
                                batch_first=True)
-        self.head = nn.Sequential(nn.Linear(cfg.hidden_size + 2, cfg.head_hidden), nn.ReLU(),
+        n_ctx = cfg.hidden_size * (2 if self.social is not None else 1)
+        self.head = nn.Sequential(nn.Linear(n_ctx + 2, cfg.head_hidden), nn.ReLU(),
                                   nn.Linear(cfg.head_hidden, cfg.horizon * 5))
         # start at CVM with unit-ish spread: zero the last layer
         nn.init.zeros_(self.head[-1].weight)
         nn.init.zeros_(self.head[-1].bias)
 
-    def forward(self, u: torch.Tensor, last_step: torch.Tensor) -> torch.Tensor:
-        """u: (B, L, 2) inputs; last_step: (B, 2) last observed step -> (B, horizon, 5)."""
+    def forward(self, u: torch.Tensor, last_step: torch.Tensor,
+                social: torch.Tensor | None = None) -> torch.Tensor:
+        """u: (B, L, 2) inputs; last_step: (B, 2) last observed step; social: (B, K, obs_len,
+        5) :func:`social_features` (needed when ``cfg.neighbours``) -> (B, horizon, 5)."""
         if self.cfg.cell == "mlp":
             enc = self.encoder(u.flatten(1))
         else:
             enc = self.encoder(torch.relu(self.embed(u)))[0][:, -1]
+        if self.social is not None:
+            if social is None:
+                raise HistoryError("Seq2SeqNet: the model reads neighbours; pass social features")
+            mask = social[..., -1].amax(dim=-1) > 0                          # (B, K)
+            enc = torch.cat([enc, self.social(social.flatten(2), mask, enc)], dim=-1)
         z = torch.cat([enc, last_step], dim=-1)
         return self.head(z).view(-1, self.cfg.horizon, 5)
 
@@ -135,6 +186,35 @@ def _frames(obs: np.ndarray, cfg: Seq2SeqConfig) -> tuple[np.ndarray, np.ndarray
 
 def _to(points: np.ndarray, origin: np.ndarray, rot: np.ndarray) -> np.ndarray:
     return np.einsum("bij,btj->bti", rot, points - origin[:, None, :])
+
+
+def social_features(framed_obs: np.ndarray, framed_nb: np.ndarray) -> np.ndarray:
+    """Neighbour features in the walker's frame.
+
+    Args:
+        framed_obs: (B, T, 2) the walker's observed positions (in its frame).
+        framed_nb: (B, K, T, 2) the neighbours' positions in the same frame, NaN = absent.
+
+    Returns:
+        (B, K, T, 5): position relative to the walker at the same step (x, y), the neighbour's
+        own step from the previous frame (x, y; 0 at the first step or next to an absence),
+        present (1/0); zeros where absent.
+    """
+    present = np.isfinite(framed_nb).all(axis=-1)                              # (B, K, T)
+    rel = np.where(present[..., None], framed_nb - framed_obs[:, None], 0.0)
+    step = np.zeros_like(rel)
+    both = present[..., 1:] & present[..., :-1]
+    step[..., 1:, :] = np.where(both[..., None], np.diff(np.nan_to_num(framed_nb), axis=2), 0.0)
+    return np.concatenate([rel, step, present[..., None].astype(float)], axis=-1)
+
+
+def _to_nb(nb: np.ndarray, origin: np.ndarray, rot: np.ndarray) -> np.ndarray:
+    return np.einsum("bij,bktj->bkti", rot, nb - origin[:, None, None, :])
+
+
+def _mirror_social(f: np.ndarray) -> np.ndarray:
+    """Social features of the mirrored scene (y components negated)."""
+    return f * np.array([1.0, -1.0, 1.0, -1.0, 1.0])
 
 
 def _inputs(framed_obs: np.ndarray, cfg: Seq2SeqConfig) -> np.ndarray:
@@ -165,38 +245,55 @@ class Seq2SeqModel:
         self.cfg = cfg
         self.name = name
 
-    def _raw(self, obs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """Framed mean (B, H, 2), framed cov (B, H, 2, 2), origin, rot of (B, obs_len, 2)."""
+    def _raw(self, obs: np.ndarray, neighbours: np.ndarray | None = None
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Framed mean (B, H, 2), framed cov (B, H, 2, 2), origin, rot of (B, obs_len, 2)
+        (and neighbours (B, K, obs_len, 2) when the model reads them)."""
         cfg = self.cfg
         origin, rot = _frames(obs, cfg)
         x = _to(obs, origin, rot)
-        mean, cov = self._framed(x)
+        soc = None
+        if cfg.neighbours > 0:
+            nb = (np.full((obs.shape[0], cfg.neighbours, cfg.obs_len, 2), np.nan)
+                  if neighbours is None else neighbours)
+            soc = social_features(x, _to_nb(nb, origin, rot))
+        mean, cov = self._framed(x, soc)
         if cfg.mirror:
-            m2, c2 = self._framed(x * _MIRROR)
+            m2, c2 = self._framed(x * _MIRROR, None if soc is None else _mirror_social(soc))
             flip = np.array([[1.0, -1.0], [-1.0, 1.0]])
             mean = 0.5 * (mean + m2 * _MIRROR)
             cov = 0.5 * (cov + c2 * flip)
         return mean, cov, origin, rot
 
-    def _framed(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _framed(self, x: np.ndarray, soc: np.ndarray | None = None
+                ) -> tuple[np.ndarray, np.ndarray]:
         cfg = self.cfg
         with torch.no_grad(), _threads(cfg.threads):
             u = torch.as_tensor(_inputs(x, cfg), dtype=torch.float32)
             last = torch.as_tensor(x[:, -1] - x[:, -2], dtype=torch.float32)
-            out = self.net(u, last).double().numpy()
+            s = None if soc is None else torch.as_tensor(soc, dtype=torch.float32)
+            out = self.net(u, last, s).double().numpy()
         mean = _decode_mean(out[..., :2], x, cfg)
         return mean, _covariance(out[..., 2:])
 
-    def predict_distribution(self, history: np.ndarray, horizon: int) -> GaussianForecast:
+    @property
+    def uses_neighbours(self) -> bool:
+        return self.cfg.neighbours > 0
+
+    def predict_distribution(self, history: np.ndarray, horizon: int, *,
+                             neighbours: np.ndarray | None = None) -> GaussianForecast:
         """(B, T, 2) history -> per-step Gaussian of the next ``horizon`` (<= cfg.horizon)
-        positions in world metres (the network's own head, not yet calibrated)."""
+        positions in world metres (the network's own head, not yet calibrated); ``neighbours``
+        (B, K, obs_len, 2) world metres, NaN = absent, None = nobody near."""
         obs = self._observed(history, horizon)
-        mean, cov, origin, rot = self._raw(obs)
+        nb = _check_neighbours(neighbours, obs.shape[0], self.cfg, self.name)
+        mean, cov, origin, rot = self._raw(obs, nb)
         return _to_world(mean[:, :horizon], cov[:, :horizon], origin, rot)
 
-    def predict(self, history: np.ndarray, horizon: int) -> np.ndarray:
+    def predict(self, history: np.ndarray, horizon: int, *,
+                neighbours: np.ndarray | None = None) -> np.ndarray:
         """(B, T, 2) history -> (B, horizon, 2) mean positions in metres."""
-        return self.predict_distribution(history, horizon).mean
+        return self.predict_distribution(history, horizon, neighbours=neighbours).mean
 
     def _observed(self, history: np.ndarray, horizon: int) -> np.ndarray:
         return _observed(history, horizon, self.cfg, self.name)
@@ -213,6 +310,20 @@ def _observed(history: np.ndarray, horizon: int, cfg: Seq2SeqConfig, name: str) 
                            f"{int(np.sum(~np.isfinite(h[:, -cfg.obs_len:])))} NaN values "
                            "there; fill gaps first (e.g. KalmanCV.smooth)")
     return h[:, -cfg.obs_len:]
+
+
+def _check_neighbours(neighbours: np.ndarray | None, n: int, cfg: Seq2SeqConfig, name: str
+                      ) -> np.ndarray | None:
+    """None, or neighbours as (n, cfg.neighbours, obs_len, 2) (HistoryError otherwise); more
+    neighbours than the model reads are cut to the nearest ``cfg.neighbours``."""
+    if neighbours is None or cfg.neighbours == 0:
+        return None
+    nb = check_array(neighbours, "neighbours", (n, "K", cfg.obs_len, 2), error=HistoryError,
+                     who=f"{name}.predict", allow_nan=True)
+    if nb.shape[1] < cfg.neighbours:
+        pad = np.full((n, cfg.neighbours - nb.shape[1], cfg.obs_len, 2), np.nan)
+        nb = np.concatenate([nb, pad], axis=1)
+    return nb[:, :cfg.neighbours]
 
 
 def _decode_mean(offset: np.ndarray, x: np.ndarray, cfg: Seq2SeqConfig) -> np.ndarray:
@@ -275,13 +386,19 @@ class Seq2SeqEnsemble:
         self.name = name
         self.step_scale = step_scale
 
+    @property
+    def uses_neighbours(self) -> bool:
+        return self.cfg.neighbours > 0
+
     def predict_distribution(self, history: np.ndarray, horizon: int, *,
-                             calibrated: bool = True) -> GaussianForecast:
+                             calibrated: bool = True, neighbours: np.ndarray | None = None
+                             ) -> GaussianForecast:
         """(B, T, 2) -> GaussianForecast over ``horizon`` steps: mean of the members' means;
         covariance mean(cov_k) + cov(mean_k) (mixture moments), times ``step_scale`` when
-        ``calibrated`` and a scale was fitted."""
+        ``calibrated`` and a scale was fitted. ``neighbours``: see
+        :meth:`Seq2SeqModel.predict_distribution`."""
         obs = _observed(history, horizon, self.cfg, self.name)
-        fcs = [m.predict_distribution(obs, horizon) for m in self.members]
+        fcs = [m.predict_distribution(obs, horizon, neighbours=neighbours) for m in self.members]
         means = np.stack([f.mean for f in fcs])                              # (K, B, H, 2)
         mean = means.mean(axis=0)
         d = means - mean
@@ -291,10 +408,12 @@ class Seq2SeqEnsemble:
             fc = fc.scaled(self.step_scale[:horizon])
         return fc
 
-    def predict(self, history: np.ndarray, horizon: int) -> np.ndarray:
+    def predict(self, history: np.ndarray, horizon: int, *,
+                neighbours: np.ndarray | None = None) -> np.ndarray:
         """(B, T, 2) -> (B, horizon, 2) the ensemble's mean positions in metres."""
         obs = _observed(history, horizon, self.cfg, self.name)
-        return np.mean([m.predict(obs, horizon) for m in self.members], axis=0)
+        return np.mean([m.predict(obs, horizon, neighbours=neighbours) for m in self.members],
+                       axis=0)
 
 
 # --------------------------------------------------------------------------------------------
@@ -302,15 +421,24 @@ class Seq2SeqEnsemble:
 # --------------------------------------------------------------------------------------------
 
 
-def _training_arrays(xy: np.ndarray, cfg: Seq2SeqConfig) -> tuple[np.ndarray, np.ndarray]:
-    """Framed observed (N', obs_len, 2) and future (N', horizon, 2) of windows (N, obs+H, 2),
-    mirrored copies appended when ``cfg.mirror``."""
+def _training_arrays(xy: np.ndarray, cfg: Seq2SeqConfig, nb: np.ndarray | None = None
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """Framed observed (N', obs_len, 2), future (N', horizon, 2) and social features (N', K,
+    obs_len, 5) or None of windows (N, obs+H, 2), mirrored copies appended when
+    ``cfg.mirror``."""
     obs, fut = xy[:, :cfg.obs_len], xy[:, cfg.obs_len:cfg.obs_len + cfg.horizon]
     origin, rot = _frames(obs, cfg)
     x, y = _to(obs, origin, rot), _to(fut, origin, rot)
+    soc = None
+    if cfg.neighbours > 0:
+        nbf = (np.full((xy.shape[0], cfg.neighbours, cfg.obs_len, 2), np.nan) if nb is None
+               else nb)
+        soc = social_features(x, _to_nb(nbf, origin, rot))
     if cfg.mirror:
         x, y = np.concatenate([x, x * _MIRROR]), np.concatenate([y, y * _MIRROR])
-    return x, y
+        if soc is not None:
+            soc = np.concatenate([soc, _mirror_social(soc)])
+    return x, y, soc
 
 
 def _torch_batch(x: torch.Tensor, cfg: Seq2SeqConfig) -> tuple[torch.Tensor, torch.Tensor,
@@ -346,7 +474,8 @@ def _loss(out: torch.Tensor, base: torch.Tensor, y: torch.Tensor, cfg: Seq2SeqCo
 
 def train_seq2seq(train_xy: np.ndarray, val_xy: np.ndarray, cfg: Seq2SeqConfig, *,
                   seed: int | None = None, name: str = "seq2seq",
-                  progress: Callable[[str], None] | None = None
+                  progress: Callable[[str], None] | None = None,
+                  train_nb: np.ndarray | None = None, val_nb: np.ndarray | None = None
                   ) -> tuple[Seq2SeqModel, FitReport]:
     """Train one network on windows (N, obs_len + horizon, 2) metres; keep the epoch with the
     lowest ADE on ``val_xy`` (model selection on validation data only).
@@ -357,6 +486,8 @@ def train_seq2seq(train_xy: np.ndarray, val_xy: np.ndarray, cfg: Seq2SeqConfig, 
         seed: overrides ``cfg.seed`` (ensemble members).
         name: label of the model.
         progress: called with one line per epoch (None = silent).
+        train_nb, val_nb: (N, K, obs_len, 2) neighbours of the windows (metres, NaN =
+            absent; ``Windows.neighbours``), read when ``cfg.neighbours`` > 0.
 
     Returns:
         ``(model, report)``.
@@ -371,7 +502,11 @@ def train_seq2seq(train_xy: np.ndarray, val_xy: np.ndarray, cfg: Seq2SeqConfig, 
         if a.shape[0] == 0:
             raise HistoryError(f"train_seq2seq: {key} holds no window")
     seed = cfg.seed if seed is None else int(seed)
-    x_np, y_np = _training_arrays(np.asarray(train_xy, float), cfg)
+    if cfg.neighbours > 0 and train_nb is not None:
+        train_nb = _check_neighbours(train_nb, len(train_xy), cfg, "train_seq2seq")
+    if cfg.neighbours > 0 and val_nb is not None:
+        val_nb = _check_neighbours(val_nb, len(val_xy), cfg, "train_seq2seq")
+    x_np, y_np, s_np = _training_arrays(np.asarray(train_xy, float), cfg, train_nb)
     val_obs = np.asarray(val_xy, float)[:, :cfg.obs_len]
     val_fut = np.asarray(val_xy, float)[:, cfg.obs_len:]
     with _threads(cfg.threads):
@@ -382,6 +517,7 @@ def train_seq2seq(train_xy: np.ndarray, val_xy: np.ndarray, cfg: Seq2SeqConfig, 
         sched = torch.optim.lr_scheduler.CosineAnnealingLR(opt, T_max=cfg.epochs)
         x_all = torch.as_tensor(x_np, dtype=torch.float32)
         y_all = torch.as_tensor(y_np, dtype=torch.float32)
+        s_all = None if s_np is None else torch.as_tensor(s_np, dtype=torch.float32)
         n = x_all.shape[0]
         report = FitReport(best_epoch=0)
         best_state, best_ade = None, np.inf
@@ -391,20 +527,25 @@ def train_seq2seq(train_xy: np.ndarray, val_xy: np.ndarray, cfg: Seq2SeqConfig, 
             for i in range(0, n, cfg.batch_size):
                 idx = order[i:i + cfg.batch_size]
                 x, y = x_all[idx], y_all[idx]
+                s = None if s_all is None else s_all[idx]
                 if cfg.rotation_deg > 0:
                     th = (torch.rand(x.shape[0], generator=gen) * 2 - 1) * np.deg2rad(
                         cfg.rotation_deg)
                     c, s = torch.cos(th), torch.sin(th)
                     R = torch.stack([torch.stack([c, -s], -1), torch.stack([s, c], -1)], -2)
                     x, y = x @ R.transpose(1, 2), y @ R.transpose(1, 2)
+                    if s is not None:        # rotate the vector parts of the social features
+                        Rk = R[:, None, None]
+                        s = torch.cat([(Rk @ s[..., 0:2, None])[..., 0],
+                                       (Rk @ s[..., 2:4, None])[..., 0], s[..., 4:]], dim=-1)
                 u, step, base = _torch_batch(x, cfg)
-                loss, _ = _loss(net(u, step), base, y, cfg)
+                loss, _ = _loss(net(u, step, s), base, y, cfg)
                 opt.zero_grad()
                 loss.backward()
                 opt.step()
             sched.step()
             model = Seq2SeqModel(net, cfg, name)
-            pred = model.predict(val_obs, cfg.horizon)
+            pred = model.predict(val_obs, cfg.horizon, neighbours=val_nb)
             err = np.linalg.norm(pred - val_fut, axis=-1)
             report.val_ade.append(float(err.mean()))
             report.val_fde.append(float(err[:, -1].mean()))
@@ -420,9 +561,11 @@ def train_seq2seq(train_xy: np.ndarray, val_xy: np.ndarray, cfg: Seq2SeqConfig, 
 
 
 def train_ensemble(train_xy: np.ndarray, val_xy: np.ndarray, cfg: Seq2SeqConfig, *,
-                   name: str = "seq2seq", progress: Callable[[str], None] | None = None
+                   name: str = "seq2seq", progress: Callable[[str], None] | None = None,
+                   train_nb: np.ndarray | None = None, val_nb: np.ndarray | None = None
                    ) -> tuple[Seq2SeqEnsemble, list[FitReport]]:
     """``cfg.ensemble`` members with seeds ``cfg.seed + k`` (see :func:`train_seq2seq`)."""
     runs = [train_seq2seq(train_xy, val_xy, cfg, seed=cfg.seed + k, name=name,
-                          progress=progress) for k in range(cfg.ensemble)]
+                          progress=progress, train_nb=train_nb, val_nb=val_nb)
+            for k in range(cfg.ensemble)]
     return Seq2SeqEnsemble([m for m, _ in runs], name=name), [r for _, r in runs]
