@@ -19,6 +19,7 @@ from blindspot.radar.config import RadarConfig, SimConfig
 from blindspot.radar.scene import (
     DrivingScene, ScenarioGroup, SceneConfig, load_scenarios, load_scenes,
 )
+from blindspot.track.config import TrackerConfig
 from blindspot.traj.config import (BenchmarkConfig, CalibrationConfig, DatasetConfig,
                                    EthUcyConfig, EvalConfig, LSTMConfig, TrainConfig)
 
@@ -103,6 +104,12 @@ def driving_radar(cfg: DictConfig) -> RadarConfig:
 def ego_motion(cfg: DictConfig) -> EgoMotionConfig:
     """The moving-car radar settings of ``cfg.ego_motion`` (odometry, robust fit, budget)."""
     return EgoMotionConfig.from_mapping(cfg.ego_motion)
+
+
+def tracker(cfg: DictConfig) -> TrackerConfig:
+    """The multi-target tracker settings of ``cfg.tracker`` (clustering, filter, gating,
+    association, M-of-N confirmation, deletion)."""
+    return TrackerConfig.from_mapping(cfg.tracker)
 
 
 def array(cfg: DictConfig) -> VirtualArray:
