@@ -146,6 +146,68 @@ def _cached_cv_model(q: float):
     return CachedCombinedCV([ConstantVelocity(q), ConstantVelocity(q)])
 
 
+def _numpy_kalman(transition_model, measurement_model):
+    """Stone Soup's ``KalmanPredictor`` and ``KalmanUpdater`` with their arithmetic on plain
+    numpy arrays: the stock classes spend most of their time in the ``__array_ufunc__`` of Stone
+    Soup's ``StateVector``/``Matrix`` subclasses and in ``from_state`` copies (about 1 ms per
+    track and frame on this machine, ``benchmarks/bench_tracking.py --profile``). Same equations
+    (Bar-Shalom et al. 2001, sec. 5.2.3), same input and output types; tests/track check them
+    against the stock classes.
+
+    Returns (predictor, updater).
+    """
+    from stonesoup.predictor.kalman import KalmanPredictor
+    from stonesoup.types.array import CovarianceMatrix, StateVector
+    from stonesoup.types.prediction import (GaussianMeasurementPrediction,
+                                            GaussianStatePrediction)
+    from stonesoup.types.update import GaussianStateUpdate
+    from stonesoup.updater.kalman import KalmanUpdater
+
+    H = np.asarray(measurement_model.matrix(), float)
+    R = np.asarray(measurement_model.covar(), float)
+
+    class NumpyKalmanPredictor(KalmanPredictor):
+        def predict(self, prior, timestamp=None, **kwargs):
+            dt = timestamp - prior.timestamp
+            F = np.asarray(self.transition_model.matrix(time_interval=dt), float)
+            Q = np.asarray(self.transition_model.covar(time_interval=dt), float)
+            x = np.asarray(prior.state_vector, float)
+            P = np.asarray(prior.covar, float)
+            return GaussianStatePrediction(StateVector(F @ x), CovarianceMatrix(F @ P @ F.T + Q),
+                                           timestamp=timestamp,
+                                           transition_model=self.transition_model)
+
+    class NumpyKalmanUpdater(KalmanUpdater):
+        def predict_measurement(self, predicted_state, measurement_model=None,
+                                measurement_noise=True, **kwargs):
+            x = np.asarray(predicted_state.state_vector, float)
+            P = np.asarray(predicted_state.covar, float)
+            PHt = P @ H.T
+            S = H @ PHt + (R if measurement_noise else 0.0)
+            return GaussianMeasurementPrediction(StateVector(H @ x), CovarianceMatrix(S),
+                                                 timestamp=predicted_state.timestamp,
+                                                 cross_covar=CovarianceMatrix(PHt))
+
+        def update(self, hypothesis, **kwargs):
+            pred = hypothesis.prediction
+            mp = hypothesis.measurement_prediction
+            if mp is None:
+                mp = hypothesis.measurement_prediction = self.predict_measurement(pred)
+            S = np.asarray(mp.covar, float)
+            PHt = np.asarray(mp.cross_covar, float)
+            K = np.linalg.solve(S, PHt.T).T  # P H^T S^-1 (S symmetric)
+            innovation = (np.asarray(hypothesis.measurement.state_vector, float)
+                          - np.asarray(mp.state_vector, float))
+            x = np.asarray(pred.state_vector, float) + K @ innovation
+            P = np.asarray(pred.covar, float) - K @ S @ K.T
+            return GaussianStateUpdate(StateVector(x), CovarianceMatrix((P + P.T) / 2),
+                                       hypothesis=hypothesis,
+                                       timestamp=hypothesis.measurement.timestamp)
+
+    return (NumpyKalmanPredictor(transition_model),
+            NumpyKalmanUpdater(measurement_model, force_symmetric_covariance=True))
+
+
 def _gated_hypothesiser(predictor, updater, gate: float):
     """Stone Soup's ``DistanceHypothesiser`` with the ``Mahalanobis`` measure, gating every
     detection of a frame in one numpy expression: d^2 = v^T S^-1 v for the innovations v of all
@@ -228,16 +290,13 @@ def _parts(config: TrackerConfig) -> _Parts:
     from stonesoup.deleter.time import UpdateTimeStepsDeleter
     from stonesoup.hypothesiser.probability import PDAHypothesiser
     from stonesoup.models.measurement.linear import LinearGaussian
-    from stonesoup.predictor.kalman import KalmanPredictor
     from stonesoup.types.state import GaussianState
-    from stonesoup.updater.kalman import KalmanUpdater
 
     transition = _cached_cv_model(config.process_noise_m2ps3)
     r = config.measurement_noise_m ** 2
     measurement_model = LinearGaussian(ndim_state=4, mapping=(0, 2),
                                        noise_covar=np.diag([r, r]))
-    predictor = KalmanPredictor(transition)
-    updater = KalmanUpdater(measurement_model)
+    predictor, updater = _numpy_kalman(transition, measurement_model)
     if config.association == "gnn":
         gate = float(np.sqrt(chi2.ppf(config.gate_probability, df=2)))
         hypothesiser = _gated_hypothesiser(predictor, updater, gate)
