@@ -29,6 +29,9 @@ class TrackerConfig(TypedConfig):
             noise and never reaches the tracker (1 = every point is an object).
         process_noise_m2ps3: spectral density q of the white-noise acceleration of the constant
             velocity model, per axis (m^2/s^3; Bar-Shalom, Li & Kirubarajan 2001, sec. 6.2).
+        velocity_damping_per_s: K of an Ornstein-Uhlenbeck velocity (Stone Soup's
+            ``OrnsteinUhlenbeck``): a coasting track's velocity decays as exp(-K t); 0 = constant
+            velocity.
         measurement_noise_m: standard deviation of one object's position (cluster centroid) per
             axis (m).
         init_velocity_std_mps: prior standard deviation of a new track's velocity per axis (its
@@ -52,6 +55,7 @@ class TrackerConfig(TypedConfig):
     cluster_eps_m: float = setting(gt=0.0, le=100.0)
     cluster_min_samples: int = setting(ge=1, le=10_000)
     process_noise_m2ps3: float = setting(gt=0.0, le=1e4)
+    velocity_damping_per_s: float = setting(ge=0.0, le=1e3)
     measurement_noise_m: float = setting(gt=0.0, le=100.0)
     init_velocity_std_mps: float = setting(gt=0.0, le=100.0)
     gate_probability: float = setting(gt=0.0, lt=1.0)
@@ -66,3 +70,55 @@ class TrackerConfig(TypedConfig):
         if self.confirm_m > self.confirm_n:
             raise ConfigError("confirm_m", self.confirm_m,
                               f"at most confirm_n = {self.confirm_n} (M of N frames)")
+
+
+#: Point-cloud log formats the real_tracking stage reads (blindspot.radar.capture).
+RECORDING_KINDS = ("ti_gtrack", "radhar")
+
+
+@dataclass(frozen=True)
+class TrackedRecording(TypedConfig):
+    """One real recording of the Hydra group ``real_tracking`` (``conf/real_tracking/``).
+
+    Fields:
+        name: the recording's key (output names: ``data/tracks/<name>.parquet``).
+        kind: ``ti_gtrack`` (TI people-counting TLV log with gtrack targets) or ``radhar``
+            (RadHAR ROS text dump).
+        path: the file, relative to ``paths.shared_dir`` or absolute.
+        frame_period_s: frame period (s) when the file holds no time stamps (ti_gtrack); null
+            to use the file's own stamps (radhar).
+        static_speed_mps: points with |radial speed| at most this are static clutter and are
+            dropped before tracking; null keeps every point.
+        reference_gate_m: the largest distance (m) at which one of our tracks may stand for a
+            reference track (CLEAR MOT); null when the recording has no reference tracker.
+
+    The record's ``tracker`` mapping (keys of the ``tracker`` group) overrides the tracker
+    group for this recording; :func:`blindspot.experiment.real_tracking` merges and types it.
+    """
+
+    IGNORED = ("tracker",)
+
+    name: str = setting()
+    kind: str = setting(choices=RECORDING_KINDS)
+    path: str = setting()
+    frame_period_s: float | None = setting(None, gt=0.0, le=60.0)
+    static_speed_mps: float | None = setting(None, ge=0.0, le=100.0)
+    reference_gate_m: float | None = setting(None, gt=0.0, le=100.0)
+
+    def validate(self) -> None:
+        if self.kind == "ti_gtrack" and self.frame_period_s is None:
+            raise ConfigError("frame_period_s", None,
+                              "a positive period (s): a ti_gtrack log holds no time stamps")
+        if not self.path:
+            raise ConfigError("path", self.path, "a file path")
+
+
+@dataclass(frozen=True)
+class RealTrackingConfig(TypedConfig):
+    """The Hydra group ``real_tracking``: the real point-cloud recordings the tracker runs on
+    (``recordings``: a mapping of :class:`TrackedRecording` by name)."""
+
+    GROUP = "real_tracking"
+    IGNORED = ("name",)
+
+    recordings: tuple[TrackedRecording, ...] = setting(min_items=1)

@@ -100,34 +100,42 @@ def cluster_points(points: pd.DataFrame, config: TrackerConfig) -> pd.DataFrame:
     """
     has_group = _check_points(points)
     keys = (["group"] if has_group else []) + ["frame"]
+    return _centroids(_labelled(points, keys, config), keys)
+
+
+def _labelled(points: pd.DataFrame, keys: list[str], config: TrackerConfig) -> pd.DataFrame:
+    """The points with coordinates that DBSCAN keeps, with their cluster label ``_label``
+    (unique over all frames and groups)."""
     valid = points.dropna(subset=["x_m", "y_m"])
-    cols = keys + ["time_s", "n_points", "x_m", "y_m"]
     if valid.empty:
-        return pd.DataFrame({c: pd.Series(dtype=points[c].dtype if c in points else float)
-                             for c in cols})
+        return valid[keys + ["time_s", "x_m", "y_m"]].assign(_label=np.empty(0, np.int64))
     k = valid.groupby(keys, sort=False).ngroup().to_numpy(float)
     eps = config.cluster_eps_m
     feats = np.column_stack([valid["x_m"].to_numpy(float), valid["y_m"].to_numpy(float),
                              4.0 * eps * k])
     labels = DBSCAN(eps=eps, min_samples=config.cluster_min_samples).fit_predict(feats)
     keep = labels >= 0
-    tagged = valid.loc[keep, keys + ["time_s", "x_m", "y_m"]].assign(_label=labels[keep])
-    objects = (tagged.groupby(keys + ["_label"], sort=True)
-               .agg(time_s=("time_s", "first"), n_points=("x_m", "size"),
-                    x_m=("x_m", "mean"), y_m=("y_m", "mean"))
-               .reset_index().drop(columns="_label"))
-    return objects[cols]
+    return valid.loc[keep, keys + ["time_s", "x_m", "y_m"]].assign(_label=labels[keep])
 
 
-def _cached_cv_model(q: float):
+def _centroids(labelled: pd.DataFrame, keys: list[str]) -> pd.DataFrame:
+    return (labelled.groupby(keys + ["_label"], sort=True)
+            .agg(time_s=("time_s", "first"), n_points=("x_m", "size"),
+                 x_m=("x_m", "mean"), y_m=("y_m", "mean"))
+            .reset_index().drop(columns="_label"))[keys + ["time_s", "n_points", "x_m", "y_m"]]
+
+
+def _cached_cv_model(q: float, damping: float = 0.0):
     """Stone Soup's two-axis constant-velocity model with F and Q memoised per time step.
 
     ``CombinedLinearGaussianTransitionModel`` rebuilds both with ``scipy.linalg.block_diag`` on
     every call (about 0.7 ms per prediction on this machine, most of the tracker's time); frames
     come at a few distinct intervals, so each is built once. Values are Stone Soup's own
-    (continuous white-noise acceleration, Bar-Shalom et al. 2001, eq. 6.2.2-12)."""
+    (continuous white-noise acceleration, Bar-Shalom et al. 2001, eq. 6.2.2-12); with
+    ``damping`` K > 0, Stone Soup's ``OrnsteinUhlenbeck`` model instead (velocity decays as
+    exp(-K t) between measurements: a pedestrian who stops)."""
     from stonesoup.models.transition.linear import (CombinedLinearGaussianTransitionModel,
-                                                    ConstantVelocity)
+                                                    ConstantVelocity, OrnsteinUhlenbeck)
 
     class CachedCombinedCV(CombinedLinearGaussianTransitionModel):
         def matrix(self, **kwargs):
@@ -143,6 +151,8 @@ def _cached_cv_model(q: float):
             return _cache[key]
 
     _cache: dict = {}
+    if damping > 0:
+        return CachedCombinedCV([OrnsteinUhlenbeck(q, damping), OrnsteinUhlenbeck(q, damping)])
     return CachedCombinedCV([ConstantVelocity(q), ConstantVelocity(q)])
 
 
@@ -292,7 +302,7 @@ def _parts(config: TrackerConfig) -> _Parts:
     from stonesoup.models.measurement.linear import LinearGaussian
     from stonesoup.types.state import GaussianState
 
-    transition = _cached_cv_model(config.process_noise_m2ps3)
+    transition = _cached_cv_model(config.process_noise_m2ps3, config.velocity_damping_per_s)
     r = config.measurement_noise_m ** 2
     measurement_model = LinearGaussian(ndim_state=4, mapping=(0, 2),
                                        noise_covar=np.diag([r, r]))
@@ -351,22 +361,34 @@ def _jpda_posterior(track, multihypothesis, updater):
     return GaussianStatePrediction(mean, covar, timestamp=ts), False
 
 
-def _track_group(objects: pd.DataFrame, frames: pd.DataFrame, config: TrackerConfig,
+def _objects(xy: np.ndarray, labels: np.ndarray) -> np.ndarray:
+    """(k, 2) centroids of the points (n, 2) of each label, in label order."""
+    _, inverse, counts = np.unique(labels, return_inverse=True, return_counts=True)
+    sums = np.zeros((len(counts), 2))
+    np.add.at(sums, inverse, xy)
+    return sums / counts[:, None]
+
+
+def _track_group(labelled: pd.DataFrame, frames: pd.DataFrame, config: TrackerConfig,
                  parts: _Parts) -> dict[str, list]:
     """Step the tracker through the frames of one group; return output columns as lists."""
     from stonesoup.types.detection import Detection
 
     out = {c: [] for c in OUTPUT_COLUMNS}
-    of = objects["frame"].to_numpy()
-    cut = np.flatnonzero(np.diff(of)) + 1  # objects come sorted by frame (cluster_points)
-    by_frame = dict(zip(of[np.r_[0, cut]] if len(of) else [],
-                        np.split(objects[["x_m", "y_m"]].to_numpy(float), cut)))
+    labelled = labelled.sort_values("frame", kind="stable")
+    of = labelled["frame"].to_numpy()
+    cut = np.flatnonzero(np.diff(of)) + 1
+    starts = of[np.r_[0, cut]] if len(of) else []
+    by_frame = dict(zip(starts, zip(np.split(labelled[["x_m", "y_m"]].to_numpy(float), cut),
+                                    np.split(labelled["_label"].to_numpy(np.int64), cut))))
+    no_points = (np.empty((0, 2)), np.empty(0, np.int64))
     live: dict[object, _Book] = {}
     next_id = 0
     m, n = config.confirm_m, config.confirm_n
     for frame, t in zip(frames["frame"].to_numpy(), frames["time_s"].to_numpy(float)):
         ts = _EPOCH + dt.timedelta(seconds=float(t))
-        xy = by_frame.get(frame, np.empty((0, 2)))
+        pxy, plabels = by_frame.get(frame, no_points)
+        xy = _objects(pxy, plabels) if len(pxy) else np.empty((0, 2))
         order = [Detection(p.reshape(2, 1), timestamp=ts,
                            measurement_model=parts.measurement_model) for p in xy]
         detections = set(order)
@@ -478,19 +500,19 @@ def track_points(points: pd.DataFrame, config: TrackerConfig) -> pd.DataFrame:
         raise TrackingError(f"track_points: time_s must increase with frame within a group; "
                             f"found time_s = {bad['time_s']} at frame {bad['frame']}, not after "
                             f"the previous frame's")
-    objects = cluster_points(points, config)
+    labelled = _labelled(points, keys, config)
     parts = _parts(config)
     pieces = []
     if has_group:
-        obj_groups = dict(list(objects.groupby("group", sort=False)))
+        obj_groups = dict(list(labelled.groupby("group", sort=False)))
         for g, fr in frames.groupby("group", sort=True):
-            res = pd.DataFrame(_track_group(obj_groups.get(g, objects.iloc[:0]), fr, config,
+            res = pd.DataFrame(_track_group(obj_groups.get(g, labelled.iloc[:0]), fr, config,
                                             parts))
             res.insert(0, "group", g)
             pieces.append(res)
         result = pd.concat(pieces, ignore_index=True) if pieces else None
     else:
-        result = pd.DataFrame(_track_group(objects, frames, config, parts))
+        result = pd.DataFrame(_track_group(labelled, frames, config, parts))
     cols = (["group"] if has_group else []) + list(OUTPUT_COLUMNS)
     if result is None or result.empty:
         empty = {c: pd.Series(dtype=float) for c in cols}
