@@ -91,10 +91,11 @@ def test_radhar_walk_matches_its_documentation(radhar_path):
 
 
 def test_radhar_broken_copies_are_named(radhar_path, tmp_path):
-    lines = radhar_path.read_text().splitlines(keepends=True)[:1600]
-    good = "".join(lines[: max(i for i, l in enumerate(lines) if l.startswith("---")) + 1])
+    lines = radhar_path.read_text().splitlines(keepends=True)[:2000]
+    end = max(i for i, line in enumerate(lines[:1600]) if line.startswith("---")) + 1
+    good = "".join(lines[:end])  # whole records, then 6 lines of the next one: a cut file
     cut = tmp_path / "cut.txt"
-    cut.write_text(good + "".join(lines[len(good.splitlines()):][:6]))
+    cut.write_text(good + "".join(lines[end:end + 6]))
     with pytest.raises(CaptureError, match=r"cut.txt: record \d+ of \d+ has no 'point_id' field"):
         read_radhar(cut)
     bad = tmp_path / "bad.txt"

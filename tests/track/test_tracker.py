@@ -252,3 +252,22 @@ def test_numpy_kalman_parts_equal_stone_soups():
         ut = stock_u.update(SingleHypothesis(theirs, det, mt))
         np.testing.assert_allclose(uo.state_vector, ut.state_vector, rtol=1e-10, atol=1e-12)
         np.testing.assert_allclose(uo.covar, ut.covar, rtol=1e-10, atol=1e-12)
+
+
+def test_damped_velocity_decays_exponentially_while_coasting():
+    """With velocity_damping_per_s = K (Stone Soup's Ornstein-Uhlenbeck model) a coasting
+    track's velocity is multiplied by exp(-K dt) per frame: the OU mean (Stone Soup's
+    OrnsteinUhlenbeck docstring; Uhlenbeck & Ornstein 1930)."""
+    K = 2.0
+    T, last = 40, 24
+    truth = np.column_stack([-2.0 + 1.2 * np.arange(T) * DT, np.full(T, 6.0)])
+    xy = truth.copy()
+    xy[last + 1:] = np.nan  # observed frames without points: the track coasts
+    tracks = track_points(frame_table(np.arange(T), xy), config(velocity_damping_per_s=K))
+    tr = tracks.set_index("frame")
+    assert tracks.track_id.nunique() == 1 and tr.loc[last + 1:, "coasting"].all()
+    v = tr.loc[last:, "vx_mps"].to_numpy()
+    np.testing.assert_allclose(v[1:] / v[:-1], np.exp(-K * DT), rtol=1e-9)
+    # the model's stationary speed spread is sqrt(q / 2K) = 0.35 m/s: a steady 1.2 m/s walker's
+    # velocity is estimated low (the price of holding a stopped person in place)
+    assert 0.3 < v[0] < 1.2
