@@ -131,9 +131,10 @@ def real_tracking(cfg: DictConfig) -> dict:
     track_config = _track_config()
     TrackerConfig = track_config.TrackerConfig
     group = track_config.RealTrackingConfig.from_mapping(cfg.real_tracking)
+    TrackerConfig.from_mapping(cfg.tracker)  # a bad tracker-group value is named tracker.<key>
     out = {}
     for rec in group.recordings:
-        overrides = cfg.real_tracking.recordings[rec.name].get("tracker") or {}
+        overrides = cfg.real_tracking["recordings"][rec.name].get("tracker") or {}
         merged = OmegaConf.merge(cfg.tracker, overrides)
         out[rec.name] = (rec, TrackerConfig.from_mapping(
             merged, where=f"real_tracking.recordings.{rec.name}.tracker"))
