@@ -73,8 +73,12 @@ def unwrap_and_angles(ula: np.ndarray, v_wrapped: np.ndarray, odometry_mps: np.n
     comp = compensate_tdm_velocity(np.repeat(ula, len(orders), axis=0), v_m.reshape(-1), wl,
                                    chain.slot_times_s, chain.ula_tx)          # (D*M, E, L)
     a = steering_matrix(chain.ula_pos, ORDER_GRID_DEG).conj().T.astype(np.complex64)  # (G, E)
-    beam = np.abs(a @ comp.astype(np.complex64)) ** 2                         # (D*M, G, L)
-    theta = ORDER_GRID_DEG[np.argmax(beam.sum(-1), axis=-1)].reshape(d, len(orders))
+    # one (G, E) x (E, D*M*L) GEMM (a stacked matmul over D*M would take numpy's slow loop)
+    n_e, n_l = comp.shape[1], comp.shape[2]
+    flat = np.ascontiguousarray(comp.astype(np.complex64).transpose(1, 0, 2)).reshape(n_e, -1)
+    z = (a @ flat).reshape(len(ORDER_GRID_DEG), -1, n_l)                     # (G, D*M, L)
+    beam = (z.real ** 2 + z.imag ** 2).sum(-1)                               # (G, D*M)
+    theta = ORDER_GRID_DEG[np.argmax(beam, axis=0)].reshape(d, len(orders))
     resid = np.abs(v_m - static_radial_velocity(theta, 1.0) * odo[:, None])
     best = np.argmin(resid, axis=1)
     rows = np.arange(d)
