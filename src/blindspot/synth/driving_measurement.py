@@ -53,13 +53,13 @@ import pandas as pd
 from blindspot.dsp.chain import DetectionChain
 from blindspot.dsp.detections import local_maxima
 from blindspot.dsp.driving import unwrap_and_angles
-from blindspot.dsp.ego_motion import odometry_speed, static_radial_velocity
+from blindspot.dsp.ego_motion import odometry_speed
 from blindspot.dsp.points import group_points
 from blindspot.radar.array import array_for
 from blindspot.radar.config import RadarConfig
 from blindspot.radar.driving import (
     FIELD_OF_VIEW_DEG, DrivingScene, ScenarioGroup, body_parts, car_polygons, ego_pose,
-    frame_times, static_scatterers, vehicle_to_world, world_to_vehicle,
+    frame_times, relative_velocity, static_scatterers, vehicle_to_world, world_to_vehicle,
 )
 from blindspot.radar.occlusion import segments_blocked
 from blindspot.synth.path_measurement import _reduced_setup, noncoherent_power, point_scatterers
@@ -74,7 +74,7 @@ POINT_COLUMNS = ("scene", "frame", "time_s", "x_m", "y_m", "x_vehicle_m", "y_veh
                  "range_m", "angle_deg", "velocity_mps", "velocity_wrapped_mps",
                  "ambiguity_order", "velocity_over_ground_mps", "static", "snr_db", "source")
 CORE_HALF_ROWS = 8      # the pedestrian's point: detections within this many range bins of it
-N_NEAR = 24             # scatterers in a detection's snapshot (the strongest in its cell)
+N_NEAR = 12             # scatterers in a detection's snapshot (the strongest in its cell)
 
 
 @dataclass(frozen=True)
@@ -84,6 +84,14 @@ class DrivingMeasurement:
 
     measured: pd.DataFrame
     points: pd.DataFrame
+
+
+def _static_curve(angle_deg: np.ndarray, v_forward: np.ndarray, v_lateral: np.ndarray
+                  ) -> np.ndarray:
+    """Radial velocity of the static world at ``angle_deg`` for a radar moving at (v_lateral,
+    v_forward) in its own frame: ``-(v_x sin theta + v_y cos theta)`` (Kellner et al. 2013)."""
+    th = np.radians(angle_deg)
+    return -(v_lateral * np.sin(th) + v_forward * np.cos(th))
 
 
 def _scene_scatterers(scene: DrivingScene, group: ScenarioGroup, radar: RadarConfig,
@@ -103,10 +111,7 @@ def _scene_scatterers(scene: DrivingScene, group: ScenarioGroup, radar: RadarCon
     rcs = np.concatenate([srcs, prcs])
     label = np.concatenate([np.full(len(srcs), -1), who])
     rel = world_to_vehicle(xyz[..., :2], pose[:, None, :])
-    c, s = np.cos(pose[:, 2])[:, None], np.sin(pose[:, 2])[:, None]
-    dvx = vel[..., 0] + s * scene.speed_mps                              # minus the ego's velocity
-    dvy = vel[..., 1] - c * scene.speed_mps
-    rel_v = np.stack([c * dvx + s * dvy, -s * dvx + c * dvy], -1)
+    rel_v = relative_velocity(vel[..., :2], scene, group, t)            # minus the ego's velocity
     r = np.linalg.norm(rel, axis=-1)
     short = xyz[..., :2] - (xyz[..., :2] - pose[:, None, :2]) * (1e-3 / np.maximum(r, 1e-9))[..., None]
     hidden = segments_blocked(short, pose[:, None, :2], car_polygons(scene))
@@ -279,6 +284,9 @@ def measure_driving(scenes: list[DrivingScene], group: ScenarioGroup, radar: Rad
     t, pose, odo, fidx = cat("t"), cat("pose"), cat("odo"), cat("idx")
     scene_i = np.concatenate([np.full(len(p["idx"]), p["si"]) for p in per])
     speed = np.array([s.speed_mps for s in scenes])[scene_i]
+    # the radar's lateral velocity -omega l (turning scenes; Kellner et al. 2013)
+    v_lat = np.array([-np.radians(s.yaw_rate_deg_s) * group.ego.rear_axle_to_radar_m
+                      for s in scenes])[scene_i]
     n = len(fidx)
     cols = {k: [] for k in ("row", "bi", "rng", "ang", "v", "vw", "order", "off", "snr", "src")}
     core = CORE_HALF_ROWS
@@ -327,7 +335,7 @@ def measure_driving(scenes: list[DrivingScene], group: ScenarioGroup, radar: Rad
         x, top = _near_snapshots(setup, sc, bi, ki, di, tables, rng)
         v_w = chain.velocity_axis_mps[di]
         order, v, angle = unwrap_and_angles(x, v_w, odo[lo:hi][bi], chain, vmax)
-        off = v - static_radial_velocity(np.nan_to_num(angle), 1.0) * speed[lo:hi][bi]
+        off = v - _static_curve(np.nan_to_num(angle), speed[lo:hi][bi], v_lat[lo:hi][bi])
         for k, a in (("row", ki), ("bi", bi + lo), ("rng", chain.range_axis_m[ki]), ("ang", angle),
                      ("v", v), ("vw", v_w), ("order", order), ("off", off), ("snr", snr),
                      ("src", label[lo:hi][bi, top])):
@@ -379,8 +387,8 @@ def measure_driving(scenes: list[DrivingScene], group: ScenarioGroup, radar: Rad
             "pedestrian": [ped_names[(int(i), p)] for i in scene_i[f]],
             "frame": fidx[f].astype(np.int64), "time_s": t[f], "range_m": pts["range_m"],
             "angle_deg": pts["angle_deg"],
-            "velocity_mps": pts["velocity_mps"] + static_radial_velocity(pts["angle_deg"], 1.0)
-            * speed[f],
+            "velocity_mps": pts["velocity_mps"] + _static_curve(pts["angle_deg"], speed[f],
+                                                                v_lat[f]),
             "snr_db": pts["snr_db"], "n_detections": pts["n_detections"].astype(np.int64),
             "x_vehicle_m": xv_p, "y_vehicle_m": yv_p, "x_m": w[:, 0], "y_m": w[:, 1]},
             columns=list(MEASURED_COLUMNS)))
