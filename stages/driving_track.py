@@ -15,11 +15,12 @@ from blindspot import experiment
 from blindspot.cli import main_stage
 from blindspot.io import write_json, write_parquet
 from blindspot.safety.oracle import oracle_tracks, visible_truth_points
+from blindspot.safety.config import WarningConfig
 from blindspot.stage import StageResult
 
 
 def run(cfg, ctx):
-    w = experiment.warning(cfg)
+    w = WarningConfig.from_mapping(cfg.warning)
     dt = float(experiment.driving_radar(cfg).frame_period_s)
     measured = pd.read_parquet(ctx.dep("measured.parquet"))
     truth = pd.read_parquet(ctx.dep("truth.parquet"))

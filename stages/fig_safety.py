@@ -41,8 +41,8 @@ def run(cfg, ctx):
         ego_length_m=float(cfg.scenario.ego.length_m),
         warning_threshold=settings["warning_threshold"], aeb_threshold=settings["aeb_threshold"],
         predictor=best, title=title), ctx.out("safety_timeline.png"), dpi=110)]
-    operating = {inp: {p: metrics[p]["by_input"][inp] for p in predictors}
-                 for inp in settings["inputs"]}
+    operating = {inp: {p: metrics[p]["by_input"][inp] for p in predictors
+                       if inp in metrics[p]["by_input"]} for inp in settings["inputs"]}
     outs.append(save_figure(fig_operating_characteristic(curves, operating),
                             ctx.out("safety_operating.png"), dpi=110))
     outs.append(save_figure(fig_ncap_grid(grid[grid.input == headline], predictors),
@@ -54,6 +54,8 @@ def run(cfg, ctx):
           "cells: scenes avoided / scenes, mean impact speed, 2026 band of that mean).\n"]
     for inp in settings["inputs"]:
         for p in predictors:
+            if inp not in metrics[p]["by_input"]:
+                continue
             md += [f"\n### {p} ({inp})\n\n", ncap_grid_markdown(grid[grid.input == inp], p)]
     outs.append(write_text(ctx.out("safety_grid.md"), "".join(md)))
     print("fig_safety: " + ", ".join(map(str, outs)))

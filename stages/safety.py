@@ -20,6 +20,7 @@ from blindspot.io import write_json, write_parquet
 from blindspot.safety.assess import assess
 from blindspot.safety.predict import BackfilledHistory
 from blindspot.safety.risk import EgoShape
+from blindspot.safety.config import WarningConfig
 from blindspot.stage import StageResult
 from blindspot.traj.calibration import calibrate, from_record, path_pairs
 from blindspot.traj.lstm import LSTMPredictor
@@ -28,7 +29,7 @@ from blindspot.traj.stationary import Stationary
 from blindspot.traj.windows import WindowSet
 
 
-def _predictors(cfg, ctx, names):
+def _predictors(cfg, ctx, w):
     """name -> calibrated probabilistic predictor (module docstring)."""
     import torch
 
@@ -38,7 +39,7 @@ def _predictors(cfg, ctx, names):
     records = json.loads(ctx.dep("models.json").read_text())
     base = experiment.predictors(cfg, lstm)
     out = {}
-    for name in names:
+    for name in w.predictors:
         if name == "none":
             truth, measured, _ = table_to_arrays(pd.read_parquet(ctx.dep("paths.parquet")))
             val = np.unique(WindowSet.load(ctx.dep("val.parquet")).path_id)
@@ -52,13 +53,13 @@ def _predictors(cfg, ctx, names):
             raise ValueError(f"config key 'warning.predictors' lists {name!r}: no calibrated "
                              f"distribution in {ctx.dep('models.json')} ({sorted(records)})")
         p = from_record(records[name], base[name], name)
-        out[name] = (BackfilledHistory(p, lstm.window, experiment.warning(cfg).lstm_history)
+        out[name] = (BackfilledHistory(p, lstm.window, w.lstm_history)
                      if name == "lstm" else p)
     return out
 
 
 def run(cfg, ctx):
-    w = experiment.warning(cfg)
+    w = WarningConfig.from_mapping(cfg.warning)
     group, _ = experiment.scenarios(cfg)
     dt = float(experiment.driving_radar(cfg).frame_period_s)
     if abs(dt - float(experiment.radar(cfg).frame_period_s)) > 1e-9:
@@ -70,9 +71,10 @@ def run(cfg, ctx):
     tracks = {name: pd.read_parquet(ctx.dep(f"tracks_{name}.parquet"))
               for name in ("oracle", "visible_truth")}
     bodies = {b.name: (b.length_m, b.width_m, b.ref_from_front_m) for b in group.bodies}
-    res = assess(truth, meta, tracks, _predictors(cfg, ctx, w.predictors), w, bodies=bodies,
+    res = assess(truth, meta, tracks, _predictors(cfg, ctx, w), w, bodies=bodies,
                  shape=EgoShape(group.ego.width_m, group.ego.length_m), frame_period_s=dt,
-                 figure_scene=group.figure_scene)
+                 figure_scene=group.figure_scene,
+                 only={"visible_truth": w.reference_predictors})
     write_parquet(ctx.out("risk.parquet"), res.risk)
     write_parquet(ctx.out("scene_outcomes.parquet"), res.scenes)
     write_parquet(ctx.out("operating.parquet"), res.curves)
@@ -81,7 +83,9 @@ def run(cfg, ctx):
     write_json(ctx.out("safety.json"), res.metrics)
     logged = {}
     for name, m in res.metrics.items():
-        logged[name] = {"false_activation_rate": m["false_activation_rate"],
+        logged[name] = {"by_input": {inp: {"avoided_rate": v["avoided_rate"],
+                                           "false_activation_rate": v["false_activation_rate"]}
+                                     for inp, v in m["by_input"].items()},"false_activation_rate": m["false_activation_rate"],
                         "avoided_rate": m["avoided_rate"],
                         "by_speed_kmh": {k: {kk: v[kk] for kk in ("avoided_rate",
                                                                    "impact_speed_kmh_mean",

@@ -157,10 +157,3 @@ def predictors(cfg: DictConfig, lstm=None) -> dict:
                              f"from {sorted(k for k, v in made.items() if v is not None)}")
         out[name] = made[name]
     return out
-
-
-def warning(cfg: DictConfig):
-    """The collision-risk, warning and AEB settings of ``cfg.warning`` (blindspot.safety)."""
-    from blindspot.safety.config import WarningConfig
-
-    return WarningConfig.from_mapping(cfg.warning)

@@ -67,7 +67,8 @@ def _timeline(sa, trigger_s: float, braking: BrakingModel, i: int, dt: float) ->
 def assess(truth: pd.DataFrame, scenes_meta: dict, tracks: dict[str, pd.DataFrame],
            predictors: dict[str, Any], cfg: WarningConfig, *, bodies: dict,
            shape: EgoShape, frame_period_s: float, figure_scene: str,
-           evaluated_set: str = "monte_carlo", headline: str | None = None) -> SafetyResult:
+           evaluated_set: str = "monte_carlo", headline: str | None = None,
+           only: dict[str, tuple[str, ...]] | None = None) -> SafetyResult:
     """Run the evaluation (module docstring).
 
     truth: every scene's truth (column ``set`` selects the evaluated scenes; the figure scene
@@ -75,7 +76,12 @@ def assess(truth: pd.DataFrame, scenes_meta: dict, tracks: dict[str, pd.DataFram
     ``tracker``) -> tracker output; predictors: name -> probabilistic predictor; bodies: body
     name -> (length_m, width_m, ref_from_front_m). ``headline``: the input whose numbers fill
     the top level of the metrics (default: the first of ``tracks``); every input's numbers are
-    under ``metrics[predictor]["by_input"]``.
+    under ``metrics[predictor]["by_input"]``. ``only``: input -> the predictors run on it
+    (default: all).
+
+    Track rows after the collision without braking of their scene are not scored (a request
+    then comes too late to change the outcome, and the warning lead time counts warnings before
+    it only).
     """
     headline = headline or next(iter(tracks))
     horizon = int(round(cfg.horizon_s / frame_period_s))
@@ -97,12 +103,17 @@ def assess(truth: pd.DataFrame, scenes_meta: dict, tracks: dict[str, pd.DataFram
     metrics: dict = {}
     kw = dict(warning_threshold=cfg.warning_threshold, aeb_threshold=cfg.aeb_threshold,
               decision_delay_s=cfg.decision_delay_s)
+    t_col = truth.groupby("scene").collision_time_s.min()
     for inp, tr in tracks.items():                   # the inputs (oracle, tracker): a few
-        risk = risk_table(tr, ego, predictors, horizon=horizon, dt_s=frame_period_s,
+        late = tr.time_s.to_numpy() > t_col.reindex(tr.group).to_numpy()     # NaN: never late
+        tr = tr[~late]
+        use = {k: v for k, v in predictors.items() if only is None or inp not in only
+               or k in only[inp]}
+        risk = risk_table(tr, ego, use, horizon=horizon, dt_s=frame_period_s,
                           shape=shape, margin_m=cfg.pedestrian_radius_m,
                           method=cfg.probability, max_len=max_len)
         risks.append(risk.assign(input=inp))
-        for name in predictors:                      # the four predictors
+        for name in use:                             # the four predictors
             p_all = scene_frame_risk(risk[risk.predictor == name], sa.scenes, F)
             res_all = scene_results(p_all, info_all, impact, sa.time_s, **kw)
             res = res_all[ev].reset_index(drop=True)
@@ -125,7 +136,7 @@ def assess(truth: pd.DataFrame, scenes_meta: dict, tracks: dict[str, pd.DataFram
                                        fig_i, cfg.outcome_dt_s * 4).assign(**tag))
             entry = metrics.setdefault(name, {"by_input": {}})
             entry["by_input"][inp] = m
-            if inp == headline:
+            if inp == headline or "input" not in entry:
                 entry.update({k: v for k, v in m.items()})
                 entry["input"] = inp
     no_aeb = impact[ev][:, -1]

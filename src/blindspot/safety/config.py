@@ -52,6 +52,7 @@ class WarningConfig(TypedConfig):
     GROUP = "warning"
 
     predictors: tuple[str, ...] = setting(choices=PREDICTORS, min_items=1)
+    reference_predictors: tuple[str, ...] = setting(choices=PREDICTORS, min_items=1)
     horizon_s: float = setting(gt=0.0, le=10.0)
     pedestrian_radius_m: float = setting(ge=0.0, le=2.0)
     probability: str = setting(choices=PROBABILITY_METHODS)
@@ -70,6 +71,10 @@ class WarningConfig(TypedConfig):
     seed: int = setting(0, ge=0, le=2**63 - 1)
 
     def validate(self) -> None:
+        extra = sorted(set(self.reference_predictors) - set(self.predictors))
+        if extra:
+            raise ConfigError("warning.reference_predictors", list(self.reference_predictors),
+                              f"a subset of warning.predictors {list(self.predictors)}")
         if len(set(self.predictors)) != len(self.predictors):
             raise ConfigError("warning.predictors", list(self.predictors),
                               "each predictor named once")
