@@ -105,6 +105,41 @@ def ego_motion(cfg: DictConfig) -> EgoMotionConfig:
     return EgoMotionConfig.from_mapping(cfg.ego_motion)
 
 
+def _track_config():
+    """:mod:`blindspot.track.config`, imported when a tracking builder runs. Every stage imports
+    this module; a static import would make the import graph (tests/pipeline/
+    test_stage_files.py) tie each of them to the tracker, whose changes cannot change their
+    outputs. The stages that track import blindspot.track themselves and list it in their deps."""
+    import importlib
+
+    return importlib.import_module("blindspot.track.config")
+
+
+def tracker(cfg: DictConfig):
+    """The multi-target tracker settings of ``cfg.tracker`` (clustering, filter, gating,
+    association, M-of-N confirmation, deletion): a ``blindspot.track.TrackerConfig``."""
+    return _track_config().TrackerConfig.from_mapping(cfg.tracker)
+
+
+def real_tracking(cfg: DictConfig) -> dict:
+    """The real recordings of ``cfg.real_tracking``, each with its tracker settings: the
+    ``tracker`` group with the record's ``tracker`` keys laid over it (errors name
+    ``real_tracking.recordings.<name>.tracker.<key>``): ``{name: (TrackedRecording,
+    TrackerConfig)}``."""
+    from omegaconf import OmegaConf
+
+    track_config = _track_config()
+    TrackerConfig = track_config.TrackerConfig
+    group = track_config.RealTrackingConfig.from_mapping(cfg.real_tracking)
+    out = {}
+    for rec in group.recordings:
+        overrides = cfg.real_tracking.recordings[rec.name].get("tracker") or {}
+        merged = OmegaConf.merge(cfg.tracker, overrides)
+        out[rec.name] = (rec, TrackerConfig.from_mapping(
+            merged, where=f"real_tracking.recordings.{rec.name}.tracker"))
+    return out
+
+
 def array(cfg: DictConfig) -> VirtualArray:
     return array_for(radar(cfg))
 

@@ -178,6 +178,7 @@ def _builders():
         "eval": experiment.evaluation, "ethucy": experiment.ethucy,
         "benchmark": experiment.benchmark, "calibration": experiment.calibration, "recordings": _build_recordings,
         "scenario": experiment.scenarios, "ego_motion": experiment.ego_motion,
+        "tracker": experiment.tracker, "real_tracking": experiment.real_tracking,
         "warning": _build_warning,
     }
 

@@ -1,0 +1,124 @@
+"""Typed config of the multi-target tracker: the Hydra group ``tracker`` (``conf/tracker/``).
+
+Built through :mod:`blindspot.typed_config`, so a bad value raises
+:class:`~blindspot.typed_config.ConfigError` naming ``tracker.<key>``, the value and the allowed
+range. The yaml files give the source or the reason of every value.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from blindspot.typed_config import ConfigError, TypedConfig, setting
+
+__all__ = ["ASSOCIATIONS", "TrackerConfig"]
+
+#: Data associators: global nearest neighbour (one detection per track, 2-D assignment) or joint
+#: probabilistic data association (every gated detection weighted by its probability).
+ASSOCIATIONS = ("gnn", "jpda")
+
+
+@dataclass(frozen=True)
+class TrackerConfig(TypedConfig):
+    """The Hydra group ``tracker``: clustering, filter, gating, association, track management.
+
+    Fields (units in the names):
+        cluster_eps_m: DBSCAN neighbourhood radius; points of one frame closer than this (chained)
+            form one object (Ester et al. 1996).
+        cluster_min_samples: DBSCAN core-point count; an isolated point with fewer neighbours is
+            noise and never reaches the tracker (1 = every point is an object).
+        process_noise_m2ps3: spectral density q of the white-noise acceleration of the constant
+            velocity model, per axis (m^2/s^3; Bar-Shalom, Li & Kirubarajan 2001, sec. 6.2).
+        velocity_damping_per_s: K of an Ornstein-Uhlenbeck velocity (Stone Soup's
+            ``OrnsteinUhlenbeck``): a coasting track's velocity decays as exp(-K t); 0 = constant
+            velocity.
+        measurement_noise_m: standard deviation of one object's position (cluster centroid) per
+            axis (m).
+        init_velocity_std_mps: prior standard deviation of a new track's velocity per axis (its
+            mean is zero).
+        gate_probability: probability that the true object's measurement falls inside the
+            Mahalanobis gate; the gate is the chi-square quantile with 2 degrees of freedom.
+        association: ``gnn`` or ``jpda`` (see :data:`ASSOCIATIONS`).
+        detection_probability: P_D of an object in a frame (JPDA's hypothesis weights).
+        clutter_density_per_m2: spatial density of false objects per frame (JPDA).
+        confirm_m, confirm_n: a tentative track is confirmed once it has been updated with a
+            measurement in ``confirm_m`` of its last ``confirm_n`` frames, and deleted when its
+            first ``confirm_n`` frames cannot give that (M-of-N logic; Blackman & Popoli 1999,
+            sec. 6.3).
+        max_misses: a confirmed track is deleted after this many consecutive frames without a
+            measurement; until then it coasts (predicted only).
+    """
+
+    GROUP = "tracker"
+    IGNORED = ("name",)
+
+    cluster_eps_m: float = setting(gt=0.0, le=100.0)
+    cluster_min_samples: int = setting(ge=1, le=10_000)
+    process_noise_m2ps3: float = setting(gt=0.0, le=1e4)
+    velocity_damping_per_s: float = setting(ge=0.0, le=1e3)
+    measurement_noise_m: float = setting(gt=0.0, le=100.0)
+    init_velocity_std_mps: float = setting(gt=0.0, le=100.0)
+    gate_probability: float = setting(gt=0.0, lt=1.0)
+    association: str = setting(choices=ASSOCIATIONS)
+    detection_probability: float = setting(gt=0.0, lt=1.0)
+    clutter_density_per_m2: float = setting(gt=0.0, le=1e6)
+    confirm_m: int = setting(ge=1, le=1000)
+    confirm_n: int = setting(ge=1, le=1000)
+    max_misses: int = setting(ge=0, le=100_000)
+
+    def validate(self) -> None:
+        if self.confirm_m > self.confirm_n:
+            raise ConfigError("confirm_m", self.confirm_m,
+                              f"at most confirm_n = {self.confirm_n} (M of N frames)")
+
+
+#: Point-cloud log formats the real_tracking stage reads (blindspot.radar.capture).
+RECORDING_KINDS = ("ti_gtrack", "radhar")
+
+
+@dataclass(frozen=True)
+class TrackedRecording(TypedConfig):
+    """One real recording of the Hydra group ``real_tracking`` (``conf/real_tracking/``).
+
+    Fields:
+        name: the recording's key (output names: ``data/tracks/<name>.parquet``).
+        kind: ``ti_gtrack`` (TI people-counting TLV log with gtrack targets) or ``radhar``
+            (RadHAR ROS text dump).
+        path: the file, relative to ``paths.shared_dir`` or absolute.
+        frame_period_s: frame period (s) when the file holds no time stamps (ti_gtrack); null
+            to use the file's own stamps (radhar).
+        static_speed_mps: points with |radial speed| at most this are static clutter and are
+            dropped before tracking; null keeps every point.
+        reference_gate_m: the largest distance (m) at which one of our tracks may stand for a
+            reference track (CLEAR MOT); null when the recording has no reference tracker.
+
+    The record's ``tracker`` mapping (keys of the ``tracker`` group) overrides the tracker
+    group for this recording; :func:`blindspot.experiment.real_tracking` merges and types it.
+    """
+
+    IGNORED = ("tracker",)
+
+    name: str = setting()
+    kind: str = setting(choices=RECORDING_KINDS)
+    path: str = setting()
+    frame_period_s: float | None = setting(None, gt=0.0, le=60.0)
+    static_speed_mps: float | None = setting(None, ge=0.0, le=100.0)
+    reference_gate_m: float | None = setting(None, gt=0.0, le=100.0)
+
+    def validate(self) -> None:
+        if self.kind == "ti_gtrack" and self.frame_period_s is None:
+            raise ConfigError("frame_period_s", None,
+                              "a positive period (s): a ti_gtrack log holds no time stamps")
+        if not self.path:
+            raise ConfigError("path", self.path, "a file path")
+
+
+@dataclass(frozen=True)
+class RealTrackingConfig(TypedConfig):
+    """The Hydra group ``real_tracking``: the real point-cloud recordings the tracker runs on
+    (``recordings``: a mapping of :class:`TrackedRecording` by name)."""
+
+    GROUP = "real_tracking"
+    IGNORED = ("name",)
+
+    recordings: tuple[TrackedRecording, ...] = setting(min_items=1)

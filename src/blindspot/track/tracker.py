@@ -1,0 +1,527 @@
+"""Multi-target tracking of radar points: DBSCAN objects per frame -> Stone Soup tracks.
+
+The tracker is assembled from Stone Soup's typed parts (https://stonesoup.readthedocs.io, v1.9)
+the way its tutorials read:
+
+* objects: the points of one frame clustered with scikit-learn's DBSCAN (extended targets: a
+  person gives many points on real data); one measurement per object, its centroid;
+* filter: a constant-velocity Kalman filter per track, state ``[x, vx, y, vy]``
+  (``CombinedLinearGaussianTransitionModel`` of two ``ConstantVelocity`` models,
+  ``KalmanPredictor`` / ``KalmanUpdater``, measurement model ``LinearGaussian`` on x and y);
+* gating: ``DistanceHypothesiser`` with the ``Mahalanobis`` measure (GNN) or
+  ``PDAHypothesiser`` (JPDA), gate = chi-square quantile of ``gate_probability``, 2 dof;
+* association: ``GNNWith2DAssignment`` (global nearest neighbour) or ``JPDA`` (the posterior
+  a Gaussian-mixture reduction of the weighted hypotheses, ``gm_reduce_single``);
+* initiation: ``SimpleMeasurementInitiator`` from every object no live track took, velocity
+  prior zero with ``init_velocity_std_mps``;
+* management: M-of-N confirmation of tentative tracks, deletion of confirmed tracks by
+  ``UpdateTimeStepsDeleter`` after ``max_misses`` consecutive frames without a measurement;
+  until then a track coasts (prediction only), so a person who reappears keeps their track.
+
+The Kalman recursion is sequential in time, so frames are stepped one after another per group;
+clustering runs once over every frame of every group (one DBSCAN call).
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+from scipy.stats import chi2
+from sklearn.cluster import DBSCAN
+
+from blindspot.track.config import TrackerConfig
+
+__all__ = ["INPUT_COLUMNS", "OUTPUT_COLUMNS", "TrackingError", "cluster_points", "track_points"]
+
+#: Required input columns (``group``, ``velocity_mps`` optional).
+INPUT_COLUMNS = ("frame", "time_s", "x_m", "y_m")
+#: Output columns after the optional ``group``.
+OUTPUT_COLUMNS = ("frame", "time_s", "track_id", "x_m", "y_m", "vx_mps", "vy_mps",
+                  "cov_xx", "cov_xy", "cov_yy", "cov_vxvx", "cov_vxvy", "cov_vyvy",
+                  "confirmed", "coasting")
+
+_EPOCH = dt.datetime(2000, 1, 1)
+
+
+class TrackingError(ValueError):
+    """Points given to the tracker are not what it expects (missing column, bad type, time
+    running backwards)."""
+
+
+def _check_points(points: pd.DataFrame) -> bool:
+    if not isinstance(points, pd.DataFrame):
+        raise TrackingError(f"track_points: points must be a pandas DataFrame; found "
+                            f"{type(points).__name__}")
+    missing = [c for c in INPUT_COLUMNS if c not in points.columns]
+    if missing:
+        raise TrackingError(f"track_points: points lack column(s) {missing}; expected "
+                            f"{list(INPUT_COLUMNS)} (+ optional group, velocity_mps); found "
+                            f"{list(points.columns)}")
+    if not pd.api.types.is_integer_dtype(points["frame"]):
+        raise TrackingError(f"track_points: column 'frame' must hold integers; found dtype "
+                            f"{points['frame'].dtype}")
+    for c in ("time_s", "x_m", "y_m"):
+        if not pd.api.types.is_numeric_dtype(points[c]) or pd.api.types.is_bool_dtype(points[c]):
+            raise TrackingError(f"track_points: column {c!r} must be numeric; found dtype "
+                                f"{points[c].dtype}")
+    if not np.isfinite(points["time_s"].to_numpy(float)).all():
+        raise TrackingError("track_points: column 'time_s' holds NaN or infinite values")
+    xy = points[["x_m", "y_m"]].to_numpy(float)
+    if np.isinf(xy).any():
+        raise TrackingError("track_points: columns x_m/y_m hold infinite values (NaN marks a "
+                            "frame without points)")
+    if (np.isnan(xy[:, 0]) != np.isnan(xy[:, 1])).any():
+        raise TrackingError("track_points: x_m and y_m must be NaN together (a frame without "
+                            "points); found rows with only one of them NaN")
+    return "group" in points.columns
+
+
+def cluster_points(points: pd.DataFrame, config: TrackerConfig) -> pd.DataFrame:
+    """Objects of each frame: DBSCAN clusters of its points, as centroids.
+
+    One DBSCAN call over every frame of every group: each point gets a third coordinate
+    ``4 * eps * k`` with ``k`` the index of its (group, frame), so points of different frames are
+    never neighbours and the clusters equal those of one DBSCAN per frame.
+
+    Args:
+        points: rows of ``frame`` (int), ``time_s``, ``x_m``, ``y_m`` (m), optional ``group``;
+            rows with NaN x_m/y_m mark a frame observed without points.
+        config: ``cluster_eps_m`` and ``cluster_min_samples`` are read.
+
+    Returns:
+        DataFrame with one row per object: (``group``), ``frame``, ``time_s``, ``x_m``, ``y_m``
+        (centroid, m), ``n_points``. Points DBSCAN labels noise are dropped.
+
+    Raises:
+        TrackingError: as :func:`track_points`.
+    """
+    has_group = _check_points(points)
+    keys = (["group"] if has_group else []) + ["frame"]
+    return _centroids(_labelled(points, keys, config), keys)
+
+
+def _labelled(points: pd.DataFrame, keys: list[str], config: TrackerConfig) -> pd.DataFrame:
+    """The points with coordinates that DBSCAN keeps, with their cluster label ``_label``
+    (unique over all frames and groups)."""
+    valid = points.dropna(subset=["x_m", "y_m"])
+    if valid.empty:
+        return valid[keys + ["time_s", "x_m", "y_m"]].assign(_label=np.empty(0, np.int64))
+    k = valid.groupby(keys, sort=False).ngroup().to_numpy(float)
+    eps = config.cluster_eps_m
+    feats = np.column_stack([valid["x_m"].to_numpy(float), valid["y_m"].to_numpy(float),
+                             4.0 * eps * k])
+    labels = DBSCAN(eps=eps, min_samples=config.cluster_min_samples).fit_predict(feats)
+    keep = labels >= 0
+    return valid.loc[keep, keys + ["time_s", "x_m", "y_m"]].assign(_label=labels[keep])
+
+
+def _centroids(labelled: pd.DataFrame, keys: list[str]) -> pd.DataFrame:
+    return (labelled.groupby(keys + ["_label"], sort=True)
+            .agg(time_s=("time_s", "first"), n_points=("x_m", "size"),
+                 x_m=("x_m", "mean"), y_m=("y_m", "mean"))
+            .reset_index().drop(columns="_label"))[keys + ["time_s", "n_points", "x_m", "y_m"]]
+
+
+def _cached_cv_model(q: float, damping: float = 0.0):
+    """Stone Soup's two-axis constant-velocity model with F and Q memoised per time step.
+
+    ``CombinedLinearGaussianTransitionModel`` rebuilds both with ``scipy.linalg.block_diag`` on
+    every call (about 0.7 ms per prediction on this machine, most of the tracker's time); frames
+    come at a few distinct intervals, so each is built once. Values are Stone Soup's own
+    (continuous white-noise acceleration, Bar-Shalom et al. 2001, eq. 6.2.2-12); with
+    ``damping`` K > 0, Stone Soup's ``OrnsteinUhlenbeck`` model instead (velocity decays as
+    exp(-K t) between measurements: a pedestrian who stops)."""
+    from stonesoup.models.transition.linear import (CombinedLinearGaussianTransitionModel,
+                                                    ConstantVelocity, OrnsteinUhlenbeck)
+
+    class CachedCombinedCV(CombinedLinearGaussianTransitionModel):
+        def matrix(self, **kwargs):
+            key = ("F", kwargs.get("time_interval"))
+            if key not in _cache:
+                _cache[key] = super().matrix(**kwargs)
+            return _cache[key]
+
+        def covar(self, **kwargs):
+            key = ("Q", kwargs.get("time_interval"))
+            if key not in _cache:
+                _cache[key] = super().covar(**kwargs)
+            return _cache[key]
+
+    _cache: dict = {}
+    if damping > 0:
+        return CachedCombinedCV([OrnsteinUhlenbeck(q, damping), OrnsteinUhlenbeck(q, damping)])
+    return CachedCombinedCV([ConstantVelocity(q), ConstantVelocity(q)])
+
+
+def _numpy_kalman(transition_model, measurement_model):
+    """Stone Soup's ``KalmanPredictor`` and ``KalmanUpdater`` with their arithmetic on plain
+    numpy arrays: the stock classes spend most of their time in the ``__array_ufunc__`` of Stone
+    Soup's ``StateVector``/``Matrix`` subclasses and in ``from_state`` copies (about 1 ms per
+    track and frame on this machine, ``benchmarks/bench_tracking.py --profile``). Same equations
+    (Bar-Shalom et al. 2001, sec. 5.2.3), same input and output types; tests/track check them
+    against the stock classes.
+
+    Returns (predictor, updater).
+    """
+    from stonesoup.predictor.kalman import KalmanPredictor
+    from stonesoup.types.array import CovarianceMatrix, StateVector
+    from stonesoup.types.prediction import (GaussianMeasurementPrediction,
+                                            GaussianStatePrediction)
+    from stonesoup.types.update import GaussianStateUpdate
+    from stonesoup.updater.kalman import KalmanUpdater
+
+    H = np.asarray(measurement_model.matrix(), float)
+    R = np.asarray(measurement_model.covar(), float)
+
+    class NumpyKalmanPredictor(KalmanPredictor):
+        def predict(self, prior, timestamp=None, **kwargs):
+            dt = timestamp - prior.timestamp
+            F = np.asarray(self.transition_model.matrix(time_interval=dt), float)
+            Q = np.asarray(self.transition_model.covar(time_interval=dt), float)
+            x = np.asarray(prior.state_vector, float)
+            P = np.asarray(prior.covar, float)
+            return GaussianStatePrediction(StateVector(F @ x), CovarianceMatrix(F @ P @ F.T + Q),
+                                           timestamp=timestamp,
+                                           transition_model=self.transition_model)
+
+    class NumpyKalmanUpdater(KalmanUpdater):
+        def predict_measurement(self, predicted_state, measurement_model=None,
+                                measurement_noise=True, **kwargs):
+            x = np.asarray(predicted_state.state_vector, float)
+            P = np.asarray(predicted_state.covar, float)
+            PHt = P @ H.T
+            S = H @ PHt + (R if measurement_noise else 0.0)
+            return GaussianMeasurementPrediction(StateVector(H @ x), CovarianceMatrix(S),
+                                                 timestamp=predicted_state.timestamp,
+                                                 cross_covar=CovarianceMatrix(PHt))
+
+        def update(self, hypothesis, **kwargs):
+            pred = hypothesis.prediction
+            mp = hypothesis.measurement_prediction
+            if mp is None:
+                mp = hypothesis.measurement_prediction = self.predict_measurement(pred)
+            S = np.asarray(mp.covar, float)
+            PHt = np.asarray(mp.cross_covar, float)
+            K = np.linalg.solve(S, PHt.T).T  # P H^T S^-1 (S symmetric)
+            innovation = (np.asarray(hypothesis.measurement.state_vector, float)
+                          - np.asarray(mp.state_vector, float))
+            x = np.asarray(pred.state_vector, float) + K @ innovation
+            P = np.asarray(pred.covar, float) - K @ S @ K.T
+            return GaussianStateUpdate(StateVector(x), CovarianceMatrix((P + P.T) / 2),
+                                       hypothesis=hypothesis,
+                                       timestamp=hypothesis.measurement.timestamp)
+
+    return (NumpyKalmanPredictor(transition_model),
+            NumpyKalmanUpdater(measurement_model, force_symmetric_covariance=True))
+
+
+def _gated_hypothesiser(predictor, updater, gate: float):
+    """Stone Soup's ``DistanceHypothesiser`` with the ``Mahalanobis`` measure, gating every
+    detection of a frame in one numpy expression: d^2 = v^T S^-1 v for the innovations v of all
+    detections against the track's one measurement prediction (every detection shares the
+    measurement model). Returns the same hypotheses as the parent class, which evaluates the
+    measure detection by detection."""
+    from stonesoup.hypothesiser.distance import DistanceHypothesiser
+    from stonesoup.measures import Mahalanobis
+    from stonesoup.types.detection import MissedDetection
+    from stonesoup.types.hypothesis import SingleDistanceHypothesis
+    from stonesoup.types.multihypothesis import MultipleHypothesis
+
+    class GatedDistanceHypothesiser(DistanceHypothesiser):
+        def hypothesise(self, track, detections, timestamp, **kwargs):
+            prediction = self.predictor.predict(track, timestamp=timestamp)
+            hypotheses = [SingleDistanceHypothesis(
+                prediction, MissedDetection(timestamp=timestamp), self.missed_distance)]
+            if detections:
+                dets = list(detections)
+                mp = self.updater.predict_measurement(prediction, dets[0].measurement_model)
+                z = np.hstack([np.asarray(d.state_vector, float) for d in dets])
+                v = z - np.asarray(mp.state_vector, float)
+                w = np.linalg.solve(np.asarray(mp.covar, float), v)
+                dist = np.sqrt(np.einsum("ij,ij->j", v, w))
+                for j in np.flatnonzero(dist < self.missed_distance):
+                    hypotheses.append(SingleDistanceHypothesis(prediction, dets[j],
+                                                               float(dist[j]), mp))
+            return MultipleHypothesis(sorted(hypotheses, reverse=True))
+
+    return GatedDistanceHypothesiser(predictor, updater, measure=Mahalanobis(),
+                                     missed_distance=gate)
+
+
+def _linear_initiator(prior, measurement_model):
+    """Stone Soup's ``SimpleMeasurementInitiator`` for one linear measurement model, with the
+    model's pseudo-inverse and the initial covariance computed once instead of per detection
+    (1.4 ms per new track in the parent class on this machine). Same state and covariance:
+    x0 = prior with the measured dimensions replaced by H^+ z, P0 = H^+ R H^+T + prior covariance
+    outside the measured dimensions."""
+    from stonesoup.initiator.simple import SimpleMeasurementInitiator
+    from stonesoup.types.hypothesis import SingleHypothesis
+    from stonesoup.types.track import Track
+    from stonesoup.types.update import GaussianStateUpdate
+
+    h_pinv = np.linalg.pinv(measurement_model.matrix())
+    mapped = list(measurement_model.mapping)
+    base = np.asarray(prior.state_vector, float).copy()
+    base[mapped, :] = 0.0
+    covar0 = np.asarray(prior.covar, float).copy()
+    covar0[mapped, :] = 0.0
+    covar0[:, mapped] = 0.0
+    covar0 = covar0 + h_pinv @ measurement_model.covar() @ h_pinv.T
+
+    class LinearMeasurementInitiator(SimpleMeasurementInitiator):
+        def initiate(self, detections, timestamp, **kwargs):
+            return {Track([GaussianStateUpdate(base + h_pinv @ det.state_vector, covar0.copy(),
+                                               SingleHypothesis(None, det),
+                                               timestamp=det.timestamp)])
+                    for det in detections}
+
+    return LinearMeasurementInitiator(prior, measurement_model)
+
+
+@dataclass
+class _Parts:
+    """Stone Soup components of one tracker, built once from the config."""
+
+    measurement_model: object
+    predictor: object
+    updater: object
+    associator: object
+    initiator: object
+    deleter: object
+    jpda: bool
+
+
+def _parts(config: TrackerConfig) -> _Parts:
+    from stonesoup.dataassociator.neighbour import GNNWith2DAssignment
+    from stonesoup.dataassociator.probability import JPDA
+    from stonesoup.deleter.time import UpdateTimeStepsDeleter
+    from stonesoup.hypothesiser.probability import PDAHypothesiser
+    from stonesoup.models.measurement.linear import LinearGaussian
+    from stonesoup.types.state import GaussianState
+
+    transition = _cached_cv_model(config.process_noise_m2ps3, config.velocity_damping_per_s)
+    r = config.measurement_noise_m ** 2
+    measurement_model = LinearGaussian(ndim_state=4, mapping=(0, 2),
+                                       noise_covar=np.diag([r, r]))
+    predictor, updater = _numpy_kalman(transition, measurement_model)
+    if config.association == "gnn":
+        gate = float(np.sqrt(chi2.ppf(config.gate_probability, df=2)))
+        hypothesiser = _gated_hypothesiser(predictor, updater, gate)
+        associator = GNNWith2DAssignment(hypothesiser)
+    else:
+        hypothesiser = PDAHypothesiser(predictor, updater,
+                                       clutter_spatial_density=config.clutter_density_per_m2,
+                                       prob_detect=config.detection_probability,
+                                       prob_gate=config.gate_probability)
+        associator = JPDA(hypothesiser)
+    v2 = config.init_velocity_std_mps ** 2
+    prior = GaussianState(np.zeros((4, 1)), np.diag([0.0, v2, 0.0, v2]))
+    initiator = _linear_initiator(prior, measurement_model)
+    deleter = UpdateTimeStepsDeleter(time_steps_since_update=config.max_misses + 1)
+    return _Parts(measurement_model, predictor, updater, associator, initiator, deleter,
+                  config.association == "jpda")
+
+
+@dataclass
+class _Book:
+    """Track management beside a Stone Soup track: its id and its hit/miss history."""
+
+    track_id: int
+    hits: list[bool] = field(default_factory=list)
+    confirmed: bool = False
+
+
+def _jpda_posterior(track, multihypothesis, updater):
+    """Gaussian-mixture reduction of the JPDA hypotheses of one track (Stone Soup's JPDA
+    tutorial; Bar-Shalom, Daum & Huang 2009). Returns (state, hit): hit when the hypotheses
+    with a detection carry more than half the probability."""
+    from stonesoup.functions import gm_reduce_single
+    from stonesoup.types.array import StateVectors
+    from stonesoup.types.prediction import GaussianStatePrediction
+    from stonesoup.types.update import GaussianStateUpdate
+
+    states, weights, p_detected = [], [], 0.0
+    for hyp in multihypothesis:
+        p = float(hyp.probability)
+        if hyp:
+            states.append(updater.update(hyp))
+            p_detected += p
+        else:
+            states.append(hyp.prediction)
+        weights.append(p)
+    means = StateVectors([s.state_vector for s in states])
+    covars = np.stack([s.covar for s in states], axis=2)
+    mean, covar = gm_reduce_single(means, covars, np.asarray(weights))
+    ts = multihypothesis[0].prediction.timestamp
+    if p_detected > 0.5:
+        return GaussianStateUpdate(mean, covar, multihypothesis, ts), True
+    return GaussianStatePrediction(mean, covar, timestamp=ts), False
+
+
+def _objects(xy: np.ndarray, labels: np.ndarray) -> np.ndarray:
+    """(k, 2) centroids of the points (n, 2) of each label, in label order."""
+    _, inverse, counts = np.unique(labels, return_inverse=True, return_counts=True)
+    sums = np.zeros((len(counts), 2))
+    np.add.at(sums, inverse, xy)
+    return sums / counts[:, None]
+
+
+def _track_group(labelled: pd.DataFrame, frames: pd.DataFrame, config: TrackerConfig,
+                 parts: _Parts) -> dict[str, list]:
+    """Step the tracker through the frames of one group; return output columns as lists."""
+    from stonesoup.types.detection import Detection
+
+    out = {c: [] for c in OUTPUT_COLUMNS}
+    labelled = labelled.sort_values("frame", kind="stable")
+    of = labelled["frame"].to_numpy()
+    cut = np.flatnonzero(np.diff(of)) + 1
+    starts = of[np.r_[0, cut]] if len(of) else []
+    by_frame = dict(zip(starts, zip(np.split(labelled[["x_m", "y_m"]].to_numpy(float), cut),
+                                    np.split(labelled["_label"].to_numpy(np.int64), cut))))
+    no_points = (np.empty((0, 2)), np.empty(0, np.int64))
+    live: dict[object, _Book] = {}
+    next_id = 0
+    m, n = config.confirm_m, config.confirm_n
+    for frame, t in zip(frames["frame"].to_numpy(), frames["time_s"].to_numpy(float)):
+        ts = _EPOCH + dt.timedelta(seconds=float(t))
+        pxy, plabels = by_frame.get(frame, no_points)
+        xy = _objects(pxy, plabels) if len(pxy) else np.empty((0, 2))
+        order = [Detection(p.reshape(2, 1), timestamp=ts,
+                           measurement_model=parts.measurement_model) for p in xy]
+        detections = set(order)
+        used: set = set()
+        hit_now: dict[object, bool] = {}
+        # Two-stage association: confirmed tracks first, tentative tracks with what is left. A
+        # new track's wide velocity prior gives it a small Mahalanobis distance to anything
+        # nearby, so one joint assignment lets clutter-born tracks steal a confirmed track's
+        # detection (Blackman & Popoli 1999, sec. 6.3: confirmed tracks have priority).
+        for stage in (True, False):
+            tracks = {tr for tr, book in live.items() if book.confirmed is stage}
+            if not tracks:
+                continue
+            assoc = parts.associator.associate(tracks, detections - used, ts)
+            for track, hyp in assoc.items():
+                if parts.jpda:
+                    state, hit = _jpda_posterior(track, hyp, parts.updater)
+                    if stage:
+                        used.update(h.measurement for h in hyp if h)
+                    elif hit:
+                        used.add(max((h for h in hyp if h), key=lambda h: h.probability)
+                                 .measurement)
+                else:
+                    hit = bool(hyp)
+                    state = parts.updater.update(hyp) if hit else hyp.prediction
+                    if hit:
+                        used.add(hyp.measurement)
+                track.append(state)
+                hit_now[track] = hit
+        # Track management: M-of-N confirmation, deletion of failed tentatives and of confirmed
+        # tracks that missed more than max_misses frames in a row.
+        for track, hit in hit_now.items():
+            book = live[track]
+            book.hits.append(hit)
+            if not book.confirmed:
+                if sum(book.hits[-n:]) >= m:
+                    book.confirmed = True
+                elif sum(book.hits) + max(n - len(book.hits), 0) < m or len(book.hits) >= n:
+                    del live[track]
+                    continue
+            if book.confirmed and parts.deleter.check_for_deletion(track):
+                del live[track]
+        # Births in the objects' order (Stone Soup returns a set), so ids do not depend on hashes.
+        born = parts.initiator.initiate(detections - used, ts)
+        rank = {id(d): i for i, d in enumerate(order)}
+        for track in sorted(born, key=lambda tr: rank[id(tr[0].hypothesis.measurement)]):
+            live[track] = _Book(next_id, [True])
+            next_id += 1
+            hit_now[track] = True
+            if m <= 1:
+                live[track].confirmed = True
+        for track, book in live.items():
+            s = track.state
+            sv = np.asarray(s.state_vector, float).ravel()
+            c = np.asarray(s.covar, float)
+            out["frame"].append(frame)
+            out["time_s"].append(t)
+            out["track_id"].append(book.track_id)
+            out["x_m"].append(sv[0])
+            out["y_m"].append(sv[2])
+            out["vx_mps"].append(sv[1])
+            out["vy_mps"].append(sv[3])
+            out["cov_xx"].append(c[0, 0])
+            out["cov_xy"].append(c[0, 2])
+            out["cov_yy"].append(c[2, 2])
+            out["cov_vxvx"].append(c[1, 1])
+            out["cov_vxvy"].append(c[1, 3])
+            out["cov_vyvy"].append(c[3, 3])
+            out["confirmed"].append(book.confirmed)
+            out["coasting"].append(not hit_now[track])
+    return out
+
+
+def track_points(points: pd.DataFrame, config: TrackerConfig) -> pd.DataFrame:
+    """Tracks of the points of many frames: one row per live track per frame.
+
+    Args:
+        points: one row per point: ``frame`` (int), ``time_s`` (float, s; strictly increasing
+            with ``frame`` within a group), ``x_m``, ``y_m`` (m, any one Cartesian frame of
+            reference: the world frame of a driving scene or a recording's sensor frame);
+            optional ``group`` (independent runs, e.g. scene ids, tracked separately, track ids
+            restart at 0 in each) and ``velocity_mps`` (radial speed; not used by this CV
+            position tracker). A row with NaN ``x_m``/``y_m`` marks a frame that was observed
+            without any point (tracks coast through it); frames absent from ``points`` are not
+            stepped.
+        config: the tracker group (:class:`~blindspot.track.config.TrackerConfig`).
+
+    Returns:
+        DataFrame with (``group``), ``frame``, ``time_s``, ``track_id`` (int, unique within a
+        group, never reused), ``x_m``, ``y_m``, ``vx_mps``, ``vy_mps`` (filtered state, m and
+        m/s), ``cov_xx``, ``cov_xy``, ``cov_yy`` (position covariance, m^2), ``cov_vxvx``,
+        ``cov_vxvy``, ``cov_vyvy`` (velocity covariance, m^2/s^2), ``confirmed`` (M-of-N
+        passed), ``coasting`` (predicted without a measurement this frame). Tentative tracks are
+        included (``confirmed`` False): filter on ``confirmed`` for reported tracks.
+
+    Raises:
+        TrackingError: a missing column, a non-integer frame, a non-numeric coordinate, a NaN
+            time, or a time that does not increase with the frame within a group.
+    """
+    has_group = _check_points(points)
+    keys = (["group"] if has_group else []) + ["frame"]
+    frames = (points[keys + ["time_s"]].drop_duplicates(keys).sort_values(keys)
+              .reset_index(drop=True))
+    gkey = frames["group"] if has_group else pd.Series(0, index=frames.index)
+    dtime = frames["time_s"].diff().to_numpy()
+    first = (gkey != gkey.shift()).to_numpy()
+    if (dtime[~first] <= 0).any():
+        bad = frames.loc[np.flatnonzero((dtime <= 0) & ~first)[0]]
+        raise TrackingError(f"track_points: time_s must increase with frame within a group; "
+                            f"found time_s = {bad['time_s']} at frame {bad['frame']}, not after "
+                            f"the previous frame's")
+    labelled = _labelled(points, keys, config)
+    parts = _parts(config)
+    pieces = []
+    if has_group:
+        obj_groups = dict(list(labelled.groupby("group", sort=False)))
+        for g, fr in frames.groupby("group", sort=True):
+            res = pd.DataFrame(_track_group(obj_groups.get(g, labelled.iloc[:0]), fr, config,
+                                            parts))
+            res.insert(0, "group", g)
+            pieces.append(res)
+        result = pd.concat(pieces, ignore_index=True) if pieces else None
+    else:
+        result = pd.DataFrame(_track_group(labelled, frames, config, parts))
+    cols = (["group"] if has_group else []) + list(OUTPUT_COLUMNS)
+    if result is None or result.empty:
+        empty = {c: pd.Series(dtype=float) for c in cols}
+        for c in ("frame", "track_id"):
+            empty[c] = pd.Series(dtype="int64")
+        for c in ("confirmed", "coasting"):
+            empty[c] = pd.Series(dtype=bool)
+        if has_group:
+            empty["group"] = pd.Series(dtype=points["group"].dtype)
+        return pd.DataFrame(empty)[cols]
+    return result.astype({"frame": "int64", "track_id": "int64", "confirmed": bool,
+                          "coasting": bool})[cols]

@@ -1,0 +1,254 @@
+"""The multi-target tracker (blindspot.track) against truths it did not write: constant-velocity
+motion drawn from the filter's own process model (Kalman consistency: NEES is chi-square,
+Bar-Shalom, Li & Kirubarajan 2001, sec. 5.4), crossing targets, occlusion, uniform clutter."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pandas as pd
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from omegaconf import OmegaConf
+from scipy.stats import chi2
+from sklearn.cluster import DBSCAN
+
+from blindspot.track import TrackerConfig, TrackingError, cluster_points, track_points
+from blindspot.track.evaluation import compare_tracks
+from blindspot.typed_config import ConfigError
+from tests.conftest import REPO_ROOT
+
+DT = 0.1
+
+
+def config(name: str = "gnn_cv", **changes) -> TrackerConfig:
+    cfg = TrackerConfig.from_mapping(OmegaConf.load(REPO_ROOT / "conf" / "tracker" / f"{name}.yaml"))
+    return dataclasses.replace(cfg, **changes)
+
+
+def frame_table(frames: np.ndarray, xy: np.ndarray, group=None) -> pd.DataFrame:
+    df = pd.DataFrame({"frame": frames.astype(np.int64), "time_s": frames * DT,
+                       "x_m": xy[:, 0], "y_m": xy[:, 1]})
+    if group is not None:
+        df.insert(0, "group", group)
+    return df
+
+
+def extended(truth: np.ndarray, rng, n_points: int = 3, spread: float = 0.12):
+    """n_points per frame around each truth position (a person's body), truth (T, 2)."""
+    T = len(truth)
+    frames = np.repeat(np.arange(T), n_points)
+    xy = np.repeat(truth, n_points, axis=0) + rng.normal(0.0, spread, (T * n_points, 2))
+    return frames, xy
+
+
+def clutter(rng, n_frames: int, per_frame: int, half_width: float = 15.0):
+    frames = np.repeat(np.arange(n_frames), per_frame)
+    xy = rng.uniform(-half_width, half_width, (n_frames * per_frame, 2)) + [0.0, 15.0]
+    return frames, xy
+
+
+def truth_table(*paths: np.ndarray, first_frame: int = 0) -> pd.DataFrame:
+    """Truth paths (T, 2) as reference tracks with ids 0, 1, ... from first_frame on."""
+    return pd.concat([pd.DataFrame({"frame": np.arange(first_frame, len(p)), "track_id": i,
+                                    "x_m": p[first_frame:, 0], "y_m": p[first_frame:, 1]})
+                      for i, p in enumerate(paths)], ignore_index=True)
+
+
+@pytest.mark.parametrize("name", ["gnn_cv", pytest.param("jpda_cv", marks=pytest.mark.slow)])
+def test_two_crossing_targets_keep_their_ids(name):
+    rng = np.random.default_rng(1)
+    T = 80
+    t = np.arange(T) * DT
+    # An X: one walks right and away, the other left and away, crossing at (0, 10) at t = 4 s;
+    # within the clustering radius of each other for about 4 frames (they merge into one object).
+    a = np.column_stack([-5.6 + 1.4 * t, 8.0 + 0.5 * t])
+    b = np.column_stack([5.6 - 1.4 * t, 8.0 + 0.5 * t])
+    fa, xa = extended(a, rng)
+    fb, xb = extended(b, rng)
+    fc, xc = clutter(rng, T, 2)
+    pts = frame_table(np.r_[fa, fb, fc], np.r_[xa, xb, xc]).sort_values("frame", kind="stable")
+    tracks = track_points(pts, config(name))
+    # CLEAR MOT against the truth from frame 5 (confirmation takes 3 of the first 5), gate 1 m
+    mot = compare_tracks(tracks[tracks.confirmed], truth_table(a, b, first_frame=5), gate_m=1.0)
+    assert mot["id_switches"] == 0 and mot["misses"] == 0 and mot["false_positives"] == 0, mot
+    assert mot["matches"].groupby("ref_id").track_id.nunique().eq(1).all()
+    assert mot["median_distance_m"] < 0.15
+    # only the two people are confirmed: clutter never reaches M of N
+    assert tracks.loc[tracks.confirmed, "track_id"].nunique() == 2
+
+
+def test_an_occluded_target_coasts_and_keeps_its_id():
+    rng = np.random.default_rng(2)
+    T, hidden = 70, np.arange(30, 42)  # 12 frames = 1.2 s behind a parked car
+    t = np.arange(T) * DT
+    truth = np.column_stack([4.0 - 1.39 * t, 12.0 + 0.0 * t])  # a child at 5 km/h
+    f, xy = extended(truth, rng, n_points=2, spread=0.08)
+    seen = ~np.isin(f, hidden)
+    pts = frame_table(f[seen], xy[seen])
+    # the frames without points are observed: one NaN row each
+    gap = frame_table(hidden, np.full((len(hidden), 2), np.nan))
+    pts = pd.concat([pts, gap]).sort_values("frame", kind="stable")
+    tracks = track_points(pts, config())
+    assert tracks.track_id.nunique() == 1
+    assert (tracks.groupby("frame").size() == 1).all() and tracks.frame.nunique() == T
+    tr = tracks.set_index("frame")
+    assert tr.loc[hidden, "coasting"].all() and not tr.drop(hidden)["coasting"].any()
+    assert tr.loc[5:, "confirmed"].all()
+    # covariance grows while coasting and shrinks once measured again
+    assert np.all(np.diff(tr.loc[hidden, "cov_xx"]) > 0)
+    assert tr.loc[hidden[-1] + 3, "cov_xx"] < tr.loc[hidden[-1], "cov_xx"]
+    err = np.hypot(tr.x_m - truth[:, 0], tr.y_m - truth[:, 1])
+    assert err.loc[hidden].max() < 0.5 and err.loc[hidden[-1] + 5:].max() < 0.25
+
+
+def test_uniform_clutter_confirms_no_track():
+    """3 false points per frame over 30 m x 30 m (3.3e-3 per m^2): a new track's first gates
+    (99 %, about 2 m^2 while its velocity is unknown) catch clutter with p ~ 0.007 per frame, so
+    3 of 5 happens for about 6 p^2 ~ 3e-4 of the ~300 clutter-born tracks: none is expected."""
+    rng = np.random.default_rng(3)
+    f, xy = clutter(rng, 100, 3)
+    tracks = track_points(frame_table(f, xy), config())
+    assert tracks.track_id.nunique() > 250 and not tracks.confirmed.any()
+    # tentative tracks die by M-of-N: none lives longer than confirm_n frames
+    assert tracks.groupby("track_id").size().max() <= config().confirm_n
+
+
+def test_filter_nees_is_chi_square_on_constant_velocity_truth():
+    """Truth drawn from the filter's own model: exact discrete white-noise-acceleration CV
+    (Q = q [[dt^3/3, dt^2/2], [dt^2/2, dt]] per axis), initial velocity from the filter's
+    prior, one measurement per frame with the filter's R. Then the position and the velocity
+    NEES summed over N independent runs are chi-square with 2N degrees of freedom (Bar-Shalom et
+    al. 2001, sec. 5.4.2); tested two-sided at 99 % at three frames."""
+    cfg = config(gate_probability=0.99999)  # no gate miss: every run keeps one track
+    rng = np.random.default_rng(4)
+    N, T = 80, 25
+    q, r, sv = cfg.process_noise_m2ps3, cfg.measurement_noise_m, cfg.init_velocity_std_mps
+    F = np.array([[1.0, DT], [0.0, 1.0]])
+    Q = q * np.array([[DT**3 / 3, DT**2 / 2], [DT**2 / 2, DT]])
+    state = np.zeros((N, 2, 2))  # (run, axis, [pos, vel])
+    state[:, :, 1] = rng.normal(0.0, sv, (N, 2))
+    truth = np.empty((T, N, 2, 2))
+    L = np.linalg.cholesky(Q)
+    for k in range(T):
+        if k:
+            state = state @ F.T + rng.standard_normal((N, 2, 2)) @ L.T
+        truth[k] = state
+    z = truth[..., 0] + rng.normal(0.0, r, (T, N, 2))
+    frames = np.repeat(np.arange(T), N)
+    pts = frame_table(frames, z.reshape(-1, 2), group=np.tile(np.arange(N), T))
+    tracks = track_points(pts, cfg)
+    assert (tracks.groupby(["group", "frame"]).size() == 1).all()
+    for k in (4, 12, 24):
+        tk = tracks[tracks.frame == k].sort_values("group")
+        assert len(tk) == N
+        for cols, idx in ((("x_m", "y_m", "cov_xx", "cov_xy", "cov_yy"), 0),
+                          (("vx_mps", "vy_mps", "cov_vxvx", "cov_vxvy", "cov_vyvy"), 1)):
+            e = tk[list(cols[:2])].to_numpy() - truth[k, :, :, idx]
+            a, b, c = (tk[col].to_numpy() for col in cols[2:])
+            det = a * c - b * b
+            nees = (c * e[:, 0] ** 2 - 2 * b * e[:, 0] * e[:, 1] + a * e[:, 1] ** 2) / det
+            lo, hi = chi2.ppf([0.005, 0.995], 2 * N)
+            assert lo < nees.sum() < hi, (k, cols[0], nees.sum(), lo, hi)
+
+
+def test_groups_are_independent_and_ids_restart():
+    rng = np.random.default_rng(5)
+    truth = np.column_stack([np.linspace(-2, 2, 30), np.full(30, 6.0)])
+    f, xy = extended(truth, rng)
+    one = frame_table(f, xy)
+    both = pd.concat([one.assign(group="b"), one.assign(group="a")])[["group", *one.columns]]
+    tracks = track_points(both, config())
+    alone = track_points(one, config())
+    for g in ("a", "b"):
+        tg = tracks[tracks.group == g].drop(columns="group").reset_index(drop=True)
+        pd.testing.assert_frame_equal(tg, alone)
+    assert list(tracks.columns[:4]) == ["group", "frame", "time_s", "track_id"]
+
+
+def test_output_columns_and_types():
+    rng = np.random.default_rng(6)
+    truth = np.column_stack([np.linspace(-2, 2, 12), np.full(12, 6.0)])
+    tracks = track_points(frame_table(*extended(truth, rng)), config())
+    assert list(tracks.columns) == ["frame", "time_s", "track_id", "x_m", "y_m", "vx_mps",
+                                    "vy_mps", "cov_xx", "cov_xy", "cov_yy", "cov_vxvx",
+                                    "cov_vxvy", "cov_vyvy", "confirmed", "coasting"]
+    assert tracks.frame.dtype == np.int64 and tracks.track_id.dtype == np.int64
+    assert tracks.confirmed.dtype == bool and tracks.coasting.dtype == bool
+    empty = track_points(frame_table(np.array([0, 1]), np.full((2, 2), np.nan)), config())
+    assert empty.empty and list(empty.columns) == list(tracks.columns)
+
+
+@settings(max_examples=8)
+@given(st.lists(st.tuples(st.integers(0, 3), st.floats(-3, 3), st.floats(-3, 3)),
+                min_size=1, max_size=40), st.integers(1, 3))
+def test_one_dbscan_over_all_frames_equals_one_per_frame(rows, min_samples):
+    pts = pd.DataFrame(rows, columns=["frame", "x_m", "y_m"]).assign(
+        time_s=lambda d: d.frame * DT)[["frame", "time_s", "x_m", "y_m"]]
+    cfg = config(cluster_min_samples=min_samples)
+    got = cluster_points(pts, cfg)
+    want = []
+    for f, g in pts.groupby("frame"):
+        lab = DBSCAN(eps=cfg.cluster_eps_m, min_samples=min_samples).fit_predict(g[["x_m", "y_m"]])
+        for l in np.unique(lab[lab >= 0]):
+            want.append((f, *g[["x_m", "y_m"]].to_numpy()[lab == l].mean(axis=0), (lab == l).sum()))
+    key = lambda r: (r[0], round(r[1], 9), round(r[2], 9), r[3])
+    assert sorted(map(key, want)) == sorted(
+        map(key, got[["frame", "x_m", "y_m", "n_points"]].itertuples(index=False)))
+
+
+def test_bad_points_are_named():
+    good = frame_table(np.array([0, 1]), np.zeros((2, 2)))
+    with pytest.raises(TrackingError, match=r"lack column\(s\) \['y_m'\]"):
+        track_points(good.drop(columns="y_m"), config())
+    with pytest.raises(TrackingError, match="'frame' must hold integers"):
+        track_points(good.assign(frame=[0.0, 1.0]), config())
+    with pytest.raises(TrackingError, match="time_s must increase with frame"):
+        track_points(good.assign(time_s=[0.2, 0.1]), config())
+    with pytest.raises(TrackingError, match="NaN together"):
+        track_points(good.assign(x_m=[np.nan, 0.0]), config())
+
+
+def test_bad_config_names_the_key():
+    with pytest.raises(ConfigError, match="tracker.confirm_m"):
+        TrackerConfig.from_mapping({**dataclasses.asdict(config()), "confirm_m": 6})
+    with pytest.raises(ConfigError, match="tracker.association"):
+        TrackerConfig.from_mapping({**dataclasses.asdict(config()), "association": "mht"})
+
+
+def test_numpy_kalman_parts_equal_stone_soups():
+    """The tracker's predictor/updater (numpy arithmetic) against Stone Soup's stock
+    KalmanPredictor / KalmanUpdater on random states, intervals and measurements."""
+    import datetime as dt
+
+    from stonesoup.predictor.kalman import KalmanPredictor
+    from stonesoup.types.detection import Detection
+    from stonesoup.types.hypothesis import SingleHypothesis
+    from stonesoup.types.state import GaussianState
+    from stonesoup.updater.kalman import KalmanUpdater
+
+    from blindspot.track.tracker import _parts
+
+    parts = _parts(config())
+    stock_p = KalmanPredictor(parts.predictor.transition_model)
+    stock_u = KalmanUpdater(parts.measurement_model, force_symmetric_covariance=True)
+    rng = np.random.default_rng(7)
+    t0 = dt.datetime(2000, 1, 1)
+    for _ in range(20):
+        A = rng.normal(size=(4, 4))
+        prior = GaussianState(rng.normal(size=(4, 1)), A @ A.T + 0.1 * np.eye(4), timestamp=t0)
+        ts = t0 + dt.timedelta(seconds=float(rng.uniform(0.01, 1.0)))
+        det = Detection(rng.normal(size=(2, 1)), timestamp=ts,
+                        measurement_model=parts.measurement_model)
+        ours, theirs = parts.predictor.predict(prior, timestamp=ts), stock_p.predict(prior, timestamp=ts)
+        np.testing.assert_allclose(ours.state_vector, theirs.state_vector, rtol=1e-12)
+        np.testing.assert_allclose(ours.covar, theirs.covar, rtol=1e-12)
+        mo, mt = parts.updater.predict_measurement(ours), stock_u.predict_measurement(theirs)
+        np.testing.assert_allclose(mo.covar, mt.covar, rtol=1e-12)
+        np.testing.assert_allclose(mo.cross_covar, mt.cross_covar, rtol=1e-12)
+        uo = parts.updater.update(SingleHypothesis(ours, det, mo))
+        ut = stock_u.update(SingleHypothesis(theirs, det, mt))
+        np.testing.assert_allclose(uo.state_vector, ut.state_vector, rtol=1e-10, atol=1e-12)
+        np.testing.assert_allclose(uo.covar, ut.covar, rtol=1e-10, atol=1e-12)
