@@ -28,7 +28,8 @@ def run(cfg, ctx):
     settings = metrics[predictors[0]]["settings"]
     headline = settings["headline_input"]
     name = str(cfg.scenario.figure_scene)
-    tracks = pd.read_parquet(ctx.dep(f"tracks_{headline}.parquet"))
+    tracks = pd.read_parquet(ctx.dep("tracks.parquet" if headline == "tracker"
+                                     else f"tracks_{headline}.parquet"))
     info = scenes_meta[name]
     title = f"{name} at {info['speed_kmh']:g} km/h ({headline} input)"
     best = max(predictors, key=lambda p: metrics[p]["avoided_rate"] or 0.0)

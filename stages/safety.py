@@ -4,8 +4,8 @@ driving scenes (issue 12; blindspot.safety.assess).
 Predictors: none (blindspot.traj.stationary, its error model calibrated here on the calibration
 stage's validation pairs with the same settings), constant velocity, Kalman and the scene LSTM
 (their calibrated distributions from data/calibration/models.json; the LSTM's short histories
-completed as warning.lstm_history says). Inputs: the oracle-association reference tracks
-(driving_track stage).
+completed as warning.lstm_history says). Inputs (driving_track stage): the tracker's tracks (the
+headline), the oracle-association and visible-truth reference tracks.
 """
 
 import blindspot  # noqa: F401  first: pins the CPU kernels before numpy loads (blindspot.kernels)
@@ -68,8 +68,9 @@ def run(cfg, ctx):
                          "were calibrated at the paper radar's frame period; expected equal")
     truth = pd.read_parquet(ctx.dep("truth.parquet"))
     meta = json.loads(ctx.dep("scenes.json").read_text())
-    tracks = {name: pd.read_parquet(ctx.dep(f"tracks_{name}.parquet"))
-              for name in ("oracle", "visible_truth")}
+    tracks = {"tracker": pd.read_parquet(ctx.dep("tracks.parquet")),
+              **{name: pd.read_parquet(ctx.dep(f"tracks_{name}.parquet"))
+                 for name in ("oracle", "visible_truth")}}
     bodies = {b.name: (b.length_m, b.width_m, b.ref_from_front_m) for b in group.bodies}
     res = assess(truth, meta, tracks, _predictors(cfg, ctx, w), w, bodies=bodies,
                  shape=EgoShape(group.ego.width_m, group.ego.length_m), frame_period_s=dt,
