@@ -29,25 +29,26 @@ def run(cfg, ctx):
     headline = settings["headline_input"]
     name = str(cfg.scenario.figure_scene)
     info = scenes_meta[name]
-    outs = []
-    # the headline input, and the visible-truth reference (what the logic does when the
-    # pedestrian is seen whenever in line of sight)
-    for inp, out in ((headline, "safety_timeline.png"),
-                     ("visible_truth", "safety_timeline_visible_truth.png")):
-        tracks = pd.read_parquet(ctx.dep("tracks.parquet" if inp == "tracker"
-                                         else f"tracks_{inp}.parquet"))
+    def timeline_figure(inp):
+        sfx = "" if inp == "tracker" else f"_{inp}"
+        tracks = pd.read_parquet(ctx.dep(f"tracks{sfx}.parquet"))
         have = [p for p in predictors if inp in metrics[p]["by_input"]]
         best = max(have, key=lambda p: metrics[p]["by_input"][inp]["avoided_rate"] or 0.0)
-        outs.append(save_figure(fig_safety_timeline(
+        return fig_safety_timeline(
             truth[truth.scene == name], tracks[tracks.group == name],
-            risk[(risk.group == name) & (risk.input == inp)],
-            timeline[timeline.input == inp],
-            scenes[(scenes.scene == name) & (scenes.input == inp)],
-            info["car_polygons_xy_m"], ego_width_m=float(cfg.scenario.ego.width_m),
+            risk[(risk.group == name) & (risk.input == inp)], timeline[timeline.input == inp],
+            scenes[(scenes.scene == name) & (scenes.input == inp)], info["car_polygons_xy_m"],
+            ego_width_m=float(cfg.scenario.ego.width_m),
             ego_length_m=float(cfg.scenario.ego.length_m),
             warning_threshold=settings["warning_threshold"],
             aeb_threshold=settings["aeb_threshold"], predictor=best,
-            title=f"{name} at {info['speed_kmh']:g} km/h ({inp} input)"), ctx.out(out), dpi=110))
+            title=f"{name} at {info['speed_kmh']:g} km/h ({inp} input)")
+
+    # the headline input, and the visible-truth reference (what the logic does when the
+    # pedestrian is seen whenever in line of sight)
+    outs = [save_figure(timeline_figure(headline), ctx.out("safety_timeline.png"), dpi=110),
+            save_figure(timeline_figure("visible_truth"),
+                        ctx.out("safety_timeline_visible_truth.png"), dpi=110)]
     operating = {inp: {p: metrics[p]["by_input"][inp] for p in predictors
                        if inp in metrics[p]["by_input"]} for inp in settings["inputs"]}
     outs.append(save_figure(fig_operating_characteristic(curves, operating),
