@@ -3,10 +3,14 @@ figure scene (CPNCO, child crossing from behind the parked cars) at several ego 
 both, and the point-error statistics of each; then the time of the fast measurement on the
 whole Monte-Carlo set.
 
-    PYTHONPATH=src python benchmarks/bench_driving.py [--speeds 20 40 60] [--scene along_kerb] [--mc]
+    PYTHONPATH=src python benchmarks/bench_driving.py [--speeds 20 40 60] [--scene cpfa] [--mc]
+    PYTHONPATH=src python benchmarks/bench_driving.py --stage-times [--tracking-uri URI]
 
-Prints one line per statistic (full, fast, relative difference) and, with --mc, the wall time
-of the fast measurement of every Monte-Carlo scene.
+Prints one line per statistic (full, fast, relative difference; both chains' detections
+grouped alike) and, with --mc, the wall time of the fast measurement of every Monte-Carlo scene.
+``--stage-times`` instead prints the wall time of the last run of each driving stage, from the
+MLflow runs the stage runner records (start and end of each stage run; default store: the
+repository's mlflow.db), with the machine's load average now.
 """
 
 from __future__ import annotations
@@ -25,7 +29,7 @@ from blindspot.radar.driving import draw_scenarios, scene_truth
 from blindspot.synth.driving_detection import (
     detect_driving_scene, point_error_statistics, points_from_detections,
 )
-from blindspot.synth.driving_measurement import measure_driving_scenes
+from blindspot.synth.driving_measurement import measure_driving
 
 
 def main() -> None:
@@ -34,13 +38,19 @@ def main() -> None:
     ap.add_argument("--scene", default=None,
                     help="a scene of conf/scenario (default: the figure scene, CPNCO)")
     ap.add_argument("--mc", action="store_true", help="also time the whole Monte-Carlo set")
+    ap.add_argument("--stage-times", action="store_true",
+                    help="print the last MLflow-recorded wall time of each driving stage")
+    ap.add_argument("--tracking-uri", default="sqlite:///mlflow.db")
     args = ap.parse_args()
+    if args.stage_times:
+        stage_times(args.tracking_uri)
+        return
     cfg = compose(config_dir="conf")
     group, named = ex.scenarios(cfg)
     radar, ego = ex.driving_radar(cfg), ex.ego_motion(cfg)
     chain = (ex.cfar(cfg), ex.doa(cfg), ex.detect(cfg))
     base = named[args.scene or group.figure_scene]
-    full_pts, fast_pts, truths = [], [], []
+    full_pts, fast_pts, patch_pts, truths, counts = [], [], [], [], []
     for kmh in args.speeds:
         sc = replace(base, speed_kmh=kmh, name=f"{base.name}_{kmh:g}")
         tr = scene_truth(sc, group, radar.frame_period_s)
@@ -54,29 +64,85 @@ def main() -> None:
                                                cluster_gap_m=ex.detect(cfg).cluster_gap_m,
                                                static_tolerance_mps=ego.static_tolerance_mps))
         t0 = time.perf_counter()
-        fast = measure_driving_scenes([sc], group, radar, *chain, ego, frames={sc.name: frames})
+        res_fast = measure_driving([sc], group, radar, *chain, ego,
+                                   adc_headroom_db=ex.sim(cfg).adc_headroom_db,
+                                   frames={sc.name: frames})
         t_fast = time.perf_counter() - t0
+        # both chains' detections grouped the same way (points_from_detections: the largest
+        # off-curve cluster of the frame), so the comparison is of the chains, not of grouping
+        ego_fast = pd.DataFrame({"frame": frames, "true_speed_mps": sc.speed_mps})
+        fast = points_from_detections(res_fast.points, ego_fast, scene=sc.name,
+                                      cluster_gap_m=ex.detect(cfg).cluster_gap_m,
+                                      static_tolerance_mps=ego.static_tolerance_mps)
         fast_pts.append(fast)
+        patch_pts.append(res_fast.measured[res_fast.measured.pedestrian == sc.pedestrians[0].name])
+        # every point per frame (static world and pedestrian), both chains
+        det = res.detections[res.detections.angle_deg.notna()]
+        counts.append({"full_points": len(det) / len(frames),
+                       "full_static": det.static.sum() / len(frames),
+                       "fast_points": len(res_fast.points) / len(frames),
+                       "fast_static": res_fast.points.static.sum() / len(frames),
+                       "n_frames": len(frames)})
         truths.append(tr)
         print(f"{kmh:g} km/h: {len(frames)} frames; full chain {t_full:.1f} s, fast {t_fast:.1f} s")
     truth = pd.concat(truths)
     full = point_error_statistics(pd.concat(full_pts), truth)
-    fast = point_error_statistics(pd.concat(fast_pts).drop(columns=["pedestrian", "x_m", "y_m"]), truth)
+    fast = point_error_statistics(pd.concat(fast_pts), truth)
+    patch = point_error_statistics(pd.concat(patch_pts).drop(columns=["pedestrian", "x_m", "y_m"]),
+                                   truth)
+    print("fast measured.parquet (off-curve detections within 8 range bins of the pedestrian): "
+          + ", ".join(f"{k} {v:.4g}" for k, v in patch.items()))
     out = {"full": full, "fast": fast, "relative_difference": {
         k: (fast[k] - full[k]) / full[k] if full[k] else float("nan")
         for k in full if k != "n_frames"}}
+    cnt = pd.DataFrame(counts)
+    w = cnt.n_frames / cnt.n_frames.sum()
+    for what in ("points", "static"):
+        f_, s_ = float((cnt[f"full_{what}"] * w).sum()), float((cnt[f"fast_{what}"] * w).sum())
+        full[f"{what}_per_frame"], fast[f"{what}_per_frame"] = f_, s_
+        out["relative_difference"][f"{what}_per_frame"] = (s_ - f_) / f_ if f_ else float("nan")
     for k in full:
         print(f"{k:>22}: full {full[k]:.4g}  fast {fast[k]:.4g}"
               + (f"  ({out['relative_difference'][k]:+.1%})" if k != "n_frames" else ""))
     if args.mc:
         mc = draw_scenarios(group, base)
         t0 = time.perf_counter()
-        m = measure_driving_scenes(mc, group, radar, *chain, ego)
+        m = measure_driving(mc, group, radar, *chain, ego,
+                            adc_headroom_db=ex.sim(cfg).adc_headroom_db).points
         out["monte_carlo"] = {"n_scenes": len(mc), "n_points": len(m),
                               "wall_s": time.perf_counter() - t0}
         print(f"Monte-Carlo set: {len(mc)} scenes, {len(m)} points, "
               f"{out['monte_carlo']['wall_s']:.0f} s")
     print(json.dumps(out))
+
+
+DRIVING_STAGES = ("driving_scenes", "driving_detect", "driving_measure", "fig_driving")
+
+
+def stage_times(uri: str) -> None:
+    """Wall time (s) of the last finished run of each driving stage in the MLflow store."""
+    import os
+
+    from mlflow.tracking import MlflowClient
+
+    client = MlflowClient(tracking_uri=uri)
+    out = {}
+    exps = [e.experiment_id for e in client.search_experiments()]
+    for stage in DRIVING_STAGES:
+        runs = client.search_runs(exps, filter_string=f"attributes.run_name = '{stage}' and "
+                                  "attributes.status = 'FINISHED'",
+                                  order_by=["attributes.start_time DESC"], max_results=1)
+        if runs:
+            r = runs[0].info
+            out[stage] = {"wall_s": (r.end_time - r.start_time) / 1000.0,
+                          "start": time.strftime("%Y-%m-%d %H:%M:%S", time.gmtime(r.start_time / 1000))}
+            print(f"{stage:>16}: {out[stage]['wall_s']:.1f} s (started {out[stage]['start']} UTC)")
+        else:
+            print(f"{stage:>16}: no finished run in {uri}")
+    load = os.getloadavg()
+    print(f"load average now (1, 5, 15 min): {load[0]:.2f} {load[1]:.2f} {load[2]:.2f} on "
+          f"{os.cpu_count()} cores")
+    print(json.dumps({"stages": out, "load_average": load}))
 
 
 if __name__ == "__main__":

@@ -2,10 +2,12 @@
 through the full FMCW simulator and the moving-car chain (Doppler unwrapping with odometry,
 TDM compensation with the unwrapped velocity, RANSAC ego speed, static clutter on the
 ego-motion curve), one frame's maps kept for the figure; and the ego-speed error of the radar
-at every Monte-Carlo speed (reports/metrics/ego_motion.json)."""
+at every Monte-Carlo speed, driving straight and turning at ego_motion.sweep_yaw_rate_deg_s
+(speed and yaw-rate errors, Kellner et al. 2013: reports/metrics/ego_motion.json)."""
 
 import blindspot  # noqa: F401  first: pins the CPU kernels before numpy loads (blindspot.kernels)
 import numpy as np
+import pandas as pd
 
 from blindspot import experiment
 from blindspot.cli import main_stage
@@ -44,6 +46,10 @@ def run(cfg, ctx):
     write_parquet(ctx.out("driving_ego.parquet"), res.ego)
     sweep = ego_speed_sweep(scene, group, radar, *chain, ego, sim, group.monte_carlo.speeds_kmh,
                             progress=cfg.progress)
+    if ego.sweep_yaw_rate_deg_s:       # the same frames with the ego car turning
+        sweep = pd.concat([sweep, ego_speed_sweep(
+            scene, group, radar, *chain, ego, sim, group.monte_carlo.speeds_kmh,
+            yaw_rate_deg_s=ego.sweep_yaw_rate_deg_s, progress=cfg.progress)], ignore_index=True)
     write_parquet(ctx.out("ego_speed_sweep.parquet"), sweep)
     metrics = ego_motion_metrics(sweep)
     metrics["figure_scene"] = {"scene": scene.name, "speed_kmh": scene.speed_kmh, "kept_frame": keep,
@@ -54,6 +60,10 @@ def run(cfg, ctx):
     write_json(ctx.out("ego_motion.json"), metrics)
     print("driving_detect: radar ego-speed RMS error (m/s) by speed: "
           + ", ".join(f"{k} km/h {v:.3f}" for k, v in metrics["rms_error_mps"].items()))
+    print(f"driving_detect: turning at {metrics['yaw_rate_deg_s']:g} deg/s, yaw-rate RMS error "
+          "(deg/s) by speed: " + ", ".join(
+              f"{k} km/h {v:.3f} (theory {metrics['yaw_rate_sd_theory_deg_s'].get(k)})"
+              for k, v in metrics["rms_error_yaw_rate_deg_s"].items() if v is not None))
     return StageResult(metrics=numeric_leaves(metrics))
 
 

@@ -128,6 +128,7 @@ class EgoMotionConfig(TypedConfig):
     max_detections: int = setting(ge=1, le=10_000)
     max_range_m: float = setting(gt=1.0, le=1e4)
     sweep_frames: int = setting(ge=1, le=10_000)
+    sweep_yaw_rate_deg_s: float = setting(0.0, ge=-60.0, le=60.0)
     seed: int = setting(0, ge=0, le=2**63 - 1)
 
 

@@ -266,7 +266,11 @@ def _spectrum_from_g(g: np.ndarray, method: str, m: int) -> np.ndarray:
 def _g_on_grid(b: np.ndarray, p: np.ndarray, grid_deg: np.ndarray) -> np.ndarray:
     grid = np.ascontiguousarray(grid_deg, dtype=np.float64)
     a = _steering_cached(np.ascontiguousarray(p).tobytes(), grid.tobytes())
-    z = b.conj().transpose(0, 2, 1) @ a  # (D, rank, G)
+    d, _, rank = b.shape
+    # one (D * rank, M) x (M, G) GEMM: numpy's stacked matmul of the transposed view takes a
+    # non-BLAS loop, 37 x slower on (3932, 3, 86) x (86, 721) (measured on this machine)
+    bh = np.ascontiguousarray(np.swapaxes(b.conj(), 1, 2)).reshape(d * rank, -1)
+    z = (bh @ a).reshape(d, rank, -1)  # (D, rank, G)
     return (z.real ** 2 + z.imag ** 2).sum(axis=1)
 
 

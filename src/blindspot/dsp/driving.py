@@ -17,9 +17,11 @@ Per batch of frames (every step vectorised over the batch's detections):
    wrong order compensates with a phase error ``2 pi m t_k / T_loop`` that shifts the angle by
    ~3 deg per order; the velocity it implies is ``2 m v_max`` away from the curve, so it loses.
    The angle is then the configured estimator's (MUSIC) with the chosen velocity.
-4. Ego speed from the radar: :func:`~blindspot.dsp.ego_motion.estimate_ego_speed` (RANSAC,
-   Kellner et al. 2013) per frame; detections within ``static_tolerance_mps`` of
-   ``-v_radar cos(theta)`` are static (clutter on a moving car), the others moving.
+4. Ego-motion from the radar: :func:`~blindspot.dsp.ego_motion.estimate_sensor_velocity`
+   (RANSAC, Kellner et al. 2013) per frame gives the radar's (v_x, v_y), hence the speed and,
+   with the radar's lever arm from the rear axle, the yaw rate ``-v_x / l``; detections within
+   ``static_tolerance_mps`` of ``-(v_x sin theta + v_y cos theta)`` are static (clutter on a
+   moving car), the others moving.
 5. Points ``x = R sin(theta)``, ``y = R cos(theta)`` in the vehicle frame (radar at the bumper,
    boresight +y); the world frame needs the ego pose (:func:`blindspot.radar.driving.vehicle_to_world`).
 """
@@ -34,7 +36,9 @@ import pandas as pd
 from blindspot.dsp.chain import DetectionChain
 from blindspot.dsp.doa import doa_angles
 from blindspot.dsp.doppler_compensation import compensate_tdm_velocity
-from blindspot.dsp.ego_motion import EgoMotionConfig, estimate_ego_speed, static_radial_velocity
+from blindspot.dsp.ego_motion import (
+    EgoMotionConfig, ego_motion_std, estimate_sensor_velocity, static_radial_velocity,
+)
 from blindspot.dsp.snapshots import cell_snapshots
 from blindspot.radar.array import VirtualArray
 from blindspot.radar.config import RadarConfig
@@ -73,8 +77,12 @@ def unwrap_and_angles(ula: np.ndarray, v_wrapped: np.ndarray, odometry_mps: np.n
     comp = compensate_tdm_velocity(np.repeat(ula, len(orders), axis=0), v_m.reshape(-1), wl,
                                    chain.slot_times_s, chain.ula_tx)          # (D*M, E, L)
     a = steering_matrix(chain.ula_pos, ORDER_GRID_DEG).conj().T.astype(np.complex64)  # (G, E)
-    beam = np.abs(a @ comp.astype(np.complex64)) ** 2                         # (D*M, G, L)
-    theta = ORDER_GRID_DEG[np.argmax(beam.sum(-1), axis=-1)].reshape(d, len(orders))
+    # one (G, E) x (E, D*M*L) GEMM (a stacked matmul over D*M would take numpy's slow loop)
+    n_e, n_l = comp.shape[1], comp.shape[2]
+    flat = np.ascontiguousarray(comp.astype(np.complex64).transpose(1, 0, 2)).reshape(n_e, -1)
+    z = (a @ flat).reshape(len(ORDER_GRID_DEG), -1, n_l)                     # (G, D*M, L)
+    beam = (z.real ** 2 + z.imag ** 2).sum(-1)                               # (G, D*M)
+    theta = ORDER_GRID_DEG[np.argmax(beam, axis=0)].reshape(d, len(orders))
     resid = np.abs(v_m - static_radial_velocity(theta, 1.0) * odo[:, None])
     best = np.argmin(resid, axis=1)
     rows = np.arange(d)
@@ -92,7 +100,8 @@ DRIVING_DETECTION_COLUMNS = (
     "frame", "range_bin", "doppler_bin", "range_m", "velocity_wrapped_mps", "ambiguity_order",
     "velocity_mps", "angle_deg", "power", "snr_db", "static", "x_vehicle_m", "y_vehicle_m",
 )
-EGO_COLUMNS = ("frame", "odometry_mps", "ego_speed_mps", "n_detections", "n_static")
+EGO_COLUMNS = ("frame", "odometry_mps", "ego_speed_mps", "yaw_rate_deg_s", "speed_sd_theory_mps",
+               "yaw_rate_sd_theory_deg_s", "n_detections", "n_static")
 
 
 @dataclass
@@ -110,7 +119,10 @@ class DrivingChain:
     """The moving-car chain for one radar profile (e.g. ``conf/radar/mmwcas_driving.yaml``)."""
 
     def __init__(self, radar: RadarConfig, array: VirtualArray, cfar, doa, detect,
-                 ego: EgoMotionConfig):
+                 ego: EgoMotionConfig, rear_axle_to_radar_m: float | None = None):
+        """``rear_axle_to_radar_m``: the radar's distance ahead of the rear axle (Kellner et al.
+        2013); with it each frame's yaw rate is estimated too (NaN without)."""
+        self.lever_m = rear_axle_to_radar_m
         base = DetectionChain.from_config(radar, array, cfar, doa, detect)
         # the driving chain's own range window and angle budget (static detections are wanted)
         self.base = DetectionChain(radar, array, base.cfar, base.doa,
@@ -140,25 +152,38 @@ class DrivingChain:
         ula = x[:, ch.ula_tx, ch.ula_rx, :]                    # (D, n_ula, L)
         order_m, v, angle = unwrap_and_angles(ula, v_w, odo[fi], ch, self.v_max)
         n_d = len(fi)
-        # ego speed per frame from the radar (RANSAC), static = on its Doppler curve
-        ego_speed = np.full(len(frames), np.nan)
-        n_static = np.zeros(len(frames), dtype=np.int64)
+        # ego speed (and yaw rate) per frame from the radar (RANSAC, Kellner et al. 2013),
+        # static = on its Doppler curve -(v_x sin theta + v_y cos theta)
+        n_f = len(frames)
+        ego_speed, v_lat = np.full(n_f, np.nan), np.full(n_f, np.nan)
+        sd_v, sd_w = np.full(n_f, np.nan), np.full(n_f, np.nan)
+        n_static = np.zeros(n_f, dtype=np.int64)
         static = np.zeros(n_d, dtype=bool)
-        starts = np.searchsorted(fi, np.arange(len(frames) + 1))
-        for f in range(len(frames)):      # one RANSAC fit per frame (sklearn)
+        starts = np.searchsorted(fi, np.arange(n_f + 1))
+        for f in range(n_f):      # one RANSAC fit per frame (sklearn)
             sl = slice(starts[f], starts[f + 1])
             ok = np.isfinite(angle[sl])
             if ok.sum() >= self.ego.min_inliers:
-                speed, _ = estimate_ego_speed(v[sl][ok], angle[sl][ok],
-                                              threshold_mps=self.ego.ransac_threshold_mps,
-                                              min_inliers=self.ego.min_inliers,
-                                              seed=self.ego.seed)
-                ego_speed[f] = speed
-            ref = ego_speed[f] if np.isfinite(ego_speed[f]) else odo[f]
-            st_ = np.abs(v[sl] - static_radial_velocity(np.nan_to_num(angle[sl]), ref)) \
-                <= self.ego.static_tolerance_mps
+                vx, vy, inl = estimate_sensor_velocity(v[sl][ok], angle[sl][ok],
+                                                       threshold_mps=self.ego.ransac_threshold_mps,
+                                                       min_inliers=self.ego.min_inliers,
+                                                       seed=self.ego.seed)
+                ego_speed[f], v_lat[f] = vy, vx
+                if np.isfinite(vy) and self.lever_m is not None and inl.sum() > 2:
+                    a_in = angle[sl][ok][inl]
+                    res = v[sl][ok][inl] + vx * np.sin(np.radians(a_in)) + vy * np.cos(np.radians(a_in))
+                    sd_v[f], sd_w[f] = ego_motion_std(a_in, float(np.sqrt(np.sum(res**2) / (inl.sum() - 2))),
+                                                      self.lever_m)
+            fit = np.isfinite(ego_speed[f])
+            ref = ego_speed[f] if fit else odo[f]
+            lat = v_lat[f] if fit else 0.0
+            th = np.radians(np.nan_to_num(angle[sl]))
+            curve = -(lat * np.sin(th) + ref * np.cos(th))
+            st_ = np.abs(v[sl] - curve) <= self.ego.static_tolerance_mps
             static[sl] = st_ & ok
             n_static[f] = int(static[sl].sum())
+        yaw = (np.degrees(-v_lat / self.lever_m) if self.lever_m is not None
+               else np.full(n_f, np.nan))
         rng_m = ch.range_axis_m[rb]
         th = np.radians(angle)
         det = pd.DataFrame({
@@ -169,6 +194,8 @@ class DrivingChain:
             "x_vehicle_m": rng_m * np.sin(th), "y_vehicle_m": rng_m * np.cos(th),
         }, columns=list(DRIVING_DETECTION_COLUMNS))
         ego = pd.DataFrame({"frame": frames, "odometry_mps": odo, "ego_speed_mps": ego_speed,
+                            "yaw_rate_deg_s": yaw, "speed_sd_theory_mps": sd_v,
+                            "yaw_rate_sd_theory_deg_s": np.degrees(sd_w),
                             "n_detections": np.diff(starts), "n_static": n_static},
                            columns=list(EGO_COLUMNS))
         return DrivingBatch(det, ego, power if keep_maps else None,

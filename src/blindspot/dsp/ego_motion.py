@@ -13,8 +13,17 @@ on this curve; moving objects (pedestrians) do not, so a robust fit of the linea
 ``v_r = a cos(theta) + b sin(theta)`` (no intercept) with scikit-learn's RANSACRegressor (Fischler
 and Bolles 1981) gives ``(a, b) = (-v_y, -v_x)`` and the inlier mask of the static detections.
 Elevation is neglected (scatterers near the radar's height; at elevation phi the curve scales by
-cos phi). The yaw rate needs the sensor's offset from the rear axle and Ackermann geometry
-(Kellner et al.); the scenes here drive straight, so only the sensor velocity is estimated.
+cos phi).
+
+Yaw rate (Kellner et al. 2013, single radar): with Ackermann steering and no side slip the rear
+axle centre moves along the car's heading at speed v, and a radar mounted ``l`` ahead of it on
+the centre line (boresight along the heading) moves at ``(v_x, v_y) = (-omega l, v)`` in its own
+frame (omega positive = turning left, counter-clockwise seen from above; x to the right). So one
+frame's fit gives ``v = v_y`` and ``omega = -v_x / l`` (:func:`estimate_ego_motion`). The
+estimate's variance follows from the least-squares fit on the static detections
+(:func:`ego_motion_std`): ``Cov(v_x, v_y) = sigma^2 (X^T X)^-1`` with rows
+``X_i = (sin theta_i, cos theta_i)``, so ``sd(omega) ~ sigma / (l sqrt(sum sin^2 theta_i))``:
+it shrinks with the static points' angular spread and the mounting lever arm.
 
 Doppler unwrapping: a TDM-MIMO Doppler FFT measures radial velocity modulo ``2 v_max``
 (``v_max = lambda / (4 T_loop)``; ``RadarConfig.max_velocity_mps``). Given the ego speed (from
@@ -33,7 +42,8 @@ from blindspot.dsp.config import EgoMotionConfig  # noqa: F401 - re-exported
 
 __all__ = [
     "EgoMotionConfig", "EgoMotionError", "static_radial_velocity", "unwrap_doppler", "ambiguity_order",
-    "estimate_ego_speed", "estimate_sensor_velocity", "static_mask", "odometry_speed",
+    "estimate_ego_speed", "estimate_sensor_velocity", "estimate_ego_motion", "ego_motion_std",
+    "static_mask", "odometry_speed",
 ]
 
 
@@ -182,6 +192,56 @@ def estimate_ego_speed(radial_velocity_mps: np.ndarray, azimuth_deg: np.ndarray,
                                                min_inliers=min_inliers, seed=seed,
                                                max_trials=max_trials)
     return vy, inliers
+
+
+def estimate_ego_motion(radial_velocity_mps: np.ndarray, azimuth_deg: np.ndarray,
+                        rear_axle_to_radar_m: float, *, threshold_mps: float = 0.25,
+                        min_inliers: int = 4, seed: int = 0, max_trials: int = 200
+                        ) -> tuple[float, float, np.ndarray]:
+    """Ego speed and yaw rate from one radar's detections of one frame (Kellner et al. 2013).
+
+    Args:
+        radial_velocity_mps, azimuth_deg: (n,) unwrapped radial velocities (m/s, negative =
+            approaching) and azimuths (deg, 0 = boresight = the car's heading).
+        rear_axle_to_radar_m: the radar's distance ahead of the rear axle centre on the centre
+            line, m (> 0).
+        threshold_mps, min_inliers, seed, max_trials: see :func:`estimate_sensor_velocity`.
+
+    Returns:
+        (speed_mps, yaw_rate_rad_s, inliers): ``v = v_y`` and ``omega = -v_x / l`` of the
+        RANSAC fit (module docstring; positive = turning left), the (n,) bool mask of the
+        static detections; NaN, NaN and all False without a consensus.
+
+    Raises:
+        EgoMotionError: bad arrays or settings (``rear_axle_to_radar_m`` not positive).
+    """
+    el = _scalar("estimate_ego_motion", "rear_axle_to_radar_m", rear_axle_to_radar_m,
+                 positive=True)
+    vx, vy, inliers = estimate_sensor_velocity(radial_velocity_mps, azimuth_deg,
+                                               threshold_mps=threshold_mps,
+                                               min_inliers=min_inliers, seed=seed,
+                                               max_trials=max_trials)
+    return vy, -vx / el, inliers
+
+
+def ego_motion_std(azimuth_deg: np.ndarray, residual_sd_mps: float, rear_axle_to_radar_m: float
+                   ) -> tuple[float, float]:
+    """Standard deviations of the speed (m/s) and yaw rate (rad/s) that the least-squares fit
+    of :func:`estimate_ego_motion` on static detections at ``azimuth_deg`` (n,) has when their
+    radial velocities scatter with ``residual_sd_mps``: the diagonal of
+    ``sigma^2 (X^T X)^-1``, ``X_i = (sin theta_i, cos theta_i)`` (ordinary least squares; the
+    yaw rate's is the lateral velocity's divided by the lever arm ``l``). (inf, inf) with
+    fewer than two distinct angles."""
+    where = "ego_motion_std"
+    th = np.radians(_values(where, "azimuth_deg", azimuth_deg))
+    sd = _scalar(where, "residual_sd_mps", residual_sd_mps, nonnegative=True)
+    el = _scalar(where, "rear_axle_to_radar_m", rear_axle_to_radar_m, positive=True)
+    x = np.stack([np.sin(th), np.cos(th)], axis=1)
+    g = x.T @ x
+    if th.size < 2 or np.linalg.cond(g) > 1e12:
+        return float("inf"), float("inf")
+    cov = sd**2 * np.linalg.inv(g)
+    return float(np.sqrt(cov[1, 1])), float(np.sqrt(cov[0, 0]) / el)
 
 
 def static_mask(radial_velocity_mps: np.ndarray, azimuth_deg: np.ndarray, ego_speed_mps: float,

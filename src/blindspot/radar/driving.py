@@ -23,9 +23,10 @@ Frames (all SI; degrees only in ``*_deg`` names)
   walks in -x, as in the paper's scene.
 * **Vehicle (radar) frame**: the radar at the front-bumper centre, boresight +y along the ego's
   heading, x to its right (the frame of every detection; :mod:`blindspot.radar.scene`).
-  The ego drives straight along x = 0 at constant speed (no braking, no yaw), so
-  ``vehicle = world - (0, y_bumper(t))`` and a static point has the radial velocity
-  ``v_r = -v_ego cos(theta)`` (negative = approaching).
+  The ego drives at constant speed (no braking), straight along x = 0 or, with
+  ``yaw_rate_deg_s``, on a circle (:func:`ego_pose`); a static point has the radial velocity
+  ``v_r = -v_ego cos(theta)`` driving straight, ``omega l sin(theta) - v cos(theta)`` turning
+  (Kellner et al. 2013; l the radar's distance ahead of the rear axle; negative = approaching).
 
 Pedestrian motion
 -----------------
@@ -81,7 +82,7 @@ __all__ = [
     "load_scenarios", "draw_scenarios", "scene_truth", "ego_pose", "pedestrian_states",
     "collision_without_braking", "car_polygon", "vehicle_to_world", "world_to_vehicle",
     "TRUTH_COLUMNS", "static_scatterers", "body_parts", "scatterers_in_vehicle_frame",
-    "frame_times", "car_polygons",
+    "frame_times", "car_polygons", "ego_velocity", "relative_velocity",
 ]
 
 TRUTH_COLUMNS = (
@@ -165,14 +166,57 @@ def frame_times(scene: DrivingScene, frame_period_s: float) -> np.ndarray:
 
 def ego_pose(scene: DrivingScene, group: ScenarioGroup, t: np.ndarray) -> np.ndarray:
     """(F, 3) radar (front-bumper centre) pose (x_m, y_m, yaw_rad) in the world frame at times
-    ``t`` (F,): straight along x = 0 at ``speed_kmh``, the bumper reaching the lead
-    pedestrian's box near face (y = walk_y - width / 2) at ``lead_time_s`` [V]
-    synchronisation. yaw 0 = heading +y."""
+    ``t`` (F,). yaw 0 = heading +y, positive = turned counter-clockwise (left).
+
+    Straight (``yaw_rate_deg_s`` 0): along x = 0 at ``speed_kmh``, the bumper reaching the lead
+    pedestrian's box near face (y = walk_y - width / 2) at ``lead_time_s`` ([V]
+    synchronisation). Turning: the same pose at ``lead_time_s``, and a constant yaw rate omega
+    with the rear axle centre (``ego.rear_axle_to_radar_m`` behind the radar) moving at the
+    speed along its heading (Ackermann, no side slip: Kellner et al. 2013), i.e. on a circle of
+    radius v / omega; the radar is ``l`` ahead of it along the heading."""
     t = np.asarray(t, dtype=float)
     lead = scene.pedestrians[0]
     w = group.body(lead.body).width_m
-    y0 = lead.walk_y_m - w / 2 - scene.speed_mps * scene.lead_time_s
-    return np.stack([np.zeros_like(t), y0 + scene.speed_mps * t, np.zeros_like(t)], axis=-1)
+    y_sync = lead.walk_y_m - w / 2
+    v, om, el = scene.speed_mps, math.radians(scene.yaw_rate_deg_s), group.ego.rear_axle_to_radar_m
+    tau = t - scene.lead_time_s
+    psi = om * tau
+    # rear-axle displacement along the circle from its place at lead_time_s (straight: psi = 0)
+    small = np.abs(psi) < 1e-9
+    psi_s = np.where(small, 1.0, psi)
+    along = v * tau * np.where(small, 1.0 - psi**2 / 6, np.sin(psi_s) / psi_s)
+    side = v * tau * np.where(small, psi / 2, (1.0 - np.cos(psi_s)) / psi_s)
+    heading = np.stack([-np.sin(psi), np.cos(psi)], axis=-1)        # unit heading (world)
+    rear = np.stack([-side, y_sync - el + along], axis=-1)
+    radar = rear + el * heading
+    return np.concatenate([radar, psi[:, None]], axis=-1)
+
+
+def ego_velocity(scene: DrivingScene, group: ScenarioGroup, t: np.ndarray) -> np.ndarray:
+    """(F, 2) world velocity of the radar at times ``t`` (F,), m/s: the rear axle's ``v`` along
+    the heading plus ``omega x l`` (the radar ``l`` ahead of the rear axle: ``omega l`` towards
+    the left of the heading when turning left). Its components in the radar frame are
+    ``(v_x, v_y) = (-omega l, v)`` (Kellner et al. 2013 with the sensor on the centre line)."""
+    psi = ego_pose(scene, group, t)[:, 2]
+    v, om = scene.speed_mps, math.radians(scene.yaw_rate_deg_s)
+    el = group.ego.rear_axle_to_radar_m
+    heading = np.stack([-np.sin(psi), np.cos(psi)], axis=-1)
+    left = np.stack([-np.cos(psi), -np.sin(psi)], axis=-1)
+    return v * heading + om * el * left
+
+
+def relative_velocity(velocity_world: np.ndarray, scene: DrivingScene, group: ScenarioGroup,
+                      t: np.ndarray) -> np.ndarray:
+    """World velocities (F, ..., 2) of scatterers at times ``t`` (F,) minus the radar's, in the
+    radar's axes (x right, y boresight), m/s: their projection on a line of sight is the radial
+    velocity the radar measures (its own rotation does not change ranges)."""
+    pose = ego_pose(scene, group, t)
+    ev = ego_velocity(scene, group, t)
+    extra = (1,) * (np.ndim(velocity_world) - 2)
+    dv = np.asarray(velocity_world, float) - ev.reshape(ev.shape[:1] + extra + (2,))
+    c = np.cos(pose[:, 2]).reshape((-1,) + extra)
+    s_ = np.sin(pose[:, 2]).reshape((-1,) + extra)
+    return np.stack([c * dv[..., 0] + s_ * dv[..., 1], -s_ * dv[..., 0] + c * dv[..., 1]], -1)
 
 
 def _arc(centre: np.ndarray, radius: float, a0: float, a1: float, n: int = 9) -> np.ndarray:
@@ -371,12 +415,15 @@ def collision_without_braking(scene: DrivingScene, group: ScenarioGroup, *, dt_s
     rf = np.array([b.ref_from_front_m for b in bodies])[:, None]
     corners = _box_corners(pos, heading, np.broadcast_to(bl, pos.shape[:2]),
                            np.broadcast_to(bw, pos.shape[:2]), np.broadcast_to(rf, pos.shape[:2]))
-    ybump = np.broadcast_to(pose[:, 1], pos.shape[:2])
-    hit = _overlap_rect_box(ybump - group.ego.length_m, ybump, group.ego.width_m / 2, corners)
+    # in the ego's frame (radar at the origin, heading +y) the footprint is axis-aligned
+    corners = world_to_vehicle(corners, pose[None, :, None, :])
+    ref = world_to_vehicle(pos, pose[None])
+    zero = np.zeros(pos.shape[:2])
+    hit = _overlap_rect_box(zero - group.ego.length_m, zero, group.ego.width_m / 2, corners)
     anyhit = hit.any(axis=1)
     first = np.argmax(hit, axis=1)
     w = group.ego.width_m
-    x_ref = pos[np.arange(len(pos)), first, 0]
+    x_ref = ref[np.arange(len(pos)), first, 0]
     return pd.DataFrame({
         "pedestrian": [p.name for p in scene.pedestrians],
         "collision": anyhit,
@@ -403,10 +450,7 @@ def scene_truth(scene: DrivingScene, group: ScenarioGroup, frame_period_s: float
     pose = ego_pose(scene, group, t)                            # (F, 3)
     pos, vel, _ = pedestrian_states(scene, group, t)            # (P, F, 2)
     rel = world_to_vehicle(pos, pose[None])                     # (P, F, 2)
-    ego_v = np.stack([np.zeros_like(t), np.full_like(t, scene.speed_mps)], -1)
-    c, s = np.cos(pose[:, 2]), np.sin(pose[:, 2])
-    dv = vel - ego_v[None]
-    rel_v = np.stack([c * dv[..., 0] + s * dv[..., 1], -s * dv[..., 0] + c * dv[..., 1]], -1)
+    rel_v = relative_velocity(np.swapaxes(vel, 0, 1), scene, group, t).swapaxes(0, 1)
     rng = np.linalg.norm(rel, axis=-1)
     vr = np.einsum("pfd,pfd->pf", rel, rel_v) / np.maximum(rng, 1e-9)
     polys = car_polygons(scene)
@@ -528,9 +572,7 @@ def scatterers_in_vehicle_frame(scene: DrivingScene, group: ScenarioGroup, t: fl
     rcs = np.concatenate([srcs, prcs])
     label = np.concatenate([np.full(len(srcs), -1), who])
     rel_xy = world_to_vehicle(xyz[:, :2], pose)
-    c, s = math.cos(pose[2]), math.sin(pose[2])
-    dv = vw[:, :2] - np.array([-s, c]) * scene.speed_mps          # minus the ego's velocity
-    rel_v = np.stack([c * dv[:, 0] + s * dv[:, 1], -s * dv[:, 0] + c * dv[:, 1]], axis=-1)
+    rel_v = relative_velocity(vw[None, :, :2], scene, group, np.array([t]))[0]  # minus the ego's
     az = np.degrees(np.arctan2(rel_xy[:, 0], rel_xy[:, 1]))
     keep = (rel_xy[:, 1] > 0.2) & (np.abs(az) <= FIELD_OF_VIEW_DEG)
     # line of sight, stopped 1 mm short of each point, against every parked car

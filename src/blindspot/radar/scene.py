@@ -442,6 +442,10 @@ class EgoConfig(TypedConfig):
     width_m: float = setting(gt=0.5, le=5.0)
     length_m: float = setting(gt=0.5, le=20.0)
     radar_height_m: float = setting(ge=0.0, le=3.0)
+    rear_axle_to_radar_m: float = setting(3.5, gt=0.0, le=20.0,
+                                          doc="the bumper radar's distance ahead of the rear axle "
+                                              "centre along the centre line (Kellner et al. 2013 "
+                                              "ego-motion needs it for the yaw rate)")
 
 
 @dataclass(frozen=True)
@@ -507,6 +511,9 @@ class DrivingScene(TypedConfig):
     clutter: tuple[StaticClutter, ...] = setting(())
     seed: int = setting(0, ge=0, le=2**63 - 1)
     name: str = setting("scene")
+    yaw_rate_deg_s: float = setting(0.0, ge=-60.0, le=60.0,
+                                    doc="constant yaw rate of the ego car (positive = turning "
+                                        "left); 0 drives straight")
 
     def validate(self) -> None:
         if len(self.pedestrians) > 3:

@@ -122,14 +122,23 @@ def fig_driving_range_doppler(frame: Mapping[str, np.ndarray], detections: pd.Da
 
 
 def fig_ego_speed_error(sweep: pd.DataFrame, *, goal_mps: float = 0.1) -> Figure:
-    """Ego-speed error (radar RANSAC estimate - truth) of every frame against the ego speed,
-    its RMS per speed, the odometry's error beside it and the goal."""
+    """Left: ego-speed error (radar RANSAC estimate - truth) of every frame against the ego
+    speed, driving straight and turning (where the sweep has a ``true_yaw_rate_deg_s`` column),
+    its RMS per speed, the odometry's error beside it and the goal. Right (turning frames only,
+    when present): the yaw-rate error of every frame, its RMS and the least-squares theory's
+    standard deviation (``yaw_rate_sd_theory_deg_s``, median per speed)."""
     require_columns(sweep, ["speed_kmh", "error_mps", "odometry_error_mps"], "sweep")
-    fig, axes = new_grid(1, 1, 7.0, 4.2)
+    yaw = (sweep.true_yaw_rate_deg_s if "true_yaw_rate_deg_s" in sweep
+           else pd.Series(0.0, index=sweep.index))
+    turning = sweep[yaw != 0]
+    fig, axes = new_grid(1, 2 if len(turning) else 1, 7.0 if turning.empty else 11.0, 4.2)
     ax = axes[0, 0]
     jitter = 0.6
-    ax.scatter(sweep.speed_kmh - jitter, sweep.error_mps, s=10, c="tab:red",
-               label="radar (Kellner + RANSAC), per frame")
+    for sub, marker, what in ((sweep[yaw == 0], "o", "straight"), (turning, "^", "turning")):
+        if sub.empty:
+            continue
+        ax.scatter(sub.speed_kmh - jitter, sub.error_mps, s=10, c="tab:red", marker=marker,
+                   label=f"radar (Kellner + RANSAC), per frame, {what}")
     ax.scatter(sweep.speed_kmh + jitter, sweep.odometry_error_mps, s=10, c="tab:blue", alpha=0.6,
                label="odometry (noise + bias), per frame")
     g = sweep.groupby("speed_kmh")
@@ -141,4 +150,21 @@ def fig_ego_speed_error(sweep: pd.DataFrame, *, goal_mps: float = 0.1) -> Figure
     ax.set_ylabel("speed error (m/s)")
     ax.grid(True, lw=0.4, alpha=0.5)
     ax.legend(fontsize=7)
+    if len(turning):
+        require_columns(turning, ["yaw_rate_error_deg_s", "yaw_rate_sd_theory_deg_s"], "sweep")
+        ax = axes[0, 1]
+        ax.scatter(turning.speed_kmh, turning.yaw_rate_error_deg_s, s=10, c="tab:red",
+                   marker="^", label="radar, per frame")
+        gt = turning.groupby("speed_kmh")
+        rms_w = gt.yaw_rate_error_deg_s.apply(lambda e: float(np.sqrt(np.nanmean(e**2))))
+        theory = gt.yaw_rate_sd_theory_deg_s.median()
+        ax.plot(rms_w.index, rms_w.values, "k-o", ms=4, label="RMS")
+        ax.plot(theory.index, theory.values, "k:", label="least-squares theory (sd)")
+        ax.axhline(0.0, color="0.5", lw=0.6)
+        ax.set_xlabel("ego speed (km/h)")
+        ax.set_ylabel("yaw-rate error (deg/s)")
+        ax.set_title(f"turning at {float(turning.true_yaw_rate_deg_s.iloc[0]):g} deg/s",
+                     fontsize=9)
+        ax.grid(True, lw=0.4, alpha=0.5)
+        ax.legend(fontsize=7)
     return fig

@@ -61,7 +61,8 @@ def detect_driving_scene(scene: DrivingScene, group: ScenarioGroup, radar: Radar
         raise ValueError(f"frames {idx.min()}..{idx.max()} outside scene {scene.name!r} "
                          f"(0..{len(times) - 1})")
     array = array_for(radar)
-    chain = DrivingChain(radar, array, cfar, doa, detect, ego)
+    chain = DrivingChain(radar, array, cfar, doa, detect, ego,
+                         rear_axle_to_radar_m=group.ego.rear_axle_to_radar_m)
     simulator = FmcwSimulator(radar, array, noise=sim.noise, adc_headroom_db=sim.adc_headroom_db)
     rng = np.random.default_rng(np.random.SeedSequence([scene.seed, 21]))
     odo_all = odometry_speed(np.full(len(times), scene.speed_mps), ego.odometry_noise_mps,
@@ -87,22 +88,25 @@ def detect_driving_scene(scene: DrivingScene, group: ScenarioGroup, radar: Radar
     world = vehicle_to_world(det[["x_vehicle_m", "y_vehicle_m"]].to_numpy(), pose[f])
     det = det.assign(scene=scene.name, time_s=times[f], x_m=world[:, 0], y_m=world[:, 1])
     ego_t = ego_t.assign(scene=scene.name, time_s=times[ego_t["frame"].to_numpy()],
-                         true_speed_mps=scene.speed_mps)
+                         true_speed_mps=scene.speed_mps,
+                         true_yaw_rate_deg_s=scene.yaw_rate_deg_s)
     return DrivingDetections(det, ego_t, kept, kept_i)
 
 
 def ego_speed_sweep(scene: DrivingScene, group: ScenarioGroup, radar: RadarConfig, cfar, doa,
                     detect, ego: EgoMotionConfig, sim: SimConfig, speeds_kmh, *,
-                    progress: bool = False) -> pd.DataFrame:
-    """The radar's ego-speed estimate on ``ego.sweep_frames`` frames (evenly spread over the
-    scene) of ``scene`` driven at each of ``speeds_kmh``: one row per frame with speed_kmh,
-    frame, true_speed_mps, odometry_mps, ego_speed_mps, error_mps (radar - truth),
-    odometry_error_mps, n_detections, n_static."""
+                    yaw_rate_deg_s: float = 0.0, progress: bool = False) -> pd.DataFrame:
+    """The radar's ego-motion estimate on ``ego.sweep_frames`` frames (evenly spread over the
+    scene) of ``scene`` driven at each of ``speeds_kmh`` with the constant ``yaw_rate_deg_s``:
+    one row per frame with speed_kmh, frame, true_speed_mps, true_yaw_rate_deg_s,
+    odometry_mps, ego_speed_mps, yaw_rate_deg_s, the fit's theoretical standard deviations,
+    error_mps (radar - truth), yaw_rate_error_deg_s, odometry_error_mps, n_detections,
+    n_static."""
     from dataclasses import replace
 
     rows = []
     for kmh in speeds_kmh:
-        sc = replace(scene, speed_kmh=float(kmh))
+        sc = replace(scene, speed_kmh=float(kmh), yaw_rate_deg_s=float(yaw_rate_deg_s))
         n = len(frame_times(sc, radar.frame_period_s))
         idx = np.unique(np.linspace(0, n - 1, min(ego.sweep_frames, n)).round().astype(int))
         res = detect_driving_scene(sc, group, radar, cfar, doa, detect, ego, sim, frames=idx,
@@ -110,6 +114,7 @@ def ego_speed_sweep(scene: DrivingScene, group: ScenarioGroup, radar: RadarConfi
         rows.append(res.ego.assign(speed_kmh=float(kmh)))
     out = pd.concat(rows, ignore_index=True)
     return out.assign(error_mps=out.ego_speed_mps - out.true_speed_mps,
+                      yaw_rate_error_deg_s=out.yaw_rate_deg_s - out.true_yaw_rate_deg_s,
                       odometry_error_mps=out.odometry_mps - out.true_speed_mps)
 
 
@@ -120,19 +125,40 @@ def _num(x: float) -> float | None:
 
 def ego_motion_metrics(sweep: pd.DataFrame) -> dict:
     """``{"rms_error_mps": {speed_kmh: ..}, "odometry_rms_error_mps": {..}, "bias_mps": {..},
-    "n_frames": {..}, "failed_frames": {..}}`` (speed keys as ``"10"``; a frame without a
-    consensus counts as failed and is left out of the RMS)."""
+    "n_frames": {..}, "failed_frames": {..}}`` of the straight frames (true yaw rate 0; speed
+    keys as ``"10"``; a frame without a consensus counts as failed and is left out of the RMS),
+    and from the turning frames (true yaw rate not 0, where the sweep has them; else the
+    straight ones): ``"rms_error_yaw_rate_deg_s"``, ``"yaw_rate_sd_theory_deg_s"`` (median over
+    frames of the least-squares theory, :func:`blindspot.dsp.ego_motion.ego_motion_std`),
+    ``"rms_error_mps_turning"``, ``"speed_sd_theory_mps"`` and ``"yaw_rate_deg_s"`` (the
+    turning sweep's true yaw rate)."""
     out: dict = {k: {} for k in ("rms_error_mps", "odometry_rms_error_mps", "bias_mps",
-                                 "n_frames", "failed_frames")}
-    for kmh, g in sweep.groupby("speed_kmh"):
+                                 "n_frames", "failed_frames", "rms_error_yaw_rate_deg_s",
+                                 "yaw_rate_sd_theory_deg_s", "rms_error_mps_turning",
+                                 "speed_sd_theory_mps")}
+    yaw = sweep.get("true_yaw_rate_deg_s", pd.Series(0.0, index=sweep.index))
+    straight, turning = sweep[yaw == 0], sweep[yaw != 0]
+    if turning.empty:
+        turning = straight
+    out["yaw_rate_deg_s"] = float(turning.true_yaw_rate_deg_s.iloc[0]) if (
+        len(turning) and "true_yaw_rate_deg_s" in turning) else 0.0
+    rms = lambda e: _num(np.sqrt(np.mean(e**2))) if e.size else None  # noqa: E731
+    for kmh, g in straight.groupby("speed_kmh"):
         key = f"{kmh:g}"
         ok = g.error_mps.notna()
         e = g.error_mps[ok].to_numpy()
-        out["rms_error_mps"][key] = _num(np.sqrt(np.mean(e**2))) if e.size else None
+        out["rms_error_mps"][key] = rms(e)
         out["bias_mps"][key] = _num(np.mean(e)) if e.size else None
         out["odometry_rms_error_mps"][key] = float(np.sqrt(np.mean(g.odometry_error_mps**2)))
         out["n_frames"][key] = int(len(g))
         out["failed_frames"][key] = int((~ok).sum())
+    for kmh, g in turning.groupby("speed_kmh"):
+        key = f"{kmh:g}"
+        if "yaw_rate_error_deg_s" in g:
+            out["rms_error_yaw_rate_deg_s"][key] = rms(g.yaw_rate_error_deg_s.dropna().to_numpy())
+            out["yaw_rate_sd_theory_deg_s"][key] = _num(g.yaw_rate_sd_theory_deg_s.median())
+            out["speed_sd_theory_mps"][key] = _num(g.speed_sd_theory_mps.median())
+        out["rms_error_mps_turning"][key] = rms(g.error_mps.dropna().to_numpy())
     return out
 
 
