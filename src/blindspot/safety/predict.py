@@ -25,7 +25,7 @@ import pandas as pd
 from blindspot.safety.risk import EgoShape, collision_risk
 from blindspot.traj.baselines import ConstantVelocity
 
-__all__ = ["BackfilledHistory", "track_histories", "risk_table"]
+__all__ = ["BackfilledHistory", "track_histories", "moving_tracks", "risk_table"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -99,13 +99,36 @@ def track_histories(tracks: pd.DataFrame, max_len: int) -> np.ndarray:
     return out
 
 
+def moving_tracks(tracks: pd.DataFrame, speed_mps: float) -> np.ndarray:
+    """(N,) bool per row of ``tracks`` (columns group, track_id, frame, vx_mps, vy_mps,
+    confirmed; the tracker's world-frame filtered state): True from the track's first confirmed
+    row whose speed sqrt(vx^2 + vy^2) exceeds ``speed_mps`` on (causal: a car decides with the
+    frames it has; a pedestrian stopping at the kerb stays a moving object). Static world
+    (parked cars, kerb clutter), tracked like anything else, never gets there. Raises
+    ValueError naming a missing column."""
+    need = {"group", "track_id", "frame", "vx_mps", "vy_mps", "confirmed"}
+    missing = sorted(need - set(tracks.columns))
+    if missing:
+        raise ValueError(f"tracks: missing columns {missing} (the blindspot.track schema)")
+    fast = (np.hypot(tracks.vx_mps.to_numpy(float), tracks.vy_mps.to_numpy(float)) > speed_mps)
+    fast &= tracks.confirmed.to_numpy(bool)
+    order = np.lexsort((tracks.frame.to_numpy(), tracks.track_id.to_numpy(),
+                        tracks.group.astype(str).to_numpy()))
+    key = (tracks.group.astype(str) + "\x00" + tracks.track_id.astype(str)).to_numpy()[order]
+    seen = pd.Series(fast[order]).groupby(key, sort=False).cummax().to_numpy(bool)
+    out = np.empty(len(tracks), bool)
+    out[order] = seen
+    return out
+
+
 def risk_table(tracks: pd.DataFrame, ego: pd.DataFrame, predictors: dict[str, Any], *,
                horizon: int, dt_s: float, shape: EgoShape, margin_m: float, method: str,
                max_len: int) -> pd.DataFrame:
     """P(collision) and TTC per confirmed track row and predictor.
 
     tracks: the tracker's output (``blindspot.track`` schema: group, frame, track_id, x_m, y_m,
-    confirmed, ...); ego: columns group, frame, ego_x_m, ego_y_m, ego_yaw_deg, ego_speed_mps
+    confirmed, ...; with a ``moving`` column (:func:`moving_tracks`) only rows confirmed and
+    moving are scored, the static world's tracks are not); ego: columns group, frame, ego_x_m, ego_y_m, ego_yaw_deg, ego_speed_mps
     (one row per group and frame). predictors: name -> probabilistic predictor
     (``predict_distribution(history (B, T, 2), horizon)``). Returns columns predictor, group,
     frame, track_id, p_collision, ttc_s. Raises ValueError when a track row has no ego state.
@@ -113,6 +136,8 @@ def risk_table(tracks: pd.DataFrame, ego: pd.DataFrame, predictors: dict[str, An
     tr = tracks.sort_values(["group", "track_id", "frame"]).reset_index(drop=True)
     hist = track_histories(tr, max_len)
     keep = tr.confirmed.to_numpy(bool)
+    if "moving" in tr.columns:                       # the tracker on every point: moving only
+        keep &= tr.moving.to_numpy(bool)
     rows = tr[keep].reset_index(drop=True)
     hist = hist[keep]
     e = rows[["group", "frame"]].merge(ego, on=["group", "frame"], how="left")

@@ -1,0 +1,39 @@
+"""moving_tracks: which of the tracker's tracks (every radar point, static world included) the
+warning assesses: from a track's first confirmed frame above the speed on, causally."""
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from blindspot.safety.predict import moving_tracks
+
+
+def _tracks():
+    f = np.arange(6)
+    walk = pd.DataFrame({"group": "s0", "track_id": 1, "frame": f,
+                         "vx_mps": [0.0, 0.1, 0.3, 0.9, 1.4, 0.0],   # starts, walks, stops
+                         "vy_mps": 0.0, "confirmed": [False, True, True, True, True, True]})
+    car = pd.DataFrame({"group": "s0", "track_id": 2, "frame": f, "vx_mps": 0.05,
+                        "vy_mps": -0.05, "confirmed": True})              # a parked car
+    early = pd.DataFrame({"group": "s1", "track_id": 1, "frame": f, "vx_mps": 1.4,
+                          "vy_mps": 0.0, "confirmed": [False, False, True, True, True, True]})
+    return pd.concat([walk, car, early], ignore_index=True)
+
+
+def test_moving_from_first_confirmed_fast_frame_on_and_latched():
+    t = _tracks()
+    m = moving_tracks(t, 0.5)
+    assert m[:6].tolist() == [False, False, False, True, True, True]   # stays moving at the kerb
+    assert not m[6:12].any()                                            # the static world
+    assert m[12:].tolist() == [False, False, True, True, True, True]   # not before confirmed
+
+
+def test_row_order_does_not_matter():
+    t = _tracks()
+    perm = np.random.default_rng(0).permutation(len(t))
+    np.testing.assert_array_equal(moving_tracks(t.iloc[perm], 0.5), moving_tracks(t, 0.5)[perm])
+
+
+def test_missing_column_is_named():
+    with pytest.raises(ValueError, match="vx_mps"):
+        moving_tracks(_tracks().drop(columns="vx_mps"), 0.5)
