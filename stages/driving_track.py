@@ -6,7 +6,7 @@ frame, the static world's points included; the points' ``static`` flag and ``sou
 label are not read), frames without a point stepped too, so tracks coast through them. Its
 DBSCAN groups the points of a frame into objects; a confirmed track is a moving object (what the
 warning assesses) from its first frame with a filtered world-frame speed above
-``warning.moving_speed_mps`` on (blindspot.safety.predict.moving_tracks), so parked cars and
+``warning.moving_speed_mps`` and significantly non-zero (``warning.moving_probability``) on (blindspot.safety.predict.moving_tracks), so parked cars and
 kerb clutter are tracked and left out by their own motion, and a child crossing near boresight,
 whose Doppler looks static, is found by its motion over frames. The points' truth labels only
 score that split (driving_track.json: tracks whose points are all static-world points, their
@@ -54,7 +54,7 @@ def run(cfg, ctx):
     pts = frames.merge(every[["scene", "frame", "x_m", "y_m"]], on=["scene", "frame"],
                        how="left").rename(columns={"scene": "group"})
     tracks = track_points(pts, experiment.tracker(cfg))
-    tracks["moving"] = moving_tracks(tracks, w.moving_speed_mps)
+    tracks["moving"] = moving_tracks(tracks, w.moving_speed_mps, w.moving_probability)
     write_parquet(ctx.out("tracks.parquet"), tracks)
     metrics = {"tracker": {**_counts(tracks), **_static_score(tracks, every, cfg, w)}}
     m = metrics["tracker"]
@@ -100,7 +100,7 @@ def _static_score(tracks, points, cfg, w):
     return {"n_static_world_tracks": int(len(static_ids)),
             "static_world_speed_p99_mps": float(np.percentile(speed, 99)) if len(st) else 0.0,
             "n_static_world_moving": int(moving.sum()),
-            "moving_speed_mps": w.moving_speed_mps}
+            "moving_speed_mps": w.moving_speed_mps, "moving_probability": w.moving_probability}
 
 
 if __name__ == "__main__":

@@ -75,7 +75,8 @@ def run(cfg, ctx):
     res = assess(truth, meta, tracks, _predictors(cfg, ctx, w), w, bodies=bodies,
                  shape=EgoShape(group.ego.width_m, group.ego.length_m), frame_period_s=dt,
                  figure_scene=group.figure_scene,
-                 only={"visible_truth": w.reference_predictors})
+                 only={"visible_truth": w.reference_predictors,
+                       "oracle": w.reference_predictors})
     write_parquet(ctx.out("risk.parquet"), res.risk)
     write_parquet(ctx.out("scene_outcomes.parquet"), res.scenes)
     write_parquet(ctx.out("operating.parquet"), res.curves)

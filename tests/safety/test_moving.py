@@ -13,11 +13,13 @@ def _tracks():
     walk = pd.DataFrame({"group": "s0", "track_id": 1, "frame": f,
                          "vx_mps": [0.0, 0.1, 0.3, 0.9, 1.4, 0.0],   # starts, walks, stops
                          "vy_mps": 0.0, "confirmed": [False, True, True, True, True, True]})
+    walk.loc[0, "vx_mps"] = 3.0                                         # tentative: ignored
     car = pd.DataFrame({"group": "s0", "track_id": 2, "frame": f, "vx_mps": 0.05,
                         "vy_mps": -0.05, "confirmed": True})              # a parked car
     early = pd.DataFrame({"group": "s1", "track_id": 1, "frame": f, "vx_mps": 1.4,
                           "vy_mps": 0.0, "confirmed": [False, False, True, True, True, True]})
-    return pd.concat([walk, car, early], ignore_index=True)
+    return pd.concat([walk, car, early], ignore_index=True).assign(cov_vxvx=0.01, cov_vxvy=0.0,
+                                                                   cov_vyvy=0.01)
 
 
 def test_moving_from_first_confirmed_fast_frame_on_and_latched():
@@ -32,6 +34,13 @@ def test_row_order_does_not_matter():
     t = _tracks()
     perm = np.random.default_rng(0).permutation(len(t))
     np.testing.assert_array_equal(moving_tracks(t.iloc[perm], 0.5), moving_tracks(t, 0.5)[perm])
+
+
+def test_fast_but_uncertain_is_not_moving():
+    t = _tracks().assign(cov_vxvx=0.01, cov_vxvy=0.0, cov_vyvy=0.01)
+    assert moving_tracks(t, 0.5).any()
+    # 1.4 m/s with a 1 m/s standard deviation per axis: d2 = 1.96 < 9.21 (chi2, 2 dof, 0.99)
+    assert not moving_tracks(t.assign(cov_vxvx=1.0, cov_vyvy=1.0), 0.5).any()
 
 
 def test_missing_column_is_named():

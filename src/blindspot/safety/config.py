@@ -59,6 +59,7 @@ class WarningConfig(TypedConfig):
     lstm_history: str = setting(choices=LSTM_HISTORY)
     max_history_s: float = setting(gt=0.0, le=60.0)
     moving_speed_mps: float = setting(ge=0.0, le=10.0)
+    moving_probability: float = setting(gt=0.0, lt=1.0)
     warning_threshold: float = setting(gt=0.0, lt=1.0)
     aeb_threshold: float = setting(gt=0.0, lt=1.0)
     decision_delay_s: float = setting(ge=0.0, le=2.0)

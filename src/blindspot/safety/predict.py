@@ -21,6 +21,7 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
+from scipy.stats import chi2
 
 from blindspot.safety.risk import EgoShape, collision_risk
 from blindspot.traj.baselines import ConstantVelocity
@@ -99,18 +100,30 @@ def track_histories(tracks: pd.DataFrame, max_len: int) -> np.ndarray:
     return out
 
 
-def moving_tracks(tracks: pd.DataFrame, speed_mps: float) -> np.ndarray:
+def moving_tracks(tracks: pd.DataFrame, speed_mps: float, probability: float = 0.99
+                  ) -> np.ndarray:
     """(N,) bool per row of ``tracks`` (columns group, track_id, frame, vx_mps, vy_mps,
-    confirmed; the tracker's world-frame filtered state): True from the track's first confirmed
-    row whose speed sqrt(vx^2 + vy^2) exceeds ``speed_mps`` on (causal: a car decides with the
-    frames it has; a pedestrian stopping at the kerb stays a moving object). Static world
-    (parked cars, kerb clutter), tracked like anything else, never gets there. Raises
-    ValueError naming a missing column."""
-    need = {"group", "track_id", "frame", "vx_mps", "vy_mps", "confirmed"}
+    cov_vxvx, cov_vxvy, cov_vyvy, confirmed; the tracker's world-frame filtered state): True
+    from the track's first confirmed row on whose velocity is both fast, sqrt(vx^2 + vy^2) >
+    ``speed_mps``, and significantly non-zero, v^T P_v^-1 v > the chi-square quantile of 2
+    degrees of freedom at ``probability`` (a static object's filtered velocity is zero-mean
+    Gaussian with covariance P_v, so it passes with probability 1 - ``probability`` per frame;
+    the test of Bar-Shalom, Li & Kirubarajan 2001, sec. 5.4, applied to the velocity).
+    Causal (a car decides with the frames it has) and latched (a pedestrian stopping at the kerb
+    stays a moving object). Static world (parked cars, kerb clutter), tracked like anything
+    else, mostly never gets there: a new track's velocity is fast but uncertain, and a cluster
+    sliding along a parked car as the ego passes is short-lived. Raises ValueError naming a
+    missing column."""
+    need = {"group", "track_id", "frame", "vx_mps", "vy_mps", "cov_vxvx", "cov_vxvy",
+            "cov_vyvy", "confirmed"}
     missing = sorted(need - set(tracks.columns))
     if missing:
         raise ValueError(f"tracks: missing columns {missing} (the blindspot.track schema)")
-    fast = (np.hypot(tracks.vx_mps.to_numpy(float), tracks.vy_mps.to_numpy(float)) > speed_mps)
+    vx, vy = tracks.vx_mps.to_numpy(float), tracks.vy_mps.to_numpy(float)
+    a, b, c = (tracks[k].to_numpy(float) for k in ("cov_vxvx", "cov_vxvy", "cov_vyvy"))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        d2 = (c * vx**2 - 2 * b * vx * vy + a * vy**2) / (a * c - b**2)
+    fast = (np.hypot(vx, vy) > speed_mps) & (d2 > chi2.ppf(probability, 2))
     fast &= tracks.confirmed.to_numpy(bool)
     order = np.lexsort((tracks.frame.to_numpy(), tracks.track_id.to_numpy(),
                         tracks.group.astype(str).to_numpy()))
