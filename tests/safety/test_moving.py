@@ -46,3 +46,23 @@ def test_fast_but_uncertain_is_not_moving():
 def test_missing_column_is_named():
     with pytest.raises(ValueError, match="vx_mps"):
         moving_tracks(_tracks().drop(columns="vx_mps"), 0.5)
+
+
+def test_risk_table_scores_moving_rows_only():
+    from blindspot.safety.predict import risk_table
+    from blindspot.safety.risk import EgoShape
+    from blindspot.traj.distribution import GaussianForecast
+
+    class Fixed:                                    # a forecast at the ego's bumper, sure
+        def predict_distribution(self, h, horizon):
+            mean = np.zeros((len(h), horizon, 2))
+            return GaussianForecast(mean, np.broadcast_to(0.01 * np.eye(2),
+                                                          (len(h), horizon, 2, 2)).copy())
+
+    t = _tracks().assign(x_m=0.0, y_m=0.0)
+    t["moving"] = moving_tracks(t, 0.5)
+    ego = t[["group", "frame"]].drop_duplicates().assign(ego_x_m=0.0, ego_y_m=-1.0,
+                                                         ego_yaw_deg=0.0, ego_speed_mps=5.0)
+    r = risk_table(t, ego, {"x": Fixed()}, horizon=5, dt_s=0.1, shape=EgoShape(1.8, 4.5),
+                   margin_m=0.3, method="max_step", max_len=5)
+    assert len(r) == int(t.moving.sum()) and (r.p_collision > 0.9).all()

@@ -150,7 +150,7 @@ def risk_table(tracks: pd.DataFrame, ego: pd.DataFrame, predictors: dict[str, An
     hist = track_histories(tr, max_len)
     keep = tr.confirmed.to_numpy(bool)
     if "moving" in tr.columns:                       # the tracker on every point: moving only
-        keep &= tr.moving.to_numpy(bool)
+        keep = keep & tr.moving.to_numpy(bool)
     rows = tr[keep].reset_index(drop=True)
     hist = hist[keep]
     e = rows[["group", "frame"]].merge(ego, on=["group", "frame"], how="left")
