@@ -179,7 +179,14 @@ def _builders():
         "benchmark": experiment.benchmark, "calibration": experiment.calibration, "recordings": _build_recordings,
         "scenario": experiment.scenarios, "ego_motion": experiment.ego_motion,
         "tracker": experiment.tracker, "real_tracking": experiment.real_tracking,
+        "warning": _build_warning,
     }
+
+
+def _build_warning(cfg):
+    from blindspot.safety.config import WarningConfig
+
+    return WarningConfig.from_mapping(cfg.warning)
 
 
 # Groups that are not library settings: profile only overlays the groups above (both of its

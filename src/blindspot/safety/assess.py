@@ -1,0 +1,170 @@
+"""The safety evaluation of a set of driving scenes, end to end (what the ``safety`` stage runs):
+tracks -> each predictor's risk -> warnings and AEB requests -> braked outcomes -> metrics.
+
+Inputs are tables (the truth of :func:`blindspot.radar.driving.scene_truth`, a tracker's output
+in the ``blindspot.track`` schema) and objects (probabilistic predictors, the typed
+:class:`~blindspot.safety.config.WarningConfig`); the outputs are tables and one JSON-ready
+dictionary. See :mod:`blindspot.safety.evaluation` for the definitions.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from blindspot.safety.braking import BrakingModel
+from blindspot.safety.config import WarningConfig
+from blindspot.safety.evaluation import (KMH, SceneInfo, ncap_grid, operating_curve,
+                                         scene_frame_risk, scene_info, scene_results, summarise)
+from blindspot.safety.outcome import NEVER_S, braked_impacts, pedestrian_boxes, scene_arrays
+from blindspot.safety.predict import risk_table
+from blindspot.safety.risk import EgoShape
+
+__all__ = ["SafetyResult", "outcome_table", "assess"]
+
+
+@dataclass(frozen=True)
+class SafetyResult:
+    """risk: per input, predictor, track row (input, predictor, group, frame, track_id,
+    p_collision, ttc_s); scenes: per input, predictor, scene (:func:`scene_results` + input,
+    predictor); curves: operating characteristic per input and predictor; grid: Euro NCAP grid
+    per input and predictor; timeline: the braked ego of ``figure_scene`` per input and
+    predictor (time_s, ego_y_m, ego_speed_mps); metrics: the JSON dictionary."""
+
+    risk: pd.DataFrame
+    scenes: pd.DataFrame
+    curves: pd.DataFrame
+    grid: pd.DataFrame
+    timeline: pd.DataFrame
+    metrics: dict
+
+
+def outcome_table(truth: pd.DataFrame, bodies: dict, shape: EgoShape, braking: BrakingModel,
+                  cfg: WarningConfig) -> tuple[Any, np.ndarray, np.ndarray]:
+    """(scene arrays, trigger times (S, F + 1) s, impact speeds (S, F + 1) km/h, NaN avoided)
+    for an AEB request at each frame's decision time (column F: never)."""
+    sa = scene_arrays(truth, bodies)
+    t, lo, hi = pedestrian_boxes(sa, cfg.outcome_dt_s, cfg.extend_s)
+    S = len(sa.scenes)
+    trig = np.concatenate([np.broadcast_to(sa.time_s + cfg.decision_delay_s, (S, len(sa.time_s))),
+                           np.full((S, 1), NEVER_S)], axis=1)
+    _, v = braked_impacts(sa, t, lo, hi, trig, braking, shape)
+    return sa, trig, v * KMH
+
+
+def _timeline(sa, trigger_s: float, braking: BrakingModel, i: int, dt: float) -> pd.DataFrame:
+    t = np.arange(sa.time_s[0], sa.time_s[-1] + dt / 2, dt)
+    v0 = sa.speed_mps[i]
+    s, v = braking.motion(v0, np.maximum(t - trigger_s, 0.0))
+    braked = t > trigger_s
+    y = sa.ego_y0_m[i] + v0 * np.minimum(t, trigger_s) + np.where(braked, s, 0.0)
+    return pd.DataFrame({"time_s": t, "ego_y_m": y, "ego_speed_mps": np.where(braked, v, v0)})
+
+
+def assess(truth: pd.DataFrame, scenes_meta: dict, tracks: dict[str, pd.DataFrame],
+           predictors: dict[str, Any], cfg: WarningConfig, *, bodies: dict,
+           shape: EgoShape, frame_period_s: float, figure_scene: str,
+           evaluated_set: str = "monte_carlo", headline: str | None = None,
+           only: dict[str, tuple[str, ...]] | None = None) -> SafetyResult:
+    """Run the evaluation (module docstring).
+
+    truth: every scene's truth (column ``set`` selects the evaluated scenes; the figure scene
+    may be outside it); scenes_meta: ``scenes.json``; tracks: input name (e.g. ``oracle``,
+    ``tracker``) -> tracker output; predictors: name -> probabilistic predictor; bodies: body
+    name -> (length_m, width_m, ref_from_front_m). ``headline``: the input whose numbers fill
+    the top level of the metrics (default: the first of ``tracks``); every input's numbers are
+    under ``metrics[predictor]["by_input"]``. ``only``: input -> the predictors run on it
+    (default: all).
+
+    Track rows after the collision without braking of their scene are not scored (a request
+    then comes too late to change the outcome, and the warning lead time counts warnings before
+    it only).
+    """
+    headline = headline or next(iter(tracks))
+    # the outcome model drives the ego straight along +y: a turning scene (a named scene of the
+    # ego-motion sweep) is left out of the evaluation; an evaluated one is an error
+    turning = truth.ego_yaw_deg.abs().groupby(truth.scene).max() > 1e-9
+    turning = set(turning.index[turning.to_numpy()])
+    if turning:
+        bad = sorted(set(truth.scene[truth.set == evaluated_set]) & turning)
+        if bad:
+            raise ValueError(f"truth: evaluated ({evaluated_set!r}) scenes with a turning ego "
+                             f"{bad[:5]}: the outcome model needs the ego straight along +y")
+        truth = truth[~truth.scene.isin(turning)]
+        tracks = {k: v[~v.group.isin(turning)] for k, v in tracks.items()}
+    horizon = int(round(cfg.horizon_s / frame_period_s))
+    max_len = int(round(cfg.max_history_s / frame_period_s))
+    ego = (truth.groupby(["scene", "frame"], as_index=False)
+           [["ego_x_m", "ego_y_m", "ego_yaw_deg", "ego_speed_mps"]].first()
+           .rename(columns={"scene": "group"}))
+    main = BrakingModel.from_config(cfg.aeb)
+    weak = BrakingModel.from_config(cfg.aeb, cfg.sensitivity_decel_mps2)
+    sa, trig, impact = outcome_table(truth, bodies, shape, main, cfg)
+    _, _, impact_weak = outcome_table(truth, bodies, shape, weak, cfg)
+    info_all = scene_info(truth, scenes_meta, sa.scenes)
+    ev = truth.groupby("scene").set.first().reindex(sa.scenes).to_numpy() == evaluated_set
+    info = SceneInfo(*(np.asarray(getattr(info_all, f))[ev] for f in SceneInfo.__dataclass_fields__))
+    thresholds = np.linspace(0, 1, cfg.n_thresholds + 2)[1:-1]
+    fig_i = int(np.flatnonzero(sa.scenes == figure_scene)[0]) if figure_scene in sa.scenes else None
+    F = len(sa.time_s)
+    risks, scenes, curves, grids, lines = [], [], [], [], []
+    metrics: dict = {}
+    kw = dict(warning_threshold=cfg.warning_threshold, aeb_threshold=cfg.aeb_threshold,
+              decision_delay_s=cfg.decision_delay_s)
+    t_col = truth.groupby("scene").collision_time_s.min()
+    for inp, tr in tracks.items():                   # the inputs (oracle, tracker): a few
+        late = tr.time_s.to_numpy() > t_col.reindex(tr.group).to_numpy()     # NaN: never late
+        tr = tr[~late]
+        use = {k: v for k, v in predictors.items() if only is None or inp not in only
+               or k in only[inp]}
+        risk = risk_table(tr, ego, use, horizon=horizon, dt_s=frame_period_s,
+                          shape=shape, margin_m=cfg.pedestrian_radius_m,
+                          method=cfg.probability, max_len=max_len)
+        risks.append(risk.assign(input=inp))
+        for name in use:                             # the four predictors
+            p_all = scene_frame_risk(risk[risk.predictor == name], sa.scenes, F)
+            res_all = scene_results(p_all, info_all, impact, sa.time_s, **kw)
+            res = res_all[ev].reset_index(drop=True)
+            weak_res = scene_results(p_all[ev], info, impact_weak[ev], sa.time_s, **kw)
+            m = summarise(res, n_bootstrap=cfg.n_bootstrap, seed=cfg.seed)
+            m["braking_sensitivity"] = {
+                "decel_mps2": cfg.sensitivity_decel_mps2,
+                **{k: summarise(weak_res, n_bootstrap=cfg.n_bootstrap, seed=cfg.seed)[k]
+                   for k in ("avoided_rate", "goals")}}
+            curve = operating_curve(p_all[ev], info, impact[ev], thresholds)
+            grid = ncap_grid(res)
+            m["ncap_score_mean"] = float(grid.score.mean()) if len(grid) else None
+            tag = dict(input=inp, predictor=name)
+            scenes.append(res_all.assign(**tag, evaluated=ev))
+            curves.append(curve.assign(**tag))
+            grids.append(grid.assign(**tag))
+            if fig_i is not None:
+                lines.append(_timeline(sa, float(trig[fig_i, res_all.aeb_frame[fig_i]])
+                                       if res_all.aeb_frame[fig_i] >= 0 else NEVER_S, main,
+                                       fig_i, cfg.outcome_dt_s * 4).assign(**tag))
+            entry = metrics.setdefault(name, {"by_input": {}})
+            entry["by_input"][inp] = m
+            if inp == headline or "input" not in entry:
+                entry.update({k: v for k, v in m.items()})
+                entry["input"] = inp
+    no_aeb = impact[ev][:, -1]
+    settings = {
+        "evaluated_set": evaluated_set, "n_scenes": int(ev.sum()), "headline_input": headline,
+        "inputs": list(tracks), "warning_threshold": cfg.warning_threshold,
+        "aeb_threshold": cfg.aeb_threshold, "aeb": {"latency_s": main.latency_s,
+                                                    "jerk_mps3": main.jerk_mps3,
+                                                    "decel_mps2": main.decel_mps2},
+        "horizon_s": cfg.horizon_s, "probability": cfg.probability,
+        "left_out_turning_scenes": sorted(turning),
+        "collision_rate_without_aeb": float(np.isfinite(no_aeb[info.intruding]).mean())
+        if info.intruding.any() else None,
+    }
+    for name in predictors:
+        metrics[name]["settings"] = settings
+    return SafetyResult(pd.concat(risks, ignore_index=True), pd.concat(scenes, ignore_index=True),
+                        pd.concat(curves, ignore_index=True), pd.concat(grids, ignore_index=True),
+                        pd.concat(lines, ignore_index=True) if lines else pd.DataFrame(),
+                        metrics)

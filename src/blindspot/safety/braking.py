@@ -1,0 +1,80 @@
+"""The AEB braking model: latency, a jerk-limited ramp to full deceleration, then held.
+
+Once requested (time 0 here) braking is committed. With initial speed v0, latency T, jerk j and
+full deceleration a (ramp time t_r = a / j; the two-phase ramp-then-hold profile of production
+pedestrian AEB, SAE 2020-01-0878, values in ``conf/warning/default.yaml``), with u = t - T:
+
+* t < T:           v = v0,                          s = v0 t
+* 0 <= u < t_r:    v = v0 - j u^2 / 2,              s = v0 T + v0 u - j u^3 / 6
+* u >= t_r:        v = v1 - a w,  w = u - t_r,      s = s_r + v1 w - a w^2 / 2,  v1 = v0 - a t_r / 2
+
+until v = 0 (the car then stays). If v0 <= a t_r / 2 it stops within the ramp, at
+u = sqrt(2 v0 / j). The stopping distance (elementary kinematics) is
+
+    d = v0 T + v0^2 / (2 a) + v0 t_r / 2 - a t_r^2 / 24        (v0 > a t_r / 2)
+    d = v0 T + (2/3) v0 sqrt(2 v0 / j)                          (otherwise).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["BrakingModel"]
+
+
+@dataclass(frozen=True)
+class BrakingModel:
+    """latency_s (s), jerk_mps3 (m/s^3), decel_mps2 (m/s^2): see the module docstring.
+    Raises ValueError for a negative latency or a non-positive jerk or deceleration."""
+
+    latency_s: float
+    jerk_mps3: float
+    decel_mps2: float
+
+    def __post_init__(self) -> None:
+        if not (self.latency_s >= 0 and self.jerk_mps3 > 0 and self.decel_mps2 > 0):
+            raise ValueError(f"BrakingModel: expected latency_s >= 0, jerk_mps3 > 0, "
+                             f"decel_mps2 > 0, found {self.latency_s!r}, {self.jerk_mps3!r}, "
+                             f"{self.decel_mps2!r}")
+
+    @classmethod
+    def from_config(cls, cfg, decel_mps2: float | None = None) -> BrakingModel:
+        """From a :class:`~blindspot.safety.config.BrakingConfig` (deceleration overridable)."""
+        return cls(cfg.latency_s, cfg.jerk_mps3, cfg.decel_mps2 if decel_mps2 is None
+                   else float(decel_mps2))
+
+    @property
+    def ramp_s(self) -> float:
+        return self.decel_mps2 / self.jerk_mps3
+
+    def stop_time(self, v0: np.ndarray) -> np.ndarray:
+        """Time from the request to standstill, s, for speeds v0 (...) m/s."""
+        v0 = np.asarray(v0, float)
+        a, j, tr = self.decel_mps2, self.jerk_mps3, self.ramp_s
+        in_ramp = v0 <= a * tr / 2
+        return self.latency_s + np.where(in_ramp, np.sqrt(2 * np.maximum(v0, 0) / j),
+                                         tr + (v0 - a * tr / 2) / a)
+
+    def motion(self, v0: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Distance travelled (m) and speed (m/s) at times t (...) s after the request
+        (t < 0: not yet requested, constant speed), speeds v0 broadcast against t."""
+        v0, t = np.broadcast_arrays(np.asarray(v0, float), np.asarray(t, float))
+        a, j, tr, T = self.decel_mps2, self.jerk_mps3, self.ramp_s, self.latency_s
+        t_stop = self.stop_time(v0)
+        tc = np.minimum(t, t_stop)
+        u = np.maximum(tc - T, 0.0)
+        ur = np.minimum(u, tr)
+        w = np.maximum(u - tr, 0.0)
+        v1 = v0 - a * tr / 2
+        s_ramp = v0 * ur - j * ur**3 / 6
+        s = v0 * np.minimum(tc, T) + np.where(t < 0, v0 * t - v0 * np.minimum(tc, T), 0.0) \
+            + np.where(t < 0, 0.0, s_ramp + v1 * w - a * w**2 / 2)
+        v = np.where(t >= t_stop, 0.0, np.where(u < tr, v0 - j * ur**2 / 2, v1 - a * w))
+        return s, np.maximum(v, 0.0)
+
+    def stopping_distance(self, v0: np.ndarray) -> np.ndarray:
+        """Distance from the request to standstill, m (module docstring), for v0 (...) m/s."""
+        s, _ = self.motion(v0, self.stop_time(v0))
+        return s

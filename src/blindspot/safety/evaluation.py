@@ -1,0 +1,219 @@
+"""Scene-level decisions and the safety metrics of a Monte-Carlo driving set.
+
+Per scene, the risk of a frame is the largest P(collision) of its confirmed tracks (0 without
+one). A warning is issued at the first frame whose risk reaches ``warning_threshold``, the AEB
+request at the first reaching ``aeb_threshold``, each ``decision_delay_s`` after that frame's
+start. Once requested, braking is committed: the scene's outcome is the braked ego against the
+true paths (:mod:`blindspot.safety.outcome`), looked up in an outcome table computed once per
+braking model for a request at every frame (and for none), so sweeping the threshold (the
+operating characteristic) is a lookup, vectorised over scenes and thresholds.
+
+Scenes: *intruding* = the lead pedestrian (``p0``) crosses and would be hit without braking;
+*non-intruding* = it does not (stops at the kerb, walks along it, turns back, crosses after the
+car): any AEB request there is a false activation.
+
+Metrics per ego speed (intruding scenes): the avoided rate (Wilson 95 % interval), the impact
+speed (km/h, 0 when avoided; mean with a percentile-bootstrap 95 % interval), the warning lead
+time (the true TTC when the warning is issued: collision time without braking minus the warning
+time; median over warned scenes), the time from the pedestrian's first visibility (first frame
+not occluded) to the warning; on non-intruding scenes the false-activation rate (Wilson).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+from scipy import stats
+
+from blindspot.safety.ncap import ncap_band
+
+__all__ = ["SceneInfo", "scene_info", "scene_frame_risk", "trigger_frames", "scene_results",
+           "summarise", "operating_curve", "ncap_grid", "wilson", "KMH"]
+
+KMH = 3.6
+
+
+@dataclass(frozen=True)
+class SceneInfo:
+    """Per scene (S,): names, ego speed (km/h), intruding flag, nominal impact point (%),
+    collision time without braking (s, NaN none), first time the lead pedestrian is visible
+    (s, NaN never)."""
+
+    scenes: np.ndarray
+    speed_kmh: np.ndarray
+    intruding: np.ndarray
+    impact_pct: np.ndarray
+    collision_s: np.ndarray
+    first_visible_s: np.ndarray
+
+
+def scene_info(truth: pd.DataFrame, scenes_meta: dict, scenes: np.ndarray,
+               lead: str = "p0") -> SceneInfo:
+    """From the truth table and ``scenes.json`` (name -> {"pedestrians": [{"name",
+    "impact_pct", ...}]}), in the order of ``scenes``. Raises KeyError naming a missing scene."""
+    p0 = truth[truth.pedestrian == lead]
+    g = p0.groupby("scene")
+    first = g.first().reindex(scenes)
+    if first.frame.isna().any():
+        raise KeyError(f"truth: scenes without pedestrian {lead!r}: "
+                       f"{list(first.index[first.frame.isna()])[:5]}")
+    vis = p0[~p0.occluded].groupby("scene").time_s.min().reindex(scenes)
+    pct = []
+    for s in scenes:
+        if s not in scenes_meta:
+            raise KeyError(f"scenes.json: no scene {s!r}")
+        peds = {p["name"]: p for p in scenes_meta[s]["pedestrians"]}
+        pct.append(float(peds[lead]["impact_pct"]))
+    return SceneInfo(np.asarray(scenes), (first.ego_speed_mps * KMH).round(6).to_numpy(),
+                     ((first.behaviour == "cross") & first.collision.astype(bool)).to_numpy(),
+                     np.array(pct), first.collision_time_s.to_numpy(float), vis.to_numpy(float))
+
+
+def scene_frame_risk(risk: pd.DataFrame, scenes: np.ndarray, n_frames: int) -> np.ndarray:
+    """(S, F) the largest p_collision of each scene's confirmed tracks per frame (0: none).
+    ``risk``: one predictor's rows (group, frame, p_collision)."""
+    out = np.zeros((len(scenes), n_frames))
+    if len(risk):
+        s = pd.Index(scenes).get_indexer(risk.group)
+        ok = (s >= 0) & (risk.frame.to_numpy() < n_frames)
+        np.maximum.at(out, (s[ok], risk.frame.to_numpy()[ok]), risk.p_collision.to_numpy()[ok])
+    return out
+
+
+def trigger_frames(p: np.ndarray, thresholds: np.ndarray) -> np.ndarray:
+    """(S, N) first frame whose risk reaches each threshold (F = never), p (S, F)."""
+    cm = np.maximum.accumulate(p, axis=1)                                 # (S, F)
+    reach = cm[:, None, :] >= np.asarray(thresholds)[None, :, None]       # (S, N, F)
+    return np.where(reach.any(-1), np.argmax(reach, -1), p.shape[1])
+
+
+def wilson(k: int, n: int) -> list[float] | None:
+    """Wilson 95 % interval of k successes in n (scipy's binomtest); None for n = 0."""
+    if n == 0:
+        return None
+    ci = stats.binomtest(int(k), int(n)).proportion_ci(0.95, method="wilson")
+    return [float(ci.low), float(ci.high)]
+
+
+def _boot_mean(x: np.ndarray, n: int, rng: np.random.Generator) -> list[float] | None:
+    """Percentile-bootstrap 95 % interval of the mean (vectorised resampling)."""
+    if len(x) == 0:
+        return None
+    means = x[rng.integers(0, len(x), (n, len(x)))].mean(axis=1)
+    return [float(np.percentile(means, 2.5)), float(np.percentile(means, 97.5))]
+
+
+def scene_results(p: np.ndarray, info: SceneInfo, impact_kmh: np.ndarray,
+                  frame_times: np.ndarray, *, warning_threshold: float, aeb_threshold: float,
+                  decision_delay_s: float) -> pd.DataFrame:
+    """One row per scene: warn_frame / aeb_frame (-1 none), warning_s, aeb_s (NaN none),
+    impact_speed_kmh (0 avoided), avoided, lead_time_s (true TTC at the warning; NaN without a
+    warning before the collision), aeb_lead_time_s, visible_to_warning_s.
+
+    p (S, F) scene-frame risk; impact_kmh (S, F + 1) the outcome table (column F = no AEB; NaN
+    = avoided); frame_times (F,) s."""
+    F = p.shape[1]
+    tf = trigger_frames(p, np.array([warning_threshold, aeb_threshold]))
+    warn, aeb = tf[:, 0], tf[:, 1]
+    t_dec = np.r_[frame_times + decision_delay_s, np.nan]
+    warn_s, aeb_s = t_dec[warn], t_dec[aeb]
+    imp = impact_kmh[np.arange(len(aeb)), aeb]
+    with np.errstate(invalid="ignore"):
+        lead = np.where(warn_s < info.collision_s, info.collision_s - warn_s, np.nan)
+        aeb_lead = np.where(aeb_s < info.collision_s, info.collision_s - aeb_s, np.nan)
+    return pd.DataFrame({
+        "scene": info.scenes, "speed_kmh": info.speed_kmh, "impact_pct": info.impact_pct,
+        "intruding": info.intruding, "warn_frame": np.where(warn < F, warn, -1),
+        "aeb_frame": np.where(aeb < F, aeb, -1), "warning_s": warn_s, "aeb_s": aeb_s,
+        "impact_speed_kmh": np.nan_to_num(imp, nan=0.0), "avoided": np.isnan(imp),
+        "lead_time_s": lead, "aeb_lead_time_s": aeb_lead,
+        "visible_to_warning_s": warn_s - info.first_visible_s,
+    })
+
+
+def _median(x) -> float | None:
+    x = np.asarray(x, float)
+    x = x[np.isfinite(x)]
+    return float(np.median(x)) if len(x) else None
+
+
+def summarise(res: pd.DataFrame, *, n_bootstrap: int, seed: int) -> dict:
+    """The metrics of one predictor's :func:`scene_results` (module docstring): ``by_speed_kmh``
+    {speed: {...}}, ``false_activation_rate`` (+ interval), ``false_warning_rate`` and the
+    issue's goals."""
+    rng = np.random.default_rng(seed)
+    by = {}
+    for v, g in res.groupby("speed_kmh"):                 # six speeds: one entry each
+        it, non = g[g.intruding], g[~g.intruding]
+        imp = it.impact_speed_kmh.to_numpy()
+        n_fa = int((non.aeb_frame >= 0).sum())
+        by[f"{v:g}"] = {
+            "n_intruding": int(len(it)), "n_non_intruding": int(len(non)),
+            "avoided_rate": float(it.avoided.mean()) if len(it) else None,
+            "avoided_rate_ci95": wilson(int(it.avoided.sum()), len(it)),
+            "impact_speed_kmh_mean": float(imp.mean()) if len(it) else None,
+            "impact_speed_kmh_ci95": _boot_mean(imp, n_bootstrap, rng),
+            "impact_speed_kmh_no_aeb": float(v),
+            "impact_speed_reduction_kmh": float(v - imp.mean()) if len(it) else None,
+            "warned_rate": float(it.lead_time_s.notna().mean()) if len(it) else None,
+            "lead_time_s_median": _median(it.lead_time_s),
+            "aeb_lead_time_s_median": _median(it.aeb_lead_time_s),
+            "visible_to_warning_s_median": _median(it.visible_to_warning_s),
+            "false_activation_rate": n_fa / len(non) if len(non) else None,
+        }
+    it, non = res[res.intruding], res[~res.intruding]
+    n_fa, n_fw = int((non.aeb_frame >= 0).sum()), int((non.warn_frame >= 0).sum())
+    low = it[it.speed_kmh <= 40]
+    high = [by[k]["impact_speed_reduction_kmh"] for k in by if float(k) >= 50
+            and by[k]["impact_speed_reduction_kmh"] is not None]
+    far = n_fa / len(non) if len(non) else None
+    return {
+        "by_speed_kmh": by,
+        "n_intruding": int(len(it)), "n_non_intruding": int(len(non)),
+        "avoided_rate": float(it.avoided.mean()) if len(it) else None,
+        "avoided_rate_ci95": wilson(int(it.avoided.sum()), len(it)),
+        "false_activation_rate": far,
+        "false_activation_rate_ci95": wilson(n_fa, len(non)),
+        "false_warning_rate": n_fw / len(non) if len(non) else None,
+        "lead_time_s_median": _median(it.lead_time_s),
+        "goals": {
+            "no_collision_up_to_40kmh": bool(len(low) and low.avoided.all()),
+            "avoided_rate_up_to_40kmh": float(low.avoided.mean()) if len(low) else None,
+            "impact_speed_reduction_50_60_kmh_min": min(high) if high else None,
+            "impact_speed_reduction_ge_20kmh_at_50_60": bool(high and min(high) >= 20.0),
+            "false_activation_le_1pct": bool(far is not None and far <= 0.01),
+        },
+    }
+
+
+def operating_curve(p: np.ndarray, info: SceneInfo, impact_kmh: np.ndarray,
+                    thresholds: np.ndarray) -> pd.DataFrame:
+    """AEB threshold swept: per threshold the avoided rate and mean impact speed (intruding
+    scenes) and the false-activation rate (non-intruding). Vectorised over scenes and
+    thresholds."""
+    trig = trigger_frames(p, thresholds)                                   # (S, N)
+    imp = np.take_along_axis(impact_kmh, trig, axis=1)                     # (S, N)
+    it, non = info.intruding, ~info.intruding
+    return pd.DataFrame({
+        "threshold": thresholds,
+        "avoided_rate": np.isnan(imp[it]).mean(0) if it.any() else np.nan,
+        "impact_speed_kmh_mean": np.nan_to_num(imp[it], nan=0.0).mean(0) if it.any() else np.nan,
+        "false_activation_rate": (trig[non] < p.shape[1]).mean(0) if non.any() else np.nan,
+    })
+
+
+def ncap_grid(res: pd.DataFrame) -> pd.DataFrame:
+    """Euro NCAP-shaped grid of the intruding scenes: per (speed, impact point) the scenes,
+    those avoided, the mean impact speed, its colour band and the mean cell score of the
+    scenes (:func:`blindspot.safety.ncap.ncap_band`)."""
+    it = res[res.intruding].copy()
+    names, score = ncap_band(it.speed_kmh.to_numpy(), it.impact_speed_kmh.to_numpy())
+    it["score"] = score
+    g = it.groupby(["speed_kmh", "impact_pct"])
+    out = g.agg(n=("scene", "size"), n_avoided=("avoided", "sum"),
+                impact_speed_kmh_mean=("impact_speed_kmh", "mean"),
+                score=("score", "mean")).reset_index()
+    out["band"] = ncap_band(out.speed_kmh.to_numpy(), out.impact_speed_kmh_mean.to_numpy())[0]
+    return out

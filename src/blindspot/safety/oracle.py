@@ -1,0 +1,105 @@
+"""The "oracle association" reference tracks: each pedestrian's own measured points (associated by
+their truth label, so no association errors and no clutter tracks), filtered by a constant-velocity
+Kalman filter (:func:`blindspot.traj.baselines.kalman_filter`, :func:`~blindspot.traj.baselines.cv_model`).
+
+An upper bound for a real tracker on the same points (it knows which point is whose), kept as a
+reference row of the safety results, never as the headline. The output has the schema of
+``blindspot.track.track_points`` (one row per live track and frame): ``group``, ``frame``,
+``time_s``, ``track_id``, ``x_m``, ``y_m``, ``vx_mps``, ``vy_mps``, ``cov_xx``, ``cov_xy``,
+``cov_yy``, ``cov_vxvx``, ``cov_vxvy``, ``cov_vyvy``, ``confirmed``, ``coasting`` (plus
+``pedestrian``, the truth label).
+
+Track management: a track starts at a pedestrian's first point (prior: that position, zero
+velocity, ``init_vel_std_mps``), is confirmed from its ``confirm_points``-th point, coasts
+(prediction only) through frames without a point and is deleted after ``max_coast_frames``
+such frames in a row; a pedestrian seen again later starts a new track.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+from blindspot.safety.config import OracleConfig
+from blindspot.traj.baselines import cv_model, kalman_filter
+
+__all__ = ["TRACK_COLUMNS", "oracle_tracks"]
+
+TRACK_COLUMNS = ("group", "frame", "time_s", "track_id", "x_m", "y_m", "vx_mps", "vy_mps",
+                 "cov_xx", "cov_xy", "cov_yy", "cov_vxvx", "cov_vxvy", "cov_vyvy", "confirmed",
+                 "coasting")
+
+
+def oracle_tracks(points: pd.DataFrame, cfg: OracleConfig, frame_period_s: float,
+                  last_frame: int | dict | None = None, where: str = "points") -> pd.DataFrame:
+    """Tracks of the measured points of each (scene, pedestrian).
+
+    points: columns scene, pedestrian, frame (int), x_m, y_m (world frame, m); one row per
+    pedestrian and frame at most. last_frame: no track row after this frame (the scenes' end;
+    an int, or a dict scene -> frame); None = no limit. Returns a DataFrame of :data:`TRACK_COLUMNS` + ``pedestrian`` sorted by
+    group, track_id, frame. Raises ValueError naming ``where`` for missing columns or duplicate
+    (scene, pedestrian, frame) rows.
+    """
+    need = {"scene", "pedestrian", "frame", "x_m", "y_m"}
+    missing = sorted(need - set(points.columns))
+    if missing:
+        raise ValueError(f"{where}: missing columns {missing}")
+    p = points.sort_values(["scene", "pedestrian", "frame"]).reset_index(drop=True)
+    if p.duplicated(["scene", "pedestrian", "frame"]).any():
+        raise ValueError(f"{where}: more than one point per (scene, pedestrian, frame)")
+    if p.empty:
+        return pd.DataFrame(columns=[*TRACK_COLUMNS, "pedestrian"])
+    # a new track where the pedestrian changes or after more than max_coast_frames misses
+    key = p.scene + "\x00" + p.pedestrian
+    gap = p.frame.diff().to_numpy()
+    new = (key != key.shift()).to_numpy() | (gap - 1 > cfg.max_coast_frames)
+    tid = np.cumsum(new) - 1                                             # global track index
+    f0 = p.frame.groupby(tid).min().to_numpy()
+    f1 = p.frame.groupby(tid).max().to_numpy()
+    end = f1 + cfg.max_coast_frames
+    if isinstance(last_frame, dict):           # per scene
+        scene0 = p.scene.to_numpy()[np.flatnonzero(new)]
+        end = np.minimum(end, np.array([last_frame[s] for s in scene0]))
+    elif last_frame is not None:
+        end = np.minimum(end, last_frame)
+    n = end - f0 + 1                                                     # rows per track
+    B, T = len(f0), int(n.max())
+    obs = np.full((B, T, 2), np.nan)
+    obs[tid, p.frame.to_numpy() - f0[tid]] = p[["x_m", "y_m"]].to_numpy()
+    F, Q, H, R = cv_model(frame_period_s, cfg.process_psd, cfg.meas_std_m)
+    m0 = np.hstack([obs[:, 0], np.zeros((B, 2))])
+    P0 = np.diag([cfg.meas_std_m**2] * 2 + [cfg.init_vel_std_mps**2] * 2)
+    res = kalman_filter(obs, F, Q, H, R, m0, P0)
+    live = np.arange(T)[None, :] < n[:, None]                            # (B, T)
+    b, t = np.nonzero(live)
+    seen = np.isfinite(obs).all(-1)
+    count = np.cumsum(seen, axis=1)
+    m, P = res.means[b, t], res.covs[b, t]
+    first = np.flatnonzero(new)
+    scene = p.scene.to_numpy()[first][b]
+    # track ids numbered 0.. within each scene, in order of appearance
+    scene_first = pd.Series(p.scene.to_numpy()[first])
+    local = scene_first.groupby(scene_first).cumcount().to_numpy()
+    frame = f0[b] + t
+    out = pd.DataFrame({
+        "group": scene, "frame": frame, "time_s": frame * frame_period_s,
+        "track_id": local[b], "x_m": m[:, 0], "y_m": m[:, 1], "vx_mps": m[:, 2],
+        "vy_mps": m[:, 3], "cov_xx": P[:, 0, 0], "cov_xy": P[:, 0, 1], "cov_yy": P[:, 1, 1],
+        "cov_vxvx": P[:, 2, 2], "cov_vxvy": P[:, 2, 3], "cov_vyvy": P[:, 3, 3],
+        "confirmed": count[b, t] >= cfg.confirm_points, "coasting": ~seen[b, t],
+        "pedestrian": p.pedestrian.to_numpy()[first][b],
+    })
+    return out.sort_values(["group", "track_id", "frame"]).reset_index(drop=True)
+
+
+def visible_truth_points(truth: pd.DataFrame, meas_std_m: float, seed: int) -> pd.DataFrame:
+    """The points an ideal detector would give: every pedestrian's true reference point at every
+    frame its line of sight is clear (``occluded`` False), plus white Gaussian noise of
+    ``meas_std_m`` per coordinate (one generator seeded by ``seed``). Columns scene, pedestrian,
+    frame, time_s, x_m, y_m: the input of :func:`oracle_tracks` for the "visible truth"
+    reference (perception removed as a cause: what the warning logic does when the pedestrian
+    is seen whenever visible)."""
+    v = truth.loc[~truth.occluded.astype(bool), ["scene", "pedestrian", "frame", "time_s",
+                                                "x_m", "y_m"]].reset_index(drop=True)
+    noise = np.random.default_rng(seed).normal(0.0, meas_std_m, (len(v), 2))
+    return v.assign(x_m=v.x_m + noise[:, 0], y_m=v.y_m + noise[:, 1])

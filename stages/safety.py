@@ -1,0 +1,111 @@
+"""safety: collision risk, warning, AEB and the Euro NCAP-style outcome of the Monte-Carlo
+driving scenes (issue 12; blindspot.safety.assess).
+
+Predictors: none (blindspot.traj.stationary, its error model calibrated here on the calibration
+stage's validation pairs with the same settings), constant velocity, Kalman and the scene LSTM
+(their calibrated distributions from data/calibration/models.json; the LSTM's short histories
+completed as warning.lstm_history says). Inputs (driving_track stage): the tracker's tracks (the
+headline), the oracle-association and visible-truth reference tracks.
+"""
+
+import blindspot  # noqa: F401  first: pins the CPU kernels before numpy loads (blindspot.kernels)
+import json
+
+import numpy as np
+import pandas as pd
+
+from blindspot import experiment
+from blindspot.cli import main_stage
+from blindspot.io import write_json, write_parquet
+from blindspot.safety.assess import assess
+from blindspot.safety.predict import BackfilledHistory
+from blindspot.safety.risk import EgoShape
+from blindspot.safety.config import WarningConfig
+from blindspot.stage import StageResult
+from blindspot.traj.calibration import calibrate, from_record, path_pairs
+from blindspot.traj.lstm import LSTMPredictor
+from blindspot.traj.paths import table_to_arrays
+from blindspot.traj.stationary import Stationary
+from blindspot.traj.windows import WindowSet
+
+
+def _predictors(cfg, ctx, w):
+    """name -> calibrated probabilistic predictor (module docstring)."""
+    import torch
+
+    torch.set_num_threads(1)
+    c = experiment.calibration(cfg)
+    lstm = LSTMPredictor.load(ctx.dep("model.pt"))
+    records = json.loads(ctx.dep("models.json").read_text())
+    base = experiment.predictors(cfg, lstm)
+    out = {}
+    for name in w.predictors:
+        if name == "none":
+            truth, measured, _ = table_to_arrays(pd.read_parquet(ctx.dep("paths.parquet")))
+            val = np.unique(WindowSet.load(ctx.dep("val.parquet")).path_id)
+            hist, fut = path_pairs(measured[val], truth[val], experiment.dataset(cfg).window,
+                                   c.horizon_frames, c.stride)
+            out[name] = calibrate({"none": Stationary()}, hist, fut, scale_method=c.scale_method,
+                                  scale_level=c.scale_level,
+                                  cv_fit_points=experiment.evaluation(cfg).cv_fit_points)["none"]
+            continue
+        if name not in records or name not in base:
+            raise ValueError(f"config key 'warning.predictors' lists {name!r}: no calibrated "
+                             f"distribution in {ctx.dep('models.json')} ({sorted(records)})")
+        p = from_record(records[name], base[name], name)
+        out[name] = (BackfilledHistory(p, lstm.window, w.lstm_history)
+                     if name == "lstm" else p)
+    return out
+
+
+def run(cfg, ctx):
+    w = WarningConfig.from_mapping(cfg.warning)
+    group, _ = experiment.scenarios(cfg)
+    dt = float(experiment.driving_radar(cfg).frame_period_s)
+    if abs(dt - float(experiment.radar(cfg).frame_period_s)) > 1e-9:
+        raise ValueError(f"config keys 'driving_radar.frame_period_s' = {dt} and "
+                         f"'radar.frame_period_s' = {cfg.radar.frame_period_s}: the predictors "
+                         "were calibrated at the paper radar's frame period; expected equal")
+    truth = pd.read_parquet(ctx.dep("truth.parquet"))
+    meta = json.loads(ctx.dep("scenes.json").read_text())
+    tracks = {"tracker": pd.read_parquet(ctx.dep("tracks.parquet")),
+              **{name: pd.read_parquet(ctx.dep(f"tracks_{name}.parquet"))
+                 for name in ("oracle", "visible_truth")}}
+    bodies = {b.name: (b.length_m, b.width_m, b.ref_from_front_m) for b in group.bodies}
+    res = assess(truth, meta, tracks, _predictors(cfg, ctx, w), w, bodies=bodies,
+                 shape=EgoShape(group.ego.width_m, group.ego.length_m), frame_period_s=dt,
+                 figure_scene=group.figure_scene,
+                 only={"visible_truth": w.reference_predictors,
+                       "oracle": w.reference_predictors})
+    write_parquet(ctx.out("risk.parquet"), res.risk)
+    write_parquet(ctx.out("scene_outcomes.parquet"), res.scenes)
+    write_parquet(ctx.out("operating.parquet"), res.curves)
+    write_parquet(ctx.out("ncap_grid.parquet"), res.grid)
+    write_parquet(ctx.out("timeline.parquet"), res.timeline)
+    write_json(ctx.out("safety.json"), res.metrics)
+    logged = {}
+    for name, m in res.metrics.items():
+        logged[name] = {"by_input": {inp: {"avoided_rate": v["avoided_rate"],
+                                           "false_activation_rate": v["false_activation_rate"]}
+                                     for inp, v in m["by_input"].items()},"false_activation_rate": m["false_activation_rate"],
+                        "avoided_rate": m["avoided_rate"],
+                        "by_speed_kmh": {k: {kk: v[kk] for kk in ("avoided_rate",
+                                                                   "impact_speed_kmh_mean",
+                                                                   "lead_time_s_median")}
+                                         for k, v in m["by_speed_kmh"].items()}}
+        print(f"safety {name}: avoided {m['avoided_rate']}, false activations "
+              f"{m['false_activation_rate']}; impact km/h by speed "
+              + ", ".join(f"{k}: {v['impact_speed_kmh_mean']:.1f}"
+                          for k, v in m["by_speed_kmh"].items()))
+    return StageResult(metrics=_numeric(logged))
+
+
+def _numeric(d):
+    """Drop None leaves (MLflow logs numbers only)."""
+    if isinstance(d, dict):
+        return {k: _numeric(v) for k, v in d.items() if v is not None}
+    return d
+
+
+if __name__ == "__main__":
+    main_stage(run, "safety")

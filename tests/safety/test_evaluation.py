@@ -1,0 +1,83 @@
+"""Decisions and metrics: the first frame a threshold is reached (vectorised over thresholds),
+the operating characteristic's ends, the oracle tracks' schema and track management, the
+warning group's validation naming its keys."""
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from blindspot.safety.config import OracleConfig, WarningConfig
+from blindspot.safety.evaluation import SceneInfo, operating_curve, scene_results, trigger_frames
+from blindspot.safety.oracle import TRACK_COLUMNS, oracle_tracks
+from blindspot.safety.predict import BackfilledHistory, track_histories
+from blindspot.typed_config import ConfigError
+
+
+def test_trigger_frames_first_reach_and_never():
+    p = np.array([[0.0, 0.3, 0.2, 0.8], [0.1, 0.1, 0.1, 0.1]])
+    got = trigger_frames(p, np.array([0.05, 0.25, 0.5, 0.9]))
+    assert got.tolist() == [[1, 1, 3, 4], [0, 4, 4, 4]]
+
+
+def _info(n_int, n_non):
+    S = n_int + n_non
+    return SceneInfo(np.array([f"s{i}" for i in range(S)]), np.full(S, 30.0),
+                     np.r_[np.ones(n_int, bool), np.zeros(n_non, bool)], np.full(S, 50.0),
+                     np.r_[np.full(n_int, 2.0), np.full(n_non, np.nan)], np.zeros(S))
+
+
+def test_operating_curve_ends_and_scene_results():
+    info = _info(2, 2)
+    p = np.array([[0, 0.9, 0.9], [0, 0, 0.4], [0.2, 0.2, 0.2], [0, 0, 0]], float)
+    # outcome table: a request at frame 0 or 1 avoids, at frame 2 or never hits at 20/30 km/h
+    impact = np.array([[np.nan, np.nan, 20.0, 30.0]] * 4)
+    curve = operating_curve(p, info, impact, np.array([0.1, 0.3, 0.95]))
+    assert curve.avoided_rate.tolist() == [0.5, 0.5, 0.0]
+    assert curve.false_activation_rate.tolist() == [0.5, 0.0, 0.0]
+    res = scene_results(p, info, impact, np.array([0.0, 0.1, 0.2]), warning_threshold=0.3,
+                        aeb_threshold=0.5, decision_delay_s=0.1)
+    assert res.avoided.tolist() == [True, False, False, False]
+    assert res.impact_speed_kmh.tolist()[:2] == [0.0, 30.0]
+    assert res.lead_time_s[0] == pytest.approx(2.0 - 0.2)           # warned at frame 1 + 0.1 s
+    assert res.warn_frame.tolist() == [1, 2, -1, -1]
+
+
+def test_oracle_tracks_schema_confirmation_coasting_and_restart():
+    frames = [0, 1, 2, 3, 10, 11, 12]
+    pts = pd.DataFrame({"scene": "a", "pedestrian": "p0", "frame": frames,
+                        "x_m": 1.0 - 0.1 * np.array(frames), "y_m": 0.0})
+    tr = oracle_tracks(pts, OracleConfig(0.5, 0.05, 2.0, 3, 2), 0.1, last_frame=13)
+    assert list(tr.columns[:len(TRACK_COLUMNS)]) == list(TRACK_COLUMNS)
+    first = tr[tr.track_id == 0]
+    assert first.frame.tolist() == [0, 1, 2, 3, 4, 5]               # two coasted frames
+    assert first.confirmed.tolist() == [False, False, True, True, True, True]
+    assert first.coasting.tolist() == [False] * 4 + [True] * 2
+    assert tr[tr.track_id == 1].frame.tolist() == [10, 11, 12, 13]   # a new track after the gap
+    assert first.vx_mps.iloc[3] == pytest.approx(-1.0, abs=0.15)     # -0.1 m per 0.1 s frame
+
+
+def test_histories_are_right_aligned_and_backfilled_at_constant_velocity():
+    tr = pd.DataFrame({"group": "a", "track_id": 0, "frame": [5, 6, 7],
+                       "x_m": [0.0, 0.1, 0.2], "y_m": 0.0})
+    h = track_histories(tr, 4)
+    assert np.isnan(h[0, :3]).all() and h[0, 3, 0] == 0.0
+    assert h[2, 1:, 0].tolist() == pytest.approx([0.0, 0.1, 0.2])
+    filled = BackfilledHistory(None, 6, "cv_backfill", k=2).fill(h[2:])
+    assert filled[0, :, 0] == pytest.approx([-0.3, -0.2, -0.1, 0.0, 0.1, 0.2])
+    held = BackfilledHistory(None, 6, "hold_first").fill(h[2:])
+    assert held[0, :, 0] == pytest.approx([0.0, 0.0, 0.0, 0.0, 0.1, 0.2])
+
+
+def test_warning_config_errors_name_the_key():
+    from omegaconf import OmegaConf
+    from pathlib import Path
+
+    base = OmegaConf.to_container(OmegaConf.load(
+        Path(__file__).resolve().parents[2] / "conf" / "warning" / "default.yaml"))
+    WarningConfig.from_mapping(base)
+    with pytest.raises(ConfigError, match="warning.warning_threshold"):
+        WarningConfig.from_mapping({**base, "warning_threshold": 0.9, "aeb_threshold": 0.5})
+    with pytest.raises(ConfigError, match="warning.aeb.decel_mps2"):
+        WarningConfig.from_mapping({**base, "aeb": {**base["aeb"], "decel_mps2": -1.0}})
+    with pytest.raises(ConfigError, match="warning.predictors"):
+        WarningConfig.from_mapping({**base, "predictors": ["oracle"]})

@@ -1,0 +1,68 @@
+"""moving_tracks: which of the tracker's tracks (every radar point, static world included) the
+warning assesses: from a track's first confirmed frame above the speed on, causally."""
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from blindspot.safety.predict import moving_tracks
+
+
+def _tracks():
+    f = np.arange(6)
+    walk = pd.DataFrame({"group": "s0", "track_id": 1, "frame": f,
+                         "vx_mps": [0.0, 0.1, 0.3, 0.9, 1.4, 0.0],   # starts, walks, stops
+                         "vy_mps": 0.0, "confirmed": [False, True, True, True, True, True]})
+    walk.loc[0, "vx_mps"] = 3.0                                         # tentative: ignored
+    car = pd.DataFrame({"group": "s0", "track_id": 2, "frame": f, "vx_mps": 0.05,
+                        "vy_mps": -0.05, "confirmed": True})              # a parked car
+    early = pd.DataFrame({"group": "s1", "track_id": 1, "frame": f, "vx_mps": 1.4,
+                          "vy_mps": 0.0, "confirmed": [False, False, True, True, True, True]})
+    return pd.concat([walk, car, early], ignore_index=True).assign(cov_vxvx=0.01, cov_vxvy=0.0,
+                                                                   cov_vyvy=0.01)
+
+
+def test_moving_from_first_confirmed_fast_frame_on_and_latched():
+    t = _tracks()
+    m = moving_tracks(t, 0.5)
+    assert m[:6].tolist() == [False, False, False, True, True, True]   # stays moving at the kerb
+    assert not m[6:12].any()                                            # the static world
+    assert m[12:].tolist() == [False, False, True, True, True, True]   # not before confirmed
+
+
+def test_row_order_does_not_matter():
+    t = _tracks()
+    perm = np.random.default_rng(0).permutation(len(t))
+    np.testing.assert_array_equal(moving_tracks(t.iloc[perm], 0.5), moving_tracks(t, 0.5)[perm])
+
+
+def test_fast_but_uncertain_is_not_moving():
+    t = _tracks().assign(cov_vxvx=0.01, cov_vxvy=0.0, cov_vyvy=0.01)
+    assert moving_tracks(t, 0.5).any()
+    # 1.4 m/s with a 1 m/s standard deviation per axis: d2 = 1.96 < 9.21 (chi2, 2 dof, 0.99)
+    assert not moving_tracks(t.assign(cov_vxvx=1.0, cov_vyvy=1.0), 0.5).any()
+
+
+def test_missing_column_is_named():
+    with pytest.raises(ValueError, match="vx_mps"):
+        moving_tracks(_tracks().drop(columns="vx_mps"), 0.5)
+
+
+def test_risk_table_scores_moving_rows_only():
+    from blindspot.safety.predict import risk_table
+    from blindspot.safety.risk import EgoShape
+    from blindspot.traj.distribution import GaussianForecast
+
+    class Fixed:                                    # a forecast at the ego's bumper, sure
+        def predict_distribution(self, h, horizon):
+            mean = np.zeros((len(h), horizon, 2))
+            return GaussianForecast(mean, np.broadcast_to(0.01 * np.eye(2),
+                                                          (len(h), horizon, 2, 2)).copy())
+
+    t = _tracks().assign(x_m=0.0, y_m=0.0)
+    t["moving"] = moving_tracks(t, 0.5)
+    ego = t[["group", "frame"]].drop_duplicates().assign(ego_x_m=0.0, ego_y_m=-1.0,
+                                                         ego_yaw_deg=0.0, ego_speed_mps=5.0)
+    r = risk_table(t, ego, {"x": Fixed()}, horizon=5, dt_s=0.1, shape=EgoShape(1.8, 4.5),
+                   margin_m=0.3, method="max_step", max_len=5)
+    assert len(r) == int(t.moving.sum()) and (r.p_collision > 0.9).all()
