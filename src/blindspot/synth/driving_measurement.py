@@ -205,7 +205,23 @@ _BATCH_STATE: dict | None = None    # measure_driving's inputs, read by _measure
 
 def _measure_batch(span: tuple[int, int, int]) -> dict[str, np.ndarray] | None:
     """Steps 2-5 of the module docstring for the frames ``lo:hi`` (batch ``b``) of the flat
-    scatterer table in ``_BATCH_STATE``: every detection's columns (None without detections)."""
+    scatterer table in ``_BATCH_STATE``: every detection's columns (None without detections).
+
+    torch runs on one thread here (restored after): a forked worker whose parent had used
+    torch's OpenMP pool hangs in its first parallel region (seen in separable_channel_energy's
+    complex bmm after an in-process measurement), and on two cores the pool only contends."""
+    import torch
+
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    try:
+        return _measure_batch_1(span)
+    finally:
+        torch.set_num_threads(threads)
+
+
+def _measure_batch_1(span: tuple[int, int, int]) -> dict[str, np.ndarray] | None:
+    """:func:`_measure_batch` on torch's current threads."""
     from blindspot.radar.rd_patch import (
         PointScatterers, beat_frequency_hz, doppler_frequency_hz, patch_terms,
         separable_channel_energy,
