@@ -5,12 +5,16 @@ whole Monte-Carlo set.
 
     PYTHONPATH=src python benchmarks/bench_driving.py [--speeds 20 40 60] [--scene cpfa] [--mc]
     PYTHONPATH=src python benchmarks/bench_driving.py --stage-times [--tracking-uri URI]
+    PYTHONPATH=src python benchmarks/bench_driving.py --every 23 [--jobs 2]
 
 Prints one line per statistic (full, fast, relative difference; both chains' detections
 grouped alike) and, with --mc, the wall time of the fast measurement of every Monte-Carlo scene.
 ``--stage-times`` instead prints the wall time of the last run of each driving stage, from the
 MLflow runs the stage runner records (start and end of each stage run; default store: the
-repository's mlflow.db), with the machine's load average now.
+repository's mlflow.db), with the machine's load average now. ``--every N`` times the
+driving_measure stage's work (:func:`measure_driving`) on every N-th of its scenes (named and
+Monte-Carlo, in the stage's order; every frame) with ``--jobs`` worker processes: wall, CPU of
+this process and of its workers, frames and points, and the load average.
 """
 
 from __future__ import annotations
@@ -41,9 +45,15 @@ def main() -> None:
     ap.add_argument("--stage-times", action="store_true",
                     help="print the last MLflow-recorded wall time of each driving stage")
     ap.add_argument("--tracking-uri", default="sqlite:///mlflow.db")
+    ap.add_argument("--every", type=int, default=None,
+                    help="time the stage's measurement of every N-th of its scenes")
+    ap.add_argument("--jobs", type=int, default=1, help="worker processes (with --every)")
     args = ap.parse_args()
     if args.stage_times:
         stage_times(args.tracking_uri)
+        return
+    if args.every:
+        stage_subset_time(args.every, args.jobs)
         return
     cfg = compose(config_dir="conf")
     group, named = ex.scenarios(cfg)
@@ -113,6 +123,38 @@ def main() -> None:
                               "wall_s": time.perf_counter() - t0}
         print(f"Monte-Carlo set: {len(mc)} scenes, {len(m)} points, "
               f"{out['monte_carlo']['wall_s']:.0f} s")
+    print(json.dumps(out))
+
+
+def stage_subset_time(every: int, jobs: int) -> None:
+    """Wall and CPU seconds of :func:`measure_driving` on every ``every``-th scene of the
+    driving_measure stage (its scene list: the named scenes, then the Monte-Carlo draws)."""
+    import os
+    import resource
+
+    cfg = compose(config_dir="conf")
+    group, named = ex.scenarios(cfg)
+    radar = ex.driving_radar(cfg)
+    scenes = (list(named.values()) + draw_scenarios(group, named[group.figure_scene]))[::every]
+    load0 = os.getloadavg()
+    t0, c0 = time.perf_counter(), time.process_time()
+    k0 = resource.getrusage(resource.RUSAGE_CHILDREN)
+    res = measure_driving(scenes, group, radar, ex.cfar(cfg), ex.doa(cfg), ex.detect(cfg),
+                          ex.ego_motion(cfg), adc_headroom_db=ex.sim(cfg).adc_headroom_db,
+                          jobs=jobs)
+    wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+    k1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu_workers = (k1.ru_utime - k0.ru_utime) + (k1.ru_stime - k0.ru_stime)
+    n_frames = int(res.points.groupby("scene").frame.nunique().sum())
+    load1 = os.getloadavg()
+    out = {"n_scenes": len(scenes), "n_frames_with_points": n_frames,
+           "n_points": len(res.points), "n_measured": len(res.measured), "jobs": jobs,
+           "wall_s": wall, "cpu_s": cpu, "cpu_workers_s": cpu_workers,
+           "load_average_1min_before_after": [load0[0], load1[0]], "cores": os.cpu_count()}
+    print(f"measure_driving on every {every}-th stage scene ({len(scenes)} scenes, "
+          f"{n_frames} frames with points, {len(res.points)} points), jobs={jobs}: "
+          f"wall {wall:.1f} s, CPU {cpu:.1f} s here + {cpu_workers:.1f} s in workers "
+          f"(load {load0[0]:.1f} -> {load1[0]:.1f} on {os.cpu_count()} cores)")
     print(json.dumps(out))
 
 

@@ -59,6 +59,7 @@ from blindspot.dsp.detections import local_maxima
 from blindspot.dsp.driving import unwrap_and_angles
 from blindspot.dsp.ego_motion import odometry_speed
 from blindspot.dsp.points import group_points
+from blindspot.parallel import parallel_map
 from blindspot.radar.array import array_for
 from blindspot.radar.config import RadarConfig
 from blindspot.radar.driving import (
@@ -199,10 +200,99 @@ def _near_snapshots(setup, sc, bi, ki, di, tables, rng) -> tuple[np.ndarray, np.
     return x + np.take_along_axis(blk, cell[:, None, :], axis=2), top
 
 
+_BATCH_STATE: dict | None = None    # measure_driving's inputs, read by _measure_batch
+
+
+def _measure_batch(span: tuple[int, int, int]) -> dict[str, np.ndarray] | None:
+    """Steps 2-5 of the module docstring for the frames ``lo:hi`` (batch ``b``) of the flat
+    scatterer table in ``_BATCH_STATE``: every detection's columns (None without detections).
+
+    torch runs on one thread here (restored after): a forked worker whose parent had used
+    torch's OpenMP pool hangs in its first parallel region (seen in separable_channel_energy's
+    complex bmm after an in-process measurement), and on two cores the pool only contends."""
+    import torch
+
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    try:
+        return _measure_batch_1(span)
+    finally:
+        torch.set_num_threads(threads)
+
+
+def _measure_batch_1(span: tuple[int, int, int]) -> dict[str, np.ndarray] | None:
+    """:func:`_measure_batch` on torch's current threads."""
+    from blindspot.radar.rd_patch import (
+        PointScatterers, beat_frequency_hz, doppler_frequency_hz, patch_terms,
+        separable_channel_energy,
+    )
+
+    b, lo, hi = span
+    st = _BATCH_STATE
+    setup, chain, radar, ego, n_q = st["setup"], st["chain"], st["radar"], st["ego"], st["n_q"]
+    tables = st["tables"]
+    # the batch's own slots: the table is padded to the widest scene of all (three pedestrians'
+    # parts, the most cluttered street); padding slots (label -2, rcs 1e-30 m^2 at -400 dB)
+    # add nothing above float64 rounding, and the coherent sum's cost grows as its square
+    lab = st["label"][lo:hi]
+    real = (lab != -2).any(axis=0)
+    n_qb = int(np.flatnonzero(real[:n_q]).max(initial=-1)) + 1
+    n_kb = int(np.flatnonzero(real[n_q:]).max(initial=-1)) + 1
+    slots = np.concatenate([np.arange(max(n_qb, 1)), n_q + np.arange(max(n_kb, 1))])
+    label = lab[:, slots]
+    pos, v3 = st["pos"][lo:hi][:, slots], st["v3"][lo:hi][:, slots]
+    rcs, att = st["rcs"][lo:hi][:, slots], st["att"][lo:hi][:, slots]
+    n_q = max(n_qb, 1)
+    n_rows, vmax, m = chain.range_axis_m.size, radar.max_velocity_mps, radar.n_chirps
+    n_ch = radar.n_tx * radar.n_rx
+    rows_k = np.arange(n_rows)
+    cols_d = np.arange(m) - m // 2                       # zero-centred Doppler columns
+    sc = point_scatterers(pos, v3, rcs, radar, output_scale=setup.output_scale)
+    amp = sc.amplitude * 10 ** (-att / 20)
+    sc = type(sc)(sc.range_m, sc.velocity_mps, sc.azimuth_rad, amp, sc.elevation_rad)
+    # static world: power sum of every scatterer's exact response (mean over the points'
+    # relative phases), from the windows' response tables; pedestrians: coherent sum
+    nu_r = beat_frequency_hz(sc.range_m[:, n_q:], sc.velocity_mps[:, n_q:],
+                             radar) / radar.adc_rate_hz
+    nu_d = doppler_frequency_hz(sc.velocity_mps[:, n_q:], radar) * radar.loop_period_s
+    p_r = (_tone_power(tables[0], radar.n_samples, nu_r[..., None], rows_k)
+           * (np.abs(amp[:, n_q:]) ** 2)[..., None])                               # (B, S, K)
+    p_d = _tone_power(tables[1], m, nu_d[..., None], cols_d)                        # (B, S, M)
+    e_static = np.matmul(np.ascontiguousarray(p_r.transpose(0, 2, 1)), p_d) * n_ch
+    mv = PointScatterers(sc.range_m[:, :n_q], sc.velocity_mps[:, :n_q],
+                         sc.azimuth_rad[:, :n_q], amp[:, :n_q],
+                         None if sc.elevation_rad is None else sc.elevation_rad[:, :n_q])
+    r_t, d_t, c_all = patch_terms(mv, radar, chain.array, np.zeros(hi - lo, np.int64),
+                                  n_rows, setup.range_window, setup.doppler_window, "all")
+    e_move = separable_channel_energy(r_t, d_t, c_all)
+    rng = np.random.default_rng(np.random.SeedSequence([ego.seed, 31, b]))
+    power = noncoherent_power(rng, e_static + e_move, n_ch, setup.cell_noise_power)
+    mask, _, noise = chain.run_cfar(power)
+    keep = mask & chain.range_ok[None, :, None]
+    if chain.detect.peak_only:
+        keep &= local_maxima(power)
+    bi, ki, di = np.nonzero(keep)
+    pw = power[bi, ki, di]
+    o = np.lexsort((-pw, bi))                                       # per frame strongest first
+    bi, ki, di, pw = bi[o], ki[o], di[o], pw[o]
+    sel = chain.doa_budget(bi)
+    bi, ki, di, pw = bi[sel], ki[sel], di[sel], pw[sel]
+    if not bi.size:
+        return None
+    snr = 10 * np.log10(pw / noise[bi, ki, di])
+    x, top = _near_snapshots(setup, sc, bi, ki, di, tables, rng)
+    v_w = chain.velocity_axis_mps[di]
+    order, v, angle = unwrap_and_angles(x, v_w, st["odo"][lo:hi][bi], chain, vmax)
+    off = v - _static_curve(np.nan_to_num(angle), st["speed"][lo:hi][bi],
+                            st["v_lat"][lo:hi][bi])
+    return {"row": ki, "bi": bi + lo, "rng": chain.range_axis_m[ki], "ang": angle, "v": v,
+            "vw": v_w, "order": order, "off": off, "snr": snr, "src": label[bi, top]}
+
+
 def measure_driving(scenes: list[DrivingScene], group: ScenarioGroup, radar: RadarConfig,
                     cfar, doa, detect, ego, *, adc_headroom_db: float = 60.0,
                     frames: dict[str, np.ndarray] | None = None, frames_per_batch: int = 48,
-                    progress: bool = False) -> DrivingMeasurement:
+                    jobs: int = 1, progress: bool = False) -> DrivingMeasurement:
     """Every frame of ``scenes`` through the fast whole-map chain (module docstring).
 
     Args:
@@ -211,6 +301,8 @@ def measure_driving(scenes: list[DrivingScene], group: ScenarioGroup, radar: Rad
             ``ego_motion`` group (odometry model, budget, range window, static tolerance, seed).
         frames: optional {scene name: frame indices} to measure (default every frame).
         frames_per_batch: frames synthesised together (part of the random stream).
+        jobs: worker processes over the batches (:func:`blindspot.parallel.parallel_map`;
+            the result does not depend on it).
 
     Returns:
         :class:`DrivingMeasurement`: ``points`` one row per detection (POINT_COLUMNS; ``source``
@@ -222,20 +314,12 @@ def measure_driving(scenes: list[DrivingScene], group: ScenarioGroup, radar: Rad
     Raises:
         ValueError: frame indices outside a scene.
     """
-    from tqdm.auto import tqdm
-
-    from blindspot.radar.rd_patch import (
-        PointScatterers, beat_frequency_hz, doppler_frequency_hz, patch_terms,
-        separable_channel_energy,
-    )
-
     array = array_for(radar)
     base = DetectionChain.from_config(radar, array, cfar, doa, detect)
     chain = DetectionChain(radar, array, base.cfar, base.doa,
                            replace(base.detect, max_range_m=ego.max_range_m,
                                    max_detections=ego.max_detections))
     setup = _reduced_setup(chain, 8, adc_headroom_db)     # (core rows unused: whole maps)
-    n_rows, vmax = chain.range_axis_m.size, radar.max_velocity_mps
     # ---- every scatterer of every frame, one flat table (padded along the scatterer axis)
     per = []
     for si, sc in enumerate(scenes):       # a few hundred scenes; each vectorised over frames
@@ -292,57 +376,23 @@ def measure_driving(scenes: list[DrivingScene], group: ScenarioGroup, radar: Rad
     v_lat = np.array([-np.radians(s.yaw_rate_deg_s) * group.ego.rear_axle_to_radar_m
                       for s in scenes])[scene_i]
     n = len(fidx)
-    cols = {k: [] for k in ("row", "bi", "rng", "ang", "v", "vw", "order", "off", "snr", "src")}
-    m = radar.n_chirps
-    n_ch = radar.n_tx * radar.n_rx
     tables = (_response_table(setup.range_window), _response_table(setup.doppler_window))
-    rows_k = np.arange(n_rows)
-    cols_d = np.arange(m) - m // 2                       # zero-centred Doppler columns
-    for b, lo in enumerate(tqdm(range(0, n, frames_per_batch), disable=not progress,
-                                desc="driving frames (fast)")):
-        hi = min(lo + frames_per_batch, n)
-        sc = point_scatterers(pos[lo:hi], v3[lo:hi], rcs[lo:hi], radar,
-                              output_scale=setup.output_scale)
-        amp = sc.amplitude * 10 ** (-att[lo:hi] / 20)
-        sc = type(sc)(sc.range_m, sc.velocity_mps, sc.azimuth_rad, amp, sc.elevation_rad)
-        # static world: power sum of every scatterer's exact response (mean over the points'
-        # relative phases), from the windows' response tables; pedestrians: coherent sum
-        nu_r = beat_frequency_hz(sc.range_m[:, n_q:], sc.velocity_mps[:, n_q:],
-                                 radar) / radar.adc_rate_hz
-        nu_d = doppler_frequency_hz(sc.velocity_mps[:, n_q:], radar) * radar.loop_period_s
-        p_r = (_tone_power(tables[0], radar.n_samples, nu_r[..., None], rows_k)
-               * (np.abs(amp[:, n_q:]) ** 2)[..., None])                           # (B, S, K)
-        p_d = _tone_power(tables[1], m, nu_d[..., None], cols_d)                    # (B, S, M)
-        e_static = np.matmul(np.ascontiguousarray(p_r.transpose(0, 2, 1)), p_d) * n_ch
-        mv = PointScatterers(sc.range_m[:, :n_q], sc.velocity_mps[:, :n_q],
-                             sc.azimuth_rad[:, :n_q], amp[:, :n_q],
-                             None if sc.elevation_rad is None else sc.elevation_rad[:, :n_q])
-        r_t, d_t, c_all = patch_terms(mv, radar, chain.array, np.zeros(hi - lo, np.int64),
-                                      n_rows, setup.range_window, setup.doppler_window, "all")
-        e_move = separable_channel_energy(r_t, d_t, c_all)
-        rng = np.random.default_rng(np.random.SeedSequence([ego.seed, 31, b]))
-        power = noncoherent_power(rng, e_static + e_move, n_ch, setup.cell_noise_power)
-        mask, _, noise = chain.run_cfar(power)
-        keep = mask & chain.range_ok[None, :, None]
-        if chain.detect.peak_only:
-            keep &= local_maxima(power)
-        bi, ki, di = np.nonzero(keep)
-        pw = power[bi, ki, di]
-        o = np.lexsort((-pw, bi))                                       # per frame strongest first
-        bi, ki, di, pw = bi[o], ki[o], di[o], pw[o]
-        sel = chain.doa_budget(bi)
-        bi, ki, di, pw = bi[sel], ki[sel], di[sel], pw[sel]
-        if not bi.size:
-            continue
-        snr = 10 * np.log10(pw / noise[bi, ki, di])
-        x, top = _near_snapshots(setup, sc, bi, ki, di, tables, rng)
-        v_w = chain.velocity_axis_mps[di]
-        order, v, angle = unwrap_and_angles(x, v_w, odo[lo:hi][bi], chain, vmax)
-        off = v - _static_curve(np.nan_to_num(angle), speed[lo:hi][bi], v_lat[lo:hi][bi])
-        for k, a in (("row", ki), ("bi", bi + lo), ("rng", chain.range_axis_m[ki]), ("ang", angle),
-                     ("v", v), ("vw", v_w), ("order", order), ("off", off), ("snr", snr),
-                     ("src", label[lo:hi][bi, top])):
-            cols[k].append(a)
+    # the batches are independent (each draws its own noise from SeedSequence([seed, 31, b])),
+    # so worker processes (forked: they inherit this state) measure them in any order with the
+    # same result as in this process
+    global _BATCH_STATE
+    _BATCH_STATE = dict(pos=pos, v3=v3, rcs=rcs, att=att, label=label, odo=odo, speed=speed,
+                        v_lat=v_lat, n_q=n_q, setup=setup, chain=chain, radar=radar, ego=ego,
+                        tables=tables)
+    spans = [(b, lo, min(lo + frames_per_batch, n))
+             for b, lo in enumerate(range(0, n, frames_per_batch))]
+    try:
+        parts = parallel_map(_measure_batch, spans, jobs,
+                             progress="driving frames (fast)" if progress else None)
+    finally:
+        _BATCH_STATE = None
+    keys = ("row", "bi", "rng", "ang", "v", "vw", "order", "off", "snr", "src")
+    cols = {k: [p[k] for p in parts if p is not None] for k in keys}
     c = {k: (np.concatenate(v) if v else np.zeros(0)) for k, v in cols.items()}
     g = c["bi"].astype(np.int64)
     ok = np.isfinite(c["ang"])
