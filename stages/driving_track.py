@@ -30,12 +30,11 @@ from blindspot.io import write_json, write_parquet
 from blindspot.safety.oracle import oracle_tracks, visible_truth_points
 from blindspot.safety.predict import moving_tracks
 from blindspot.track.tracker import track_points
-from blindspot.safety.config import WarningConfig
 from blindspot.stage import StageResult
 
 
 def run(cfg, ctx):
-    w = WarningConfig.from_mapping(cfg.warning)
+    w = experiment.warning(cfg)
     dt = float(experiment.driving_radar(cfg).frame_period_s)
     measured = pd.read_parquet(ctx.dep("measured.parquet"))
     truth = pd.read_parquet(ctx.dep("truth.parquet"))

@@ -20,7 +20,6 @@ from blindspot.io import write_json, write_parquet
 from blindspot.safety.assess import assess
 from blindspot.safety.predict import BackfilledHistory
 from blindspot.safety.risk import EgoShape
-from blindspot.safety.config import WarningConfig
 from blindspot.stage import StageResult
 from blindspot.traj.calibration import calibrate, from_record, path_pairs
 from blindspot.traj.lstm import LSTMPredictor
@@ -59,7 +58,7 @@ def _predictors(cfg, ctx, w):
 
 
 def run(cfg, ctx):
-    w = WarningConfig.from_mapping(cfg.warning)
+    w = experiment.warning(cfg)
     group, _ = experiment.scenarios(cfg)
     dt = float(experiment.driving_radar(cfg).frame_period_s)
     if abs(dt - float(experiment.radar(cfg).frame_period_s)) > 1e-9:

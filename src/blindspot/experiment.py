@@ -121,6 +121,16 @@ def tracker(cfg: DictConfig):
     return _track_config().TrackerConfig.from_mapping(cfg.tracker)
 
 
+def warning(cfg: DictConfig):
+    """The collision-risk, warning and AEB settings of ``cfg.warning``: a
+    ``blindspot.safety.config.WarningConfig`` (imported when called, as :func:`_track_config`
+    explains for the tracker)."""
+    import importlib
+
+    return importlib.import_module("blindspot.safety.config").WarningConfig.from_mapping(
+        cfg.warning)
+
+
 def real_tracking(cfg: DictConfig) -> dict:
     """The real recordings of ``cfg.real_tracking``, each with its tracker settings: the
     ``tracker`` group with the record's ``tracker`` keys laid over it (errors name

@@ -75,12 +75,12 @@ class WarningConfig(TypedConfig):
     def validate(self) -> None:
         extra = sorted(set(self.reference_predictors) - set(self.predictors))
         if extra:
-            raise ConfigError("warning.reference_predictors", list(self.reference_predictors),
+            raise ConfigError("reference_predictors", list(self.reference_predictors),
                               f"a subset of warning.predictors {list(self.predictors)}")
         if len(set(self.predictors)) != len(self.predictors):
-            raise ConfigError("warning.predictors", list(self.predictors),
+            raise ConfigError("predictors", list(self.predictors),
                               "each predictor named once")
         if self.warning_threshold > self.aeb_threshold:
-            raise ConfigError("warning.warning_threshold", self.warning_threshold,
+            raise ConfigError("warning_threshold", self.warning_threshold,
                               f"at most warning.aeb_threshold = {self.aeb_threshold} (the warning "
                               "comes before or with the AEB request)")
