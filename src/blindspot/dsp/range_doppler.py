@@ -240,20 +240,17 @@ class RangeDoppler:
                 # one frame per block: 3-D blocks (channels, chirps, samples), whose strides
                 # match the plan's whatever the frame's channel count
                 shape = (f1 - f0, k_c, c, n) if k_f > 1 else (k_c, c, n)
-                if not HAVE_FFTW:
-                    buf = np.empty(shape, dtype=np.complex64)
-                    for c0 in range(0, n_ch, k_c):
-                        block = (slice(f0, f1) if k_f > 1 else f0, slice(c0, c0 + k_c))
-                        np.multiply(src[block], self._w2d, out=buf)
-                        dst[block] = sfft.fft2(buf, axes=(-2, -1), workers=self.workers)
-                    continue
-                plan = _fft2_plan(shape, self.workers, aligned=per_ch % 64 == 0)
-                buf = plan.input_array
+                plan = (_fft2_plan(shape, self.workers, aligned=per_ch % 64 == 0)
+                        if HAVE_FFTW else None)
+                buf = np.empty(shape, dtype=np.complex64) if plan is None else plan.input_array
                 for c0 in range(0, n_ch, k_c):
                     block = (slice(f0, f1) if k_f > 1 else f0, slice(c0, c0 + k_c))
                     np.multiply(src[block], self._w2d, out=buf)
-                    plan.update_arrays(buf, dst[block])
-                    plan.execute()
+                    if plan is None:  # without pyFFTW: scipy.fft on the same block
+                        dst[block] = sfft.fft2(buf, axes=(-2, -1), workers=self.workers)
+                    else:
+                        plan.update_arrays(buf, dst[block])
+                        plan.execute()
         return out
 
     def _doppler_cut(self, profiles_cm: np.ndarray) -> np.ndarray:

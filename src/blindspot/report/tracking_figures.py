@@ -53,10 +53,7 @@ def fig_tracks_against_reference(points: pd.DataFrame, tracks: pd.DataFrame,
         ax.plot(t.x_m, t.y_m, "-", color=col[tid], lw=1.6, label=f"ours, track {tid}")
         ax.plot(t.x_m.iloc[0], t.y_m.iloc[0], "o", color=col[tid], ms=5)
         ax_t.plot(t.time_s, t.x_m, "-", color=col[tid], lw=1.6)
-    ax.plot(0, 0, "k^", ms=8, label="radar")
-    ax.set_aspect("equal")
-    ax.set_xlabel(axes_labels[0])
-    ax.set_ylabel(axes_labels[1])
+    _sensor_frame(ax, axes_labels)
     leg = (f"MOTA {metrics.get('mota', float('nan')):.3f}, ID switches "
            f"{metrics.get('id_switches')}, median distance "
            f"{metrics.get('median_distance_m', float('nan')):.3f} m (gate {metrics.get('gate_m')} m)")
@@ -67,6 +64,14 @@ def fig_tracks_against_reference(points: pd.DataFrame, tracks: pd.DataFrame,
     panel_title(ax_t, 1, "x against time (colour = our id, dashed = TI)")
     fig.suptitle(title, fontsize=11)
     return fig
+
+
+def _sensor_frame(ax, axes_labels: tuple[str, str]) -> None:
+    """The radar at the origin of a bird's-eye panel in the recording's own sensor frame."""
+    ax.plot(0, 0, "k^", ms=8, label="radar")
+    ax.set_aspect("equal")
+    ax.set_xlabel(axes_labels[0])
+    ax.set_ylabel(axes_labels[1])
 
 
 def fig_track_over_points(points: pd.DataFrame, tracks: pd.DataFrame, *, title: str,
@@ -97,10 +102,7 @@ def fig_track_over_points(points: pd.DataFrame, tracks: pd.DataFrame, *, title: 
         ax_t.plot(t.time_s, t.x_m, "-", color=col[tid], lw=1.4, label=f"track {tid}")
     ax_t.scatter(moving.time_s, moving.x_m, s=3, c="0.4", lw=0, label="moving points")
     fig.colorbar(sc, ax=ax, label="time (s)")
-    ax.plot(0, 0, "k^", ms=8, label="radar")
-    ax.set_aspect("equal")
-    ax.set_xlabel(axes_labels[0])
-    ax.set_ylabel(axes_labels[1])
+    _sensor_frame(ax, axes_labels)
     leg = (f"{metrics.get('n_tracks')} confirmed track(s); longest covers "
            f"{100 * metrics.get('longest_track_coverage', np.nan):.1f} % of the walk; "
            f"{100 * metrics.get('static_points_dropped', np.nan):.0f} % of points static")
