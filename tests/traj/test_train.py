@@ -221,3 +221,30 @@ def test_rollout_errors_on_the_windows_own_futures(small_data):
     still = rollout_errors(StandStill(), val, 6)
     assert still["ade_m"] == pytest.approx(speed.mean() * 3.5, rel=1e-4)
     assert still["fde_m"] == pytest.approx(speed.mean() * 6, rel=1e-4)
+
+
+def test_fine_tuning_starts_from_the_given_network(small_data, tmp_path):
+    """init_from: zero epochs give back the starting weights exactly; training on continues from
+    them (not from a fresh draw), a checkpoint of one start does not resume another, and a network
+    of another shape is refused by name."""
+    train, val = small_data
+    net = LSTMConfig(window=W, hidden_size=16, head_hidden=16)
+    fast = TrainConfig(epochs=6, batch_size=32, lr=1e-2, seed=3, num_threads=1)
+    pre = train_lstm(train, val, net, fast, progress=False)
+    assert pre.val_rmse_m < 0.02                      # learnt constant velocity (measured 0.005)
+    same = train_lstm(train, val, net, replace(fast, epochs=0, seed=9), progress=False,
+                      init_from=pre.predictor)
+    assert_same_weights(state(pre), state(same))
+    assert evaluate(same.predictor, val)["rmse_m"] == pytest.approx(pre.val_rmse_m, rel=1e-6)
+    one = replace(fast, epochs=1, seed=9, lr=1e-3)
+    tuned = train_lstm(train, val, net, one, progress=False, init_from=pre.predictor)
+    fresh = train_lstm(train, val, net, one, progress=False)
+    # one gentle epoch keeps what the start knew; from a fresh draw it is still far off
+    assert tuned.val_rmse_m < 0.03 < fresh.val_rmse_m, (tuned.val_rmse_m, fresh.val_rmse_m)
+    train_lstm(train, val, net, one, progress=False, init_from=pre.predictor, checkpoint_dir=tmp_path)
+    with pytest.raises(ValueError, match="init"):
+        train_lstm(train, val, net, replace(one, epochs=2), progress=False, checkpoint_dir=tmp_path,
+                   resume=True)
+    with pytest.raises(ValueError, match="hidden_size"):
+        train_lstm(train, val, replace(net, hidden_size=6), one, progress=False,
+                   init_from=pre.predictor)

@@ -160,7 +160,19 @@ def _fingerprint(train: WindowSet, val: WindowSet) -> str:
     return h.hexdigest()
 
 
-def _resume_key(model_cfg: LSTMConfig, train_cfg: TrainConfig, fingerprint: str) -> dict[str, Any]:
+def _weights_fingerprint(predictor: LSTMPredictor | None) -> str | None:
+    """A digest of a starting network's weights (None: a fresh initialisation)."""
+    if predictor is None:
+        return None
+    h = hashlib.blake2b(digest_size=16)
+    for name, tensor in predictor.members[0][0].state_dict().items():
+        h.update(name.encode())
+        h.update(tensor.detach().contiguous().numpy().tobytes())
+    return h.hexdigest()
+
+
+def _resume_key(model_cfg: LSTMConfig, train_cfg: TrainConfig, fingerprint: str,
+                init: str | None = None) -> dict[str, Any]:
     """What must match between a checkpoint and the run resuming it (epochs may grow, unless the
     learning-rate schedule depends on them)."""
     tc = asdict(train_cfg)
@@ -168,7 +180,10 @@ def _resume_key(model_cfg: LSTMConfig, train_cfg: TrainConfig, fingerprint: str)
         tc.pop(key)
     if train_cfg.lr_schedule == "constant":
         tc.pop("epochs")
-    return {"model": asdict(model_cfg), "train": tc, "data": fingerprint}
+    key = {"model": asdict(model_cfg), "train": tc, "data": fingerprint}
+    if init is not None:   # absent for a fresh start, so older checkpoints keep their key
+        key["init"] = init
+    return key
 
 
 def _atomic_torch_save(obj: Any, path: Path) -> None:
@@ -197,6 +212,7 @@ def train_lstm(
     checkpoint_dir: str | Path | None = None,
     resume: bool = False,
     progress: bool = True,
+    init_from: LSTMPredictor | None = None,
 ) -> TrainResult:
     """Train an :class:`LSTMRegressor` on ``train`` and report one-step errors on ``val``.
 
@@ -210,9 +226,18 @@ def train_lstm(
             must come from the same model config, training config (except ``epochs`` with a
             constant learning rate) and data, otherwise ValueError.
         progress: show tqdm bars.
+        init_from: fine-tune: start from this predictor's (first) network and its
+            normalisation instead of a fresh initialisation (e.g. pre-trained on ETH/UCY,
+            :mod:`blindspot.traj.pretrain`); its model config must equal ``model_cfg``. The
+            optimiser starts afresh. Part of the resume key, so a checkpoint is only resumed from
+            the same starting weights.
 
     Returns:
         :class:`TrainResult`.
+
+    Raises:
+        ValueError: mismatched windows, no training windows, ``resume`` without a checkpoint
+            folder, a checkpoint from another run, or ``init_from`` of another model config.
     """
     _check_windows(train, model_cfg.window, "train")
     _check_windows(val, model_cfg.window, "val")
@@ -220,6 +245,10 @@ def train_lstm(
         raise ValueError("train: no windows")
     if resume and checkpoint_dir is None:
         raise ValueError("resume=True needs checkpoint_dir")
+    if init_from is not None and asdict(init_from.config) != asdict(model_cfg):
+        diff = [k for k, v in asdict(model_cfg).items() if asdict(init_from.config).get(k) != v]
+        raise ValueError(f"init_from: the starting network's model config differs from model_cfg "
+                         f"in {', '.join(diff)}; fine-tuning needs the same architecture")
     ckpt_path = None if checkpoint_dir is None else Path(checkpoint_dir) / CHECKPOINT_NAME
     if ckpt_path is not None:
         ckpt_path.parent.mkdir(parents=True, exist_ok=True)
@@ -230,7 +259,8 @@ def train_lstm(
         if train_cfg.num_threads is not None:
             torch.set_num_threads(int(train_cfg.num_threads))
         torch.use_deterministic_algorithms(True)
-        return _train(train, val, model_cfg, train_cfg, on_epoch, ckpt_path, resume, progress)
+        return _train(train, val, model_cfg, train_cfg, on_epoch, ckpt_path, resume, progress,
+                      init_from)
     finally:
         torch.set_num_threads(prev_threads)
         torch.use_deterministic_algorithms(prev_det)
@@ -293,13 +323,19 @@ def _train(
     ckpt_path: Path | None,
     resume: bool,
     progress: bool,
+    init_from: LSTMPredictor | None = None,
 ) -> TrainResult:
     torch.manual_seed(cfg.seed)
-    stats = NormStats.fit(train.x, train.y, model_cfg)
     model = LSTMRegressor(model_cfg)
+    if init_from is None:
+        stats = NormStats.fit(train.x, train.y, model_cfg)
+    else:
+        start_model, stats = init_from.members[0]
+        model.load_state_dict(start_model.state_dict())
     optimizer = _make_optimizer(model, cfg)
     shuffle = torch.Generator().manual_seed(cfg.seed)
-    key = _resume_key(model_cfg, cfg, _fingerprint(train, val)) if ckpt_path is not None else None
+    key = (_resume_key(model_cfg, cfg, _fingerprint(train, val), _weights_fingerprint(init_from))
+           if ckpt_path is not None else None)
     rows: list[dict[str, float]] = []
     first_epoch = 0
 
@@ -308,7 +344,7 @@ def _train(
         if not isinstance(ck, dict) or ck.get("format") != _CKPT_FORMAT:
             raise ValueError(f"{ckpt_path}: not a training checkpoint (expected format {_CKPT_FORMAT!r})")
         if ck["key"] != key:
-            diff = [k for k in key if ck["key"].get(k) != key[k]]
+            diff = [k for k in {**ck["key"], **key} if ck["key"].get(k) != key.get(k)]
             raise ValueError(f"{ckpt_path}: checkpoint was made with a different {', '.join(diff)}; cannot resume")
         model.load_state_dict(ck["model"])
         optimizer.load_state_dict(ck["optimizer"])
