@@ -191,7 +191,8 @@ def main_stage(run: StageFunction, name: str, argv: Sequence[str] | None = None)
     """Entry point of ``python stages/<name>.py`` (what dvc.yaml calls): config = params.yaml.
 
     Outside ``dvc exp run`` (env ``DVC_EXP_NAME`` unset) params.yaml is first checked against
-    conf/; if stale the process exits 1 with the fix. Takes no arguments (exit 2 says how to
+    conf/ (:func:`blindspot.config.check_params`: skipped while the stamp of the last passing
+    check matches conf/ and params.yaml); if stale the process exits 1 with the fix. Takes no arguments (exit 2 says how to
     override). The stage must write every out dvc.yaml declares for it (else
     :class:`~blindspot.stage.UndeclaredPath`). SIGTERM ends the MLflow run KILLED and exits 143.
     """
@@ -216,13 +217,16 @@ def main_stage(run: StageFunction, name: str, argv: Sequence[str] | None = None)
         root = bconfig.find_repo_root(stage_file.parent)
     except bconfig.ConfigNotFound:
         root = bconfig.find_repo_root()
-    from hydra.errors import HydraException
-
     try:
         if not os.environ.get("DVC_EXP_NAME"):
-            bconfig.check_params(root)
+            bconfig.check_params(root)  # stamped: composes conf/ only after an edit
         cfg = bconfig.load_params(root)
-    except (bconfig.ParamsOutOfDate, FileNotFoundError, HydraException) as exc:
+    except Exception as exc:  # noqa: BLE001 - the config errors below; anything else re-raised
+        # Hydra is imported only when conf/ is composed, so only then can its errors occur
+        hydra_errors = sys.modules.get("hydra.errors")
+        if not isinstance(exc, (bconfig.ParamsOutOfDate, FileNotFoundError)) and not (
+                hydra_errors is not None and isinstance(exc, hydra_errors.HydraException)):
+            raise
         print(f"[blindspot] stage {name}: {exc}", file=sys.stderr)
         raise SystemExit(1) from None
     run_stage(run, name, cfg, root, check_outs=True)
@@ -402,7 +406,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 print(f"{root / bconfig.PARAMS_FILE}: composed by `dvc exp run` "
                       f"({os.environ['DVC_EXP_NAME']}), not checked against conf/")
             else:
-                bconfig.check_params(root)
+                bconfig.check_params(root, stamp=False)  # the pipeline's own check: compose
                 print(f"{root / bconfig.PARAMS_FILE} is up to date with conf/")
         except bconfig.ParamsOutOfDate as exc:
             print(f"[blindspot] {exc}", file=sys.stderr)
