@@ -380,6 +380,18 @@ def check_params(repo_root: str | os.PathLike[str] | None = None, *, stamp: bool
         raise
     # stamp only what was compared: files edited while Hydra composed change the fingerprint
     if stamp_path is not None and fingerprint is not None and params_fingerprint(root) == fingerprint:
-        from blindspot.io import write_text
+        _write_stamp(stamp_path, fingerprint)
 
-        write_text(stamp_path, fingerprint + "\n")
+
+def _write_stamp(path: Path, fingerprint: str) -> None:
+    """Write the stamp by temporary file and rename (a killed writer leaves no half stamp).
+    Not through blindspot.io's writers: those are fault points, and a stamp is written only by
+    the first check after an edit, so it would shift a stage's fault-point numbering between
+    runs (tests/faults)."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f"{path.name}.{os.getpid()}.tmp")
+    try:
+        tmp.write_text(fingerprint + "\n", encoding="ascii")
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
