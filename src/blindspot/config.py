@@ -19,17 +19,13 @@ Public API::
     write_params(repo_root=None) -> Path
     load_params(repo_root=None) -> DictConfig
     params_diff(a, b) -> list[ParamDifference]
-    check_params(repo_root=None, *, stamp=True) -> None   # raises ParamsOutOfDate
-    params_fingerprint(repo_root) -> str        # what the last passing check is stamped with
+    check_params(repo_root=None) -> None        # raises ParamsOutOfDate
     shared_dir(cfg) -> Path                     # ../shared data, also from queue temp copies
 """
 
 from __future__ import annotations
 
-import hashlib
-import importlib.util
 import os
-import re
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -54,8 +50,6 @@ __all__ = [
     "params_diff",
     "flatten",
     "check_params",
-    "params_fingerprint",
-    "STAMP_FILE",
     "shared_dir",
 ]
 
@@ -63,12 +57,6 @@ CONFIG_DIR = "conf"
 CONFIG_NAME = "config"
 PARAMS_FILE = "params.yaml"
 FIX_COMMAND = "python -m blindspot params"
-
-# Where a passing params check leaves its stamp: DVC's own scratch folder (git-ignored by
-# .dvc/.gitignore), so only DVC repositories have one. See check_params.
-STAMP_FILE = Path(".dvc", "tmp", "blindspot-params-check")
-_STAMP_FORMAT = b"blindspot params check, stamp format 1\n"
-_OC_ENV = re.compile(rb"\$\{oc\.env:([A-Za-z_][A-Za-z0-9_]*)")
 
 # DVC 3.x runs queued/--temp experiments in mkdtemp() copies under <repo>/.dvc/tmp/exps/.
 _DVC_EXP_TMP_PARTS = (".dvc", "tmp", "exps")
@@ -305,93 +293,16 @@ def params_diff(
     ]
 
 
-def params_fingerprint(repo_root: str | os.PathLike[str]) -> str:
-    """SHA-256 (hex) of everything the params check's verdict depends on.
-
-    That is: the bytes of ``params.yaml`` and of every file under ``conf/`` (with its path), the
-    values of the environment variables ``conf/`` reads through ``${oc.env:NAME}``, and the code
-    that composes and compares (this module, Hydra's and OmegaConf's package ``__init__`` files,
-    which carry their versions). Equal fingerprints mean the composition of ``conf/`` and its
-    comparison with params.yaml would give the same answer. Reads files only (milliseconds; no
-    Hydra import). Raises ``FileNotFoundError`` when params.yaml is absent.
-    """
-    root = Path(repo_root).resolve()
-    digest = hashlib.sha256(_STAMP_FORMAT)
-
-    def add(label: str, data: bytes) -> None:
-        digest.update(f"{label}\0{len(data)}\0".encode())
-        digest.update(data)
-
-    add(PARAMS_FILE, (root / PARAMS_FILE).read_bytes())
-    conf_dir = root / CONFIG_DIR
-    env_names: set[str] = set()
-    for path in sorted(p for p in conf_dir.rglob("*") if p.is_file()):
-        data = path.read_bytes()
-        add(path.relative_to(conf_dir).as_posix(), data)
-        env_names.update(m.decode() for m in _OC_ENV.findall(data))
-    for name in sorted(env_names):
-        value = os.environ.get(name)
-        add(f"env:{name}", b"\1" if value is None else b"\2" + value.encode())
-    add("code:blindspot.config", Path(__file__).read_bytes())
-    for package in ("hydra", "omegaconf"):
-        spec = importlib.util.find_spec(package)
-        origin = spec.origin if spec is not None else None
-        add(f"code:{package}", Path(origin).read_bytes() if origin else b"")
-    return digest.hexdigest()
-
-
-def _read_stamp(path: Path) -> str | None:
-    try:
-        return path.read_text(encoding="ascii").strip()
-    except (OSError, UnicodeDecodeError):
-        return None
-
-
-def check_params(repo_root: str | os.PathLike[str] | None = None, *, stamp: bool = True) -> None:
+def check_params(repo_root: str | os.PathLike[str] | None = None) -> None:
     """Raise :class:`ParamsOutOfDate` if ``params.yaml`` is not what ``conf/`` composes to.
 
     Values are compared (not text), so key order or YAML style never trips the check.
-
-    Composing ``conf/`` with Hydra costs a second or more, and every DVC stage checks before it
-    runs. So a check that passes leaves a stamp, ``.dvc/tmp/blindspot-params-check`` (only in a
-    repository that has ``.dvc/``), holding :func:`params_fingerprint`; with ``stamp`` True a
-    later check whose fingerprint equals the stamp passes without composing. Any edit of
-    ``conf/`` or params.yaml (by hand, by ``dvc exp run``, by git), a change of a variable
-    ``conf/`` reads with ``oc.env`` or of the composing code changes the fingerprint, and the
-    full comparison runs again. A failing check removes the stamp. ``stamp=False`` always
-    composes (``python -m blindspot check-params`` does; it refreshes the stamp).
     """
     root = Path(repo_root).resolve() if repo_root is not None else find_repo_root()
     path = root / PARAMS_FILE
-    stamp_path = root / STAMP_FILE if (root / ".dvc").is_dir() else None
-    fingerprint = params_fingerprint(root) if path.is_file() and stamp_path is not None else None
-    if stamp and fingerprint is not None and _read_stamp(stamp_path) == fingerprint:
-        return
-    try:
-        conf = compose(config_dir=root / CONFIG_DIR)
-        if not path.is_file():
-            raise ParamsOutOfDate(path, params_diff({}, conf))
-        diff = params_diff(load_params(root), conf)
-        if diff:
-            raise ParamsOutOfDate(path, diff)
-    except BaseException:
-        if stamp_path is not None:
-            stamp_path.unlink(missing_ok=True)
-        raise
-    # stamp only what was compared: files edited while Hydra composed change the fingerprint
-    if stamp_path is not None and fingerprint is not None and params_fingerprint(root) == fingerprint:
-        _write_stamp(stamp_path, fingerprint)
-
-
-def _write_stamp(path: Path, fingerprint: str) -> None:
-    """Write the stamp by temporary file and rename (a killed writer leaves no half stamp).
-    Not through blindspot.io's writers: those are fault points, and a stamp is written only by
-    the first check after an edit, so it would shift a stage's fault-point numbering between
-    runs (tests/faults)."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f"{path.name}.{os.getpid()}.tmp")
-    try:
-        tmp.write_text(fingerprint + "\n", encoding="ascii")
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
+    conf = compose(config_dir=root / CONFIG_DIR)
+    if not path.is_file():
+        raise ParamsOutOfDate(path, params_diff({}, conf))
+    diff = params_diff(load_params(root), conf)
+    if diff:
+        raise ParamsOutOfDate(path, diff)

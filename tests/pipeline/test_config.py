@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 from omegaconf import OmegaConf
 
-from blindspot import config
+from blindspot import cli, config
 from tests.pipeline.toy_repo import REPO, make_toy_repo
 
 
@@ -92,37 +92,38 @@ def _counting_compose(monkeypatch: pytest.MonkeyPatch) -> list[int]:
 
 def test_check_params_stamp_skips_compose_only_while_nothing_changed(
         toy: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    """Every DVC stage checks params.yaml; the stamp of a passing check spares the Hydra compose,
-    and any edit of conf/ or params.yaml (by hand) brings the full comparison back."""
+    """Every DVC stage checks params.yaml (blindspot.cli.main_stage); the stamp of a passing
+    check spares the Hydra compose, and any edit of conf/ or params.yaml (by hand) brings the
+    full comparison back."""
     (toy / ".dvc").mkdir()
     config.write_params(toy)
     composed = _counting_compose(monkeypatch)
-    stamp = toy / config.STAMP_FILE
-    config.check_params(toy)
-    assert len(composed) == 1 and stamp.read_text().strip() == config.params_fingerprint(toy)
-    config.check_params(toy)
+    stamp = toy / cli.STAMP_FILE
+    cli.check_params_stamped(toy)
+    assert len(composed) == 1 and stamp.read_text().strip() == cli.params_fingerprint(toy)
+    cli.check_params_stamped(toy)
     assert len(composed) == 1  # stamped: no composition
-    config.check_params(toy, stamp=False)  # `python -m blindspot check-params`: always composes
+    cli.check_params_stamped(toy, stamp=False)  # `python -m blindspot check-params`: always composes
     assert len(composed) == 2
     # conf/ edited by hand: the stamp no longer matches, the full check fails and names the key
     (toy / "conf" / "train" / "base.yaml").write_text("lr: 0.2\nepochs: 2\n")
     with pytest.raises(config.ParamsOutOfDate, match="train.lr: params.yaml has 0.1, conf/ gives 0.2"):
-        config.check_params(toy)
+        cli.check_params_stamped(toy)
     assert not stamp.exists()
     with pytest.raises(config.ParamsOutOfDate):  # and again: a failure is never stamped
-        config.check_params(toy)
+        cli.check_params_stamped(toy)
     config.write_params(toy)
-    config.check_params(toy)
+    cli.check_params_stamped(toy)
     assert stamp.is_file()
     # params.yaml edited by hand: a changed value fails, a comment only passes (values compared)
     text = (toy / "params.yaml").read_text()
     (toy / "params.yaml").write_text(text.replace("hidden_size: 16", "hidden_size: 17"))
     with pytest.raises(config.ParamsOutOfDate, match="model.hidden_size"):
-        config.check_params(toy)
+        cli.check_params_stamped(toy)
     (toy / "params.yaml").write_text(text + "# a comment\n")
     before = len(composed)
-    config.check_params(toy)
-    config.check_params(toy)
+    cli.check_params_stamped(toy)
+    cli.check_params_stamped(toy)
     assert len(composed) == before + 1
 
 
@@ -133,15 +134,15 @@ def test_check_params_stamp_covers_environment_variables_conf_reads(
     conf.write_text(conf.read_text() + "workers: ${oc.env:BLINDSPOT_TEST_WORKERS,1}\n")
     monkeypatch.setenv("BLINDSPOT_TEST_WORKERS", "3")
     config.write_params(toy)
-    config.check_params(toy)
+    cli.check_params_stamped(toy)
     monkeypatch.setenv("BLINDSPOT_TEST_WORKERS", "4")
     with pytest.raises(config.ParamsOutOfDate, match="workers: params.yaml has '3', conf/ gives '4'"):
-        config.check_params(toy)
+        cli.check_params_stamped(toy)
 
 
 def test_params_fingerprint_changes_with_every_input(toy: Path) -> None:
     config.write_params(toy)
-    seen = {config.params_fingerprint(toy)}
+    seen = {cli.params_fingerprint(toy)}
     edits = [
         (toy / "params.yaml", lambda t: t + "\n"),
         (toy / "conf" / "model" / "small.yaml", lambda t: t.replace("16", "16.0")),
@@ -149,9 +150,9 @@ def test_params_fingerprint_changes_with_every_input(toy: Path) -> None:
     ]
     for path, change in edits:
         path.write_text(change(path.read_text()))
-        seen.add(config.params_fingerprint(toy))
+        seen.add(cli.params_fingerprint(toy))
     (toy / "conf" / "model" / "small.yaml").rename(toy / "conf" / "model" / "tiny.yaml")
-    seen.add(config.params_fingerprint(toy))  # a renamed file is another config group option
+    seen.add(cli.params_fingerprint(toy))  # a renamed file is another config group option
     assert len(seen) == 5
 
 
