@@ -33,8 +33,11 @@ test-cluster: $(CLUSTER_STAMP)  ## the scale-out tests: launchers, Optuna, Ray, 
 	  tests/pipeline/test_ray_launcher.py tests/pipeline/test_tracking_server.py \
 	  tests/pipeline/test_mlflow_ui.py
 
+# One worker per core, one test file per worker at a time. --no-loadscope-reorder: xdist would
+# otherwise hand out the files with the most tests first, and the pipeline test (two tests, most
+# of one worker's time) last; tests/conftest.py puts it first instead (LONGEST_FIRST).
 test: $(STAMP)  ## the default test suite (what CI runs), one worker per core
-	$(VENV)/bin/python -m pytest -q -n auto --dist loadfile
+	$(VENV)/bin/python -m pytest -q -n auto --dist loadfile --no-loadscope-reorder
 
 test-slow: $(STAMP)  ## the long tests, on purpose
 	$(VENV)/bin/python -m pytest -q -m slow

@@ -25,6 +25,18 @@ def composed_config():
     return compose(["profile=tiny"], config_dir=REPO_ROOT / "conf")
 
 
+# `make test` runs the files on one worker per core, each file whole on one worker, in collection
+# order (xdist --dist loadfile --no-loadscope-reorder). The tiny `dvc repro` and the experiment
+# after it take most of one worker's time: started first, the other worker runs the rest of the
+# suite beside them; started last (xdist's default order: most tests first), the run waited for it.
+LONGEST_FIRST = ("tests/pipeline/test_repro.py",)
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    rank = {path: i for i, path in enumerate(LONGEST_FIRST)}
+    items.sort(key=lambda item: rank.get(item.nodeid.split("::", 1)[0], len(rank)))
+
+
 # Property-based tests (hypothesis): derandomised so CI and a developer see the same examples;
 # no per-example deadline (a cold import or a first FFT plan can take a second on a busy machine).
 # `HYPOTHESIS_PROFILE=thorough pytest ...` draws many more examples on purpose.

@@ -41,8 +41,10 @@ the :class:`~blindspot.stage.StageResult` it returns: this runner is the one doo
 
 from __future__ import annotations
 
+import hashlib
 import importlib.util
 import os
+import re
 import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -70,6 +72,9 @@ __all__ = [
     "log_result",
     "main_stage",
     "main",
+    "STAMP_FILE",
+    "params_fingerprint",
+    "check_params_stamped",
 ]
 
 StageFunction = Callable[[DictConfig, StageContext], StageResult]
@@ -86,6 +91,99 @@ _VALUE_FLAGS = {"--cfg", "-c", "--package", "-p", "--config-path", "-cp", "--con
                 "-cn", "--config-dir", "-cd", "--experimental-rerun", "--shell-completion", "-sc"}
 _INFO_FLAGS = {"--info", "-i"}
 _INFO_VALUES = {"all", "config", "defaults", "defaults-tree", "plugins", "searchpath"}
+
+
+# Where a passing params check leaves its stamp: DVC's own scratch folder (git-ignored by
+# .dvc/.gitignore), so only DVC repositories have one. See check_params_stamped.
+STAMP_FILE = Path(".dvc", "tmp", "blindspot-params-check")
+_STAMP_FORMAT = b"blindspot params check, stamp format 1\n"
+_OC_ENV = re.compile(rb"\$\{oc\.env:([A-Za-z_][A-Za-z0-9_]*)")
+
+
+def params_fingerprint(repo_root: str | os.PathLike[str]) -> str:
+    """SHA-256 (hex) of everything the verdict of :func:`blindspot.config.check_params` depends on.
+
+    That is: the bytes of ``params.yaml`` and of every file under ``conf/`` (with its path), the
+    values of the environment variables ``conf/`` reads through ``${oc.env:NAME}``, and the code
+    that composes and compares (:mod:`blindspot.config`, Hydra's and OmegaConf's package
+    ``__init__`` files, which carry their versions). Equal fingerprints mean the composition of
+    ``conf/`` and its comparison with params.yaml would give the same answer. Reads files only
+    (milliseconds; no Hydra import). Raises ``FileNotFoundError`` when params.yaml is absent.
+    """
+    root = Path(repo_root).resolve()
+    digest = hashlib.sha256(_STAMP_FORMAT)
+
+    def add(label: str, data: bytes) -> None:
+        digest.update(f"{label}\0{len(data)}\0".encode())
+        digest.update(data)
+
+    add(bconfig.PARAMS_FILE, (root / bconfig.PARAMS_FILE).read_bytes())
+    conf_dir = root / bconfig.CONFIG_DIR
+    env_names: set[str] = set()
+    for path in sorted(p for p in conf_dir.rglob("*") if p.is_file()):
+        data = path.read_bytes()
+        add(path.relative_to(conf_dir).as_posix(), data)
+        env_names.update(m.decode() for m in _OC_ENV.findall(data))
+    for name in sorted(env_names):
+        value = os.environ.get(name)
+        add(f"env:{name}", b"\1" if value is None else b"\2" + value.encode())
+    add("code:blindspot.config", Path(bconfig.__file__).read_bytes())
+    for package in ("hydra", "omegaconf"):
+        spec = importlib.util.find_spec(package)
+        origin = spec.origin if spec is not None else None
+        add(f"code:{package}", Path(origin).read_bytes() if origin else b"")
+    return digest.hexdigest()
+
+
+def _read_stamp(path: Path) -> str | None:
+    try:
+        return path.read_text(encoding="ascii").strip()
+    except (OSError, UnicodeDecodeError):
+        return None
+
+
+def _write_stamp(path: Path, fingerprint: str) -> None:
+    """Write the stamp by temporary file and rename (a killed writer leaves no half stamp).
+    Not through blindspot.io's writers: those are fault points, and a stamp is written only by
+    the first check after an edit, so it would shift a stage's fault-point numbering between
+    runs (tests/faults)."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f"{path.name}.{os.getpid()}.tmp")
+    try:
+        tmp.write_text(fingerprint + "\n", encoding="ascii")
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
+
+
+def check_params_stamped(repo_root: str | os.PathLike[str], *, stamp: bool = True) -> None:
+    """:func:`blindspot.config.check_params` (raises ``ParamsOutOfDate``), skipped while nothing
+    it depends on changed since it last passed.
+
+    Composing ``conf/`` with Hydra costs about a second of CPU, and every DVC stage checks before
+    it runs. So a check that passes leaves a stamp, ``.dvc/tmp/blindspot-params-check`` (only in
+    a repository that has ``.dvc/``), holding :func:`params_fingerprint`; with ``stamp`` True a
+    later check whose fingerprint equals the stamp passes without composing. Any edit of
+    ``conf/`` or params.yaml (by hand, by ``dvc exp run``, by git), a change of a variable
+    ``conf/`` reads with ``oc.env`` or of the composing code changes the fingerprint, and the
+    full comparison runs again. A failing check removes the stamp. ``stamp=False`` always
+    composes (``python -m blindspot check-params`` does; it refreshes the stamp).
+    """
+    root = Path(repo_root).resolve()
+    params = root / bconfig.PARAMS_FILE
+    stamp_path = root / STAMP_FILE if (root / ".dvc").is_dir() else None
+    fingerprint = params_fingerprint(root) if params.is_file() and stamp_path else None
+    if stamp and fingerprint is not None and _read_stamp(stamp_path) == fingerprint:
+        return
+    try:
+        bconfig.check_params(root)
+    except BaseException:
+        if stamp_path is not None:
+            stamp_path.unlink(missing_ok=True)
+        raise
+    # stamp only what was compared: files edited while Hydra composed change the fingerprint
+    if fingerprint is not None and params_fingerprint(root) == fingerprint:
+        _write_stamp(stamp_path, fingerprint)
 
 
 class UnknownStage(LookupError):
@@ -191,7 +289,8 @@ def main_stage(run: StageFunction, name: str, argv: Sequence[str] | None = None)
     """Entry point of ``python stages/<name>.py`` (what dvc.yaml calls): config = params.yaml.
 
     Outside ``dvc exp run`` (env ``DVC_EXP_NAME`` unset) params.yaml is first checked against
-    conf/; if stale the process exits 1 with the fix. Takes no arguments (exit 2 says how to
+    conf/ (:func:`check_params_stamped`: skipped while the stamp of the last passing check
+    matches conf/ and params.yaml); if stale the process exits 1 with the fix. Takes no arguments (exit 2 says how to
     override). The stage must write every out dvc.yaml declares for it (else
     :class:`~blindspot.stage.UndeclaredPath`). SIGTERM ends the MLflow run KILLED and exits 143.
     """
@@ -216,13 +315,16 @@ def main_stage(run: StageFunction, name: str, argv: Sequence[str] | None = None)
         root = bconfig.find_repo_root(stage_file.parent)
     except bconfig.ConfigNotFound:
         root = bconfig.find_repo_root()
-    from hydra.errors import HydraException
-
     try:
         if not os.environ.get("DVC_EXP_NAME"):
-            bconfig.check_params(root)
+            check_params_stamped(root)  # composes conf/ only after an edit
         cfg = bconfig.load_params(root)
-    except (bconfig.ParamsOutOfDate, FileNotFoundError, HydraException) as exc:
+    except Exception as exc:  # noqa: BLE001 - the config errors below; anything else re-raised
+        # Hydra is imported only when conf/ is composed, so only then can its errors occur
+        hydra_errors = sys.modules.get("hydra.errors")
+        if not isinstance(exc, (bconfig.ParamsOutOfDate, FileNotFoundError)) and not (
+                hydra_errors is not None and isinstance(exc, hydra_errors.HydraException)):
+            raise
         print(f"[blindspot] stage {name}: {exc}", file=sys.stderr)
         raise SystemExit(1) from None
     run_stage(run, name, cfg, root, check_outs=True)
@@ -402,7 +504,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 print(f"{root / bconfig.PARAMS_FILE}: composed by `dvc exp run` "
                       f"({os.environ['DVC_EXP_NAME']}), not checked against conf/")
             else:
-                bconfig.check_params(root)
+                check_params_stamped(root, stamp=False)  # the pipeline's check: composes
                 print(f"{root / bconfig.PARAMS_FILE} is up to date with conf/")
         except bconfig.ParamsOutOfDate as exc:
             print(f"[blindspot] {exc}", file=sys.stderr)

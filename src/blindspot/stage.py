@@ -109,7 +109,10 @@ def read_dvc_stages(repo_root: PathLike) -> dict[str, DeclaredFiles]:
     path = Path(repo_root) / DVC_FILE
     if not path.is_file():
         return {}
-    stages = (yaml.safe_load(path.read_text()) or {}).get("stages") or {}
+    # libyaml's safe loader where installed (same result as yaml.safe_load, ~10x faster on the
+    # 900-line dvc.yaml every stage reads)
+    loader = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+    stages = (yaml.load(path.read_text(), Loader=loader) or {}).get("stages") or {}
     return {
         name: DeclaredFiles(
             name,

@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 from omegaconf import OmegaConf
 
-from blindspot import config
+from blindspot import cli, config
 from tests.pipeline.toy_repo import REPO, make_toy_repo
 
 
@@ -76,6 +76,84 @@ def test_check_params_detects_hand_edited_params(toy: Path) -> None:
     (toy / "params.yaml").write_text(text)
     with pytest.raises(config.ParamsOutOfDate, match="model.hidden_size"):
         config.check_params(toy)
+
+
+def _counting_compose(monkeypatch: pytest.MonkeyPatch) -> list[int]:
+    calls: list[int] = []
+    real = config.compose
+
+    def compose(*args, **kwargs):
+        calls.append(1)
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(config, "compose", compose)
+    return calls
+
+
+def test_check_params_stamp_skips_compose_only_while_nothing_changed(
+        toy: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Every DVC stage checks params.yaml (blindspot.cli.main_stage); the stamp of a passing
+    check spares the Hydra compose, and any edit of conf/ or params.yaml (by hand) brings the
+    full comparison back."""
+    (toy / ".dvc").mkdir()
+    config.write_params(toy)
+    composed = _counting_compose(monkeypatch)
+    stamp = toy / cli.STAMP_FILE
+    cli.check_params_stamped(toy)
+    assert len(composed) == 1 and stamp.read_text().strip() == cli.params_fingerprint(toy)
+    cli.check_params_stamped(toy)
+    assert len(composed) == 1  # stamped: no composition
+    cli.check_params_stamped(toy, stamp=False)  # `python -m blindspot check-params`: always composes
+    assert len(composed) == 2
+    # conf/ edited by hand: the stamp no longer matches, the full check fails and names the key
+    (toy / "conf" / "train" / "base.yaml").write_text("lr: 0.2\nepochs: 2\n")
+    with pytest.raises(config.ParamsOutOfDate, match="train.lr: params.yaml has 0.1, conf/ gives 0.2"):
+        cli.check_params_stamped(toy)
+    assert not stamp.exists()
+    with pytest.raises(config.ParamsOutOfDate):  # and again: a failure is never stamped
+        cli.check_params_stamped(toy)
+    config.write_params(toy)
+    cli.check_params_stamped(toy)
+    assert stamp.is_file()
+    # params.yaml edited by hand: a changed value fails, a comment only passes (values compared)
+    text = (toy / "params.yaml").read_text()
+    (toy / "params.yaml").write_text(text.replace("hidden_size: 16", "hidden_size: 17"))
+    with pytest.raises(config.ParamsOutOfDate, match="model.hidden_size"):
+        cli.check_params_stamped(toy)
+    (toy / "params.yaml").write_text(text + "# a comment\n")
+    before = len(composed)
+    cli.check_params_stamped(toy)
+    cli.check_params_stamped(toy)
+    assert len(composed) == before + 1
+
+
+def test_check_params_stamp_covers_environment_variables_conf_reads(
+        toy: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    (toy / ".dvc").mkdir()
+    conf = toy / "conf" / "config.yaml"
+    conf.write_text(conf.read_text() + "workers: ${oc.env:BLINDSPOT_TEST_WORKERS,1}\n")
+    monkeypatch.setenv("BLINDSPOT_TEST_WORKERS", "3")
+    config.write_params(toy)
+    cli.check_params_stamped(toy)
+    monkeypatch.setenv("BLINDSPOT_TEST_WORKERS", "4")
+    with pytest.raises(config.ParamsOutOfDate, match="workers: params.yaml has '3', conf/ gives '4'"):
+        cli.check_params_stamped(toy)
+
+
+def test_params_fingerprint_changes_with_every_input(toy: Path) -> None:
+    config.write_params(toy)
+    seen = {cli.params_fingerprint(toy)}
+    edits = [
+        (toy / "params.yaml", lambda t: t + "\n"),
+        (toy / "conf" / "model" / "small.yaml", lambda t: t.replace("16", "16.0")),
+        (toy / "conf" / "config.yaml", lambda t: t + "# note\n"),
+    ]
+    for path, change in edits:
+        path.write_text(change(path.read_text()))
+        seen.add(cli.params_fingerprint(toy))
+    (toy / "conf" / "model" / "small.yaml").rename(toy / "conf" / "model" / "tiny.yaml")
+    seen.add(cli.params_fingerprint(toy))  # a renamed file is another config group option
+    assert len(seen) == 5
 
 
 def test_missing_params_yaml_names_the_fix(toy: Path) -> None:

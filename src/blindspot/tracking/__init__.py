@@ -18,7 +18,8 @@ By concern:
   workers die with their stage (:func:`children_die_with_this_process`).
 - :mod:`~blindspot.tracking.sweep`: :class:`SweepCallback`, Hydra's callback for a multirun (one
   parent run, a nested child per job); ``python -m blindspot`` registers it by the name
-  ``blindspot.tracking.SweepCallback``.
+  ``blindspot.tracking.SweepCallback``. Imported on first use (it imports Hydra, which a DVC
+  stage reading params.yaml does not need).
 """
 
 from blindspot.tracking.runs import PARENT_RUN_ENV, NullTracker, Tracker, current, stage_run
@@ -32,7 +33,14 @@ from blindspot.tracking.store import (
     settings_from_cfg,
     tracking_uri,
 )
-from blindspot.tracking.sweep import SweepCallback, end_open_sweep
+
+def __getattr__(name: str):  # PEP 562: Hydra (0.3 s of imports) only for sweeps, not per stage
+    if name in ("SweepCallback", "end_open_sweep"):
+        from blindspot.tracking import sweep
+
+        return getattr(sweep, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
 
 __all__ = [
     "DEFAULT_EXPERIMENT",

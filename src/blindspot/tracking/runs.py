@@ -241,7 +241,8 @@ def stage_run(
     RUNNING by a SIGKILL is closed KILLED by the next stage_run (:func:`close_stale_runs`).
     With ``cfg.tracking.enabled: false`` yields a :class:`NullTracker` and touches no store.
     """
-    settings = settings_from_cfg(cfg, repo_root)
+    values = None if cfg is None else _plain(cfg)  # converted once: ~1,300 keys in the pipeline
+    settings = settings_from_cfg(values, repo_root)
     if not settings.enabled:
         _STACK.append(_NULL)
         try:
@@ -287,11 +288,11 @@ def stage_run(
             _STACK.append(tracker)
         error: BaseException | None = None
         try:
-            if cfg is not None:
-                tracker.log_params(_plain(cfg))
+            if values is not None:
+                tracker.log_params(values)
                 tracker.log_text(
-                    OmegaConf.to_yaml(OmegaConf.create(_plain(cfg))), "config/params.yaml"
-                )
+                    OmegaConf.to_yaml(cfg, resolve=True) if isinstance(cfg, DictConfig)
+                    else OmegaConf.to_yaml(OmegaConf.create(values)), "config/params.yaml")
             yield tracker
         except BaseException as exc:
             error = exc

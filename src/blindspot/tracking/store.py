@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TypeVar
 
-from omegaconf import DictConfig, OmegaConf
+from omegaconf import DictConfig
 
 from blindspot.config import ConfigNotFound, find_repo_root, original_repo_root
 from blindspot.io import fault_point
@@ -92,9 +92,9 @@ def tracking_uri(
     root (never the cwd: a queued DVC experiment's cwd is a temporary copy).
     """
     _, original = _repo_roots(repo_root)
+    section = _plain(cfg).get("tracking") if cfg is not None else None
     uri = os.environ.get("MLFLOW_TRACKING_URI") or (
-        OmegaConf.select(OmegaConf.create(_plain(cfg)), "tracking.uri") if cfg is not None else None
-    )
+        section.get("uri") if isinstance(section, Mapping) else None)
     if not uri:
         return f"sqlite:///{original / 'mlflow.db'}"
     uri = str(uri)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 import subprocess
+import sys
 from pathlib import Path
 
 from blindspot import kernels
@@ -39,6 +40,8 @@ def run_tags(stage: str, work: Path, original: Path) -> dict[str, str]:
     tags["mlflow.source.name"] = f"stages/{stage}.py"
     tags["blindspot.kernels"] = kernels.STATE.summary()
     tags["mlflow.source.type"] = "LOCAL"
+    if "hydra.core.hydra_config" not in sys.modules:  # no Hydra app in this process (DVC stage)
+        return tags
     try:
         from hydra.core.hydra_config import HydraConfig
 
