@@ -285,8 +285,7 @@ def test_scores_do_not_depend_on_the_workers_or_on_the_models_run_together(ethuc
     """(fold, model) items in 2 processes = 1 process = each fold's models in one run_fold."""
     from blindspot.traj.ethucy_benchmark import run_fold
 
-    s = EthUcySettings(ethucy_dir, models=("cvm",), folds=("eth", "hotel"),
-                       calibration="conditional")
+    s = EthUcySettings(ethucy_dir, models=("cvm",), folds=("eth", "hotel"), calibration="mle")
     one, two = (run_benchmark(s, progress=False, jobs=j) for j in (1, 2))
     grouped = {f: run_fold(ethucy_dir, f, s.models, s.lstm, progress=False, seq2seq=s.seq2seq,
                            calibration=s.calibration, speed_edges=s.speed_edges)
