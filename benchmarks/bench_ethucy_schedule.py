@@ -68,8 +68,9 @@ def main() -> None:
     span = {"per_fold": makespan(per_fold, args.workers),
             "per_item": makespan(per_item, args.workers)}
     total = sum(per_item)
-    print(f"total {total:.0f} CPU s; on {args.workers} idle cores: per fold {span['per_fold']:.0f} s, "
-          f"per (fold, model) item {span['per_item']:.0f} s (bound {total / args.workers:.0f} s)")
+    print(f"total {total:.0f} CPU s; on {args.workers} idle cores: per fold "
+          f"{span['per_fold']:.0f} s, per (fold, model) item {span['per_item']:.0f} s "
+          f"(bound {total / args.workers:.0f} s)")
     if args.json:
         print(json.dumps({"items": {f"{f}/{m}": v for (f, m), v in cpu.items()},
                           "makespan_s": span}))
