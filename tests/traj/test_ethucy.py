@@ -260,3 +260,55 @@ def test_neighbours_are_the_nearest_others_over_the_observed_frames_only(tmp_pat
     first = np.flatnonzero((w.start == 0) & (w.xy[:, 0, 1] == 1.0))[0]
     np.testing.assert_allclose(w.neighbours[first, :, -1, 1], [2.0, 3.0])
     assert np.isnan(w.neighbours[first, 1, :3]).all()          # 3 appears at frame 3
+
+
+def _scores(per_fold):
+    """Everything a run reports per fold and model but its wall seconds (the item's and the
+    fitted training's, ``train_seconds``)."""
+    return {fold: {m: (o.ade, o.fde, o.n_windows,
+                       json.dumps({k: v for k, v in o.fitted.items() if not k.endswith("seconds")},
+                                  sort_keys=True, default=str),
+                       json.dumps(o.calibration, sort_keys=True, default=str))
+                   for m, o in r.items()} for fold, r in per_fold.items()}
+
+
+def test_benchmark_items_put_the_learned_models_first():
+    from blindspot.traj.ethucy_benchmark import benchmark_items
+
+    items = benchmark_items(("cvm", "kalman", "lstm", "mlp"), ("eth", "hotel"))
+    assert items == [("eth", "lstm"), ("hotel", "lstm"), ("eth", "mlp"), ("hotel", "mlp"),
+                     ("eth", "kalman"), ("hotel", "kalman"), ("eth", "cvm"), ("hotel", "cvm")]
+
+
+@pytest.mark.real_data
+def test_scores_do_not_depend_on_the_workers_or_on_the_models_run_together(ethucy_dir):
+    """(fold, model) items in 2 processes = 1 process = each fold's models in one run_fold."""
+    from blindspot.traj.ethucy_benchmark import run_fold
+
+    s = EthUcySettings(ethucy_dir, models=("cvm",), folds=("eth", "hotel"), calibration="mle")
+    one, two = (run_benchmark(s, progress=False, jobs=j) for j in (1, 2))
+    grouped = {f: run_fold(ethucy_dir, f, s.models, s.lstm, progress=False, seq2seq=s.seq2seq,
+                           calibration=s.calibration, speed_edges=s.speed_edges)
+               for f in s.folds}
+    assert _scores(one.per_fold) == _scores(two.per_fold) == _scores(grouped)
+    assert one.results == two.results
+    assert list(one.per_fold) == ["eth", "hotel"] and list(one.per_fold["eth"]) == ["cvm"]
+
+
+@pytest.mark.slow
+@pytest.mark.real_data
+def test_learned_scores_do_not_depend_on_the_workers_or_on_the_models_run_together(ethucy_dir):
+    """Kalman's fit and the seeded direct predictors (one epoch) give the same scores and fits
+    whether a fold's models run in one process or as (fold, model) items over 2 workers."""
+    from dataclasses import replace as _replace
+
+    from blindspot.traj.config import Seq2SeqConfig
+    from blindspot.traj.ethucy_benchmark import run_fold
+
+    s = EthUcySettings(ethucy_dir, models=("cvm", "kalman", "lstm", "mlp"), folds=("eth",),
+                       seq2seq=_replace(Seq2SeqConfig(), epochs=1), calibration="conditional")
+    two = run_benchmark(s, progress=False, jobs=2)
+    grouped = {f: run_fold(ethucy_dir, f, s.models, s.lstm, progress=False, seq2seq=s.seq2seq,
+                           calibration=s.calibration, speed_edges=s.speed_edges)
+               for f in s.folds}
+    assert _scores(two.per_fold) == _scores(grouped)

@@ -179,28 +179,28 @@ def test_repo_configs_build():
 
 def test_seed_ensemble_members_are_the_single_runs_and_average_them(small_data, tmp_path):
     """Member i of train_ensemble is train_lstm with seed + i, whether trained in this process
-    or in worker processes; the ensemble's step is the mean of its members', and it survives
-    save/load."""
+    or in worker processes (three members on two CPUs: one process each); the ensemble's step
+    is the mean of its members', and it survives save/load."""
     from blindspot.traj.lstm import LSTMPredictor
     from blindspot.traj.train import train_ensemble
 
     train, val = small_data
-    cfg = TrainConfig(epochs=1, batch_size=64, num_threads=1, seed=3, ensemble=2)
+    cfg = TrainConfig(epochs=1, batch_size=64, num_threads=1, seed=3, ensemble=3)
     seq = train_ensemble(train, val, TINY, cfg, progress=False)
     par = train_ensemble(train, val, TINY, replace(cfg, jobs=2), progress=False,
                          checkpoint_dir=tmp_path / "ck")
     alone = train_lstm(train, val, TINY, replace(cfg, seed=4, ensemble=1), progress=False)
-    assert seq.seeds == [3, 4] and seq.predictor.n_members == 2
+    assert seq.seeds == [3, 4, 5] and seq.predictor.n_members == 3
     assert_same_weights(state(alone), {k: v.clone() for k, v in seq.members[1].predictor.model.state_dict().items()})
     for a, b in zip(seq.members, par.members):
         assert_same_weights(state(a), state(b))
-    assert (tmp_path / "ck" / "member1" / CHECKPOINT_NAME).exists()
+    assert len(par.members) == 3 and (tmp_path / "ck" / "member2" / CHECKPOINT_NAME).exists()
     x = torch.from_numpy(val.x[:7])
-    mean = (seq.members[0].predictor.step(x) + seq.members[1].predictor.step(x)) / 2
+    mean = sum(m.predictor.step(x) for m in seq.members) / 3
     assert torch.allclose(seq.predictor.step(x), mean)
     back = LSTMPredictor.load(seq.predictor.save(tmp_path / "model.pt"))
-    assert back.n_members == 2 and torch.equal(back.step(x), seq.predictor.step(x))
-    assert set(seq.history["member"]) == {0, 1} and list(seq.history.columns[:2]) == ["member", "seed"]
+    assert back.n_members == 3 and torch.equal(back.step(x), seq.predictor.step(x))
+    assert set(seq.history["member"]) == {0, 1, 2} and list(seq.history.columns[:2]) == ["member", "seed"]
 
 
 def test_rollout_errors_on_the_windows_own_futures(small_data):

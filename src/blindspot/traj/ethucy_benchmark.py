@@ -90,6 +90,7 @@ __all__ = [
     "train_fold_lstm",
     "val_windows",
     "run_fold",
+    "benchmark_items",
     "summarise",
     "calibration_table",
     "run_benchmark",
@@ -510,12 +511,36 @@ def calibration_table(per_fold: dict[str, dict[str, FoldOutcome]], *, reliabilit
     return out
 
 
+#: relative training cost of each model on a fold (the learned ones dominate): the order in which
+#: run_benchmark hands (fold, model) items to the workers, costliest first
+_COST_RANK: dict[str, int] = {"lstm_rollout": 0, "lstm": 1, "mlp": 2, "kalman": 3, "cvm": 4}
+
+
+def benchmark_items(models: Sequence[str], folds: Sequence[str]) -> list[tuple[str, str]]:
+    """The (fold, model) work items of a run, costliest model first (longest-processing-time
+    order: the workers take the next item as they free up, so the cheap items fill the gaps
+    at the end instead of one fold's training holding a core alone)."""
+    ranked = sorted(models, key=lambda m: (_COST_RANK.get(m, -1), list(models).index(m)))
+    return [(fold, m) for m in ranked for fold in folds]
+
+
+def _run_item(item: tuple[str, str], *, data_dir: Path, lstm: LSTMBenchSettings,
+              progress: bool, seq2seq: Seq2SeqConfig, calibration: str,
+              speed_edges: Sequence[float]) -> FoldOutcome:
+    """One model on one fold (module level, so it pickles): :func:`run_fold` with that model."""
+    fold, model = item
+    return run_fold(data_dir, fold, (model,), lstm, progress=progress, seq2seq=seq2seq,
+                    calibration=calibration, speed_edges=speed_edges)[model]
+
+
 def run_benchmark(settings: EthUcySettings, *, progress: bool = True,
                   jobs: int = 1) -> BenchmarkRun:
     """Score every model of ``settings`` on every fold (in the settings' order).
 
-    ``jobs`` worker processes run the folds side by side (each fold is seeded on its own, so the
-    scores do not depend on ``jobs``; the per-fold progress bars are off when ``jobs`` > 1).
+    ``jobs`` worker processes run the (fold, model) items side by side (:func:`benchmark_items`;
+    each model is trained and scored on its own, seeded by the settings alone, so the scores
+    do not depend on ``jobs`` or on which other models run; the per-fold progress bars are off
+    when ``jobs`` > 1).
 
     Raises:
         EthUcyDataError: a fold's folder is missing or a scene file is malformed.
@@ -523,11 +548,14 @@ def run_benchmark(settings: EthUcySettings, *, progress: bool = True,
     from blindspot.parallel import parallel_map
 
     t0 = time.perf_counter()
-    work = partial(run_fold, settings.data_dir, models=settings.models, lstm=settings.lstm,
+    items = benchmark_items(settings.models, settings.folds)
+    work = partial(_run_item, data_dir=settings.data_dir, lstm=settings.lstm,
                    progress=progress and jobs <= 1, seq2seq=settings.seq2seq,
                    calibration=settings.calibration, speed_edges=settings.speed_edges)
-    outcomes = parallel_map(work, list(settings.folds), jobs,
-                            progress="ETH/UCY folds" if progress else None)
-    per_fold = dict(zip(settings.folds, outcomes))
+    outcomes = dict(zip(items, parallel_map(work, items, jobs,
+                                            progress="ETH/UCY folds x models" if progress
+                                            else None)))
+    per_fold = {fold: {m: outcomes[(fold, m)] for m in settings.models}
+                for fold in settings.folds}
     return BenchmarkRun(settings, per_fold, summarise(per_fold, settings.models),
                         time.perf_counter() - t0)

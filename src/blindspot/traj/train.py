@@ -280,8 +280,9 @@ def train_ensemble(
     """Train ``train_cfg.ensemble`` networks with seeds ``seed + i`` and average them.
 
     Each member is exactly :func:`train_lstm` with its own seed, so member ``i`` has the same
-    weights whether trained alone, in sequence or in a worker process (``train_cfg.jobs``
-    processes, one torch thread each as ``num_threads`` says). Checkpoints go to
+    weights whether trained alone, in sequence or in a worker process (with ``train_cfg.jobs``
+    > 1 one process per member, one torch thread each as ``num_threads`` says, all confined to
+    ``jobs`` CPUs). Checkpoints go to
     ``checkpoint_dir/member<i>/`` (``checkpoint_dir`` itself for a single network).
     ``on_epoch(epoch, metrics)`` is called live in this process only (``jobs == 1``); metric
     names carry a ``member<i>.`` prefix when there are several members.
@@ -301,8 +302,12 @@ def train_ensemble(
         results = [train_lstm(train, val, model_cfg, cfg, on_epoch=callback(i), checkpoint_dir=d,
                               resume=resume, progress=progress) for i, (cfg, d) in enumerate(members)]
     else:
+        # every member in its own single-threaded process, the processes confined to ``jobs``
+        # CPUs: they time-share the cores and end together (five members on two cores: 2.5
+        # member-times, where rounds of two take 3 with one core idle in the last round)
         results = parallel_map(partial(_train_member, train, val, model_cfg, resume), members,
-                               int(train_cfg.jobs), progress="ensemble" if progress else None)
+                               n, progress="ensemble" if progress else None,
+                               cpus=int(train_cfg.jobs))
     return EnsembleResult(LSTMPredictor.ensemble([r.predictor for r in results]), results, seeds)
 
 
