@@ -2,22 +2,30 @@
 
 The headline input: the multi-target tracker (blindspot.track.track_points, Hydra group
 tracker) on every radar point of every frame of a scene (data/driving/points.parquet, world
-frame, the static world's points included; the points' ``static`` flag and ``source`` truth
-label are not read), frames without a point stepped too, so tracks coast through them. Its
-DBSCAN groups the points of a frame into objects; a confirmed track is a moving object (what the
-warning assesses) from its first frame with a filtered world-frame speed above
-``warning.moving_speed_mps`` and significantly non-zero (``warning.moving_probability``) on (blindspot.safety.predict.moving_tracks), so parked cars and
-kerb clutter are tracked and left out by their own motion, and a child crossing near boresight,
-whose Doppler looks static, is found by its motion over frames. The points' truth labels only
-score that split (driving_track.json: tracks whose points are all static-world points, their
-filtered-speed p99, and how many of them pass as moving).
+frame, the static world's points included; the points' ``source`` truth label is not read),
+frames without a point stepped too, so tracks coast through them; the scenes spread over
+``jobs`` worker processes. Its DBSCAN groups the points of a frame into objects, and each track
+row carries its object's point count and median ego-motion-compensated radial speed
+(``velocity_over_ground_mps``). A confirmed track is a moving object (what the warning assesses)
+from its first frame whose filtered world-frame velocity is above ``warning.moving_speed_mps``,
+significantly non-zero (``warning.moving_probability``) and not refuted by the track's own
+Doppler (the summed log-likelihood ratio "moves as tracked" vs "static" above
+``warning.moving_doppler_log_ratio_min``, point spread ``warning.moving_doppler_std_mps``;
+blindspot.safety.predict.moving_tracks), so parked cars and kerb clutter are tracked and left
+out by their own motion, and a child crossing near boresight, whose Doppler looks static, is
+found by its motion over frames. The points' truth labels only score that split
+(driving_track.json ``classifier``): static-world tracks classed moving, the lead pedestrian's
+tracks of the intruding Monte-Carlo scenes never classed moving, and the time to collision
+(without braking) when the first of them is, for the kinematic test alone ("kinematic") and
+with the Doppler test ("doppler").
 
-The "oracle association" reference input (blindspot.safety.oracle): each pedestrian's measured
-points (data/driving/measured.parquet) associated by their truth label and filtered by a
-constant-velocity Kalman filter; an upper bound for a tracker on the same points. And "visible
-truth": the same filter on the true positions at every frame the pedestrian is in line of sight
-(plus measurement noise), so the safety results separate what perception misses from what the
-warning logic does.
+The "oracle association" reference input (blindspot.safety.oracle): each pedestrian's own radar
+points (points.parquet, associated by their truth label ``source``, one centroid per frame)
+filtered by a constant-velocity Kalman filter; an upper bound for a tracker on the same points.
+(measured.parquet is not that: it holds the frame's largest off-curve cluster attributed to the
+nearest pedestrian, clutter clusters included.) And "visible truth": the same filter on the true
+positions at every frame the pedestrian is in line of sight (plus measurement noise), so the
+safety results separate what perception misses from what the warning logic does.
 """
 
 import blindspot  # noqa: F401  first: pins the CPU kernels before numpy loads (blindspot.kernels)
@@ -35,33 +43,48 @@ from blindspot.stage import StageResult
 
 def run(cfg, ctx):
     w = experiment.warning(cfg)
+    tcfg = experiment.tracker(cfg)
     dt = float(experiment.driving_radar(cfg).frame_period_s)
-    measured = pd.read_parquet(ctx.dep("measured.parquet"))
     truth = pd.read_parquet(ctx.dep("truth.parquet"))
     last = truth.groupby("scene").frame.max().to_dict()
-    inputs = {
-        "oracle": (measured, str(ctx.dep("measured.parquet"))),
-        "visible_truth": (visible_truth_points(truth, w.oracle.meas_std_m, w.seed),
-                          "visible truth points"),
-    }
     every = pd.read_parquet(ctx.dep("points.parquet"))
-    need = {"scene", "frame", "x_m", "y_m", "source"}
+    need = {"scene", "frame", "x_m", "y_m", "velocity_over_ground_mps", "source"}
     if need - set(every.columns):
         raise ValueError(f"{ctx.dep('points.parquet')}: missing columns "
                          f"{sorted(need - set(every.columns))}")
+    inputs = {
+        "oracle": (own_points(every), f"{ctx.dep('points.parquet')} (own points by source)"),
+        "visible_truth": (visible_truth_points(truth, w.oracle.meas_std_m, w.seed),
+                          "visible truth points"),
+    }
     frames = truth[["scene", "frame", "time_s"]].drop_duplicates(["scene", "frame"])
-    pts = frames.merge(every[["scene", "frame", "x_m", "y_m"]], on=["scene", "frame"],
-                       how="left").rename(columns={"scene": "group"})
-    tracks = track_points(pts, experiment.tracker(cfg))
-    tracks["moving"] = moving_tracks(tracks, w.moving_speed_mps, w.moving_probability)
+    pts = frames.merge(every[["scene", "frame", "x_m", "y_m", "velocity_over_ground_mps"]],
+                       on=["scene", "frame"], how="left").rename(columns={"scene": "group"})
+    tracks = track_points(pts, tcfg, jobs=int(cfg.jobs))
+    ego = (truth.groupby(["scene", "frame"], as_index=False)[["ego_x_m", "ego_y_m"]].first()
+           .rename(columns={"scene": "group"}))
+    kinematic = moving_tracks(tracks, w.moving_speed_mps, w.moving_probability)
+    tracks["moving"] = moving_tracks(tracks, w.moving_speed_mps, w.moving_probability, ego=ego,
+                                     doppler_std_mps=w.moving_doppler_std_mps,
+                                     doppler_log_ratio_min=w.moving_doppler_log_ratio_min)
     write_parquet(ctx.out("tracks.parquet"), tracks)
-    metrics = {"tracker": {**_counts(tracks), **_static_score(tracks, every, cfg, w)}}
+    labels = track_labels(tracks, every, tcfg.cluster_eps_m)
+    metrics = {"tracker": {**_counts(tracks), "classifier": {
+        "kinematic": confusion(tracks, kinematic, labels, truth),
+        "doppler": confusion(tracks, tracks.moving.to_numpy(), labels, truth),
+        "moving_speed_mps": w.moving_speed_mps, "moving_probability": w.moving_probability,
+        "moving_doppler_std_mps": w.moving_doppler_std_mps,
+        "moving_doppler_log_ratio_min": w.moving_doppler_log_ratio_min}}}
     m = metrics["tracker"]
     print(f"driving_track: tracker on {len(every)} points, {m['n_tracks']} tracks "
-          f"({m['n_moving_tracks']} moving), {m['n_rows']} rows; static-world tracks "
-          f"{m['n_static_world_tracks']}, their filtered speed p99 "
-          f"{m['static_world_speed_p99_mps']:.2f} m/s, {m['n_static_world_moving']} classified "
-          "moving")
+          f"({m['n_moving_tracks']} moving), {m['n_rows']} rows")
+    for k in ("kinematic", "doppler"):
+        c = m["classifier"][k]
+        print(f"driving_track: classifier {k}: static-world tracks classed moving "
+              f"{c['static_world_moving']} of {c['static_world_tracks']}; intruding scenes whose "
+              f"lead pedestrian is never classed moving {c['intruding_scenes_missed']} of "
+              f"{c['intruding_scenes']}; TTC at its first moving frame median "
+              f"{c['ttc_at_moving_s_median']} s")
     for name, (points, where) in inputs.items():       # the two reference inputs
         tracks = oracle_tracks(points, w.oracle, dt, last_frame=last, where=where)
         write_parquet(ctx.out(f"tracks_{name}.parquet"), tracks)
@@ -69,6 +92,15 @@ def run(cfg, ctx):
         print(f"driving_track: {name}, {metrics[name]['n_tracks']} tracks, {len(tracks)} rows")
     write_json(ctx.out("driving_track.json"), metrics)
     return StageResult(metrics=metrics)
+
+
+def own_points(points):
+    """Each pedestrian's own points (truth label ``source``), one centroid per (scene,
+    pedestrian, frame): columns scene, pedestrian, frame, time_s, x_m, y_m."""
+    own = points[points.source != "static"]
+    return (own.groupby(["scene", "source", "frame"], as_index=False)
+            .agg(time_s=("time_s", "first"), x_m=("x_m", "mean"), y_m=("y_m", "mean"))
+            .rename(columns={"source": "pedestrian"}))
 
 
 def _counts(tracks):
@@ -81,25 +113,49 @@ def _counts(tracks):
     return out
 
 
-def _static_score(tracks, points, cfg, w):
-    """Truth only scores the split: a confirmed track is a static-world track when every point
-    within the tracker's cluster radius of its positions is a static-world point (``source``)."""
-    eps = float(experiment.tracker(cfg).cluster_eps_m)
+def track_labels(tracks, points, eps):
+    """Truth only scores the split: per confirmed track (group, track_id) the label of the
+    points within the tracker's cluster radius of its positions over its life: ``static`` when
+    all are static-world points, else the pedestrian giving most of them."""
     conf = tracks[tracks.confirmed]
     near = conf[["group", "frame", "track_id", "x_m", "y_m"]].merge(
         points[["scene", "frame", "x_m", "y_m", "source"]].rename(
             columns={"scene": "group", "x_m": "px", "y_m": "py"}), on=["group", "frame"])
     near = near[np.hypot(near.x_m - near.px, near.y_m - near.py) <= eps]
-    ped = (near.source != "static").groupby([near.group, near.track_id]).any()
-    static_ids = ped.index[~ped.to_numpy()]
-    key = pd.MultiIndex.from_frame(conf[["group", "track_id"]])
-    st = conf[key.isin(static_ids)]
-    speed = np.hypot(st.vx_mps, st.vy_mps)
-    moving = st.groupby(["group", "track_id"]).moving.any()
-    return {"n_static_world_tracks": int(len(static_ids)),
-            "static_world_speed_p99_mps": float(np.percentile(speed, 99)) if len(st) else 0.0,
-            "n_static_world_moving": int(moving.sum()),
-            "moving_speed_mps": w.moving_speed_mps, "moving_probability": w.moving_probability}
+    ped = near[near.source != "static"]
+    lab = pd.Series("static", index=pd.MultiIndex.from_frame(
+        conf[["group", "track_id"]].drop_duplicates()), dtype=object)
+    if len(ped):
+        top = ped.groupby(["group", "track_id"]).source.agg(lambda s: s.value_counts().index[0])
+        lab.loc[top.index] = top.to_numpy()
+    return lab
+
+
+def confusion(tracks, moving, labels, truth):
+    """The classifier's confusion on the confirmed tracks (labels: :func:`track_labels`)."""
+    t = tracks.assign(_m=moving)
+    t = t[t.confirmed]
+    per = t.groupby(["group", "track_id"])._m.any()
+    lab = labels.reindex(per.index)
+    st = lab.to_numpy() == "static"
+    mc = truth[(truth.set == "monte_carlo") & (truth.pedestrian == "p0")]
+    first = mc.groupby("scene").first()
+    intr = first.index[((first.behaviour == "cross") & first.collision.astype(bool)).to_numpy()]
+    p0 = (lab.to_numpy() == "p0") & per.index.get_level_values(0).isin(intr)
+    t_first = t[t._m].groupby(["group", "track_id"]).time_s.min().reindex(per.index)
+    scene_first = t_first[p0].groupby(level=0).min().reindex(intr)
+    ttc = (first.collision_time_s.reindex(intr) - scene_first).to_numpy(float)
+    ped = lab.to_numpy() != "static"
+    return {"static_world_tracks": int(st.sum()),
+            "static_world_moving": int(per[st].sum()),
+            "pedestrian_tracks": int(ped.sum()),
+            "pedestrian_static": int((~per[ped]).sum()),
+            "intruding_scenes": int(len(intr)),
+            "intruding_scenes_missed": int(np.isnan(ttc).sum()),
+            "ttc_at_moving_s_median": (float(np.nanmedian(ttc)) if np.isfinite(ttc).any()
+                                       else None),
+            "ttc_at_moving_s_p10": (float(np.nanpercentile(ttc, 10)) if np.isfinite(ttc).any()
+                                    else None)}
 
 
 if __name__ == "__main__":

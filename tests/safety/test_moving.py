@@ -66,3 +66,45 @@ def test_risk_table_scores_moving_rows_only():
     r = risk_table(t, ego, {"x": Fixed()}, horizon=5, dt_s=0.1, shape=EgoShape(1.8, 4.5),
                    margin_m=0.3, method="max_step", max_len=5)
     assert len(r) == int(t.moving.sum()) and (r.p_collision > 0.9).all()
+
+
+def _doppler_track(vx, vy, doppler, x=3.0, y=10.0, n=5):
+    f = np.arange(8)
+    return pd.DataFrame({"group": "s0", "track_id": 1, "frame": f, "x_m": x, "y_m": y,
+                         "vx_mps": vx, "vy_mps": vy, "cov_vxvx": 0.01, "cov_vxvy": 0.0,
+                         "cov_vyvy": 0.01, "confirmed": True, "n_points": n,
+                         "doppler_mps": doppler})
+
+
+def _ego():
+    return pd.DataFrame({"group": "s0", "frame": np.arange(8), "ego_x_m": 0.0, "ego_y_m": 0.0})
+
+
+def test_doppler_refutes_a_static_cluster_sliding_along_a_parked_car():
+    # a cluster on a car 3 m aside, 10 m ahead, whose centroid slides at 1 m/s along y while its
+    # points show 0 over-ground radial speed: u.v = 10 / sqrt(109) = 0.96 m/s predicted, 0
+    # measured -> "static" wins by (0.96^2) / (2 (0.09 / 5 + 0.01)) = 16 per frame
+    kw = dict(ego=_ego(), doppler_std_mps=0.3, doppler_log_ratio_min=np.log(0.1))
+    assert not moving_tracks(_doppler_track(0.0, 1.0, 0.0), 0.5, **kw).any()
+    # the same track whose Doppler agrees with its velocity is moving
+    assert moving_tracks(_doppler_track(0.0, 1.0, 10 / np.sqrt(109)), 0.5, **kw).all()
+    # without the Doppler test the sliding cluster passes (the old false activations)
+    assert moving_tracks(_doppler_track(0.0, 1.0, 0.0), 0.5).all()
+
+
+def test_boresight_crossing_is_not_refuted_by_its_zero_doppler():
+    # a child crossing at boresight (x = 0, 10 m ahead) walks across the line of sight: u.v = 0,
+    # its Doppler 0 too, llr = 0 every frame: the kinematics decide
+    kw = dict(ego=_ego(), doppler_std_mps=0.3, doppler_log_ratio_min=np.log(0.1))
+    assert moving_tracks(_doppler_track(1.4, 0.0, 0.0, x=0.0), 0.5, **kw).all()
+
+
+def test_doppler_log_ratio_is_the_gaussian_mean_test():
+    from blindspot.safety.predict import doppler_log_ratio
+
+    t = _doppler_track(0.0, 1.0, 0.4, x=0.0)          # u = +y, u.v = 1, s^2 = 0.09 / 5 + 0.01
+    llr = doppler_log_ratio(t, np.zeros((8, 2)), 0.3)
+    s2 = 0.09 / 5 + 0.01
+    np.testing.assert_allclose(llr, (0.4**2 - 0.6**2) / (2 * s2))
+    coasting = t.assign(n_points=0, doppler_mps=np.nan)
+    assert (doppler_log_ratio(coasting, np.zeros((8, 2)), 0.3) == 0).all()

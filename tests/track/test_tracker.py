@@ -174,11 +174,32 @@ def test_output_columns_and_types():
     tracks = track_points(frame_table(*extended(truth, rng)), config())
     assert list(tracks.columns) == ["frame", "time_s", "track_id", "x_m", "y_m", "vx_mps",
                                     "vy_mps", "cov_xx", "cov_xy", "cov_yy", "cov_vxvx",
-                                    "cov_vxvy", "cov_vyvy", "confirmed", "coasting"]
+                                    "cov_vxvy", "cov_vyvy", "confirmed", "coasting", "n_points",
+                                    "doppler_mps"]
     assert tracks.frame.dtype == np.int64 and tracks.track_id.dtype == np.int64
+    assert tracks.n_points.dtype == np.int64 and tracks.doppler_mps.isna().all()   # no column
     assert tracks.confirmed.dtype == bool and tracks.coasting.dtype == bool
     empty = track_points(frame_table(np.array([0, 1]), np.full((2, 2), np.nan)), config())
     assert empty.empty and list(empty.columns) == list(tracks.columns)
+
+
+def test_track_rows_carry_the_updating_objects_points_and_median_doppler():
+    # one walker, 3 points per frame whose over-ground radial speeds are 0.9, 1.0, 5.0 m/s (an
+    # outlier): the row of a hit carries 3 points and their median 1.0; a frame without
+    # points leaves the track coasting with 0 points and NaN
+    truth = np.column_stack([np.linspace(-2, 2, 10), np.full(10, 6.0)])
+    rows = [(f, f * DT, x + dx, y, v) for f, (x, y) in enumerate(truth) if f != 6
+            for dx, v in ((-0.1, 0.9), (0.0, 1.0), (0.1, 5.0))]
+    pts = pd.DataFrame(rows, columns=["frame", "time_s", "x_m", "y_m",
+                                      "velocity_over_ground_mps"])
+    pts = pd.concat([pts, pd.DataFrame({"frame": [6], "time_s": [6 * DT], "x_m": [np.nan],
+                                        "y_m": [np.nan]})]).sort_values("frame")
+    tr = track_points(pts, config())
+    assert tr.track_id.nunique() == 1
+    hit = ~tr.coasting
+    assert (tr.n_points[hit] == 3).all() and np.allclose(tr.doppler_mps[hit], 1.0)
+    assert tr.coasting.to_numpy()[6] and tr.n_points.to_numpy()[6] == 0
+    assert np.isnan(tr.doppler_mps.to_numpy()[6])
 
 
 @settings(max_examples=8)

@@ -60,6 +60,8 @@ class WarningConfig(TypedConfig):
     max_history_s: float = setting(gt=0.0, le=60.0)
     moving_speed_mps: float = setting(ge=0.0, le=10.0)
     moving_probability: float = setting(gt=0.0, lt=1.0)
+    moving_doppler_std_mps: float = setting(gt=0.0, le=10.0)
+    moving_doppler_log_ratio_min: float = setting(ge=-1000.0, le=0.0)
     warning_threshold: float = setting(gt=0.0, lt=1.0)
     aeb_threshold: float = setting(gt=0.0, lt=1.0)
     decision_delay_s: float = setting(ge=0.0, le=2.0)

@@ -24,9 +24,10 @@ import pandas as pd
 from scipy.stats import chi2
 
 from blindspot.safety.risk import EgoShape, collision_risk
-from blindspot.traj.baselines import ConstantVelocity
+from blindspot.traj.baselines import ConstantVelocity, KalmanCV
 
-__all__ = ["BackfilledHistory", "track_histories", "moving_tracks", "risk_table"]
+__all__ = ["BackfilledHistory", "track_histories", "doppler_log_ratio", "moving_tracks",
+           "incremental_kalman", "risk_table"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -100,22 +101,68 @@ def track_histories(tracks: pd.DataFrame, max_len: int) -> np.ndarray:
     return out
 
 
-def moving_tracks(tracks: pd.DataFrame, speed_mps: float, probability: float = 0.99
-                  ) -> np.ndarray:
+def doppler_log_ratio(tracks: pd.DataFrame, ego_xy: np.ndarray, doppler_std_mps: float
+                      ) -> np.ndarray:
+    """(N,) per row of ``tracks``: the log-likelihood ratio of its Doppler measurement between
+    "the object moves with the track's filtered velocity" and "the object is static".
+
+    The radar measures, per point, the ego-motion-compensated radial speed (the
+    ``doppler_mps`` column, the median over the object's points; 0 for a static object up to
+    noise). With the unit line of sight u from the radar (``ego_xy`` (N, 2), m, the radar's
+    world position at the row's frame) to the track, the filtered velocity v (vx_mps, vy_mps)
+    predicts the radial speed u.v with variance u^T P_v u; a point's own spread is
+    ``doppler_std_mps``, so an object of n points has d ~ N(u.v, s^2) if moving and
+    N(0, s^2) if static, s^2 = doppler_std^2 / n + u^T P_v u, and
+
+        llr = (d^2 - (d - u.v)^2) / (2 s^2)
+
+    (the Gaussian log-likelihood ratio of the two mean hypotheses with a common variance;
+    Van Trees 1968, sec. 2.2). Near-tangential motion (a child crossing at boresight) predicts
+    u.v ~ 0 and gets llr ~ 0: Doppler neither confirms nor refutes it, the kinematics decide.
+    A static cluster whose centroid slides along a parked car as the ego passes shows a
+    kinematic velocity with a radial part that its Doppler (~0) refutes: llr < 0. Rows without
+    a measurement (coasting, no ``doppler_mps``) give 0.
+    """
+    n = tracks.n_points.to_numpy(float)
+    d = tracks.doppler_mps.to_numpy(float)
+    los = tracks[["x_m", "y_m"]].to_numpy(float) - np.asarray(ego_xy, float)
+    rng = np.hypot(los[:, 0], los[:, 1])
+    u = los / np.where(rng > 0, rng, 1.0)[:, None]
+    uv = u[:, 0] * tracks.vx_mps.to_numpy(float) + u[:, 1] * tracks.vy_mps.to_numpy(float)
+    pu = (tracks.cov_vxvx.to_numpy(float) * u[:, 0] ** 2
+          + 2 * tracks.cov_vxvy.to_numpy(float) * u[:, 0] * u[:, 1]
+          + tracks.cov_vyvy.to_numpy(float) * u[:, 1] ** 2)
+    s2 = doppler_std_mps ** 2 / np.maximum(n, 1.0) + pu
+    ok = (n > 0) & np.isfinite(d) & (rng > 0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        llr = (d ** 2 - (d - uv) ** 2) / (2 * s2)
+    return np.where(ok, llr, 0.0)
+
+
+def moving_tracks(tracks: pd.DataFrame, speed_mps: float, probability: float = 0.99, *,
+                  ego: pd.DataFrame | None = None, doppler_std_mps: float = 0.3,
+                  doppler_log_ratio_min: float | None = None) -> np.ndarray:
     """(N,) bool per row of ``tracks`` (columns group, track_id, frame, vx_mps, vy_mps,
     cov_vxvx, cov_vxvy, cov_vyvy, confirmed; the tracker's world-frame filtered state): True
     from the track's first confirmed row on whose velocity is both fast, sqrt(vx^2 + vy^2) >
     ``speed_mps``, and significantly non-zero, v^T P_v^-1 v > the chi-square quantile of 2
     degrees of freedom at ``probability`` (a static object's filtered velocity is zero-mean
     Gaussian with covariance P_v, so it passes with probability 1 - ``probability`` per frame;
-    the test of Bar-Shalom, Li & Kirubarajan 2001, sec. 5.4, applied to the velocity).
+    the test of Bar-Shalom, Li & Kirubarajan 2001, sec. 5.4, applied to the velocity), and,
+    with ``ego`` and ``doppler_log_ratio_min`` given, whose Doppler does not refute that
+    velocity: the sum over the track's frames so far of :func:`doppler_log_ratio` (a
+    sequential probability ratio of "moves as tracked" against "static", Wald 1945) is above
+    ``doppler_log_ratio_min`` (e.g. -ln 10: the track's own radial speeds make "static" ten
+    times likelier than its kinematic velocity). That needs the columns x_m, y_m, n_points,
+    doppler_mps and ``ego`` (group, frame, ego_x_m, ego_y_m: the radar's world position).
     Causal (a car decides with the frames it has) and latched (a pedestrian stopping at the kerb
-    stays a moving object). Static world (parked cars, kerb clutter), tracked like anything
-    else, mostly never gets there: a new track's velocity is fast but uncertain, and a cluster
-    sliding along a parked car as the ego passes is short-lived. Raises ValueError naming a
-    missing column."""
+    stays a moving object). Raises ValueError naming a missing column or a row without an ego
+    position."""
     need = {"group", "track_id", "frame", "vx_mps", "vy_mps", "cov_vxvx", "cov_vxvy",
             "cov_vyvy", "confirmed"}
+    use_doppler = ego is not None and doppler_log_ratio_min is not None
+    if use_doppler:
+        need |= {"x_m", "y_m", "n_points", "doppler_mps"}
     missing = sorted(need - set(tracks.columns))
     if missing:
         raise ValueError(f"tracks: missing columns {missing} (the blindspot.track schema)")
@@ -128,10 +175,47 @@ def moving_tracks(tracks: pd.DataFrame, speed_mps: float, probability: float = 0
     order = np.lexsort((tracks.frame.to_numpy(), tracks.track_id.to_numpy(),
                         tracks.group.astype(str).to_numpy()))
     key = (tracks.group.astype(str) + "\x00" + tracks.track_id.astype(str)).to_numpy()[order]
+    if use_doppler:
+        e = tracks[["group", "frame"]].merge(ego[["group", "frame", "ego_x_m", "ego_y_m"]],
+                                             on=["group", "frame"], how="left")
+        if e.ego_x_m.isna().any():
+            bad = e[e.ego_x_m.isna()].iloc[0]
+            raise ValueError(f"ego: no radar position for group {bad.group!r} frame "
+                             f"{bad.frame}")
+        llr = doppler_log_ratio(tracks, e[["ego_x_m", "ego_y_m"]].to_numpy(float),
+                                doppler_std_mps)
+        total = pd.Series(llr[order]).groupby(key, sort=False).cumsum().to_numpy()
+        ok = np.empty(len(tracks), bool)
+        ok[order] = total > doppler_log_ratio_min
+        fast &= ok
     seen = pd.Series(fast[order]).groupby(key, sort=False).cummax().to_numpy(bool)
     out = np.empty(len(tracks), bool)
     out[order] = seen
     return out
+
+
+def incremental_kalman(pred, tracks: pd.DataFrame, keep: np.ndarray, horizon: int):
+    """A calibrated Kalman predictor's forecast for the rows ``keep`` (N,) bool of ``tracks``
+    (sorted by group, track_id, frame) without re-filtering each row's history: the filter
+    runs once over each track's whole life (:meth:`KalmanCV.filter`, prior at its first
+    position), and each row predicts from its own frame's filtered state
+    (:meth:`KalmanCV.forecast_from_state`), scaled by the calibration (``pred.scale``; the
+    ``options`` of :class:`blindspot.traj.calibration.ScaledPredictor`). Equal to
+    ``pred.predict_distribution`` on the rows' histories while a track is younger than the
+    history cut (``warning.max_history_s``; the scenes' 5.1 s, so all but a track's 51st
+    frame). Returns a GaussianForecast (keep.sum(), horizon)."""
+    key = tracks.group.astype(str) + "\x00" + tracks.track_id.astype(str)
+    tid = pd.factorize(key)[0]
+    frame = tracks.frame.to_numpy()
+    f0 = pd.Series(frame).groupby(tid).transform("min").to_numpy()
+    off = frame - f0
+    obs = np.full((tid.max() + 1, off.max() + 1, 2), np.nan)
+    obs[tid, off] = tracks[["x_m", "y_m"]].to_numpy(float)
+    base = pred.base
+    res = base.filter(obs)
+    m, P = res.means[tid[keep], off[keep]], res.covs[tid[keep], off[keep]]
+    fc = base.forecast_from_state(m, P, horizon, **dict(pred.options))
+    return fc.scaled(pred.scale[:horizon])
 
 
 def risk_table(tracks: pd.DataFrame, ego: pd.DataFrame, predictors: dict[str, Any], *,
@@ -161,7 +245,10 @@ def risk_table(tracks: pd.DataFrame, ego: pd.DataFrame, predictors: dict[str, An
     for name, pred in predictors.items():          # loop over the four predictors only
         if not len(rows):
             break
-        fc = pred.predict_distribution(hist, horizon)
+        if isinstance(getattr(pred, "base", None), KalmanCV):
+            fc = incremental_kalman(pred, tr, keep, horizon)
+        else:
+            fc = pred.predict_distribution(hist, horizon)
         r = collision_risk(fc, e[["ego_x_m", "ego_y_m"]].to_numpy(),
                            np.radians(e.ego_yaw_deg.to_numpy()), e.ego_speed_mps.to_numpy(),
                            dt_s, shape, margin_m=margin_m, method=method)

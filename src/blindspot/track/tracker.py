@@ -26,22 +26,28 @@ from __future__ import annotations
 
 import datetime as dt
 from dataclasses import dataclass, field
+from functools import partial
 
 import numpy as np
 import pandas as pd
 from scipy.stats import chi2
 from sklearn.cluster import DBSCAN
 
+from blindspot.parallel import parallel_map
 from blindspot.track.config import TrackerConfig
 
 __all__ = ["INPUT_COLUMNS", "OUTPUT_COLUMNS", "TrackingError", "cluster_points", "track_points"]
 
-#: Required input columns (``group``, ``velocity_mps`` optional).
+#: Required input columns (``group``, ``velocity_mps``, ``velocity_over_ground_mps`` optional).
 INPUT_COLUMNS = ("frame", "time_s", "x_m", "y_m")
 #: Output columns after the optional ``group``.
 OUTPUT_COLUMNS = ("frame", "time_s", "track_id", "x_m", "y_m", "vx_mps", "vy_mps",
                   "cov_xx", "cov_xy", "cov_yy", "cov_vxvx", "cov_vxvy", "cov_vyvy",
-                  "confirmed", "coasting")
+                  "confirmed", "coasting", "n_points", "doppler_mps")
+#: The optional point column whose per-object median the tracks carry as ``doppler_mps``: the
+#: ego-motion-compensated radial speed of a point (measured radial speed minus the one a static
+#: point at its angle would show, m/s; blindspot.synth.driving_measurement).
+DOPPLER_COLUMN = "velocity_over_ground_mps"
 
 _EPOCH = dt.datetime(2000, 1, 1)
 
@@ -107,15 +113,18 @@ def _labelled(points: pd.DataFrame, keys: list[str], config: TrackerConfig) -> p
     """The points with coordinates that DBSCAN keeps, with their cluster label ``_label``
     (unique over all frames and groups)."""
     valid = points.dropna(subset=["x_m", "y_m"])
+    cols = keys + ["time_s", "x_m", "y_m"]
+    if DOPPLER_COLUMN in valid.columns:
+        cols.append(DOPPLER_COLUMN)
     if valid.empty:
-        return valid[keys + ["time_s", "x_m", "y_m"]].assign(_label=np.empty(0, np.int64))
+        return valid[cols].assign(_label=np.empty(0, np.int64))
     k = valid.groupby(keys, sort=False).ngroup().to_numpy(float)
     eps = config.cluster_eps_m
     feats = np.column_stack([valid["x_m"].to_numpy(float), valid["y_m"].to_numpy(float),
                              4.0 * eps * k])
     labels = DBSCAN(eps=eps, min_samples=config.cluster_min_samples).fit_predict(feats)
     keep = labels >= 0
-    return valid.loc[keep, keys + ["time_s", "x_m", "y_m"]].assign(_label=labels[keep])
+    return valid.loc[keep, cols].assign(_label=labels[keep])
 
 
 def _centroids(labelled: pd.DataFrame, keys: list[str]) -> pd.DataFrame:
@@ -361,12 +370,12 @@ def _jpda_posterior(track, multihypothesis, updater):
     return GaussianStatePrediction(mean, covar, timestamp=ts), False
 
 
-def _objects(xy: np.ndarray, labels: np.ndarray) -> np.ndarray:
-    """(k, 2) centroids of the points (n, 2) of each label, in label order."""
+def _objects(xy: np.ndarray, labels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(k, 2) centroids of the points (n, 2) of each label, in label order, and (k,) counts."""
     _, inverse, counts = np.unique(labels, return_inverse=True, return_counts=True)
     sums = np.zeros((len(counts), 2))
     np.add.at(sums, inverse, xy)
-    return sums / counts[:, None]
+    return sums / counts[:, None], counts
 
 
 def _track_group(labelled: pd.DataFrame, frames: pd.DataFrame, config: TrackerConfig,
@@ -382,18 +391,28 @@ def _track_group(labelled: pd.DataFrame, frames: pd.DataFrame, config: TrackerCo
     by_frame = dict(zip(starts, zip(np.split(labelled[["x_m", "y_m"]].to_numpy(float), cut),
                                     np.split(labelled["_label"].to_numpy(np.int64), cut))))
     no_points = (np.empty((0, 2)), np.empty(0, np.int64))
+    # per object (label): the median ego-motion-compensated radial speed of its points
+    doppler = (labelled.groupby("_label")[DOPPLER_COLUMN].median()
+               if DOPPLER_COLUMN in labelled.columns else None)
     live: dict[object, _Book] = {}
     next_id = 0
     m, n = config.confirm_m, config.confirm_n
     for frame, t in zip(frames["frame"].to_numpy(), frames["time_s"].to_numpy(float)):
         ts = _EPOCH + dt.timedelta(seconds=float(t))
         pxy, plabels = by_frame.get(frame, no_points)
-        xy = _objects(pxy, plabels) if len(pxy) else np.empty((0, 2))
+        xy, counts = _objects(pxy, plabels) if len(pxy) else (np.empty((0, 2)),
+                                                              np.empty(0, np.int64))
+        ulab = np.unique(plabels)
+        dop = (doppler.reindex(ulab).to_numpy(float) if doppler is not None
+               else np.full(len(ulab), np.nan))
         order = [Detection(p.reshape(2, 1), timestamp=ts,
-                           measurement_model=parts.measurement_model) for p in xy]
+                           measurement_model=parts.measurement_model,
+                           metadata={"n_points": int(k), "doppler_mps": float(d)})
+                 for p, k, d in zip(xy, counts, dop)]
         detections = set(order)
         used: set = set()
         hit_now: dict[object, bool] = {}
+        meas_of: dict[object, object] = {}       # track -> the detection that updated it
         # Two-stage association: confirmed tracks first, tentative tracks with what is left. A
         # new track's wide velocity prior gives it a small Mahalanobis distance to anything
         # nearby, so one joint assignment lets clutter-born tracks steal a confirmed track's
@@ -408,14 +427,17 @@ def _track_group(labelled: pd.DataFrame, frames: pd.DataFrame, config: TrackerCo
                     state, hit = _jpda_posterior(track, hyp, parts.updater)
                     if stage:
                         used.update(h.measurement for h in hyp if h)
-                    elif hit:
-                        used.add(max((h for h in hyp if h), key=lambda h: h.probability)
-                                 .measurement)
+                    if hit:
+                        best = max((h for h in hyp if h), key=lambda h: h.probability)
+                        meas_of[track] = best.measurement
+                        if not stage:
+                            used.add(best.measurement)
                 else:
                     hit = bool(hyp)
                     state = parts.updater.update(hyp) if hit else hyp.prediction
                     if hit:
                         used.add(hyp.measurement)
+                        meas_of[track] = hyp.measurement
                 track.append(state)
                 hit_now[track] = hit
         # Track management: M-of-N confirmation, deletion of failed tentatives and of confirmed
@@ -438,6 +460,7 @@ def _track_group(labelled: pd.DataFrame, frames: pd.DataFrame, config: TrackerCo
             live[track] = _Book(next_id, [True])
             next_id += 1
             hit_now[track] = True
+            meas_of[track] = track[0].hypothesis.measurement
             if m <= 1:
                 live[track].confirmed = True
         for track, book in live.items():
@@ -459,10 +482,24 @@ def _track_group(labelled: pd.DataFrame, frames: pd.DataFrame, config: TrackerCo
             out["cov_vyvy"].append(c[3, 3])
             out["confirmed"].append(book.confirmed)
             out["coasting"].append(not hit_now[track])
+            det = meas_of.get(track)
+            out["n_points"].append(det.metadata["n_points"] if det is not None else 0)
+            out["doppler_mps"].append(det.metadata["doppler_mps"] if det is not None else np.nan)
     return out
 
 
-def track_points(points: pd.DataFrame, config: TrackerConfig) -> pd.DataFrame:
+def _track_chunk(chunk: list, config: TrackerConfig) -> pd.DataFrame | None:
+    """Track the groups of one chunk (a worker's share): [(group, objects, frames)]."""
+    parts = _parts(config)
+    pieces = []
+    for g, objects, fr in chunk:
+        res = pd.DataFrame(_track_group(objects, fr, config, parts))
+        res.insert(0, "group", g)
+        pieces.append(res)
+    return pd.concat(pieces, ignore_index=True) if pieces else None
+
+
+def track_points(points: pd.DataFrame, config: TrackerConfig, jobs: int = 1) -> pd.DataFrame:
     """Tracks of the points of many frames: one row per live track per frame.
 
     Args:
@@ -473,16 +510,22 @@ def track_points(points: pd.DataFrame, config: TrackerConfig) -> pd.DataFrame:
             restart at 0 in each) and ``velocity_mps`` (radial speed; not used by this CV
             position tracker). A row with NaN ``x_m``/``y_m`` marks a frame that was observed
             without any point (tracks coast through it); frames absent from ``points`` are not
-            stepped.
+            stepped. Optional ``velocity_over_ground_mps`` (ego-motion-compensated radial speed,
+            m/s): its per-object median is carried to the track rows (``doppler_mps``).
         config: the tracker group (:class:`~blindspot.track.config.TrackerConfig`).
+        jobs: worker processes over the groups (:func:`blindspot.parallel.parallel_map`; the
+            result does not depend on it).
 
     Returns:
         DataFrame with (``group``), ``frame``, ``time_s``, ``track_id`` (int, unique within a
         group, never reused), ``x_m``, ``y_m``, ``vx_mps``, ``vy_mps`` (filtered state, m and
         m/s), ``cov_xx``, ``cov_xy``, ``cov_yy`` (position covariance, m^2), ``cov_vxvx``,
         ``cov_vxvy``, ``cov_vyvy`` (velocity covariance, m^2/s^2), ``confirmed`` (M-of-N
-        passed), ``coasting`` (predicted without a measurement this frame). Tentative tracks are
-        included (``confirmed`` False): filter on ``confirmed`` for reported tracks.
+        passed), ``coasting`` (predicted without a measurement this frame), ``n_points`` (points
+        of the object that updated the track this frame, 0 when coasting), ``doppler_mps`` (the
+        median ``velocity_over_ground_mps`` of those points, m/s; NaN when coasting or when the
+        points lack that column: the evidence of :mod:`blindspot.track.classify`). Tentative
+        tracks are included (``confirmed`` False): filter on ``confirmed`` for reported tracks.
 
     Raises:
         TrackingError: a missing column, a non-integer frame, a non-numeric coordinate, a NaN
@@ -501,22 +544,23 @@ def track_points(points: pd.DataFrame, config: TrackerConfig) -> pd.DataFrame:
                             f"found time_s = {bad['time_s']} at frame {bad['frame']}, not after "
                             f"the previous frame's")
     labelled = _labelled(points, keys, config)
-    parts = _parts(config)
-    pieces = []
     if has_group:
         obj_groups = dict(list(labelled.groupby("group", sort=False)))
-        for g, fr in frames.groupby("group", sort=True):
-            res = pd.DataFrame(_track_group(obj_groups.get(g, labelled.iloc[:0]), fr, config,
-                                            parts))
-            res.insert(0, "group", g)
-            pieces.append(res)
+        items = [(g, obj_groups.get(g, labelled.iloc[:0]), fr)
+                 for g, fr in frames.groupby("group", sort=True)]
+        # groups are independent: contiguous chunks over the worker processes, order kept
+        n_chunks = min(len(items), 4 * jobs) if jobs > 1 else 1
+        bounds = np.linspace(0, len(items), n_chunks + 1).round().astype(int)
+        chunks = [items[a:b] for a, b in zip(bounds[:-1], bounds[1:]) if b > a]
+        pieces = [p for p in parallel_map(partial(_track_chunk, config=config), chunks, jobs)
+                  if p is not None]
         result = pd.concat(pieces, ignore_index=True) if pieces else None
     else:
-        result = pd.DataFrame(_track_group(labelled, frames, config, parts))
+        result = pd.DataFrame(_track_group(labelled, frames, config, _parts(config)))
     cols = (["group"] if has_group else []) + list(OUTPUT_COLUMNS)
     if result is None or result.empty:
         empty = {c: pd.Series(dtype=float) for c in cols}
-        for c in ("frame", "track_id"):
+        for c in ("frame", "track_id", "n_points"):
             empty[c] = pd.Series(dtype="int64")
         for c in ("confirmed", "coasting"):
             empty[c] = pd.Series(dtype=bool)
@@ -524,4 +568,4 @@ def track_points(points: pd.DataFrame, config: TrackerConfig) -> pd.DataFrame:
             empty["group"] = pd.Series(dtype=points["group"].dtype)
         return pd.DataFrame(empty)[cols]
     return result.astype({"frame": "int64", "track_id": "int64", "confirmed": bool,
-                          "coasting": bool})[cols]
+                          "coasting": bool, "n_points": "int64"})[cols]

@@ -566,9 +566,18 @@ class KalmanCV:
         if not np.isfinite(m).all():
             raise HistoryError(f"{who}: {int(np.sum(~np.isfinite(m).all(axis=1)))} tracks "
                                "have no valid row")
+        return self.forecast_from_state(m, P, horizon, measured=measured)
+
+    def forecast_from_state(self, m: np.ndarray, P: np.ndarray, horizon: int, *,
+                            measured: bool = True) -> GaussianForecast:
+        """The predictive distribution of the next ``horizon`` positions from filtered states
+        ``m`` (B, 4) (x, y, vx, vy; m, m/s) and ``P`` (B, 4, 4) (the recursion of
+        :meth:`predict_distribution`). Lets a caller that keeps each track's filtered state
+        frame by frame (:meth:`filter` over the whole track once) predict from every frame
+        without re-filtering its history."""
         F, Q, H, R = self.matrices()
-        means = np.empty((h.shape[0], horizon, 2))
-        covs = np.empty((h.shape[0], horizon, 2, 2))
+        means = np.empty((m.shape[0], horizon, 2))
+        covs = np.empty((m.shape[0], horizon, 2, 2))
         for k in range(horizon):                           # loop over the horizon only
             m = m @ F.T
             P = F @ P @ F.T + Q
