@@ -350,7 +350,8 @@ class DetectionChain:
         lap("detections")
         sel = np.flatnonzero(budget)
         if self.detect.snapshots == "cells":
-            x = cell_snapshots(rd, rb[sel], db[sel], self.detect.cell_half, frame=fi[sel])
+            x = cell_snapshots(rd, rb[sel], db[sel], self.detect.cell_half, frame=fi[sel],
+                               elements=(self.ula_tx, self.ula_rx))  # (D, n_ula, L)
         else:
             x = chirp_snapshots(profiles, rb[sel], frame=fi[sel])
         ang_sel, spec_sel = self.angles(x, db[sel], return_spectrum=True)
