@@ -15,6 +15,14 @@ The peer reports wall time only; its CPU time per frame is taken from the proces
 its runs (13 frames minus 5 frames: start-up, frame synthesis and dump cancel) and printed beside
 ours (``time.thread_time``) with the CPU ratio, the steadier figure on a loaded machine.
 
+``--baseline REV`` instead compares two versions of our own chain in one process, on the same
+frame: the package as committed at git revision REV (exported with ``git archive`` into a
+temporary directory and imported under another name) and the working tree's, run alternately
+``--repeats`` times on one thread, with every step timed in CPU time (``time.process_time``, so
+other load on the machine changes the figures less than it changes wall time). It prints the
+median per step and in total for both, their ratio, and whether the two give the same detection
+cells and angles (largest angle difference).
+
 Measured 2026-11-30 with ``--threads 1`` (three runs, 2-core AMD EPYC shared with other jobs, load
 7.5-8.2): ours 96-115 ms wall, 38.6-46.7 ms CPU per frame; the peer 958-1181 ms wall, 347-423 ms
 CPU; ratio 10.0x / 10.0x / 10.3x (wall), 10.0x / 8.3x / 9.0x (CPU); batches of 64 frames 5.5-9.3
@@ -59,6 +67,85 @@ def _run(cmd: list[str], threads: int, quiet: bool = False) -> tuple[dict, float
     return json.loads(out.stdout.strip().splitlines()[-1]), cpu
 
 
+_BASELINE_RUN = r"""
+import os, sys, time
+import numpy as np
+from threadpoolctl import threadpool_limits
+sys.path.insert(0, sys.argv[1])
+threadpool_limits(1)
+import torch
+torch.set_num_threads(1)
+from blindspot import experiment
+from blindspot.config import compose
+import blindspot.dsp.chain as new_chain
+import blindspot_baseline.dsp.chain as old_chain
+from blindspot.bench.dsp import simulated_frame
+repeats, overrides = int(sys.argv[2]), sys.argv[3:]
+cfg = compose(["radar.adc_bits=16", "detect.workers=1"] + overrides)
+radar, array = experiment.radar(cfg), experiment.array(cfg)
+cube, label = simulated_frame(cfg, radar)
+groups = (radar, array, experiment.cfar(cfg), experiment.doa(cfg), experiment.detect(cfg))
+chains = {"baseline": old_chain.DetectionChain(*groups), "ours": new_chain.DetectionChain(*groups)}
+# each chain times its steps with its module's time.perf_counter: CPU time instead
+cpu_clock = type(sys)("cpu_clock")
+cpu_clock.perf_counter = time.process_time
+old_chain.time = new_chain.time = cpu_clock
+steps = {k: [] for k in chains}
+total = {k: [] for k in chains}
+for c in chains.values():
+    for _ in range(3):
+        c.process(cube)
+for _ in range(repeats):  # alternately, so both see the same load
+    for k, c in chains.items():
+        t0 = time.process_time()
+        res = c.process(cube)
+        total[k].append((time.process_time() - t0) * 1e3)
+        steps[k].append(res.timings_ms)
+print(f"frame: {label}; {repeats} alternate runs each, one thread, CPU time (process_time), "
+      f"load average {os.getloadavg()[0]:.1f}")
+names = list(dict.fromkeys(n for k in chains for n in steps[k][0]))
+print(f"  {'step':<14s} {'baseline':>9s} {'ours':>9s}  ms CPU (median)")
+for n in names:
+    b, o = (float(np.median([s.get(n, 0.0) for s in steps[k]])) for k in chains)
+    print(f"  {n:<14s} {b:9.2f} {o:9.2f}")
+b, o = (float(np.median(total[k])) for k in chains)
+print(f"  {'total':<14s} {b:9.2f} {o:9.2f}  (ours / baseline {o / b:.3f})")
+rb, ro = (c.process(cube).detections for c in chains.values())
+cells = ["frame", "range_bin", "doppler_bin", "moving"]
+same = rb[cells].equals(ro[cells])
+diff = np.abs(rb["angle_deg"].to_numpy() - ro["angle_deg"].to_numpy())
+print(f"same detection cells: {same}; largest angle difference "
+      f"{np.nanmax(diff, initial=0.0):.2e} deg over {len(ro)} detections")
+"""
+
+
+def _baseline(rev: str, repeats: int, overrides: list[str]) -> int:
+    """Per-step CPU time of the chain at git revision ``rev`` and of the working tree's, in one
+    process (module docstring)."""
+    import re
+    import tarfile
+
+    with tempfile.TemporaryDirectory() as tmp:
+        archive = Path(tmp) / "src.tar"
+        with archive.open("wb") as fh:
+            done = subprocess.run(["git", "-C", str(REPO), "archive", rev, "src/blindspot"],
+                                  stdout=fh, stderr=subprocess.PIPE, check=False)
+        if done.returncode != 0:
+            raise SystemExit(f"--baseline {rev}: git archive failed: {done.stderr.decode()}")
+        with tarfile.open(archive) as tar:
+            tar.extractall(tmp, filter="data")
+        pkg = Path(tmp) / "blindspot_baseline"
+        (Path(tmp) / "src" / "blindspot").rename(pkg)
+        # the revision's own modules import each other as blindspot.*: point them at the copy
+        pattern = re.compile(r"\bblindspot(?=[.\s])")
+        for f in pkg.rglob("*.py"):
+            f.write_text(pattern.sub("blindspot_baseline", f.read_text()))
+        env = {**os.environ, "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1",
+               "MKL_NUM_THREADS": "1"}
+        return subprocess.run([sys.executable, "-c", _BASELINE_RUN, tmp, str(repeats),
+                               *overrides], env=env, check=False).returncode
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--threads", type=int, default=1)
@@ -67,8 +154,12 @@ def main() -> int:
     ap.add_argument("--set", dest="overrides", action="append", default=None,
                     metavar="KEY=VALUE", help="Hydra overrides for our chain "
                     "(default: detect.max_range_m=null, the peer's full range)")
+    ap.add_argument("--baseline", metavar="REV", help="instead: our chain at git revision REV "
+                    "beside the working tree's, per-step CPU time in one process")
     args = ap.parse_args()
     overrides = args.overrides if args.overrides is not None else ["detect.max_range_m=null"]
+    if args.baseline:
+        return _baseline(args.baseline, args.repeats, overrides)
     ours = [sys.executable, "-m", "blindspot.bench.dsp", "--threads", str(args.threads),
             "--json", "--repeats", str(args.repeats), "--batch", str(args.batch)]
     for o in overrides:

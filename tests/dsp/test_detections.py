@@ -4,9 +4,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from blindspot.dsp.cfar import cfar_2d, os_cfar_2d
-from blindspot.dsp.detections import detection_order, local_maxima, rank_in_frame
+from blindspot.dsp.detections import (
+    DetectionError, detection_order, local_maxima, local_maxima_at, rank_in_frame,
+)
 
 
 @pytest.mark.parametrize("kwargs", [dict(pfa=1e-3), dict(scale=1.18, domain="db"),
@@ -50,6 +54,21 @@ def test_local_maxima_rule_and_edges():
     assert not got[0, 4].any() and got[0, 2, 0]
     with pytest.raises(ValueError, match="row_exists"):
         local_maxima(q, rows[:, :3])
+
+
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), rows=st.integers(1, 7), cols=st.integers(1, 6),
+       levels=st.integers(1, 4))
+def test_local_maxima_at_equals_the_whole_map_rule(seed, rows, cols, levels):
+    """The chain's rule on its CFAR cells only gives, cell for cell, the whole-map rule: edges
+    (first and last range row), the wrapped Doppler columns and ties (few distinct levels make
+    plateaus, which count as maxima) included."""
+    rng = np.random.default_rng(seed)
+    p = rng.integers(0, levels, (2, rows, cols)).astype(np.float64)
+    f, r, c = (a.ravel() for a in np.indices(p.shape))
+    np.testing.assert_array_equal(local_maxima_at(p, f, r, c), local_maxima(p)[f, r, c])
+    with pytest.raises(DetectionError, match="local_maxima_at: row"):
+        local_maxima_at(p, f, r + 0.5, c)
 
 
 def test_order_and_budget_per_frame():

@@ -233,12 +233,13 @@ def doa_angles_fn(method):
 
 @pytest.mark.parametrize("k", [2, 8, 64])
 def test_real_fb_covariance_is_the_unitary_transform_of_r(k):
-    """The torch MUSIC's real forward-backward covariance from R's blocks is Re(Q^H R Q) with
-    the explicit unitary centro-Hermitian Q = [[I, jI], [J, -jJ]] / sqrt(2) (Huarng & Yeh 1991),
-    and, as that theory says, R and its forward-backward average (R + J R* J) / 2 share it."""
+    """The real forward-backward covariance from R's blocks (torch MUSIC and the numpy path's
+    smoothed covariance) is Re(Q^H R Q) with the explicit unitary centro-Hermitian
+    Q = [[I, jI], [J, -jJ]] / sqrt(2) (Huarng & Yeh 1991), and, as that theory says, R and its
+    forward-backward average (R + J R* J) / 2 share it."""
     import torch
 
-    from blindspot.dsp.doa import _fb_real_torch
+    from blindspot.dsp.doa import _fb_real, _fb_real_torch
 
     rng = np.random.default_rng(5)
     y = rng.normal(size=(6, k, 9)) + 1j * rng.normal(size=(6, k, 9))
@@ -248,6 +249,7 @@ def test_real_fb_covariance_is_the_unitary_transform_of_r(k):
     ref = np.real(q.conj().T @ r @ q)
     got = _fb_real_torch(torch, torch.from_numpy(r)).numpy()
     np.testing.assert_allclose(got, ref, atol=1e-12 * np.abs(ref).max())
+    np.testing.assert_allclose(_fb_real(r), ref, atol=1e-12 * np.abs(ref).max())
     jk = np.eye(k)[::-1]
     fb = 0.5 * (r + jk @ r.conj() @ jk)
     np.testing.assert_allclose(q.conj().T @ fb @ q, ref, atol=1e-12 * np.abs(ref).max())

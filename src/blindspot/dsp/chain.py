@@ -45,7 +45,7 @@ import pandas as pd
 
 from blindspot.dsp.cfar import cfar_2d, os_cfar_2d, training_mean
 from blindspot.dsp.config import CfarConfig, DetectConfig, DoaConfig
-from blindspot.dsp.detections import detection_order, local_maxima, rank_in_frame
+from blindspot.dsp.detections import detection_order, local_maxima_at, rank_in_frame
 from blindspot.dsp.doa import doa_angles
 from blindspot.dsp.doppler_compensation import compensate_tdm
 from blindspot.dsp.points import (
@@ -247,10 +247,11 @@ class DetectionChain:
         """(frame, range_bin, doppler_bin) (D,) of the detections of (frames, range, doppler)
         maps: CFAR cells inside the range window and, with ``peak_only``, the local maxima of the
         map over their 3 x 3 neighbours (Doppler wraps). Unordered (frame-major)."""
-        keep = mask & self.range_ok[:, None]
-        if self.detect.peak_only:
-            keep &= local_maxima(power)
-        return np.nonzero(keep)
+        fi, rb, db = np.nonzero(mask & self.range_ok[:, None])
+        if self.detect.peak_only:  # the rule of local_maxima, on the CFAR cells only
+            peak = local_maxima_at(power, fi, rb, db)
+            fi, rb, db = fi[peak], rb[peak], db[peak]
+        return fi, rb, db
 
     def detection_range(self, power: np.ndarray, frame: np.ndarray, row: np.ndarray,
                         doppler_bin: np.ndarray, range_bin: np.ndarray | None = None, *,
@@ -349,26 +350,29 @@ class DetectionChain:
         lap("detections")
         sel = np.flatnonzero(budget)
         if self.detect.snapshots == "cells":
-            x = cell_snapshots(rd, rb[sel], db[sel], self.detect.cell_half, frame=fi[sel])
+            x = cell_snapshots(rd, rb[sel], db[sel], self.detect.cell_half, frame=fi[sel],
+                               elements=(self.ula_tx, self.ula_rx))  # (D, n_ula, L)
         else:
             x = chirp_snapshots(profiles, rb[sel], frame=fi[sel])
         ang_sel, spec_sel = self.angles(x, db[sel], return_spectrum=True)
         angles = np.full(rb.size, np.nan)
         angles[sel] = ang_sel
         lap("doa")
+        velocity = self.velocity_axis_mps[db]
+        # every column is a new array of this call, so the tables take them without a copy
+        # (copy=False: half of the construction time of such a small table)
         det = pd.DataFrame({
             "frame": frame_ids[fi], "range_bin": rb.astype(np.int64),
             "doppler_bin": db.astype(np.int64), "range_m": range_m,
-            "velocity_mps": self.velocity_axis_mps[db], "power": pw, "snr_db": snr_db,
+            "velocity_mps": velocity, "power": pw, "snr_db": snr_db,
             "angle_deg": angles, "moving": mov,
-        })
-        pts = group_points(fi, det["range_m"].to_numpy(), det["velocity_mps"].to_numpy(), angles,
-                           snr_db, self.detect.min_speed_mps, self.detect.cluster_gap_m,
-                           estimator=self.detect.point_estimator)
+        }, copy=False)
+        pts = group_points(fi, range_m, velocity, angles, snr_db, self.detect.min_speed_mps,
+                           self.detect.cluster_gap_m, estimator=self.detect.point_estimator)
         # the dict is in POINT_COLUMNS order (frame, time_s, then POINT_FIELDS): no columns=
         # argument, whose reindexing cost more than building the frame
         points = pd.DataFrame({"frame": frame_ids[pts["frame"]], "time_s": times[pts["frame"]],
-                               **{k: pts[k] for k in POINT_FIELDS}})
+                               **{k: pts[k] for k in POINT_FIELDS}}, copy=False)
         lap("points")
         spectra = None
         if keep_spectra:  # per frame: its first detection's spectrum when that one is moving

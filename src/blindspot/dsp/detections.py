@@ -8,6 +8,8 @@ the same steps.
 * :func:`local_maxima`: the ``peak_only`` rule, a cell is kept when it is at least as strong as
   its 8 neighbours (Doppler wraps; rows beyond the first and last range bin count as -inf), so
   one target gives one detection per spectral peak rather than its whole window main lobe.
+  :func:`local_maxima_at` applies the same rule to given cells only (the CFAR cells of a
+  batch: tens of cells instead of a whole map).
 * :func:`detection_order`: within each frame, moving detections first, then by decreasing
   power; :func:`rank_in_frame` gives each detection's position in its frame, so the DOA budget
   (``detect.max_detections`` angles per frame) is a comparison, not a loop.
@@ -19,7 +21,8 @@ import numpy as np
 
 from blindspot.arrays import check_same_shape, checked_array
 
-__all__ = ["DetectionError", "local_maxima", "detection_order", "rank_in_frame"]
+__all__ = ["DetectionError", "local_maxima", "local_maxima_at", "detection_order",
+           "rank_in_frame"]
 
 
 class DetectionError(ValueError):
@@ -74,6 +77,36 @@ def local_maxima(power: np.ndarray, row_exists: np.ndarray | None = None) -> np.
     if row_exists is not None:
         is_max &= rows_ok[..., None]
     return is_max
+
+
+_NEIGHBOURS = np.array([(dr, dd) for dr in (-1, 0, 1) for dd in (-1, 0, 1) if dr or dd])
+
+
+def local_maxima_at(power: np.ndarray, frame: np.ndarray, row: np.ndarray,
+                    col: np.ndarray) -> np.ndarray:
+    """:func:`local_maxima` of the cells (frame, row, col) only, without ``row_exists``:
+    ``local_maxima(power)[frame, row, col]``, at the cost of gathering 8 neighbours per cell.
+
+    Args:
+        power: (frames, range, doppler) detection maps, no NaN (the chain's map is checked
+            finite where it is made).
+        frame, row, col: (D,) integer indices of the cells.
+
+    Returns:
+        (D,) bool. Raises DetectionError for a map that is not 3-D real, or indices that are
+        not (D,) integers of one length.
+    """
+    p = checked_array(power, "power", DetectionError, where="local_maxima_at",
+                      axes="detection maps (frames, range, doppler)", ndim=3, kind="real",
+                      finite=False)
+    f, r, c = _per_detection("local_maxima_at", frame=(frame, "index"), row=(row, "index"),
+                             col=(col, "index"))
+    n_rows, n_cols = p.shape[1:]
+    rr = r[:, None] + _NEIGHBOURS[:, 0]                      # (D, 8)
+    cc = (c[:, None] + _NEIGHBOURS[:, 1]) % n_cols           # Doppler wraps
+    inside = (rr >= 0) & (rr < n_rows)                       # rows beyond the map: -inf
+    nb = p[f[:, None], np.clip(rr, 0, n_rows - 1), cc]
+    return np.all((p[f, r, c][:, None] >= nb) | ~inside, axis=1)
 
 
 def detection_order(frame: np.ndarray, power: np.ndarray, is_moving: np.ndarray) -> np.ndarray:

@@ -50,13 +50,19 @@ def _indices(where: str, data: np.ndarray, frame: np.ndarray | None,
 
 
 def cell_snapshots(rd_native: np.ndarray, range_bin: np.ndarray, doppler_bin: np.ndarray,
-                   half: tuple[int, int] = (1, 1), frame: np.ndarray | None = None) -> np.ndarray:
+                   half: tuple[int, int] = (1, 1), frame: np.ndarray | None = None, *,
+                   elements: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
     """Neighbourhood cells of each detection.
 
     rd_native : (doppler, tx, rx, range) complex (``RangeDoppler.native`` layout) or, with
                 ``frame``, a batch (frames, doppler, tx, rx, range)
     range_bin, doppler_bin : (D,) ints; frame : (D,) index into the batch axis (batched only)
-    returns (D, tx, rx, L) with L = (2 half_r + 1)(2 half_d + 1), the centre cell first
+    elements : optional (tx index (E,), rx index (E,)) of the channels wanted, e.g. the ULA
+               elements (``VirtualArray.ula_index``): only those cells are gathered (each is a
+               cache miss in a frame-sized array, so the 86 ULA channels cost less than half of
+               all 192)
+    returns (D, tx, rx, L) with L = (2 half_r + 1)(2 half_d + 1), the centre cell first, or
+    (D, E, L) with ``elements`` (the same values as ``[:, tx_index, rx_index]`` of the former)
     raises SnapshotError when ``rd_native`` is not complex-valued with 4 axes (5 with
     ``frame``) or an index is not a (D,) integer array within its axis; NaN/inf cells are left
     to the angle estimator, which names them (:class:`~blindspot.dsp.doa.DoaError`)
@@ -77,6 +83,18 @@ def cell_snapshots(rd_native: np.ndarray, range_bin: np.ndarray, doppler_bin: np
     dr, dd = dr[centre_first], dd[centre_first]
     rr = np.clip(np.asarray(range_bin)[:, None] + dr, 0, n_rng - 1)  # (D, L)
     ds = (np.asarray(doppler_bin)[:, None] + dd) % n_dop
+    if elements is not None:
+        tx, rx = (checked_array(e, name, SnapshotError, where="cell_snapshots", kind="index",
+                                ndim=1, axes="a channel index per element (E,)")
+                  for name, e in zip(("elements[0] (tx)", "elements[1] (rx)"), elements))
+        n_tx, n_rx = rd_native.shape[-3:-1]
+        if tx.shape != rx.shape or (tx.size and (tx.max() >= n_tx or rx.max() >= n_rx)):
+            raise SnapshotError(f"cell_snapshots: elements must be (tx, rx) index arrays of one "
+                                f"length within ({n_tx}, {n_rx}); found shapes {tx.shape}, "
+                                f"{rx.shape}")
+        lead = () if frame is None else (np.asarray(frame)[:, None, None],)
+        # (D, L, E) -> (D, E, L)
+        return rd_native[(*lead, ds[:, :, None], tx, rx, rr[:, :, None])].transpose(0, 2, 1)
     if frame is None:
         cells = rd_native[ds, :, :, rr]  # (D, L, tx, rx): advanced indices first
     else:
