@@ -168,6 +168,21 @@ def test_groups_are_independent_and_ids_restart():
     assert list(tracks.columns[:4]) == ["group", "frame", "time_s", "track_id"]
 
 
+@pytest.mark.parametrize("name", ["gnn_cv", "jpda_cv"])
+def test_worker_processes_give_the_same_tracks(name):
+    """track_points(jobs=2) splits the groups over worker processes: the same rows, ids, states
+    and order as in one process, for groups of different walks with clutter."""
+    rng = np.random.default_rng(11)
+    parts = []
+    for g in range(5):
+        truth = np.column_stack([np.linspace(-2 + g, 2 + g, 25), np.full(25, 5.0 + g)])
+        f, xy = extended(truth, rng)
+        cf, cxy = clutter(rng, 25, 2)
+        parts.append(frame_table(np.concatenate([f, cf]), np.concatenate([xy, cxy]), group=g))
+    pts = pd.concat(parts, ignore_index=True)
+    pd.testing.assert_frame_equal(track_points(pts, config(name), jobs=2),
+                                  track_points(pts, config(name), jobs=1))
+
 def test_output_columns_and_types():
     rng = np.random.default_rng(6)
     truth = np.column_stack([np.linspace(-2, 2, 12), np.full(12, 6.0)])

@@ -17,8 +17,8 @@ knots, which no radar path has.
 Windows. A stretch of ``L`` annotated frames holds ``(L - 1) * r + 1`` resampled points
 (``r`` = 0.4 s / dt_s, an integer); the windows of ``W`` points plus their next point start at
 the first ``r`` offsets of the stretch, so consecutive stretches (stride one annotated frame)
-tile every start exactly once. ``L = ceil((W + r) / r) + 1`` is the shortest stretch that holds
-``r`` windows.
+tile every start exactly once. ``L = ceil((W + r - 1) / r) + 1`` is the shortest stretch that
+holds ``r`` windows (:func:`stretch_length`).
 """
 
 from __future__ import annotations
