@@ -35,15 +35,23 @@ REPO = Path(__file__).resolve().parents[1]
 VARIANTS = ("scratch", "ethucy", "finetuned")
 
 
-def _member(job):
-    """One seed's three networks (module level, so worker processes can run it)."""
+def _pretrain(job):
+    """One seed's network trained on ETH/UCY alone (module level, so workers can run it)."""
     from blindspot.traj.train import train_lstm
 
-    seed, fraction, data, pretrain, model_cfg, train_cfg, pre_epochs = job
-    train, val = data
+    seed, pretrain, val, model_cfg, train_cfg, pre_epochs = job
+    cfg = replace(train_cfg, seed=seed, epochs=pre_epochs)
+    return train_lstm(pretrain, val, model_cfg, cfg, progress=False)
+
+
+def _member(job):
+    """One seed's radar networks for one training fraction: from scratch and fine-tuned from that
+    seed's pre-trained network."""
+    from blindspot.traj.train import train_lstm
+
+    seed, fraction, (train, val), pre, model_cfg, train_cfg = job
     cfg = replace(train_cfg, seed=seed)
     scratch = train_lstm(train, val, model_cfg, cfg, progress=False)
-    pre = train_lstm(pretrain, val, model_cfg, replace(cfg, epochs=pre_epochs), progress=False)
     tuned = train_lstm(train, val, model_cfg, cfg, progress=False, init_from=pre.predictor)
     return seed, fraction, {"scratch": scratch, "ethucy": pre, "finetuned": tuned}
 
@@ -93,11 +101,15 @@ def main() -> None:
           f"val {len(split['val'])}, test {len(split['test'])}")
 
     seeds = [int(train_cfg.seed) + i for i in range(args.seeds)]
-    jobs = [(s, f, (_path_subset(split["train"], f, int(cfg.seed)), split["val"]), pretrain,
-             model_cfg, train_cfg, args.pretrain_epochs) for f in args.fractions for s in seeds]
     t0 = time.perf_counter()
+    # pre-training does not depend on the radar fraction: once per seed, shared by the fractions
+    pre = dict(zip(seeds, parallel_map(_pretrain, [(s, pretrain, split["val"], model_cfg, train_cfg,
+                                                    args.pretrain_epochs) for s in seeds],
+                                       args.jobs, progress="pre-train")))
+    jobs = [(s, f, (_path_subset(split["train"], f, int(cfg.seed)), split["val"]), pre[s],
+             model_cfg, train_cfg) for f in args.fractions for s in seeds]
     done = parallel_map(_member, jobs, args.jobs, progress="train")
-    print(f"trained {3 * len(jobs)} networks in {time.perf_counter() - t0:.0f} s")
+    print(f"trained {len(seeds) + 2 * len(jobs)} networks in {time.perf_counter() - t0:.0f} s")
 
     results: dict = {}
     ensembles: dict = {}
@@ -156,8 +168,7 @@ def _walk_benchmark(cfg, ensembles: dict, n_walks: int) -> dict:
         walks, radar, experiment.cfar(cfg), experiment.doa(cfg), experiment.detect(cfg),
         pedestrian=PedestrianModel.from_scene(car), occlusion_db=car.occlusion_db,
         seed=int(cfg.seed), jobs=int(cfg.jobs), progress=False)
-    gap = ensembles[next(n for n in ensembles if n.startswith("scratch@1"))] \
-        if any(n.startswith("scratch@1") for n in ensembles) else next(iter(ensembles.values()))
+    gap = ensembles.get("scratch@1", next(iter(ensembles.values())))   # the train stage's kind
     scores, _ = score_scene_walks(
         walks, measured, predictors=ensembles, interpolation_methods=ev.interpolation_methods,
         prediction_input=ev.prediction_input, gap_predictor=gap,
