@@ -4,6 +4,7 @@ import os
 
 import pytest
 
+from blindspot import parallel
 from blindspot.parallel import parallel_map
 
 
@@ -21,9 +22,20 @@ def test_order_is_kept_in_and_out_of_process():
 
 
 @pytest.mark.skipif(not hasattr(os, "sched_getaffinity"), reason="no CPU affinity here")
-def test_workers_are_confined_to_the_first_cpus():
-    first = sorted(os.sched_getaffinity(0))[:1]
+def test_workers_are_confined_to_the_cpus_asked_for():
+    mine = sorted(os.sched_getaffinity(0))
     seen = parallel_map(_affinity, range(3), 3, cpus=1)
-    assert seen == [first] * 3
+    assert len(seen[0]) == 1 and seen[0][0] in mine and seen == [seen[0]] * 3
+    # cpus covering every allowed CPU: no pinning at all
+    assert parallel_map(_affinity, range(2), 2, cpus=len(mine)) == [mine] * 2
     with pytest.raises(ValueError, match="cpus"):
         parallel_map(_affinity, range(3), 2, cpus=0)
+
+
+def test_pinned_workers_take_the_idlest_cpus(monkeypatch):
+    """Two pinned stages at once must not stack on CPU 0: the busy one is avoided."""
+    samples = iter([{0: 100, 1: 100, 2: 100, 3: 100}, {0: 105, 1: 180, 2: 101, 3: 190}])
+    monkeypatch.setattr(parallel, "_cpu_busy_ticks", lambda: next(samples))
+    assert parallel.idlest_cpus([0, 1, 2, 3], 2, sample_s=0) == [0, 2]
+    samples = iter([{}, {}])  # no /proc/stat: the first ones
+    assert parallel.idlest_cpus([3, 5, 7], 2, sample_s=0) == [3, 5]

@@ -42,6 +42,7 @@ the :class:`~blindspot.stage.StageResult` it returns: this runner is the one doo
 from __future__ import annotations
 
 import hashlib
+import importlib.metadata
 import importlib.util
 import os
 import re
@@ -97,16 +98,20 @@ _INFO_VALUES = {"all", "config", "defaults", "defaults-tree", "plugins", "search
 # .dvc/.gitignore), so only DVC repositories have one. See check_params_stamped.
 STAMP_FILE = Path(".dvc", "tmp", "blindspot-params-check")
 _STAMP_FORMAT = b"blindspot params check, stamp format 1\n"
-_OC_ENV = re.compile(rb"\$\{oc\.env:([A-Za-z_][A-Za-z0-9_]*)")
+# ${oc.env:NAME}, and OmegaConf's other spellings: blanks around the colon, a quoted name
+_OC_ENV = re.compile(rb"\$\{\s*oc\.env\s*:\s*['\"]?([A-Za-z_][A-Za-z0-9_]*)")
 
 
 def params_fingerprint(repo_root: str | os.PathLike[str]) -> str:
     """SHA-256 (hex) of everything the verdict of :func:`blindspot.config.check_params` depends on.
 
     That is: the bytes of ``params.yaml`` and of every file under ``conf/`` (with its path), the
-    values of the environment variables ``conf/`` reads through ``${oc.env:NAME}``, and the code
-    that composes and compares (:mod:`blindspot.config`, Hydra's and OmegaConf's package
-    ``__init__`` files, which carry their versions). Equal fingerprints mean the composition of
+    values of the environment variables ``conf/`` reads through ``${oc.env:NAME}`` (the whole
+    environment when a file uses ``oc.env`` in a form whose name cannot be read, e.g. nested
+    interpolation: conservative, such a stamp rarely matches and the check composes), and the
+    code that composes and compares (:mod:`blindspot.config`, Hydra's and OmegaConf's installed
+    versions and package ``__init__`` files). Folders under ``conf/`` are walked through
+    symbolic links. Equal fingerprints mean the composition of
     ``conf/`` and its comparison with params.yaml would give the same answer. Reads files only
     (milliseconds; no Hydra import). Raises ``FileNotFoundError`` when params.yaml is absent.
     """
@@ -120,18 +125,29 @@ def params_fingerprint(repo_root: str | os.PathLike[str]) -> str:
     add(bconfig.PARAMS_FILE, (root / bconfig.PARAMS_FILE).read_bytes())
     conf_dir = root / bconfig.CONFIG_DIR
     env_names: set[str] = set()
-    for path in sorted(p for p in conf_dir.rglob("*") if p.is_file()):
+    whole_env = False
+    files = sorted(Path(d, f) for d, _, names in os.walk(conf_dir, followlinks=True)
+                   for f in names)
+    for path in files:
         data = path.read_bytes()
         add(path.relative_to(conf_dir).as_posix(), data)
-        env_names.update(m.decode() for m in _OC_ENV.findall(data))
+        found = _OC_ENV.findall(data)
+        env_names.update(m.decode() for m in found)
+        whole_env |= data.count(b"oc.env") > len(found)
+    if whole_env:
+        env_names.update(os.environ)
     for name in sorted(env_names):
         value = os.environ.get(name)
         add(f"env:{name}", b"\1" if value is None else b"\2" + value.encode())
     add("code:blindspot.config", Path(bconfig.__file__).read_bytes())
-    for package in ("hydra", "omegaconf"):
+    for package, dist in (("hydra", "hydra-core"), ("omegaconf", "omegaconf")):
         spec = importlib.util.find_spec(package)
         origin = spec.origin if spec is not None else None
         add(f"code:{package}", Path(origin).read_bytes() if origin else b"")
+        try:
+            add(f"version:{dist}", importlib.metadata.version(dist).encode())
+        except importlib.metadata.PackageNotFoundError:
+            add(f"version:{dist}", b"")
     return digest.hexdigest()
 
 

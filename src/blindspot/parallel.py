@@ -16,8 +16,11 @@ def parallel_map(fn: Callable[[Any], Any], items: Sequence[Any], jobs: int,
     default pools, 21 s with two single-threaded processes). Order is kept. ``progress`` names a
     tqdm bar over the items (None = silent).
 
-    ``cpus``: confine the workers to the first ``cpus`` CPUs this process may run on (Linux CPU
-    affinity; ignored where the platform has none), e.g. ``jobs`` = one worker per equal-sized
+    ``cpus``: confine the workers to ``cpus`` of the CPUs this process may run on (Linux CPU
+    affinity; ignored where the platform has none, and when ``cpus`` covers them all): the
+    idlest ones over a 50 ms sample of ``/proc/stat`` (:func:`idlest_cpus`), so two pinned
+    stages running at once (queued ``dvc exp`` runs, a multirun) do not stack on the same cores.
+    E.g. ``jobs`` = one worker per equal-sized
     item that then time-share ``cpus`` cores and finish together: ``n / cpus`` item-times instead
     of ``ceil(n / cpus)`` rounds with idle cores in the last one (five ensemble members on two
     cores: 2.5 instead of 3)."""
@@ -37,10 +40,39 @@ def parallel_map(fn: Callable[[Any], Any], items: Sequence[Any], jobs: int,
     if cpus is not None and hasattr(os, "sched_getaffinity"):
         if int(cpus) < 1:
             raise ValueError(f"parallel_map: cpus must be >= 1, found {cpus!r}")
-        allowed = sorted(os.sched_getaffinity(0))[:int(cpus)]
+        mine = sorted(os.sched_getaffinity(0))
+        allowed = idlest_cpus(mine, int(cpus)) if int(cpus) < len(mine) else None
     with ProcessPoolExecutor(max_workers=min(jobs, len(items)), mp_context=mp.get_context("fork"),
                              initializer=partial(_single_threaded, allowed)) as pool:
         return list(bar(pool.map(fn, items)))
+
+
+def _cpu_busy_ticks() -> dict[int, int]:
+    """Per CPU: its non-idle clock ticks so far (``/proc/stat``: user nice system idle iowait
+    irq softirq steal ...; idle and iowait are the idle ones). Empty where unreadable."""
+    try:
+        lines = open("/proc/stat", encoding="ascii").read().splitlines()
+    except OSError:
+        return {}
+    out = {}
+    for line in lines:
+        name, *ticks = line.split()
+        if name.startswith("cpu") and name[3:].isdigit():
+            t = [int(v) for v in ticks[:8]]
+            out[int(name[3:])] = sum(t) - t[3] - t[4]
+    return out
+
+
+def idlest_cpus(allowed: Sequence[int], n: int, sample_s: float = 0.05) -> list[int]:
+    """The ``n`` CPUs of ``allowed`` with the fewest busy ticks over ``sample_s`` seconds
+    (ties: lowest number first; without ``/proc/stat``, the first ``n``), sorted."""
+    import time
+
+    before = _cpu_busy_ticks()
+    time.sleep(sample_s)
+    after = _cpu_busy_ticks()
+    busy = {c: after.get(c, 0) - before.get(c, 0) for c in allowed}
+    return sorted(sorted(allowed, key=lambda c: (busy[c], c))[:n])
 
 
 def _single_threaded(allowed: list[int] | None = None) -> None:

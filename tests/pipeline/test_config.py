@@ -140,6 +140,46 @@ def test_check_params_stamp_covers_environment_variables_conf_reads(
         cli.check_params_stamped(toy)
 
 
+@pytest.mark.parametrize("spelling", ["${oc.env:BLINDSPOT_TEST_WORKERS,1}",
+                                      "${oc.env: BLINDSPOT_TEST_WORKERS, 1}",
+                                      "${oc.env:'BLINDSPOT_TEST_WORKERS',1}",
+                                      "${oc.env:${oc.env:BLINDSPOT_TEST_NAME,X},1}"])
+def test_params_fingerprint_follows_every_oc_env_spelling(
+        toy: Path, spelling: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    """OmegaConf accepts blanks and quoted names in ``${oc.env:...}``; a name read through a
+    nested interpolation cannot be read from the file, so the whole environment counts."""
+    conf = toy / "conf" / "config.yaml"
+    conf.write_text(conf.read_text() + f'workers: "{spelling}"\n')
+    config.write_params(toy)
+    monkeypatch.setenv("BLINDSPOT_TEST_WORKERS", "3")
+    before = cli.params_fingerprint(toy)
+    monkeypatch.setenv("BLINDSPOT_TEST_WORKERS", "4")
+    assert cli.params_fingerprint(toy) != before
+
+
+def test_params_fingerprint_walks_symlinked_conf_folders(toy: Path, tmp_path: Path) -> None:
+    outside = tmp_path / "shared_group"
+    outside.mkdir()
+    (outside / "big.yaml").write_text("hidden_size: 64\n")
+    (toy / "conf" / "extra").symlink_to(outside, target_is_directory=True)
+    config.write_params(toy)
+    before = cli.params_fingerprint(toy)
+    (outside / "big.yaml").write_text("hidden_size: 65\n")
+    assert cli.params_fingerprint(toy) != before
+
+
+def test_params_fingerprint_includes_the_installed_omegaconf_version(
+        toy: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    import importlib.metadata
+
+    config.write_params(toy)
+    before = cli.params_fingerprint(toy)
+    real = importlib.metadata.version
+    monkeypatch.setattr(importlib.metadata, "version",
+                        lambda d: "9.9.9" if d == "omegaconf" else real(d))
+    assert cli.params_fingerprint(toy) != before
+
+
 def test_params_fingerprint_changes_with_every_input(toy: Path) -> None:
     config.write_params(toy)
     seen = {cli.params_fingerprint(toy)}
