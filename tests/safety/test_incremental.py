@@ -5,12 +5,14 @@ old call coasted the prior and so widened it by the process noise of every empty
 
 import numpy as np
 import pandas as pd
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from blindspot.safety.predict import incremental_kalman, track_histories
 from blindspot.traj.baselines import KalmanCV
 from blindspot.traj.calibration import ScaledPredictor
+from blindspot.traj.distribution import DistributionError
 
 
 @settings(max_examples=10, deadline=None)
@@ -28,6 +30,7 @@ def test_equals_refiltering_each_rows_history(seed, measured):
     tr = pd.concat(rows, ignore_index=True).sort_values(["group", "track_id", "frame"])
     tr = tr.reset_index(drop=True)
     keep = rng.random(len(tr)) < 0.6
+    keep[(tr.group == "s0").to_numpy() & (tr.track_id == 0).to_numpy()] = False  # never kept
     pred = ScaledPredictor(KalmanCV(dt=0.1, process_psd=0.7, meas_std=0.1),
                            np.linspace(1.0, 2.0, 8), (("measured", measured),), "kalman")
     hist = track_histories(tr, 30)[keep]
@@ -36,3 +39,12 @@ def test_equals_refiltering_each_rows_history(seed, measured):
         want = pred.predict_distribution(h[np.isfinite(h).all(-1)][None], 8)
         np.testing.assert_allclose(got.mean[b], want.mean[0], atol=1e-9)
         np.testing.assert_allclose(got.cov[b], want.cov[0], atol=1e-9)
+
+
+def test_horizon_beyond_the_calibration_is_a_distribution_error():
+    tr = pd.DataFrame({"group": "s0", "track_id": 0, "frame": np.arange(5),
+                       "x_m": np.arange(5) * 0.1, "y_m": 0.0})
+    pred = ScaledPredictor(KalmanCV(dt=0.1, process_psd=0.7, meas_std=0.1), np.ones(4), (),
+                           "kalman")
+    with pytest.raises(DistributionError, match="calibrated for 4 steps, asked for 8"):
+        incremental_kalman(pred, tr, np.ones(5, bool), 8)

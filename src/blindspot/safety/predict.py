@@ -25,6 +25,7 @@ from scipy.stats import chi2
 
 from blindspot.safety.risk import EgoShape, collision_risk
 from blindspot.traj.baselines import ConstantVelocity, KalmanCV
+from blindspot.traj.distribution import DistributionError
 
 __all__ = ["BackfilledHistory", "track_histories", "doppler_log_ratio", "moving_tracks",
            "incremental_kalman", "risk_table"]
@@ -200,20 +201,32 @@ def incremental_kalman(pred, tracks: pd.DataFrame, keep: np.ndarray, horizon: in
     runs once over each track's whole life (:meth:`KalmanCV.filter`, prior at its first
     position), and each row predicts from its own frame's filtered state
     (:meth:`KalmanCV.forecast_from_state`), scaled by the calibration (``pred.scale``; the
-    ``options`` of :class:`blindspot.traj.calibration.ScaledPredictor`). Equal to
-    ``pred.predict_distribution`` on the rows' histories while a track is younger than the
-    history cut (``warning.max_history_s``; the scenes' 5.1 s, so all but a track's 51st
-    frame). Returns a GaussianForecast (keep.sum(), horizon)."""
+    ``options`` of :class:`blindspot.traj.calibration.ScaledPredictor`). The filter is
+    recursive, as a car's would be: it keeps each track's whole life, where the window
+    predictors see histories cut to ``warning.max_history_s``; equal to
+    ``pred.predict_distribution`` on the rows' cut histories while a track is younger than the
+    cut. Only tracks with a kept row are filtered. Returns a GaussianForecast (keep.sum(),
+    horizon). Raises DistributionError when ``horizon`` is longer than the calibration
+    (``len(pred.scale)``)."""
+    if horizon > len(pred.scale):
+        raise DistributionError(f"{getattr(pred, 'name', 'kalman')}: calibrated for "
+                                f"{len(pred.scale)} steps, asked for {horizon}")
     key = tracks.group.astype(str) + "\x00" + tracks.track_id.astype(str)
-    tid = pd.factorize(key)[0]
-    frame = tracks.frame.to_numpy()
+    tid_all = pd.factorize(key)[0]
+    kept_track = np.zeros(tid_all.max() + 1 if len(tid_all) else 0, bool)
+    kept_track[tid_all[keep]] = True
+    live = kept_track[tid_all]                       # rows of tracks with a kept row
+    tid = pd.factorize(tid_all[live])[0]
+    frame = tracks.frame.to_numpy()[live]
     f0 = pd.Series(frame).groupby(tid).transform("min").to_numpy()
     off = frame - f0
-    obs = np.full((tid.max() + 1, off.max() + 1, 2), np.nan)
-    obs[tid, off] = tracks[["x_m", "y_m"]].to_numpy(float)
+    obs = np.full((tid.max() + 1 if len(tid) else 0, off.max() + 1 if len(off) else 1, 2),
+                  np.nan)
+    obs[tid, off] = tracks[["x_m", "y_m"]].to_numpy(float)[live]
     base = pred.base
     res = base.filter(obs)
-    m, P = res.means[tid[keep], off[keep]], res.covs[tid[keep], off[keep]]
+    k = keep[live]
+    m, P = res.means[tid[k], off[k]], res.covs[tid[k], off[k]]
     fc = base.forecast_from_state(m, P, horizon, **dict(pred.options))
     return fc.scaled(pred.scale[:horizon])
 
@@ -245,7 +258,9 @@ def risk_table(tracks: pd.DataFrame, ego: pd.DataFrame, predictors: dict[str, An
     for name, pred in predictors.items():          # loop over the four predictors only
         if not len(rows):
             break
-        if isinstance(getattr(pred, "base", None), KalmanCV):
+        # a calibrated Kalman filter (ScaledPredictor: base, scale, options), not a wrapped one
+        if (isinstance(getattr(pred, "base", None), KalmanCV)
+                and getattr(pred, "scale", None) is not None and hasattr(pred, "options")):
             fc = incremental_kalman(pred, tr, keep, horizon)
         else:
             fc = pred.predict_distribution(hist, horizon)
