@@ -44,7 +44,7 @@ def run(cfg, ctx):
         pedestrian=PedestrianModel.from_scene(car_scene), occlusion_db=car_scene.occlusion_db,
         seed=int(cfg.seed), jobs=int(cfg.jobs), progress=bool(cfg.progress))
     t_radar = time.perf_counter() - t0
-    lstm = LSTMPredictor.load(ctx.dep("model.pt"))
+    lstm = LSTMPredictor.load(ctx.dep("model.pt")).with_workers(int(cfg.jobs))
     kalman = experiment.kalman(cfg)
     predictors = experiment.predictors(cfg, lstm)
     records = json.loads(ctx.dep("models.json").read_text())   # fitted by the calibration stage

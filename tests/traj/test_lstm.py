@@ -77,6 +77,21 @@ def test_batched_rollout_equals_step_by_step_loop():
             window = np.concatenate([window[1:], nxt[None]])
 
 
+def test_rollout_on_worker_threads_equals_one_thread():
+    """Row blocks on parallel threads give the single call's rollout (rows are independent);
+    an ensemble too; the predictor itself is not changed, and torch's thread count is restored."""
+    members = [tiny_predictor(seed=s) for s in (3, 4)]
+    p = LSTMPredictor.ensemble(members)
+    hist = histories(b=1100, t=W + 2)
+    threads = torch.get_num_threads()
+    want = p.predict(hist, horizon=6)
+    got = p.with_workers(3).predict(hist, horizon=6)
+    np.testing.assert_allclose(got, want, rtol=0, atol=1e-6)
+    assert p.workers == 1 and torch.get_num_threads() == threads
+    with pytest.raises(ValueError, match="workers"):
+        p.with_workers(0)
+
+
 def test_rollout_uses_only_last_window_and_horizon_zero():
     p = tiny_predictor()
     hist = histories(t=W + 5)

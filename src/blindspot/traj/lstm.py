@@ -24,6 +24,9 @@ once.
 
 from __future__ import annotations
 
+import copy
+from concurrent.futures import ThreadPoolExecutor
+from contextlib import contextmanager
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
@@ -41,6 +44,9 @@ from blindspot.traj.windows import interpolate_gaps
 _FORMAT = "blindspot.lstm/1"
 _ENSEMBLE_FORMAT = "blindspot.lstm-ensemble/1"
 _ACTIVATIONS = {"relu": nn.ReLU, "tanh": nn.Tanh, "identity": nn.Identity}
+# Inference threads get at least this many rows each (below it a batch stays on one thread:
+# the thread hand-off would cost more than it saves).
+_MIN_ROWS_PER_WORKER = 256
 
 
 @dataclass(frozen=True)
@@ -184,9 +190,11 @@ class LSTMPredictor:
         config: the members' :class:`LSTMConfig`.
         model, stats: the first member's network (eval mode) and :class:`NormStats`.
         members: all ``(model, stats)`` pairs, at least one.
+        workers: threads inference splits a batch over (:meth:`with_workers`; 1 by default).
     """
 
     name = "lstm"
+    workers = 1
 
     def __init__(self, model: LSTMRegressor, stats: NormStats,
                  more: list[tuple[LSTMRegressor, NormStats]] | None = None) -> None:
@@ -215,15 +223,49 @@ class LSTMPredictor:
         return len(self.members)
 
     def member(self, i: int) -> LSTMPredictor:
-        """The ``i``-th network alone, as a predictor (for per-seed scores)."""
-        return LSTMPredictor(*self.members[i])
+        """The ``i``-th network alone, as a predictor (for per-seed scores), with the same
+        ``workers``."""
+        return LSTMPredictor(*self.members[i]).with_workers(self.workers)
 
-    def step(self, x: torch.Tensor) -> torch.Tensor:
-        """(B, W, 2) float32 windows in metres -> (B, 2) next points in metres (torch, no grad);
-        the mean over the members."""
+    def with_workers(self, workers: int) -> LSTMPredictor:
+        """The same networks, running each batch as ``workers`` contiguous row blocks on as
+        many threads (torch releases the GIL inside its kernels), each block single-threaded
+        during :meth:`predict`. Rows are independent, so the result is the one of a single
+        call wherever the CPU kernels give a row the same bits in any batch (checked on this
+        project's machines, ``tests/traj/test_lstm.py``). ValueError for ``workers`` < 1."""
+        workers = check_count(workers, "workers", ge=1, who="LSTMPredictor.with_workers")
+        out = copy.copy(self)
+        out.workers = workers
+        return out
+
+    def _rows(self, x: torch.Tensor) -> torch.Tensor:
         with torch.inference_mode():
             out = [st.decode(x, m(st.encode(x))) for m, st in self.members]
             return out[0] if len(out) == 1 else torch.stack(out).mean(dim=0)
+
+    def step(self, x: torch.Tensor) -> torch.Tensor:
+        """(B, W, 2) float32 windows in metres -> (B, 2) next points in metres (torch, no grad);
+        the mean over the members. With ``workers`` > 1 and enough rows, the rows are split
+        into blocks that run on parallel threads (:meth:`with_workers`)."""
+        n = min(int(self.workers), len(x) // _MIN_ROWS_PER_WORKER)
+        if n <= 1:
+            return self._rows(x)
+        with ThreadPoolExecutor(n) as pool:
+            return torch.cat(list(pool.map(self._rows, torch.tensor_split(x, n))))
+
+    @contextmanager
+    def _single_threaded_blocks(self):
+        """torch's own thread pool at one thread while the row blocks run in parallel (else
+        each block's kernels would start their own threads on the same cores)."""
+        if self.workers <= 1:
+            yield
+            return
+        previous = torch.get_num_threads()
+        torch.set_num_threads(1)
+        try:
+            yield
+        finally:
+            torch.set_num_threads(previous)
 
     def predict_next(self, windows: np.ndarray) -> np.ndarray:
         """One-step prediction: windows (B, W, 2) in metres -> (B, 2) float64 next points.
@@ -258,10 +300,11 @@ class LSTMPredictor:
         horizon = check_count(horizon, "horizon", error=HistoryError, who="lstm.predict")
         x = torch.from_numpy(fill_history(history)[:, -self.window :].astype(np.float32))
         out = torch.empty((x.shape[0], int(horizon), 2), dtype=torch.float32)
-        for k in range(int(horizon)):  # one batched network call per future step
-            nxt = self.step(x)
-            out[:, k] = nxt
-            x = torch.cat([x[:, 1:], nxt[:, None, :]], dim=1)
+        with self._single_threaded_blocks():
+            for k in range(int(horizon)):  # one batched network call per future step
+                nxt = self.step(x)
+                out[:, k] = nxt
+                x = torch.cat([x[:, 1:], nxt[:, None, :]], dim=1)
         return out.double().numpy()
 
     def save(self, path: str | Path) -> Path:
