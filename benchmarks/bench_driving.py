@@ -3,12 +3,13 @@ figure scene (CPNCO, child crossing from behind the parked cars) at several ego 
 both, and the point-error statistics of each; then the time of the fast measurement on the
 whole Monte-Carlo set.
 
-    PYTHONPATH=src python benchmarks/bench_driving.py [--speeds 20 40 60] [--scene cpfa] [--mc]
+    PYTHONPATH=src python benchmarks/bench_driving.py [--speeds 20 40 60] [--scene cpfa ...] [--mc]
     PYTHONPATH=src python benchmarks/bench_driving.py --stage-times [--tracking-uri URI]
     PYTHONPATH=src python benchmarks/bench_driving.py --every 23 [--jobs 2]
 
 Prints one line per statistic (full, fast, relative difference; both chains' detections
-grouped alike) and, with --mc, the wall time of the fast measurement of every Monte-Carlo scene.
+grouped alike), over each chain's own frames with a point and paired (on the frames both have
+one: :func:`blindspot.synth.driving_detection.paired_point_statistics`), and, with --mc, the wall time of the fast measurement of every Monte-Carlo scene.
 ``--stage-times`` instead prints the wall time of the last run of each driving stage, from the
 MLflow runs the stage runner records (start and end of each stage run; default store: the
 repository's mlflow.db), with the machine's load average now. ``--every N`` times the
@@ -31,7 +32,8 @@ from blindspot import experiment as ex
 from blindspot.config import compose
 from blindspot.radar.driving import draw_scenarios, scene_truth
 from blindspot.synth.driving_detection import (
-    detect_driving_scene, point_error_statistics, points_from_detections,
+    detect_driving_scene, paired_point_statistics, point_error_statistics,
+    points_from_detections,
 )
 from blindspot.synth.driving_measurement import measure_driving
 
@@ -39,8 +41,8 @@ from blindspot.synth.driving_measurement import measure_driving
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--speeds", type=float, nargs="+", default=[20.0, 40.0, 60.0])
-    ap.add_argument("--scene", default=None,
-                    help="a scene of conf/scenario (default: the figure scene, CPNCO)")
+    ap.add_argument("--scene", nargs="+", default=None,
+                    help="scenes of conf/scenario (default: the figure scene, CPNCO)")
     ap.add_argument("--mc", action="store_true", help="also time the whole Monte-Carlo set")
     ap.add_argument("--stage-times", action="store_true",
                     help="print the last MLflow-recorded wall time of each driving stage")
@@ -59,9 +61,9 @@ def main() -> None:
     group, named = ex.scenarios(cfg)
     radar, ego = ex.driving_radar(cfg), ex.ego_motion(cfg)
     chain = (ex.cfar(cfg), ex.doa(cfg), ex.detect(cfg))
-    base = named[args.scene or group.figure_scene]
     full_pts, fast_pts, patch_pts, truths, counts = [], [], [], [], []
-    for kmh in args.speeds:
+    for base, kmh in ((named[n], v) for n in (args.scene or [group.figure_scene])
+                      for v in args.speeds):
         sc = replace(base, speed_kmh=kmh, name=f"{base.name}_{kmh:g}")
         tr = scene_truth(sc, group, radar.frame_period_s)
         tr = tr[(tr.pedestrian == sc.pedestrians[0].name) & (tr.range_m < ego.max_range_m - 2)
@@ -94,7 +96,7 @@ def main() -> None:
                        "fast_static": res_fast.points.static.sum() / len(frames),
                        "n_frames": len(frames)})
         truths.append(tr)
-        print(f"{kmh:g} km/h: {len(frames)} frames; full chain {t_full:.1f} s, fast {t_fast:.1f} s")
+        print(f"{sc.name}: {len(frames)} frames; full chain {t_full:.1f} s, fast {t_fast:.1f} s")
     truth = pd.concat(truths)
     full = point_error_statistics(pd.concat(full_pts), truth)
     fast = point_error_statistics(pd.concat(fast_pts), truth)
@@ -114,8 +116,15 @@ def main() -> None:
     for k in full:
         print(f"{k:>22}: full {full[k]:.4g}  fast {fast[k]:.4g}"
               + (f"  ({out['relative_difference'][k]:+.1%})" if k != "n_frames" else ""))
+    paired = paired_point_statistics(pd.concat(full_pts), pd.concat(fast_pts), truth)
+    out["paired"] = paired
+    print(f"paired, on the {paired['a']['n_frames']} frames both chains have a point "
+          f"(of {paired['n_union']} either has; {paired['n_disagree']} only one):")
+    for k in ("median_error_m", "p90_error_m", "range_error_sd_m", "angle_error_sd_deg"):
+        a, b = paired["a"][k], paired["b"][k]
+        print(f"{k:>22}: full {a:.4g}  fast {b:.4g}  ({(b - a) / a:+.1%})")
     if args.mc:
-        mc = draw_scenarios(group, base)
+        mc = draw_scenarios(group, named[(args.scene or [group.figure_scene])[0]])
         t0 = time.perf_counter()
         m = measure_driving(mc, group, radar, *chain, ego,
                             adc_headroom_db=ex.sim(cfg).adc_headroom_db).points

@@ -20,7 +20,8 @@ from blindspot import experiment as ex
 from blindspot.config import compose
 from blindspot.radar.driving import scene_truth
 from blindspot.synth.driving_detection import (
-    detect_driving_scene, point_error_statistics, points_from_detections,
+    detect_driving_scene, paired_point_statistics, point_error_statistics,
+    points_from_detections,
 )
 from blindspot.synth.driving_measurement import measure_driving
 
@@ -36,8 +37,10 @@ def both():
     chain = (ex.cfar(cfg), ex.doa(cfg), ex.detect(cfg))
     gap, tol = ex.detect(cfg).cluster_gap_m, ego.static_tolerance_mps
     full, fast, truth, egos, counts = [], [], [], [], []
-    # the frames of benchmarks/bench_driving.py --scene cpfa (117 frames in view)
-    for name, kmh in (("cpfa", 20.0), ("cpfa", 40.0), ("cpfa", 60.0)):
+    # the frames of benchmarks/bench_driving.py --scene cpfa (117 frames in view), and the two
+    # unobstructed near-side adults (CPNA 25 / 75 %) at the same speeds: a 90th percentile of the
+    # ~34 errors of cpfa alone moved by more than 10 % between noise draws
+    for name, kmh in ((n, v) for n in ("cpfa", "cpna25", "cpna75") for v in (20.0, 40.0, 60.0)):
         sc = replace(named[name], speed_kmh=kmh, name=f"{name}_{kmh:g}")
         tr = scene_truth(sc, group, radar.frame_period_s)
         tr = tr[(tr.pedestrian == "p0") & (tr.range_m < ego.max_range_m - 2)
@@ -56,39 +59,50 @@ def both():
         truth.append(tr)
         egos.append(res.ego)
     t = pd.concat(truth)
-    return (point_error_statistics(pd.concat(full), t), point_error_statistics(pd.concat(fast), t),
-            np.array(counts), pd.concat(egos))
+    full, fast = pd.concat(full), pd.concat(fast)
+    paired = paired_point_statistics(full, fast, t)
+    return {"full": point_error_statistics(full, t), "fast": point_error_statistics(fast, t),
+            "full_paired": paired["a"], "fast_paired": paired["b"],
+            "n_union": paired["n_union"], "n_disagree": paired["n_disagree"],
+            "counts": np.array(counts), "ego": pd.concat(egos)}
 
 
 def test_static_world_points_per_frame_within_10_percent(both):
-    *_, counts, _ = both
-    full_all, full_static, fast_all, fast_static = counts.sum(0)
+    full_all, full_static, fast_all, fast_static = both["counts"].sum(0)
     assert fast_all == pytest.approx(full_all, rel=0.10)
     assert fast_static == pytest.approx(full_static, rel=0.10)
 
 
-def test_fast_measurement_median_error_within_10_percent_of_the_full_chain(both):
-    full, fast, _, _ = both
-    assert full["n_frames"] >= 100
-    for key in ("median_error_m", "range_error_sd_m", "angle_error_sd_deg"):
-        assert fast[key] == pytest.approx(full[key], rel=0.10), (key, full, fast)
-
-
-@pytest.mark.xfail(reason="measured 0.245 fast vs 0.275 m full (-11 %) on the 34 frames with a "
-                   "point (benchmarks/bench_driving.py --scene cpfa): a 90th percentile of 34 "
-                   "errors moves by more than 10 % between draws", strict=False)
-def test_fast_measurement_p90_error_within_10_percent_of_the_full_chain(both):
-    full, fast, _, _ = both
-    assert fast["p90_error_m"] == pytest.approx(full["p90_error_m"], rel=0.10), (full, fast)
-
-
 def test_fast_measurement_detection_rate_within_10_percent_of_the_full_chain(both):
-    full, fast, _, _ = both
+    full, fast = both["full"], both["fast"]
+    assert full["n_frames"] >= 300
     assert fast["detection_rate"] == pytest.approx(full["detection_rate"], rel=0.10), (full, fast)
 
 
+def test_chains_put_a_point_on_the_pedestrian_in_the_same_frames(both):
+    """Frames where one chain has the pedestrian's point and the other not (a marginal
+    detection, or another cluster chosen as the frame's moving point): at most 10 % of the
+    frames either chain has it in. Measured: 7 of 71 (cpfa, cpna25, cpna75 at 20/40/60 km/h)."""
+    assert both["n_union"] >= 50
+    assert both["n_disagree"] <= 0.10 * both["n_union"], (both["n_disagree"], both["n_union"])
+
+
+@pytest.mark.parametrize("key", ["median_error_m", "p90_error_m", "range_error_sd_m",
+                                 "angle_error_sd_deg"])
+def test_fast_measurement_error_statistics_within_10_percent_on_the_same_frames(both, key):
+    """Point-error statistics on the frames where both chains have the pedestrian's point
+    (paired: the same truth frames; 64 frames here, where the fast chain's error equals the
+    full chain's to 1 mm in 51). Compared unpaired instead, over each chain's own hit frames,
+    the 90th percentile of ~67 errors is noise: 0.50 m full vs 0.40 m fast, with 95 %
+    bootstrap intervals [0.29, 1.07] and [0.26, 0.70] m, moved by the 6 frames one chain alone
+    has (one or two 0.5-1.1 m errors among 67 shift the 90th percentile by a fifth)."""
+    full, fast = both["full_paired"], both["fast_paired"]
+    assert full["n_frames"] >= 50
+    assert fast[key] == pytest.approx(full[key], rel=0.10), (key, full, fast)
+
+
 def test_full_chain_ego_speed_within_0p1_mps(both):
-    *_, ego = both
+    ego = both["ego"]
     err = (ego.ego_speed_mps - ego.true_speed_mps).to_numpy()
     assert np.isfinite(err).mean() > 0.9
     assert np.sqrt(np.nanmean(err**2)) < 0.1

@@ -44,7 +44,10 @@ independent between cells (as in :mod:`blindspot.synth.path_measurement`); (3) a
 the ``N_NEAR`` scatterers strongest in its cell (the others' sidelobes lie far below the noise);
 (4) the static test uses the true ego speed (the full chain's RANSAC estimate is within
 0.1 m/s RMS, well inside the 0.35 m/s tolerance). Validated against the full FMCW simulation of
-the same frames (tests/synth/test_driving_measurement.py, slow; ``benchmarks/bench_driving.py``).
+the same frames (tests/synth/test_driving_measurement.py, slow; ``benchmarks/bench_driving.py
+--scene cpfa cpna25 cpna75``): detection rate +1.5 %, and on the frames both chains have the
+pedestrian's point (:func:`blindspot.synth.driving_detection.paired_point_statistics`) median
+-3.8 %, p90 -0.3 %, range and angle error sd within 0.1 %.
 """
 
 from __future__ import annotations
