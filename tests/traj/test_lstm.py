@@ -82,7 +82,7 @@ def test_rollout_on_worker_threads_equals_one_thread():
     an ensemble too; the predictor itself is not changed, and torch's thread count is restored."""
     members = [tiny_predictor(seed=s) for s in (3, 4)]
     p = LSTMPredictor.ensemble(members)
-    hist = histories(b=1100, t=W + 2)
+    hist = histories(b=130, t=W + 2)
     threads = torch.get_num_threads()
     want = p.predict(hist, horizon=6)
     got = p.with_workers(3).predict(hist, horizon=6)
