@@ -39,3 +39,10 @@ def test_pinned_workers_take_the_idlest_cpus(monkeypatch):
     assert parallel.idlest_cpus([0, 1, 2, 3], 2, sample_s=0) == [0, 2]
     samples = iter([{}, {}])  # no /proc/stat: the first ones
     assert parallel.idlest_cpus([3, 5, 7], 2, sample_s=0) == [3, 5]
+    # all idle: the tie goes by process id, so two processes need not take the same CPUs
+    picks = set()
+    for pid in (10, 11, 12):
+        monkeypatch.setattr(parallel.os, "getpid", lambda pid=pid: pid)
+        samples = iter([{0: 1, 1: 1, 2: 1}, {0: 1, 1: 1, 2: 1}])
+        picks.add(tuple(parallel.idlest_cpus([0, 1, 2], 1, sample_s=0)))
+    assert picks == {(0,), (1,), (2,)}

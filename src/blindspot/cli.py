@@ -126,8 +126,7 @@ def params_fingerprint(repo_root: str | os.PathLike[str]) -> str:
     conf_dir = root / bconfig.CONFIG_DIR
     env_names: set[str] = set()
     whole_env = False
-    files = sorted(Path(d, f) for d, _, names in os.walk(conf_dir, followlinks=True)
-                   for f in names)
+    files = _conf_files(conf_dir)
     for path in files:
         data = path.read_bytes()
         add(path.relative_to(conf_dir).as_posix(), data)
@@ -149,6 +148,19 @@ def params_fingerprint(repo_root: str | os.PathLike[str]) -> str:
         except importlib.metadata.PackageNotFoundError:
             add(f"version:{dist}", b"")
     return digest.hexdigest()
+
+
+def _conf_files(conf_dir: Path) -> list[Path]:
+    """Every regular file under ``conf_dir``, sorted, walking symlinked folders once each
+    (a link to a folder already walked, e.g. a parent, is skipped) and leaving out broken
+    links (an editor's lock file such as Emacs's ``.#config.yaml``)."""
+    seen: set[str] = set()
+    out = []
+    for folder, subs, names in os.walk(conf_dir, followlinks=True):
+        seen.add(os.path.realpath(folder))
+        subs[:] = [d for d in subs if os.path.realpath(os.path.join(folder, d)) not in seen]
+        out.extend(Path(folder, f) for f in names if os.path.isfile(os.path.join(folder, f)))
+    return sorted(out)
 
 
 def _read_stamp(path: Path) -> str | None:

@@ -18,8 +18,10 @@ def parallel_map(fn: Callable[[Any], Any], items: Sequence[Any], jobs: int,
 
     ``cpus``: confine the workers to ``cpus`` of the CPUs this process may run on (Linux CPU
     affinity; ignored where the platform has none, and when ``cpus`` covers them all): the
-    idlest ones over a 50 ms sample of ``/proc/stat`` (:func:`idlest_cpus`), so two pinned
-    stages running at once (queued ``dvc exp`` runs, a multirun) do not stack on the same cores.
+    idlest ones over a 50 ms sample of ``/proc/stat`` (:func:`idlest_cpus`), so a pinned stage
+    started beside a busy one (queued ``dvc exp`` runs, a multirun) avoids its cores; the choice
+    is made once, at start (two stages started in the same instant on an idle machine may still
+    pick the same cores; ties are broken by process id to make that less likely).
     E.g. ``jobs`` = one worker per equal-sized
     item that then time-share ``cpus`` cores and finish together: ``n / cpus`` item-times instead
     of ``ceil(n / cpus)`` rounds with idle cores in the last one (five ensemble members on two
@@ -65,14 +67,21 @@ def _cpu_busy_ticks() -> dict[int, int]:
 
 def idlest_cpus(allowed: Sequence[int], n: int, sample_s: float = 0.05) -> list[int]:
     """The ``n`` CPUs of ``allowed`` with the fewest busy ticks over ``sample_s`` seconds
-    (ties: lowest number first; without ``/proc/stat``, the first ``n``), sorted."""
+    (``/proc/stat`` counts in 10 ms ticks, so a 50 ms sample sees whole busy cores, not load
+    fractions), sorted. Ties are broken by a rotation of ``allowed`` by this process's id;
+    without ``/proc/stat``, the first ``n``."""
     import time
 
+    allowed = list(allowed)
     before = _cpu_busy_ticks()
     time.sleep(sample_s)
     after = _cpu_busy_ticks()
+    if not after:
+        return sorted(allowed[:n])
     busy = {c: after.get(c, 0) - before.get(c, 0) for c in allowed}
-    return sorted(sorted(allowed, key=lambda c: (busy[c], c))[:n])
+    turn = os.getpid() % len(allowed)
+    rank = {c: (i - turn) % len(allowed) for i, c in enumerate(allowed)}
+    return sorted(sorted(allowed, key=lambda c: (busy[c], rank[c]))[:n])
 
 
 def _single_threaded(allowed: list[int] | None = None) -> None:

@@ -166,6 +166,10 @@ def test_params_fingerprint_walks_symlinked_conf_folders(toy: Path, tmp_path: Pa
     before = cli.params_fingerprint(toy)
     (outside / "big.yaml").write_text("hidden_size: 65\n")
     assert cli.params_fingerprint(toy) != before
+    # a broken link (an editor's lock file) and a link back to a parent folder: no error, no loop
+    (toy / "conf" / ".#config.yaml").symlink_to(toy / "nowhere@host.1234")
+    (outside / "up").symlink_to(toy / "conf", target_is_directory=True)
+    assert cli.params_fingerprint(toy) == cli.params_fingerprint(toy)
 
 
 def test_params_fingerprint_includes_the_installed_omegaconf_version(
