@@ -42,9 +42,9 @@ def run(cfg, ctx):
     measured = measure_scene_walks(
         walks, radar, experiment.cfar(cfg), experiment.doa(cfg), experiment.detect(cfg),
         pedestrian=PedestrianModel.from_scene(car_scene), occlusion_db=car_scene.occlusion_db,
-        seed=int(cfg.seed), jobs=int(cfg.jobs), progress=bool(cfg.progress))
+        seed=int(cfg.seed), jobs=experiment.jobs(cfg), progress=bool(cfg.progress))
     t_radar = time.perf_counter() - t0
-    lstm = LSTMPredictor.load(ctx.dep("model.pt")).with_workers(int(cfg.jobs))
+    lstm = LSTMPredictor.load(ctx.dep("model.pt")).with_workers(experiment.jobs(cfg))
     kalman = experiment.kalman(cfg)
     predictors = experiment.predictors(cfg, lstm)
     records = json.loads(ctx.dep("models.json").read_text())   # fitted by the calibration stage

@@ -40,7 +40,7 @@ def run(cfg, ctx):
     ids["test"] = np.setdiff1d(np.arange(len(truth)), np.concatenate([ids["train"], ids["val"]]))
     pairs = {split: path_pairs(measured[ids[split]], truth[ids[split]], window, c.horizon_frames,
                                c.stride) for split in ("val", "test")}
-    lstm = LSTMPredictor.load(ctx.dep("model.pt")).with_workers(int(cfg.jobs))
+    lstm = LSTMPredictor.load(ctx.dep("model.pt")).with_workers(experiment.jobs(cfg))
     calibrated = calibrate(experiment.predictors(cfg, lstm), *pairs["val"],
                            scale_method=c.scale_method, scale_level=c.scale_level,
                            cv_fit_points=experiment.evaluation(cfg).cv_fit_points)

@@ -24,7 +24,7 @@ def run(cfg, ctx):
         raise ValueError(f"config key 'eval.fig06_scene' = {fig_scene!r}: expected one of {list(scenes)}")
     results = detect_scenes(scenes, experiment.radar(cfg), experiment.cfar(cfg), experiment.doa(cfg),
                             experiment.detect(cfg), experiment.sim(cfg), keep=(fig_scene, fig_frame),
-                            jobs=cfg.jobs, progress=cfg.progress)
+                            jobs=experiment.jobs(cfg), progress=cfg.progress)
     detections = pd.concat([r.detections for r in results], ignore_index=True)
     kept = next(r.kept_frame for r in results if r.kept_frame is not None)
     write_frame_result(ctx.out("fig06_frame.npz"), kept, scene=fig_scene)

@@ -29,7 +29,7 @@ def run(cfg, ctx):
     res = measure_driving(scenes, group, radar, experiment.cfar(cfg), experiment.doa(cfg),
                           experiment.detect(cfg), experiment.ego_motion(cfg),
                           adc_headroom_db=experiment.sim(cfg).adc_headroom_db,
-                          jobs=int(cfg.jobs), progress=cfg.progress)
+                          jobs=experiment.jobs(cfg), progress=cfg.progress)
     measured, points = res.measured, res.points
     write_parquet(ctx.out("measured.parquet"), measured)
     write_parquet(ctx.out("points.parquet"), points)

@@ -22,7 +22,7 @@ from blindspot.traj.lstm import LSTMPredictor
 def run(cfg, ctx):
     points = pd.read_parquet(ctx.dep("points.parquet"))
     truth = pd.read_parquet(ctx.dep("truth.parquet"))
-    lstm = LSTMPredictor.load(ctx.dep("model.pt")).with_workers(int(cfg.jobs))
+    lstm = LSTMPredictor.load(ctx.dep("model.pt")).with_workers(experiment.jobs(cfg))
     kalman = experiment.kalman(cfg)
     scenes = {n: s for n, s in experiment.scenes(cfg).items() if s.with_car}
     rows, metrics = [], {}

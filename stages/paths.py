@@ -24,7 +24,7 @@ def run(cfg, ctx):
     walker = PedestrianModel.from_scene(next(iter(experiment.scenes(cfg).values())))
     measured = measure_path_set(paths, radar, experiment.cfar(cfg), experiment.doa(cfg),
                                 experiment.detect(cfg), pedestrian=walker,
-                                seed=dataset.seed, jobs=int(cfg.jobs),
+                                seed=dataset.seed, jobs=experiment.jobs(cfg),
                                 progress=bool(cfg.progress))
     table = path_table(paths, measured, radar.frame_period_s)
     write_parquet(ctx.out("paths.parquet"), table)

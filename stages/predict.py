@@ -45,7 +45,7 @@ def _once_per_history(fill):
 
 def run(cfg, ctx):
     points = pd.read_parquet(ctx.dep("points.parquet"))
-    lstm = LSTMPredictor.load(ctx.dep("model.pt")).with_workers(int(cfg.jobs))
+    lstm = LSTMPredictor.load(ctx.dep("model.pt")).with_workers(experiment.jobs(cfg))
     dt = float(cfg.radar.frame_period_s)
     fill = _once_per_history(partial(interpolate, method=str(cfg.eval.prediction_input),
                                      predictor=lstm, smoother=experiment.kalman(cfg).smooth))

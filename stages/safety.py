@@ -34,7 +34,7 @@ def _predictors(cfg, ctx, w):
 
     torch.set_num_threads(1)
     c = experiment.calibration(cfg)
-    lstm = LSTMPredictor.load(ctx.dep("model.pt")).with_workers(int(cfg.jobs))
+    lstm = LSTMPredictor.load(ctx.dep("model.pt")).with_workers(experiment.jobs(cfg))
     records = json.loads(ctx.dep("models.json").read_text())
     base = experiment.predictors(cfg, lstm)
     out = {}

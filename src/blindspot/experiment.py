@@ -19,11 +19,22 @@ from blindspot.radar.config import RadarConfig, SimConfig
 from blindspot.radar.scene import (
     DrivingScene, ScenarioGroup, SceneConfig, load_scenarios, load_scenes,
 )
+from blindspot.typed_config import ConfigError
 from blindspot.traj.config import (BenchmarkConfig, CalibrationConfig, DatasetConfig,
                                    EthUcyConfig, EvalConfig, LSTMConfig, TrainConfig)
 
 
 # One builder per config group: stages hand these typed objects to the library, never raw groups.
+def jobs(cfg: DictConfig) -> int:
+    """The top-level ``jobs``: worker processes (detect, paths, the driving set, the tracker,
+    ETH/UCY) or LSTM inference threads (the stages that roll the scene LSTM out); 1 = in this
+    process. Raises ConfigError naming the key for anything but an integer >= 1."""
+    value = cfg.jobs
+    if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+        raise ConfigError("jobs", value, "an integer >= 1 (worker processes or threads)")
+    return value
+
+
 def radar(cfg: DictConfig) -> RadarConfig:
     """The radar profile of ``cfg.radar``."""
     return RadarConfig.from_mapping(cfg.radar)

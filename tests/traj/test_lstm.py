@@ -77,19 +77,44 @@ def test_batched_rollout_equals_step_by_step_loop():
             window = np.concatenate([window[1:], nxt[None]])
 
 
-def test_rollout_on_worker_threads_equals_one_thread():
-    """Row blocks on parallel threads give the single call's rollout (rows are independent);
-    an ensemble too; the predictor itself is not changed, and torch's thread count is restored."""
+def test_rollout_on_worker_threads_has_the_same_bits_as_one_thread(monkeypatch):
+    """A batch runs as blocks of BLOCK_ROWS rows, the same blocks for any number of worker
+    threads, each single-threaded: the same bits with 1 or 3 workers, the blocks really spread
+    over threads, the predictor itself unchanged, torch's thread count restored (also when a
+    block fails)."""
+    import threading
+
+    import blindspot.traj.lstm as lstm_mod
+
     members = [tiny_predictor(seed=s) for s in (3, 4)]
     p = LSTMPredictor.ensemble(members)
-    hist = histories(b=130, t=W + 2)
+    hist = histories(b=lstm_mod.BLOCK_ROWS * 3 + 5, t=W + 2)
     threads = torch.get_num_threads()
     want = p.predict(hist, horizon=6)
+    seen = []
+    rows = LSTMPredictor._rows
+
+    def spy(self, x):
+        seen.append((threading.get_ident(), x.shape[0]))
+        return rows(self, x)
+
+    monkeypatch.setattr(LSTMPredictor, "_rows", spy)
     got = p.with_workers(3).predict(hist, horizon=6)
-    np.testing.assert_allclose(got, want, rtol=0, atol=1e-6)
+    np.testing.assert_array_equal(got, want)
+    assert sorted({n for _, n in seen}) == [5, lstm_mod.BLOCK_ROWS]
+    assert len({t for t, _ in seen}) > 1          # the blocks ran on several threads
     assert p.workers == 1 and torch.get_num_threads() == threads
+
+    def fail(self, x):
+        raise RuntimeError("block failed")
+
+    monkeypatch.setattr(LSTMPredictor, "_rows", fail)
+    with pytest.raises(RuntimeError, match="block failed"):
+        p.with_workers(2).predict(hist, horizon=2)
+    assert torch.get_num_threads() == threads
     with pytest.raises(ValueError, match="workers"):
         p.with_workers(0)
+    assert LSTMPredictor.ensemble([m.with_workers(2) for m in members]).workers == 2
 
 
 def test_rollout_uses_only_last_window_and_horizon_zero():
