@@ -32,7 +32,8 @@ from blindspot import experiment as ex
 from blindspot.config import compose
 from blindspot.radar.driving import draw_scenarios, scene_truth
 from blindspot.synth.driving_detection import (
-    detect_driving_scene, paired_point_statistics, point_error_statistics,
+    detect_driving_scene, error_percentile_interval, paired_point_statistics,
+    point_error_statistics,
     points_from_detections,
 )
 from blindspot.synth.driving_measurement import measure_driving
@@ -123,6 +124,10 @@ def main() -> None:
     for k in ("median_error_m", "p90_error_m", "range_error_sd_m", "angle_error_sd_deg"):
         a, b = paired["a"][k], paired["b"][k]
         print(f"{k:>22}: full {a:.4g}  fast {b:.4g}  ({(b - a) / a:+.1%})")
+    for name, pts in (("full", full_pts), ("fast", fast_pts)):
+        lo, hi = error_percentile_interval(pd.concat(pts), truth, 90.0)
+        out[f"{name}_p90_ci95"] = [lo, hi]
+        print(f"unpaired p90, {name}: 95 % bootstrap interval [{lo:.3f}, {hi:.3f}] m")
     if args.mc:
         mc = draw_scenarios(group, named[(args.scene or [group.figure_scene])[0]])
         t0 = time.perf_counter()

@@ -15,6 +15,18 @@ from blindspot.traj.calibration import ScaledPredictor
 from blindspot.traj.distribution import DistributionError
 
 
+def _with_filter_spy(pred, spy, call):
+    """Run ``call`` with ``pred.base.filter`` replaced by ``spy`` (restored after)."""
+    base = pred.base
+    cls = type(base)
+    real = cls.filter
+    cls.filter = lambda self, obs: spy(obs)
+    try:
+        return call()
+    finally:
+        cls.filter = real
+
+
 @settings(max_examples=10, deadline=None)
 @given(st.integers(0, 2**31 - 1), st.booleans())
 def test_equals_refiltering_each_rows_history(seed, measured):
@@ -34,7 +46,16 @@ def test_equals_refiltering_each_rows_history(seed, measured):
     pred = ScaledPredictor(KalmanCV(dt=0.1, process_psd=0.7, meas_std=0.1),
                            np.linspace(1.0, 2.0, 8), (("measured", measured),), "kalman")
     hist = track_histories(tr, 30)[keep]
-    got = incremental_kalman(pred, tr, keep, 8)
+    filtered = []
+    real_filter = pred.base.filter
+
+    def spy(obs):
+        filtered.append(obs.shape[0])
+        return real_filter(obs)
+
+    got = _with_filter_spy(pred, spy, lambda: incremental_kalman(pred, tr, keep, 8))
+    kept_tracks = tr[keep].groupby(["group", "track_id"]).ngroups
+    assert filtered == [kept_tracks]               # tracks never kept are not filtered
     for b, h in enumerate(hist):                  # the reference: each row on its own
         want = pred.predict_distribution(h[np.isfinite(h).all(-1)][None], 8)
         np.testing.assert_allclose(got.mean[b], want.mean[0], atol=1e-9)

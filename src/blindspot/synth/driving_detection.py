@@ -240,18 +240,42 @@ def _hit_frames(points: pd.DataFrame, truth: pd.DataFrame, gate_m: float) -> pd.
 def paired_point_statistics(points_a: pd.DataFrame, points_b: pd.DataFrame,
                             truth: pd.DataFrame, gate_m: float = 1.5) -> dict:
     """Two chains' points of one pedestrian compared on the same frames (e.g. the full FMCW
-    chain and the fast measurement): ``a`` and ``b``, :func:`point_error_statistics` of each on
-    the truth rows where BOTH have a point within ``gate_m`` (a paired comparison: the same
-    truth frames, so a percentile compares like with like), ``n_union`` the frames where either
-    has one, ``n_disagree`` those where only one has (a marginal detection, or another cluster
-    chosen as the frame's moving point). Unpaired percentiles over each chain's own hit frames
-    mix those few frames into the error tail: with ~70 errors, one or two of 0.5-1 m move a
-    90th percentile by a fifth."""
+    chain and the fast measurement).
+
+    points_a, points_b: at most one row per (scene, frame), columns scene, frame,
+    x_vehicle_m, y_vehicle_m, range_m (m), angle_deg (deg) (:func:`points_from_detections`);
+    truth: ONE pedestrian's rows (one per scene and frame; duplicates would count twice), the
+    same columns plus the scene truth's. Returns ``a`` and ``b``: :func:`point_error_statistics`
+    of each on the truth rows where BOTH have a point within ``gate_m`` m (paired: the same
+    truth frames, so a percentile compares like with like; their ``detection_rate`` is 1 by
+    construction), ``n_union`` the frames where either has one, ``n_disagree`` those where only
+    one has (a marginal detection, or another cluster chosen as the frame's moving point).
+    Unpaired percentiles over each chain's own hit frames mix those few frames into the error
+    tail: with ~70 errors, one or two of 0.5-1 m move a 90th percentile by a fifth
+    (:func:`error_percentile_interval`)."""
     ha, hb = _hit_frames(points_a, truth, gate_m), _hit_frames(points_b, truth, gate_m)
     both = truth[pd.MultiIndex.from_frame(truth[["scene", "frame"]]).isin(ha.intersection(hb))]
     return {"a": point_error_statistics(points_a, both, gate_m),
             "b": point_error_statistics(points_b, both, gate_m),
             "n_union": len(ha.union(hb)), "n_disagree": len(ha.symmetric_difference(hb))}
+
+
+def error_percentile_interval(points: pd.DataFrame, truth: pd.DataFrame, q: float = 90.0, *,
+                              gate_m: float = 1.5, n_bootstrap: int = 4000, level: float = 0.95,
+                              seed: int = 0) -> tuple[float, float]:
+    """Percentile-bootstrap interval (``level``) of the ``q``-th percentile of the Euclidean
+    point errors (m) within ``gate_m`` (the errors of :func:`point_error_statistics`),
+    resampling the errors with replacement ``n_bootstrap`` times (vectorised; Efron &
+    Tibshirani 1993, ch. 13). (NaN, NaN) without errors."""
+    j = truth.merge(points, on=["scene", "frame"], how="inner", suffixes=("_t", ""))
+    e = np.hypot(j.x_vehicle_m - j.x_vehicle_m_t, j.y_vehicle_m - j.y_vehicle_m_t).to_numpy()
+    e = e[e <= gate_m]
+    if not e.size:
+        return float("nan"), float("nan")
+    rng = np.random.default_rng(seed)
+    boot = np.percentile(e[rng.integers(0, e.size, (n_bootstrap, e.size))], q, axis=1)
+    lo, hi = np.percentile(boot, [50 * (1 - level), 50 * (1 + level)])
+    return float(lo), float(hi)
 
 
 def numeric_leaves(tree: dict) -> dict:
