@@ -1,0 +1,181 @@
+"""The AEB gate (warning.aeb_gate) evaluated from the safety stage's risk rows, tuned on one half
+of the Monte-Carlo scenes and reported on the other. Prints figures, asserts nothing.
+
+    BLINDSPOT_SHARED=../shared PYTHONPATH=src .venv/bin/python benchmarks/bench_aeb_gate.py \
+        [--data DIR] [--input tracker] [--json OUT]
+
+Reads DIR/safety/risk.parquet (every predictor's p_collision and ttc_s per track row, the
+safety stage's output), DIR/driving/truth.parquet and DIR/driving/scenes.json (DIR: ``data``),
+and params.yaml (the warning group, the scenario bodies and ego). The braked outcome of a
+request at every frame comes from :func:`blindspot.safety.assess.outcome_table`, so each
+policy is a lookup; nothing is re-predicted.
+
+Split (:func:`blindspot.safety.evaluation.replicate_half`): even replicates of each speed x
+impact point x intruding cell tune (108 scenes), odd ones are held out (108). On the tuning
+half, per predictor and gate (none; stopping_time at each margin of --margins) the AEB threshold
+is chosen as the one with the most avoided collisions among those with at most --max-fa false
+activations (ties: lower mean impact speed, then the higher threshold), or, when no threshold
+of any variant gets there (so far the case: the false activations have a floor above 10 %),
+the one with the largest Youden index J = avoided - false-activation rate; then the margin by
+the same rule (ties: lower impact speed, then the smaller margin). The held-out half is scored
+with that setting, and with the configured one (params.yaml: warning.aeb_threshold, no gate)
+beside it. The warning is never gated.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+import blindspot  # noqa: F401  first: pins the CPU kernels before numpy loads
+import numpy as np
+import pandas as pd
+from omegaconf import OmegaConf
+
+from blindspot import experiment
+from blindspot.io import write_json
+from blindspot.safety.assess import frame_risks, outcome_table
+from blindspot.safety.braking import BrakingModel
+from blindspot.safety.evaluation import (SceneInfo, operating_curve, replicate_half, scene_info,
+                                         scene_results, summarise)
+from blindspot.safety.risk import EgoShape
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def _subset(info: SceneInfo, keep: np.ndarray) -> SceneInfo:
+    return SceneInfo(*(np.asarray(getattr(info, f))[keep] for f in SceneInfo.__dataclass_fields__))
+
+
+def _best(curve: pd.DataFrame, max_fa: float) -> pd.Series:
+    """The tuned point of an operating curve (module docstring): the most avoided collisions
+    with at most max_fa false activations; when no threshold gets there, the largest Youden
+    index J = avoided rate - false-activation rate (Youden 1950, Cancer 3(1))."""
+    c = curve.assign(j=curve.avoided_rate - curve.false_activation_rate)
+    ok = c[c.false_activation_rate <= max_fa + 1e-12]
+    if len(ok):
+        return ok.sort_values(["avoided_rate", "impact_speed_kmh_mean", "threshold"],
+                              ascending=[False, True, False]).iloc[0].assign(rule="max_fa")
+    return c.sort_values(["j", "impact_speed_kmh_mean", "threshold"],
+                         ascending=[False, True, False]).iloc[0]
+
+
+def _at_fa(curve: pd.DataFrame, levels=(0.1, 0.2, 0.3)) -> dict:
+    """The most avoided collisions with at most each false-activation rate (None: never)."""
+    return {f"{f:g}": (float(curve.avoided_rate[curve.false_activation_rate <= f + 1e-12].max())
+                       if (curve.false_activation_rate <= f + 1e-12).any() else None)
+            for f in levels}
+
+
+def main(argv: list[str]) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--data", type=Path, default=REPO / "data")
+    ap.add_argument("--input", default="tracker")
+    ap.add_argument("--margins", default="0,0.1,0.2,0.3,0.4,0.5,0.6,0.8,1.0,1.5")
+    ap.add_argument("--max-fa", type=float, default=0.01,
+                    help="largest false-activation rate on the tuning half (issue 12: 1 %%)")
+    ap.add_argument("--json", type=Path, default=None)
+    args = ap.parse_args(argv)
+    cfg = OmegaConf.load(REPO / "params.yaml")
+    w = experiment.warning(cfg)
+    group, _ = experiment.scenarios(cfg)
+    bodies = {b.name: (b.length_m, b.width_m, b.ref_from_front_m) for b in group.bodies}
+    shape = EgoShape(group.ego.width_m, group.ego.length_m)
+    truth = pd.read_parquet(args.data / "driving/truth.parquet")
+    meta = json.loads((args.data / "driving/scenes.json").read_text())
+    risk = pd.read_parquet(args.data / "safety/risk.parquet")
+    risk = risk[risk.input == args.input]
+    truth = truth[truth.set == "monte_carlo"]
+    main_brakes = BrakingModel.from_config(w.aeb)
+    sa, _, impact = outcome_table(truth, bodies, shape, main_brakes, w)
+    info = scene_info(truth, meta, sa.scenes)
+    F = len(sa.time_s)
+    tune = replicate_half(sa.scenes)
+    halves = {"tune": tune, "held_out": ~tune}
+    thresholds = np.linspace(0, 1, w.n_thresholds + 2)[1:-1]
+    margins = [float(m) for m in args.margins.split(",")]
+    print(f"{len(sa.scenes)} scenes ({tune.sum()} tune / {(~tune).sum()} held out), input "
+          f"{args.input}; gate TTC_stop + decision delay {w.decision_delay_s} s + margin at "
+          + ", ".join(f"{v:g} km/h: {g:.3f} s" for v, g in
+                      zip(sorted(set(info.speed_kmh)),
+                          main_brakes.stop_ttc(np.array(sorted(set(info.speed_kmh))) / 3.6))))
+    kw = dict(warning_threshold=w.warning_threshold, decision_delay_s=w.decision_delay_s)
+    report: dict = {"split": "replicate_half (even replicates tune, odd held out)",
+                    "input": args.input, "max_fa_tune": args.max_fa, "predictors": {}}
+    for name in risk.predictor.unique():          # four predictors
+        rows = risk[risk.predictor == name]
+        variants = {("none", 0.0): frame_risks(rows, sa.scenes, sa.speed_mps, F, main_brakes,
+                                               gate="none", margin_s=0.0,
+                                               decision_delay_s=w.decision_delay_s)}
+        for m in margins:                          # a handful of candidate margins
+            variants[("stopping_time", m)] = frame_risks(
+                rows, sa.scenes, sa.speed_mps, F, main_brakes, gate="stopping_time",
+                margin_s=m, decision_delay_s=w.decision_delay_s)
+        tuned = {}
+        for (gate, m), (_, p_aeb) in variants.items():
+            c = operating_curve(p_aeb[tune], _subset(info, tune), impact[tune], thresholds)
+            tuned[(gate, m)] = _best(c, args.max_fa)
+        feasible = any(b.get("rule") == "max_fa" for b in tuned.values())
+        score = (lambda b: -b.avoided_rate) if feasible else (lambda b: -b.j)
+        pick = {}
+        for gate in ("none", "stopping_time"):
+            cand = [(k, b) for k, b in tuned.items() if k[0] == gate]
+            pick[gate] = sorted(cand, key=lambda kb: (score(kb[1]), kb[1].impact_speed_kmh_mean,
+                                                      kb[0][1]))[0]
+        out = {"tuning_rule": f"max avoided with FA <= {args.max_fa}" if feasible
+               else f"no threshold reaches FA <= {args.max_fa} on the tuning half: max Youden J"}
+        settings = [("configured", ("none", 0.0), w.aeb_threshold)]
+        settings += [(f"tuned_{g}", k, float(b.threshold)) for g, (k, b) in pick.items()]
+        for label, key, thr in settings:
+            p_w, p_aeb = variants[key]
+            entry = {"gate": key[0], "margin_s": key[1], "aeb_threshold": thr}
+            for half, keep in halves.items():
+                res = scene_results(p_w[keep], _subset(info, keep), impact[keep],
+                                    sa.time_s, aeb_threshold=thr, p_aeb=p_aeb[keep], **kw)
+                s = summarise(res, n_bootstrap=w.n_bootstrap, seed=w.seed)
+                entry[half] = {
+                    "avoided_rate": s["avoided_rate"], "avoided_rate_ci95": s["avoided_rate_ci95"],
+                    "false_activation_rate": s["false_activation_rate"],
+                    "false_activation_rate_ci95": s["false_activation_rate_ci95"],
+                    "by_speed_kmh": {k: {kk: v[kk] for kk in (
+                        "avoided_rate", "impact_speed_kmh_mean", "aeb_lead_time_s_median",
+                        "lead_time_s_median", "false_activation_rate")}
+                        for k, v in s["by_speed_kmh"].items()},
+                    "goals": s["goals"]}
+            out[label] = entry
+        # the held-out operating curve of each gate at its tuned margin
+        for gate, (key, _) in pick.items():
+            c = operating_curve(variants[key][1][~tune], _subset(info, ~tune), impact[~tune],
+                                thresholds)
+            out[f"tuned_{gate}"]["held_out_curve"] = c.round(4).to_dict(orient="list")
+            out[f"tuned_{gate}"]["held_out_avoided_at_fa"] = _at_fa(c)
+        report["predictors"][name] = out
+        print(f"\n== {name}")
+        print(f"  tuning rule: {out['tuning_rule']}")
+        for label, e in out.items():
+            if label == "tuning_rule":
+                continue
+            h = e["held_out"]
+            print(f"  {label:22s} gate {e['gate']:13s} margin {e['margin_s']:.2f} s thr "
+                  f"{e['aeb_threshold']:.2f} | tune avoided {e['tune']['avoided_rate']:.3f} FA "
+                  f"{e['tune']['false_activation_rate']:.3f} | HELD OUT avoided "
+                  f"{h['avoided_rate']:.3f} {np.round(h['avoided_rate_ci95'], 3).tolist()} FA "
+                  f"{h['false_activation_rate']:.3f} "
+                  f"{np.round(h['false_activation_rate_ci95'], 3).tolist()}")
+            print("      held out by speed (avoided / impact km/h / AEB lead s / FA): " + "; ".join(
+                f"{k}: {v['avoided_rate']:.2f}/{v['impact_speed_kmh_mean']:.1f}/"
+                f"{(v['aeb_lead_time_s_median'] or float('nan')):.2f}/"
+                f"{v['false_activation_rate']:.2f}"
+                for k, v in h["by_speed_kmh"].items()))
+            if "held_out_avoided_at_fa" in e:
+                print("      held-out curve, most avoided at FA <= 0.1/0.2/0.3: "
+                      + "/".join("-" if v is None else f"{v:.2f}"
+                                 for v in e["held_out_avoided_at_fa"].values()))
+    if args.json:
+        write_json(args.json, report)
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])
