@@ -2,7 +2,7 @@
 of the Monte-Carlo scenes and reported on the other. Prints figures, asserts nothing.
 
     BLINDSPOT_SHARED=../shared PYTHONPATH=src .venv/bin/python benchmarks/bench_aeb_gate.py \
-        [--data DIR] [--input tracker] [--json OUT]
+        [--data DIR] [--input tracker] [--json OUT] [--figure PNG]
 
 Reads DIR/safety/risk.parquet (every predictor's p_collision and ttc_s per track row, the
 safety stage's output), DIR/driving/truth.parquet and DIR/driving/scenes.json (DIR: ``data``),
@@ -12,14 +12,22 @@ policy is a lookup; nothing is re-predicted.
 
 Split (:func:`blindspot.safety.evaluation.replicate_half`): even replicates of each speed x
 impact point x intruding cell tune (108 scenes), odd ones are held out (108). On the tuning
-half, per predictor and gate (none; stopping_time at each margin of --margins) the AEB threshold
-is chosen as the one with the most avoided collisions among those with at most --max-fa false
+half, per predictor, for no gate and for stopping_time at each margin of --margins, the AEB
+threshold is the one with the most avoided collisions among those with at most --max-fa false
 activations (ties: lower mean impact speed, then the higher threshold), or, when no threshold
-of any variant gets there (so far the case: the false activations have a floor above 10 %),
-the one with the largest Youden index J = avoided - false-activation rate; then the margin by
-the same rule (ties: lower impact speed, then the smaller margin). The held-out half is scored
-with that setting, and with the configured one (params.yaml: warning.aeb_threshold, no gate)
-beside it. The warning is never gated.
+gets there (so far the usual case: false activations have a floor above 10 %), the one with
+the largest Youden index J = avoided - false-activation rate; the margin is then chosen by the
+same rule (ties: lower impact speed, then the smaller margin). The held-out half is scored with
+that setting, and with the configured one (params.yaml: warning.aeb_threshold, no gate) beside
+it; per speed: avoided rate, mean impact speed (km/h), median AEB lead time (true TTC at the
+request, s) and false activations, with Wilson / bootstrap intervals in --json. The warning is
+never gated, so its lead time does not change.
+
+Diagnostics (they read the truth; not deployable settings): per predictor, the non-intruding
+scenes whose risk reaches warning.aeb_threshold and whether their first such track follows a
+true pedestrian (within 1 m) or none (clutter, e.g. on the parked cars); and
+--pedestrian-tracks-only scores only the risk rows of tracks that follow a pedestrian, i.e.
+the trigger policy once the tracker's clutter tracks are gone.
 """
 
 from __future__ import annotations
@@ -56,10 +64,12 @@ def _best(curve: pd.DataFrame, max_fa: float) -> pd.Series:
     c = curve.assign(j=curve.avoided_rate - curve.false_activation_rate)
     ok = c[c.false_activation_rate <= max_fa + 1e-12]
     if len(ok):
-        return ok.sort_values(["avoided_rate", "impact_speed_kmh_mean", "threshold"],
-                              ascending=[False, True, False]).iloc[0].assign(rule="max_fa")
-    return c.sort_values(["j", "impact_speed_kmh_mean", "threshold"],
-                         ascending=[False, True, False]).iloc[0]
+        row = ok.sort_values(["avoided_rate", "impact_speed_kmh_mean", "threshold"],
+                             ascending=[False, True, False]).iloc[0]
+        return pd.concat([row, pd.Series({"rule": "max_fa"})])
+    row = c.sort_values(["j", "impact_speed_kmh_mean", "threshold"],
+                        ascending=[False, True, False]).iloc[0]
+    return pd.concat([row, pd.Series({"rule": "youden"})])
 
 
 def _at_fa(curve: pd.DataFrame, levels=(0.1, 0.2, 0.3)) -> dict:
@@ -67,6 +77,62 @@ def _at_fa(curve: pd.DataFrame, levels=(0.1, 0.2, 0.3)) -> dict:
     return {f"{f:g}": (float(curve.avoided_rate[curve.false_activation_rate <= f + 1e-12].max())
                        if (curve.false_activation_rate <= f + 1e-12).any() else None)
             for f in levels}
+
+
+def _nearest_pedestrian_m(rows: pd.DataFrame, truth: pd.DataFrame,
+                          tracks: pd.DataFrame) -> pd.DataFrame:
+    """rows + the track's position, speed and its distance to the nearest true pedestrian of
+    that frame (m), with that pedestrian's behaviour; row order kept."""
+    x = rows.reset_index(drop=True).reset_index().merge(
+        tracks[["group", "frame", "track_id", "x_m", "y_m", "vx_mps", "vy_mps"]],
+        on=["group", "frame", "track_id"], how="left")
+    tp = truth[["scene", "frame", "behaviour", "x_m", "y_m"]].rename(
+        columns={"scene": "group", "x_m": "px", "y_m": "py"})
+    m = x.merge(tp, on=["group", "frame"], how="left")
+    m["distance_m"] = np.hypot(m.x_m - m.px, m.y_m - m.py)
+    m = m.sort_values(["index", "distance_m"]).drop_duplicates("index").sort_values("index")
+    m["speed_mps"] = np.hypot(m.vx_mps, m.vy_mps)
+    return m.drop(columns=["index", "px", "py"]).reset_index(drop=True)
+
+
+def false_activation_causes(risk: pd.DataFrame, truth: pd.DataFrame, tracks: pd.DataFrame,
+                            threshold: float, near_m: float = 1.0) -> pd.DataFrame:
+    """Per non-intruding scene whose risk reaches ``threshold`` (ungated): its first such row's
+    predicted TTC, track speed, and the distance from that track to the nearest true
+    pedestrian (a track farther than ``near_m`` follows no pedestrian: clutter)."""
+    non = risk[risk.group.str.contains("_non_") & (risk.p_collision >= threshold)]
+    first = non.sort_values(["group", "frame", "p_collision"], ascending=[True, True, False]) \
+        .drop_duplicates("group")
+    m = _nearest_pedestrian_m(first, truth, tracks)
+    m["follows_pedestrian"] = m.distance_m <= near_m
+    return m[["group", "frame", "p_collision", "ttc_s", "speed_mps", "distance_m",
+              "follows_pedestrian", "behaviour"]]
+
+
+def _figure(path: Path, curves: dict) -> None:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, len(curves), figsize=(3.2 * len(curves), 3.2), sharey=True)
+    for ax, (name, cs) in zip(np.atleast_1d(axes), curves.items()):
+        for label, c in cs.items():
+            ax.plot(c.false_activation_rate, c.avoided_rate, ".-", ms=3, label=label)
+        ax.set_title(name, fontsize=9)
+        ax.set_xlabel("false activations (held out)")
+        ax.set_xlim(0, 1)
+        ax.set_ylim(0, 1)
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7, loc="lower right")
+    np.atleast_1d(axes)[0].set_ylabel("avoided collisions (held out)")
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def _none_nan(x) -> float | None:
+    return None if pd.isna(x) else float(x)
 
 
 def main(argv: list[str]) -> None:
@@ -77,6 +143,12 @@ def main(argv: list[str]) -> None:
     ap.add_argument("--max-fa", type=float, default=0.01,
                     help="largest false-activation rate on the tuning half (issue 12: 1 %%)")
     ap.add_argument("--json", type=Path, default=None)
+    ap.add_argument("--pedestrian-tracks-only", action="store_true",
+                    help="diagnostic, uses the truth: score only the risk rows of tracks within "
+                         "1 m of a true pedestrian (what the trigger policy does once the "
+                         "tracker's clutter tracks are gone); not a deployable setting")
+    ap.add_argument("--figure", type=Path, default=None,
+                    help="PNG of the held-out operating curves, ungated and gated")
     args = ap.parse_args(argv)
     cfg = OmegaConf.load(REPO / "params.yaml")
     w = experiment.warning(cfg)
@@ -88,6 +160,14 @@ def main(argv: list[str]) -> None:
     risk = pd.read_parquet(args.data / "safety/risk.parquet")
     risk = risk[risk.input == args.input]
     truth = truth[truth.set == "monte_carlo"]
+    tracks = pd.read_parquet(args.data / "driving/tracks.parquet") if args.input == "tracker" \
+        else None
+    if args.pedestrian_tracks_only:
+        if tracks is None:
+            raise SystemExit("--pedestrian-tracks-only needs --input tracker")
+        risk = risk[(_nearest_pedestrian_m(risk, truth, tracks).distance_m <= 1.0).to_numpy()]
+        print(f"DIAGNOSTIC: only the {len(risk)} risk rows of tracks within 1 m of a true "
+              "pedestrian are scored")
     main_brakes = BrakingModel.from_config(w.aeb)
     sa, _, impact = outcome_table(truth, bodies, shape, main_brakes, w)
     info = scene_info(truth, meta, sa.scenes)
@@ -103,7 +183,9 @@ def main(argv: list[str]) -> None:
                           main_brakes.stop_ttc(np.array(sorted(set(info.speed_kmh))) / 3.6))))
     kw = dict(warning_threshold=w.warning_threshold, decision_delay_s=w.decision_delay_s)
     report: dict = {"split": "replicate_half (even replicates tune, odd held out)",
-                    "input": args.input, "max_fa_tune": args.max_fa, "predictors": {}}
+                    "input": args.input, "max_fa_tune": args.max_fa,
+                    "pedestrian_tracks_only": args.pedestrian_tracks_only, "predictors": {}}
+    fig_curves: dict = {}
     for name in risk.predictor.unique():          # four predictors
         rows = risk[risk.predictor == name]
         variants = {("none", 0.0): frame_risks(rows, sa.scenes, sa.speed_mps, F, main_brakes,
@@ -113,19 +195,25 @@ def main(argv: list[str]) -> None:
             variants[("stopping_time", m)] = frame_risks(
                 rows, sa.scenes, sa.speed_mps, F, main_brakes, gate="stopping_time",
                 margin_s=m, decision_delay_s=w.decision_delay_s)
-        tuned = {}
+        tuned: dict = {}
         for (gate, m), (_, p_aeb) in variants.items():
             c = operating_curve(p_aeb[tune], _subset(info, tune), impact[tune], thresholds)
             tuned[(gate, m)] = _best(c, args.max_fa)
-        feasible = any(b.get("rule") == "max_fa" for b in tuned.values())
-        score = (lambda b: -b.avoided_rate) if feasible else (lambda b: -b.j)
         pick = {}
         for gate in ("none", "stopping_time"):
             cand = [(k, b) for k, b in tuned.items() if k[0] == gate]
-            pick[gate] = sorted(cand, key=lambda kb: (score(kb[1]), kb[1].impact_speed_kmh_mean,
-                                                      kb[0][1]))[0]
-        out = {"tuning_rule": f"max avoided with FA <= {args.max_fa}" if feasible
-               else f"no threshold reaches FA <= {args.max_fa} on the tuning half: max Youden J"}
+            ok = [(k, b) for k, b in cand if b["rule"] == "max_fa"]
+            if ok:                                 # the FA bound holds: most avoided
+                pick[gate] = sorted(ok, key=lambda kb: (-kb[1].avoided_rate,
+                                                        kb[1].impact_speed_kmh_mean,
+                                                        kb[0][1]))[0]
+            else:                                  # it never holds: largest Youden J
+                pick[gate] = sorted(cand, key=lambda kb: (-kb[1].j, kb[1].impact_speed_kmh_mean,
+                                                          kb[0][1]))[0]
+        out = {"tuning_rule": ", ".join(
+            f"{g}: " + ("most avoided with FA <= %g" % args.max_fa if b["rule"] == "max_fa"
+                        else "FA <= %g never reached on the tuning half, largest Youden J"
+                        % args.max_fa) for g, (_, b) in pick.items())}
         settings = [("configured", ("none", 0.0), w.aeb_threshold)]
         settings += [(f"tuned_{g}", k, float(b.threshold)) for g, (k, b) in pick.items()]
         for label, key, thr in settings:
@@ -151,11 +239,31 @@ def main(argv: list[str]) -> None:
                                 thresholds)
             out[f"tuned_{gate}"]["held_out_curve"] = c.round(4).to_dict(orient="list")
             out[f"tuned_{gate}"]["held_out_avoided_at_fa"] = _at_fa(c)
+            fig_curves.setdefault(name, {})[
+                "no gate" if gate == "none" else f"gate, margin {key[1]:g} s"] = c
+        if tracks is not None:                     # why the false activations happen
+            fa = false_activation_causes(rows, truth, tracks, w.aeb_threshold)
+            out["false_activation_causes"] = {
+                "aeb_threshold": w.aeb_threshold, "n_scenes": int(len(fa)),
+                "n_track_on_no_pedestrian": int((~fa.follows_pedestrian).sum()),
+                "ttc_s_median": _none_nan(fa.ttc_s.median()),
+                "speed_mps_median_no_pedestrian": _none_nan(
+                    fa.speed_mps[~fa.follows_pedestrian].median()),
+                "behaviour_of_followed": fa.behaviour[fa.follows_pedestrian]
+                .value_counts().to_dict()}
         report["predictors"][name] = out
         print(f"\n== {name}")
         print(f"  tuning rule: {out['tuning_rule']}")
         for label, e in out.items():
             if label == "tuning_rule":
+                continue
+            if label == "false_activation_causes":
+                print(f"  false activations at threshold {e['aeb_threshold']} (all scenes, "
+                      f"ungated): {e['n_scenes']} scenes, first AEB-level track on no "
+                      f"pedestrian (> 1 m) in {e['n_track_on_no_pedestrian']} (median speed "
+                      f"{e['speed_mps_median_no_pedestrian']} m/s), median predicted TTC "
+                      f"{e['ttc_s_median']} s; pedestrians followed: "
+                      f"{e['behaviour_of_followed']}")
                 continue
             h = e["held_out"]
             print(f"  {label:22s} gate {e['gate']:13s} margin {e['margin_s']:.2f} s thr "
@@ -175,6 +283,8 @@ def main(argv: list[str]) -> None:
                                  for v in e["held_out_avoided_at_fa"].values()))
     if args.json:
         write_json(args.json, report)
+    if args.figure:
+        _figure(args.figure, fig_curves)
 
 
 if __name__ == "__main__":
