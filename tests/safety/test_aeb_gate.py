@@ -131,3 +131,31 @@ def test_gate_config_is_typed():
         WarningConfig.from_mapping({**base, "aeb_gate": "ttc"})
     with pytest.raises(ConfigError, match="warning.aeb_gate_margin_s"):
         WarningConfig.from_mapping({**base, "aeb_gate_margin_s": -0.1})
+
+
+def test_a_request_at_the_gate_stops_the_outcome_model_short_of_a_standing_pedestrian():
+    """Through the outcome model (boxes, contact, braked ego): a pedestrian standing in the
+    path 5 s ahead; requested at a TTC (to first contact) 2 % above TTC_stop the car stops
+    short; 2 % below it, it hits with what is left of the stop, v = sqrt(2 a dd) (dd = 2 % of
+    v TTC_stop, the last metres under full deceleration), at each Euro NCAP ego speed."""
+    from blindspot.safety.outcome import SceneArrays, braked_impacts, pedestrian_boxes
+    from blindspot.safety.risk import EgoShape
+
+    b = BrakingModel(0.2, 30.0, 9.8)
+    v = np.array([10.0, 20.0, 30.0, 40.0, 50.0, 60.0]) / KMH
+    S, F = len(v), 81
+    t = np.arange(F) * 0.1
+    ped_y = 5.0 * v + 0.5                                  # reference point; box behind it
+    pos = np.zeros((S, 1, F, 2))
+    pos[..., 1] = ped_y[:, None, None]
+    sa = SceneArrays(np.array([f"s{i}" for i in range(S)]), t, np.zeros(S), np.zeros(S), v, pos,
+                     np.zeros((S, 1, F, 2)), np.ones((S, 1), bool), np.full((S, 1), 0.6),
+                     np.full((S, 1), 0.5), np.full((S, 1), 0.36))
+    tg, lo, hi = pedestrian_boxes(sa, 0.001, 0.0)
+    contact_ttc = lo[:, 0, 0, 1] / v                       # TTC to first contact at t = 0
+    ttc_stop = b.stop_ttc(v)
+    trig = np.stack([contact_ttc - 1.02 * ttc_stop, contact_ttc - 0.98 * ttc_stop], axis=1)
+    _, speed = braked_impacts(sa, tg, lo, hi, trig, b, EgoShape(1.8, 4.5))
+    assert np.all(np.isnan(speed[:, 0]))                   # stopped short: avoided
+    dd = 0.02 * v * ttc_stop
+    assert speed[:, 1] == pytest.approx(np.sqrt(2 * 9.8 * dd), rel=0.02)
