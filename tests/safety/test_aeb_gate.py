@@ -159,3 +159,37 @@ def test_a_request_at_the_gate_stops_the_outcome_model_short_of_a_standing_pedes
     assert np.all(np.isnan(speed[:, 0]))                   # stopped short: avoided
     dd = 0.02 * v * ttc_stop
     assert speed[:, 1] == pytest.approx(np.sqrt(2 * 9.8 * dd), rel=0.02)
+
+
+def test_last_point_to_brake_is_where_the_euro_ncap_crossings_stop_being_avoidable():
+    """On the scenario group's own crossing scenes (CPNCO, CPNA 25 / 75 %; the child walks
+    across the path, it does not stand in it), the latest request that still avoids the
+    collision comes at a true TTC of TTC_stop (to the 0.01 s step of the sweep; the far-side
+    CPNA-75 child may clear the path a little earlier at high speed)."""
+    from dataclasses import replace
+    from pathlib import Path
+
+    from omegaconf import OmegaConf
+
+    from blindspot.radar.driving import load_scenarios, scene_truth
+    from blindspot.safety.outcome import braked_impacts, pedestrian_boxes, scene_arrays
+    from blindspot.safety.risk import EgoShape
+
+    conf = Path(__file__).resolve().parents[2] / "conf" / "scenario" / "euro_ncap.yaml"
+    group, named = load_scenarios(OmegaConf.load(conf))
+    bodies = {b.name: (b.length_m, b.width_m, b.ref_from_front_m) for b in group.bodies}
+    ego = EgoShape(group.ego.width_m, group.ego.length_m)
+    b = BrakingModel(0.2, 30.0, 9.8)
+    scenes = [replace(named[n], speed_kmh=v, name=f"{n}_{v:g}")
+              for n in ("cpnco", "cpna25", "cpna75") for v in (20.0, 40.0, 60.0)]
+    truth = pd.concat([scene_truth(s, group, 0.1) for s in scenes], ignore_index=True)
+    sa = scene_arrays(truth, bodies)
+    t, lo, hi = pedestrian_boxes(sa, 0.002, 3.0)
+    t_col = truth.groupby("scene").collision_time_s.min().reindex(sa.scenes).to_numpy()
+    ttc = np.arange(0.2, 1.6, 0.01)
+    _, v = braked_impacts(sa, t, lo, hi, t_col[:, None] - ttc[None, :], b, ego)
+    critical = np.where(np.isnan(v), ttc, np.inf).min(axis=1)      # latest avoiding request
+    excess = critical - b.stop_ttc(sa.speed_mps)
+    near = ~np.char.startswith(sa.scenes.astype(str), "cpna75")
+    assert np.all(np.abs(excess[near]) <= 0.015)
+    assert np.all(excess <= 0.015)                        # never later than the gate says
