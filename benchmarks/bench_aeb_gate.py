@@ -48,8 +48,8 @@ from blindspot import experiment
 from blindspot.io import write_json
 from blindspot.safety.assess import frame_risks, outcome_table
 from blindspot.safety.braking import BrakingModel
-from blindspot.safety.evaluation import (SceneInfo, operating_curve, replicate_half, scene_info,
-                                         scene_results, summarise)
+from blindspot.safety.evaluation import (SceneInfo, aeb_gate_s, operating_curve,
+                                         replicate_half, scene_info, scene_results, summarise)
 from blindspot.safety.risk import EgoShape
 
 REPO = Path(__file__).resolve().parents[1]
@@ -97,12 +97,13 @@ def _nearest_pedestrian_m(rows: pd.DataFrame, truth: pd.DataFrame,
     return m.drop(columns=["index", "px", "py"]).reset_index(drop=True)
 
 
-def false_activation_causes(risk: pd.DataFrame, truth: pd.DataFrame, tracks: pd.DataFrame,
-                            threshold: float, near_m: float = 1.0) -> pd.DataFrame:
-    """Per non-intruding scene whose risk reaches ``threshold`` (ungated): its first such row's
-    predicted TTC, track speed, and the distance from that track to the nearest true
-    pedestrian (a track farther than ``near_m`` follows no pedestrian: clutter)."""
-    non = risk[risk.group.str.contains("_non_") & (risk.p_collision >= threshold)]
+def trigger_causes(risk: pd.DataFrame, truth: pd.DataFrame, tracks: pd.DataFrame,
+                   threshold: float, kind: str = "non", near_m: float = 1.0) -> pd.DataFrame:
+    """Per non-intruding (``kind = "non"``) or intruding (``"int"``) scene whose risk reaches
+    ``threshold`` (ungated): the row that requests AEB (its first such row), its predicted TTC,
+    track speed, and the distance from that track to the nearest true pedestrian (a track
+    farther than ``near_m`` follows no pedestrian: clutter)."""
+    non = risk[risk.group.str.contains(f"_{kind}_") & (risk.p_collision >= threshold)]
     first = non.sort_values(["group", "frame", "p_collision"], ascending=[True, True, False]) \
         .drop_duplicates("group")
     m = _nearest_pedestrian_m(first, truth, tracks)
@@ -247,7 +248,17 @@ def main(argv: list[str]) -> None:
             fig_curves.setdefault(name, {})[
                 "no gate" if gate == "none" else f"gate, margin {key[1]:g} s"] = c
         if tracks is not None:                     # why the false activations happen
-            fa = false_activation_causes(rows, truth, tracks, w.aeb_threshold)
+            fa = trigger_causes(rows, truth, tracks, w.aeb_threshold)
+            hit = trigger_causes(rows, truth, tracks, w.aeb_threshold, kind="int")
+            res = scene_results(*variants[("none", 0.0)][:1], info, impact, sa.time_s,
+                                aeb_threshold=w.aeb_threshold, **kw)
+            hit = hit.merge(res[["scene", "avoided"]], left_on="group", right_on="scene")
+            gi = pd.Index(sa.scenes).get_indexer(rows.group)
+            g = aeb_gate_s(np.where(gi >= 0, sa.speed_mps[gi], 0.0), main_brakes,
+                           gate="stopping_time", margin_s=w.aeb_gate_margin_s,
+                           decision_delay_s=w.decision_delay_s)
+            fa_g = trigger_causes(rows[(rows.ttc_s.to_numpy() <= g)], truth, tracks,
+                                  w.aeb_threshold)
             out["false_activation_causes"] = {
                 "aeb_threshold": w.aeb_threshold, "n_scenes": int(len(fa)),
                 "n_track_on_no_pedestrian": int((~fa.follows_pedestrian).sum()),
@@ -255,7 +266,13 @@ def main(argv: list[str]) -> None:
                 "speed_mps_median_no_pedestrian": _none_nan(
                     fa.speed_mps[~fa.follows_pedestrian].median()),
                 "behaviour_of_followed": fa.behaviour[fa.follows_pedestrian]
-                .value_counts().to_dict()}
+                .value_counts().to_dict(),
+                "intruding_avoided": int(hit.avoided.sum()),
+                "intruding_avoided_by_track_on_no_pedestrian": int(
+                    (hit.avoided & ~hit.follows_pedestrian).sum()),
+                "gated": {"margin_s": w.aeb_gate_margin_s, "n_scenes": int(len(fa_g)),
+                          "n_track_on_no_pedestrian": int((~fa_g.follows_pedestrian).sum()),
+                          "ttc_s_median": _none_nan(fa_g.ttc_s.median())}}
         report["predictors"][name] = out
         print(f"\n== {name}")
         print(f"  tuning rule: {out['tuning_rule']}")
@@ -268,7 +285,13 @@ def main(argv: list[str]) -> None:
                       f"pedestrian (> 1 m) in {e['n_track_on_no_pedestrian']} (median speed "
                       f"{e['speed_mps_median_no_pedestrian']} m/s), median predicted TTC "
                       f"{e['ttc_s_median']} s; pedestrians followed: "
-                      f"{e['behaviour_of_followed']}")
+                      f"{e['behaviour_of_followed']}; of the {e['intruding_avoided']} avoided "
+                      "intruding scenes (ungated), "
+                      f"{e['intruding_avoided_by_track_on_no_pedestrian']} were braked first for "
+                      "a track on no pedestrian; behind the gate at "
+                      f"{e['gated']['margin_s']:g} s: {e['gated']['n_scenes']} false "
+                      f"activations, {e['gated']['n_track_on_no_pedestrian']} by a track on no "
+                      f"pedestrian, median predicted TTC {e['gated']['ttc_s_median']} s")
                 continue
             h = e["held_out"]
             print(f"  {label:22s} gate {e['gate']:13s} margin {e['margin_s']:.2f} s thr "
