@@ -17,13 +17,14 @@ import pandas as pd
 
 from blindspot.safety.braking import BrakingModel
 from blindspot.safety.config import WarningConfig
-from blindspot.safety.evaluation import (KMH, SceneInfo, ncap_grid, operating_curve,
-                                         scene_frame_risk, scene_info, scene_results, summarise)
+from blindspot.safety.evaluation import (KMH, SceneInfo, aeb_gate_s, ncap_grid,
+                                         operating_curve, scene_frame_risk, scene_info,
+                                         scene_results, summarise)
 from blindspot.safety.outcome import NEVER_S, braked_impacts, pedestrian_boxes, scene_arrays
 from blindspot.safety.predict import risk_table
 from blindspot.safety.risk import EgoShape
 
-__all__ = ["SafetyResult", "outcome_table", "assess"]
+__all__ = ["SafetyResult", "outcome_table", "frame_risks", "assess"]
 
 
 @dataclass(frozen=True)
@@ -53,6 +54,24 @@ def outcome_table(truth: pd.DataFrame, bodies: dict, shape: EgoShape, braking: B
                            np.full((S, 1), NEVER_S)], axis=1)
     _, v = braked_impacts(sa, t, lo, hi, trig, braking, shape)
     return sa, trig, v * KMH
+
+
+def frame_risks(risk: pd.DataFrame, scenes: np.ndarray, speed_mps: np.ndarray, n_frames: int,
+                braking: BrakingModel, *, gate: str, margin_s: float, decision_delay_s: float
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """(p_warning, p_aeb), each (S, F): one predictor's scene-frame risk for the warning (every
+    row) and for the AEB (rows whose TTC passed the gate, :func:`aeb_gate_s`; the same array
+    with ``gate = "none"``). ``risk``: rows (group, frame, p_collision, ttc_s); scenes (S,)
+    with their ego speeds ``speed_mps`` (S,) m/s (the scenes' ego holds its test speed until
+    the request, [V] in ``EURO_NCAP_PEDESTRIAN.md``)."""
+    p = scene_frame_risk(risk, scenes, n_frames)
+    if gate == "none":
+        return p, p
+    gi = pd.Index(scenes).get_indexer(risk.group)
+    speed = np.where(gi >= 0, np.asarray(speed_mps, float)[gi], 0.0)   # unknown scene: unused
+    g = aeb_gate_s(speed, braking, gate=gate, margin_s=margin_s,
+                   decision_delay_s=decision_delay_s)
+    return p, scene_frame_risk(risk, scenes, n_frames, gate_s=g)
 
 
 def _timeline(sa, trigger_s: float, braking: BrakingModel, i: int, dt: float) -> pd.DataFrame:
@@ -125,16 +144,21 @@ def assess(truth: pd.DataFrame, scenes_meta: dict, tracks: dict[str, pd.DataFram
                           method=cfg.probability, max_len=max_len)
         risks.append(risk.assign(input=inp))
         for name in use:                             # the four predictors
-            p_all = scene_frame_risk(risk[risk.predictor == name], sa.scenes, F)
-            res_all = scene_results(p_all, info_all, impact, sa.time_s, **kw)
+            # the gate is the nominal brakes' (also for the weak-brake sensitivity: the system
+            # is tuned for its brakes, which then deliver less)
+            p_all, p_aeb = frame_risks(risk[risk.predictor == name], sa.scenes, sa.speed_mps, F,
+                                       main, gate=cfg.aeb_gate, margin_s=cfg.aeb_gate_margin_s,
+                                       decision_delay_s=cfg.decision_delay_s)
+            res_all = scene_results(p_all, info_all, impact, sa.time_s, p_aeb=p_aeb, **kw)
             res = res_all[ev].reset_index(drop=True)
-            weak_res = scene_results(p_all[ev], info, impact_weak[ev], sa.time_s, **kw)
+            weak_res = scene_results(p_all[ev], info, impact_weak[ev], sa.time_s,
+                                     p_aeb=p_aeb[ev], **kw)
             m = summarise(res, n_bootstrap=cfg.n_bootstrap, seed=cfg.seed)
             m["braking_sensitivity"] = {
                 "decel_mps2": cfg.sensitivity_decel_mps2,
                 **{k: summarise(weak_res, n_bootstrap=cfg.n_bootstrap, seed=cfg.seed)[k]
                    for k in ("avoided_rate", "goals")}}
-            curve = operating_curve(p_all[ev], info, impact[ev], thresholds)
+            curve = operating_curve(p_aeb[ev], info, impact[ev], thresholds)
             grid = ncap_grid(res)
             m["ncap_score_mean"] = float(grid.score.mean()) if len(grid) else None
             tag = dict(input=inp, predictor=name)
@@ -154,7 +178,8 @@ def assess(truth: pd.DataFrame, scenes_meta: dict, tracks: dict[str, pd.DataFram
     settings = {
         "evaluated_set": evaluated_set, "n_scenes": int(ev.sum()), "headline_input": headline,
         "inputs": list(tracks), "warning_threshold": cfg.warning_threshold,
-        "aeb_threshold": cfg.aeb_threshold, "aeb": {"latency_s": main.latency_s,
+        "aeb_threshold": cfg.aeb_threshold, "aeb_gate": cfg.aeb_gate,
+        "aeb_gate_margin_s": cfg.aeb_gate_margin_s, "aeb": {"latency_s": main.latency_s,
                                                     "jerk_mps3": main.jerk_mps3,
                                                     "decel_mps2": main.decel_mps2},
         "horizon_s": cfg.horizon_s, "probability": cfg.probability,

@@ -13,6 +13,16 @@ u = sqrt(2 v0 / j). The stopping distance (elementary kinematics) is
 
     d = v0 T + v0^2 / (2 a) + v0 t_r / 2 - a t_r^2 / 24        (v0 > a t_r / 2)
     d = v0 T + (2/3) v0 sqrt(2 v0 / j)                          (otherwise).
+
+The last point to brake for a stationary obstacle (the "brake threat" of Brännström, Coelingh &
+Sjöberg 2010, IEEE T-ITS 11(3) 658-669, Sec. III; the minimum-TTC criterion of ISO 22839:2013
+FVCMS) is the time to collision at constant speed at which a request still stops the car at the
+obstacle: TTC_stop = d / v0, i.e.
+
+    TTC_stop = T + v0 / (2 a) + t_r / 2 - a t_r^2 / (24 v0)     (v0 > a t_r / 2)
+    TTC_stop = T + (2/3) sqrt(2 v0 / j)                          (otherwise).
+
+A request at a TTC above it stops short of the obstacle; below it, the car hits it.
 """
 
 from __future__ import annotations
@@ -73,6 +83,21 @@ class BrakingModel:
             + np.where(t < 0, 0.0, s_ramp + v1 * w - a * w**2 / 2)
         v = np.where(t >= t_stop, 0.0, np.where(u < tr, v0 - j * ur**2 / 2, v1 - a * w))
         return s, np.maximum(v, 0.0)
+
+    def stop_ttc(self, v0: np.ndarray) -> np.ndarray:
+        """TTC_stop (module docstring), s: the constant-speed time to collision with a
+        stationary obstacle at which a request still stops the car at it, for speeds v0 (...)
+        m/s > 0 (closed form; equals ``stopping_distance(v0) / v0``). Raises ValueError for a
+        non-positive speed (no collision, no TTC)."""
+        v0 = np.asarray(v0, float)
+        if not np.all(v0 > 0):
+            raise ValueError(f"BrakingModel.stop_ttc: speeds must be > 0 m/s, found "
+                             f"min {np.min(v0)!r}")
+        a, j, tr = self.decel_mps2, self.jerk_mps3, self.ramp_s
+        in_ramp = v0 <= a * tr / 2
+        full = self.latency_s + v0 / (2 * a) + tr / 2 - a * tr**2 / (24 * v0)
+        ramp = self.latency_s + (2 / 3) * np.sqrt(2 * v0 / j)
+        return np.where(in_ramp, ramp, full)
 
     def stopping_distance(self, v0: np.ndarray) -> np.ndarray:
         """Distance from the request to standstill, m (module docstring), for v0 (...) m/s."""

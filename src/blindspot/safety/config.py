@@ -11,12 +11,13 @@ from dataclasses import dataclass
 
 from blindspot.typed_config import ConfigError, TypedConfig, setting
 
-__all__ = ["PREDICTORS", "PROBABILITY_METHODS", "LSTM_HISTORY", "BrakingConfig", "OracleConfig",
-           "WarningConfig"]
+__all__ = ["PREDICTORS", "PROBABILITY_METHODS", "LSTM_HISTORY", "AEB_GATES", "BrakingConfig",
+           "OracleConfig", "WarningConfig"]
 
 PREDICTORS: tuple[str, ...] = ("none", "constant_velocity", "kalman", "lstm")
 PROBABILITY_METHODS: tuple[str, ...] = ("max_step", "union")
 LSTM_HISTORY: tuple[str, ...] = ("cv_backfill", "hold_first")
+AEB_GATES: tuple[str, ...] = ("none", "stopping_time")
 
 
 @dataclass(frozen=True)
@@ -72,6 +73,8 @@ class WarningConfig(TypedConfig):
     n_thresholds: int = setting(ge=2, le=10_000)
     n_bootstrap: int = setting(ge=100, le=1_000_000)
     oracle: OracleConfig = setting()
+    aeb_gate: str = setting("none", choices=AEB_GATES)
+    aeb_gate_margin_s: float = setting(0.0, ge=0.0, le=5.0)
     seed: int = setting(0, ge=0, le=2**63 - 1)
 
     def validate(self) -> None:

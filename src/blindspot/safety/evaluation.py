@@ -3,8 +3,13 @@
 Per scene, the risk of a frame is the largest P(collision) of its confirmed tracks (0 without
 one). A warning is issued at the first frame whose risk reaches ``warning_threshold``, the AEB
 request at the first reaching ``aeb_threshold``, each ``decision_delay_s`` after that frame's
-start. Once requested, braking is committed: the scene's outcome is the braked ego against the
-true paths (:mod:`blindspot.safety.outcome`), looked up in an outcome table computed once per
+start. The AEB risk may be gated by the time the brakes need (``warning.aeb_gate``,
+:func:`aeb_gate_s`): a track row's P(collision) then counts for the AEB only when its predicted
+TTC has fallen to the last point to brake plus a margin (Brännström, Coelingh & Sjöberg 2010);
+the warning is not gated.
+
+Once requested, braking is committed: the scene's outcome is the braked ego against the true
+paths (:mod:`blindspot.safety.outcome`), looked up in an outcome table computed once per
 braking model for a request at every frame (and for none), so sweeping the threshold (the
 operating characteristic) is a lookup, vectorised over scenes and thresholds.
 
@@ -29,7 +34,8 @@ from scipy import stats
 
 from blindspot.safety.ncap import ncap_band
 
-__all__ = ["SceneInfo", "scene_info", "scene_frame_risk", "trigger_frames", "scene_results",
+__all__ = ["SceneInfo", "scene_info", "replicate_half", "aeb_gate_s", "scene_frame_risk",
+           "trigger_frames", "scene_results",
            "summarise", "operating_curve", "ncap_grid", "wilson", "KMH"]
 
 KMH = 3.6
@@ -71,13 +77,64 @@ def scene_info(truth: pd.DataFrame, scenes_meta: dict, scenes: np.ndarray,
                      np.array(pct), first.collision_time_s.to_numpy(float), vis.to_numpy(float))
 
 
-def scene_frame_risk(risk: pd.DataFrame, scenes: np.ndarray, n_frames: int) -> np.ndarray:
+def replicate_half(scenes: np.ndarray) -> np.ndarray:
+    """(S,) bool: True for the tuning half of Monte-Carlo scenes, False for the held-out half.
+
+    Names ``mc_<speed>kmh_<p>pct_<int|non>_<k>`` (:func:`blindspot.radar.driving
+    .draw_scenarios`): replicate k of a cell has its own seed, drawn from the set's generator;
+    even k tune, odd k are held out, so each speed x impact point x intruding cell is split in
+    half. Raises ValueError naming a scene without a replicate suffix."""
+    names = pd.Series(np.asarray(scenes, str))
+    k = names.str.extract(r"^mc_.+_(?:int|non)_(\d+)$")[0]
+    if k.isna().any():
+        raise ValueError(f"replicate_half: scene {names[k.isna()].iloc[0]!r} is not a "
+                         "Monte-Carlo scene named mc_<speed>kmh_<p>pct_<int|non>_<k>")
+    return (k.astype(int) % 2 == 0).to_numpy()
+
+
+def aeb_gate_s(speed_mps: np.ndarray, braking, *, gate: str, margin_s: float,
+               decision_delay_s: float) -> np.ndarray:
+    """The AEB gate (...) s: the largest predicted TTC (at the frame's start, ego at constant
+    speed; :mod:`blindspot.safety.risk`) at which a track row may request AEB, for ego speeds
+    ``speed_mps`` (...) m/s.
+
+    ``gate = "none"``: +inf (every row counts). ``"stopping_time"``: the last point to brake,
+    ``braking.stop_ttc(v)`` (:class:`~blindspot.safety.braking.BrakingModel`: the TTC of a
+    stationary obstacle at which a request still stops the car at it; Brännström, Coelingh &
+    Sjöberg 2010, IEEE T-ITS 11(3); ISO 22839:2013), plus ``decision_delay_s`` (the request
+    leaves that long after the frame whose TTC it reads) plus ``margin_s`` (chosen on held-out
+    scenes, ``conf/warning/default.yaml``). A standing ego (v <= 0) cannot run into anything:
+    +inf. Raises ValueError for an unknown gate."""
+    v = np.asarray(speed_mps, float)
+    if gate == "none":
+        return np.full(v.shape, np.inf)
+    if gate != "stopping_time":
+        raise ValueError(f"config key 'warning.aeb_gate': expected 'none' or 'stopping_time', "
+                         f"found {gate!r}")
+    moving = v > 0
+    return np.where(moving, braking.stop_ttc(np.where(moving, v, 1.0)) + decision_delay_s
+                    + margin_s, np.inf)
+
+
+def scene_frame_risk(risk: pd.DataFrame, scenes: np.ndarray, n_frames: int,
+                     gate_s: np.ndarray | None = None) -> np.ndarray:
     """(S, F) the largest p_collision of each scene's confirmed tracks per frame (0: none).
-    ``risk``: one predictor's rows (group, frame, p_collision)."""
+    ``risk``: one predictor's rows (group, frame, p_collision, and ttc_s with a gate).
+
+    ``gate_s`` (R,) s per row of ``risk`` (:func:`aeb_gate_s`): a row counts only when its
+    predicted TTC is at most its gate; a row without a predicted TTC (NaN: the mean path never
+    enters the footprint within the horizon) then never counts, unless its gate is +inf."""
     out = np.zeros((len(scenes), n_frames))
     if len(risk):
         s = pd.Index(scenes).get_indexer(risk.group)
         ok = (s >= 0) & (risk.frame.to_numpy() < n_frames)
+        if gate_s is not None:
+            gate_s = np.asarray(gate_s, float)
+            if gate_s.shape != (len(risk),):
+                raise ValueError(f"scene_frame_risk: gate_s must be ({len(risk)},), found "
+                                 f"{gate_s.shape}")
+            ttc = risk.ttc_s.to_numpy(float)
+            ok &= np.isposinf(gate_s) | (ttc <= gate_s)
         np.maximum.at(out, (s[ok], risk.frame.to_numpy()[ok]), risk.p_collision.to_numpy()[ok])
     return out
 
@@ -107,16 +164,17 @@ def _boot_mean(x: np.ndarray, n: int, rng: np.random.Generator) -> list[float] |
 
 def scene_results(p: np.ndarray, info: SceneInfo, impact_kmh: np.ndarray,
                   frame_times: np.ndarray, *, warning_threshold: float, aeb_threshold: float,
-                  decision_delay_s: float) -> pd.DataFrame:
+                  decision_delay_s: float, p_aeb: np.ndarray | None = None) -> pd.DataFrame:
     """One row per scene: warn_frame / aeb_frame (-1 none), warning_s, aeb_s (NaN none),
     impact_speed_kmh (0 avoided), avoided, lead_time_s (true TTC at the warning; NaN without a
     warning before the collision), aeb_lead_time_s, visible_to_warning_s.
 
-    p (S, F) scene-frame risk; impact_kmh (S, F + 1) the outcome table (column F = no AEB; NaN
-    = avoided); frame_times (F,) s."""
+    p (S, F) scene-frame risk (the warning's, and the AEB's unless ``p_aeb`` (S, F), the gated
+    AEB risk, is given); impact_kmh (S, F + 1) the outcome table (column F = no AEB; NaN =
+    avoided); frame_times (F,) s."""
     F = p.shape[1]
-    tf = trigger_frames(p, np.array([warning_threshold, aeb_threshold]))
-    warn, aeb = tf[:, 0], tf[:, 1]
+    warn = trigger_frames(p, np.array([warning_threshold]))[:, 0]
+    aeb = trigger_frames(p if p_aeb is None else p_aeb, np.array([aeb_threshold]))[:, 0]
     t_dec = np.r_[frame_times + decision_delay_s, np.nan]
     warn_s, aeb_s = t_dec[warn], t_dec[aeb]
     imp = impact_kmh[np.arange(len(aeb)), aeb]
