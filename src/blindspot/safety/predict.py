@@ -199,7 +199,9 @@ def static_evidence(tracks: pd.DataFrame, points: pd.DataFrame, *, cell_m: float
                     lag_frames: int) -> np.ndarray:
     """(N,) int per row of ``tracks`` (columns group, frame, x_m, y_m; world frame, m): the
     number of static radar points of the same group seen ``lag_frames`` or more frames before
-    the row's frame within the 3 x 3 cells of side ``cell_m`` around the row's position.
+    the row's frame within the 3 x 3 cells of side ``cell_m`` around the row's position (a
+    point closer than ``cell_m`` in both axes always counts, one ``2 cell_m`` or farther in
+    either axis never does).
 
     A static-environment evidence grid accumulated in the world frame (Werber et al. 2015,
     "Automotive radar gridmap representations", IEEE MTT-S ICMIM; the count is the
