@@ -142,7 +142,9 @@ def doppler_log_ratio(tracks: pd.DataFrame, ego_xy: np.ndarray, doppler_std_mps:
 
 def moving_tracks(tracks: pd.DataFrame, speed_mps: float, probability: float = 0.99, *,
                   ego: pd.DataFrame | None = None, doppler_std_mps: float = 0.3,
-                  doppler_log_ratio_min: float | None = None) -> np.ndarray:
+                  doppler_log_ratio_min: float | None = None,
+                  points: pd.DataFrame | None = None, static_evidence_min: int = 0,
+                  static_cell_m: float = 0.5, static_lag_frames: int = 10) -> np.ndarray:
     """(N,) bool per row of ``tracks`` (columns group, track_id, frame, vx_mps, vy_mps,
     cov_vxvx, cov_vxvy, cov_vyvy, confirmed; the tracker's world-frame filtered state): True
     from the track's first confirmed row on whose velocity is both fast, sqrt(vx^2 + vy^2) >
@@ -157,8 +159,13 @@ def moving_tracks(tracks: pd.DataFrame, speed_mps: float, probability: float = 0
     times likelier than its kinematic velocity). That needs the columns x_m, y_m, n_points,
     doppler_mps and ``ego`` (group, frame, ego_x_m, ego_y_m: the radar's world position).
     Causal (a car decides with the frames it has) and latched (a pedestrian stopping at the kerb
-    stays a moving object). Raises ValueError naming a missing column or a row without an ego
-    position."""
+    stays a moving object), except that with ``points`` and ``static_evidence_min`` > 0 a row
+    standing on the static environment is not moving: :func:`static_evidence` (cells of
+    ``static_cell_m`` m, points of frames ``static_lag_frames`` and more before) reaches
+    ``static_evidence_min`` (a cluster sliding along a parked car's face, whose kinematic
+    velocity passes the tests above while the ego passes the car; a pedestrian standing still
+    on its own static hits for ``static_lag_frames`` frames is left out too). Raises ValueError
+    naming a missing column or a row without an ego position."""
     need = {"group", "track_id", "frame", "vx_mps", "vy_mps", "cov_vxvx", "cov_vxvy",
             "cov_vyvy", "confirmed"}
     use_doppler = ego is not None and doppler_log_ratio_min is not None
@@ -192,6 +199,9 @@ def moving_tracks(tracks: pd.DataFrame, speed_mps: float, probability: float = 0
     seen = pd.Series(fast[order]).groupby(key, sort=False).cummax().to_numpy(bool)
     out = np.empty(len(tracks), bool)
     out[order] = seen
+    if points is not None and static_evidence_min > 0:
+        out &= static_evidence(tracks, points, cell_m=static_cell_m,
+                               lag_frames=static_lag_frames) < static_evidence_min
     return out
 
 
