@@ -3,7 +3,12 @@ safety stage's risk rows, tuned on one half of the Monte-Carlo scenes and report
 Prints figures, asserts nothing.
 
     BLINDSPOT_SHARED=../shared PYTHONPATH=src .venv/bin/python benchmarks/bench_clutter.py \
-        [--data DIR] [--json OUT]
+        [--data DIR] [--json OUT] [--cell M] [--lags L1,L2] [--window N]
+
+DIR (default ``data``) must hold a driving_track + safety run with the grid off
+(warning.moving_static_evidence_min = 0, as the 2026-11-30 repro in /work/main/data): the
+benchmark removes rows from that run's risk rows and refuses tracks whose moving flag already
+left them out.
 
 A stricter moving test only removes track rows, so the tracker input's risk rows
 (DIR/safety/risk.parquet) of the rows it keeps give the new outcomes; nothing is re-predicted
@@ -26,7 +31,9 @@ Each rule keeps a row only if the track is classed moving (the stage's ``moving`
 rule does not call it clutter. Per predictor (the tracker input) the rule's threshold is the one
 with the largest Youden J = avoided rate - false-activation rate on the tuning half at the
 configured AEB threshold behind the configured gate; the held-out half is reported at that
-threshold beside the stage's own moving test. Also printed: intruding scenes whose lead
+threshold beside the stage's own moving test. The configured rule (params.yaml
+warning.moving_static_*) is reported the same way, with the held-out intruding scenes it stops
+avoiding and how many of those the grid-off run braked first for a clutter track (luck). Also printed: intruding scenes whose lead
 pedestrian is never classed moving (truth labels, stages/driving_track.confusion; today 20 of
 108), and the causes of the false activations left (first AEB-level track within 1 m of a true
 pedestrian or not; bench_aeb_gate.trigger_causes).
@@ -52,10 +59,10 @@ from blindspot import experiment  # noqa: E402
 from blindspot.io import write_json  # noqa: E402
 from blindspot.safety.assess import frame_risks, outcome_table  # noqa: E402
 from blindspot.safety.braking import BrakingModel  # noqa: E402
-from blindspot.safety.evaluation import (replicate_half, scene_info,  # noqa: E402
-                                         scene_results, summarise)
+from blindspot.safety.evaluation import (aeb_gate_s, replicate_half,  # noqa: E402
+                                         scene_info, scene_results, summarise)
 from blindspot.safety.risk import EgoShape  # noqa: E402
-from blindspot.safety.predict import static_evidence  # noqa: E402
+from blindspot.safety.predict import moving_tracks, static_evidence  # noqa: E402
 
 
 def displacement_ratio(tracks: pd.DataFrame, window: int) -> np.ndarray:
@@ -129,13 +136,13 @@ def main(argv: list[str]) -> None:
     from driving_track import confusion, track_labels
     labels = track_labels(tracks, points, experiment.tracker(cfg).cluster_eps_m)
 
+    ego = (truth_all.groupby(["scene", "frame"], as_index=False)[["ego_x_m", "ego_y_m"]]
+           .first().rename(columns={"scene": "group"}))
     scores: dict[str, tuple[np.ndarray, np.ndarray, str]] = {}
     for lag in (int(v) for v in args.lags.split(",")):
         ev = static_evidence(tracks, points, cell_m=args.cell, lag_frames=lag)
         scores[f"static_evidence cell {args.cell:g} m lag {lag}"] = (
             ev, np.array([1, 2, 3, 5, 8, 12, 20, 30, 50, 80, 120]), "ge")
-    ego = (truth_all.groupby(["scene", "frame"], as_index=False)[["ego_x_m", "ego_y_m"]]
-           .first().rename(columns={"scene": "group"}))
     scores[f"moving test M of {args.window} rows"] = (
         persistence(tracks, ego, w, args.window), np.arange(2, args.window + 1), "lt")
     key_t = (tracks.group + "\x00" + tracks.track_id.astype(str)).to_numpy()
@@ -154,6 +161,27 @@ def main(argv: list[str]) -> None:
               aeb_threshold=w.aeb_threshold)
     key = ["group", "frame", "track_id"]
     moving = tracks.moving.to_numpy(bool)
+    without_grid = moving_tracks(tracks, w.moving_speed_mps, w.moving_probability, ego=ego,
+                                 doppler_std_mps=w.moving_doppler_std_mps,
+                                 doppler_log_ratio_min=w.moving_doppler_log_ratio_min)
+    if not np.array_equal(moving, without_grid):
+        raise SystemExit(f"{args.data / 'driving/tracks.parquet'}: its moving flag is not the "
+                         "moving test without the static-evidence grid (was driving_track run "
+                         "with warning.moving_static_evidence_min > 0?); this benchmark needs "
+                         "the risk rows of a run with the grid off, e.g. --data "
+                         "/work/main/data from the 2026-11-30 repro")
+    import time
+    t0 = time.process_time()
+    conf_ev = static_evidence(tracks, points, cell_m=w.moving_static_cell_m,
+                              lag_frames=w.moving_static_lag_frames) \
+        if w.moving_static_evidence_min > 0 else np.zeros(len(tracks), int)
+    cpu = time.process_time() - t0
+    n_frames = tracks[["group", "frame"]].drop_duplicates().shape[0]
+    print(f"static_evidence (configured) on {len(tracks)} track rows, {int(points.static.sum())} "
+          f"static points, {n_frames} scene-frames: {cpu:.2f} s CPU (process_time), "
+          f"{1e3 * cpu / n_frames:.3f} ms per frame")
+    conf_name = (f"CONFIGURED static_evidence cell {w.moving_static_cell_m:g} m lag "
+                 f"{w.moving_static_lag_frames} >= {w.moving_static_evidence_min}")
 
     def evaluate(rows: pd.DataFrame):
         p_w, p_aeb = frame_risks(rows, sa.scenes, sa.speed_mps, F, main_brakes,
@@ -201,6 +229,52 @@ def main(argv: list[str]) -> None:
               f" | ungated triggers on non-intruding (all): {len(fa0)}, clutter "
               f"{int((~fa0.follows_pedestrian).sum())}")
         entry = {"stage_moving_test": base, "candidates": {}}
+        # the configured rule (params.yaml), paired with the stage's test on the same scenes
+        drop = (conf_ev[idx] >= w.moving_static_evidence_min) \
+            if w.moving_static_evidence_min > 0 else np.zeros(len(rows), bool)
+        e = evaluate(rows[~drop])
+        c = confusion(tracks, moving & ~((conf_ev >= w.moving_static_evidence_min)
+                                         & (w.moving_static_evidence_min > 0)),
+                      labels, truth_all)
+        held = ~tune
+        r0 = scene_results(*frame_risks(rows, sa.scenes, sa.speed_mps, F, main_brakes,
+                                        gate=w.aeb_gate, margin_s=w.aeb_gate_margin_s,
+                                        decision_delay_s=w.decision_delay_s)[:1], info, impact,
+                           sa.time_s, p_aeb=frame_risks(
+                               rows, sa.scenes, sa.speed_mps, F, main_brakes, gate=w.aeb_gate,
+                               margin_s=w.aeb_gate_margin_s,
+                               decision_delay_s=w.decision_delay_s)[1], **kw)
+        pw1, pa1 = frame_risks(rows[~drop], sa.scenes, sa.speed_mps, F, main_brakes,
+                               gate=w.aeb_gate, margin_s=w.aeb_gate_margin_s,
+                               decision_delay_s=w.decision_delay_s)
+        r1 = scene_results(pw1, info, impact, sa.time_s, p_aeb=pa1, **kw)
+        lost = r0.intruding & r0.avoided & ~r1.avoided & held
+        gained = r0.intruding & ~r0.avoided & r1.avoided & held
+        # who braked the lost ones under the stage's test: the first AEB row behind the gate
+        gi = pd.Index(sa.scenes).get_indexer(rows.group)
+        g = aeb_gate_s(np.where(gi >= 0, sa.speed_mps[gi], 0.0), main_brakes, gate=w.aeb_gate,
+                       margin_s=w.aeb_gate_margin_s, decision_delay_s=w.decision_delay_s)
+        gated = rows[rows.ttc_s.to_numpy() <= g] if w.aeb_gate != "none" else rows
+        hit = trigger_causes(gated, truth, tracks, w.aeb_threshold, kind="int")
+        by_clutter = set(hit.group[~hit.follows_pedestrian])
+        n_lost_clutter = int(sum(sc in by_clutter for sc in sa.scenes[lost.to_numpy()]))
+        j0 = base["held_out"]["avoided_rate"] - base["held_out"]["false_activation_rate"]
+        j1 = e["held_out"]["avoided_rate"] - e["held_out"]["false_activation_rate"]
+        h = e["held_out"]
+        print(f"  {conf_name} | HELD OUT avoided {h['avoided_rate']:.3f} "
+              f"{np.round(h['avoided_rate_ci95'], 3).tolist()} ({h['n_avoided']}/"
+              f"{h['n_intruding']}) FA {h['false_activation_rate']:.3f} "
+              f"{np.round(h['false_activation_rate_ci95'], 3).tolist()} ({h['n_false']}/"
+              f"{h['n_non_intruding']}) | J {j0:.3f} -> {j1:.3f} | held-out avoided lost "
+              f"{int(lost.sum())} (first braked for a clutter track: {n_lost_clutter}), gained "
+              f"{int(gained.sum())} | static-world tracks moving {c['static_world_moving']} | "
+              f"lead ped never moving {c['intruding_scenes_missed']}/{c['intruding_scenes']}")
+        entry["configured"] = {**e, "held_out_j_stage": j0, "held_out_j": j1,
+                               "held_out_avoided_lost": int(lost.sum()),
+                               "held_out_avoided_lost_clutter_braked": n_lost_clutter,
+                               "held_out_avoided_gained": int(gained.sum()),
+                               "static_world_moving": c["static_world_moving"],
+                               "intruding_scenes_missed": c["intruding_scenes_missed"]}
         for sname, (score, grid, how) in scores.items():
             s = score[idx]
             best = None
