@@ -206,6 +206,13 @@ def main(argv: list[str]) -> None:
                     "aeb_gate": w.aeb_gate, "aeb_gate_margin_s": w.aeb_gate_margin_s,
                     "rules": {}}
     base_missed = confusion(tracks, moving, labels, truth_all)
+    lab = labels.reindex(pd.MultiIndex.from_frame(tracks[["group", "track_id"]])).to_numpy()
+    ped = pd.notna(lab) & (lab != "static")
+    kept = moving & ~((conf_ev >= w.moving_static_evidence_min)
+                      & (w.moving_static_evidence_min > 0))
+    print(f"moving rows (truth labels, all scenes): pedestrian tracks {int((moving & ped).sum())}"
+          f" -> {int((kept & ped).sum())}, static-world tracks {int((moving & ~ped).sum())} -> "
+          f"{int((kept & ~ped).sum())} with the configured grid")
     print(f"{len(sa.scenes)} scenes ({tune.sum()} tune / {(~tune).sum()} held out); AEB "
           f"threshold {w.aeb_threshold} behind gate {w.aeb_gate} +{w.aeb_gate_margin_s} s")
     print(f"stage's moving test: static-world tracks classed moving "
