@@ -11,8 +11,11 @@ from its first frame whose filtered world-frame velocity is above ``warning.movi
 significantly non-zero (``warning.moving_probability``) and not refuted by the track's own
 Doppler (the summed log-likelihood ratio "moves as tracked" vs "static" above
 ``warning.moving_doppler_log_ratio_min``, point spread ``warning.moving_doppler_std_mps``;
-blindspot.safety.predict.moving_tracks), so parked cars and kerb clutter are tracked and left
-out by their own motion, and a child crossing near boresight, whose Doppler looks static, is
+blindspot.safety.predict.moving_tracks) and, per row, not standing on the static environment
+(the static points of frames ``warning.moving_static_lag_frames`` and more before, in the 3 x 3
+cells of ``warning.moving_static_cell_m`` around the track, fewer than
+``warning.moving_static_evidence_min``; blindspot.safety.predict.static_evidence), so parked cars
+and kerb clutter are tracked and left out by their own motion and by where they are, and a child crossing near boresight, whose Doppler looks static, is
 found by its motion over frames. The points' truth labels only score that split
 (driving_track.json ``classifier``): static-world tracks classed moving, the lead pedestrian's
 tracks of the intruding Monte-Carlo scenes never classed moving, and the time to collision
@@ -48,7 +51,7 @@ def run(cfg, ctx):
     truth = pd.read_parquet(ctx.dep("truth.parquet"))
     last = truth.groupby("scene").frame.max().to_dict()
     every = pd.read_parquet(ctx.dep("points.parquet"))
-    need = {"scene", "frame", "x_m", "y_m", "velocity_over_ground_mps", "source"}
+    need = {"scene", "frame", "x_m", "y_m", "velocity_over_ground_mps", "static", "source"}
     if need - set(every.columns):
         raise ValueError(f"{ctx.dep('points.parquet')}: missing columns "
                          f"{sorted(need - set(every.columns))}")
@@ -66,7 +69,11 @@ def run(cfg, ctx):
     kinematic = moving_tracks(tracks, w.moving_speed_mps, w.moving_probability)
     tracks["moving"] = moving_tracks(tracks, w.moving_speed_mps, w.moving_probability, ego=ego,
                                      doppler_std_mps=w.moving_doppler_std_mps,
-                                     doppler_log_ratio_min=w.moving_doppler_log_ratio_min)
+                                     doppler_log_ratio_min=w.moving_doppler_log_ratio_min,
+                                     points=every[["scene", "frame", "x_m", "y_m", "static"]],
+                                     static_evidence_min=w.moving_static_evidence_min,
+                                     static_cell_m=w.moving_static_cell_m,
+                                     static_lag_frames=w.moving_static_lag_frames)
     write_parquet(ctx.out("tracks.parquet"), tracks)
     labels = track_labels(tracks, every, tcfg.cluster_eps_m)
     metrics = {"tracker": {**_counts(tracks), "classifier": {
@@ -74,7 +81,10 @@ def run(cfg, ctx):
         "doppler": confusion(tracks, tracks.moving.to_numpy(), labels, truth),
         "moving_speed_mps": w.moving_speed_mps, "moving_probability": w.moving_probability,
         "moving_doppler_std_mps": w.moving_doppler_std_mps,
-        "moving_doppler_log_ratio_min": w.moving_doppler_log_ratio_min}}}
+        "moving_doppler_log_ratio_min": w.moving_doppler_log_ratio_min,
+        "moving_static_evidence_min": w.moving_static_evidence_min,
+        "moving_static_cell_m": w.moving_static_cell_m,
+        "moving_static_lag_frames": w.moving_static_lag_frames}}}
     m = metrics["tracker"]
     print(f"driving_track: tracker on {len(every)} points, {m['n_tracks']} tracks "
           f"({m['n_moving_tracks']} moving), {m['n_rows']} rows")

@@ -108,3 +108,38 @@ def test_doppler_log_ratio_is_the_gaussian_mean_test():
     np.testing.assert_allclose(llr, (0.4**2 - 0.6**2) / (2 * s2))
     coasting = t.assign(n_points=0, doppler_mps=np.nan)
     assert (doppler_log_ratio(coasting, np.zeros((8, 2)), 0.3) == 0).all()
+
+
+def _face_and_tracks():
+    """A car parked with its lane-side face at x = 2 m from y = 0 to 4.5 m, hit every frame
+    (static points), a cluster on it whose centroid slides along the face at 1 m/s with a
+    confident velocity (what the kinematic test passes as the ego goes by), and a child who
+    steps out of the gap behind the car at y = 5.25 m and walks into the lane at 1.4 m/s
+    (Euro NCAP child, 5 km/h) with its own points static-looking (tangential to the radar)."""
+    f = np.arange(30)
+    ys = np.arange(0.0, 4.5 + 1e-9, 0.3)
+    face = pd.DataFrame({"scene": "s0", "frame": np.repeat(f, len(ys)), "x_m": 2.0,
+                         "y_m": np.tile(ys, len(f)), "static": True})
+    slide = pd.DataFrame({"group": "s0", "track_id": 1, "frame": f, "x_m": 2.0,
+                          "y_m": 0.1 * (f % 40), "vx_mps": 0.0, "vy_mps": 1.0})
+    x = 2.5 - 0.14 * f
+    child = pd.DataFrame({"group": "s0", "track_id": 2, "frame": f, "x_m": x, "y_m": 5.25,
+                          "vx_mps": -1.4, "vy_mps": 0.0})
+    own = pd.DataFrame({"scene": "s0", "frame": f, "x_m": x, "y_m": 5.25, "static": True})
+    tracks = pd.concat([slide, child], ignore_index=True).assign(
+        cov_vxvx=0.01, cov_vxvy=0.0, cov_vyvy=0.01, confirmed=True)
+    return tracks, pd.concat([face, own], ignore_index=True), x
+
+
+def test_static_evidence_removes_a_cluster_sliding_along_a_parked_car():
+    tracks, points, x = _face_and_tracks()
+    assert moving_tracks(tracks, 0.5).all()                 # kinematics alone: both move
+    m = moving_tracks(tracks, 0.5, points=points, static_evidence_min=1, static_cell_m=0.5,
+                      static_lag_frames=10)
+    slide, child = m[:30], m[30:]
+    assert not slide[10:].any()        # once the car's hits are 10 frames old: static
+    # the child, 1 m clear of the car's face (x < 1), is moving whatever its own Doppler
+    assert child[x < 1.0].all()
+    assert np.flatnonzero(child)[0] <= 8 + 3                # within 11 frames of stepping out
+    # off (0) is the stage's test without the grid
+    assert moving_tracks(tracks, 0.5, points=points, static_evidence_min=0).all()

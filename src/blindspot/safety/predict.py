@@ -142,7 +142,9 @@ def doppler_log_ratio(tracks: pd.DataFrame, ego_xy: np.ndarray, doppler_std_mps:
 
 def moving_tracks(tracks: pd.DataFrame, speed_mps: float, probability: float = 0.99, *,
                   ego: pd.DataFrame | None = None, doppler_std_mps: float = 0.3,
-                  doppler_log_ratio_min: float | None = None) -> np.ndarray:
+                  doppler_log_ratio_min: float | None = None,
+                  points: pd.DataFrame | None = None, static_evidence_min: int = 0,
+                  static_cell_m: float = 0.5, static_lag_frames: int = 10) -> np.ndarray:
     """(N,) bool per row of ``tracks`` (columns group, track_id, frame, vx_mps, vy_mps,
     cov_vxvx, cov_vxvy, cov_vyvy, confirmed; the tracker's world-frame filtered state): True
     from the track's first confirmed row on whose velocity is both fast, sqrt(vx^2 + vy^2) >
@@ -157,8 +159,13 @@ def moving_tracks(tracks: pd.DataFrame, speed_mps: float, probability: float = 0
     times likelier than its kinematic velocity). That needs the columns x_m, y_m, n_points,
     doppler_mps and ``ego`` (group, frame, ego_x_m, ego_y_m: the radar's world position).
     Causal (a car decides with the frames it has) and latched (a pedestrian stopping at the kerb
-    stays a moving object). Raises ValueError naming a missing column or a row without an ego
-    position."""
+    stays a moving object), except that with ``points`` and ``static_evidence_min`` > 0 a row
+    standing on the static environment is not moving: :func:`static_evidence` (cells of
+    ``static_cell_m`` m, points of frames ``static_lag_frames`` and more before) reaches
+    ``static_evidence_min`` (a cluster sliding along a parked car's face, whose kinematic
+    velocity passes the tests above while the ego passes the car; a pedestrian standing still
+    on its own static hits for ``static_lag_frames`` frames is left out too). Raises ValueError
+    naming a missing column or a row without an ego position."""
     need = {"group", "track_id", "frame", "vx_mps", "vy_mps", "cov_vxvx", "cov_vxvy",
             "cov_vyvy", "confirmed"}
     use_doppler = ego is not None and doppler_log_ratio_min is not None
@@ -192,7 +199,67 @@ def moving_tracks(tracks: pd.DataFrame, speed_mps: float, probability: float = 0
     seen = pd.Series(fast[order]).groupby(key, sort=False).cummax().to_numpy(bool)
     out = np.empty(len(tracks), bool)
     out[order] = seen
+    if points is not None and static_evidence_min > 0:
+        out &= static_evidence(tracks, points, cell_m=static_cell_m,
+                               lag_frames=static_lag_frames) < static_evidence_min
     return out
+
+
+def static_evidence(tracks: pd.DataFrame, points: pd.DataFrame, *, cell_m: float,
+                    lag_frames: int) -> np.ndarray:
+    """(N,) int per row of ``tracks`` (columns group, frame, x_m, y_m; world frame, m): the
+    number of static radar points of the same group seen ``lag_frames`` or more frames before
+    the row's frame within the 3 x 3 cells of side ``cell_m`` around the row's position (a
+    point closer than ``cell_m`` in both axes always counts, one ``2 cell_m`` or farther in
+    either axis never does).
+
+    A static-environment evidence grid accumulated in the world frame (Werber et al. 2015,
+    "Automotive radar gridmap representations", IEEE MTT-S ICMIM; the count is the
+    occupancy evidence of a hit-count map): ``points`` (columns scene, frame, x_m, y_m, static:
+    the ego-motion Doppler test of blindspot.dsp.driving, not a truth label) are the detections
+    of every frame. Causal: frame f only sees points of frames <= f - ``lag_frames``
+    (``lag_frames`` >= 1). A cluster sliding along a parked car's face stays on the car's past
+    static hits; a child walking into the lane leaves them. Vectorised: one sort of the static
+    points by (group, cell, frame), two binary searches per row and neighbour cell. Raises
+    ValueError naming a missing column or a bad ``cell_m`` / ``lag_frames``."""
+    for name, df, need in (("tracks", tracks, {"group", "frame", "x_m", "y_m"}),
+                           ("points", points, {"scene", "frame", "x_m", "y_m", "static"})):
+        missing = sorted(need - set(df.columns))
+        if missing:
+            raise ValueError(f"{name}: missing columns {missing}")
+    if not (np.isfinite(cell_m) and cell_m > 0):
+        raise ValueError(f"cell_m: expected a positive cell size in m, found {cell_m!r}")
+    if int(lag_frames) != lag_frames or lag_frames < 1:
+        raise ValueError(f"lag_frames: expected an integer >= 1 (causal), found {lag_frames!r}")
+    st = points[points.static.to_numpy(bool)]
+    groups = pd.Index(pd.unique(np.r_[tracks.group.astype(str).to_numpy(),
+                                      st.scene.astype(str).to_numpy()]))
+    tx, ty = tracks.x_m.to_numpy(float), tracks.y_m.to_numpy(float)
+    px, py = st.x_m.to_numpy(float), st.y_m.to_numpy(float)
+    x0 = np.nanmin(np.r_[tx, px, 0.0]) - 2 * cell_m
+    y0 = np.nanmin(np.r_[ty, py, 0.0]) - 2 * cell_m
+    ix_p = np.floor((px - x0) / cell_m).astype(np.int64)
+    iy_p = np.floor((py - y0) / cell_m).astype(np.int64)
+    ok_t = np.isfinite(tx) & np.isfinite(ty)
+    ix_t = np.floor((np.where(ok_t, tx, x0) - x0) / cell_m).astype(np.int64)
+    iy_t = np.floor((np.where(ok_t, ty, y0) - y0) / cell_m).astype(np.int64)
+    nx = int(max(ix_p.max(initial=0), ix_t.max(initial=0))) + 3
+    ny = int(max(iy_p.max(initial=0), iy_t.max(initial=0))) + 3
+    frame_p = st.frame.to_numpy(np.int64)
+    frame_t = tracks.frame.to_numpy(np.int64)
+    nf = int(max(frame_p.max(initial=0), frame_t.max(initial=0))) + 2
+    g_p = groups.get_indexer(st.scene.astype(str)).astype(np.int64)
+    g_t = groups.get_indexer(tracks.group.astype(str)).astype(np.int64)
+    keys = np.sort(((g_p * nx + ix_p) * ny + iy_p) * nf + frame_p)
+    upto = frame_t - int(lag_frames) + 1                   # frames < upto count
+    count = np.zeros(len(tracks), np.int64)
+    for dx in (-1, 0, 1):                                  # the 3 x 3 neighbourhood
+        for dy in (-1, 0, 1):
+            base = ((g_t * nx + ix_t + dx) * ny + iy_t + dy) * nf
+            hi = np.searchsorted(keys, base + np.maximum(upto, 0), side="left")
+            lo = np.searchsorted(keys, base, side="left")
+            count += hi - lo
+    return np.where(ok_t, count, 0)
 
 
 def incremental_kalman(pred, tracks: pd.DataFrame, keep: np.ndarray, horizon: int):
