@@ -1,0 +1,143 @@
+"""CPU time of the parts of the heavy stages that were cut (train, ethucy, driving_track), old
+way against new way in one process, with a check that both give the same bits.
+
+    PYTHONPATH=src BLINDSPOT_SHARED=/work/shared python benchmarks/bench_stage_cpu.py \
+        [train] [ethucy] [--data DATA] [--repeats N]
+
+* ``train``: the train stage's scoring after the training (stages/train.py ``scores``: the
+  ensemble's and each member's one-step errors, the ensemble's 20-frame rollouts, on the val
+  and test windows) with torch's default thread pool (the old way: every core of the machine)
+  and at ``train.num_threads`` (1, the new way, :func:`blindspot.traj.train.torch_threads`).
+  Reads ``DATA/train/model.pt`` and ``DATA/windows/{val,test}.parquet`` (a finished repro's).
+* ``ethucy``: ``fit_conditional_scale_mixture`` (the ``conditional`` calibration of every
+  ETH/UCY fold x model item; six EM fits each) on the constant-velocity forecasts of each
+  fold's val split, with the plain (B, H, K) EM (the old fit_scale_mixture, kept here) and with
+  the (K, B, H) one.
+
+Times are CPU seconds of this process (``time.process_time``: every thread's user + system),
+best of ``--repeats``; on a shared machine read them as upper bounds and compare the two
+columns, measured side by side.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+from unittest import mock
+
+import numpy as np
+import torch
+
+from blindspot.traj import distribution
+from blindspot.traj.baselines import ConstantVelocity
+from blindspot.traj.distribution import (GaussianForecast, ScaleMixture, mahalanobis_sq,
+                                         observed_speed)
+from blindspot.traj.ethucy import FOLDS, FRAME_PERIOD_S, default_data_dir, load_split
+from blindspot.traj.lstm import LSTMPredictor
+from blindspot.traj.train import evaluate, rollout_errors, torch_threads
+from blindspot.traj.windows import WindowSet
+
+
+def cpu(fn, repeats: int):
+    """(best CPU seconds over ``repeats`` calls, the last result)."""
+    best, out = np.inf, None
+    for _ in range(repeats):
+        c0 = time.process_time()
+        out = fn()
+        best = min(best, time.process_time() - c0)
+    return best, out
+
+
+def train_scores(predictor: LSTMPredictor, split: dict[str, WindowSet], horizon: int) -> dict:
+    """The LSTM part of stages/train.py's ``scores`` (the baselines take milliseconds)."""
+    return {"ensemble": {s: {**evaluate(predictor, split[s]),
+                             **rollout_errors(predictor, split[s], horizon)}
+                         for s in ("val", "test")},
+            "members": [{s: evaluate(predictor.member(i), split[s]) for s in ("val", "test")}
+                        for i in range(predictor.n_members)]}
+
+
+def bench_train(data: Path, repeats: int) -> None:
+    predictor = LSTMPredictor.load(data / "train" / "model.pt")
+    split = {s: WindowSet.load(data / "windows" / f"{s}.parquet") for s in ("val", "test")}
+    run = lambda: train_scores(predictor, split, 20)  # noqa: E731
+    default = torch.get_num_threads()
+    old_s, old = cpu(run, repeats)
+    with torch_threads(1):
+        new_s, new = cpu(run, repeats)
+    print(f"train scoring ({predictor.n_members} members, {len(split['val'])} val + "
+          f"{len(split['test'])} test windows, 20-frame rollouts): CPU {old_s:.1f} s with torch's "
+          f"{default} threads, {new_s:.1f} s with 1 thread ({old_s / new_s:.1f}x); same numbers: "
+          f"{old == new}")
+
+
+def plain_em(forecast: GaussianForecast, truth: np.ndarray, *, n_components: int = 3,
+             max_iter: int = 300, tol: float = 1e-8) -> ScaleMixture:
+    """The fit_scale_mixture of commit ca8c9a2: the EM on (B, H, K) arrays."""
+    d2 = mahalanobis_sq(forecast, truth)
+    seen = ~np.isnan(d2)
+    n = seen.sum(axis=0)
+    K = int(n_components)
+    x = np.where(seen, d2, 0.0)[..., None]
+    q = np.nanquantile(d2, (np.arange(K) + 0.5) / K, axis=0).T
+    s = np.maximum(q / 2.0, 1e-6)
+    w = np.full(s.shape, 1.0 / K)
+    prev = -np.inf
+    for _ in range(max_iter):
+        log_k = np.log(w)[None] - np.log(2 * s)[None] - x / (2 * s)[None]
+        m = log_k.max(axis=-1, keepdims=True)
+        tot = m + np.log(np.exp(log_k - m).sum(axis=-1, keepdims=True))
+        r = np.exp(log_k - tot) * seen[..., None]
+        ll = float(np.sum(tot[..., 0] * seen) / seen.sum())
+        nk = r.sum(axis=0)
+        w = np.maximum(nk / n[:, None], 1e-12)
+        w = w / w.sum(axis=1, keepdims=True)
+        s = np.maximum((r * x).sum(axis=0) / (2 * np.maximum(nk, 1e-12)), 1e-9)
+        if abs(ll - prev) < tol:
+            break
+        prev = ll
+    order = np.argsort(s, axis=1)
+    return ScaleMixture(np.take_along_axis(w, order, 1), np.take_along_axis(s, order, 1))
+
+
+def bench_ethucy(repeats: int) -> None:
+    data = default_data_dir()
+    edges = (0.2, 0.6, 1.0, 1.4)
+    total_old = total_new = 0.0
+    same = True
+    for fold in FOLDS:
+        val = load_split(data, fold, "val")
+        fc = ConstantVelocity().fit(val.observed(), val.future()).predict_distribution(
+            val.observed(), 12)
+        speed = observed_speed(val.observed(), FRAME_PERIOD_S)
+        fit = lambda: distribution.fit_conditional_scale_mixture(  # noqa: E731
+            fc, val.future(), speed, edges).to_dict()
+        with mock.patch.object(distribution, "fit_scale_mixture", plain_em):
+            old_s, old = cpu(fit, repeats)
+        new_s, new = cpu(fit, repeats)
+        same &= old == new
+        total_old, total_new = total_old + old_s, total_new + new_s
+        print(f"ethucy {fold}: conditional scale mixture on {len(val)} val windows, CPU "
+              f"{old_s:.2f} s plain EM, {new_s:.2f} s per-component EM")
+    print(f"ethucy, the five folds (one of the 20 fold x model items each): CPU {total_old:.2f} s "
+          f"-> {total_new:.2f} s ({total_old / total_new:.1f}x); same mixtures: {same}")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("parts", nargs="*", choices=["train", "ethucy", []], default=[],
+                    help="what to time (default: all)")
+    ap.add_argument("--data", type=Path, default=Path("data"),
+                    help="a finished repro's data folder (default: ./data)")
+    ap.add_argument("--repeats", type=int, default=1)
+    args = ap.parse_args()
+    args.parts = args.parts or ["train", "ethucy"]
+    if "train" in args.parts:
+        bench_train(args.data, args.repeats)
+    if "ethucy" in args.parts:
+        bench_ethucy(args.repeats)
+
+
+if __name__ == "__main__":
+    main()
