@@ -2,7 +2,7 @@
 way against new way in one process, with a check that both give the same bits.
 
     PYTHONPATH=src BLINDSPOT_SHARED=/work/shared python benchmarks/bench_stage_cpu.py \
-        [train] [ethucy] [--data DATA] [--repeats N]
+        [train] [ethucy] [track] [--data DATA] [--repeats N] [--every K]
 
 * ``train``: the train stage's scoring after the training (stages/train.py ``scores``: the
   ensemble's and each member's one-step errors, the ensemble's 20-frame rollouts, on the val
@@ -13,6 +13,11 @@ way against new way in one process, with a check that both give the same bits.
   ETH/UCY fold x model item; six EM fits each) on the constant-velocity forecasts of each
   fold's val split, with the plain (B, H, K) EM (the old fit_scale_mixture, kept here) and with
   the (K, B, H) one.
+* ``track``: the driving_track stage's tracker (``track_points``, paper-profile config) on
+  every ``--every``-th driving scene of ``DATA/driving/{truth,points}.parquet``, with the
+  tracker module of commit ca8c9a2 (read with ``git show``: Stone Soup's deleter walking each
+  track's states, a detection stack per track, a pandas reindex per frame) and with this one;
+  the two track tables must be equal.
 
 Times are CPU seconds of this process (``time.process_time``: every thread's user + system),
 best of ``--repeats``; on a shared machine read them as upper bounds and compare the two
@@ -124,19 +129,57 @@ def bench_ethucy(repeats: int) -> None:
           f"-> {total_new:.2f} s ({total_old / total_new:.1f}x); same mixtures: {same}")
 
 
+def bench_track(data: Path, every: int, repeats: int) -> None:
+    import importlib.util
+    import subprocess
+    import tempfile
+
+    import pandas as pd
+    from omegaconf import OmegaConf
+
+    from blindspot import experiment
+    from blindspot.track import tracker
+
+    root = Path(__file__).resolve().parents[1]
+    old_src = subprocess.run(["git", "show", "ca8c9a2:src/blindspot/track/tracker.py"],
+                             cwd=root, check=True, capture_output=True, text=True).stdout
+    with tempfile.NamedTemporaryFile("w", suffix=".py", delete=False) as f:
+        f.write(old_src)
+    spec = importlib.util.spec_from_file_location("tracker_ca8c9a2", f.name)
+    old = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(old)
+    Path(f.name).unlink()
+    cfg = experiment.tracker(OmegaConf.load(root / "params.yaml"))
+    truth = pd.read_parquet(data / "driving" / "truth.parquet")
+    points = pd.read_parquet(data / "driving" / "points.parquet")
+    scenes = sorted(truth.scene.unique())[::every]
+    truth, points = truth[truth.scene.isin(scenes)], points[points.scene.isin(scenes)]
+    frames = truth[["scene", "frame", "time_s"]].drop_duplicates(["scene", "frame"])
+    pts = frames.merge(points[["scene", "frame", "x_m", "y_m", "velocity_over_ground_mps"]],
+                       on=["scene", "frame"], how="left").rename(columns={"scene": "group"})
+    old_s, a = cpu(lambda: old.track_points(pts, cfg, jobs=1), repeats)
+    new_s, b = cpu(lambda: tracker.track_points(pts, cfg, jobs=1), repeats)
+    print(f"track: {len(scenes)} scenes, {len(pts)} points, {len(b)} track rows: CPU "
+          f"{old_s:.1f} s (ca8c9a2) -> {new_s:.1f} s ({old_s / new_s:.2f}x); same tracks: "
+          f"{a.equals(b)}")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("parts", nargs="*", choices=["train", "ethucy", []], default=[],
+    ap.add_argument("parts", nargs="*", choices=["train", "ethucy", "track", []], default=[],
                     help="what to time (default: all)")
     ap.add_argument("--data", type=Path, default=Path("data"),
                     help="a finished repro's data folder (default: ./data)")
     ap.add_argument("--repeats", type=int, default=1)
+    ap.add_argument("--every", type=int, default=10, help="track: every k-th scene (default 10)")
     args = ap.parse_args()
-    args.parts = args.parts or ["train", "ethucy"]
+    args.parts = args.parts or ["train", "ethucy", "track"]
     if "train" in args.parts:
         bench_train(args.data, args.repeats)
     if "ethucy" in args.parts:
         bench_ethucy(args.repeats)
+    if "track" in args.parts:
+        bench_track(args.data, args.every, args.repeats)
 
 
 if __name__ == "__main__":
