@@ -2,7 +2,7 @@
 way against new way in one process, with a check that both give the same bits.
 
     PYTHONPATH=src BLINDSPOT_SHARED=/work/shared python benchmarks/bench_stage_cpu.py \
-        [train] [ethucy] [track] [--data DATA] [--repeats N] [--every K]
+        [train] [ethucy] [seq2seq] [track] [--data DATA] [--repeats N] [--every K]
 
 * ``train``: the train stage's scoring after the training (stages/train.py ``scores``: the
   ensemble's and each member's one-step errors, the ensemble's 20-frame rollouts, on the val
@@ -13,9 +13,12 @@ way against new way in one process, with a check that both give the same bits.
   ETH/UCY fold x model item; six EM fits each) on the constant-velocity forecasts of each
   fold's val split, with the plain (B, H, K) EM (the old fit_scale_mixture, kept here) and with
   the (K, B, H) one.
+* ``seq2seq``: one ETH/UCY seq2seq training (zara1, 3,000 windows, 3 epochs, mlp and lstm
+  cells, the stage's settings otherwise) with the seq2seq module of commit ca8c9a2 (val tracks
+  framed and their covariances computed on every epoch's validation) and with this one.
 * ``track``: the driving_track stage's tracker (``track_points``, paper-profile config) on
   every ``--every``-th driving scene of ``DATA/driving/{truth,points}.parquet``, with the
-  tracker module of commit ca8c9a2 (read with ``git show``: Stone Soup's deleter walking each
+  tracker module of commit ca8c9a2 (``git show``: Stone Soup's deleter walking each
   track's states, a detection stack per track, a pandas reindex per frame) and with this one;
   the two track tables must be equal.
 
@@ -129,27 +132,73 @@ def bench_ethucy(repeats: int) -> None:
           f"-> {total_new:.2f} s ({total_old / total_new:.1f}x); same mixtures: {same}")
 
 
-def bench_track(data: Path, every: int, repeats: int) -> None:
+ROOT = Path(__file__).resolve().parents[1]
+BASE = "ca8c9a2"     # the commit before these changes
+
+
+def module_at_base(path: str, name: str):
+    """The module ``path`` (repo-relative) as it was at :data:`BASE` (``git show``)."""
     import importlib.util
     import subprocess
+    import sys
     import tempfile
 
+    src = subprocess.run(["git", "show", f"{BASE}:{path}"], cwd=ROOT, check=True,
+                         capture_output=True, text=True).stdout
+    with tempfile.NamedTemporaryFile("w", suffix=".py", delete=False) as f:
+        f.write(src)
+    try:
+        spec = importlib.util.spec_from_file_location(name, f.name)
+        mod = importlib.util.module_from_spec(spec)
+        sys.modules[name] = mod               # dataclasses look their module up there
+        spec.loader.exec_module(mod)
+    finally:
+        Path(f.name).unlink()
+    return mod
+
+
+def bench_seq2seq(repeats: int, n_train: int = 3000, epochs: int = 3) -> None:
+    from dataclasses import replace
+
+    from omegaconf import OmegaConf
+
+    from blindspot import experiment
+    from blindspot.traj import seq2seq
+    from blindspot.traj.ethucy_benchmark import EthUcySettings
+
+    old = module_at_base("src/blindspot/traj/seq2seq.py", "seq2seq_base")
+    settings = EthUcySettings.from_config(experiment.ethucy(OmegaConf.load(ROOT / "params.yaml")),
+                                          shared_dir=default_data_dir().parents[1], seed=0)
+    data = default_data_dir()
+    for cell in ("mlp", "lstm"):
+        cfg = replace(settings.seq2seq, cell=cell, epochs=epochs)
+        tr = load_split(data, "zara1", "train", min_peds=1, neighbours=cfg.neighbours)
+        va = load_split(data, "zara1", "val", neighbours=cfg.neighbours)
+        seq2seq.train_seq2seq(tr.xy[:200], va.xy[:200], replace(cfg, epochs=1),  # warm-up
+                              train_nb=tr.neighbours[:200], val_nb=va.neighbours[:200])
+        out = {}
+        for label, mod in (("old", old), ("new", seq2seq)):
+            out[label] = cpu(lambda: mod.train_seq2seq(  # noqa: B023
+                tr.xy[:n_train], va.xy, cfg, train_nb=tr.neighbours[:n_train],
+                val_nb=va.neighbours), repeats)
+        (a_s, (a, ra)), (b_s, (b, rb)) = out["old"], out["new"]
+        same = (ra.val_ade == rb.val_ade and ra.best_epoch == rb.best_epoch
+                and all(torch.equal(v, b.net.state_dict()[k])
+                        for k, v in a.net.state_dict().items()))
+        print(f"seq2seq {cell} on zara1 ({n_train} train windows x2 mirrored, {len(va)} val, "
+              f"{epochs} epochs): CPU {a_s:.2f} s ({BASE}) -> {b_s:.2f} s; same val ADE per "
+              f"epoch, kept epoch and weights: {same}")
+
+
+def bench_track(data: Path, every: int, repeats: int) -> None:
     import pandas as pd
     from omegaconf import OmegaConf
 
     from blindspot import experiment
     from blindspot.track import tracker
 
-    root = Path(__file__).resolve().parents[1]
-    old_src = subprocess.run(["git", "show", "ca8c9a2:src/blindspot/track/tracker.py"],
-                             cwd=root, check=True, capture_output=True, text=True).stdout
-    with tempfile.NamedTemporaryFile("w", suffix=".py", delete=False) as f:
-        f.write(old_src)
-    spec = importlib.util.spec_from_file_location("tracker_ca8c9a2", f.name)
-    old = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(old)
-    Path(f.name).unlink()
-    cfg = experiment.tracker(OmegaConf.load(root / "params.yaml"))
+    old = module_at_base("src/blindspot/track/tracker.py", "tracker_base")
+    cfg = experiment.tracker(OmegaConf.load(ROOT / "params.yaml"))
     truth = pd.read_parquet(data / "driving" / "truth.parquet")
     points = pd.read_parquet(data / "driving" / "points.parquet")
     scenes = sorted(truth.scene.unique())[::every]
@@ -166,18 +215,20 @@ def bench_track(data: Path, every: int, repeats: int) -> None:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("parts", nargs="*", choices=["train", "ethucy", "track", []], default=[],
+    ap.add_argument("parts", nargs="*", choices=["train", "ethucy", "seq2seq", "track", []], default=[],
                     help="what to time (default: all)")
     ap.add_argument("--data", type=Path, default=Path("data"),
                     help="a finished repro's data folder (default: ./data)")
     ap.add_argument("--repeats", type=int, default=1)
     ap.add_argument("--every", type=int, default=10, help="track: every k-th scene (default 10)")
     args = ap.parse_args()
-    args.parts = args.parts or ["train", "ethucy", "track"]
+    args.parts = args.parts or ["train", "ethucy", "seq2seq", "track"]
     if "train" in args.parts:
         bench_train(args.data, args.repeats)
     if "ethucy" in args.parts:
         bench_ethucy(args.repeats)
+    if "seq2seq" in args.parts:
+        bench_seq2seq(args.repeats)
     if "track" in args.parts:
         bench_track(args.data, args.every, args.repeats)
 
