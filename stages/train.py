@@ -21,7 +21,7 @@ from blindspot.report.paper_values import VAL_RMSE
 from blindspot.stage import StageResult
 from blindspot.traj.baselines import ConstantVelocity
 from blindspot.traj.train import (
-    evaluate, rmse_euclidean, rmse_per_coordinate, rollout_errors, train_ensemble,
+    evaluate, rmse_euclidean, rmse_per_coordinate, rollout_errors, torch_threads, train_ensemble,
 )
 from blindspot.traj.windows import WindowSet
 
@@ -30,6 +30,27 @@ def baseline_errors(predictor, ws: WindowSet, horizon: int) -> dict:
     pred = predictor.predict(ws.x, 1)[:, 0]
     return {"rmse_m": rmse_per_coordinate(pred, ws.y), "rmse_euclid_m": rmse_euclidean(pred, ws.y),
             **rollout_errors(predictor, ws, horizon)}
+
+
+def scores(result, split: dict, baselines: dict, horizon: int) -> dict:
+    """train.json's errors: the ensemble's and each member's one-step errors, every
+    predictor's ``horizon``-frame rollout ADE/FDE, on the val and test windows."""
+    return {
+        "lstm": {**{s: {**evaluate(result.predictor, split[s]),
+                        **rollout_errors(result.predictor, split[s], horizon)}
+                    for s in ("val", "test")},
+                 "seconds_per_epoch": float(result.history.seconds.mean()),
+                 "n_members": len(result.members),
+                 "members": [{"seed": seed,
+                              "val": evaluate(m.predictor, split["val"]),
+                              "test": evaluate(m.predictor, split["test"])}
+                             for seed, m in zip(result.seeds, result.members)]},
+        **{name: {s: baseline_errors(p, split[s], horizon) for s in ("val", "test")}
+           for name, p in baselines.items()},
+        "val_horizon_frames": horizon,
+        "n_windows": {s: len(w) for s, w in split.items()},
+        "paper": {"val_rmse": VAL_RMSE.value},
+    }
 
 
 def run(cfg, ctx):
@@ -53,22 +74,8 @@ def run(cfg, ctx):
     history_path = write_text(ctx.out("history.csv"), result.history.to_csv(index=False))
     baselines = {"constant_velocity": ConstantVelocity(), "kalman": experiment.kalman(cfg)}
     horizon = train_cfg.val_horizon_frames
-    metrics = {
-        "lstm": {**{s: {**evaluate(result.predictor, split[s]),
-                        **rollout_errors(result.predictor, split[s], horizon)}
-                    for s in ("val", "test")},
-                 "seconds_per_epoch": float(result.history.seconds.mean()),
-                 "n_members": len(result.members),
-                 "members": [{"seed": seed,
-                              "val": evaluate(m.predictor, split["val"]),
-                              "test": evaluate(m.predictor, split["test"])}
-                             for seed, m in zip(result.seeds, result.members)]},
-        **{name: {s: baseline_errors(p, split[s], horizon) for s in ("val", "test")}
-           for name, p in baselines.items()},
-        "val_horizon_frames": horizon,
-        "n_windows": {s: len(w) for s, w in split.items()},
-        "paper": {"val_rmse": VAL_RMSE.value},
-    }
+    with torch_threads(train_cfg.num_threads):   # the scoring as single-threaded as the training
+        metrics = scores(result, split, baselines, horizon)
     write_json(ctx.out("train.json"), metrics)
     val = {name: metrics[name]["val"] for name in ("lstm", *baselines)}
     print(f"train: val RMSE {val['lstm']['rmse_m']:.4f} m (paper {VAL_RMSE.value}), "

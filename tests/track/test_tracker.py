@@ -307,3 +307,25 @@ def test_damped_velocity_decays_exponentially_while_coasting():
     # the model's stationary speed spread is sqrt(q / 2K) = 0.35 m/s: a steady 1.2 m/s walker's
     # velocity is estimated low (the price of holding a stopped person in place)
     assert 0.3 < v[0] < 1.2
+
+
+@pytest.mark.parametrize("name", ["gnn_cv", "jpda_cv"])
+@pytest.mark.parametrize("gap", [3, 4, 9])
+def test_a_confirmed_track_coasts_max_misses_frames_then_is_deleted(name, gap):
+    """Stone Soup's UpdateTimeStepsDeleter(max_misses + 1) rule, which the tracker applies from
+    each track's hit history: a confirmed track coasts through max_misses frames without a
+    point and is deleted at the next miss; a shorter gap keeps the track (and its id) alive."""
+    M = 4
+    cfg = config(name, max_misses=M)
+    frames = np.arange(40)
+    xy = np.column_stack([0.05 * frames, np.full(40, 5.0)])          # walking at 0.5 m/s
+    seen = (frames < 10) | (frames >= 10 + gap)
+    pts = frame_table(frames, np.where(seen[:, None], xy, np.nan))
+    tracks = track_points(pts, cfg)
+    first = tracks[tracks.track_id == 0]
+    assert first.confirmed.any()
+    if gap <= M:                       # coasts through the gap and takes the walker back
+        assert set(first.frame) == set(frames)
+        assert first.coasting.sum() == gap
+    else:                              # M coasting frames, gone at the (M + 1)-th miss
+        assert first.frame.max() == 10 + M - 1 and first.coasting.sum() == M

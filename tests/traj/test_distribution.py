@@ -152,6 +152,51 @@ def test_one_component_is_the_mle_step_scale_and_its_nll_the_gaussian_one():
         fit_scale_mixture(f, truth, n_components=0)
 
 
+def _em_reference(forecast, truth, K, max_iter=300, tol=1e-8):
+    """EM for a mixture of exponentials on d^2, written plainly on (B, H, K) arrays (Dempster,
+    Laird & Rubin 1977): the formulation fit_scale_mixture computes in (K, B, H) layout."""
+    d2 = mahalanobis_sq(forecast, truth)
+    seen = ~np.isnan(d2)
+    n = seen.sum(axis=0)
+    x = np.where(seen, d2, 0.0)[..., None]
+    q = np.nanquantile(d2, (np.arange(K) + 0.5) / K, axis=0).T
+    s = np.maximum(q / 2.0, 1e-6)
+    w = np.full(s.shape, 1.0 / K)
+    prev = -np.inf
+    for _ in range(max_iter):
+        log_k = np.log(w)[None] - np.log(2 * s)[None] - x / (2 * s)[None]
+        m = log_k.max(axis=-1, keepdims=True)
+        tot = m + np.log(np.exp(log_k - m).sum(axis=-1, keepdims=True))
+        r = np.exp(log_k - tot) * seen[..., None]
+        ll = float(np.sum(tot[..., 0] * seen) / seen.sum())
+        nk = r.sum(axis=0)
+        w = np.maximum(nk / n[:, None], 1e-12)
+        w = w / w.sum(axis=1, keepdims=True)
+        s = np.maximum((r * x).sum(axis=0) / (2 * np.maximum(nk, 1e-12)), 1e-9)
+        if abs(ll - prev) < tol:
+            break
+        prev = ll
+    order = np.argsort(s, axis=1)
+    return np.take_along_axis(w, order, 1), np.take_along_axis(s, order, 1)
+
+
+@pytest.mark.parametrize("K", [1, 2, 3, 4])
+def test_scale_mixture_fit_has_the_bits_of_the_plain_em(K):
+    """The (K, B, H) layout of fit_scale_mixture (for speed) sums in the order the plain
+    (B, H, K) EM does: the same weights and scales to the bit, missing truth points included
+    (the ETH/UCY and calibration outputs depend on it)."""
+    from blindspot.traj.distribution import fit_scale_mixture
+
+    rng = np.random.default_rng(20 + K)
+    f = _random_forecast(rng, B=700, H=5)
+    heavy = rng.random(f.mean.shape[:2]) < 0.25
+    truth = _draw(rng, f) * np.where(heavy, 3.0, 1.0)[..., None]
+    truth[rng.random(heavy.shape) < 0.05] = np.nan
+    mix = fit_scale_mixture(f, truth, n_components=K)
+    w, s = _em_reference(f, truth, K)
+    assert np.array_equal(mix.weights, w) and np.array_equal(mix.scales, s)
+
+
 def test_conditional_mixture_carries_over_to_a_scene_with_another_share_of_each_class():
     """Two kinds of track told apart by a feature of the history (say standing, f < 0.2, and
     walking): errors 0.2 C vs 3 C. Validation holds 70 % standing, test 20 % (the ETH/UCY

@@ -162,3 +162,30 @@ def test_neighbours_as_context_predict_what_the_walker_alone_cannot():
                                m1.predict(obs, 12, neighbours=np.full_like(nb, np.nan)))
     with pytest.raises(HistoryError, match="neighbours"):
         m1.predict(obs, 12, neighbours=nb[:, :, :5])
+
+
+@pytest.mark.parametrize("neighbours", [0, 3])
+def test_validation_mean_of_tracks_framed_once_is_predict_to_the_bit(neighbours):
+    """The per-epoch validation frames the val tracks once (``_framed_inputs``) and computes the
+    mean only: the same numbers as ``predict``, which frames them and computes the covariance
+    on every call, so the epoch kept (and the ETH/UCY outputs) cannot move. A network with
+    random weights (the head's last layer is zero at initialisation), the mirror on."""
+    import torch
+
+    from blindspot.traj.seq2seq import _framed_inputs
+
+    rng = np.random.default_rng(3)
+    cfg = replace(CFG, cell="lstm", neighbours=neighbours, mirror=True)
+    torch.manual_seed(0)
+    net = Seq2SeqNet(cfg)
+    with torch.no_grad():
+        for p in net.parameters():
+            p.normal_(0.0, 0.3)
+    model = Seq2SeqModel(net, cfg)
+    obs = turning_tracks(rng, 300)[:, :cfg.obs_len]
+    nb = None
+    if neighbours:
+        nb = obs[:, None] + rng.normal(0.0, 2.0, (300, neighbours, 1, 2))
+        nb[rng.random((300, neighbours)) < 0.4] = np.nan
+    once = model._mean_of_framed(_framed_inputs(obs, nb, cfg), cfg.horizon)
+    assert np.array_equal(once, model.predict(obs, cfg.horizon, neighbours=nb))

@@ -348,21 +348,37 @@ def fit_scale_mixture(forecast: GaussianForecast, truth: np.ndarray, *, n_compon
     if np.any(n < 4 * K):
         raise DistributionError(f"fit_scale_mixture: every step needs at least {4 * K} truth "
                                 f"points, found {n.tolist()}")
-    x = np.where(seen, d2, 0.0)[..., None]                                   # (B, H, 1)
+    x = np.where(seen, d2, 0.0)                                              # (B, H)
     q = np.nanquantile(d2, (np.arange(K) + 0.5) / K, axis=0).T               # (H, K)
     s = np.maximum(q / 2.0, 1e-6)
     w = np.full(s.shape, 1.0 / K)
+    # The arrays of the E-step are held per component, (K, B, H): the sums over the components
+    # are then K - 1 elementwise additions, left to right as numpy's reduction over a short
+    # last axis adds them, and the sums over the tracks run down contiguous (B, H) blocks,
+    # row after row as its reduction over a leading axis does; so the fit keeps the bits of the
+    # (B, H, K) formulation (tests/traj/test_distribution.py checks them) at about half its CPU
+    # time (benchmarks/bench_stage_cpu.py ethucy).
+    log_k = np.empty((K, *x.shape))
+    r = np.empty_like(log_k)                   # exp(log_k - m), then the responsibilities
     prev = -np.inf
     for _ in range(max_iter):
-        log_k = np.log(w)[None] - np.log(2 * s)[None] - x / (2 * s)[None]   # (B, H, K)
-        m = log_k.max(axis=-1, keepdims=True)
-        tot = m + np.log(np.exp(log_k - m).sum(axis=-1, keepdims=True))
-        r = np.exp(log_k - tot) * seen[..., None]
-        ll = float(np.sum(tot[..., 0] * seen) / seen.sum())
-        nk = r.sum(axis=0)                                                   # (H, K)
+        c = np.log(w) - np.log(2 * s)                                        # (H, K)
+        for k in range(K):                                                   # K components
+            np.subtract(c[:, k], x / (2 * s[:, k]), out=log_k[k])
+        m = np.maximum.reduce(log_k)                                         # (B, H)
+        np.exp(np.subtract(log_k, m, out=r), out=r)
+        acc = r[0].copy()
+        for k in range(1, K):
+            acc += r[k]
+        tot = m + np.log(acc)                                                # (B, H)
+        np.exp(np.subtract(log_k, tot, out=r), out=r)
+        r *= seen                                                            # (K, B, H)
+        ll = float(np.sum(tot * seen) / seen.sum())
+        nk = np.stack([r[k].sum(axis=0) for k in range(K)], axis=1)          # (H, K)
+        rx = np.stack([(r[k] * x).sum(axis=0) for k in range(K)], axis=1)    # (H, K)
         w = np.maximum(nk / n[:, None], 1e-12)
         w = w / w.sum(axis=1, keepdims=True)
-        s = np.maximum((r * x).sum(axis=0) / (2 * np.maximum(nk, 1e-12)), 1e-9)
+        s = np.maximum(rx / (2 * np.maximum(nk, 1e-12)), 1e-9)
         if abs(ll - prev) < tol:
             break
         prev = ll

@@ -217,6 +217,22 @@ def _mirror_social(f: np.ndarray) -> np.ndarray:
     return f * np.array([1.0, -1.0, 1.0, -1.0, 1.0])
 
 
+def _framed_inputs(obs: np.ndarray, neighbours: np.ndarray | None, cfg: Seq2SeqConfig
+                   ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray, np.ndarray]:
+    """``(x, social, origin, rot)`` of observed tracks (B, obs_len, 2) metres: the tracks in
+    their own frames (B, obs_len, 2), the :func:`social_features` (B, K, obs_len, 5) of the
+    ``neighbours`` (B, K, obs_len, 2), NaN = absent, None = nobody near; None when the model
+    reads none) and the frames (:func:`_frames`)."""
+    origin, rot = _frames(obs, cfg)
+    x = _to(obs, origin, rot)
+    soc = None
+    if cfg.neighbours > 0:
+        nb = (np.full((obs.shape[0], cfg.neighbours, cfg.obs_len, 2), np.nan)
+              if neighbours is None else neighbours)
+        soc = social_features(x, _to_nb(nb, origin, rot))
+    return x, soc, origin, rot
+
+
 def _inputs(framed_obs: np.ndarray, cfg: Seq2SeqConfig) -> np.ndarray:
     return np.diff(framed_obs, axis=1) if cfg.inputs == "displacement" else framed_obs
 
@@ -249,24 +265,26 @@ class Seq2SeqModel:
              ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Framed mean (B, H, 2), framed cov (B, H, 2, 2), origin, rot of (B, obs_len, 2)
         (and neighbours (B, K, obs_len, 2) when the model reads them)."""
-        cfg = self.cfg
-        origin, rot = _frames(obs, cfg)
-        x = _to(obs, origin, rot)
-        soc = None
-        if cfg.neighbours > 0:
-            nb = (np.full((obs.shape[0], cfg.neighbours, cfg.obs_len, 2), np.nan)
-                  if neighbours is None else neighbours)
-            soc = social_features(x, _to_nb(nb, origin, rot))
-        mean, cov = self._framed(x, soc)
-        if cfg.mirror:
-            m2, c2 = self._framed(x * _MIRROR, None if soc is None else _mirror_social(soc))
-            flip = np.array([[1.0, -1.0], [-1.0, 1.0]])
-            mean = 0.5 * (mean + m2 * _MIRROR)
-            cov = 0.5 * (cov + c2 * flip)
+        x, soc, origin, rot = _framed_inputs(obs, neighbours, self.cfg)
+        mean, cov = self._framed_both(x, soc)
         return mean, cov, origin, rot
 
-    def _framed(self, x: np.ndarray, soc: np.ndarray | None = None
-                ) -> tuple[np.ndarray, np.ndarray]:
+    def _framed_both(self, x: np.ndarray, soc: np.ndarray | None, *, with_cov: bool = True
+                     ) -> tuple[np.ndarray, np.ndarray | None]:
+        """Framed mean (B, H, 2) and cov (B, H, 2, 2) (None unless ``with_cov``) of framed
+        inputs, averaged with the mirrored scene's when ``cfg.mirror``."""
+        mean, cov = self._framed(x, soc, with_cov=with_cov)
+        if self.cfg.mirror:
+            m2, c2 = self._framed(x * _MIRROR, None if soc is None else _mirror_social(soc),
+                                  with_cov=with_cov)
+            mean = 0.5 * (mean + m2 * _MIRROR)
+            if with_cov:
+                flip = np.array([[1.0, -1.0], [-1.0, 1.0]])
+                cov = 0.5 * (cov + c2 * flip)
+        return mean, cov
+
+    def _framed(self, x: np.ndarray, soc: np.ndarray | None = None, *, with_cov: bool = True
+                ) -> tuple[np.ndarray, np.ndarray | None]:
         cfg = self.cfg
         with torch.no_grad(), _threads(cfg.threads):
             u = torch.as_tensor(_inputs(x, cfg), dtype=torch.float32)
@@ -274,7 +292,17 @@ class Seq2SeqModel:
             s = None if soc is None else torch.as_tensor(soc, dtype=torch.float32)
             out = self.net(u, last, s).double().numpy()
         mean = _decode_mean(out[..., :2], x, cfg)
-        return mean, _covariance(out[..., 2:])
+        return mean, (_covariance(out[..., 2:]) if with_cov else None)
+
+    def _mean_of_framed(self, framed: tuple[np.ndarray, np.ndarray | None, np.ndarray,
+                                            np.ndarray], horizon: int) -> np.ndarray:
+        """(B, horizon, 2) world mean positions of inputs framed once by
+        :func:`_framed_inputs` (the per-epoch validation: the val tracks are framed, and their
+        social features built, once per training instead of once per epoch); the same numbers
+        as :meth:`predict` on those tracks."""
+        x, soc, origin, rot = framed
+        mean, _ = self._framed_both(x, soc, with_cov=False)
+        return np.einsum("bij,bhj->bhi", np.linalg.inv(rot), mean[:, :horizon]) + origin[:, None, :]
 
     @property
     def uses_neighbours(self) -> bool:
@@ -509,6 +537,10 @@ def train_seq2seq(train_xy: np.ndarray, val_xy: np.ndarray, cfg: Seq2SeqConfig, 
     x_np, y_np, s_np = _training_arrays(np.asarray(train_xy, float), cfg, train_nb)
     val_obs = np.asarray(val_xy, float)[:, :cfg.obs_len]
     val_fut = np.asarray(val_xy, float)[:, cfg.obs_len:]
+    # the val tracks framed once (what Seq2SeqModel.predict does to them on every epoch)
+    val_framed = _framed_inputs(
+        _observed(val_obs, cfg.horizon, cfg, name),
+        _check_neighbours(val_nb, len(val_obs), cfg, name), cfg)
     with _threads(cfg.threads):
         torch.manual_seed(seed)
         gen = torch.Generator().manual_seed(seed)
@@ -545,7 +577,7 @@ def train_seq2seq(train_xy: np.ndarray, val_xy: np.ndarray, cfg: Seq2SeqConfig, 
                 opt.step()
             sched.step()
             model = Seq2SeqModel(net, cfg, name)
-            pred = model.predict(val_obs, cfg.horizon, neighbours=val_nb)
+            pred = model._mean_of_framed(val_framed, cfg.horizon)
             err = np.linalg.norm(pred - val_fut, axis=-1)
             report.val_ade.append(float(err.mean()))
             report.val_fde.append(float(err[:, -1].mean()))

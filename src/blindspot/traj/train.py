@@ -26,7 +26,8 @@ import math
 import os
 import tempfile
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from functools import partial
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
@@ -253,17 +254,39 @@ def train_lstm(
     if ckpt_path is not None:
         ckpt_path.parent.mkdir(parents=True, exist_ok=True)
 
-    prev_threads = torch.get_num_threads()
     prev_det = torch.are_deterministic_algorithms_enabled()
     try:
-        if train_cfg.num_threads is not None:
-            torch.set_num_threads(int(train_cfg.num_threads))
-        torch.use_deterministic_algorithms(True)
-        return _train(train, val, model_cfg, train_cfg, on_epoch, ckpt_path, resume, progress,
-                      init_from)
+        with torch_threads(train_cfg.num_threads):
+            torch.use_deterministic_algorithms(True)
+            return _train(train, val, model_cfg, train_cfg, on_epoch, ckpt_path, resume,
+                          progress, init_from)
     finally:
-        torch.set_num_threads(prev_threads)
         torch.use_deterministic_algorithms(prev_det)
+
+
+@contextmanager
+def torch_threads(n: int | None) -> Iterator[None]:
+    """torch's intra-op pool at ``n`` threads inside the block, the previous count restored
+    after it (None: leave it as it is).
+
+    The scoring after a training (:func:`evaluate`, :func:`rollout_errors` of the ensemble)
+    runs under ``train.num_threads`` too: the networks are small (64 hidden units, batches of
+    a few thousand windows), where a second OpenMP thread mostly spins. Measured on this
+    project's 2-core machine with the paper-profile ensemble on its 3,895 val + test windows
+    (``benchmarks/bench_train.py --eval``): the 20-step rollouts take several times the CPU
+    time with torch's default 2 threads as with 1, for the same bits.
+    Raises ValueError for ``n`` < 1."""
+    if n is None:
+        yield
+        return
+    if int(n) < 1:
+        raise ValueError(f"torch_threads: expected a thread count >= 1 or None, found {n!r}")
+    previous = torch.get_num_threads()
+    torch.set_num_threads(int(n))
+    try:
+        yield
+    finally:
+        torch.set_num_threads(previous)
 
 
 def train_ensemble(
