@@ -32,12 +32,14 @@ def baseline_errors(predictor, ws: WindowSet, horizon: int) -> dict:
             **rollout_errors(predictor, ws, horizon)}
 
 
-def scores(result, split: dict, baselines: dict, horizon: int) -> dict:
+def scores(result, split: dict, baselines: dict, horizon: int, workers: int = 1) -> dict:
     """train.json's errors: the ensemble's and each member's one-step errors, every
-    predictor's ``horizon``-frame rollout ADE/FDE, on the val and test windows."""
+    predictor's ``horizon``-frame rollout ADE/FDE, on the val and test windows (the ensemble's
+    rollouts on ``workers`` threads; the same bits for any number)."""
+    lstm = result.predictor.with_workers(workers)
     return {
-        "lstm": {**{s: {**evaluate(result.predictor, split[s]),
-                        **rollout_errors(result.predictor, split[s], horizon)}
+        "lstm": {**{s: {**evaluate(lstm, split[s]),
+                        **rollout_errors(lstm, split[s], horizon)}
                     for s in ("val", "test")},
                  "seconds_per_epoch": float(result.history.seconds.mean()),
                  "n_members": len(result.members),
@@ -75,7 +77,7 @@ def run(cfg, ctx):
     baselines = {"constant_velocity": ConstantVelocity(), "kalman": experiment.kalman(cfg)}
     horizon = train_cfg.val_horizon_frames
     with torch_threads(train_cfg.num_threads):   # the scoring as single-threaded as the training
-        metrics = scores(result, split, baselines, horizon)
+        metrics = scores(result, split, baselines, horizon, workers=train_cfg.jobs)
     write_json(ctx.out("train.json"), metrics)
     val = {name: metrics[name]["val"] for name in ("lstm", *baselines)}
     print(f"train: val RMSE {val['lstm']['rmse_m']:.4f} m (paper {VAL_RMSE.value}), "
