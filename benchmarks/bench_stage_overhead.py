@@ -2,7 +2,7 @@
 after its own work): prints figures, asserts nothing.
 
     .venv/bin/python benchmarks/bench_stage_overhead.py [--stage table2] [--repeat R]
-        [--rev REV] [--phases]
+        [--rev REV] [--phases] [--gc]
 
 Copies the repository (the working tree, or git revision REV via ``git archive``, without data/,
 reports/ and the MLflow store) to a temporary folder, writes its params.yaml, and runs
@@ -15,6 +15,11 @@ computes almost nothing (one Markdown table), so its time is the fixed cost itse
 ``--phases`` also runs the stage once inside a Python process that times each step of
 :func:`blindspot.cli.main_stage` (imports, params check, params.yaml read, MLflow import and
 store, the run and its logging) as CPU seconds.
+
+``--gc`` also times, in 2 R fresh processes that have imported numpy and pandas (as the stages
+have), the import of MLflow's client and SQLAlchemy store with Python's cyclic garbage collector
+on and paused (:func:`blindspot.tracking.store._gc_paused`, what ``get_client`` does), alternated,
+as CPU seconds of the import alone.
 
 Compare two revisions by running it twice, e.g. ``--rev 47eca47`` (before the stamped params
 check and the lazy Hydra import) and without ``--rev`` (the working tree).
@@ -69,6 +74,17 @@ for name, s in marks:
     print(f"PHASE\t{name}\t{s:.2f}")
 '''
 
+GC_IMPORT = r'''
+import gc, sys, time
+import numpy, pandas  # every stage holds them before MLflow is imported
+if sys.argv[1] == "paused":
+    gc.disable()
+t = time.process_time()
+import mlflow.store.tracking.sqlalchemy_store
+from mlflow.tracking import MlflowClient
+print(time.process_time() - t)
+'''
+
 
 def copy_repo(dest: Path, rev: str | None) -> Path:
     """The tracked (and untracked, not ignored) files of the working tree, or of ``rev``."""
@@ -107,6 +123,8 @@ def main() -> None:
     parser.add_argument("--repeat", type=int, default=3, help="timed runs after the first")
     parser.add_argument("--rev", default=None, help="git revision to measure (default: worktree)")
     parser.add_argument("--phases", action="store_true", help="also time each step in-process")
+    parser.add_argument("--gc", action="store_true",
+                        help="also time MLflow's import with the garbage collector on / paused")
     args = parser.parse_args()
 
     with tempfile.TemporaryDirectory(prefix="blindspot-stage-overhead-") as tmp:
@@ -137,6 +155,18 @@ def main() -> None:
                 if line.startswith("PHASE\t"):
                     _, name, seconds = line.split("\t")
                     print(f"    {name:<55} {float(seconds):6.2f}")
+        if args.gc:
+            script = Path(tmp) / "gc_import.py"
+            script.write_text(GC_IMPORT)
+            times: dict[str, list[float]] = {"on": [], "paused": []}
+            for _ in range(args.repeat):
+                for mode in times:
+                    _, _, out = timed([py, str(script), mode], root, env)
+                    times[mode].append(float(out.split()[-1]))
+            print("  import of MLflow's client and store (CPU s in-process, after numpy, pandas):")
+            for mode, values in times.items():
+                print(f"    garbage collector {mode:<7} median {statistics.median(values):.2f}  "
+                      f"({', '.join(f'{v:.2f}' for v in values)})")
 
 
 if __name__ == "__main__":

@@ -103,16 +103,24 @@ def test_dvc_repro_tiny_profile_end_to_end(tiny_repo: Path) -> None:
 
 
 def test_dvc_exp_run_override_reruns_only_what_depends_on_it(tiny_repo: Path) -> None:
-    """`dvc exp run -S train.lr=...` composes conf/ + the override (Hydra) and reruns training and
-    what follows it, never the radar stages; the run logs the new value to MLflow."""
+    """`dvc exp run -S train.lr=... interpolate evaluate` composes conf/ + the override (Hydra)
+    and reruns training and what follows it on the way to those two targets, never the radar
+    stages above them; the run logs the new value to MLflow.
+
+    The targets keep the claim and drop the cost: DVC still checks every stage they depend on
+    (simulate ... windows, ethucy, whose params do not hold train.lr), while the nine other
+    stages a new model reruns (benchmark, safety, the figures and tables, the report page; 54 %
+    of the stage CPU of an untargeted exp run, benchmarks/bench_tiny_repro.py) would only repeat
+    what the first test shows, that a changed dependency reruns its stage."""
     env = clean_env(BLINDSPOT_SHARED=str(SHARED))
     if not (tiny_repo / "dvc.lock").exists():  # this test run alone
         run([str(DVC), "repro"], tiny_repo, env=env, timeout=1800)
     run(["git", "add", "-A"], tiny_repo, env=env)
     run(["git", "commit", "-qm", "baseline", "--allow-empty"], tiny_repo, env=env)
-    proc = run([str(DVC), "exp", "run", "-S", "train.lr=0.003"], tiny_repo, env=env, timeout=1200)
+    proc = run([str(DVC), "exp", "run", "-S", "train.lr=0.003", "interpolate", "evaluate"],
+               tiny_repo, env=env, timeout=1200)
     ran = {line.split("'")[1] for line in proc.stdout.splitlines() if line.startswith("Running stage")}
-    assert {"train", "interpolate", "predict", "evaluate"} <= ran, proc.stdout
+    assert ran == {"train", "interpolate", "calibration", "predict", "evaluate"}, proc.stdout
     assert not ran & {"simulate", "detect", "localise", "paths", "windows", "recordings"}, ran
     train_runs = [r for r in runs(tiny_repo) if r.data.tags.get("blindspot.stage") == "train"]
     assert train_runs[-1].data.params["train.lr"] == "0.003"

@@ -230,3 +230,21 @@ def test_headline_patterns_match_one_dotted_part_per_star(tmp_path: Path) -> Non
     assert headline_metrics("evaluate", metrics, {"train": ["*.val.rmse_m"]}) == {}
     with pytest.raises(ValueError, match="tracking.headline"):
         tracking.settings_from_cfg({"tracking": {"headline": {"train": "*.val.rmse_m"}}}, tmp_path)
+
+
+@pytest.mark.parametrize("enabled", [True, False])
+def test_opening_a_store_leaves_the_garbage_collector_as_it_was(tmp_path: Path,
+                                                                 enabled: bool) -> None:
+    """get_client pauses the cyclic collector while MLflow's store opens (a fifth of a stage's
+    import time), then restores it; the store it opened is usable."""
+    import gc
+
+    settings = tracking.settings_from_cfg({"tracking": {"uri": str(tmp_path / "gc.db")}}, tmp_path)
+    was = gc.isenabled()
+    (gc.enable if enabled else gc.disable)()
+    try:
+        client = tracking.get_client(settings)
+        assert gc.isenabled() is enabled
+    finally:
+        (gc.enable if was else gc.disable)()
+    assert [e.name for e in client.search_experiments()] == ["Default"]
