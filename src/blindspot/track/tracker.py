@@ -14,8 +14,10 @@ the way its tutorials read:
   a Gaussian-mixture reduction of the weighted hypotheses, ``gm_reduce_single``);
 * initiation: ``SimpleMeasurementInitiator`` from every object no live track took, velocity
   prior zero with ``init_velocity_std_mps``;
-* management: M-of-N confirmation of tentative tracks, deletion of confirmed tracks by
-  ``UpdateTimeStepsDeleter`` after ``max_misses`` consecutive frames without a measurement;
+* management: M-of-N confirmation of tentative tracks, deletion of confirmed tracks after
+  ``max_misses`` consecutive frames without a measurement (the rule of Stone Soup's
+  ``UpdateTimeStepsDeleter``, read off each track's hit history instead of walking its states:
+  the same deletions, tested);
   until then a track coasts (prediction only), so a person who reappears keeps their track.
 
 The Kalman recursion is sequential in time, so frames are stepped one after another per group;
@@ -311,14 +313,12 @@ class _Parts:
     updater: object
     associator: object
     initiator: object
-    deleter: object
     jpda: bool
 
 
 def _parts(config: TrackerConfig) -> _Parts:
     from stonesoup.dataassociator.neighbour import GNNWith2DAssignment
     from stonesoup.dataassociator.probability import JPDA
-    from stonesoup.deleter.time import UpdateTimeStepsDeleter
     from stonesoup.hypothesiser.probability import PDAHypothesiser
     from stonesoup.models.measurement.linear import LinearGaussian
     from stonesoup.types.state import GaussianState
@@ -341,8 +341,7 @@ def _parts(config: TrackerConfig) -> _Parts:
     v2 = config.init_velocity_std_mps ** 2
     prior = GaussianState(np.zeros((4, 1)), np.diag([0.0, v2, 0.0, v2]))
     initiator = _linear_initiator(prior, measurement_model)
-    deleter = UpdateTimeStepsDeleter(time_steps_since_update=config.max_misses + 1)
-    return _Parts(measurement_model, predictor, updater, associator, initiator, deleter,
+    return _Parts(measurement_model, predictor, updater, associator, initiator,
                   config.association == "jpda")
 
 
