@@ -69,6 +69,20 @@ def test_count_is_causal_and_lagged():
     assert (d < 0.5).sum() > 0
 
 
+def test_a_later_or_foreign_point_does_not_move_an_earlier_count():
+    """Causality of the grid itself: a point of a later frame or of another scene, anywhere
+    (here far below every other coordinate), changes no row's count; a NaN point is ignored."""
+    pts = _car_face_points()
+    rows = _track([2.0, 2.2, 1.9], [0.0, 1.1, 2.4], [20, 21, 22])
+    base = static_evidence(rows, pts, cell_m=0.5, lag_frames=5)
+    for extra in ({"scene": "s", "frame": 30, "x_m": -57.3, "y_m": -91.7, "static": True},
+                  {"scene": "other", "frame": 1, "x_m": -13.1, "y_m": -0.26, "static": True},
+                  {"scene": "s", "frame": 1, "x_m": np.nan, "y_m": 0.0, "static": True}):
+        more = pd.concat([pts, pd.DataFrame([extra])], ignore_index=True)
+        np.testing.assert_array_equal(static_evidence(rows, more, cell_m=0.5, lag_frames=5),
+                                      base)
+
+
 @settings(max_examples=30, deadline=None)
 @given(st.integers(0, 2**31 - 1), st.floats(0.2, 2.0), st.integers(1, 8))
 def test_matches_the_direct_count_over_cells(seed, cell, lag):
@@ -81,10 +95,8 @@ def test_matches_the_direct_count_over_cells(seed, cell, lag):
                        "x_m": rng.uniform(-3, 3, 15), "y_m": rng.uniform(-3, 3, 15)})
     got = static_evidence(tr, pts, cell_m=cell, lag_frames=lag)
     s = pts[pts.static]
-    x0 = min(tr.x_m.min(), s.x_m.min(), 0.0) - 2 * cell
-    y0 = min(tr.y_m.min(), s.y_m.min(), 0.0) - 2 * cell
-    cx = lambda v: np.floor((v - x0) / cell)            # noqa: E731
-    cy = lambda v: np.floor((v - y0) / cell)            # noqa: E731
+    cx = lambda v: np.floor(v / cell)                   # noqa: E731  the fixed world grid
+    cy = cx
     want = np.array([((s.scene == r.group) & (s.frame <= r.frame - lag)
                       & (np.abs(cx(s.x_m) - cx(r.x_m)) <= 1)
                       & (np.abs(cy(s.y_m) - cy(r.y_m)) <= 1)).sum() for r in tr.itertuples()])

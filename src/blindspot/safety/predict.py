@@ -217,8 +217,10 @@ def static_evidence(tracks: pd.DataFrame, points: pd.DataFrame, *, cell_m: float
     "Automotive radar gridmap representations", IEEE MTT-S ICMIM; the count is the
     occupancy evidence of a hit-count map): ``points`` (columns scene, frame, x_m, y_m, static:
     the ego-motion Doppler test of blindspot.dsp.driving, not a truth label) are the detections
-    of every frame. Causal: frame f only sees points of frames <= f - ``lag_frames``
-    (``lag_frames`` >= 1). A cluster sliding along a parked car's face stays on the car's past
+    of every frame (non-finite ones dropped). Causal: frame f only sees points of frames
+    <= f - ``lag_frames`` (``lag_frames`` >= 1), and the cells are a fixed world grid (their
+    boundaries at multiples of ``cell_m``), so neither a later point nor another scene changes
+    a row's count. A cluster sliding along a parked car's face stays on the car's past
     static hits; a child walking into the lane leaves them. Vectorised: one sort of the static
     points by (group, cell, frame), two binary searches per row and neighbour cell. Raises
     ValueError naming a missing column or a bad ``cell_m`` / ``lag_frames``."""
@@ -231,18 +233,22 @@ def static_evidence(tracks: pd.DataFrame, points: pd.DataFrame, *, cell_m: float
         raise ValueError(f"cell_m: expected a positive cell size in m, found {cell_m!r}")
     if int(lag_frames) != lag_frames or lag_frames < 1:
         raise ValueError(f"lag_frames: expected an integer >= 1 (causal), found {lag_frames!r}")
-    st = points[points.static.to_numpy(bool)]
+    st = points[points.static.to_numpy(bool) & np.isfinite(points.x_m.to_numpy(float))
+                & np.isfinite(points.y_m.to_numpy(float))]
     groups = pd.Index(pd.unique(np.r_[tracks.group.astype(str).to_numpy(),
                                       st.scene.astype(str).to_numpy()]))
     tx, ty = tracks.x_m.to_numpy(float), tracks.y_m.to_numpy(float)
     px, py = st.x_m.to_numpy(float), st.y_m.to_numpy(float)
-    x0 = np.nanmin(np.r_[tx, px, 0.0]) - 2 * cell_m
-    y0 = np.nanmin(np.r_[ty, py, 0.0]) - 2 * cell_m
-    ix_p = np.floor((px - x0) / cell_m).astype(np.int64)
-    iy_p = np.floor((py - y0) / cell_m).astype(np.int64)
     ok_t = np.isfinite(tx) & np.isfinite(ty)
-    ix_t = np.floor((np.where(ok_t, tx, x0) - x0) / cell_m).astype(np.int64)
-    iy_t = np.floor((np.where(ok_t, ty, y0) - y0) / cell_m).astype(np.int64)
+    # cells of a fixed world grid (boundaries at multiples of cell_m), so no other point, later
+    # frame or other scene can move them; the offsets only make the packed keys non-negative
+    cx_p, cy_p = np.floor(px / cell_m), np.floor(py / cell_m)
+    cx_t = np.floor(np.where(ok_t, tx, 0.0) / cell_m)
+    cy_t = np.floor(np.where(ok_t, ty, 0.0) / cell_m)
+    ox = np.min(np.r_[cx_p, cx_t, 0.0]) - 2
+    oy = np.min(np.r_[cy_p, cy_t, 0.0]) - 2
+    ix_p, iy_p = (cx_p - ox).astype(np.int64), (cy_p - oy).astype(np.int64)
+    ix_t, iy_t = (cx_t - ox).astype(np.int64), (cy_t - oy).astype(np.int64)
     nx = int(max(ix_p.max(initial=0), ix_t.max(initial=0))) + 3
     ny = int(max(iy_p.max(initial=0), iy_t.max(initial=0))) + 3
     frame_p = st.frame.to_numpy(np.int64)

@@ -198,8 +198,10 @@ def _gc_paused() -> Iterator[None]:
     long-lived classes, functions and ORM tables, next to no garbage. The collector runs every
     700 net allocations (``gc.get_threshold()``) and walks the young objects for cycles each time;
     that is ~20 % of this import's CPU (0.6-0.9 s of 3.4-3.7 s in one process, measured with
-    ``benchmarks/bench_stage_overhead.py --gc``). Nothing is lost: cycles made in the block are
-    collected by the first collection after it."""
+    ``benchmarks/bench_stage_overhead.py --gc``; that figure leaves out the first collection
+    after the pause, which walks what the block allocated, so the net saving is smaller). In
+    :func:`get_client` the pause also covers opening the store under the file lock. Nothing is
+    lost: cycles made in the block are collected by the first collection after it."""
     enabled = gc.isenabled()
     gc.disable()
     try:
