@@ -81,6 +81,22 @@ def _at_fa(curve: pd.DataFrame, levels=(0.1, 0.2, 0.3)) -> dict:
             for f in levels}
 
 
+def load_inputs(data: Path, input_name: str):
+    """What the policy benchmarks read: (cfg = params.yaml, the typed warning group, the
+    scenario group, bodies {name: (length, width, reference from front) m}, the ego's EgoShape,
+    DATA/driving/truth.parquet (every set), DATA/driving/scenes.json, the safety stage's risk
+    rows of ``input_name``)."""
+    cfg = OmegaConf.load(REPO / "params.yaml")
+    w = experiment.warning(cfg)
+    group, _ = experiment.scenarios(cfg)
+    bodies = {b.name: (b.length_m, b.width_m, b.ref_from_front_m) for b in group.bodies}
+    shape = EgoShape(group.ego.width_m, group.ego.length_m)
+    truth = pd.read_parquet(data / "driving/truth.parquet")
+    meta = json.loads((data / "driving/scenes.json").read_text())
+    risk = pd.read_parquet(data / "safety/risk.parquet")
+    return cfg, w, group, bodies, shape, truth, meta, risk[risk.input == input_name]
+
+
 def _nearest_pedestrian_m(rows: pd.DataFrame, truth: pd.DataFrame,
                           tracks: pd.DataFrame) -> pd.DataFrame:
     """rows + the track's position, speed and its distance to the nearest true pedestrian of
@@ -155,16 +171,8 @@ def main(argv: list[str]) -> None:
     ap.add_argument("--figure", type=Path, default=None,
                     help="PNG of the held-out operating curves, ungated and gated")
     args = ap.parse_args(argv)
-    cfg = OmegaConf.load(REPO / "params.yaml")
-    w = experiment.warning(cfg)
-    group, _ = experiment.scenarios(cfg)
-    bodies = {b.name: (b.length_m, b.width_m, b.ref_from_front_m) for b in group.bodies}
-    shape = EgoShape(group.ego.width_m, group.ego.length_m)
-    truth = pd.read_parquet(args.data / "driving/truth.parquet")
-    meta = json.loads((args.data / "driving/scenes.json").read_text())
-    risk = pd.read_parquet(args.data / "safety/risk.parquet")
-    risk = risk[risk.input == args.input]
-    truth = truth[truth.set == "monte_carlo"]
+    cfg, w, group, bodies, shape, truth_all, meta, risk = load_inputs(args.data, args.input)
+    truth = truth_all[truth_all.set == "monte_carlo"]
     tracks = pd.read_parquet(args.data / "driving/tracks.parquet") if args.input == "tracker" \
         else None
     if args.pedestrian_tracks_only:

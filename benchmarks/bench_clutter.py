@@ -42,26 +42,23 @@ pedestrian or not; bench_aeb_gate.trigger_causes).
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 
 import blindspot  # noqa: F401  first: pins the CPU kernels before numpy loads
 import numpy as np
 import pandas as pd
-from omegaconf import OmegaConf
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(REPO / "benchmarks"), str(REPO / "stages")]
 
-from bench_aeb_gate import _subset, trigger_causes  # noqa: E402
+from bench_aeb_gate import _subset, load_inputs, trigger_causes  # noqa: E402
 from blindspot import experiment  # noqa: E402
 from blindspot.io import write_json  # noqa: E402
 from blindspot.safety.assess import frame_risks, outcome_table  # noqa: E402
 from blindspot.safety.braking import BrakingModel  # noqa: E402
 from blindspot.safety.evaluation import (aeb_gate_s, replicate_half,  # noqa: E402
                                          scene_info, scene_results, summarise)
-from blindspot.safety.risk import EgoShape  # noqa: E402
 from blindspot.safety.predict import moving_tracks, static_evidence  # noqa: E402
 
 
@@ -119,16 +116,8 @@ def main(argv: list[str]) -> None:
     ap.add_argument("--window", type=int, default=5)
     ap.add_argument("--json", type=Path, default=None)
     args = ap.parse_args(argv)
-    cfg = OmegaConf.load(REPO / "params.yaml")
-    w = experiment.warning(cfg)
-    group, _ = experiment.scenarios(cfg)
-    bodies = {b.name: (b.length_m, b.width_m, b.ref_from_front_m) for b in group.bodies}
-    shape = EgoShape(group.ego.width_m, group.ego.length_m)
-    truth_all = pd.read_parquet(args.data / "driving/truth.parquet")
+    cfg, w, _, bodies, shape, truth_all, meta, risk = load_inputs(args.data, "tracker")
     truth = truth_all[truth_all.set == "monte_carlo"]
-    meta = json.loads((args.data / "driving/scenes.json").read_text())
-    risk = pd.read_parquet(args.data / "safety/risk.parquet")
-    risk = risk[risk.input == "tracker"]
     tracks = pd.read_parquet(args.data / "driving/tracks.parquet")
     tracks = tracks.sort_values(["group", "track_id", "frame"]).reset_index(drop=True)
     points = pd.read_parquet(args.data / "driving/points.parquet")
@@ -168,8 +157,8 @@ def main(argv: list[str]) -> None:
         raise SystemExit(f"{args.data / 'driving/tracks.parquet'}: its moving flag is not the "
                          "moving test without the static-evidence grid (was driving_track run "
                          "with warning.moving_static_evidence_min > 0?); this benchmark needs "
-                         "the risk rows of a run with the grid off, e.g. --data "
-                         "/work/main/data from the 2026-11-30 repro")
+                         "the risk rows of a run with the grid off, e.g. the data/ of "
+                         "`dvc exp run -S warning.moving_static_evidence_min=0`")
     import time
     t0 = time.process_time()
     conf_ev = static_evidence(tracks, points, cell_m=w.moving_static_cell_m,

@@ -16,16 +16,16 @@ from __future__ import annotations
 
 import argparse
 import os
-import resource
 import subprocess
 import sys
 import tempfile
-import time
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
+sys.path.insert(0, str(REPO / "benchmarks"))
+from bench_stage_overhead import timed  # noqa: E402
 from tests.conftest import SHARED  # noqa: E402
 from tests.pipeline.test_repro import make_tiny_repo  # noqa: E402
 from tests.pipeline.toy_repo import VENV_BIN, clean_env  # noqa: E402
@@ -44,20 +44,6 @@ def checkout(dest: Path, rev: str | None) -> Path:
                    check=True)
     subprocess.run(["git", "checkout", "-q", rev], cwd=dest, check=True)
     return dest
-
-
-def timed(cmd: list[str], cwd: Path, env: dict[str, str]) -> tuple[float, float, str]:
-    """(CPU s of ``cmd`` and all its children, wall s, stdout)."""
-    before = resource.getrusage(resource.RUSAGE_CHILDREN)
-    t0 = time.perf_counter()
-    proc = subprocess.run(cmd, cwd=cwd, env=env, capture_output=True, text=True)
-    wall = time.perf_counter() - t0
-    after = resource.getrusage(resource.RUSAGE_CHILDREN)
-    if proc.returncode != 0:
-        raise SystemExit(f"{' '.join(cmd)} exited {proc.returncode}:\n{proc.stdout[-3000:]}\n"
-                         f"{proc.stderr[-3000:]}")
-    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
-    return cpu, wall, proc.stdout
 
 
 def stage_times(path: Path) -> list[tuple[str, float, float]]:
