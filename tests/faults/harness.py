@@ -18,6 +18,7 @@ after the first ``dvc repro``; outputs that hold a wall time are compared throug
 
 from __future__ import annotations
 
+import fnmatch
 import hashlib
 import io as _io
 import json
@@ -132,21 +133,48 @@ def _checkpoint(data: bytes) -> bytes:
     return json.dumps({"epoch": blob["epoch"], "model": state}, sort_keys=True).encode()
 
 
-# Outputs that record a wall time: compared after the normaliser removed it (the README's
-# "every report byte for byte except the training time per epoch").
+# Outputs that record a wall time, by glob pattern of their path: compared after the normaliser
+# removed it (the README's "every report byte for byte except the training time per epoch").
+# The training checkpoints: one per ensemble member (member<i>/last.pt) or one for a single
+# network (last.pt).
 VOLATILE: dict[str, Callable[[bytes], bytes]] = {
     "reports/metrics/train.json": _without_keys("lstm.seconds_per_epoch"),
     "data/train/history.csv": _without_column("seconds"),
     "data/train/checkpoints/last.pt": _checkpoint,
+    "data/train/checkpoints/*/last.pt": _checkpoint,
     "reports/ethucy.md": _without_lines(r"Wall time .*|\b\d+ s\b"),
 }
+
+
+def normaliser(rel: str) -> Callable[[bytes], bytes] | None:
+    """The :data:`VOLATILE` normaliser whose pattern matches ``rel`` (``*`` within one folder),
+    or None."""
+    for pattern, norm in VOLATILE.items():
+        if fnmatch.fnmatchcase(rel, pattern) and rel.count("/") == pattern.count("/"):
+            return norm
+    return None
 
 
 def fingerprint(root: Path, rel: str) -> str:
     """md5 of a file's bytes, or of its normalised bytes if it is :data:`VOLATILE`."""
     data = (root / rel).read_bytes()
-    norm = VOLATILE.get(rel)
+    norm = normaliser(rel)
     return hashlib.md5(norm(data) if norm else data).hexdigest()
+
+
+def unreadable(root: Path, outs: list[str]) -> list[str]:
+    """Files under ``outs`` that their :data:`VOLATILE` normaliser cannot read (a torn
+    checkpoint); files without a normaliser are not opened."""
+    bad = []
+    for rel in files_of(root, outs):
+        norm = normaliser(rel)
+        if norm is None:
+            continue
+        try:
+            norm((root / rel).read_bytes())
+        except Exception as exc:  # noqa: BLE001 - any failure to read it is the finding
+            bad.append(f"{rel}: unreadable ({type(exc).__name__}: {exc})")
+    return bad
 
 
 def is_temp(path: Path) -> bool:
