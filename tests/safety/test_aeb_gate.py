@@ -53,6 +53,21 @@ def test_last_point_to_brake_inside_the_ramp():
         b.stop_ttc(0.0)
 
 
+def test_a_standing_ego_takes_the_limit_of_the_gate():
+    """v -> 0: the last point to brake tends to the braking latency (nothing to stop); a
+    standing ego's gate is that limit plus delay and margin, continuous with a creeping ego's,
+    so a row far from contact cannot request AEB for a standing car."""
+    b = BrakingModel(0.2, 30.0, 9.8)
+    g = aeb_gate_s(np.array([0.0, -1.0, 1e-6, 10.0]), b, gate="stopping_time", margin_s=0.2,
+                   decision_delay_s=0.1)
+    assert g[0] == g[1] == pytest.approx(0.2 + 0.1 + 0.2)
+    assert g[2] == pytest.approx(g[0], abs=1e-3) and g[3] > g[0]
+    rows = _rows("a", np.arange(3), 0.9, [3.0, 0.6, 0.4])
+    _, p_aeb = frame_risks(rows, np.array(["a"]), np.zeros(1), 3, b, gate="stopping_time",
+                           margin_s=0.2, decision_delay_s=0.1)
+    assert p_aeb.tolist() == [[0.0, 0.0, 0.9]]
+
+
 def _rows(scene, frame, p, ttc):
     return pd.DataFrame({"group": scene, "frame": frame, "p_collision": p, "ttc_s": ttc})
 

@@ -103,8 +103,10 @@ def aeb_gate_s(speed_mps: np.ndarray, braking, *, gate: str, margin_s: float,
     stationary obstacle at which a request still stops the car at it; Brännström, Coelingh &
     Sjöberg 2010, IEEE T-ITS 11(3); ISO 22839:2013), plus ``decision_delay_s`` (the request
     leaves that long after the frame whose TTC it reads) plus ``margin_s`` (chosen on held-out
-    scenes, ``conf/warning/default.yaml``). A standing ego (v <= 0) cannot run into anything:
-    +inf. Raises ValueError for an unknown gate."""
+    scenes, ``conf/warning/default.yaml``). A standing ego (v <= 0) takes the limit of the
+    last point to brake as v -> 0, the braking latency (a pedestrian walking into a standing
+    car: only rows about to touch it may request, as for a creeping ego). Raises ValueError
+    for an unknown gate."""
     v = np.asarray(speed_mps, float)
     if gate == "none":
         return np.full(v.shape, np.inf)
@@ -112,8 +114,8 @@ def aeb_gate_s(speed_mps: np.ndarray, braking, *, gate: str, margin_s: float,
         raise ValueError(f"config key 'warning.aeb_gate': expected 'none' or 'stopping_time', "
                          f"found {gate!r}")
     moving = v > 0
-    return np.where(moving, braking.stop_ttc(np.where(moving, v, 1.0)) + decision_delay_s
-                    + margin_s, np.inf)
+    stop = np.where(moving, braking.stop_ttc(np.where(moving, v, 1.0)), braking.latency_s)
+    return stop + decision_delay_s + margin_s
 
 
 def scene_frame_risk(risk: pd.DataFrame, scenes: np.ndarray, n_frames: int,
