@@ -99,6 +99,16 @@ def test_calibration_table_marks_cells_off_nominal():
     page = format_report({"cvm": RESULTS["cvm"]}, {"cvm": VALIDATION["cvm"]}, details(), FOLDS,
                          None, "cmd", 1.0, calibration=cal, calibration_method="quantile")
     assert "## Calibration (test scenes)" in page and "method `quantile`" in page
+    assert "online" not in table_row(text, "cvm")[0] and len(text.splitlines()) == 3
+
+
+def test_online_coverage_gets_its_own_row():
+    cal = {"kalman": {"eth": {"coverage_50": 0.25, "coverage_90": 0.66, "coverage_95": 0.75,
+                              "nll": 1.7, "online_coverage_50": 0.384,
+                              "online_coverage_90": 0.894, "online_coverage_95": 0.951}}}
+    text = format_calibration(cal, FOLDS)
+    assert table_row(text, "kalman, online") == ["kalman, online", "0.384* / 0.894 / 0.951", "-"]
+    assert table_row(text, "kalman")[1] == "0.250* / 0.660* / 0.750*; NLL 1.70"
 
 
 def test_reliability_figure_draws_one_panel_per_fold_and_one_line_per_method():

@@ -29,19 +29,25 @@ def format_calibration(calibration: Mapping[str, Mapping[str, Mapping[str, Any]]
                        folds: Sequence[str]) -> str:
     """Markdown table: per method and fold, the empirical coverage of the 50 / 90 / 95 %
     ellipses and the NLL (nats per point), from ``calibration.json``-shaped values; a cell is
-    marked ``*`` where a coverage is more than 2 percentage points from nominal."""
+    marked ``*`` where a coverage is more than 2 percentage points from nominal. A method whose
+    rows hold ``online_coverage_*`` (the adaptive conformal ellipses,
+    :mod:`blindspot.traj.conformal`) gets a second row, "<method>, online"."""
     lines = ["| method | " + " | ".join(folds) + " |", "|---|" + "---|" * len(folds)]
     for m, rows in calibration.items():
-        cells = []
-        for f in folds:
-            r = rows.get(f)
-            if r is None:
-                cells.append("-")
+        for prefix, label in (("", m), ("online_", f"{m}, online")):
+            if prefix and not any(f"online_coverage_50" in (rows.get(f) or {}) for f in folds):
                 continue
-            cov = [(r[f"coverage_{k}"], k / 100) for k in (50, 90, 95)]
-            txt = " / ".join(f"{c:.3f}" + ("*" if abs(c - n) > 0.02 else "") for c, n in cov)
-            cells.append(f"{txt}; NLL {r['nll']:.2f}")
-        lines.append(f"| {m} | " + " | ".join(cells) + " |")
+            cells = []
+            for f in folds:
+                r = rows.get(f)
+                if r is None or f"{prefix}coverage_50" not in r:
+                    cells.append("-")
+                    continue
+                cov = [(r[f"{prefix}coverage_{k}"], k / 100) for k in (50, 90, 95)]
+                txt = " / ".join(f"{c:.3f}" + ("*" if abs(c - n) > 0.02 else "")
+                                 for c, n in cov)
+                cells.append(txt if prefix else f"{txt}; NLL {r['nll']:.2f}")
+            lines.append(f"| {label} | " + " | ".join(cells) + " |")
     return "\n".join(lines)
 
 
@@ -207,7 +213,12 @@ def format_report(results: Results, validation: Results,
                   + ". `*`: more than 2 percentage points from nominal. cvm: a heteroscedastic "
                   "noise model of its errors (along/cross-track covariance per step, scaled "
                   "by the history's speed and acceleration) fitted on val; kalman: the filter's "
-                  "own F P F^T + Q + R; lstm / mlp: the Gaussian head plus the ensemble spread.",
+                  "own F P F^T + Q + R; lstm / mlp: the Gaussian head plus the ensemble spread. "
+                  "Rows \"online\": the same forecasts' adaptive conformal ellipses "
+                  "(`blindspot.traj.conformal`, Gibbs & Candès 2021): each test scene a stream, "
+                  "each prediction's ellipse radii the conformal quantiles of the last outcomes "
+                  "already revealed when it is made (the val scores before any), at levels moved "
+                  "by ACI; they use the scene's past outcomes, never the one being scored.",
                   "", format_calibration(calibration, folds),
                   "", "Reliability figure: `reports/figures/ethucy_reliability.png`."]
     if ablation:

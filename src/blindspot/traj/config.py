@@ -346,6 +346,10 @@ class EthUcyConfig(TypedConfig):
             :func:`blindspot.traj.distribution.fit_conditional_scale_mixture`).
         calibration_speed_edges: the observed-speed class edges of ``"conditional"``, m/s,
             increasing.
+        online_gamma: step size of the adaptive conformal ellipses' level updates (ACI;
+            :class:`blindspot.traj.conformal.AdaptiveConformal`; Gibbs & Candès 2021 use
+            0.005), in [0, 1).
+        online_window: revealed scores those ellipses keep per step (chosen on the val split).
         seq2seq: the direct predictor's model and training settings
             (:class:`blindspot.traj.seq2seq.Seq2SeqConfig`; its ``cell`` is set by the model
             key, its ``threads`` by ``threads``, its first seed by the top-level ``seed``).
@@ -359,6 +363,8 @@ class EthUcyConfig(TypedConfig):
     threads: int = setting(ge=1)
     calibration: str = setting(choices=("mle", "quantile", "mixture", "conditional"))
     calibration_speed_edges: tuple[float, ...] = setting(gt=0.0, ordered=True, min_items=1)
+    online_gamma: float = setting(ge=0.0, lt=1.0)
+    online_window: int = setting(ge=1)
     seq2seq: Seq2SeqConfig = setting()
 
 

@@ -48,6 +48,7 @@ import numpy as np
 
 from blindspot.traj.baselines import ConstantVelocity, KalmanCV
 from blindspot.traj.config import ETHUCY_MODELS, EthUcyConfig, Seq2SeqConfig
+from blindspot.traj.conformal import AdaptiveConformal, ellipse_hits
 from blindspot.traj.distribution import (
     ConditionalScaleMixture,
     GaussianForecast,
@@ -57,6 +58,7 @@ from blindspot.traj.distribution import (
     fit_scale_mixture,
     fit_step_scale,
     gaussian_nll,
+    mahalanobis_sq,
     observed_speed,
 )
 from blindspot.traj.ethucy import (
@@ -85,6 +87,7 @@ __all__ = [
     "BenchmarkRun",
     "score",
     "calibration_scores",
+    "online_coverage",
     "train_fold_seq2seq",
     "lstm_window_set",
     "train_fold_lstm",
@@ -192,6 +195,9 @@ class EthUcySettings:
             per-step scale mixture, :func:`fit_scale_mixture`) or ``"conditional"`` (one
             mixture per class of observed speed, :func:`fit_conditional_scale_mixture`).
         speed_edges: the classes' observed-speed edges for ``"conditional"``, m/s.
+        online: the adaptive conformal ellipses scored beside the val calibration
+            (:class:`~blindspot.traj.conformal.AdaptiveConformal`: each test scene a stream
+            whose revealed outcomes keep the ellipses calibrated; ``online_coverage_*``).
 
     Raises:
         ValueError: an unknown model or fold, or none (naming ``models`` / ``folds``).
@@ -204,6 +210,7 @@ class EthUcySettings:
     seq2seq: Seq2SeqConfig = field(default_factory=Seq2SeqConfig)
     calibration: str = "mixture"
     speed_edges: tuple[float, ...] = SPEED_EDGES_M_S
+    online: AdaptiveConformal = field(default_factory=AdaptiveConformal)
 
     def __post_init__(self) -> None:
         if self.calibration not in CALIBRATIONS:
@@ -232,7 +239,9 @@ class EthUcySettings:
                    lstm=LSTMBenchSettings(seed=int(seed), num_threads=config.threads),
                    seq2seq=replace(config.seq2seq, seed=int(seed), threads=config.threads),
                    calibration=config.calibration,
-                   speed_edges=tuple(config.calibration_speed_edges))
+                   speed_edges=tuple(config.calibration_speed_edges),
+                   online=AdaptiveConformal(CALIBRATION_LEVELS, config.online_gamma,
+                                            config.online_window))
 
 
 @dataclass
@@ -332,6 +341,25 @@ def val_windows(data_dir: Path, fold: str, neighbours: int = 0) -> Windows:
     return load_split(data_dir, fold, "val", neighbours=neighbours)
 
 
+def online_coverage(online: AdaptiveConformal, val_forecast: GaussianForecast,
+                    val_truth: np.ndarray, test_forecast: GaussianForecast, test: Windows
+                    ) -> dict[str, float]:
+    """``{"online_coverage_50", ...}``: coverage on the test windows of the adaptive conformal
+    ellipses (:class:`~blindspot.traj.conformal.AdaptiveConformal`) of a forecast whose
+    validation scores (d^2 of ``val_forecast`` against ``val_truth``) fill the first window.
+    Each test scene file is a stream; a window is predicted at its last observed frame and its
+    outcome known at its last future frame (``start + OBS_LEN - 1``, ``start + OBS_LEN +
+    PRED_LEN - 1``, frame rows of 0.4 s); the ellipse of each window uses only the outcomes
+    known when it is predicted."""
+    d2_val = mahalanobis_sq(val_forecast, val_truth)
+    d2 = mahalanobis_sq(test_forecast, test.future())
+    start = np.asarray(test.start, dtype=np.int64)
+    radii = online.radii(d2, start + OBS_LEN - 1, start + OBS_LEN + PRED_LEN - 1,
+                         test.file_index, d2_val)
+    hits = ellipse_hits(d2, radii)
+    return {f"online_coverage_{round(100 * lv)}": float(c) for lv, c in zip(online.levels, hits)}
+
+
 def calibration_scores(forecast: GaussianForecast, truth: np.ndarray,
                        mixture: ScaleMixture | ConditionalScaleMixture | None = None,
                        feature: np.ndarray | None = None) -> dict[str, Any]:
@@ -386,9 +414,13 @@ def train_fold_seq2seq(data_dir: Path, fold: str, cfg: Seq2SeqConfig, name: str,
 def run_fold(data_dir: Path, fold: str, models: Sequence[str], lstm: LSTMBenchSettings,
              progress: bool = True, seq2seq: Seq2SeqConfig | None = None,
              calibration: str = "mixture",
-             speed_edges: Sequence[float] = SPEED_EDGES_M_S) -> dict[str, FoldOutcome]:
+             speed_edges: Sequence[float] = SPEED_EDGES_M_S,
+             online: AdaptiveConformal | None = None) -> dict[str, FoldOutcome]:
     """Evaluate the requested models on one fold: ADE/FDE on test and val, and (models with a
-    distribution) calibration on test after a calibration fitted on val."""
+    distribution) calibration on test after a calibration fitted on val, and the coverage of
+    the ``online`` adaptive conformal ellipses (:func:`online_coverage`; default
+    :class:`AdaptiveConformal`'s settings)."""
+    online = online if online is not None else AdaptiveConformal(CALIBRATION_LEVELS)
     seq2seq = seq2seq if seq2seq is not None else Seq2SeqConfig()
     k = seq2seq.neighbours if any(m in SEQ2SEQ_CELL for m in models) else 0
     test = load_split(data_dir, fold, "test", neighbours=k)
@@ -438,6 +470,7 @@ def run_fold(data_dir: Path, fold: str, models: Sequence[str], lstm: LSTMBenchSe
                 calib = calibration_scores(raw_test.scaled(scale), test.future())
             calib["uncalibrated"] = {k: v for k, v in calibration_scores(
                 raw_test, test.future()).items() if k != "reliability"}
+            calib.update(online_coverage(online, raw_val, val.future(), raw_test, test))
         out[name] = FoldOutcome(a, f, len(test), time.perf_counter() - t0, fitted, calib)
     return out
 
@@ -526,11 +559,11 @@ def benchmark_items(models: Sequence[str], folds: Sequence[str]) -> list[tuple[s
 
 def _run_item(item: tuple[str, str], *, data_dir: Path, lstm: LSTMBenchSettings,
               progress: bool, seq2seq: Seq2SeqConfig, calibration: str,
-              speed_edges: Sequence[float]) -> FoldOutcome:
+              speed_edges: Sequence[float], online: AdaptiveConformal) -> FoldOutcome:
     """One model on one fold (module level, so it pickles): :func:`run_fold` with that model."""
     fold, model = item
     return run_fold(data_dir, fold, (model,), lstm, progress=progress, seq2seq=seq2seq,
-                    calibration=calibration, speed_edges=speed_edges)[model]
+                    calibration=calibration, speed_edges=speed_edges, online=online)[model]
 
 
 def run_benchmark(settings: EthUcySettings, *, progress: bool = True,
@@ -551,7 +584,8 @@ def run_benchmark(settings: EthUcySettings, *, progress: bool = True,
     items = benchmark_items(settings.models, settings.folds)
     work = partial(_run_item, data_dir=settings.data_dir, lstm=settings.lstm,
                    progress=progress and jobs <= 1, seq2seq=settings.seq2seq,
-                   calibration=settings.calibration, speed_edges=settings.speed_edges)
+                   calibration=settings.calibration, speed_edges=settings.speed_edges,
+                   online=settings.online)
     outcomes = dict(zip(items, parallel_map(work, items, jobs,
                                             progress="ETH/UCY folds x models" if progress
                                             else None)))
