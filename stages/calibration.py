@@ -4,7 +4,8 @@ LSTM (an error model of its own validation errors in the walker's heading frame)
 velocity (its fitted noise model) and Kalman (its own covariance) each get a per-step scale
 fitted on (history, future) pairs of the windows split's validation paths
 (blindspot.traj.calibration); coverage of the 50/90/95 % ellipses and NLL are scored on the test
-paths ("sim_paths"). A declared dep ending in calibration_ethucy.json (the ETH/UCY folds, same
+paths ("sim_paths"), beside the coverage of the adaptive conformal ellipses (online_coverage_*,
+each held-out path a stream: blindspot.traj.conformal). A declared dep ending in calibration_ethucy.json (the ETH/UCY folds, same
 shape) is merged in. The fitted numbers go to data/calibration/models.json for the benchmark.
 """
 
@@ -19,8 +20,10 @@ from blindspot import experiment
 from blindspot.cli import main_stage
 from blindspot.io import write_json
 from blindspot.stage import StageResult
-from blindspot.traj.calibration import (ETHUCY_FILE, ETHUCY_NAMES, calibrate,
-                                        calibration_scores, path_pairs, to_record)
+from blindspot.traj.calibration import (ETHUCY_FILE, ETHUCY_NAMES, LEVELS, calibrate,
+                                        calibration_scores, online_scores, path_pairs,
+                                        to_record)
+from blindspot.traj.conformal import AdaptiveConformal
 from blindspot.traj.lstm import LSTMPredictor
 from blindspot.traj.paths import table_to_arrays
 from blindspot.traj.windows import WindowSet
@@ -39,12 +42,14 @@ def run(cfg, ctx):
     # spare paths the split did not need)
     ids["test"] = np.setdiff1d(np.arange(len(truth)), np.concatenate([ids["train"], ids["val"]]))
     pairs = {split: path_pairs(measured[ids[split]], truth[ids[split]], window, c.horizon_frames,
-                               c.stride) for split in ("val", "test")}
+                               c.stride, with_index=split == "test") for split in ("val", "test")}
     lstm = LSTMPredictor.load(ctx.dep("model.pt")).with_workers(experiment.jobs(cfg))
     calibrated = calibrate(experiment.predictors(cfg, lstm), *pairs["val"],
                            scale_method=c.scale_method, scale_level=c.scale_level,
                            cv_fit_points=experiment.evaluation(cfg).cv_fit_points)
-    metrics = {name: {"sim_paths": {**calibration_scores(p, *pairs["test"]),
+    online = AdaptiveConformal(LEVELS, c.online_gamma, c.online_window)
+    metrics = {name: {"sim_paths": {**calibration_scores(p, *pairs["test"][:2]),
+                                    **online_scores(p, online, pairs["val"], pairs["test"]),
                                     "n_paths": int(len(ids["test"]))}}
                for name, p in calibrated.items()}
     for path in ctx.files.deps:                 # the ETH/UCY folds, where the stage declares them
@@ -58,7 +63,9 @@ def run(cfg, ctx):
         if s:
             print(f"calibration {name}: coverage 50/90/95 {s['coverage_50']:.3f} / "
                   f"{s['coverage_90']:.3f} / {s['coverage_95']:.3f}, NLL {s['nll']:.3f} "
-                  f"({s['n_points']} points of {s['n_paths']} held-out paths)")
+                  f"({s['n_points']} points of {s['n_paths']} held-out paths); online "
+                  f"{s['online_coverage_50']:.3f} / {s['online_coverage_90']:.3f} / "
+                  f"{s['online_coverage_95']:.3f}")
     return StageResult(metrics=metrics)
 
 

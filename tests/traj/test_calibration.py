@@ -32,6 +32,35 @@ def test_path_pairs_take_the_next_true_points_and_drop_unfillable_windows():
     assert np.isfinite(h).all()
     with pytest.raises(CalibrationError, match="must fit"):
         path_pairs(meas, truth, 50, 20, 1)
+    # with_index: each pair's path and first frame, the dropped window left out
+    h2, f2, path, start = path_pairs(meas, truth, 10, 5, 10, with_index=True)
+    np.testing.assert_array_equal(h2, h)
+    assert path.tolist() == [0] * (len(starts) - 1) + [1] * len(starts) + [2] * len(starts)
+    assert start.tolist() == list(starts[1:]) + list(starts) * 2
+    for i in range(len(h2)):
+        np.testing.assert_array_equal(f2[i], truth[path[i], start[i] + 10:start[i] + 15])
+
+
+def test_online_scores_follow_a_scene_the_val_calibration_misjudges():
+    """Validation walks with 0.05 m radar noise, test walks with 0.25 m (another sensor): the
+    val-calibrated Kalman ellipses under-cover the test paths, the adaptive conformal ones
+    (the paths one stream, val scores first) come within 2 pp of every level."""
+    from blindspot.traj.calibration import online_scores
+    from blindspot.traj.conformal import AdaptiveConformal
+
+    tv, mv = cv_paths(200, 120, seed=11)
+    tt, _ = cv_paths(200, 120, seed=12)
+    mt = tt + np.random.default_rng(13).normal(0, 0.25, tt.shape)
+    val = path_pairs(mv, tv, 20, 10, 5)
+    test = path_pairs(mt, tt, 20, 10, 5, with_index=True)
+    cal = calibrate({"kalman": KalmanCV(dt=0.1, process_psd=0.3, meas_std=0.05)}, *val,
+                    scale_method="mixture")["kalman"]
+    static = calibration_scores(cal, *test[:2])
+    assert static["coverage_90"] < 0.8
+    online = online_scores(cal, AdaptiveConformal(window=100, gamma=0.01), val, test)
+    assert set(online) == {"online_coverage_50", "online_coverage_90", "online_coverage_95"}
+    for level in (50, 90, 95):
+        assert online[f"online_coverage_{level}"] == pytest.approx(level / 100, abs=0.02), level
 
 
 class PointOnly:

@@ -42,7 +42,7 @@ from blindspot.traj.distribution import (DistributionError, GaussianForecast, Sc
 from blindspot.traj.windows import interpolate_gaps
 
 __all__ = ["ETHUCY_FILE", "ETHUCY_NAMES", "CalibrationError", "path_pairs", "ErrorModelPredictor", "ScaledPredictor",
-           "calibrate", "calibration_scores", "to_record", "from_record"]
+           "calibrate", "calibration_scores", "online_scores", "to_record", "from_record"]
 
 LEVELS = (0.5, 0.9, 0.95)
 # The ETH/UCY folds' calibration (same shape, written by the ethucy work): merged into
@@ -57,12 +57,13 @@ class CalibrationError(ValueError):
 
 
 def path_pairs(measured: np.ndarray, truth: np.ndarray, window: int, horizon: int,
-               stride: int) -> tuple[np.ndarray, np.ndarray]:
+               stride: int, *, with_index: bool = False) -> tuple[np.ndarray, ...]:
     """(history (N, window, 2), future (N, horizon, 2)) pairs of measured paths.
 
     measured, truth: (P, T, 2), m; measured NaN where the radar gave no point. History windows
     start every ``stride`` points; a window that still holds a miss after linear interpolation
-    of interior gaps (path start / end) is dropped. Vectorised (sliding windows).
+    of interior gaps (path start / end) is dropped. Vectorised (sliding windows). With
+    ``with_index`` also each pair's path (N,) (row of ``measured``) and first frame (N,).
     """
     who = "path_pairs"
     m = check_array(measured, "measured", ("P", "T", 2), error=CalibrationError, who=who,
@@ -78,7 +79,10 @@ def path_pairs(measured: np.ndarray, truth: np.ndarray, window: int, horizon: in
     hist = filled[:, idx].reshape(-1, window, 2)
     future = t[:, fut].reshape(-1, horizon, 2)
     keep = np.isfinite(hist).all(axis=(1, 2))
-    return hist[keep], future[keep]
+    if not with_index:
+        return hist[keep], future[keep]
+    path, start = np.divmod(np.arange(m.shape[0] * starts.size), starts.size)
+    return hist[keep], future[keep], path[keep], starts[start][keep]
 
 
 @dataclass(frozen=True, eq=False)
@@ -207,6 +211,27 @@ def calibration_scores(predictor, history: np.ndarray, future: np.ndarray) -> di
     return {"coverage_50": float(cov[0]), "coverage_90": float(cov[1]),
             "coverage_95": float(cov[2]), "nll": float(nll),
             "n_points": int(np.isfinite(future).all(axis=-1).sum())}
+
+
+def online_scores(predictor, online, val: tuple[np.ndarray, np.ndarray],
+                  test: tuple[np.ndarray, ...]) -> dict[str, float]:
+    """``{"online_coverage_50", ...}`` of a calibrated predictor's adaptive conformal ellipses
+    ``online`` (a :class:`~blindspot.traj.conformal.AdaptiveConformal`, passed in so that the
+    stages reading a calibration do not import it) on test pairs: ``val`` = (history,
+    future) whose scores fill the first window, ``test`` = (history, future, path, start) of
+    :func:`path_pairs` with ``with_index``. The paths are one stream, met one after another
+    as one radar meets walkers (path k's outcomes known before path k + 1 starts; a single walk
+    of a few seconds is too short to learn from its own outcomes); within a path a window is
+    predicted at its last history frame and its outcome known at its last future frame."""
+    h_val, f_val = val
+    h, f, path, start = test
+    d2_val = mahalanobis_sq(predictor.predict_distribution(h_val, f_val.shape[1]), f_val)
+    d2 = mahalanobis_sq(predictor.predict_distribution(h, f.shape[1]), f)
+    start = np.asarray(start, dtype=np.int64)
+    span = int(start.max(initial=0)) + h.shape[1] + f.shape[1] + 1  # frames of a path, and more
+    t_pred = np.asarray(path, dtype=np.int64) * span + start + h.shape[1] - 1
+    return online.coverage(d2, t_pred, t_pred + f.shape[1], np.zeros(len(d2), np.int64),
+                           d2_val)
 
 
 def to_record(p: ScaledPredictor) -> dict:

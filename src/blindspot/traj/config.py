@@ -421,6 +421,8 @@ class CalibrationConfig(TypedConfig):
     scale_method / scale_level: :func:`fit_step_scale`'s method and level, or ``"mixture"``:
         a per-step scale mixture (:func:`blindspot.traj.distribution.fit_scale_mixture`,
         heavy-tailed errors; ``scale_level`` unused).
+    online_gamma / online_window: the adaptive conformal ellipses scored beside
+        (:class:`blindspot.traj.conformal.AdaptiveConformal`; the ETH/UCY group's values).
     """
 
     GROUP = "calibration"
@@ -429,3 +431,5 @@ class CalibrationConfig(TypedConfig):
     stride: int = setting(ge=1, le=1000)
     scale_method: str = setting(choices=("mle", "quantile", "mixture"))
     scale_level: float = setting(gt=0.0, lt=1.0)
+    online_gamma: float = setting(ge=0.0, lt=1.0)
+    online_window: int = setting(ge=1)

@@ -42,6 +42,10 @@ from blindspot.arrays import check_array
 
 __all__ = ["AdaptiveConformal", "ConformalError", "ellipse_hits"]
 
+#: prefix of the adaptive ellipses' coverage keys in the metrics files
+#: (``online_coverage_50`` beside the val calibration's ``coverage_50``)
+KEY_PREFIX = "online_coverage_"
+
 
 class ConformalError(ValueError):
     """Scores, times or settings of :class:`AdaptiveConformal` of the wrong shape or value."""
@@ -118,6 +122,13 @@ class AdaptiveConformal:
             rows = np.flatnonzero(group == g)
             out[:, rows] = self._stream(s[rows], tp[rows], tr[rows], prior, alpha)
         return out
+
+    def coverage(self, scores: np.ndarray, t_predicted: np.ndarray, t_revealed: np.ndarray,
+                 stream: np.ndarray, prior: np.ndarray) -> dict[str, float]:
+        """``{"online_coverage_50": .., ...}``, one key per level (percent, rounded): the share
+        of the finite ``scores`` inside their :meth:`radii` (same arguments and errors)."""
+        hits = ellipse_hits(scores, self.radii(scores, t_predicted, t_revealed, stream, prior))
+        return {f"{KEY_PREFIX}{round(100 * lv)}": float(c) for lv, c in zip(self.levels, hits)}
 
     def _stream(self, s: np.ndarray, tp: np.ndarray, tr: np.ndarray, prior: np.ndarray,
                 alpha: np.ndarray) -> np.ndarray:

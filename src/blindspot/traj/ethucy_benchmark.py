@@ -48,7 +48,7 @@ import numpy as np
 
 from blindspot.traj.baselines import ConstantVelocity, KalmanCV
 from blindspot.traj.config import ETHUCY_MODELS, EthUcyConfig, Seq2SeqConfig
-from blindspot.traj.conformal import AdaptiveConformal, ellipse_hits
+from blindspot.traj.conformal import AdaptiveConformal
 from blindspot.traj.distribution import (
     ConditionalScaleMixture,
     GaussianForecast,
@@ -354,10 +354,8 @@ def online_coverage(online: AdaptiveConformal, val_forecast: GaussianForecast,
     d2_val = mahalanobis_sq(val_forecast, val_truth)
     d2 = mahalanobis_sq(test_forecast, test.future())
     start = np.asarray(test.start, dtype=np.int64)
-    radii = online.radii(d2, start + OBS_LEN - 1, start + OBS_LEN + PRED_LEN - 1,
-                         test.file_index, d2_val)
-    hits = ellipse_hits(d2, radii)
-    return {f"online_coverage_{round(100 * lv)}": float(c) for lv, c in zip(online.levels, hits)}
+    return online.coverage(d2, start + OBS_LEN - 1, start + OBS_LEN + PRED_LEN - 1,
+                           test.file_index, d2_val)
 
 
 def calibration_scores(forecast: GaussianForecast, truth: np.ndarray,
