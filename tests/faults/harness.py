@@ -164,11 +164,14 @@ def fingerprint(root: Path, rel: str) -> str:
 
 def unreadable(root: Path, outs: list[str]) -> list[str]:
     """Files under ``outs`` that their :data:`VOLATILE` normaliser cannot read (a torn
-    checkpoint); files without a normaliser are not opened."""
+    checkpoint), or, without a normaliser, that are empty (all that can be said of an unknown
+    format)."""
     bad = []
     for rel in files_of(root, outs):
         norm = normaliser(rel)
         if norm is None:
+            if (root / rel).stat().st_size == 0:
+                bad.append(f"{rel}: empty (no reader known for it)")
             continue
         try:
             norm((root / rel).read_bytes())

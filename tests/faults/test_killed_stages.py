@@ -6,7 +6,8 @@ new stage is covered without editing this file): the stage's command runs with a
 afterwards
 
 (a) every output is absent or byte-identical to the undisturbed run (a directory out whole or
-    absent; a persisted out, train's resume checkpoints, only readable); no temporary file is left that DVC would count as part of an output; no worker of
+    absent; a persisted out, train's resume checkpoints, readable files only); no temporary
+    file is left that DVC would count as part of an output; no worker of
     the stage outlives it;
 (b) `dvc status` shows the stage changed, unless every output was already complete;
 (c) after the next start (the rerun, or `python -m blindspot cleanup` when DVC reruns nothing),

@@ -108,6 +108,9 @@ def test_online_coverage_gets_its_own_row():
                               "online_coverage_90": 0.894, "online_coverage_95": 0.951}}}
     text = format_calibration(cal, FOLDS)
     assert table_row(text, "kalman, online") == ["kalman, online", "0.384* / 0.894 / 0.951", "-"]
+    cal["kalman"]["eth"]["online_unbounded_95"] = 0.041
+    assert table_row(format_calibration(cal, FOLDS), "kalman, online")[1] == \
+        "0.384* / 0.894 / 0.951; unbounded 4.1 %"
     assert table_row(text, "kalman")[1] == "0.250* / 0.660* / 0.750*; NLL 1.70"
 
 

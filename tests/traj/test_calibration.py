@@ -57,8 +57,10 @@ def test_online_scores_follow_a_scene_the_val_calibration_misjudges():
                     scale_method="mixture")["kalman"]
     static = calibration_scores(cal, *test[:2])
     assert static["coverage_90"] < 0.8
-    online = online_scores(cal, AdaptiveConformal(window=100, gamma=0.01), val, test)
-    assert set(online) == {"online_coverage_50", "online_coverage_90", "online_coverage_95"}
+    online = online_scores(cal, AdaptiveConformal((0.5, 0.9, 0.95), 0.01, 100), val, test)
+    assert {k for k in online if "coverage" in k} == {"online_coverage_50",
+                                                      "online_coverage_90", "online_coverage_95"}
+    assert online["online_unbounded_95"] < 0.01
     for level in (50, 90, 95):
         assert online[f"online_coverage_{level}"] == pytest.approx(level / 100, abs=0.02), level
 

@@ -210,8 +210,10 @@ class DetectionChain:
         """:meth:`range_doppler` and :meth:`detection_map` of a batch in one call: (rd (frames,
         doppler, tx, rx, range), range profiles or None, power float64 (frames, range,
         doppler)). Without a range window the map is summed while the FFT's blocks are in
-        cache (:meth:`blindspot.dsp.range_doppler.RangeDoppler.native_and_map`); the same bits
-        as the two steps apart. Raises RangeDopplerError as :meth:`range_doppler`."""
+        cache (:meth:`blindspot.dsp.range_doppler.RangeDoppler.native_and_map`; the same bits
+        as the two steps apart on x86-64 numpy); with one, or with ``detect.snapshots:
+        chirps`` (range profiles kept), the two steps run apart. Raises RangeDopplerError as
+        :meth:`range_doppler`."""
         cubes = self._check_cubes(cubes, "range_doppler", ndim=5)
         if self.detect.snapshots == "chirps":
             rd, profiles = self.range_doppler(cubes)

@@ -31,11 +31,12 @@ def format_calibration(calibration: Mapping[str, Mapping[str, Mapping[str, Any]]
     ellipses and the NLL (nats per point), from ``calibration.json``-shaped values; a cell is
     marked ``*`` where a coverage is more than 2 percentage points from nominal. A method whose
     rows hold ``online_coverage_*`` (the adaptive conformal ellipses,
-    :mod:`blindspot.traj.conformal`) gets a second row, "<method>, online"."""
+    :mod:`blindspot.traj.conformal`) gets a second row, "<method>, online", with the largest
+    share of its unbounded ellipses where that is not 0."""
     lines = ["| method | " + " | ".join(folds) + " |", "|---|" + "---|" * len(folds)]
     for m, rows in calibration.items():
         for prefix, label in (("", m), ("online_", f"{m}, online")):
-            if prefix and not any(f"online_coverage_50" in (rows.get(f) or {}) for f in folds):
+            if prefix and not any("online_coverage_50" in (rows.get(f) or {}) for f in folds):
                 continue
             cells = []
             for f in folds:
@@ -46,7 +47,11 @@ def format_calibration(calibration: Mapping[str, Mapping[str, Mapping[str, Any]]
                 cov = [(r[f"{prefix}coverage_{k}"], k / 100) for k in (50, 90, 95)]
                 txt = " / ".join(f"{c:.3f}" + ("*" if abs(c - n) > 0.02 else "")
                                  for c, n in cov)
-                cells.append(txt if prefix else f"{txt}; NLL {r['nll']:.2f}")
+                if prefix:  # the share of unbounded ellipses, where there are any
+                    u = max(r.get(f"online_unbounded_{k}", 0.0) for k in (50, 90, 95))
+                    cells.append(txt + (f"; unbounded {100 * u:.1f} %" if u > 0 else ""))
+                else:
+                    cells.append(f"{txt}; NLL {r['nll']:.2f}")
             lines.append(f"| {label} | " + " | ".join(cells) + " |")
     return "\n".join(lines)
 
@@ -218,7 +223,9 @@ def format_report(results: Results, validation: Results,
                   "(`blindspot.traj.conformal`, Gibbs & Candès 2021): each test scene a stream, "
                   "each prediction's ellipse radii the conformal quantiles of the last outcomes "
                   "already revealed when it is made (the val scores before any), at levels moved "
-                  "by ACI; they use the scene's past outcomes, never the one being scored.",
+                  "by ACI; they use the scene's past outcomes, never the one being scored. "
+                  "\"unbounded\": the share of points whose ellipse at some level is infinite "
+                  "(ACI asked for more than the window can give).",
                   "", format_calibration(calibration, folds),
                   "", "Reliability figure: `reports/figures/ethucy_reliability.png`."]
     if ablation:

@@ -4,7 +4,7 @@ the system has already seen.
 A calibration fitted on validation data (:mod:`blindspot.traj.calibration`,
 :func:`blindspot.traj.distribution.fit_scale_mixture`) is right for data like the validation
 data. A new scene is not: on the ETH/UCY test folds the 50 % ellipses of a val-calibrated
-forecast cover 16-68 % (``reports/metrics/calibration_ethucy.json``). A deployed predictor sees,
+forecast cover 15-68 % (``reports/metrics/calibration_ethucy.json`` of 2026-11-30). A deployed predictor sees,
 a few seconds after each prediction, where the pedestrian actually went. This module uses those
 revealed outcomes, and only those, to keep each level's ellipse calibrated:
 
@@ -16,14 +16,20 @@ revealed outcomes, and only those, to keep each level's ellipse calibrated:
   predictions whose whole future was revealed by t (split conformal prediction on a sliding
   window: Vovk, Gammerman & Shafer 2005; the ``ceil((1 - a)(M + 1))``-th smallest of M);
 * ``a_t`` follows adaptive conformal inference (ACI; Gibbs & Candès 2021, "Adaptive conformal
-  inference under distribution shift", NeurIPS): each revealed outcome moves it by
-  ``gamma (alpha - err)``, ``alpha = 1 - level``, ``err`` = 1 when that outcome fell outside
-  the ellipse it was given. Over any stream the long-run miscoverage then tends to ``alpha``
-  whatever the shift (their Proposition 4.1: the average error is within
-  ``(max(a_1, 1 - a_1) + gamma) / (gamma T)`` of ``alpha`` after T outcomes).
+  inference under distribution shift", NeurIPS): at each prediction time that has new revealed
+  outcomes it moves once, by ``gamma (alpha - err)``, ``alpha = 1 - level``, ``err`` the share
+  of those outcomes that fell outside the ellipse they were given. One step per time, not per
+  outcome: a crowded frame (ETH/UCY univ reveals up to 57 outcomes at once) would otherwise
+  push the level past 0 or 1 and buy its coverage with unbounded or empty ellipses. Gibbs &
+  Candès' Proposition 4.1 (average miscoverage within ``(max(a_1, 1 - a_1) + gamma) /
+  (gamma T)`` of ``alpha`` after T steps) is for one outcome per step revealed at once; with
+  several per step, revealed a horizon late, it holds only approximately, so the coverage is
+  reported with the share of unbounded ellipses (:meth:`AdaptiveConformal.coverage`).
 
-The window starts filled with the validation scores (the prior: before the first revealed
-outcome the ellipses are the validation data's conformal ones) and slides into the stream's own.
+The window starts filled with validation scores (the prior: before the first revealed outcome
+the ellipses are the validation data's conformal ones): ``window`` of them evenly spaced
+through the validation set (all its scenes, not the tail of its last file), then it slides into
+the stream's own.
 Causal by construction: a prediction's radii depend on scores revealed strictly by its own time
 (tested by changing every later score). One stream per scene recording (``stream``): outcomes
 are not shared between recordings.
@@ -56,24 +62,28 @@ class AdaptiveConformal:
     """Sliding-window conformal ellipses with ACI level updates (module docstring).
 
     Attributes:
-        levels: nominal coverages in (0, 1), e.g. (0.5, 0.9, 0.95).
-        gamma: ACI step size (Gibbs & Candès 2021 use 0.005; 0 = plain sliding-window
-            conformal prediction).
-        window: revealed scores kept per step (the most recent ones), >= 1.
+        levels: nominal coverages in (0, 1), e.g. (0.5, 0.9, 0.95), distinct in whole percent
+            (they name the metrics keys).
+        gamma: ACI step size per prediction time (Gibbs & Candès 2021 use 0.005; 0 = plain
+            sliding-window conformal prediction).
+        window: revealed predictions whose scores are kept (the most recent ones), >= 1; a
+            step without truth (NaN) in some of them has fewer scores.
     """
 
-    levels: tuple[float, ...] = (0.5, 0.9, 0.95)
+    levels: tuple[float, ...]
     gamma: float = 0.005
-    window: int = 300
+    window: int = 100
 
     def __post_init__(self) -> None:
         lv = np.asarray(self.levels, float)
-        if lv.ndim != 1 or lv.size == 0 or not np.all((lv > 0) & (lv < 1)):
-            raise ConformalError(f"levels: expected nominal coverages in (0, 1), found "
-                                 f"{self.levels!r}")
+        if lv.ndim != 1 or lv.size == 0 or not np.all((lv > 0) & (lv < 1)) \
+                or len({round(100 * x) for x in lv}) != lv.size:
+            raise ConformalError(f"levels: expected nominal coverages in (0, 1), distinct in "
+                                 f"whole percent, found {self.levels!r}")
         if not (np.isfinite(self.gamma) and 0 <= self.gamma < 1):
             raise ConformalError(f"gamma: expected a step size in [0, 1), found {self.gamma!r}")
-        if not (isinstance(self.window, (int, np.integer)) and self.window >= 1):
+        if isinstance(self.window, bool) or not (isinstance(self.window, (int, np.integer))
+                                                 and self.window >= 1):
             raise ConformalError(f"window: expected an integer >= 1, found {self.window!r}")
 
     def radii(self, scores: np.ndarray, t_predicted: np.ndarray, t_revealed: np.ndarray,
@@ -88,7 +98,8 @@ class AdaptiveConformal:
                 ``t_predicted``; an outcome is used by the predictions made at or after it.
             stream: (N,) int, the recording each prediction belongs to; each stream starts
                 from ``prior`` and level ``1 - alpha``.
-            prior: (M, H) validation scores (NaN allowed), the window's initial content.
+            prior: (M, H) validation scores (NaN allowed): ``window`` of them, evenly spaced
+                through the M, are the window's initial content.
 
         Returns:
             (L, N, H) float: +inf where the level asks for more than the window holds (a
@@ -112,12 +123,14 @@ class AdaptiveConformal:
         tr = check_array(t_revealed, "t_revealed", (n,), error=ConformalError, who=who)
         group = check_array(stream, "stream", (n,), error=ConformalError, who=who, dtype=int)
         if np.any(tr <= tp):
-            raise ConformalError("t_revealed: an outcome is known only after its prediction is "
-                                 f"made (t_revealed > t_predicted); first bad row "
-                                 f"{int(np.argmax(tr <= tp))}")
+            i = int(np.argmax(tr <= tp))
+            raise ConformalError(f"{who}: t_revealed must be after t_predicted (an outcome is "
+                                 f"known only after its prediction is made); row {i} has "
+                                 f"t_predicted {tp[i]:g}, t_revealed {tr[i]:g}")
         alpha = 1.0 - np.asarray(self.levels, float)                      # (L,)
         out = np.empty((alpha.size, n, h))
-        prior = prior[-self.window:]
+        if prior.shape[0] > self.window:   # evenly spaced through the validation set
+            prior = prior[np.arange(self.window) * prior.shape[0] // self.window]
         for g in np.unique(group):
             rows = np.flatnonzero(group == g)
             out[:, rows] = self._stream(s[rows], tp[rows], tr[rows], prior, alpha)
@@ -125,10 +138,24 @@ class AdaptiveConformal:
 
     def coverage(self, scores: np.ndarray, t_predicted: np.ndarray, t_revealed: np.ndarray,
                  stream: np.ndarray, prior: np.ndarray) -> dict[str, float]:
-        """``{"online_coverage_50": .., ...}``, one key per level (percent, rounded): the share
-        of the finite ``scores`` inside their :meth:`radii` (same arguments and errors)."""
-        hits = ellipse_hits(scores, self.radii(scores, t_predicted, t_revealed, stream, prior))
-        return {f"{KEY_PREFIX}{round(100 * lv)}": float(c) for lv, c in zip(self.levels, hits)}
+        """Coverage and size of the :meth:`radii` (same arguments and errors), for the metrics
+        files: ``online_coverage_<p>`` (p = the level in whole percent): the share of the
+        finite ``scores`` inside their ellipse; ``online_unbounded_<p>``: the share of those
+        points whose ellipse is unbounded (+inf: a coverage bought that way says nothing);
+        ``online_radius_<p>``: the median finite radius, in standard deviations of the
+        forecast's own covariance (sqrt of d^2; a Gaussian's 90 % ellipse: 2.15)."""
+        radii = self.radii(scores, t_predicted, t_revealed, stream, prior)
+        hits = ellipse_hits(scores, radii)
+        seen = ~np.isnan(np.asarray(scores, float))
+        out: dict[str, float] = {}
+        for lv, c, r in zip(self.levels, hits, radii):
+            p = round(100 * lv)
+            finite = r[seen & np.isfinite(r)]
+            out[f"{KEY_PREFIX}{p}"] = float(c)
+            out[f"online_unbounded_{p}"] = float(np.isinf(r[seen]).mean()) if seen.any() else 0.0
+            out[f"online_radius_{p}"] = float(np.sqrt(np.median(finite))) if finite.size \
+                else float("inf")
+        return out
 
     def _stream(self, s: np.ndarray, tp: np.ndarray, tr: np.ndarray, prior: np.ndarray,
                 alpha: np.ndarray) -> np.ndarray:
@@ -144,11 +171,13 @@ class AdaptiveConformal:
         n_seen = 0                                                       # outcomes revealed
         for k, t in enumerate(times):
             now = int(np.searchsorted(tr[by_reveal], t, side="right"))
-            if now > n_seen:   # outcomes revealed since the last prediction time: ACI update
+            if now > n_seen:   # outcomes revealed since the last prediction time: one ACI step
                 j = by_reveal[n_seen:now]
-                err = s[j][None] > out[:, j]                              # (L, J, H)
-                seen = ~np.isnan(s[j])[None]
-                a += self.gamma * (alpha[:, None] * seen.sum(1) - (err & seen).sum(1))
+                seen = ~np.isnan(s[j])                                    # (J, H)
+                err = (s[j][None] > out[:, j]) & seen[None]               # (L, J, H)
+                n_ok = seen.sum(0)                                        # (H,)
+                share = err.sum(1) / np.maximum(n_ok, 1)                  # (L, H)
+                a += np.where(n_ok > 0, self.gamma * (alpha[:, None] - share), 0.0)
                 n_seen = now
             hi = prior.shape[0] + n_seen
             recent = pool[max(0, hi - self.window):hi]                    # (M, H)
@@ -167,7 +196,7 @@ def _conformal_quantile(scores: np.ndarray, q: np.ndarray) -> np.ndarray:
     rank = np.ceil(q * (m + 1) - 1e-9).astype(np.int64) - 1    # (L, H), 0-based
     value = np.take_along_axis(srt, np.clip(rank, 0, max(scores.shape[0] - 1, 0)), axis=0) \
         if scores.shape[0] else np.full(q.shape, np.inf)
-    value = np.where(rank >= m, np.inf, value)
+    value = np.where(np.maximum(rank, 0) >= m, np.inf, value)
     return np.where(q <= 0, 0.0, value)
 
 

@@ -210,7 +210,8 @@ class EthUcySettings:
     seq2seq: Seq2SeqConfig = field(default_factory=Seq2SeqConfig)
     calibration: str = "mixture"
     speed_edges: tuple[float, ...] = SPEED_EDGES_M_S
-    online: AdaptiveConformal = field(default_factory=AdaptiveConformal)
+    online: AdaptiveConformal = field(
+        default_factory=lambda: AdaptiveConformal(CALIBRATION_LEVELS))
 
     def __post_init__(self) -> None:
         if self.calibration not in CALIBRATIONS:
