@@ -248,3 +248,27 @@ def test_opening_a_store_leaves_the_garbage_collector_as_it_was(tmp_path: Path,
     finally:
         (gc.enable if was else gc.disable)()
     assert [e.name for e in client.search_experiments()] == ["Default"]
+
+
+@pytest.mark.parametrize("was_enabled", [True, False])
+def test_the_collector_pause_restores_the_collector_even_on_an_error(was_enabled):
+    """get_client's pause of the cyclic garbage collector: off inside, back as it was after,
+    also when the block raises (a store that cannot be opened must not leave the collector off
+    for the rest of the stage)."""
+    import gc
+
+    from blindspot.tracking.store import _gc_paused
+
+    before = gc.isenabled()
+    try:
+        (gc.enable if was_enabled else gc.disable)()
+        with pytest.raises(RuntimeError, match="store"):
+            with _gc_paused():
+                assert not gc.isenabled()
+                raise RuntimeError("store cannot be opened")
+        assert gc.isenabled() is was_enabled
+        with _gc_paused():
+            assert not gc.isenabled()
+        assert gc.isenabled() is was_enabled
+    finally:
+        (gc.enable if before else gc.disable)()

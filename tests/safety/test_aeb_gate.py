@@ -115,11 +115,16 @@ def test_gate_off_reproduces_the_ungated_decisions():
     assert res.warn_frame.tolist() == [1, 2, -1, -1]
     pd.testing.assert_frame_equal(res, scene_results(p, info, impact, np.array([0.0, 0.1, 0.2]),
                                                      **kw))
-    # gated at 30 km/h (gate 0.78 s + 0.1 s): the TTC-0.5 s rows count, the 2.9 s ones not
-    _, p_g = frame_risks(rows, scenes, np.full(4, 30 / KMH), 3, b, gate="stopping_time",
-                         margin_s=0.0, decision_delay_s=0.1)
-    assert np.array_equal(p_g, p)
-    assert np.array_equal(scene_frame_risk(rows, scenes, 3, gate_s=np.full(len(rows), 1.0)), p)
+    # gated at 30 km/h (gate 0.78 s + 0.1 s): the TTC-0.5 s rows count, the 2.9 s ones not;
+    # the far rows carry the larger risk here, so a frame's maximum cannot hide them
+    far = pd.concat([_rows(scenes[s], f, p[s, f], 2.9), _rows(scenes[s], f, p[s, f] / 2, 0.5)],
+                    ignore_index=True)
+    p_w, p_g = frame_risks(far, scenes, np.full(4, 30 / KMH), 3, b, gate="stopping_time",
+                           margin_s=0.0, decision_delay_s=0.1)
+    assert np.array_equal(p_w, p)                        # the warning sees every row
+    assert np.array_equal(p_g, p / 2)                    # the AEB only the near ones
+    assert np.array_equal(scene_frame_risk(far, scenes, 3, gate_s=np.full(len(far), 1.0)),
+                          p / 2)
 
 
 def test_replicate_half_splits_every_cell_and_names_a_bad_scene():
@@ -141,7 +146,8 @@ def test_gate_config_is_typed():
     base = OmegaConf.to_container(OmegaConf.load(
         Path(__file__).resolve().parents[2] / "conf" / "warning" / "default.yaml"))
     w = WarningConfig.from_mapping(base)
-    assert w.aeb_gate in ("none", "stopping_time")
+    # the README's default: the gate on, at the margin tuned on the even replicates
+    assert (w.aeb_gate, w.aeb_gate_margin_s) == ("stopping_time", pytest.approx(0.2))
     with pytest.raises(ConfigError, match="warning.aeb_gate"):
         WarningConfig.from_mapping({**base, "aeb_gate": "ttc"})
     with pytest.raises(ConfigError, match="warning.aeb_gate_margin_s"):
