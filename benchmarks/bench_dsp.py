@@ -1,6 +1,7 @@
 """Speed of the detection chain on one MMWCAS frame, beside the peer chain, in one run.
 
-    python benchmarks/bench_dsp.py [--threads 1] [--batch 64] [--set detect.max_range_m=null]
+    python benchmarks/bench_dsp.py [--threads 1] [--batch 64] [--rounds 5]
+                                   [--set detect.max_range_m=null]
 
 Runs the peer chain a user would assemble from public libraries (OpenRadar + doa-py,
 ``../shared/bench/peer_chain.py``, in the venv named by ``PEERBENCH_VENV``; set it up once with
@@ -14,6 +15,12 @@ alone and says how to get the peer. The peer processes the full 256-bin range: c
 The peer reports wall time only; its CPU time per frame is taken from the process CPU of two of
 its runs (13 frames minus 5 frames: start-up, frame synthesis and dump cancel) and printed beside
 ours (``time.thread_time``) with the CPU ratio, the steadier figure on a loaded machine.
+
+``--rounds N`` (default 5) repeats the pair N times, peer and ours alternately, and prints each
+round's ratio and the median over rounds. On the shared 2-core VM both chains' times swing by
+20-45 % over minutes (every step of a chain slower together, then not), so one pair measured a
+minute apart can land on opposite sides of a swing; alternating in rounds exposes both to the
+same stretches, and the median over rounds is the figure to quote.
 
 ``--baseline REV`` instead compares two versions of our own chain in one process, on the same
 frame: the package as committed at git revision REV (exported with ``git archive`` into a
@@ -39,6 +46,8 @@ import subprocess
 import sys
 import tempfile
 from pathlib import Path
+
+import numpy as np
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -151,6 +160,8 @@ def main() -> int:
     ap.add_argument("--threads", type=int, default=1)
     ap.add_argument("--batch", type=int, default=64, help="frames/s of a batch of N (0: skip)")
     ap.add_argument("--repeats", type=int, default=30)
+    ap.add_argument("--rounds", type=int, default=5,
+                    help="peer and ours measured alternately this many times (median ratio)")
     ap.add_argument("--set", dest="overrides", action="append", default=None,
                     metavar="KEY=VALUE", help="Hydra overrides for our chain "
                     "(default: detect.max_range_m=null, the peer's full range)")
@@ -173,28 +184,43 @@ def main() -> int:
         return 0
     peer_cmd = [str(peer_python), str(_shared() / "bench" / "peer_chain.py"), "--threads",
                 str(args.threads), "--json"]
+    if args.rounds < 1:
+        ap.error("--rounds must be >= 1")
+    rounds = []
     with tempfile.TemporaryDirectory() as tmp:
         frame = Path(tmp) / "frame.npz"
-        print("== peer chain (OpenRadar + doa-py)")
-        peer, cpu_long = _run(peer_cmd + ["--reps", "12", "--warmup", "1", "--dump-frame",
-                                          str(frame)], args.threads)
-        # the peer reports wall time only: its CPU time per frame is the difference of the
-        # process CPU of this run (13 frames) and of a run of 5 frames (start-up, the frame's
-        # synthesis and its dump cancel)
-        _, cpu_short = _run(peer_cmd + ["--reps", "5", "--warmup", "0", "--dump-frame",
-                                        str(Path(tmp) / "again.npz")], args.threads, quiet=True)
-        peer_cpu_ms = (cpu_long - cpu_short) / (13 - 5) * 1e3
-        print(f"peer CPU per frame: {peer_cpu_ms:.1f} ms (process CPU of 13 frames minus 5)")
-        print("\n== blindspot chain, same frame")
-        mine, _ = _run(ours + ["--frame", str(frame)], args.threads)
-    print(f"\nratio (ours / peer), one frame, {args.threads} thread(s): "
-          f"{mine['fps'] / peer['fps']:.1f}x ({mine['fps']:.1f} vs {peer['fps']:.1f} frames/s)")
-    print(f"ratio of CPU time per frame: {peer_cpu_ms / mine['cpu_ms_per_frame']:.1f}x "
-          f"({mine['cpu_ms_per_frame']:.1f} vs {peer_cpu_ms:.1f} ms; steadier than wall time "
-          f"on a loaded machine, load average {os.getloadavg()[0]:.1f})")
+        for k in range(args.rounds):
+            last = k == args.rounds - 1   # the tables of the last round are printed
+            print(f"== round {k + 1} of {args.rounds}: peer chain (OpenRadar + doa-py)")
+            peer, cpu_long = _run(peer_cmd + ["--reps", "12", "--warmup", "1", "--dump-frame",
+                                              str(frame)], args.threads, quiet=not last)
+            # the peer reports wall time only: its CPU time per frame is the difference of the
+            # process CPU of this run (13 frames) and of a run of 5 frames (start-up, the
+            # frame's synthesis and its dump cancel)
+            _, cpu_short = _run(peer_cmd + ["--reps", "5", "--warmup", "0", "--dump-frame",
+                                            str(Path(tmp) / "again.npz")], args.threads,
+                                quiet=True)
+            peer_cpu_ms = (cpu_long - cpu_short) / (13 - 5) * 1e3
+            print(f"== round {k + 1}: blindspot chain, same frame")
+            mine, _ = _run(ours + ["--frame", str(frame)] + ([] if last else ["--batch", "0"]),
+                           args.threads, quiet=not last)
+            rounds.append((peer["ms_per_frame"], mine["ms_per_frame"], peer_cpu_ms,
+                           mine["cpu_ms_per_frame"]))
+            print(f"   peer {peer['ms_per_frame']:.1f} ms ({peer_cpu_ms:.1f} CPU), ours "
+                  f"{mine['ms_per_frame']:.1f} ms ({mine['cpu_ms_per_frame']:.1f} CPU): "
+                  f"{peer['ms_per_frame'] / mine['ms_per_frame']:.1f}x wall, "
+                  f"{peer_cpu_ms / mine['cpu_ms_per_frame']:.1f}x CPU")
+    r = np.array(rounds)                                   # (rounds, 4)
+    wall, cpu = r[:, 0] / r[:, 1], r[:, 2] / r[:, 3]
+    print(f"\nratio (ours / peer), one frame, {args.threads} thread(s), {args.rounds} "
+          f"alternating rounds: median {np.median(wall):.1f}x (rounds "
+          f"{', '.join(f'{x:.1f}' for x in wall)}); median frame times ours "
+          f"{np.median(r[:, 1]):.1f} ms, peer {np.median(r[:, 0]):.1f} ms")
+    print(f"ratio of CPU time per frame: median {np.median(cpu):.1f}x (rounds "
+          f"{', '.join(f'{x:.1f}' for x in cpu)}); load average {os.getloadavg()[0]:.1f}")
     if mine.get("batch_fps"):
-        print(f"ratio, ours in batches of {args.batch}: {mine['batch_fps'] / peer['fps']:.1f}x "
-              f"({mine['batch_fps']:.1f} frames/s)")
+        print(f"ratio, ours in batches of {args.batch} (last round): "
+              f"{mine['batch_fps'] * r[-1, 0] / 1e3:.1f}x ({mine['batch_fps']:.1f} frames/s)")
     return 0
 
 

@@ -169,7 +169,7 @@ def test_benchmark_command_prints_json(capsys):
     summary = json.loads(last)
     assert set(summary) >= {"fps", "ms_per_frame", "steps", "n_detections"}
     assert summary["fps"] > 0 and summary["n_detections"] >= 1
-    assert {"range_doppler_map", "cfar", "doa", "points"} <= set(summary["steps"])
+    assert {"range_doppler", "cfar", "doa", "points"} <= set(summary["steps"])
 
 
 def test_a_batch_gives_what_each_frame_gives(paper):

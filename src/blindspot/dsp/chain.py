@@ -6,8 +6,7 @@ a leading frames axis:
 
 1. ``range_doppler``: windowed range and Doppler FFTs (zero-Doppler centred):
    cubes (frames, chirps, tx, rx, samples) -> (frames, doppler, tx, rx, range).
-2. ``detection_map``: sum of |X|^2 over all virtual channels -> (frames, range, doppler);
-   ``range_doppler_map`` does steps 1 and 2 in one pass over the data (one timing).
+2. ``detection_map``: sum of |X|^2 over all virtual channels -> (frames, range, doppler).
 3. ``run_cfar``: 2-D CFAR (CA / GO / SO / OS) on every map -> mask, threshold, noise
    (frames, range, doppler).
 4. ``select_cells``: CFAR cells inside the range window (``min_range_m``..``max_range_m``),
@@ -205,22 +204,6 @@ class DetectionChain:
             return self.rd.doppler(profiles), profiles
         return self.rd.native(cubes), None
 
-    def range_doppler_map(self, cubes: np.ndarray
-                          ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
-        """:meth:`range_doppler` and :meth:`detection_map` of a batch in one call: (rd (frames,
-        doppler, tx, rx, range), range profiles or None, power float64 (frames, range,
-        doppler)). Without a range window the map is summed while the FFT's blocks are in
-        cache (:meth:`blindspot.dsp.range_doppler.RangeDoppler.native_and_map`; the same bits
-        as the two steps apart on x86-64 numpy); with one, or with ``detect.snapshots:
-        chirps`` (range profiles kept), the two steps run apart. Raises RangeDopplerError as
-        :meth:`range_doppler`."""
-        cubes = self._check_cubes(cubes, "range_doppler", ndim=5)
-        if self.detect.snapshots == "chirps":
-            rd, profiles = self.range_doppler(cubes)
-            return rd, profiles, self.detection_map(rd)
-        rd, power = self.rd.native_and_map(cubes)
-        return rd, None, power
-
     def _check_cubes(self, cubes: np.ndarray, where: str, ndim: int) -> np.ndarray:
         """Cubes of the radar profile's shape: (frames, chirps, tx, rx, samples) for ``ndim`` 5,
         one (chirps, tx, rx, samples) for 4; numbers (finiteness: see RangeDoppler)."""
@@ -351,8 +334,10 @@ class DetectionChain:
             t.append(time.perf_counter())
             steps[name] = (t[-1] - t[-2]) * 1e3
 
-        rd, profiles, power = self.range_doppler_map(cubes)
-        lap("range_doppler_map")
+        rd, profiles = self.range_doppler(cubes)
+        lap("range_doppler")
+        power = self.detection_map(rd)
+        lap("map")
         mask, threshold, noise = self.run_cfar(power)
         lap("cfar")
         fi, rb, db = self.select_cells(power, mask)

@@ -211,16 +211,9 @@ class RangeDoppler:
             np.multiply(_to_channel_major(cube), w, out=buf)
         return buf
 
-    def _fft2(self, cube: np.ndarray, squares: np.ndarray | None = None) -> np.ndarray:
+    def _fft2(self, cube: np.ndarray) -> np.ndarray:
         """Window and both FFTs: complex64 C-contiguous (..., tx, rx, doppler, range) of a
         checked cube (..., chirps, tx, rx, samples), in cache-sized blocks of virtual channels.
-
-        ``squares`` (frames, doppler * range * 2) float32 zeros: each block's channels, while
-        the block is still in cache, are squared (real and imaginary parts apart) and added to
-        it channel after channel (:func:`_add_squares`), so the detection map costs no second
-        pass over the data. The same order and roundings as :func:`_channel_power`'s einsum
-        where numpy's einsum multiplies and adds apart (x86-64 wheels: bit for bit, tested);
-        where it fuses them (aarch64) the two differ in the last bits.
 
         A block (about ``_BLOCK_BYTES``: 2 MMWCAS channels of 64 x 256 complex64; whole frames
         when a frame is smaller, otherwise a divisor of the frame's channels, so a block never
@@ -235,7 +228,7 @@ class RangeDoppler:
         per_ch = c * n * np.dtype(np.complex64).itemsize
         src = np.moveaxis(cube.reshape(n_frames, c, n_ch, n), 1, 2)  # (F, T*R, C, N) view
         out = _aligned_empty((*lead, t, r, c, n))
-        if n_frames == 0:  # an empty batch: nothing to transform (or to add to ``squares``)
+        if n_frames == 0:  # an empty batch: nothing to transform
             return out
         dst = out.reshape(n_frames, n_ch, c, n)
         budget = max(1, _BLOCK_BYTES // per_ch)  # channels per block
@@ -252,7 +245,6 @@ class RangeDoppler:
                 plan = (_fft2_plan(shape, self.workers, aligned=per_ch % 64 == 0)
                         if HAVE_FFTW else None)
                 buf = np.empty(shape, dtype=np.complex64) if plan is None else plan.input_array
-                sq = None if squares is None else np.empty((f1 - f0, k_c, c * n * 2), np.float32)
                 for c0 in range(0, n_ch, k_c):
                     block = (slice(f0, f1) if k_f > 1 else f0, slice(c0, c0 + k_c))
                     np.multiply(src[block], self._w2d, out=buf)
@@ -261,9 +253,6 @@ class RangeDoppler:
                     else:
                         plan.update_arrays(buf, dst[block])
                         plan.execute()
-                    if sq is not None:  # (frames, channels, doppler * range * re/im) in cache
-                        f = dst[slice(f0, f1), c0:c0 + k_c].view(np.float32)
-                        _add_squares(f.reshape(sq.shape), squares[f0:f1], sq)
         return out
 
     def _doppler_cut(self, profiles_cm: np.ndarray) -> np.ndarray:
@@ -296,32 +285,6 @@ class RangeDoppler:
         """Both FFTs: complex64 (doppler, tx, rx, range), or (frames, doppler, tx, rx, range)
         for a batch; a view of :meth:`channel_major`'s buffer (not C-contiguous)."""
         return _from_channel_major(self.channel_major(cube))
-
-    def native_and_map(self, cube: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Both FFTs and the detection map of a cube or a batch, in one pass when uncropped.
-
-        cube : complex (chirps, tx, rx, samples) or (frames, chirps, tx, rx, samples)
-        returns (rd, power): rd as :meth:`native` (doppler, tx, rx, range) or (frames, doppler,
-        tx, rx, range); power float64 (range, doppler) or (frames, range, doppler), equal bit
-        for bit to :func:`detection_map` of ``rd`` moved to (..., range, doppler, tx, rx).
-        Without a range window the channels are squared and summed block by block while the
-        FFT's output is in cache (saves one read of the cube-sized result, about 1.5 ms of the
-        MMWCAS frame's 35 ms on this machine, ``benchmarks/bench_dsp.py``); with one, the map is
-        :func:`detection_map` after the FFTs. Raises RangeDopplerError as :meth:`native`.
-        """
-        cube = self._check(cube)
-        if self.cropped:
-            out = self.channel_major(cube)
-            return _from_channel_major(out), detection_map(np.moveaxis(
-                _from_channel_major(out), -1, -4))
-        lead, c, n = cube.shape[:-4], self.n_chirps, self.n_samples
-        squares = np.zeros((int(np.prod(lead, dtype=np.int64)), c * n * 2), np.float32)
-        out = self._fft2(cube, squares)
-        _check_finite(out[..., 0, 0], cube, "cube")
-        s = squares.reshape(*lead, c, n, 2)
-        power = np.swapaxes(np.add(s[..., 0], s[..., 1], dtype=np.float64), -1, -2)
-        _check_finite(power, out, "rd")
-        return _from_channel_major(out), power
 
     def __call__(self, cube: np.ndarray) -> np.ndarray:
         """Both FFTs: complex64 (range, doppler, tx, rx), or (frames, range, doppler, tx, rx)."""
@@ -407,15 +370,6 @@ def _check_finite(probe: np.ndarray, source: np.ndarray, name: str) -> None:
                                 f"for complex64, up to {np.abs(source).max():.3g})")
 
 
-def _add_squares(f: np.ndarray, acc: np.ndarray, scratch: np.ndarray) -> None:
-    """``acc`` (B, K) += f[:, c]**2 for c = 0, 1, ... of ``f`` (B, C, K), in that order: each
-    square rounded, then each sum (a multiply and an add, never a fused multiply-add).
-    ``scratch``: (B, C, K) of f's dtype."""
-    np.multiply(f, f, out=scratch)
-    for c in range(f.shape[1]):  # channel order is the summation order (C <= the channels)
-        np.add(acc, scratch[:, c], out=acc)
-
-
 def _channel_power(rd: np.ndarray) -> np.ndarray:
     """Sum over tx, rx of |rd|^2 (see :func:`detection_map`)."""
     if rd.dtype not in (np.complex64, np.complex128):
@@ -427,8 +381,6 @@ def _channel_power(rd: np.ndarray) -> np.ndarray:
     cm = np.swapaxes(cm, -1, -2)              # (..., tx, rx, doppler, range)
     if cm.flags.c_contiguous:
         # channel-major: sum of squares over the channel rows of the interleaved re/im floats
-        # (einsum: one pass; an explicit multiply-then-add loop over the 192 channels, portable
-        # to the bit but 0.5-1 ms per frame slower on the 30 m window's maps, was not kept)
         f = cm.view(real).reshape(b, t * r, d * n * 2)
         s = np.einsum("bck,bck->bk", f, f).reshape(b, d, n, 2)   # (B, doppler, range, re/im)
         dn = np.add(s[..., 0], s[..., 1], dtype=np.float64)      # (B, doppler, range)
