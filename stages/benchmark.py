@@ -7,13 +7,16 @@ stages' own library calls batched over walks (blindspot.synth.scene_benchmark). 
 mean over walks gets a 95 % percentile-bootstrap interval, and the differences between methods a
 paired bootstrap of per-walk differences (blindspot.traj.benchmark). The predictive distributions
 calibrated on validation paths by the calibration stage are scored on the walks too (coverage
-of the 50/90/95 % ellipses, NLL): the walks are never used to fit them.
+of the 50/90/95 % ellipses, NLL): the walks are never used to fit them; beside them the
+adaptive conformal ellipses (blindspot.traj.conformal), the walks met one after another, each
+walk's ellipses from the outcomes of the walks before it and the validation scores.
 """
 
 import blindspot  # noqa: F401  first: pins the CPU kernels before numpy loads (blindspot.kernels)
 import json
 import time
 
+import numpy as np
 import pandas as pd
 
 from blindspot import experiment
@@ -22,10 +25,11 @@ from blindspot.io import save_figure, write_json, write_parquet, write_text
 from blindspot.report.benchmark_report import benchmark_figure, benchmark_table
 from blindspot.stage import StageResult
 from blindspot.synth.path_measurement import PedestrianModel
-from blindspot.synth.scene_benchmark import score_scene_walks
+from blindspot.synth.scene_benchmark import COVERAGE_LEVELS, score_scene_walks
 from blindspot.synth.scene_walks import draw_scene_walks, measure_scene_walks
 from blindspot.traj.benchmark import bootstrap_means, paired_differences
 from blindspot.traj.calibration import from_record
+from blindspot.traj.conformal import AdaptiveConformal
 from blindspot.traj.lstm import LSTMPredictor
 
 COMMAND = "dvc repro benchmark"
@@ -50,6 +54,10 @@ def run(cfg, ctx):
     records = json.loads(ctx.dep("models.json").read_text())   # fitted by the calibration stage
     distributions = {n: from_record(records[n], p, n) for n, p in predictors.items()
                      if n in records}
+    with np.load(ctx.dep("val_scores.npz")) as z:              # where the online ellipses start
+        priors = {n: z[n] for n in distributions if n in z.files}
+    c = experiment.calibration(cfg)
+    online = AdaptiveConformal(COVERAGE_LEVELS, c.online_gamma, c.online_window)
     # each network of the seed ensemble alone too (member i: seed train.seed + i), on the same
     # walks and the same filled histories: the spread a single training run would carry
     members = ({f"lstm_member{i}": lstm.member(i) for i in range(lstm.n_members)}
@@ -58,7 +66,7 @@ def run(cfg, ctx):
         walks, measured, predictors={**predictors, **members}, interpolation_methods=ev.interpolation_methods,
         prediction_input=ev.prediction_input, gap_predictor=lstm, smoother=kalman.smooth_batch,
         horizon=bench.horizon_frames, dt_s=dt, horizons_s=ev.horizons_s,
-        distributions=distributions, threads=bench.threads)
+        distributions=distributions, threads=bench.threads, online=online, priors=priors)
     boot = dict(n_boot=bench.n_bootstrap, level=bench.ci_level, seed=int(cfg.seed))
     names = list(predictors)
     pairs = [(a, b) for i, a in enumerate(names) for b in names[i + 1:]]

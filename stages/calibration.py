@@ -6,7 +6,9 @@ fitted on (history, future) pairs of the windows split's validation paths
 (blindspot.traj.calibration); coverage of the 50/90/95 % ellipses and NLL are scored on the test
 paths ("sim_paths"), beside the coverage of the adaptive conformal ellipses (online_coverage_*,
 each held-out path a stream: blindspot.traj.conformal). A declared dep ending in calibration_ethucy.json (the ETH/UCY folds, same
-shape) is merged in. The fitted numbers go to data/calibration/models.json for the benchmark.
+shape) is merged in. The fitted numbers go to data/calibration/models.json for the benchmark, each
+predictor's scores on the validation pairs to data/calibration/val_scores.npz (where the
+benchmark's adaptive conformal ellipses start).
 """
 
 import blindspot  # noqa: F401  first: pins the CPU kernels before numpy loads (blindspot.kernels)
@@ -18,11 +20,11 @@ import pandas as pd
 
 from blindspot import experiment
 from blindspot.cli import main_stage
-from blindspot.io import write_json
+from blindspot.io import atomic_open, write_json
 from blindspot.stage import StageResult
 from blindspot.traj.calibration import (ETHUCY_FILE, ETHUCY_NAMES, LEVELS, calibrate,
                                         calibration_scores, online_scores, path_pairs,
-                                        to_record)
+                                        to_record, val_scores)
 from blindspot.traj.conformal import AdaptiveConformal
 from blindspot.traj.lstm import LSTMPredictor
 from blindspot.traj.paths import table_to_arrays
@@ -58,6 +60,10 @@ def run(cfg, ctx):
                 metrics.setdefault(ETHUCY_NAMES.get(name, name), {}).update(folds)
     write_json(ctx.out("calibration.json"), metrics)
     write_json(ctx.out("models.json"), {n: to_record(p) for n, p in calibrated.items()})
+    # each calibrated predictor's scores on the validation pairs: where the benchmark's
+    # adaptive conformal ellipses start
+    with atomic_open(ctx.out("val_scores.npz"), "wb") as fh:
+        np.savez(fh, **{n: val_scores(p, *pairs["val"]) for n, p in calibrated.items()})
     for name, m in metrics.items():
         s = m.get("sim_paths")
         if s:

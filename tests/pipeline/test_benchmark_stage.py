@@ -101,6 +101,14 @@ def test_calibration_then_benchmark_on_a_tiny_setting(tiny):
         for entry in m[method].values():
             assert set(entry) >= {"mean", "ci95"} and len(entry["ci95"]) == 2
     assert {"ade_0.5s", "fde_2s", "path_error_mean_m", "coverage_90", "nll"} <= set(m["kalman"])
+    # the adaptive conformal ellipses beside, from the calibration stage's validation scores
+    with np.load(root / "data/calibration/val_scores.npz") as z:
+        assert set(z.files) == {"lstm", "constant_velocity", "kalman"}
+        assert z["kalman"].shape[1] == cfg.calibration.horizon_frames
+    for level in (50, 90, 95):
+        entry = m["kalman"][f"online_coverage_{level}"]
+        assert 0.0 <= entry["mean"] <= 1.0 and len(entry["ci95"]) == 2
+    assert "Adaptive conformal ellipses" in (root / "reports/tables/benchmark.md").read_text()
     assert "lstm - kalman" in m["paired"]
     # each ensemble member scored alone, its range summarised, no pairs of members
     assert set(m["lstm_member1"]) >= {"path_error_mean_m", "ade_1s"}

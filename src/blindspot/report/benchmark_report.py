@@ -76,6 +76,16 @@ def benchmark_table(metrics: Mapping[str, Any], command: str) -> str:
                   "|---|" + "---|" * len(keys)]
         lines += [f"| {method_label(p)} | " + " | ".join(_fmt(metrics[p].get(k)) for k in keys)
                   + " |" for p in cov]
+    online = [p for p in preds if "online_coverage_90" in metrics[p]]
+    if online:
+        keys = ("online_coverage_50", "online_coverage_90", "online_coverage_95")
+        lines += ["", "Adaptive conformal ellipses (blindspot.traj.conformal): the walks met one "
+                  "after another, each walk's ellipses from the outcomes of the walks before it "
+                  "(the validation scores before any).", "",
+                  "| method | " + " | ".join(_NAMES[k[len("online_"):]] for k in keys) + " |",
+                  "|---|" + "---|" * len(keys)]
+        lines += [f"| {method_label(p)} | " + " | ".join(_fmt(metrics[p].get(k)) for k in keys)
+                  + " |" for p in online]
     paired = metrics.get("paired", {})
     if paired:
         keys = ("path_error_mean_m", "ade_1s", "fde_2s", "hidden_mean_m")

@@ -39,6 +39,7 @@ def score_scene_walks(walks: SceneWalks, measured: np.ndarray, *,
                       smoother: Callable[[np.ndarray], np.ndarray], horizon: int, dt_s: float,
                       horizons_s: tuple[float, ...],
                       distributions: Mapping[str, object] | None = None, threads: int = 1,
+                      online=None, priors: Mapping[str, np.ndarray] | None = None,
                       ) -> tuple[dict[str, dict[str, np.ndarray]], dict[str, np.ndarray]]:
     """Per-walk scores of every interpolation and prediction method.
 
@@ -54,6 +55,12 @@ def score_scene_walks(walks: SceneWalks, measured: np.ndarray, *,
         distributions: {name: predictor with ``predict_distribution``} for the methods that
             give a Gaussian forecast (scored on the same histories as their point prediction).
         threads: torch threads while scoring (restored after).
+        online, priors: the adaptive conformal ellipses
+            (:class:`blindspot.traj.conformal.AdaptiveConformal`) scored beside each
+            distribution whose name has a prior, ``priors[name]`` (M, H_cal) its scores on the
+            validation pairs (the calibration stage's ``val_scores.npz``): the walks are met one
+            after another in their drawn order, each walk's ellipses from the outcomes of the
+            walks before it (:func:`distribution_scores`).
 
     Returns:
         ``(scores, predictions)``: scores {method or ``fill_<method>``: {metric: (N,)}};
@@ -65,13 +72,14 @@ def score_scene_walks(walks: SceneWalks, measured: np.ndarray, *,
     torch.set_num_threads(int(threads))
     try:
         return _score(walks, measured, predictors, interpolation_methods, prediction_input,
-                      gap_predictor, smoother, horizon, dt_s, horizons_s, distributions)
+                      gap_predictor, smoother, horizon, dt_s, horizons_s, distributions,
+                      online, priors or {})
     finally:
         torch.set_num_threads(previous)
 
 
 def _score(walks, measured, predictors, interpolation_methods, prediction_input, gap_predictor,
-           smoother, horizon, dt_s, horizons_s, distributions):
+           smoother, horizon, dt_s, horizons_s, distributions, online, priors):
     observed = np.isfinite(measured).all(axis=-1)
     scores: dict[str, dict[str, np.ndarray]] = {}
     filled = {}
@@ -90,25 +98,36 @@ def _score(walks, measured, predictors, interpolation_methods, prediction_input,
         scores[name] = prediction_scores(pred, truth, dt_s, horizons_s)
         if distributions and name in distributions:
             scores[name].update(distribution_scores(
-                distributions[name], filled[prediction_input], walks.start, end, truth))
+                distributions[name], filled[prediction_input], walks.start, end, truth,
+                online=online if name in priors else None, prior=priors.get(name)))
     return scores, predictions
 
 
 def distribution_scores(predictor, tracks: np.ndarray, start: np.ndarray, end: np.ndarray,
-                        truth: np.ndarray) -> dict[str, np.ndarray]:
+                        truth: np.ndarray, *, online=None, prior: np.ndarray | None = None
+                        ) -> dict[str, np.ndarray]:
     """Per-walk share of the true future points (N, H, 2) inside the 50/90/95 % ellipses, and
     the mean NLL (nats per point), of a predictor's Gaussian forecast from the same histories
     as its point prediction (:func:`blindspot.traj.forecast.forecast_distributions`).
 
     A predictor calibrated for ``predictor.horizon`` steps (``ScaledPredictor``) scores only
     the walks whose forecast, counted from the last point seen (missed frames just before the
-    start add steps), stays within it; the others get NaN."""
+    start add steps), stays within it; the others get NaN.
+
+    With ``online`` (an :class:`~blindspot.traj.conformal.AdaptiveConformal` of the same
+    levels) and ``prior`` (M, S) (the predictor's scores on its validation pairs, S forecast
+    steps from the last point seen), also ``online_coverage_<p>`` per walk: the share of its
+    points inside the adaptive conformal ellipses, each point ranked with the others of its
+    forecast step (step lead + j for the walk's point j), the walks one stream in their order
+    (walk k's outcome known before walk k + 1 is predicted)."""
     from blindspot.traj.distribution import chi2_2dof_radius_sq, mahalanobis_sq
 
     n = len(start)
-    steps = start - _last_seen_before(tracks, start) - 1 + (end - start)
+    steps = lead_of(tracks, start) + (end - start)
     ok = steps <= getattr(predictor, "horizon", np.inf)
     keys = [f"coverage_{round(level * 100)}" for level in COVERAGE_LEVELS] + ["nll"]
+    if online is not None:
+        keys += [f"online_coverage_{round(level * 100)}" for level in COVERAGE_LEVELS]
     out = {k: np.full(n, np.nan) for k in keys}
     if not ok.any():
         return out
@@ -118,7 +137,7 @@ def distribution_scores(predictor, tracks: np.ndarray, start: np.ndarray, end: n
     if getattr(predictor, "mixture", None) is not None:
         # a mixture-calibrated predictor (ScaledPredictor with a ScaleMixture) has its own
         # radius per forecast step; walk b's point j is step lead_b + j from the last point seen
-        lead = (start - _last_seen_before(tracks, start) - 1)[ok]
+        lead = lead_of(tracks, start)[ok]
         n_steps = int(steps[ok].max())
         idx = np.clip(lead[:, None] + np.arange(fc.horizon)[None, :], 0, n_steps - 1)
         r2 = predictor.radius_sq(levels, n_steps)[:, idx]                  # (L, n_ok, H)
@@ -129,7 +148,35 @@ def distribution_scores(predictor, tracks: np.ndarray, start: np.ndarray, end: n
     c = fc.cov
     logdet = np.log(c[..., 0, 0] * c[..., 1, 1] - c[..., 0, 1] ** 2)
     out["nll"][ok] = np.nanmean(0.5 * d2 + 0.5 * logdet + np.log(2 * np.pi), axis=1)
+    if online is not None:
+        for key, share in _online_shares(online, prior, d2, lead_of(tracks, start)[ok]).items():
+            out[key][ok] = share
     return out
+
+
+def lead_of(tracks: np.ndarray, start: np.ndarray) -> np.ndarray:
+    """(N,) missed frames between each track's last point seen and its prediction start."""
+    return start - _last_seen_before(tracks, start) - 1
+
+
+def _online_shares(online, prior: np.ndarray, d2: np.ndarray, lead: np.ndarray
+                   ) -> dict[str, np.ndarray]:
+    """Per-walk share of points (d2 (n, H), NaN after a walk's horizon) inside the adaptive
+    conformal ellipses; point j of walk b is forecast step lead[b] + j of ``prior``'s S."""
+    n, h = d2.shape
+    steps = prior.shape[1]
+    col = lead[:, None] + np.arange(h)[None, :]                             # (n, H)
+    scores = np.full((n, steps), np.nan)
+    keep = (col < steps) & np.isfinite(d2)
+    scores[np.nonzero(keep)[0], col[keep]] = d2[keep]
+    t = np.arange(n, dtype=float)
+    radii = online.radii(scores, t, t + 0.5, np.zeros(n, np.int64), prior)  # (L, n, S)
+    seen = ~np.isnan(scores)
+    inside = (scores[None] <= radii) & seen[None]
+    per_walk = inside.sum(axis=2) / np.maximum(seen.sum(axis=1), 1)[None]   # (L, n)
+    per_walk = np.where(seen.any(axis=1)[None], per_walk, np.nan)
+    return {f"online_coverage_{round(100 * lv)}": per_walk[i]
+            for i, lv in enumerate(online.levels)}
 
 
 def _last_seen_before(tracks: np.ndarray, start: np.ndarray) -> np.ndarray:
