@@ -24,7 +24,7 @@ from blindspot.io import atomic_open, write_json
 from blindspot.stage import StageResult
 from blindspot.traj.calibration import (ETHUCY_FILE, ETHUCY_NAMES, LEVELS, calibrate,
                                         calibration_scores, online_scores, path_pairs,
-                                        to_record, val_scores)
+                                        forecast_scores, to_record)
 from blindspot.traj.conformal import AdaptiveConformal
 from blindspot.traj.lstm import LSTMPredictor
 from blindspot.traj.paths import table_to_arrays
@@ -50,8 +50,11 @@ def run(cfg, ctx):
                            scale_method=c.scale_method, scale_level=c.scale_level,
                            cv_fit_points=experiment.evaluation(cfg).cv_fit_points)
     online = AdaptiveConformal(LEVELS, c.online_gamma, c.online_window)
+    # each calibrated predictor's scores on the validation pairs: where the adaptive conformal
+    # ellipses start, here and in the benchmark (val_scores.npz)
+    prior = {n: forecast_scores(p, *pairs["val"]) for n, p in calibrated.items()}
     metrics = {name: {"sim_paths": {**calibration_scores(p, *pairs["test"][:2]),
-                                    **online_scores(p, online, pairs["val"], pairs["test"]),
+                                    **online_scores(p, online, prior[name], pairs["test"]),
                                     "n_paths": int(len(ids["test"]))}}
                for name, p in calibrated.items()}
     for path in ctx.files.deps:                 # the ETH/UCY folds, where the stage declares them
@@ -60,10 +63,8 @@ def run(cfg, ctx):
                 metrics.setdefault(ETHUCY_NAMES.get(name, name), {}).update(folds)
     write_json(ctx.out("calibration.json"), metrics)
     write_json(ctx.out("models.json"), {n: to_record(p) for n, p in calibrated.items()})
-    # each calibrated predictor's scores on the validation pairs: where the benchmark's
-    # adaptive conformal ellipses start
     with atomic_open(ctx.out("val_scores.npz"), "wb") as fh:
-        np.savez(fh, **{n: val_scores(p, *pairs["val"]) for n, p in calibrated.items()})
+        np.savez(fh, **prior)
     for name, m in metrics.items():
         s = m.get("sim_paths")
         if s:

@@ -45,7 +45,7 @@ def test_online_scores_follow_a_scene_the_val_calibration_misjudges():
     """Validation walks with 0.05 m radar noise, test walks with 0.25 m (another sensor): the
     val-calibrated Kalman ellipses under-cover the test paths, the adaptive conformal ones
     (the paths one stream, val scores first) come within 2 pp of every level."""
-    from blindspot.traj.calibration import online_scores
+    from blindspot.traj.calibration import forecast_scores, online_scores
     from blindspot.traj.conformal import AdaptiveConformal
 
     tv, mv = cv_paths(200, 120, seed=11)
@@ -57,7 +57,8 @@ def test_online_scores_follow_a_scene_the_val_calibration_misjudges():
                     scale_method="mixture")["kalman"]
     static = calibration_scores(cal, *test[:2])
     assert static["coverage_90"] < 0.8
-    online = online_scores(cal, AdaptiveConformal((0.5, 0.9, 0.95), 0.01, 100), val, test)
+    online = online_scores(cal, AdaptiveConformal((0.5, 0.9, 0.95), 0.01, 100),
+                           forecast_scores(cal, *val), test)
     assert {k for k in online if "coverage" in k} == {"online_coverage_50",
                                                       "online_coverage_90", "online_coverage_95"}
     assert online["online_unbounded_95"] < 0.01

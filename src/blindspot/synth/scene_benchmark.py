@@ -123,7 +123,8 @@ def distribution_scores(predictor, tracks: np.ndarray, start: np.ndarray, end: n
     from blindspot.traj.distribution import chi2_2dof_radius_sq, mahalanobis_sq
 
     n = len(start)
-    steps = lead_of(tracks, start) + (end - start)
+    lead = lead_of(tracks, start)                                          # (N,)
+    steps = lead + (end - start)
     ok = steps <= getattr(predictor, "horizon", np.inf)
     keys = [f"coverage_{round(level * 100)}" for level in COVERAGE_LEVELS] + ["nll"]
     if online is not None:
@@ -137,9 +138,8 @@ def distribution_scores(predictor, tracks: np.ndarray, start: np.ndarray, end: n
     if getattr(predictor, "mixture", None) is not None:
         # a mixture-calibrated predictor (ScaledPredictor with a ScaleMixture) has its own
         # radius per forecast step; walk b's point j is step lead_b + j from the last point seen
-        lead = lead_of(tracks, start)[ok]
         n_steps = int(steps[ok].max())
-        idx = np.clip(lead[:, None] + np.arange(fc.horizon)[None, :], 0, n_steps - 1)
+        idx = np.clip(lead[ok][:, None] + np.arange(fc.horizon)[None, :], 0, n_steps - 1)
         r2 = predictor.radius_sq(levels, n_steps)[:, idx]                  # (L, n_ok, H)
     else:
         r2 = np.broadcast_to(chi2_2dof_radius_sq(levels)[:, None, None], (levels.size,) + d2.shape)
@@ -149,7 +149,7 @@ def distribution_scores(predictor, tracks: np.ndarray, start: np.ndarray, end: n
     logdet = np.log(c[..., 0, 0] * c[..., 1, 1] - c[..., 0, 1] ** 2)
     out["nll"][ok] = np.nanmean(0.5 * d2 + 0.5 * logdet + np.log(2 * np.pi), axis=1)
     if online is not None:
-        for key, share in _online_shares(online, prior, d2, lead_of(tracks, start)[ok]).items():
+        for key, share in _online_shares(online, prior, d2, lead[ok]).items():
             out[key][ok] = share
     return out
 

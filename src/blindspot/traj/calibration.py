@@ -42,7 +42,7 @@ from blindspot.traj.distribution import (DistributionError, GaussianForecast, Sc
 from blindspot.traj.windows import interpolate_gaps
 
 __all__ = ["ETHUCY_FILE", "ETHUCY_NAMES", "CalibrationError", "path_pairs", "ErrorModelPredictor", "ScaledPredictor",
-           "calibrate", "calibration_scores", "online_scores", "val_scores", "to_record",
+           "calibrate", "calibration_scores", "online_scores", "forecast_scores", "to_record",
            "from_record"]
 
 LEVELS = (0.5, 0.9, 0.95)
@@ -214,32 +214,32 @@ def calibration_scores(predictor, history: np.ndarray, future: np.ndarray) -> di
             "n_points": int(np.isfinite(future).all(axis=-1).sum())}
 
 
-def val_scores(predictor, history: np.ndarray, future: np.ndarray) -> np.ndarray:
+def forecast_scores(predictor, history: np.ndarray, future: np.ndarray) -> np.ndarray:
     """(N, H) squared Mahalanobis distance of each true future point (N, H, 2) under the
     predictor's forecast from ``history`` (N, W, 2): the scores the adaptive conformal ellipses
-    (:mod:`blindspot.traj.conformal`) rank; of the validation pairs, the window they start
-    from."""
+    (:mod:`blindspot.traj.conformal`) rank (those of the validation pairs are the window they
+    start from)."""
     return mahalanobis_sq(predictor.predict_distribution(history, future.shape[1]), future)
 
 
-def online_scores(predictor, online, val: tuple[np.ndarray, np.ndarray],
+def online_scores(predictor, online, prior: np.ndarray,
                   test: tuple[np.ndarray, ...]) -> dict[str, float]:
     """``{"online_coverage_50", ...}`` of a calibrated predictor's adaptive conformal ellipses
     ``online`` (a :class:`~blindspot.traj.conformal.AdaptiveConformal`, passed in so that the
-    stages reading a calibration do not import it) on test pairs: ``val`` = (history,
-    future) whose scores fill the first window, ``test`` = (history, future, path, start) of
+    stages reading a calibration do not import it) on test pairs: ``prior`` (M, H) the
+    :func:`forecast_scores` of the validation pairs, which fill the first window, ``test`` =
+    (history, future, path, start) of
     :func:`path_pairs` with ``with_index``. The paths are one stream, met one after another
     as one radar meets walkers (path k's outcomes known before path k + 1 starts; a single walk
     of a few seconds is too short to learn from its own outcomes); within a path a window is
     predicted at its last history frame and its outcome known at its last future frame."""
     h, f, path, start = test
-    d2_val = val_scores(predictor, *val)
-    d2 = val_scores(predictor, h, f)
+    d2 = forecast_scores(predictor, h, f)
     start = np.asarray(start, dtype=np.int64)
     span = int(start.max(initial=0)) + h.shape[1] + f.shape[1] + 1  # frames of a path, and more
     t_pred = np.asarray(path, dtype=np.int64) * span + start + h.shape[1] - 1
     return online.coverage(d2, t_pred, t_pred + f.shape[1], np.zeros(len(d2), np.int64),
-                           d2_val)
+                           prior)
 
 
 def to_record(p: ScaledPredictor) -> dict:
