@@ -15,6 +15,8 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from blindspot.safety.bound import (BOUNDS, bound_results, first_confirmed, first_frame,
+                                    lead_observed)
 from blindspot.safety.braking import BrakingModel
 from blindspot.safety.config import WarningConfig
 from blindspot.safety.evaluation import (KMH, SceneInfo, aeb_gate_s, ncap_grid,
@@ -24,7 +26,7 @@ from blindspot.safety.outcome import NEVER_S, braked_impacts, pedestrian_boxes, 
 from blindspot.safety.predict import risk_table
 from blindspot.safety.risk import EgoShape
 
-__all__ = ["SafetyResult", "outcome_table", "frame_risks", "assess"]
+__all__ = ["SafetyResult", "outcome_table", "frame_risks", "assess", "perception_bounds"]
 
 
 @dataclass(frozen=True)
@@ -74,6 +76,65 @@ def frame_risks(risk: pd.DataFrame, scenes: np.ndarray, speed_mps: np.ndarray, n
     return p, scene_frame_risk(risk, scenes, n_frames, gate_s=g)
 
 
+def _straight(truth: pd.DataFrame, evaluated_set: str) -> tuple[pd.DataFrame, set[str]]:
+    """(truth without the scenes of a turning ego, their names). The outcome model drives the
+    ego straight along +y: a turning scene (a named scene of the ego-motion sweep) is left out;
+    an evaluated one (``set == evaluated_set``) raises ValueError."""
+    turning = truth.ego_yaw_deg.abs().groupby(truth.scene).max() > 1e-9
+    turning = set(turning.index[turning.to_numpy()])
+    if turning:
+        bad = sorted(set(truth.scene[truth.set == evaluated_set]) & turning)
+        if bad:
+            raise ValueError(f"truth: evaluated ({evaluated_set!r}) scenes with a turning ego "
+                             f"{bad[:5]}: the outcome model needs the ego straight along +y")
+        truth = truth[~truth.scene.isin(turning)]
+    return truth, turning
+
+
+def perception_bounds(truth: pd.DataFrame, scenes_meta: dict, points: pd.DataFrame,
+                      cfg: WarningConfig, *, bodies: dict, shape: EgoShape,
+                      confirm: tuple[int, int], evaluated_set: str = "monte_carlo",
+                      lead: str = "p0") -> dict:
+    """The perception-limited bounds of :mod:`blindspot.safety.bound` on the evaluated scenes:
+    name (:data:`~blindspot.safety.bound.BOUNDS`) -> :func:`summarise` of its scene results
+    (``by_speed_kmh``, ``goals``, ...; ``lead_time_s_median`` is the true TTC at the request),
+    plus ``settings``.
+
+    truth, scenes_meta, bodies, shape: as :func:`assess`; points: the driving radar points with
+    their truth label (columns scene, frame, source); confirm: (M, N) of the M-of-N
+    confirmation. Raises ValueError (and its subclasses) as :func:`assess` and
+    :func:`~blindspot.safety.bound.lead_observed`."""
+    truth, turning = _straight(truth, evaluated_set)
+    braking = BrakingModel.from_config(cfg.aeb)
+    sa, _, impact = outcome_table(truth, bodies, shape, braking, cfg)
+    info = scene_info(truth, scenes_meta, sa.scenes, lead)
+    ev = truth.groupby("scene").set.first().reindex(sa.scenes).to_numpy() == evaluated_set
+    F = len(sa.time_s)
+    frames = np.sort(truth.frame.unique())
+    observed = lead_observed(points, sa.scenes, frames, lead)
+    visible = np.isfinite(info.first_visible_s)
+    requests = {
+        "line_of_sight": np.where(visible, np.searchsorted(
+            sa.time_s, np.where(visible, info.first_visible_s, 0.0) - 1e-9), F),
+        "radar_point": first_frame(observed),
+        "confirmed_track": first_confirmed(observed, *confirm),
+    }
+    out: dict = {}
+    for name in BOUNDS:                              # three bounds
+        res = bound_results(info, impact, sa.time_s, requests[name], cfg.decision_delay_s)
+        out[name] = summarise(res[ev].reset_index(drop=True), n_bootstrap=cfg.n_bootstrap,
+                              seed=cfg.seed)
+    out["settings"] = {
+        "evaluated_set": evaluated_set, "n_scenes": int(ev.sum()), "lead": lead,
+        "confirm_m": int(confirm[0]), "confirm_n": int(confirm[1]),
+        "decision_delay_s": cfg.decision_delay_s,
+        "aeb": {"latency_s": braking.latency_s, "jerk_mps3": braking.jerk_mps3,
+                "decel_mps2": braking.decel_mps2},
+        "left_out_turning_scenes": sorted(turning),
+    }
+    return out
+
+
 def _timeline(sa, trigger_s: float, braking: BrakingModel, i: int, dt: float) -> pd.DataFrame:
     t = np.arange(sa.time_s[0], sa.time_s[-1] + dt / 2, dt)
     v0 = sa.speed_mps[i]
@@ -103,17 +164,8 @@ def assess(truth: pd.DataFrame, scenes_meta: dict, tracks: dict[str, pd.DataFram
     it only).
     """
     headline = headline or next(iter(tracks))
-    # the outcome model drives the ego straight along +y: a turning scene (a named scene of the
-    # ego-motion sweep) is left out of the evaluation; an evaluated one is an error
-    turning = truth.ego_yaw_deg.abs().groupby(truth.scene).max() > 1e-9
-    turning = set(turning.index[turning.to_numpy()])
-    if turning:
-        bad = sorted(set(truth.scene[truth.set == evaluated_set]) & turning)
-        if bad:
-            raise ValueError(f"truth: evaluated ({evaluated_set!r}) scenes with a turning ego "
-                             f"{bad[:5]}: the outcome model needs the ego straight along +y")
-        truth = truth[~truth.scene.isin(turning)]
-        tracks = {k: v[~v.group.isin(turning)] for k, v in tracks.items()}
+    truth, turning = _straight(truth, evaluated_set)
+    tracks = {k: v[~v.group.isin(turning)] for k, v in tracks.items()}
     horizon = int(round(cfg.horizon_s / frame_period_s))
     max_len = int(round(cfg.max_history_s / frame_period_s))
     ego = (truth.groupby(["scene", "frame"], as_index=False)

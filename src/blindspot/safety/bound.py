@@ -1,0 +1,107 @@
+"""Perception-limited bounds of the AEB outcome: what any decision logic could reach on the
+driving scenes, given when the information about the pedestrian first exists.
+
+A bound decides perfectly: on an intruding scene it warns and requests AEB at the first frame at
+which its information about the lead pedestrian exists; on a non-intruding scene it never does
+(it knows intent, so its false-activation rate is 0 by construction). The request leaves
+``decision_delay_s`` after that frame's start, and the braked outcome is looked up in the same
+outcome table as the predictors' (:func:`blindspot.safety.assess.outcome_table`: the committed
+AEB of ``warning.aeb``, the true paths), so a bound's row compares one to one with a predictor's
+row of ``safety.json``.
+
+Information sources, earliest first (:data:`BOUNDS`):
+
+- ``line_of_sight``: the first frame the lead pedestrian is not occluded (truth column
+  ``occluded``), what a sensor that recognises a pedestrian the moment any of them is in line of
+  sight would have;
+- ``radar_point``: the first frame with a radar point of the lead pedestrian (the points' truth
+  label ``source``), a decision on a single point;
+- ``confirmed_track``: the first frame at which those points would confirm an M-of-N track
+  (``confirm_m`` frames with a point among the last ``confirm_n``; ``tracker.confirm_m`` /
+  ``tracker.confirm_n``, the classic 3-of-5 of Blackman & Popoli 1999, sec. 6.3), before any
+  test of whether the track moves.
+
+Braking earlier never hurts a crossing that would otherwise be hit (the ego only slows), so the
+first frame is the best request frame of each source. A gap between a bound and a predictor's
+row is the cost of the decision logic (motion classification, prediction, thresholds, the AEB
+gate); a goal that a bound misses cannot be met by any decision logic on this sensor and with
+this braking model.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+from blindspot.safety.evaluation import SceneInfo, scene_results
+
+__all__ = ["BOUNDS", "BoundError", "lead_observed", "first_frame", "first_confirmed",
+           "bound_results"]
+
+BOUNDS = ("line_of_sight", "radar_point", "confirmed_track")
+
+
+class BoundError(ValueError):
+    """Malformed points or arguments of a bound; the message names them."""
+
+
+def lead_observed(points: pd.DataFrame, scenes: np.ndarray, frames: np.ndarray,
+                  lead: str = "p0", where: str = "points") -> np.ndarray:
+    """(S, F) bool: True where frame ``frames[f]`` of scene ``scenes[s]`` holds at least one
+    radar point whose truth label ``source`` is ``lead``.
+
+    points: columns scene, frame, source (one row per radar point); points of other scenes or
+    frames are ignored. Raises BoundError naming ``where`` for missing columns."""
+    missing = sorted({"scene", "frame", "source"} - set(points.columns))
+    if missing:
+        raise BoundError(f"{where}: expected columns scene, frame, source (the radar points' "
+                         f"truth label); missing {missing}")
+    own = points[points.source.to_numpy() == lead]
+    si = pd.Index(scenes).get_indexer(own.scene)
+    fi = pd.Index(frames).get_indexer(own.frame)
+    ok = (si >= 0) & (fi >= 0)
+    seen = np.zeros((len(scenes), len(frames)), bool)
+    seen[si[ok], fi[ok]] = True
+    return seen
+
+
+def first_frame(mask: np.ndarray) -> np.ndarray:
+    """(S,) index of the first True frame of each row of ``mask`` (S, F); F where none."""
+    mask = np.asarray(mask, bool)
+    return np.where(mask.any(axis=1), mask.argmax(axis=1), mask.shape[1])
+
+
+def first_confirmed(observed: np.ndarray, m: int, n: int) -> np.ndarray:
+    """(S,) first frame at which ``m`` of the last ``n`` frames (that frame included) hold an
+    observation, from ``observed`` (S, F) bool; F where never. Raises BoundError unless
+    1 <= m <= n."""
+    if not (isinstance(m, (int, np.integer)) and isinstance(n, (int, np.integer))
+            and 1 <= m <= n):
+        raise BoundError(f"first_confirmed: expected integers 1 <= confirm_m <= confirm_n, "
+                         f"found m={m!r}, n={n!r}")
+    c = np.concatenate([np.zeros((observed.shape[0], 1), np.int64),
+                        np.cumsum(observed, axis=1)], axis=1)           # (S, F + 1)
+    F = observed.shape[1]
+    k = np.arange(F)
+    in_window = c[:, k + 1] - c[:, np.maximum(k + 1 - n, 0)]          # (S, F)
+    return first_frame(in_window >= m)
+
+
+def bound_results(info: SceneInfo, impact_kmh: np.ndarray, frame_times: np.ndarray,
+                  request_frame: np.ndarray, decision_delay_s: float) -> pd.DataFrame:
+    """:func:`blindspot.safety.evaluation.scene_results` of a bound: warning and AEB request
+    at ``request_frame`` (S,) (F = never) on the intruding scenes of ``info``, never on the
+    others. impact_kmh (S, F + 1) the outcome table (column F: no AEB); frame_times (F,) s.
+    Raises BoundError for shapes that disagree."""
+    impact_kmh = np.asarray(impact_kmh, float)
+    S, F = len(info.scenes), len(frame_times)
+    request_frame = np.asarray(request_frame)
+    if impact_kmh.shape != (S, F + 1) or request_frame.shape != (S,):
+        raise BoundError(f"bound_results: expected an outcome table (S={S}, F + 1={F + 1}) "
+                         f"and request frames ({S},); found {impact_kmh.shape}, "
+                         f"{request_frame.shape}")
+    p = ((np.arange(F)[None, :] >= request_frame[:, None])
+         & np.asarray(info.intruding, bool)[:, None]).astype(float)
+    return scene_results(p, info, impact_kmh, np.asarray(frame_times, float),
+                         warning_threshold=0.5, aeb_threshold=0.5,
+                         decision_delay_s=decision_delay_s)

@@ -1,0 +1,48 @@
+"""safety_bound: what any decision logic could reach on the Monte-Carlo driving scenes, given
+when the information about the lead pedestrian first exists (line of sight, the first radar
+point, an M-of-N confirmed track): the AEB requested at that frame on every intruding scene,
+never on the others, scored like the predictors (blindspot.safety.bound, issue 12)."""
+
+import blindspot  # noqa: F401  first: pins the CPU kernels before numpy loads (blindspot.kernels)
+import json
+
+import pandas as pd
+
+from blindspot import experiment
+from blindspot.cli import main_stage
+from blindspot.io import write_json
+from blindspot.safety.assess import perception_bounds
+from blindspot.safety.risk import EgoShape
+from blindspot.stage import StageResult
+
+
+def run(cfg, ctx):
+    w = experiment.warning(cfg)
+    group, _ = experiment.scenarios(cfg)
+    tracker = experiment.tracker(cfg)
+    truth = pd.read_parquet(ctx.dep("truth.parquet"))
+    meta = json.loads(ctx.dep("scenes.json").read_text())
+    points = pd.read_parquet(ctx.dep("points.parquet"), columns=["scene", "frame", "source"])
+    bodies = {b.name: (b.length_m, b.width_m, b.ref_from_front_m) for b in group.bodies}
+    out = perception_bounds(truth, meta, points, w, bodies=bodies,
+                            shape=EgoShape(group.ego.width_m, group.ego.length_m),
+                            confirm=(tracker.confirm_m, tracker.confirm_n))
+    write_json(ctx.out("safety_bound.json"), out)
+    logged = {}
+    for name, m in out.items():
+        if name == "settings":
+            continue
+        logged[name] = {"avoided_rate": m["avoided_rate"],
+                        "by_speed_kmh": {k: {kk: v[kk] for kk in ("avoided_rate",
+                                                                   "impact_speed_kmh_mean",
+                                                                   "lead_time_s_median")
+                                             if v[kk] is not None}
+                                         for k, v in m["by_speed_kmh"].items()}}
+        print(f"safety_bound {name}: avoided {m['avoided_rate']:.3f}; by speed "
+              + ", ".join(f"{k}: {v['avoided_rate']:.2f} avoided, {v['impact_speed_kmh_mean']:.1f}"
+                          " km/h" for k, v in m["by_speed_kmh"].items()))
+    return StageResult(metrics=logged)
+
+
+if __name__ == "__main__":
+    main_stage(run, "safety_bound")
