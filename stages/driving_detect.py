@@ -11,7 +11,6 @@ import pandas as pd
 
 from blindspot import experiment
 from blindspot.cli import main_stage
-from blindspot.dsp.config import CfarConfig
 from blindspot.io import atomic_path, write_json, write_parquet
 from blindspot.radar.driving import scene_truth
 from blindspot.stage import StageResult
@@ -25,9 +24,7 @@ def run(cfg, ctx):
     group, named = experiment.scenarios(cfg)
     radar = experiment.driving_radar(cfg)
     ego = experiment.ego_motion(cfg)
-    # the driving chain's CFAR: a cfar option under its own key (the paper's stages keep cfar)
-    cfar = CfarConfig.from_mapping(cfg.driving_cfar, "driving_cfar")
-    chain = (cfar, experiment.doa(cfg), experiment.detect(cfg))
+    chain = (experiment.driving_cfar(cfg), experiment.doa(cfg), experiment.detect(cfg))
     sim = experiment.sim(cfg)
     scene = named[group.figure_scene]
     truth = scene_truth(scene, group, radar.frame_period_s)

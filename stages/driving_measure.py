@@ -15,7 +15,6 @@ import pandas as pd
 
 from blindspot import experiment
 from blindspot.cli import main_stage
-from blindspot.dsp.config import CfarConfig
 from blindspot.io import write_json, write_parquet
 from blindspot.radar.driving import draw_scenarios
 from blindspot.stage import StageResult
@@ -27,10 +26,8 @@ def run(cfg, ctx):
     group, named = experiment.scenarios(cfg)
     radar = experiment.driving_radar(cfg)
     scenes = list(named.values()) + draw_scenarios(group, named[group.figure_scene])
-    # the driving chain's CFAR: a cfar option under its own key (the paper's stages keep cfar)
-    cfar = CfarConfig.from_mapping(cfg.driving_cfar, "driving_cfar")
-    res = measure_driving(scenes, group, radar, cfar, experiment.doa(cfg),
-                          experiment.detect(cfg), experiment.ego_motion(cfg),
+    res = measure_driving(scenes, group, radar, experiment.driving_cfar(cfg),
+                          experiment.doa(cfg), experiment.detect(cfg), experiment.ego_motion(cfg),
                           adc_headroom_db=experiment.sim(cfg).adc_headroom_db,
                           jobs=experiment.jobs(cfg), progress=cfg.progress)
     measured, points = res.measured, res.points
