@@ -51,7 +51,9 @@ def run(cfg, ctx):
                         ctx.out("safety_timeline_visible_truth.png"), dpi=110)]
     operating = {inp: {p: metrics[p]["by_input"][inp] for p in predictors
                        if inp in metrics[p]["by_input"]} for inp in settings["inputs"]}
-    outs.append(save_figure(fig_operating_characteristic(curves, operating),
+    bound = json.loads(ctx.dep("safety_bound.json").read_text())
+    bounds = {k: v["avoided_rate"] for k, v in bound.items() if k != "settings"}
+    outs.append(save_figure(fig_operating_characteristic(curves, operating, bounds),
                             ctx.out("safety_operating.png"), dpi=110))
     outs.append(save_figure(fig_ncap_grid(grid[grid.input == headline], predictors),
                             ctx.out("safety_ncap_grid.png"), dpi=110))

@@ -122,11 +122,16 @@ def fig_safety_timeline(truth: pd.DataFrame, tracks: pd.DataFrame, risk: pd.Data
     return fig
 
 
-def fig_operating_characteristic(curves: pd.DataFrame, operating: Mapping[str, Mapping]
-                                 ) -> Figure:
+BOUND_LABELS = {"line_of_sight": "line of sight", "radar_point": "a radar point",
+                "confirmed_track": "a 3-of-5 confirmable track"}
+
+
+def fig_operating_characteristic(curves: pd.DataFrame, operating: Mapping[str, Mapping],
+                                 bounds: Mapping[str, float] | None = None) -> Figure:
     """curves: threshold, avoided_rate, false_activation_rate, predictor, input.
     operating: input -> predictor -> {"avoided_rate", "false_activation_rate"} (the configured
-    threshold's point)."""
+    threshold's point). bounds: perception bound name (:mod:`blindspot.safety.bound`) -> its
+    avoided rate, drawn at 0 % false activations (a perfect decider has none)."""
     require_columns(curves, ["threshold", "avoided_rate", "false_activation_rate", "predictor",
                              "input"], "curves")
     fig, axes = new_grid(1, 1, 8.0, 6.0)
@@ -139,6 +144,11 @@ def fig_operating_characteristic(curves: pd.DataFrame, operating: Mapping[str, M
         if pt:
             ax.plot(100 * pt["false_activation_rate"], 100 * pt["avoided_rate"], "o",
                     color=_colour(name))
+    bounds = dict(bounds or {})
+    order = [k for k in BOUND_LABELS if k in bounds] + [k for k in bounds if k not in BOUND_LABELS]
+    for i, name in enumerate(order):                 # earliest information first
+        ax.plot(0.0, 100 * bounds[name], marker="^Ds"[i % 3], ls="none", ms=8, color="0.15",
+                label=f"bound: AEB at the first frame of {BOUND_LABELS.get(name, name)}")
     ax.axvline(1.0, color="0.4", ls=":", lw=1, label="goal: <= 1 % false activations")
     ax.set_xlabel("false activations (% of non-intruding scenes)")
     ax.set_ylabel("collisions avoided (% of intruding scenes)")
