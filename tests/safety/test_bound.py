@@ -105,7 +105,14 @@ def test_a_request_above_the_last_point_to_brake_avoids_and_one_below_does_not(c
                             shape=shape, confirm=(m, 5), evaluated_set="test")
     lead = {k: out[k]["by_speed_kmh"]["40"]["lead_time_s_median"] for k in BOUNDS}
     assert lead["radar_point"] - lead["confirmed_track"] == pytest.approx(0.1 * (m - 1))
-    assert lead["line_of_sight"] >= lead["radar_point"] - 1e-9 or np.isnan(lead["line_of_sight"])
+    assert lead["line_of_sight"] >= lead["radar_point"] - 1e-9
+    # line of sight: the request leaves decision_delay_s after the first non-occluded frame
+    p0 = truth[(truth.pedestrian == "p0") & truth.scene.str.startswith("cpnco")]
+    first_seen = p0[~p0.occluded.astype(bool)].groupby("scene").time_s.min()
+    want = p0.groupby("scene").collision_time_s.first() - first_seen - w.decision_delay_s
+    got = {s: out["line_of_sight"]["by_speed_kmh"][s.split("_")[1]]["lead_time_s_median"]
+           for s in want.index}
+    assert got == pytest.approx(want.to_dict(), abs=1e-9)
     assert out["settings"]["confirm_m"] == m
 
 

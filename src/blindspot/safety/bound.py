@@ -21,11 +21,15 @@ Information sources, earliest first (:data:`BOUNDS`):
   ``tracker.confirm_n``, the classic 3-of-5 of Blackman & Popoli 1999, sec. 6.3), before any
   test of whether the track moves.
 
-Braking earlier never hurts a crossing that would otherwise be hit (the ego only slows), so the
-first frame is the best request frame of each source. A gap between a bound and a predictor's
-row is the cost of the decision logic (motion classification, prediction, thresholds, the AEB
-gate); a goal that a bound misses cannot be met by any decision logic on this sensor and with
-this braking model.
+For the crossing lead pedestrian alone, braking earlier never hurts (the ego only slows: if a
+later request stops short of its path, an earlier one does too). For the scene it can: an early
+request may stop the ego in the path of a pedestrian who crosses later and walks into the
+standing car, a contact at 0 km/h that :mod:`blindspot.safety.outcome` counts as not avoided. So
+the first frame is not always the best request frame of its source, and a bound can fall a
+little short of what a decider choosing its frame after the information could reach. A gap
+between a bound and a predictor's row is the cost of the decision logic (motion classification,
+prediction, thresholds, the AEB gate); a goal that a bound misses cannot be met by any decision
+logic on this sensor and with this braking model.
 """
 
 from __future__ import annotations
