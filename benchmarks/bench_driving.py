@@ -61,7 +61,7 @@ def main() -> None:
     cfg = compose(config_dir="conf")
     group, named = ex.scenarios(cfg)
     radar, ego = ex.driving_radar(cfg), ex.ego_motion(cfg)
-    chain = (ex.cfar(cfg), ex.doa(cfg), ex.detect(cfg))
+    chain = (ex.driving_cfar(cfg), ex.doa(cfg), ex.detect(cfg))
     full_pts, fast_pts, patch_pts, truths, counts = [], [], [], [], []
     for base, kmh in ((named[n], v) for n in (args.scene or [group.figure_scene])
                       for v in args.speeds):
@@ -153,7 +153,7 @@ def stage_subset_time(every: int, jobs: int) -> None:
     load0 = os.getloadavg()
     t0, c0 = time.perf_counter(), time.process_time()
     k0 = resource.getrusage(resource.RUSAGE_CHILDREN)
-    res = measure_driving(scenes, group, radar, ex.cfar(cfg), ex.doa(cfg), ex.detect(cfg),
+    res = measure_driving(scenes, group, radar, ex.driving_cfar(cfg), ex.doa(cfg), ex.detect(cfg),
                           ex.ego_motion(cfg), adc_headroom_db=ex.sim(cfg).adc_headroom_db,
                           jobs=jobs)
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
