@@ -62,6 +62,11 @@ def main(argv: list[str] | None = None) -> None:
     med = table.groupby("speed_kmh").median().round(2)
     cnt = table.groupby("speed_kmh").count()
     print(pd.concat({"median TTC s": med, "n": cnt}, axis=1).to_string())
+    # tracks carry no truth label: a "confirmed track near the child" that comes before the
+    # child's own first point is (partly) clutter on the car beside it
+    early = (table.confirmed_track > table.radar_point + 1e-9).groupby(table.speed_kmh).mean()
+    print("share of scenes whose confirmed track near the child comes before the child's own "
+          "first point: " + ", ".join(f"{v:g} km/h {x:.0%}" for v, x in early.items()))
     # frames between line of sight and the first radar point: is anything detected near the child?
     span = table[["line_of_sight", "radar_point"]].dropna()
     gap = lead.merge(span, left_on="scene", right_index=True)

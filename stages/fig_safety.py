@@ -53,7 +53,8 @@ def run(cfg, ctx):
                        if inp in metrics[p]["by_input"]} for inp in settings["inputs"]}
     bound = json.loads(ctx.dep("safety_bound.json").read_text())
     bounds = {k: v["avoided_rate"] for k, v in bound.items() if k != "settings"}
-    outs.append(save_figure(fig_operating_characteristic(curves, operating, bounds),
+    confirm = (bound["settings"]["confirm_m"], bound["settings"]["confirm_n"])
+    outs.append(save_figure(fig_operating_characteristic(curves, operating, bounds, confirm),
                             ctx.out("safety_operating.png"), dpi=110))
     outs.append(save_figure(fig_ncap_grid(grid[grid.input == headline], predictors),
                             ctx.out("safety_ncap_grid.png"), dpi=110))

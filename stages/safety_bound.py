@@ -26,7 +26,8 @@ def run(cfg, ctx):
     bodies = {b.name: (b.length_m, b.width_m, b.ref_from_front_m) for b in group.bodies}
     out = perception_bounds(truth, meta, points, w, bodies=bodies,
                             shape=EgoShape(group.ego.width_m, group.ego.length_m),
-                            confirm=(tracker.confirm_m, tracker.confirm_n))
+                            confirm=(tracker.confirm_m, tracker.confirm_n),
+                            points_name=str(ctx.dep("points.parquet")))
     write_json(ctx.out("safety_bound.json"), out)
     logged = {}
     for name, m in out.items():

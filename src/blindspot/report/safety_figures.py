@@ -123,15 +123,17 @@ def fig_safety_timeline(truth: pd.DataFrame, tracks: pd.DataFrame, risk: pd.Data
 
 
 BOUND_LABELS = {"line_of_sight": "line of sight", "radar_point": "a radar point",
-                "confirmed_track": "a 3-of-5 confirmable track"}
+                "confirmed_track": "a {m}-of-{n} confirmable track"}
 
 
 def fig_operating_characteristic(curves: pd.DataFrame, operating: Mapping[str, Mapping],
-                                 bounds: Mapping[str, float] | None = None) -> Figure:
+                                 bounds: Mapping[str, float] | None = None,
+                                 confirm: tuple[int, int] = (3, 5)) -> Figure:
     """curves: threshold, avoided_rate, false_activation_rate, predictor, input.
     operating: input -> predictor -> {"avoided_rate", "false_activation_rate"} (the configured
     threshold's point). bounds: perception bound name (:mod:`blindspot.safety.bound`) -> its
-    avoided rate, drawn at 0 % false activations (a perfect decider has none)."""
+    avoided rate, drawn at 0 % false activations (a perfect decider has none); confirm: the
+    (M, N) of the confirmed-track bound (``safety_bound.json`` settings), for its label."""
     require_columns(curves, ["threshold", "avoided_rate", "false_activation_rate", "predictor",
                              "input"], "curves")
     fig, axes = new_grid(1, 1, 8.0, 6.0)
@@ -145,10 +147,12 @@ def fig_operating_characteristic(curves: pd.DataFrame, operating: Mapping[str, M
             ax.plot(100 * pt["false_activation_rate"], 100 * pt["avoided_rate"], "o",
                     color=_colour(name))
     bounds = dict(bounds or {})
-    order = [k for k in BOUND_LABELS if k in bounds] + [k for k in bounds if k not in BOUND_LABELS]
+    order = ([k for k in BOUND_LABELS if k in bounds]
+             + [k for k in bounds if k not in BOUND_LABELS])
     for i, name in enumerate(order):                 # earliest information first
         ax.plot(0.0, 100 * bounds[name], marker="^Ds"[i % 3], ls="none", ms=8, color="0.15",
-                label=f"bound: AEB at the first frame of {BOUND_LABELS.get(name, name)}")
+                label="bound: AEB at the first frame of "
+                      + BOUND_LABELS.get(name, name).format(m=confirm[0], n=confirm[1]))
     ax.axvline(1.0, color="0.4", ls=":", lw=1, label="goal: <= 1 % false activations")
     ax.set_xlabel("false activations (% of non-intruding scenes)")
     ax.set_ylabel("collisions avoided (% of intruding scenes)")

@@ -94,15 +94,15 @@ def _straight(truth: pd.DataFrame, evaluated_set: str) -> tuple[pd.DataFrame, se
 def perception_bounds(truth: pd.DataFrame, scenes_meta: dict, points: pd.DataFrame,
                       cfg: WarningConfig, *, bodies: dict, shape: EgoShape,
                       confirm: tuple[int, int], evaluated_set: str = "monte_carlo",
-                      lead: str = "p0") -> dict:
+                      lead: str = "p0", points_name: str = "points") -> dict:
     """The perception-limited bounds of :mod:`blindspot.safety.bound` on the evaluated scenes:
     name (:data:`~blindspot.safety.bound.BOUNDS`) -> :func:`summarise` of its scene results
     (``by_speed_kmh``, ``goals``, ...; ``lead_time_s_median`` is the true TTC at the request),
     plus ``settings``.
 
     truth, scenes_meta, bodies, shape: as :func:`assess`; points: the driving radar points with
-    their truth label (columns scene, frame, source); confirm: (M, N) of the M-of-N
-    confirmation. Raises ValueError (and its subclasses) as :func:`assess` and
+    their truth label (columns scene, frame, source), named ``points_name`` in errors;
+    confirm: (M, N) of the M-of-N confirmation. Raises ValueError (and its subclasses) as :func:`assess` and
     :func:`~blindspot.safety.bound.lead_observed`."""
     truth, turning = _straight(truth, evaluated_set)
     braking = BrakingModel.from_config(cfg.aeb)
@@ -111,7 +111,7 @@ def perception_bounds(truth: pd.DataFrame, scenes_meta: dict, points: pd.DataFra
     ev = truth.groupby("scene").set.first().reindex(sa.scenes).to_numpy() == evaluated_set
     F = len(sa.time_s)
     frames = np.sort(truth.frame.unique())
-    observed = lead_observed(points, sa.scenes, frames, lead)
+    observed = lead_observed(points, sa.scenes, frames, lead, where=points_name)
     visible = np.isfinite(info.first_visible_s)
     requests = {
         "line_of_sight": np.where(visible, np.searchsorted(

@@ -1,0 +1,118 @@
+"""How early does the driving chain detect the crossing child? The perception bounds
+(blindspot.safety.bound) of the Monte-Carlo scenes of chosen ego speeds, measured anew by the fast
+driving measurement under variants of the detection settings. Prints figures, asserts nothing.
+
+    BLINDSPOT_SHARED=../shared PYTHONPATH=src python benchmarks/bench_driving_detection.py \
+        [--speeds 40] [--variants baseline,so_cfar,...] [--jobs 2]
+
+Per variant: radar points per frame, the lead child's points, and per speed the bound's avoided
+rate and median true TTC of the request for "a radar point of the child" and "a 3-of-5
+confirmable track" (the AEB requested at the first such frame on every intruding scene). The
+scenes, truth and AEB model are the pipeline's (conf/, data/driving/truth.parquet and
+scenes.json from `dvc repro driving_scenes`); only the detection settings change:
+
+- ``baseline``: the configured driving chain (``driving_cfar``, ``detect``, ``ego_motion``);
+- ``so_cfar`` / ``os_cfar`` / ``ca_pfa``: the ``cfar`` options so / os / ca_pfa as the driving
+  CFAR (smallest-of, ordered-statistic, cell-averaging at a design Pfa);
+- ``budget96``: 96 instead of ``ego_motion.max_detections`` angle estimates per frame;
+- ``no_peak_only``: every CFAR cell, not only the 3 x 3 local maxima of the map;
+- ``no_peak_budget400``: the same with 400 angle estimates per frame (the budget no longer
+  binds: what the peak rule hides).
+
+Time: about 1 min per variant and speed on 2 cores (``no_peak_budget400`` about 5 min).
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import sys
+import time
+from pathlib import Path
+
+import pandas as pd
+
+REPO = Path(__file__).resolve().parents[1]
+VARIANTS = ("baseline", "so_cfar", "os_cfar", "ca_pfa", "budget96", "no_peak_only",
+            "no_peak_budget400")
+
+
+def settings(cfg, name: str) -> dict:
+    """The detection settings of variant ``name`` (module docstring)."""
+    from blindspot import experiment
+    from blindspot.config import compose
+
+    base = dict(cfar=experiment.driving_cfar(cfg), detect=experiment.detect(cfg),
+                ego=experiment.ego_motion(cfg))
+    options = {"so_cfar": "so", "os_cfar": "os", "ca_pfa": "ca_pfa"}
+    if name in options:
+        return {**base, "cfar": experiment.cfar(compose([f"cfar={options[name]}"]))}
+    if name == "budget96":
+        return {**base, "ego": dataclasses.replace(base["ego"], max_detections=96)}
+    if name in ("no_peak_only", "no_peak_budget400"):
+        out = {**base, "detect": dataclasses.replace(base["detect"], peak_only=False)}
+        if name == "no_peak_budget400":
+            out["ego"] = dataclasses.replace(base["ego"], max_detections=400)
+        return out
+    return base
+
+
+def main(argv: list[str]) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--speeds", default="40", help="comma-separated ego speeds, km/h")
+    ap.add_argument("--variants", default="baseline,so_cfar,budget96,no_peak_only",
+                    help=f"comma-separated, of {', '.join(VARIANTS)}")
+    ap.add_argument("--jobs", type=int, default=2)
+    ap.add_argument("--data", type=Path, default=REPO / "data")
+    args = ap.parse_args(argv)
+    names = args.variants.split(",")
+    bad = sorted(set(names) - set(VARIANTS))
+    if bad:
+        ap.error(f"--variants: unknown {bad}; expected some of {list(VARIANTS)}")
+    speeds = [float(s) for s in args.speeds.split(",")]
+
+    from blindspot import experiment
+    from blindspot.config import compose
+    from blindspot.radar.driving import draw_scenarios
+    from blindspot.safety.assess import perception_bounds
+    from blindspot.safety.risk import EgoShape
+    from blindspot.synth.driving_measurement import measure_driving
+
+    cfg = compose([])
+    group, named = experiment.scenarios(cfg)
+    radar = experiment.driving_radar(cfg)
+    scenes = [s for s in draw_scenarios(group, named[group.figure_scene])
+              if s.speed_kmh in speeds]
+    if not scenes:
+        ap.error(f"--speeds {args.speeds}: no Monte-Carlo scene at these speeds")
+    truth = pd.read_parquet(args.data / "driving" / "truth.parquet")
+    truth = truth[truth.scene.isin({s.name for s in scenes})]
+    meta = json.loads((args.data / "driving" / "scenes.json").read_text())
+    warning, tracker = experiment.warning(cfg), experiment.tracker(cfg)
+    bodies = {b.name: (b.length_m, b.width_m, b.ref_from_front_m) for b in group.bodies}
+    shape = EgoShape(group.ego.width_m, group.ego.length_m)
+    print(f"bench_driving_detection: {len(scenes)} Monte-Carlo scenes at {args.speeds} km/h; "
+          "bound = AEB at the first frame of a radar point of the child / of a 3-of-5 "
+          "confirmable track; avoided rate (median true TTC of the request, s)")
+    for name in names:                               # a few variants
+        s = settings(cfg, name)
+        t0 = time.perf_counter()
+        pts = measure_driving(scenes, group, radar, s["cfar"], experiment.doa(cfg), s["detect"],
+                              s["ego"], adc_headroom_db=experiment.sim(cfg).adc_headroom_db,
+                              jobs=args.jobs, progress=False).points
+        wall = time.perf_counter() - t0
+        out = perception_bounds(truth, meta, pts, warning, bodies=bodies, shape=shape,
+                                confirm=(tracker.confirm_m, tracker.confirm_n))
+        per_frame = len(pts) / max(pts.groupby(["scene", "frame"]).ngroups, 1)
+
+        def row(bound: str) -> str:
+            return ", ".join(f"{k} km/h {v['avoided_rate']:.2f} ({v['lead_time_s_median']:.2f})"
+                             for k, v in out[bound]["by_speed_kmh"].items())
+        print(f"  {name:18s} {wall:5.0f} s  {per_frame:6.1f} points/frame, "
+              f"{int((pts.source == 'p0').sum()):5d} of the child | radar point: "
+              f"{row('radar_point')} | confirmed: {row('confirmed_track')}", flush=True)
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])
