@@ -4,7 +4,9 @@
 
 Builds the repository the pipeline test builds (tests/pipeline/test_repro.py: this working tree,
 or git revision REV via ``git archive``, on the tiny profile, params.yaml composed, committed),
-then runs, as that test does, ``dvc repro`` and ``dvc exp run -S train.lr=0.003``. Every stage
+then runs, as that test does, ``dvc repro`` and its ``dvc exp run`` (``EXP_RUN`` of the test:
+``-S train.lr=0.003`` and its target; ``--exp-all`` runs it without the target, every stage a
+new model reruns). Every stage
 command DVC starts (``python ...``) goes through a shim first on PATH that runs the real
 interpreter under ``/usr/bin/time``, so each stage's CPU time (user + sys of the stage process
 and its children: other jobs on a shared machine inflate it little) and wall time are recorded.
@@ -27,7 +29,7 @@ sys.path.insert(0, str(REPO))
 sys.path.insert(0, str(REPO / "benchmarks"))
 from bench_stage_overhead import timed  # noqa: E402
 from tests.conftest import SHARED  # noqa: E402
-from tests.pipeline.test_repro import make_tiny_repo  # noqa: E402
+from tests.pipeline.test_repro import EXP_RUN, make_tiny_repo  # noqa: E402
 from tests.pipeline.toy_repo import VENV_BIN, clean_env  # noqa: E402
 
 SHIM = """#!/bin/sh
@@ -70,6 +72,8 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--rev", default=None, help="git revision to measure (default: worktree)")
     parser.add_argument("--no-exp", action="store_true", help="skip the `dvc exp run`")
+    parser.add_argument("--exp-all", action="store_true",
+                        help="`dvc exp run -S train.lr=0.003` without the test's target")
     parser.add_argument("--keep", default=None, help="build the repository here and keep it")
     args = parser.parse_args()
     if not (SHARED / "data" / "radar").is_dir():
@@ -102,8 +106,9 @@ def main() -> None:
             for cmd in (["git", "add", "-A"], ["git", "commit", "-qm", "baseline", "--allow-empty"]):
                 subprocess.run(cmd, cwd=root, env=env, check=True, capture_output=True)
             env["BENCH_TIMES"] = str(base / "exp.times")
-            cpu, wall, _ = timed([dvc, "exp", "run", "-S", "train.lr=0.003"], root, env)
-            report("dvc exp run -S train.lr=0.003", cpu, wall, stage_times(base / "exp.times"))
+            exp = EXP_RUN[:4] if args.exp_all else EXP_RUN
+            cpu, wall, _ = timed([dvc, *exp], root, env)
+            report(f"dvc {' '.join(exp)}", cpu, wall, stage_times(base / "exp.times"))
         print(f"\nload average after: {os.getloadavg()}")
 
 

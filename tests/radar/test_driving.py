@@ -173,6 +173,21 @@ def test_frame_times_cover_lead_and_tail(loaded):
     assert t[0] == 0.0 and t[-1] == pytest.approx(5.0) and len(t) == 51
 
 
+def test_a_null_scene_is_left_out_but_not_the_figure_scene(loaded):
+    """conf/profile/tiny.yaml drops named scenes by setting them to null: the others are built
+    as from the full group; the figure scene cannot be dropped (error naming the key)."""
+    _, scenes = loaded
+    cfg = OmegaConf.to_container(OmegaConf.load(CONF))
+    cfg["scenes"]["cpfa"] = cfg["scenes"]["turn_back"] = None
+    _, kept = load_scenarios(cfg)
+    assert list(kept) == [n for n in scenes if n not in ("cpfa", "turn_back")]
+    assert all(kept[n] == scenes[n] for n in kept)
+    cfg["scenes"]["cpnco"] = None
+    with pytest.raises(ConfigError) as err:
+        load_scenarios(cfg)
+    assert err.value.key == "scenario.figure_scene", err.value.key
+
+
 @pytest.mark.parametrize("edit,key", [
     (lambda c: c["scenes"]["cpnco"].update(pedestrians=[{"body": "giant", "behaviour": "cross"}]),
      "scenario.scenes.cpnco.pedestrians[0].body"),

@@ -187,6 +187,24 @@ def test_missing_scenes_and_bright_share_errors():
         load_scenes(bad)
 
 
+def test_a_null_scene_is_left_out_and_the_others_are_unchanged():
+    """What conf/profile/tiny.yaml does: the scenes it sets to null are gone, the rest are
+    built exactly as from the full group; nulling every scene is an error naming the key."""
+    group = OmegaConf.to_container(GROUP)
+    dropped = ["straight_nocar", "recede_car"]
+    for name in dropped:
+        group["scenes"][name] = None
+    kept = load_scenes(group)
+    assert list(kept) == [n for n in SCENES if n not in dropped]
+    assert all(kept[n] == SCENES[n] for n in kept)
+    tiny = OmegaConf.merge(GROUP, OmegaConf.load(REPO_ROOT / "conf/profile/tiny.yaml").scene)
+    assert list(load_scenes(tiny)) == ["approach_nocar", "approach_car"]
+    group["scenes"] = {n: None for n in SCENES}
+    with pytest.raises(ConfigError, match="scene.scenes") as err:
+        load_scenes(group)
+    assert "not null" in str(err.value)
+
+
 def test_yaw_rotates_the_car_and_its_visible_faces():
     cfg = SCENES["straight_car"]
     turned = dataclasses.replace(cfg, car=dataclasses.replace(cfg.car, yaw_deg=90.0))

@@ -142,16 +142,18 @@ class SceneConfig(TypedConfig):
 @dataclass(frozen=True)
 class SceneGroup(TypedConfig):
     """The Hydra group ``scene`` (``conf/scene/paper.yaml``): ``shared`` settings and the
-    ``scenes``, each a partial scene deep-merged over ``shared``."""
+    ``scenes``, each a partial scene deep-merged over ``shared``; a scene set to null is left
+    out (:func:`_merged_scenes`)."""
 
     GROUP = "scene"
 
-    scenes: dict = setting(doc="a mapping {scene name: settings over shared}, at least one scene")
+    scenes: dict = setting(doc="a mapping {scene name: settings over shared, or null to leave "
+                               "it out}, at least one scene")
     shared: dict = setting(default_factory=dict)
 
     def validate(self) -> None:
-        if not self.scenes:
-            raise ConfigError("scenes", self.scenes, "at least one scene")
+        if not _present(self.scenes):
+            raise ConfigError("scenes", self.scenes, "at least one scene that is not null")
 
 
 def load_scenes(group: Any, where: str = "scene") -> dict[str, SceneConfig]:
@@ -556,16 +558,18 @@ class ScenarioGroup(TypedConfig):
     occlusion_db: float = setting(ge=0.0, le=300.0)
     car_face_spacing_m: float = setting(ge=0.05, le=10.0)
     shared: dict = setting(doc="scene settings every scene starts from")
-    scenes: dict = setting(doc="a mapping {scene name: settings over shared}, at least one")
+    scenes: dict = setting(doc="a mapping {scene name: settings over shared, or null to leave "
+                               "it out}, at least one")
     monte_carlo: MonteCarloConfig = setting()
     figure_scene: str = setting(doc="a scene name of scenario.scenes")
 
     def validate(self) -> None:
-        if not self.scenes:
-            raise ConfigError("scenes", self.scenes, "at least one scene")
-        if self.figure_scene not in self.scenes:
+        present = _present(self.scenes)
+        if not present:
+            raise ConfigError("scenes", self.scenes, "at least one scene that is not null")
+        if self.figure_scene not in present:
             raise ConfigError("figure_scene", self.figure_scene,
-                              f"one of the scene names {sorted(map(str, self.scenes))}")
+                              f"one of the scene names {sorted(map(str, present))}")
         names = {b.name for b in self.bodies}
         for b in self.monte_carlo.bodies:
             if b not in names:
@@ -603,13 +607,22 @@ def load_scenarios(group: Any, where: str = "scenario") -> tuple[ScenarioGroup, 
 
 
 # ----------------------------------------------------------------------------- parsing helpers
+def _present(scenes: Mapping[str, Any]) -> dict[str, Any]:
+    """The entries of a group's ``scenes`` that are not null."""
+    return {name: over for name, over in scenes.items() if over is not None}
+
+
 def _merged_scenes(scenes: Mapping[str, Any], shared: Mapping[str, Any], where: str
                    ) -> list[tuple[str, dict[str, Any], str]]:
     """``(name, scene settings deep-merged over shared, config key)`` of each entry of a scene
     group's ``scenes``, in file order; ConfigError naming ``<where>.scenes.<name>`` for an entry
-    that is not a mapping."""
+    that is not a mapping.
+
+    An entry set to null is left out: a Hydra config merged over the group (a run-size profile,
+    ``conf/profile/tiny.yaml``) can replace a key's value but cannot delete the key, so null is
+    how it drops a scene (``~scene.scenes.<name>`` does the same on the command line)."""
     out = []
-    for name, over in scenes.items():
+    for name, over in _present(scenes).items():
         key = f"{where}.scenes.{name}"
         if not isinstance(over, Mapping):
             raise ConfigError(key, over, "a mapping of scene settings")
