@@ -126,3 +126,21 @@ def test_bound_results_checks_its_shapes(crossings):
     res = bound_results(info, np.array([[np.nan, 20.0, 30.0, 40.0]]), np.arange(3) * 0.1,
                         np.array([1]), 0.1)
     assert res.aeb_frame.tolist() == [1] and res.impact_speed_kmh.tolist() == [20.0]
+
+
+def test_best_request_frame_prefers_the_first_avoiding_frame_from_the_first_on():
+    """From the first frame of information on: the first avoiding request (NaN), else the
+    lowest impact speed; never before the first frame; F where there is no information. Two
+    frames after the first avoid here, as when an early stop leaves the car in a later
+    crosser's path (a 0 km/h contact)."""
+    from blindspot.safety.bound import best_request_frame
+
+    nan = np.nan
+    impact = np.array([[nan, 0.0, nan, 5.0, 30.0],     # first 1: frame 2 avoids
+                       [nan, 20.0, 10.0, 15.0, 30.0],  # first 1: lowest impact at 2
+                       [nan, nan, nan, nan, 30.0],     # no information: never (F = 4)
+                       [5.0, 3.0, 3.0, 9.0, 30.0]])    # a tie: the earlier frame
+    first = np.array([1, 1, 4, 0])
+    assert best_request_frame(impact, first).tolist() == [2, 2, 4, 1]
+    with pytest.raises(BoundError, match="outcome table"):
+        best_request_frame(impact, first[:2])

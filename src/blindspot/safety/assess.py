@@ -15,8 +15,8 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from blindspot.safety.bound import (BOUNDS, bound_results, first_confirmed, first_frame,
-                                    lead_observed)
+from blindspot.safety.bound import (BOUNDS, best_request_frame, bound_results,
+                                    first_confirmed, first_frame, lead_observed)
 from blindspot.safety.braking import BrakingModel
 from blindspot.safety.config import WarningConfig
 from blindspot.safety.evaluation import (KMH, SceneInfo, aeb_gate_s, ncap_grid,
@@ -121,7 +121,8 @@ def perception_bounds(truth: pd.DataFrame, scenes_meta: dict, points: pd.DataFra
     }
     out: dict = {}
     for name in BOUNDS:                              # three bounds
-        res = bound_results(info, impact, sa.time_s, requests[name], cfg.decision_delay_s)
+        request = best_request_frame(impact, requests[name])
+        res = bound_results(info, impact, sa.time_s, request, cfg.decision_delay_s)
         out[name] = summarise(res[ev].reset_index(drop=True), n_bootstrap=cfg.n_bootstrap,
                               seed=cfg.seed)
     out["settings"] = {

@@ -1,13 +1,13 @@
 """Perception-limited bounds of the AEB outcome: what any decision logic could reach on the
 driving scenes, given when the information about the pedestrian first exists.
 
-A bound decides perfectly: on an intruding scene it warns and requests AEB at the first frame at
-which its information about the lead pedestrian exists; on a non-intruding scene it never does
-(it knows intent, so its false-activation rate is 0 by construction). The request leaves
-``decision_delay_s`` after that frame's start, and the braked outcome is looked up in the same
-outcome table as the predictors' (:func:`blindspot.safety.assess.outcome_table`: the committed
-AEB of ``warning.aeb``, the true paths), so a bound's row compares one to one with a predictor's
-row of ``safety.json``.
+A bound decides perfectly: on an intruding scene it warns and requests AEB once its information
+about the lead pedestrian exists (from the first frame that has it, at the best such frame; see
+below); on a non-intruding scene it never does (it knows intent, so its false-activation rate is
+0 by construction). The request leaves ``decision_delay_s`` after that frame's start, and the
+braked outcome is looked up in the same outcome table as the predictors'
+(:func:`blindspot.safety.assess.outcome_table`: the committed AEB of ``warning.aeb``, the true
+paths), so a bound's row compares one to one with a predictor's row of ``safety.json``.
 
 Information sources, earliest first (:data:`BOUNDS`):
 
@@ -25,11 +25,12 @@ For the crossing lead pedestrian alone, braking earlier never hurts (the ego onl
 later request stops short of its path, an earlier one does too). For the scene it can: an early
 request may stop the ego in the path of a pedestrian who crosses later and walks into the
 standing car, a contact at 0 km/h that :mod:`blindspot.safety.outcome` counts as not avoided. So
-the first frame is not always the best request frame of its source, and a bound can fall a
-little short of what a decider choosing its frame after the information could reach. A gap
-between a bound and a predictor's row is the cost of the decision logic (motion classification,
-prediction, thresholds, the AEB gate); a goal that a bound misses cannot be met by any decision
-logic on this sensor and with this braking model.
+each bound requests at the best frame from its first frame on (:func:`best_request_frame`: the
+first frame that avoids the collision, else the one of the lowest impact speed), and is an upper
+bound of every decision logic that has only that information. A gap between a bound and a
+predictor's row is the cost of the decision logic (motion classification, prediction,
+thresholds, the AEB gate); a goal that a bound misses cannot be met by any decision logic on this
+sensor and with this braking model.
 """
 
 from __future__ import annotations
@@ -40,7 +41,7 @@ import pandas as pd
 from blindspot.safety.evaluation import SceneInfo, scene_results
 
 __all__ = ["BOUNDS", "BoundError", "lead_observed", "first_frame", "first_confirmed",
-           "bound_results"]
+           "best_request_frame", "bound_results"]
 
 BOUNDS = ("line_of_sight", "radar_point", "confirmed_track")
 
@@ -89,6 +90,22 @@ def first_confirmed(observed: np.ndarray, m: int, n: int) -> np.ndarray:
     k = np.arange(F)
     in_window = c[:, k + 1] - c[:, np.maximum(k + 1 - n, 0)]          # (S, F)
     return first_frame(in_window >= m)
+
+
+def best_request_frame(impact_kmh: np.ndarray, first: np.ndarray) -> np.ndarray:
+    """(S,) the best AEB request frame at or after ``first`` (S,) (F = never): the first frame
+    whose request avoids the collision, else the first of the lowest impact speed; F where
+    ``first`` is F. impact_kmh (S, F + 1): the outcome table (NaN = avoided; column F: no
+    request). Raises BoundError for shapes that disagree."""
+    impact_kmh = np.asarray(impact_kmh, float)
+    first = np.asarray(first)
+    if impact_kmh.ndim != 2 or first.shape != (impact_kmh.shape[0],):
+        raise BoundError(f"best_request_frame: expected an outcome table (S, F + 1) and first "
+                         f"frames (S,); found {impact_kmh.shape}, {first.shape}")
+    F = impact_kmh.shape[1] - 1
+    cost = np.where(np.isnan(impact_kmh[:, :F]), -1.0, impact_kmh[:, :F])   # avoided: best
+    cost = np.where(np.arange(F)[None, :] >= first[:, None], cost, np.inf)
+    return np.where(first < F, np.argmin(cost, axis=1), F)
 
 
 def bound_results(info: SceneInfo, impact_kmh: np.ndarray, frame_times: np.ndarray,
