@@ -77,7 +77,8 @@ def _points_from(truth, first_ttc_s):
     rows = []
     for scene, g in truth[truth.pedestrian == "p0"].groupby("scene"):
         ttc = first_ttc_s.get(scene, first_ttc_s["cpnco_40"])
-        ref = truth[(truth.scene == "cpnco_40") & (truth.pedestrian == "p0")] if scene == "kerb_40" else g
+        ref = (truth[(truth.scene == "cpnco_40") & (truth.pedestrian == "p0")]
+               if scene == "kerb_40" else g)
         k0 = int(ref.frame[ref.ttc_s <= ttc + 1e-9].min())
         rows += [(scene, f, "p0") for f in range(k0, int(g.frame.max()) + 1)]
     return pd.DataFrame(rows, columns=["scene", "frame", "source"])
@@ -86,8 +87,8 @@ def _points_from(truth, first_ttc_s):
 def test_a_request_above_the_last_point_to_brake_avoids_and_one_below_does_not(crossings):
     """Radar points from the first frame whose request (a decision delay later) comes 0.05-0.15 s
     (one frame) above the closed-form last point to brake avoid the crossing child at every
-    speed; 0.05-0.15 s below it, no speed is avoided. The M-of-N bound of points on every frame requests M - 1 frames later;
-    the kerb scene (no intrusion) never requests."""
+    speed; 0.05-0.15 s below it, no speed is avoided. The M-of-N bound of points on every frame
+    requests M - 1 frames later; the kerb scene (no intrusion) never requests."""
     truth, meta, bodies, shape, w = crossings
     b = BrakingModel.from_config(w.aeb)
     speeds = {"cpnco_20": 20 / 3.6, "cpnco_40": 40 / 3.6, "cpnco_60": 60 / 3.6}

@@ -102,7 +102,9 @@ def perception_bounds(truth: pd.DataFrame, scenes_meta: dict, points: pd.DataFra
 
     truth, scenes_meta, bodies, shape: as :func:`assess`; points: the driving radar points with
     their truth label (columns scene, frame, source), named ``points_name`` in errors;
-    confirm: (M, N) of the M-of-N confirmation. Raises ValueError (and its subclasses) as :func:`assess` and
+    confirm: (M, N) of the M-of-N confirmation. Each bound requests at
+    :func:`~blindspot.safety.bound.best_request_frame` from its first frame of information.
+    Raises ValueError (and its subclasses) as :func:`assess` and
     :func:`~blindspot.safety.bound.lead_observed`."""
     truth, turning = _straight(truth, evaluated_set)
     braking = BrakingModel.from_config(cfg.aeb)
@@ -127,6 +129,7 @@ def perception_bounds(truth: pd.DataFrame, scenes_meta: dict, points: pd.DataFra
                               seed=cfg.seed)
     out["settings"] = {
         "evaluated_set": evaluated_set, "n_scenes": int(ev.sum()), "lead": lead,
+        "request": "best frame from the first frame of the information (best_request_frame)",
         "confirm_m": int(confirm[0]), "confirm_n": int(confirm[1]),
         "decision_delay_s": cfg.decision_delay_s,
         "aeb": {"latency_s": braking.latency_s, "jerk_mps3": braking.jerk_mps3,
