@@ -50,6 +50,7 @@ from blindspot.safety.assess import frame_risks, outcome_table
 from blindspot.safety.braking import BrakingModel
 from blindspot.safety.evaluation import (SceneInfo, aeb_gate_s, operating_curve,
                                          replicate_half, scene_info, scene_results, summarise)
+from blindspot.safety.outcome import body_boxes
 from blindspot.safety.risk import EgoShape
 
 REPO = Path(__file__).resolve().parents[1]
@@ -89,7 +90,7 @@ def load_inputs(data: Path, input_name: str):
     cfg = OmegaConf.load(REPO / "params.yaml")
     w = experiment.warning(cfg)
     group, _ = experiment.scenarios(cfg)
-    bodies = {b.name: (b.length_m, b.width_m, b.ref_from_front_m) for b in group.bodies}
+    bodies = body_boxes(group)
     shape = EgoShape(group.ego.width_m, group.ego.length_m)
     truth = pd.read_parquet(data / "driving/truth.parquet")
     meta = json.loads((data / "driving/scenes.json").read_text())

@@ -76,6 +76,7 @@ def main(argv: list[str]) -> None:
     from blindspot.config import compose
     from blindspot.radar.driving import draw_scenarios
     from blindspot.safety.assess import perception_bounds
+    from blindspot.safety.outcome import body_boxes
     from blindspot.safety.risk import EgoShape
     from blindspot.synth.driving_measurement import measure_driving
 
@@ -90,7 +91,7 @@ def main(argv: list[str]) -> None:
     truth = truth[truth.scene.isin({s.name for s in scenes})]
     meta = json.loads((args.data / "driving" / "scenes.json").read_text())
     warning, tracker = experiment.warning(cfg), experiment.tracker(cfg)
-    bodies = {b.name: (b.length_m, b.width_m, b.ref_from_front_m) for b in group.bodies}
+    bodies = body_boxes(group)
     shape = EgoShape(group.ego.width_m, group.ego.length_m)
     print(f"bench_driving_detection: {len(scenes)} Monte-Carlo scenes at {args.speeds} km/h; "
           "bound = AEB at the first frame of a radar point of the child / of a 3-of-5 "

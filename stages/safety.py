@@ -18,6 +18,7 @@ from blindspot import experiment
 from blindspot.cli import main_stage
 from blindspot.io import write_json, write_parquet
 from blindspot.safety.assess import assess
+from blindspot.safety.outcome import body_boxes
 from blindspot.safety.predict import BackfilledHistory
 from blindspot.safety.risk import EgoShape
 from blindspot.stage import StageResult
@@ -70,7 +71,7 @@ def run(cfg, ctx):
     tracks = {"tracker": pd.read_parquet(ctx.dep("tracks.parquet")),
               **{name: pd.read_parquet(ctx.dep(f"tracks_{name}.parquet"))
                  for name in ("oracle", "visible_truth")}}
-    bodies = {b.name: (b.length_m, b.width_m, b.ref_from_front_m) for b in group.bodies}
+    bodies = body_boxes(group)
     res = assess(truth, meta, tracks, _predictors(cfg, ctx, w), w, bodies=bodies,
                  shape=EgoShape(group.ego.width_m, group.ego.length_m), frame_period_s=dt,
                  figure_scene=group.figure_scene,

@@ -1,7 +1,8 @@
 """safety_bound: what any decision logic could reach on the Monte-Carlo driving scenes, given
 when the information about the lead pedestrian first exists (line of sight, the first radar
-point, an M-of-N confirmed track): the AEB requested at that frame on every intruding scene,
-never on the others, scored like the predictors (blindspot.safety.bound, issue 12)."""
+point, an M-of-N confirmed track): the AEB requested on every intruding scene at the best frame
+from the first one with that information, never on the others, scored like the predictors
+(blindspot.safety.bound, issue 12)."""
 
 import blindspot  # noqa: F401  first: pins the CPU kernels before numpy loads (blindspot.kernels)
 import json
@@ -12,6 +13,7 @@ from blindspot import experiment
 from blindspot.cli import main_stage
 from blindspot.io import write_json
 from blindspot.safety.assess import perception_bounds
+from blindspot.safety.outcome import body_boxes
 from blindspot.safety.risk import EgoShape
 from blindspot.stage import StageResult
 
@@ -23,7 +25,7 @@ def run(cfg, ctx):
     truth = pd.read_parquet(ctx.dep("truth.parquet"))
     meta = json.loads(ctx.dep("scenes.json").read_text())
     points = pd.read_parquet(ctx.dep("points.parquet"), columns=["scene", "frame", "source"])
-    bodies = {b.name: (b.length_m, b.width_m, b.ref_from_front_m) for b in group.bodies}
+    bodies = body_boxes(group)
     out = perception_bounds(truth, meta, points, w, bodies=bodies,
                             shape=EgoShape(group.ego.width_m, group.ego.length_m),
                             confirm=(tracker.confirm_m, tracker.confirm_n),

@@ -76,6 +76,11 @@ def frame_risks(risk: pd.DataFrame, scenes: np.ndarray, speed_mps: np.ndarray, n
     return p, scene_frame_risk(risk, scenes, n_frames, gate_s=g)
 
 
+def _evaluated(truth: pd.DataFrame, scenes: np.ndarray, evaluated_set: str) -> np.ndarray:
+    """(S,) bool: the scenes of ``scenes`` whose truth ``set`` is ``evaluated_set``."""
+    return truth.groupby("scene").set.first().reindex(scenes).to_numpy() == evaluated_set
+
+
 def _straight(truth: pd.DataFrame, evaluated_set: str) -> tuple[pd.DataFrame, set[str]]:
     """(truth without the scenes of a turning ego, their names). The outcome model drives the
     ego straight along +y: a turning scene (a named scene of the ego-motion sweep) is left out;
@@ -110,7 +115,7 @@ def perception_bounds(truth: pd.DataFrame, scenes_meta: dict, points: pd.DataFra
     braking = BrakingModel.from_config(cfg.aeb)
     sa, _, impact = outcome_table(truth, bodies, shape, braking, cfg)
     info = scene_info(truth, scenes_meta, sa.scenes, lead)
-    ev = truth.groupby("scene").set.first().reindex(sa.scenes).to_numpy() == evaluated_set
+    ev = _evaluated(truth, sa.scenes, evaluated_set)
     F = len(sa.time_s)
     frames = np.sort(truth.frame.unique())
     observed = lead_observed(points, sa.scenes, frames, lead, where=points_name)
@@ -180,7 +185,7 @@ def assess(truth: pd.DataFrame, scenes_meta: dict, tracks: dict[str, pd.DataFram
     sa, trig, impact = outcome_table(truth, bodies, shape, main, cfg)
     _, _, impact_weak = outcome_table(truth, bodies, shape, weak, cfg)
     info_all = scene_info(truth, scenes_meta, sa.scenes)
-    ev = truth.groupby("scene").set.first().reindex(sa.scenes).to_numpy() == evaluated_set
+    ev = _evaluated(truth, sa.scenes, evaluated_set)
     info = SceneInfo(*(np.asarray(getattr(info_all, f))[ev] for f in SceneInfo.__dataclass_fields__))
     thresholds = np.linspace(0, 1, cfg.n_thresholds + 2)[1:-1]
     fig_i = int(np.flatnonzero(sa.scenes == figure_scene)[0]) if figure_scene in sa.scenes else None

@@ -27,8 +27,8 @@ import pandas as pd
 from blindspot.safety.braking import BrakingModel
 from blindspot.safety.risk import EgoShape
 
-__all__ = ["OutcomeError", "SceneArrays", "scene_arrays", "pedestrian_boxes", "braked_impacts",
-           "NEVER_S"]
+__all__ = ["OutcomeError", "SceneArrays", "body_boxes", "scene_arrays", "pedestrian_boxes",
+           "braked_impacts", "NEVER_S"]
 
 NEVER_S = 1e9          # the trigger time of "no AEB request"
 
@@ -56,6 +56,13 @@ class SceneArrays:
     length_m: np.ndarray
     width_m: np.ndarray
     ref_front_m: np.ndarray
+
+
+def body_boxes(group) -> dict[str, tuple[float, float, float]]:
+    """The ``bodies`` argument of :func:`scene_arrays` from a scenario group
+    (:class:`blindspot.radar.scene.ScenarioGroup`): body name -> (length_m, width_m,
+    ref_from_front_m), the [V] boxes of ``conf/scenario``."""
+    return {b.name: (b.length_m, b.width_m, b.ref_from_front_m) for b in group.bodies}
 
 
 def scene_arrays(truth: pd.DataFrame, bodies: dict[str, tuple[float, float, float]],
