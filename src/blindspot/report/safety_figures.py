@@ -151,7 +151,7 @@ def fig_operating_characteristic(curves: pd.DataFrame, operating: Mapping[str, M
              + [k for k in bounds if k not in BOUND_LABELS])
     for i, name in enumerate(order):                 # earliest information first
         ax.plot(0.0, 100 * bounds[name], marker="^Ds"[i % 3], ls="none", ms=8, color="0.15",
-                label="bound: AEB at the first frame of "
+                label="bound: AEB once there is "
                       + BOUND_LABELS.get(name, name).format(m=confirm[0], n=confirm[1]))
     ax.axvline(1.0, color="0.4", ls=":", lw=1, label="goal: <= 1 % false activations")
     ax.set_xlabel("false activations (% of non-intruding scenes)")
