@@ -1,6 +1,7 @@
 """calibration: every scene predictor's predictive distribution, calibrated on validation paths.
 
-LSTM (an error model of its own validation errors in the walker's heading frame), constant
+LSTM (an error model of its own validation errors in the walker's heading frame), the direct
+multi-step LSTM (lstm_direct, the train_direct stage's: its own Gaussian head), constant
 velocity (its fitted noise model) and Kalman (its own covariance) each get a per-step scale
 fitted on (history, future) pairs of the windows split's validation paths
 (blindspot.traj.calibration); coverage of the 50/90/95 % ellipses and NLL are scored on the test
@@ -26,8 +27,10 @@ from blindspot.traj.calibration import (ETHUCY_FILE, ETHUCY_NAMES, LEVELS, calib
                                         calibration_scores, online_scores, path_pairs,
                                         forecast_scores, to_record)
 from blindspot.traj.conformal import AdaptiveConformal
+from blindspot.traj.direct import NAME as DIRECT, path_splits
 from blindspot.traj.lstm import LSTMPredictor
 from blindspot.traj.paths import table_to_arrays
+from blindspot.traj.seq2seq import Seq2SeqEnsemble
 from blindspot.traj.windows import WindowSet
 
 
@@ -38,15 +41,15 @@ def run(cfg, ctx):
     c = experiment.calibration(cfg)
     window = experiment.dataset(cfg).window
     truth, measured, _ = table_to_arrays(pd.read_parquet(ctx.dep("paths.parquet")))
-    ids = {split: np.unique(WindowSet.load(ctx.dep(f"{split}.parquet")).path_id)
-           for split in ("train", "val")}
-    # held out: every path neither trained nor validated on (the test split's paths and the
-    # spare paths the split did not need)
-    ids["test"] = np.setdiff1d(np.arange(len(truth)), np.concatenate([ids["train"], ids["val"]]))
+    # held out ("test"): every path neither trained nor validated on
+    ids = path_splits(len(truth), *(WindowSet.load(ctx.dep(f"{split}.parquet"))
+                                    for split in ("train", "val")))
     pairs = {split: path_pairs(measured[ids[split]], truth[ids[split]], window, c.horizon_frames,
                                c.stride, with_index=split == "test") for split in ("val", "test")}
-    lstm = LSTMPredictor.load(ctx.dep("model.pt")).with_workers(experiment.jobs(cfg))
-    calibrated = calibrate(experiment.predictors(cfg, lstm), *pairs["val"],
+    lstm = LSTMPredictor.load(ctx.dep("train/model.pt")).with_workers(experiment.jobs(cfg))
+    predictors = {**experiment.predictors(cfg, lstm),
+                  DIRECT: Seq2SeqEnsemble.load(ctx.dep("train_direct/model.pt"))}
+    calibrated = calibrate(predictors, *pairs["val"],
                            scale_method=c.scale_method, scale_level=c.scale_level,
                            cv_fit_points=experiment.evaluation(cfg).cv_fit_points)
     online = AdaptiveConformal(LEVELS, c.online_gamma, c.online_window)

@@ -2,9 +2,10 @@
 driving scenes (issue 12; blindspot.safety.assess).
 
 Predictors: none (blindspot.traj.stationary, its error model calibrated here on the calibration
-stage's validation pairs with the same settings), constant velocity, Kalman and the scene LSTM
-(their calibrated distributions from data/calibration/models.json; the LSTM's short histories
-completed as warning.lstm_history says). Inputs (driving_track stage): the tracker's tracks (the
+stage's validation pairs with the same settings), constant velocity, Kalman, the scene LSTM and
+the direct multi-step LSTM (lstm_direct, the train_direct stage's; their calibrated
+distributions from data/calibration/models.json; both LSTMs' short histories completed as
+warning.lstm_history says). Inputs (driving_track stage): the tracker's tracks (the
 headline), the oracle-association and visible-truth reference tracks.
 """
 
@@ -23,8 +24,10 @@ from blindspot.safety.predict import BackfilledHistory
 from blindspot.safety.risk import EgoShape
 from blindspot.stage import StageResult
 from blindspot.traj.calibration import calibrate, from_record, path_pairs
+from blindspot.traj.direct import NAME as DIRECT
 from blindspot.traj.lstm import LSTMPredictor
 from blindspot.traj.paths import table_to_arrays
+from blindspot.traj.seq2seq import Seq2SeqEnsemble
 from blindspot.traj.stationary import Stationary
 from blindspot.traj.windows import WindowSet
 
@@ -35,9 +38,11 @@ def _predictors(cfg, ctx, w):
 
     torch.set_num_threads(1)
     c = experiment.calibration(cfg)
-    lstm = LSTMPredictor.load(ctx.dep("model.pt")).with_workers(experiment.jobs(cfg))
+    lstm = LSTMPredictor.load(ctx.dep("train/model.pt")).with_workers(experiment.jobs(cfg))
     records = json.loads(ctx.dep("models.json").read_text())
-    base = experiment.predictors(cfg, lstm)
+    base = {**experiment.predictors(cfg, lstm)}
+    if DIRECT in w.predictors:
+        base[DIRECT] = Seq2SeqEnsemble.load(ctx.dep("train_direct/model.pt"))
     out = {}
     for name in w.predictors:
         if name == "none":
@@ -53,8 +58,8 @@ def _predictors(cfg, ctx, w):
             raise ValueError(f"config key 'warning.predictors' lists {name!r}: no calibrated "
                              f"distribution in {ctx.dep('models.json')} ({sorted(records)})")
         p = from_record(records[name], base[name], name)
-        out[name] = (BackfilledHistory(p, lstm.window, w.lstm_history)
-                     if name == "lstm" else p)
+        window = {"lstm": lstm.window, DIRECT: getattr(base[name], "window", None)}.get(name)
+        out[name] = p if window is None else BackfilledHistory(p, window, w.lstm_history)
     return out
 
 

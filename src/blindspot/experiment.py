@@ -21,7 +21,7 @@ from blindspot.radar.scene import (
 )
 from blindspot.typed_config import ConfigError
 from blindspot.traj.config import (BenchmarkConfig, CalibrationConfig, DatasetConfig,
-                                   EthUcyConfig, EvalConfig, LSTMConfig, TrainConfig)
+                                   DirectConfig, EthUcyConfig, EvalConfig, LSTMConfig, TrainConfig)
 
 
 # One builder per config group: stages hand these typed objects to the library, never raw groups.
@@ -99,6 +99,11 @@ def evaluation(cfg: DictConfig) -> EvalConfig:
 def benchmark(cfg: DictConfig):
     """The many-walk benchmark settings of ``cfg.benchmark``."""
     return BenchmarkConfig.from_mapping(cfg.benchmark)
+
+
+def direct(cfg: DictConfig) -> DirectConfig:
+    """The scenes' direct multi-step predictor and its training, ``cfg.direct``."""
+    return DirectConfig.from_mapping(cfg.direct)
 
 
 def calibration(cfg: DictConfig):

@@ -301,6 +301,7 @@ def _builders():
         "benchmark": experiment.benchmark, "calibration": experiment.calibration, "recordings": _build_recordings,
         "scenario": experiment.scenarios, "ego_motion": experiment.ego_motion,
         "tracker": experiment.tracker, "real_tracking": experiment.real_tracking,
+        "direct": experiment.direct,
         "warning": _build_warning,
     }
 

@@ -29,7 +29,8 @@ __all__ = ["fig_safety_timeline", "fig_operating_characteristic", "fig_ncap_grid
            "fig_lead_times", "ncap_grid_markdown", "PREDICTOR_LABELS"]
 
 PREDICTOR_LABELS = {"none": "none (stays put)", "constant_velocity": "constant velocity",
-                    "kalman": "Kalman (CV)", "lstm": "scene LSTM"}
+                    "kalman": "Kalman (CV)", "lstm": "scene LSTM",
+                    "lstm_direct": "scene LSTM, direct"}
 BAND_COLOURS = {"green": "#3a9d23", "yellow": "#f2d300", "orange": "#f28c00",
                 "brown": "#8b5a2b", "red": "#d62728"}
 INPUT_STYLES = {"tracker": "-", "oracle": "--", "visible_truth": ":"}

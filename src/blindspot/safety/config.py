@@ -14,7 +14,7 @@ from blindspot.typed_config import ConfigError, TypedConfig, setting
 __all__ = ["PREDICTORS", "PROBABILITY_METHODS", "LSTM_HISTORY", "AEB_GATES", "BrakingConfig",
            "OracleConfig", "WarningConfig"]
 
-PREDICTORS: tuple[str, ...] = ("none", "constant_velocity", "kalman", "lstm")
+PREDICTORS: tuple[str, ...] = ("none", "constant_velocity", "kalman", "lstm", "lstm_direct")
 PROBABILITY_METHODS: tuple[str, ...] = ("max_step", "union")
 LSTM_HISTORY: tuple[str, ...] = ("cv_backfill", "hold_first")
 AEB_GATES: tuple[str, ...] = ("none", "stopping_time")

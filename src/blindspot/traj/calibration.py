@@ -6,6 +6,8 @@ Every prediction method gets a :class:`~blindspot.traj.distribution.GaussianFore
   ``measured=False``: the simulated paths are scored against the true position);
 * ``constant_velocity``: its :class:`~blindspot.traj.baselines.CVNoise` error model fitted on the
   validation pairs (``ConstantVelocity.fit``);
+* ``lstm_direct`` (:class:`~blindspot.traj.seq2seq.Seq2SeqEnsemble`, the direct multi-step
+  predictor): its own Gaussian head mixed over the ensemble's members;
 * ``lstm`` (a next-point rollout, no likelihood of its own): the same kind of error model,
   fitted on the LSTM's own validation errors: a covariance per future step in the walker's
   (along-track, cross-track) frame, scaled per track by its speed and acceleration
@@ -174,8 +176,8 @@ class ScaledPredictor:
 def calibrate(predictors: dict[str, Any], history: np.ndarray, future: np.ndarray, *,
               scale_method: str = "quantile", scale_level: float = 0.9,
               cv_fit_points: int = 5) -> dict[str, ScaledPredictor]:
-    """Give every predictor (``lstm``, ``constant_velocity``, ``kalman``) a distribution fitted
-    on the validation pairs (history (N, W, 2), future (N, H, 2)) and a per-step scale
+    """Give every predictor (``lstm``, ``constant_velocity``, ``kalman``, ``lstm_direct``) a
+    distribution fitted on the validation pairs (history (N, W, 2), future (N, H, 2)) and a per-step scale
     (``scale_method`` "mle" / "quantile") or scale mixture ("mixture")."""
     out = {}
     for name, p in predictors.items():
@@ -184,6 +186,8 @@ def calibrate(predictors: dict[str, Any], history: np.ndarray, future: np.ndarra
             base, options = p, (("measured", False),)
         elif isinstance(p, ConstantVelocity):
             base = p.fit(history, future)
+        elif hasattr(p, "predict_distribution"):   # a distribution of its own (lstm_direct)
+            base = p
         else:
             base = ErrorModelPredictor.fit(p, history, future, k=cv_fit_points, name=name)
         fc = base.predict_distribution(history, future.shape[1], **dict(options))
@@ -260,8 +264,9 @@ def from_record(record: dict, predictor, name: str) -> ScaledPredictor:
         noise = record["noise"]
         scale = np.asarray(record["scale"], float)
         options = tuple(record.get("options", {}).items())
-        if isinstance(predictor, KalmanCV):
-            base = predictor
+        if isinstance(predictor, KalmanCV) or (noise is None
+                                               and hasattr(predictor, "predict_distribution")):
+            base = predictor                 # its own distribution (Kalman, lstm_direct)
         elif isinstance(predictor, ConstantVelocity):
             base = replace(predictor, noise=CVNoise(np.asarray(noise["step_cov"]),
                                                     np.asarray(noise["beta"]), noise["n_fit"]))

@@ -414,6 +414,30 @@ class BenchmarkConfig(TypedConfig):
 
 
 @dataclass(frozen=True)
+class DirectConfig(TypedConfig):
+    """The Hydra group ``direct`` (``conf/direct/scene.yaml``): the direct multi-step predictor
+    of the scenes (``lstm_direct``), trained on the radar path data set.
+
+    model: the network and its training (:class:`Seq2SeqConfig`; ``neighbours`` must be 0:
+        the paper's scenes hold one walker, so there is no one to attend to);
+    stride: points between the starts of two training pairs of one path;
+    jobs: worker processes training the ensemble's members side by side (the same weights as
+        in one process).
+    """
+
+    GROUP = "direct"
+
+    model: Seq2SeqConfig = setting()
+    stride: int = setting(ge=1, le=1000)
+    jobs: int = setting(ge=1)
+
+    def validate(self) -> None:
+        if self.model.neighbours != 0:
+            raise ConfigError("model.neighbours", self.model.neighbours,
+                              "0 (the scenes' paths have no neighbours)")
+
+
+@dataclass(frozen=True)
 class CalibrationConfig(TypedConfig):
     """The Hydra group ``calibration`` (``conf/calibration/sim_paths.yaml``).
 

@@ -55,13 +55,15 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field, replace
+from pathlib import Path
 
 import numpy as np
 import torch
 from torch import nn
 
 from blindspot.arrays import check_array
+from blindspot.io import atomic_path
 from blindspot.traj.config import (
     SEQ2SEQ_CELLS as CELLS,
     SEQ2SEQ_FRAMES as FRAMES,
@@ -91,6 +93,7 @@ __all__ = [
 ]
 
 _MIRROR = np.array([1.0, -1.0])
+_ENSEMBLE_FORMAT = "blindspot.seq2seq-ensemble/1"
 
 
 # --------------------------------------------------------------------------------------------
@@ -272,15 +275,20 @@ class Seq2SeqModel:
     def _framed_both(self, x: np.ndarray, soc: np.ndarray | None, *, with_cov: bool = True
                      ) -> tuple[np.ndarray, np.ndarray | None]:
         """Framed mean (B, H, 2) and cov (B, H, 2, 2) (None unless ``with_cov``) of framed
-        inputs, averaged with the mirrored scene's when ``cfg.mirror``."""
-        mean, cov = self._framed(x, soc, with_cov=with_cov)
-        if self.cfg.mirror:
-            m2, c2 = self._framed(x * _MIRROR, None if soc is None else _mirror_social(soc),
-                                  with_cov=with_cov)
-            mean = 0.5 * (mean + m2 * _MIRROR)
-            if with_cov:
-                flip = np.array([[1.0, -1.0], [-1.0, 1.0]])
-                cov = 0.5 * (cov + c2 * flip)
+        inputs, averaged with the mirrored scene's when ``cfg.mirror`` (the tracks and their
+        mirror images in one network call of 2B rows)."""
+        if not self.cfg.mirror:
+            return self._framed(x, soc, with_cov=with_cov)
+        n = x.shape[0]
+        both, c_both = self._framed(
+            np.concatenate([x, x * _MIRROR]),
+            None if soc is None else np.concatenate([soc, _mirror_social(soc)]),
+            with_cov=with_cov)
+        mean = 0.5 * (both[:n] + both[n:] * _MIRROR)
+        cov = None
+        if with_cov:
+            flip = np.array([[1.0, -1.0], [-1.0, 1.0]])
+            cov = 0.5 * (c_both[:n] + c_both[n:] * flip)
         return mean, cov
 
     def _framed(self, x: np.ndarray, soc: np.ndarray | None = None, *, with_cov: bool = True
@@ -411,6 +419,8 @@ class Seq2SeqEnsemble:
             raise ValueError("Seq2SeqEnsemble: expected at least one member, found none")
         self.members = list(members)
         self.cfg = self.members[0].cfg
+        if len({replace(m.cfg, seed=0) for m in self.members}) != 1:
+            raise ValueError("Seq2SeqEnsemble: members must share one config (all but the seed)")
         self.name = name
         self.step_scale = step_scale
 
@@ -426,12 +436,17 @@ class Seq2SeqEnsemble:
         ``calibrated`` and a scale was fitted. ``neighbours``: see
         :meth:`Seq2SeqModel.predict_distribution`."""
         obs = _observed(history, horizon, self.cfg, self.name)
-        fcs = [m.predict_distribution(obs, horizon, neighbours=neighbours) for m in self.members]
-        means = np.stack([f.mean for f in fcs])                              # (K, B, H, 2)
+        # the members share one config, so one frame per track serves them all; the mixture's
+        # moments are taken in that frame and carried to the world once (both are linear)
+        x, soc, origin, rot = _framed_inputs(
+            obs, _check_neighbours(neighbours, obs.shape[0], self.cfg, self.name), self.cfg)
+        outs = [m._framed_both(x, soc) for m in self.members]
+        means = np.stack([mu[:, :horizon] for mu, _ in outs])               # (K, B, H, 2)
         mean = means.mean(axis=0)
         d = means - mean
-        cov = np.mean([f.cov for f in fcs], axis=0) + np.einsum("kbhi,kbhj->bhij", d, d) / len(fcs)
-        fc = GaussianForecast(mean, 0.5 * (cov + np.swapaxes(cov, -1, -2)))
+        cov = (np.mean([c[:, :horizon] for _, c in outs], axis=0)
+               + np.einsum("kbhi,kbhj->bhij", d, d) / len(outs))
+        fc = _to_world(mean, cov, origin, rot)
         if calibrated and self.step_scale is not None:
             fc = fc.scaled(self.step_scale[:horizon])
         return fc
@@ -440,8 +455,48 @@ class Seq2SeqEnsemble:
                 neighbours: np.ndarray | None = None) -> np.ndarray:
         """(B, T, 2) -> (B, horizon, 2) the ensemble's mean positions in metres."""
         obs = _observed(history, horizon, self.cfg, self.name)
-        return np.mean([m.predict(obs, horizon, neighbours=neighbours) for m in self.members],
-                       axis=0)
+        x, soc, origin, rot = _framed_inputs(
+            obs, _check_neighbours(neighbours, obs.shape[0], self.cfg, self.name), self.cfg)
+        mean = np.mean([m._framed_both(x, soc, with_cov=False)[0][:, :horizon]
+                        for m in self.members], axis=0)
+        return np.einsum("bij,bhj->bhi", np.linalg.inv(rot), mean) + origin[:, None, :]
+
+    @property
+    def obs_len(self) -> int:
+        """Observed positions each prediction reads (the last ``obs_len`` rows of a history)."""
+        return self.cfg.obs_len
+
+    window = obs_len
+
+    def save(self, path: str | Path) -> Path:
+        """Write the members' weights and their config with ``torch.save`` (format
+        ``blindspot.seq2seq-ensemble/1``; temporary name, then rename). The ``step_scale``
+        is not written: calibration is kept beside the model (the calibration stage's
+        records)."""
+        path = Path(path)
+        blob = {"format": _ENSEMBLE_FORMAT, "name": self.name,
+                "configs": [asdict(m.cfg) for m in self.members],
+                "state_dicts": [m.net.state_dict() for m in self.members]}
+        with atomic_path(path) as tmp:
+            torch.save(blob, tmp)
+        return path
+
+    @classmethod
+    def load(cls, path: str | Path) -> Seq2SeqEnsemble:
+        """Read a file written by :meth:`save`; ValueError naming the file when it is not one."""
+        path = Path(path)
+        blob = torch.load(path, map_location="cpu", weights_only=True)
+        found = blob.get("format") if isinstance(blob, dict) else type(blob).__name__
+        if found != _ENSEMBLE_FORMAT or not blob.get("configs"):
+            raise ValueError(f"{path}: not a Seq2SeqEnsemble file (expected format "
+                             f"{_ENSEMBLE_FORMAT!r} with at least one member, found {found!r})")
+        members = []
+        for config, state in zip(blob["configs"], blob["state_dicts"]):
+            cfg = Seq2SeqConfig(**config)
+            net = Seq2SeqNet(cfg)
+            net.load_state_dict(state)
+            members.append(Seq2SeqModel(net, cfg, blob["name"]))
+        return cls(members, name=blob["name"])
 
 
 # --------------------------------------------------------------------------------------------
@@ -563,8 +618,9 @@ def train_seq2seq(train_xy: np.ndarray, val_xy: np.ndarray, cfg: Seq2SeqConfig, 
                 if cfg.rotation_deg > 0:
                     th = (torch.rand(x.shape[0], generator=gen) * 2 - 1) * np.deg2rad(
                         cfg.rotation_deg)
-                    c, s = torch.cos(th), torch.sin(th)
-                    R = torch.stack([torch.stack([c, -s], -1), torch.stack([s, c], -1)], -2)
+                    cos, sin = torch.cos(th), torch.sin(th)
+                    R = torch.stack([torch.stack([cos, -sin], -1), torch.stack([sin, cos], -1)],
+                                    -2)
                     x, y = x @ R.transpose(1, 2), y @ R.transpose(1, 2)
                     if s is not None:        # rotate the vector parts of the social features
                         Rk = R[:, None, None]
@@ -594,10 +650,31 @@ def train_seq2seq(train_xy: np.ndarray, val_xy: np.ndarray, cfg: Seq2SeqConfig, 
 
 def train_ensemble(train_xy: np.ndarray, val_xy: np.ndarray, cfg: Seq2SeqConfig, *,
                    name: str = "seq2seq", progress: Callable[[str], None] | None = None,
-                   train_nb: np.ndarray | None = None, val_nb: np.ndarray | None = None
-                   ) -> tuple[Seq2SeqEnsemble, list[FitReport]]:
-    """``cfg.ensemble`` members with seeds ``cfg.seed + k`` (see :func:`train_seq2seq`)."""
-    runs = [train_seq2seq(train_xy, val_xy, cfg, seed=cfg.seed + k, name=name,
-                          progress=progress, train_nb=train_nb, val_nb=val_nb)
-            for k in range(cfg.ensemble)]
+                   train_nb: np.ndarray | None = None, val_nb: np.ndarray | None = None,
+                   jobs: int = 1) -> tuple[Seq2SeqEnsemble, list[FitReport]]:
+    """``cfg.ensemble`` members with seeds ``cfg.seed + k`` (see :func:`train_seq2seq`).
+
+    ``jobs`` > 1: one worker process per member, confined to ``jobs`` CPUs
+    (:func:`blindspot.parallel.parallel_map`); each member is trained on ``cfg.threads``
+    threads either way, so its weights are the same bits as in this process. ``progress`` is
+    called in this process only (``jobs`` = 1)."""
+    seeds = [cfg.seed + k for k in range(cfg.ensemble)]
+    if jobs <= 1 or len(seeds) == 1:
+        runs = [train_seq2seq(train_xy, val_xy, cfg, seed=s, name=name, progress=progress,
+                              train_nb=train_nb, val_nb=val_nb) for s in seeds]
+    else:
+        from functools import partial
+
+        from blindspot.parallel import parallel_map
+
+        runs = parallel_map(partial(_train_member, train_xy, val_xy, cfg, name, train_nb,
+                                    val_nb), seeds, len(seeds), cpus=int(jobs))
     return Seq2SeqEnsemble([m for m, _ in runs], name=name), [r for _, r in runs]
+
+
+def _train_member(train_xy: np.ndarray, val_xy: np.ndarray, cfg: Seq2SeqConfig, name: str,
+                  train_nb: np.ndarray | None, val_nb: np.ndarray | None, seed: int
+                  ) -> tuple[Seq2SeqModel, FitReport]:
+    """One member in a worker process (module level, so it pickles)."""
+    return train_seq2seq(train_xy, val_xy, cfg, seed=seed, name=name, train_nb=train_nb,
+                         val_nb=val_nb)

@@ -1,0 +1,95 @@
+"""The scenes' direct multi-step predictor, ``lstm_direct``: the model of
+:mod:`blindspot.traj.seq2seq` trained on the radar path data set.
+
+The paper's LSTM (:mod:`blindspot.traj.lstm`) predicts the next point of a 50-point window and is
+rolled out one network call per future step, each call re-running its 50-step recurrence: 30
+calls of each of its five networks for a 3 s forecast. This model reads the last ``obs_len``
+radar points of a track once and emits every future point together, with a Gaussian per step,
+trained on the mean Euclidean error over the whole horizon (the score itself) against the
+*true* future positions of the simulated paths, so it learns to look through the radar points'
+noise as well as to extrapolate (the next-point LSTM is trained on the noisy next point).
+
+Pairs (:func:`direct_pairs`): from each measured path, the last ``obs_len`` measured points
+(interior misses linearly interpolated; windows that still hold a miss dropped) and the next
+``horizon`` true positions, a pair every ``stride`` points (:func:`blindspot.traj.calibration.
+path_pairs`). Paths are split as the windows stage split them: training paths train, validation
+paths choose each member's epoch, every other path is held out (:func:`path_splits`).
+
+Shapes: measured and true paths (P, T, 2) metres (measured NaN where the radar saw nothing);
+pairs (N, obs_len + horizon, 2) metres.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from blindspot.traj.calibration import path_pairs
+from blindspot.traj.config import DirectConfig
+from blindspot.traj.seq2seq import FitReport, Seq2SeqEnsemble, train_ensemble
+from blindspot.traj.windows import WindowSet
+
+__all__ = ["NAME", "path_splits", "direct_pairs", "train_direct", "direct_scores"]
+
+#: the predictor's name in the calibration records, the warning's predictor list and reports
+NAME = "lstm_direct"
+
+
+def path_splits(n_paths: int, train: WindowSet, val: WindowSet) -> dict[str, np.ndarray]:
+    """Path ids (rows of the path arrays) of each split: ``train`` and ``val`` those the windows
+    stage's splits were cut from, ``test`` every other path (the test windows' paths and the
+    spare paths the split did not need), never trained or validated on.
+
+    Raises ValueError when a window's path id is outside ``0..n_paths - 1``."""
+    ids = {"train": np.unique(train.path_id), "val": np.unique(val.path_id)}
+    for split, a in ids.items():
+        if a.size and (a[0] < 0 or a[-1] >= n_paths):
+            raise ValueError(f"path_splits: the {split} windows name paths {a[0]}..{a[-1]}, "
+                             f"outside the {n_paths} paths of the path table")
+    ids["test"] = np.setdiff1d(np.arange(n_paths), np.concatenate([ids["train"], ids["val"]]))
+    return ids
+
+
+def direct_pairs(measured: np.ndarray, truth: np.ndarray, obs_len: int, horizon: int,
+                 stride: int) -> np.ndarray:
+    """(N, obs_len + horizon, 2): measured history then true future, a pair every ``stride``
+    points of each path (module docstring). CalibrationError when they do not fit the paths."""
+    hist, fut = path_pairs(measured, truth, obs_len, horizon, stride)
+    return np.concatenate([hist, fut], axis=1)
+
+
+def train_direct(measured: np.ndarray, truth: np.ndarray, ids: dict[str, np.ndarray],
+                 cfg: DirectConfig) -> tuple[Seq2SeqEnsemble, list[FitReport]]:
+    """Train ``cfg.model.ensemble`` members (seeds ``cfg.model.seed + k``, ``cfg.jobs``
+    processes) on the pairs of the ``train`` paths; each keeps the epoch of lowest ADE on the
+    ``val`` paths' pairs. Returns the ensemble (named :data:`NAME`) and each member's report.
+
+    Raises ValueError when a split yields no pair (paths shorter than ``obs_len + horizon``, or
+    every window holding a miss)."""
+    m = cfg.model
+    xy = {s: direct_pairs(measured[ids[s]], truth[ids[s]], m.obs_len, m.horizon, cfg.stride)
+          for s in ("train", "val")}
+    for split, a in xy.items():
+        if not len(a):
+            raise ValueError(f"train_direct: the {split} paths yield no (obs_len={m.obs_len}, "
+                             f"horizon={m.horizon}) pair")
+    return train_ensemble(xy["train"], xy["val"], m, name=NAME, jobs=cfg.jobs)
+
+
+def direct_scores(predictors: dict, measured: np.ndarray, truth: np.ndarray, obs_len: int,
+                  steps: tuple[int, ...], stride: int) -> dict[str, dict[str, float]]:
+    """ADE / FDE (m) of each predictor over the first ``k`` future steps, for every ``k`` in
+    ``steps``, on the pairs of the given paths (history: the last ``obs_len`` measured points,
+    or as many as a predictor's ``window`` asks when it reads more; future: the truth).
+
+    Returns ``{name: {"ade_<k>": .., "fde_<k>": .., "n_pairs": N}}``."""
+    horizon = max(steps)
+    window = max([obs_len] + [int(getattr(p, "window", 0) or 0) for p in predictors.values()])
+    hist, fut = path_pairs(measured, truth, window, horizon, stride)
+    out = {}
+    for name, p in predictors.items():
+        err = np.linalg.norm(np.asarray(p.predict(hist, horizon)) - fut, axis=-1)   # (N, H)
+        out[name] = {**{f"ade_{k}": float(err[:, :k].mean()) for k in steps},
+                     **{f"fde_{k}": float(err[:, k - 1].mean()) for k in steps},
+                     "n_pairs": int(len(hist))}
+    return out
+

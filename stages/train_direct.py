@@ -1,0 +1,64 @@
+"""train_direct: the scenes' direct multi-step predictor (lstm_direct, blindspot.traj.direct) on
+the radar path data set: ``direct.model.ensemble`` networks trained on the training paths' pairs
+(measured history, true future), each member's epoch chosen on the validation paths.
+
+train_direct.json: ADE / FDE over 1, 2 and 3 s (and the model's whole horizon) on the validation
+and held-out paths, beside the paper's next-point LSTM ensemble (data/train/model.pt, rolled out)
+and constant velocity on the same pairs; each member's chosen epoch and training time.
+"""
+
+import blindspot  # noqa: F401  first: pins the CPU kernels before numpy loads (blindspot.kernels)
+import numpy as np
+import pandas as pd
+
+from blindspot import experiment
+from blindspot.cli import main_stage
+from blindspot.io import write_json
+from blindspot.stage import StageResult
+from blindspot.traj.baselines import ConstantVelocity
+from blindspot.traj.direct import NAME, direct_scores, path_splits, train_direct
+from blindspot.traj.lstm import LSTMPredictor
+from blindspot.traj.paths import table_to_arrays
+from blindspot.traj.train import torch_threads
+from blindspot.traj.windows import WindowSet
+
+STEPS_S = (1.0, 2.0, 3.0)
+
+
+def run(cfg, ctx):
+    d = experiment.direct(cfg)
+    dt = experiment.dataset(cfg).frame_period_s
+    truth, measured, _ = table_to_arrays(pd.read_parquet(ctx.dep("paths.parquet")))
+    ids = path_splits(len(truth), *(WindowSet.load(ctx.dep(f"{s}.parquet"))
+                                    for s in ("train", "val")))
+    model, reports = train_direct(measured, truth, ids, d)
+    model_path = model.save(ctx.out("model.pt"))
+    steps = tuple(sorted({min(int(round(s / dt)), d.model.horizon) for s in STEPS_S}
+                         | {d.model.horizon}))
+    predictors = {NAME: model,
+                  "lstm": LSTMPredictor.load(ctx.dep("train/model.pt")),
+                  "constant_velocity": ConstantVelocity(k=experiment.evaluation(cfg).cv_fit_points,
+                                                        name="constant_velocity")}
+    with torch_threads(1):
+        scores = {s: direct_scores(predictors, measured[ids[s]], truth[ids[s]],
+                                   d.model.obs_len, steps, d.stride) for s in ("val", "test")}
+    metrics = {**{name: {s: scores[s][name] for s in scores} for name in predictors},
+               "steps_frames": list(steps), "frame_period_s": dt,
+               "n_paths": {s: int(len(v)) for s, v in ids.items()},
+               "members": [{"seed": d.model.seed + k, "best_epoch": r.best_epoch,
+                            "val_ade_m": r.val_ade[r.best_epoch - 1], "seconds": r.seconds}
+                           for k, r in enumerate(reports)]}
+    write_json(ctx.out("train_direct.json"), metrics)
+    k = steps[min(2, len(steps) - 1)]
+    print(f"train_direct: {len(reports)} members, best epochs "
+          f"{[r.best_epoch for r in reports]}; held-out ADE/FDE over {k * dt:.1f} s: "
+          + ", ".join(f"{n} {v['test'][f'ade_{k}']:.3f}/{v['test'][f'fde_{k}']:.3f} m"
+                      for n, v in metrics.items() if n in predictors))
+    logged = {n: metrics[n] for n in predictors}
+    logged["members"] = {f"seed{m['seed']}": {kk: v for kk, v in m.items() if kk != "seed"}
+                         for m in metrics["members"]}
+    return StageResult(metrics=logged, model_files=[model_path])
+
+
+if __name__ == "__main__":
+    main_stage(run, "train_direct")
