@@ -9,7 +9,7 @@ machine inflate them little. Tracking: the tracker (conf/tracker/gnn_cv.yaml) ov
 scene of the three walkers (3 points each), per frame. Kalman: an online system keeps each
 track's filtered state, so its row predicts from that state (KalmanCV.forecast_from_state, what
 the safety stage does) instead of re-filtering the history. The predictors are the safety stage's own (calibrated distributions from
-data/calibration/models.json and data/train/model.pt, the "none" error model fitted on the
+data/calibration/models.json, data/train/model.pt and data/train_direct/model.pt, the "none" error model fitted on the
 validation pairs as the stage does; run `dvc checkout` or `dvc repro calibration` first); the
 tracks are three crossing walkers with 50-frame histories (the longest the stage uses), the ego
 at 50 km/h. Tracking itself is the tracker's benchmark.
@@ -35,13 +35,15 @@ import torch  # noqa: E402
 from omegaconf import OmegaConf  # noqa: E402
 
 from blindspot.safety.config import WarningConfig  # noqa: E402
-from blindspot.safety.predict import BackfilledHistory  # noqa: E402
+from blindspot.safety.predict import with_backfill  # noqa: E402
 from blindspot.safety.risk import EgoShape, collision_risk  # noqa: E402
 from blindspot.track import TrackerConfig, track_points  # noqa: E402
 from blindspot.traj.baselines import ConstantVelocity, KalmanCV  # noqa: E402
 from blindspot.traj.calibration import calibrate, from_record, path_pairs  # noqa: E402
+from blindspot.traj.direct import NAME as DIRECT  # noqa: E402
 from blindspot.traj.lstm import LSTMPredictor  # noqa: E402
 from blindspot.traj.paths import table_to_arrays  # noqa: E402
+from blindspot.traj.seq2seq import Seq2SeqEnsemble  # noqa: E402
 from blindspot.traj.stationary import Stationary  # noqa: E402
 from blindspot.traj.windows import WindowSet  # noqa: E402
 
@@ -55,6 +57,8 @@ def predictors(params: dict, w: WarningConfig) -> dict:
     base = {"constant_velocity": ConstantVelocity(k=ev["cv_fit_points"], name="constant_velocity"),
             "kalman": KalmanCV(dt=params["radar"]["frame_period_s"], **ev["kalman"]),
             "lstm": lstm}
+    if DIRECT in w.predictors:
+        base[DIRECT] = Seq2SeqEnsemble.load(REPO / "data/train_direct/model.pt")
     out = {}
     for name in w.predictors:
         if name == "none":
@@ -66,7 +70,7 @@ def predictors(params: dict, w: WarningConfig) -> dict:
                                   scale_level=cal["scale_level"])["none"]
         else:
             p = from_record(rec[name], base[name], name)
-            out[name] = BackfilledHistory(p, lstm.window, w.lstm_history) if name == "lstm" else p
+            out[name] = with_backfill(p, base[name], w.lstm_history)
     return out
 
 

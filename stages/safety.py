@@ -20,7 +20,7 @@ from blindspot.cli import main_stage
 from blindspot.io import write_json, write_parquet
 from blindspot.safety.assess import assess
 from blindspot.safety.outcome import body_boxes
-from blindspot.safety.predict import BackfilledHistory
+from blindspot.safety.predict import with_backfill
 from blindspot.safety.risk import EgoShape
 from blindspot.stage import StageResult
 from blindspot.traj.calibration import calibrate, from_record, path_pairs
@@ -58,8 +58,7 @@ def _predictors(cfg, ctx, w):
             raise ValueError(f"config key 'warning.predictors' lists {name!r}: no calibrated "
                              f"distribution in {ctx.dep('models.json')} ({sorted(records)})")
         p = from_record(records[name], base[name], name)
-        window = {"lstm": lstm.window, DIRECT: getattr(base[name], "window", None)}.get(name)
-        out[name] = p if window is None else BackfilledHistory(p, window, w.lstm_history)
+        out[name] = with_backfill(p, base[name], w.lstm_history)
     return out
 
 

@@ -9,7 +9,7 @@ import pytest
 from blindspot.safety.config import OracleConfig, WarningConfig
 from blindspot.safety.evaluation import SceneInfo, operating_curve, scene_results, trigger_frames
 from blindspot.safety.oracle import TRACK_COLUMNS, oracle_tracks
-from blindspot.safety.predict import BackfilledHistory, track_histories
+from blindspot.safety.predict import BackfilledHistory, track_histories, with_backfill
 from blindspot.typed_config import ConfigError
 
 
@@ -66,6 +66,18 @@ def test_histories_are_right_aligned_and_backfilled_at_constant_velocity():
     assert filled[0, :, 0] == pytest.approx([-0.3, -0.2, -0.1, 0.0, 0.1, 0.2])
     held = BackfilledHistory(None, 6, "hold_first").fill(h[2:])
     assert held[0, :, 0] == pytest.approx([0.0, 0.0, 0.0, 0.0, 0.1, 0.2])
+
+
+def test_only_fixed_window_predictors_get_their_history_backfilled():
+    from types import SimpleNamespace
+
+    from blindspot.traj.baselines import ConstantVelocity
+
+    calibrated = object()
+    wrapped = with_backfill(calibrated, SimpleNamespace(window=20), "hold_first")
+    assert isinstance(wrapped, BackfilledHistory)
+    assert (wrapped.base, wrapped.window, wrapped.mode) == (calibrated, 20, "hold_first")
+    assert with_backfill(calibrated, ConstantVelocity(), "cv_backfill") is calibrated
 
 
 def test_warning_config_errors_name_the_key():

@@ -27,7 +27,7 @@ from blindspot.safety.risk import EgoShape, collision_risk
 from blindspot.traj.baselines import ConstantVelocity, KalmanCV
 from blindspot.traj.distribution import DistributionError
 
-__all__ = ["BackfilledHistory", "track_histories", "doppler_log_ratio", "moving_tracks",
+__all__ = ["BackfilledHistory", "with_backfill", "track_histories", "doppler_log_ratio", "moving_tracks",
            "incremental_kalman", "risk_table"]
 
 
@@ -74,6 +74,15 @@ class BackfilledHistory:
 
     def predict_distribution(self, history: np.ndarray, horizon: int):
         return self.base.predict_distribution(self.fill(history), horizon)
+
+
+def with_backfill(predictor, base, mode: str):
+    """``predictor`` (calibrated around the point model ``base``) wrapped in
+    :class:`BackfilledHistory` when ``base`` reads a fixed window of ``base.window`` points (the
+    scene LSTMs: 50 points for the next-point LSTM, ``obs_len`` for lstm_direct); unchanged for
+    the others (none, constant velocity, Kalman read any history)."""
+    window = getattr(base, "window", None)
+    return predictor if window is None else BackfilledHistory(predictor, int(window), mode)
 
 
 def track_histories(tracks: pd.DataFrame, max_len: int) -> np.ndarray:
