@@ -6,7 +6,8 @@ conventions:
 
 - Radar at the origin looking along +y; x to the right (metres). x-y panels use equal scales.
 - One colour per method in every figure (:data:`METHOD_COLOURS`): the LSTM red (as in the
-  paper's Fig. 9), constant velocity blue, Kalman green, our two-sided interpolation purple;
+  paper's Fig. 9), constant velocity blue, Kalman green, our two-sided interpolation purple,
+  our direct multi-step LSTM orange;
   radar points black, simulated truth grey (dashed where it is the future to be predicted).
 - Panels are labelled (a), (b), ... as in the paper; the paper's number is quoted beside ours
   where the paper gives one (:mod:`blindspot.report.paper_values`).
@@ -61,6 +62,7 @@ METHOD_COLOURS: dict[str, str] = {
     "constant_velocity": "#1f77b4",
     "kalman": "#2ca02c",
     "bidirectional": "#9467bd",
+    "lstm_direct": "#ff7f0e",        # orange: the direct multi-step LSTM (blindspot.traj.direct)
 }
 METHOD_LABELS: dict[str, str] = {
     "lstm": "LSTM (paper)",
@@ -68,6 +70,7 @@ METHOD_LABELS: dict[str, str] = {
     "constant_velocity": "constant velocity",
     "kalman": "Kalman (CV)",
     "bidirectional": "two-sided LSTM (ours)",
+    "lstm_direct": "direct LSTM (ours)",
 }
 TRUTH_COLOUR = "0.45"
 POINT_COLOUR = "black"
