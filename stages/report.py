@@ -11,7 +11,8 @@ from blindspot.io import write_text
 from blindspot.report.page import FigureEntry, build_page
 from blindspot.stage import StageResult, UndeclaredPath
 
-METRICS = ("localise", "train", "interpolate", "evaluate", "ethucy", "benchmark", "calibration")
+METRICS = ("localise", "train", "interpolate", "evaluate", "ethucy", "benchmark", "calibration",
+           "train_direct")
 
 
 def read_json(path: Path) -> dict | None:

@@ -352,4 +352,19 @@ def test_benchmark_and_calibration_rows_carry_their_intervals():
 def test_summary_rows_when_nothing_has_run():
     rows = summary_rows({})
     assert all(len(r) == 5 for r in rows)
-    assert sum("not run yet" in r[2] for r in rows) == 7   # + benchmark, calibration
+    assert sum("not run yet" in r[2] for r in rows) == 8   # + benchmark, calibration, direct
+
+
+def test_direct_rows_put_the_direct_lstm_beside_the_paper_lstm_and_cv():
+    from blindspot.report.page import direct_rows
+
+    per = {"ade_10": 0.05, "fde_10": 0.08, "ade_30": 0.15, "fde_30": 0.31, "n_pairs": 929}
+    worse = {k: (2 * v if k != "n_pairs" else v) for k, v in per.items()}
+    rows = direct_rows({"lstm_direct": {"test": per}, "lstm": {"test": worse},
+                        "constant_velocity": {"test": worse}, "steps_frames": [10, 30],
+                        "frame_period_s": 0.1})
+    assert [r[0] for r in rows] == ["ADE / FDE up to 1 s, held-out radar paths (929 pairs)",
+                                    "ADE / FDE up to 3 s, held-out radar paths (929 pairs)"]
+    assert rows[1][2] == "direct LSTM (ours) 0.150 m / 0.310 m"
+    assert rows[1][3] == ("LSTM (paper) 0.300 m / 0.620 m; "
+                          "constant velocity 0.300 m / 0.620 m")

@@ -119,7 +119,8 @@ def _baselines(metrics: Metrics, ours: str, path: Sequence[str], digits: int = 3
 def summary_rows(metrics: Mapping[str, Metrics]) -> list[tuple[str, str, str, str, str]]:
     """Rows (quantity, paper, ours, baselines, command) of the page's summary table.
 
-    ``metrics``: the parsed JSON of reports/metrics/{localise,train,interpolate,evaluate,ethucy}.json
+    ``metrics``: the parsed JSON of
+    reports/metrics/{localise,train,interpolate,evaluate,ethucy,benchmark,calibration,train_direct}.json
     under those keys; a missing key or ``None`` gives a row saying the stage has not run.
     """
     rows: list[tuple[str, str, str, str, str]] = []
@@ -201,6 +202,7 @@ def summary_rows(metrics: Mapping[str, Metrics]) -> list[tuple[str, str, str, st
                      command("evaluate")))
 
     rows += benchmark_rows(metrics.get("benchmark"))
+    rows += direct_rows(metrics.get("train_direct"))
     rows += calibration_rows(metrics.get("calibration"))
 
     eth = metrics.get("ethucy")
@@ -257,6 +259,28 @@ def benchmark_rows(bench: Metrics) -> list[tuple[str, str, str, str, str]]:
         rows.append(("Interpolation error on hidden frames" + tag, "no number (Fig. 8 only)",
                      "; ".join(f"{m[len('fill_'):]} {_ci(bench[m].get('hidden_mean_m'))}"
                                for m in fills), "", command("benchmark")))
+    return rows
+
+
+def direct_rows(direct: Metrics) -> list[tuple[str, str, str, str, str]]:
+    """Summary rows of reports/metrics/train_direct.json: ADE / FDE of the direct multi-step LSTM
+    over each scored horizon on the held-out radar paths, the paper's LSTM and constant
+    velocity beside it on the same pairs."""
+    if not direct:
+        return [("ADE / FDE on held-out radar paths, direct LSTM", "not reported", "not run yet", "",
+                 command("train_direct"))]
+    dt = direct["frame_period_s"]
+    others = [m for m in ("lstm", "constant_velocity") if m in direct]
+    rows = []
+    for k in direct["steps_frames"]:
+        def cell(m: str) -> str:
+            s = direct[m]["test"]
+            return f"{_m(s[f'ade_{k}'])} / {_m(s[f'fde_{k}'])}"
+        n = direct["lstm_direct"]["test"]["n_pairs"]
+        rows.append((f"ADE / FDE up to {k * dt:g} s, held-out radar paths ({n} pairs)",
+                     "not reported", f"{method_label('lstm_direct')} {cell('lstm_direct')}",
+                     "; ".join(f"{method_label(m)} {cell(m)}" for m in others),
+                     command("train_direct")))
     return rows
 
 
