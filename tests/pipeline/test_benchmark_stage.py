@@ -29,8 +29,8 @@ def _load_stage(name: str):
 
 @pytest.fixture(scope="module")
 def tiny(tmp_path_factory):
-    """Composed config (tiny profile, 4 walks) and a work dir holding an untrained LSTM, its
-    calibration records and the three-walk metrics the benchmark's figure shows."""
+    """Composed config (tiny profile, 4 walks) and a work dir holding an untrained LSTM and direct
+    LSTM, their calibration records and the three-walk metrics the benchmark's figure shows."""
     root = tmp_path_factory.mktemp("bench")
     cfg = config.compose(["profile=tiny", "benchmark.n_walks=3", "benchmark.n_bootstrap=200",
                           "calibration.stride=2",   # enough val pairs for the scale mixture
@@ -40,6 +40,11 @@ def tiny(tmp_path_factory):
     lstm = LSTMPredictor(LSTMRegressor(experiment.model(cfg)), stats,  # a 2-seed ensemble
                          more=[(LSTMRegressor(experiment.model(cfg)), stats)])
     lstm.save(root / "data/train/model.pt")
+    from blindspot.traj.seq2seq import Seq2SeqEnsemble, Seq2SeqModel, Seq2SeqNet
+
+    direct = experiment.direct(cfg).model          # untrained: the residual head is CV
+    Seq2SeqEnsemble([Seq2SeqModel(Seq2SeqNet(direct), direct) for _ in range(2)],
+                    name="lstm_direct").save(root / "data/train_direct/model.pt")
     (root / "reports/metrics").mkdir(parents=True)
     (root / "reports/metrics/calibration_ethucy.json").write_text(json.dumps(   # ethucy stage's
         {"cvm": {"zara1": {"coverage_50": 0.5, "coverage_90": 0.9, "coverage_95": 0.95, "nll": 1.0}}}))
@@ -87,7 +92,8 @@ def test_calibration_then_benchmark_on_a_tiny_setting(tiny):
     _load_stage("calibration").run(cfg, ctx)
     ctx.check_outs()
     cal = json.loads((root / "reports/metrics/calibration.json").read_text())
-    assert {"lstm", "constant_velocity", "kalman"} <= set(cal)
+    assert set(cal) >= {"lstm", "constant_velocity", "kalman", "lstm_direct"}
+    assert set(cal["lstm_direct"]["sim_paths"]) >= {"coverage_90", "nll"}   # its own head
     assert set(cal["kalman"]["sim_paths"]) >= {"coverage_50", "coverage_90", "coverage_95", "nll"}
     assert cal["kalman"]["sim_paths"]["n_paths"] == 2          # test path 4 and spare path 5
     assert cal["constant_velocity"]["zara1"]["coverage_90"] == 0.9  # ETH/UCY folds merged in
@@ -103,7 +109,7 @@ def test_calibration_then_benchmark_on_a_tiny_setting(tiny):
     assert {"ade_0.5s", "fde_2s", "path_error_mean_m", "coverage_90", "nll"} <= set(m["kalman"])
     # the adaptive conformal ellipses beside, from the calibration stage's validation scores
     with np.load(root / "data/calibration/val_scores.npz") as z:
-        assert set(z.files) == {"lstm", "constant_velocity", "kalman"}
+        assert set(z.files) == {"lstm", "constant_velocity", "kalman", "lstm_direct"}
         assert z["kalman"].shape[1] == cfg.calibration.horizon_frames
     for level in (50, 90, 95):
         entry = m["kalman"][f"online_coverage_{level}"]
