@@ -1,0 +1,163 @@
+"""The Doppler half of the moving-object test, tuned on one half of the Monte-Carlo scenes and
+reported on the other. Prints figures, asserts nothing.
+
+    BLINDSPOT_SHARED=../shared .venv/bin/python benchmarks/bench_doppler_test.py \
+        [--data data] [--predictors constant_velocity,lstm_direct] [--json OUT]
+
+The moving test (:func:`blindspot.safety.predict.moving_tracks`, settings ``warning.moving_*``)
+has two Doppler settings, chosen on the same simulated set the README reports (its "doubtful"
+note): a point's radial-speed spread ``moving_doppler_std_mps`` (0.3 m/s) and the bound on the
+summed log-likelihood ratio "moves as tracked" vs "static", ``moving_doppler_log_ratio_min``
+(-ln 10). Here every candidate pair is scored the way bench_clutter scores the evidence grid:
+
+1. the tracker's tracks of the last ``dvc repro`` (DATA/driving/tracks.parquet), classed moving
+   by the kinematic test and the configured static-evidence grid only (no Doppler test): a
+   superset of the rows any Doppler setting keeps;
+2. each predictor's risk rows for that superset, once (:func:`blindspot.safety.predict.risk_table`,
+   the calibrated predictor of DATA/calibration/models.json, as the safety stage builds it);
+3. per candidate, the rows its moving test keeps; the outcome of every scene behind the configured
+   AEB gate and threshold (bench_aeb_gate's machinery), on the tuning half (even replicates,
+   :func:`blindspot.safety.evaluation.replicate_half`) and the held-out half (odd).
+
+Per predictor, the candidate with the largest avoided minus false-activation rate on the tuning
+half is reported on the held-out half beside the configured one and the test switched off.
+Candidates: ``moving_doppler_std_mps`` in {0.15, 0.3, 0.6} x ``moving_doppler_log_ratio_min`` in
+{-ln 100, -ln 10, -ln 3, -ln 1.5}. Time: about a minute on 2 cores.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+import blindspot  # noqa: F401  first: pins the CPU kernels before numpy loads
+import numpy as np
+import pandas as pd
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path[:0] = [str(REPO / "benchmarks")]
+
+from bench_aeb_gate import _subset, load_inputs  # noqa: E402
+from blindspot.io import write_json  # noqa: E402
+from blindspot.safety.assess import frame_risks, outcome_table  # noqa: E402
+from blindspot.safety.braking import BrakingModel  # noqa: E402
+from blindspot.safety.evaluation import replicate_half, scene_info, scene_results  # noqa: E402
+from blindspot.safety.predict import moving_tracks, risk_table, with_backfill  # noqa: E402
+from blindspot.traj.calibration import from_record  # noqa: E402
+
+STDS = (0.15, 0.3, 0.6)
+BOUNDS = (-np.log(100.0), -np.log(10.0), -np.log(3.0), -np.log(1.5))
+
+
+def calibrated(cfg, name: str, data: Path):
+    """The safety stage's calibrated predictor ``name`` (constant_velocity, kalman or
+    lstm_direct), its history backfilled as the stage does."""
+    from blindspot import experiment
+    from blindspot.traj.baselines import ConstantVelocity
+    from blindspot.traj.seq2seq import Seq2SeqEnsemble
+
+    ev = experiment.evaluation(cfg)
+    made = {"constant_velocity": lambda: ConstantVelocity(k=ev.cv_fit_points,
+                                                          name="constant_velocity"),
+            "kalman": lambda: experiment.kalman(cfg),
+            "lstm_direct": lambda: Seq2SeqEnsemble.load(data / "train_direct/model.pt")}
+    if name not in made:
+        raise SystemExit(f"--predictors: {name!r} is not one of {sorted(made)}")
+    point = made[name]()
+    record = json.loads((data / "calibration/models.json").read_text())[name]
+    return with_backfill(from_record(record, point, name), point,
+                         experiment.warning(cfg).lstm_history)
+
+
+def main(argv: list[str]) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--data", type=Path, default=REPO / "data")
+    ap.add_argument("--predictors", default="constant_velocity,lstm_direct")
+    ap.add_argument("--json", type=Path, default=None)
+    args = ap.parse_args(argv)
+    from blindspot import experiment
+
+    cfg, w, _, bodies, shape, truth_all, meta, _ = load_inputs(args.data, "tracker")
+    truth = truth_all[truth_all.set == "monte_carlo"]
+    dt = float(experiment.driving_radar(cfg).frame_period_s)
+    tracks = pd.read_parquet(args.data / "driving/tracks.parquet")
+    tracks = tracks.sort_values(["group", "track_id", "frame"]).reset_index(drop=True)
+    points = pd.read_parquet(args.data / "driving/points.parquet")
+    ego = (truth_all.groupby(["scene", "frame"], as_index=False)
+           [["ego_x_m", "ego_y_m", "ego_yaw_deg", "ego_speed_mps"]].first()
+           .rename(columns={"scene": "group"}))
+
+    def moving(std: float | None, bound: float | None) -> np.ndarray:
+        return moving_tracks(tracks, w.moving_speed_mps, w.moving_probability,
+                             ego=None if bound is None else ego[["group", "frame", "ego_x_m",
+                                                                 "ego_y_m"]],
+                             doppler_std_mps=std or 0.3, doppler_log_ratio_min=bound,
+                             points=points, static_evidence_min=w.moving_static_evidence_min,
+                             static_cell_m=w.moving_static_cell_m,
+                             static_lag_frames=w.moving_static_lag_frames)
+
+    superset = moving(None, None)
+    configured = moving(w.moving_doppler_std_mps, w.moving_doppler_log_ratio_min)
+    if not np.array_equal(configured, tracks.moving.to_numpy(bool)):
+        raise SystemExit(f"{args.data / 'driving/tracks.parquet'}: its moving flag is not the "
+                         "configured moving test (params.yaml changed since driving_track ran?)")
+    brakes = BrakingModel.from_config(w.aeb)
+    sa, _, impact = outcome_table(truth, bodies, shape, brakes, w)
+    info = scene_info(truth, meta, sa.scenes)
+    tune = replicate_half(sa.scenes)
+    n_frames = len(sa.time_s)
+    kw = dict(warning_threshold=w.warning_threshold, decision_delay_s=w.decision_delay_s,
+              aeb_threshold=w.aeb_threshold)
+    key = ["group", "frame", "track_id"]
+    candidates = {"off": (None, None),
+                  **{f"std {s:g} m/s, bound {b:.2f}": (s, b) for s in STDS for b in BOUNDS}}
+    name_conf = (f"std {w.moving_doppler_std_mps:g} m/s, bound "
+                 f"{w.moving_doppler_log_ratio_min:.2f}")
+    flags = {name: moving(*sb) for name, sb in candidates.items()}
+    flags[name_conf] = configured
+    report: dict = {"input": "tracker", "aeb_threshold": w.aeb_threshold,
+                    "configured": name_conf, "predictors": {}}
+    sup = tracks.assign(moving=superset)      # histories from every row, as the stage builds them
+    for pname in args.predictors.split(","):
+        risk = risk_table(sup, ego, {pname: calibrated(cfg, pname, args.data)},
+                          horizon=int(round(w.horizon_s / dt)), dt_s=dt, shape=shape,
+                          margin_m=w.pedestrian_radius_m, method=w.probability,
+                          max_len=int(round(w.max_history_s / dt)))
+        rows_key = pd.MultiIndex.from_frame(risk[key])
+        results = {}
+        for name, flag in flags.items():
+            kept = pd.MultiIndex.from_frame(tracks.loc[flag, key])
+            rows = risk[rows_key.isin(kept)]
+            p_w, p_aeb = frame_risks(rows, sa.scenes, sa.speed_mps, n_frames, brakes,
+                                     gate=w.aeb_gate, margin_s=w.aeb_gate_margin_s,
+                                     decision_delay_s=w.decision_delay_s)
+            out = {}
+            for half, m in (("tune", tune), ("held_out", ~tune)):
+                res = scene_results(p_w[m], _subset(info, m), impact[m], sa.time_s,
+                                    p_aeb=p_aeb[m], **kw)
+                it = res.intruding.to_numpy()
+                out[half] = {"n_avoided": int(res.avoided.to_numpy()[it].sum()),
+                             "n_intruding": int(it.sum()),
+                             "n_false": int((res.aeb_frame.to_numpy()[~it] >= 0).sum()),
+                             "n_non_intruding": int((~it).sum())}
+                o = out[half]
+                o["j"] = o["n_avoided"] / o["n_intruding"] - o["n_false"] / o["n_non_intruding"]
+            results[name] = out
+        best = max((n for n in results if n != "off"), key=lambda n: results[n]["tune"]["j"])
+        report["predictors"][pname] = {"candidates": results, "chosen_on_tuning_half": best}
+        print(f"{pname} (tracker input, AEB at {w.aeb_threshold} behind the gate): tuning half "
+              "(even replicates) | held-out half (odd); J = avoided rate - false-activation rate")
+        for name, r in results.items():
+            mark = ("configured" if name == name_conf else "") + (
+                " chosen" if name == best else "")
+            print(f"  {name:28s} {mark:18s} " + " | ".join(
+                f"avoided {r[h]['n_avoided']}/{r[h]['n_intruding']}, false {r[h]['n_false']}/"
+                f"{r[h]['n_non_intruding']}, J {r[h]['j']:+.3f}" for h in ("tune", "held_out")))
+    if args.json:
+        write_json(args.json, report)
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])
