@@ -82,6 +82,16 @@ def _at_fa(curve: pd.DataFrame, levels=(0.1, 0.2, 0.3)) -> dict:
             for f in levels}
 
 
+def outcome_setup(truth: pd.DataFrame, meta: dict, bodies: dict, shape: EgoShape, w):
+    """What the policy benchmarks score against, for the evaluated scenes of ``truth``: the
+    braking model of ``w.aeb``, the outcome table (``sa``: scenes, ego speeds, frame times;
+    ``impact`` (S, F + 1) km/h, NaN = avoided), the scenes' info and the tuning half (even
+    replicates, :func:`replicate_half`)."""
+    brakes = BrakingModel.from_config(w.aeb)
+    sa, _, impact = outcome_table(truth, bodies, shape, brakes, w)
+    return brakes, sa, impact, scene_info(truth, meta, sa.scenes), replicate_half(sa.scenes)
+
+
 def load_inputs(data: Path, input_name: str):
     """What the policy benchmarks read: (cfg = params.yaml, the typed warning group, the
     scenario group, bodies {name: (length, width, reference from front) m}, the ego's EgoShape,
@@ -182,11 +192,8 @@ def main(argv: list[str]) -> None:
         risk = risk[(_nearest_pedestrian_m(risk, truth, tracks).distance_m <= 1.0).to_numpy()]
         print(f"DIAGNOSTIC: only the {len(risk)} risk rows of tracks within 1 m of a true "
               "pedestrian are scored")
-    main_brakes = BrakingModel.from_config(w.aeb)
-    sa, _, impact = outcome_table(truth, bodies, shape, main_brakes, w)
-    info = scene_info(truth, meta, sa.scenes)
+    main_brakes, sa, impact, info, tune = outcome_setup(truth, meta, bodies, shape, w)
     F = len(sa.time_s)
-    tune = replicate_half(sa.scenes)
     halves = {"tune": tune, "held_out": ~tune}
     thresholds = np.linspace(0, 1, w.n_thresholds + 2)[1:-1]
     margins = sorted({float(m) for m in args.margins.split(",")} | {w.aeb_gate_margin_s})

@@ -52,13 +52,12 @@ import pandas as pd
 REPO = Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(REPO / "benchmarks"), str(REPO / "stages")]
 
-from bench_aeb_gate import _subset, load_inputs, trigger_causes  # noqa: E402
+from bench_aeb_gate import _subset, load_inputs, outcome_setup, trigger_causes  # noqa: E402
 from blindspot import experiment  # noqa: E402
 from blindspot.io import write_json  # noqa: E402
-from blindspot.safety.assess import frame_risks, outcome_table  # noqa: E402
-from blindspot.safety.braking import BrakingModel  # noqa: E402
+from blindspot.safety.assess import frame_risks  # noqa: E402
 from blindspot.safety.evaluation import (aeb_gate_s, replicate_half,  # noqa: E402
-                                         scene_info, scene_results, summarise)
+                                         scene_results, summarise)
 from blindspot.safety.predict import moving_tracks, static_evidence  # noqa: E402
 
 
@@ -141,11 +140,8 @@ def main(argv: list[str]) -> None:
     scores[f"displacement window {args.window}"] = (
         dr, np.array([0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7]), "lt")
 
-    main_brakes = BrakingModel.from_config(w.aeb)
-    sa, _, impact = outcome_table(truth, bodies, shape, main_brakes, w)
-    info = scene_info(truth, meta, sa.scenes)
+    main_brakes, sa, impact, info, tune = outcome_setup(truth, meta, bodies, shape, w)
     F = len(sa.time_s)
-    tune = replicate_half(sa.scenes)
     kw = dict(warning_threshold=w.warning_threshold, decision_delay_s=w.decision_delay_s,
               aeb_threshold=w.aeb_threshold)
     key = ["group", "frame", "track_id"]

@@ -39,11 +39,10 @@ import pandas as pd
 REPO = Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(REPO / "benchmarks")]
 
-from bench_aeb_gate import _subset, load_inputs  # noqa: E402
+from bench_aeb_gate import _subset, load_inputs, outcome_setup  # noqa: E402
 from blindspot.io import write_json  # noqa: E402
-from blindspot.safety.assess import frame_risks, outcome_table  # noqa: E402
-from blindspot.safety.braking import BrakingModel  # noqa: E402
-from blindspot.safety.evaluation import replicate_half, scene_info, scene_results  # noqa: E402
+from blindspot.safety.assess import frame_risks  # noqa: E402
+from blindspot.safety.evaluation import scene_results  # noqa: E402
 from blindspot.safety.predict import moving_tracks, risk_table, with_backfill  # noqa: E402
 from blindspot.traj.calibration import from_record  # noqa: E402
 
@@ -103,10 +102,7 @@ def main(argv: list[str]) -> None:
     if not np.array_equal(configured, tracks.moving.to_numpy(bool)):
         raise SystemExit(f"{args.data / 'driving/tracks.parquet'}: its moving flag is not the "
                          "configured moving test (params.yaml changed since driving_track ran?)")
-    brakes = BrakingModel.from_config(w.aeb)
-    sa, _, impact = outcome_table(truth, bodies, shape, brakes, w)
-    info = scene_info(truth, meta, sa.scenes)
-    tune = replicate_half(sa.scenes)
+    brakes, sa, impact, info, tune = outcome_setup(truth, meta, bodies, shape, w)
     n_frames = len(sa.time_s)
     kw = dict(warning_threshold=w.warning_threshold, decision_delay_s=w.decision_delay_s,
               aeb_threshold=w.aeb_threshold)
