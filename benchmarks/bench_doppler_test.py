@@ -22,7 +22,7 @@ summed log-likelihood ratio "moves as tracked" vs "static", ``moving_doppler_log
 Per predictor, the candidate with the largest avoided minus false-activation rate on the tuning
 half is reported on the held-out half beside the configured one and the test switched off.
 Candidates: ``moving_doppler_std_mps`` in {0.15, 0.3, 0.6} x ``moving_doppler_log_ratio_min`` in
-{-ln 100, -ln 10, -ln 3, -ln 1.5}. Time: about a minute on 2 cores.
+{-ln 100, -ln 10, -ln 3, -ln 1.5}. Time: 30-60 s on 2 cores.
 """
 
 from __future__ import annotations
@@ -139,7 +139,8 @@ def main(argv: list[str]) -> None:
                              "n_false": int((res.aeb_frame.to_numpy()[~it] >= 0).sum()),
                              "n_non_intruding": int((~it).sum())}
                 o = out[half]
-                o["j"] = o["n_avoided"] / o["n_intruding"] - o["n_false"] / o["n_non_intruding"]
+                o["j"] = (o["n_avoided"] / max(o["n_intruding"], 1)
+                          - o["n_false"] / max(o["n_non_intruding"], 1))
             results[name] = out
         best = max((n for n in results if n != "off"), key=lambda n: results[n]["tune"]["j"])
         report["predictors"][pname] = {"candidates": results, "chosen_on_tuning_half": best}

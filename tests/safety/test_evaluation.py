@@ -93,3 +93,10 @@ def test_warning_config_errors_name_the_key():
         WarningConfig.from_mapping({**base, "aeb": {**base["aeb"], "decel_mps2": -1.0}})
     with pytest.raises(ConfigError, match="warning.predictors"):
         WarningConfig.from_mapping({**base, "predictors": ["oracle"]})
+
+
+def test_a_skipped_frame_inside_a_history_is_interpolated_from_its_past_neighbours():
+    h = np.array([[[np.nan, np.nan], [0.0, 0.0], [np.nan, np.nan], [0.2, 0.0], [0.3, 0.0]]])
+    filled = BackfilledHistory(None, 5, "cv_backfill", k=2).fill(h)
+    assert np.isfinite(filled).all()
+    assert filled[0, :, 0] == pytest.approx([-0.1, 0.0, 0.1, 0.2, 0.3])

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from blindspot.traj.baselines import ConstantVelocity
+from blindspot.traj.calibration import CalibrationError
 from blindspot.traj.config import DirectConfig, Seq2SeqConfig
 from blindspot.traj.direct import NAME, direct_pairs, direct_scores, path_splits, train_direct
 from blindspot.traj.windows import WindowSet
@@ -78,5 +79,10 @@ def test_settings_are_checked():
     rng = np.random.default_rng(2)
     truth, measured = walks(rng, 4, T=12)
     ids = {"train": np.arange(2), "val": np.arange(2, 4)}
-    with pytest.raises(Exception, match="must fit in paths"):
+    with pytest.raises(CalibrationError, match="must fit in paths"):
         train_direct(measured, truth, ids, DirectConfig(model_cfg, stride=1, jobs=1))
+    truth, measured = walks(rng, 4, T=40, miss=0.0)
+    measured[2:, 0] = np.nan                  # the val paths: their one window starts on a miss
+    short = replace(model_cfg, obs_len=10, horizon=10)
+    with pytest.raises(ValueError, match="val paths yield no"):
+        train_direct(measured, truth, ids, DirectConfig(short, stride=40, jobs=1))

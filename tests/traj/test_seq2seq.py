@@ -243,3 +243,38 @@ def test_members_trained_in_worker_processes_have_the_same_weights():
     for a, b in zip(here.members, there.members):
         for (k, va), vb in zip(a.net.state_dict().items(), b.net.state_dict().values()):
             assert np.array_equal(va.numpy(), vb.numpy()), k
+
+
+def test_rotation_augmentation_turns_track_future_and_neighbour_vectors_alike():
+    """``_rotate_batch``: each scene's points and its neighbours' relative positions and steps
+    turn by the scene's own angle; the presence flag does not move."""
+    import torch
+
+    from blindspot.traj.seq2seq import _rotate_batch
+
+    rng = np.random.default_rng(10)
+    x, y = torch.tensor(rng.normal(size=(3, 8, 2))), torch.tensor(rng.normal(size=(3, 12, 2)))
+    s = torch.tensor(rng.normal(size=(3, 2, 8, 5)))
+    th = torch.tensor([0.3, -2.0, np.pi], dtype=torch.float64)
+    xr, yr, sr = _rotate_batch(x, y, s, th)
+    for b in range(3):
+        R = _rot(float(th[b]))
+        np.testing.assert_allclose(xr[b].numpy(), x[b].numpy() @ R.T, atol=1e-12)
+        np.testing.assert_allclose(yr[b].numpy(), y[b].numpy() @ R.T, atol=1e-12)
+        for cols in (slice(0, 2), slice(2, 4)):
+            np.testing.assert_allclose(sr[b][..., cols].numpy(), s[b][..., cols].numpy() @ R.T,
+                                       atol=1e-12)
+        np.testing.assert_array_equal(sr[b][..., 4].numpy(), s[b][..., 4].numpy())
+    assert _rotate_batch(x, y, None, th)[2] is None
+
+
+def test_a_damaged_ensemble_file_is_named(tmp_path):
+    import torch
+
+    cfg = replace(CFG, cell="lstm")
+    Seq2SeqEnsemble([Seq2SeqModel(Seq2SeqNet(cfg), cfg) for _ in range(2)]).save(tmp_path / "e.pt")
+    blob = torch.load(tmp_path / "e.pt", weights_only=True)
+    blob["state_dicts"] = blob["state_dicts"][:1]              # a member's weights lost
+    torch.save(blob, tmp_path / "cut.pt")
+    with pytest.raises(ValueError, match="cut.pt: a damaged Seq2SeqEnsemble file.*2 configs"):
+        Seq2SeqEnsemble.load(tmp_path / "cut.pt")

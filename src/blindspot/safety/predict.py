@@ -26,6 +26,7 @@ from scipy.stats import chi2
 from blindspot.safety.risk import EgoShape, collision_risk
 from blindspot.traj.baselines import ConstantVelocity, KalmanCV
 from blindspot.traj.distribution import DistributionError
+from blindspot.traj.windows import interpolate_gaps
 
 __all__ = ["BackfilledHistory", "with_backfill", "track_histories", "doppler_log_ratio", "moving_tracks",
            "incremental_kalman", "risk_table"]
@@ -52,8 +53,10 @@ class BackfilledHistory:
         return getattr(self.base, "name", "lstm")
 
     def fill(self, history: np.ndarray) -> np.ndarray:
-        """(B, T, 2) with leading NaN rows -> (B, max(T, window), 2) without them."""
-        h = np.asarray(history, float)
+        """(B, T, 2) with leading NaN rows (and NaN rows between observed ones, a frame the
+        track skipped: interpolated linearly between its two observed neighbours, both in the
+        past) -> (B, max(T, window), 2) without them."""
+        h = interpolate_gaps(np.asarray(history, float))
         if h.shape[1] < self.window:
             pad = np.full((h.shape[0], self.window - h.shape[1], 2), np.nan)
             h = np.concatenate([pad, h], axis=1)

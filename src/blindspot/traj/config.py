@@ -421,8 +421,9 @@ class DirectConfig(TypedConfig):
     model: the network and its training (:class:`Seq2SeqConfig`; ``neighbours`` must be 0:
         the paper's scenes hold one walker, so there is no one to attend to);
     stride: points between the starts of two training pairs of one path;
-    jobs: worker processes training the ensemble's members side by side (the same weights as
-        in one process).
+    jobs: CPUs the ensemble's training may use; with ``jobs`` > 1 every member is trained in
+        its own process, the processes confined to ``jobs`` CPUs (the same weights as in one
+        process).
     """
 
     GROUP = "direct"

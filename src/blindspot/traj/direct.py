@@ -63,8 +63,9 @@ def train_direct(measured: np.ndarray, truth: np.ndarray, ids: dict[str, np.ndar
     processes) on the pairs of the ``train`` paths; each keeps the epoch of lowest ADE on the
     ``val`` paths' pairs. Returns the ensemble (named :data:`NAME`) and each member's report.
 
-    Raises ValueError when a split yields no pair (paths shorter than ``obs_len + horizon``, or
-    every window holding a miss)."""
+    Raises CalibrationError (from :func:`~blindspot.traj.calibration.path_pairs`) when the paths
+    are shorter than ``obs_len + horizon``, ValueError when a split yields no pair (every
+    window holding a miss)."""
     m = cfg.model
     xy = {s: direct_pairs(measured[ids[s]], truth[ids[s]], m.obs_len, m.horizon, cfg.stride)
           for s in ("train", "val")}

@@ -487,9 +487,17 @@ class Seq2SeqEnsemble:
         path = Path(path)
         blob = torch.load(path, map_location="cpu", weights_only=True)
         found = blob.get("format") if isinstance(blob, dict) else type(blob).__name__
-        if found != _ENSEMBLE_FORMAT or not blob.get("configs"):
+        if found != _ENSEMBLE_FORMAT:
             raise ValueError(f"{path}: not a Seq2SeqEnsemble file (expected format "
-                             f"{_ENSEMBLE_FORMAT!r} with at least one member, found {found!r})")
+                             f"{_ENSEMBLE_FORMAT!r}, found {found!r})")
+        configs, states = blob.get("configs"), blob.get("state_dicts")
+        if (not isinstance(configs, list) or not isinstance(states, list) or not configs
+                or len(configs) != len(states) or not isinstance(blob.get("name"), str)):
+            raise ValueError(f"{path}: a damaged Seq2SeqEnsemble file: expected a name and as "
+                             "many member configs as weight sets (at least one), found "
+                             f"{len(configs) if isinstance(configs, list) else configs!r} "
+                             f"configs and {len(states) if isinstance(states, list) else states!r}"
+                             " weight sets")
         members = []
         for config, state in zip(blob["configs"], blob["state_dicts"]):
             cfg = Seq2SeqConfig(**config)
@@ -532,6 +540,22 @@ def _torch_batch(x: torch.Tensor, cfg: Seq2SeqConfig) -> tuple[torch.Tensor, tor
     k = torch.arange(1, cfg.horizon + 1, dtype=x.dtype)[None, :, None]
     base = x[:, -1:, :] + (step[:, None, :] * k if cfg.residual else 0.0)
     return u, step, base
+
+
+def _rotate_batch(x: torch.Tensor, y: torch.Tensor, s: torch.Tensor | None, theta: torch.Tensor
+                  ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor | None]:
+    """The rotation augmentation: framed observed (B, T, 2) and future (B, H, 2) points and the
+    vector parts of the social features (B, K, T, 5: relative position 0:2, own step 2:4; the
+    presence flag 4 unchanged) each rotated by its scene's angle ``theta`` (B,) rad,
+    counter-clockwise."""
+    cos, sin = torch.cos(theta), torch.sin(theta)
+    rot = torch.stack([torch.stack([cos, -sin], -1), torch.stack([sin, cos], -1)], -2)
+    x, y = x @ rot.transpose(1, 2), y @ rot.transpose(1, 2)
+    if s is not None:
+        rk = rot[:, None, None]
+        s = torch.cat([(rk @ s[..., 0:2, None])[..., 0], (rk @ s[..., 2:4, None])[..., 0],
+                       s[..., 4:]], dim=-1)
+    return x, y, s
 
 
 def _loss(out: torch.Tensor, base: torch.Tensor, y: torch.Tensor, cfg: Seq2SeqConfig
@@ -618,14 +642,7 @@ def train_seq2seq(train_xy: np.ndarray, val_xy: np.ndarray, cfg: Seq2SeqConfig, 
                 if cfg.rotation_deg > 0:
                     th = (torch.rand(x.shape[0], generator=gen) * 2 - 1) * np.deg2rad(
                         cfg.rotation_deg)
-                    cos, sin = torch.cos(th), torch.sin(th)
-                    R = torch.stack([torch.stack([cos, -sin], -1), torch.stack([sin, cos], -1)],
-                                    -2)
-                    x, y = x @ R.transpose(1, 2), y @ R.transpose(1, 2)
-                    if s is not None:        # rotate the vector parts of the social features
-                        Rk = R[:, None, None]
-                        s = torch.cat([(Rk @ s[..., 0:2, None])[..., 0],
-                                       (Rk @ s[..., 2:4, None])[..., 0], s[..., 4:]], dim=-1)
+                    x, y, s = _rotate_batch(x, y, s, th)
                 u, step, base = _torch_batch(x, cfg)
                 loss, _ = _loss(net(u, step, s), base, y, cfg)
                 opt.zero_grad()
@@ -645,7 +662,7 @@ def train_seq2seq(train_xy: np.ndarray, val_xy: np.ndarray, cfg: Seq2SeqConfig, 
                          f"FDE {report.val_fde[-1]:.4f}")
         net.load_state_dict(best_state)
     report.seconds = time.perf_counter() - t0
-    return Seq2SeqModel(net, cfg, name), report
+    return Seq2SeqModel(net, replace(cfg, seed=seed), name), report
 
 
 def train_ensemble(train_xy: np.ndarray, val_xy: np.ndarray, cfg: Seq2SeqConfig, *,
