@@ -82,5 +82,13 @@ def test_dvc_queue_of_four_experiments_two_at_a_time_loses_no_run(tmp_path: Path
     logs = run([str(DVC), "queue", "logs", queued[0]], root, check=False).stdout
     assert "database is locked" not in logs.lower()
     found = runs(root)
-    assert sorted(r.data.tags["dvc.exp_name"] for r in found) == sorted(queued)
-    _check_runs(root, found, sizes)
+    # each experiment is one pipeline run: a parent run (blindspot.tracking.pipeline) and its
+    # stage's run nested under it
+    stages = [r for r in found if r.data.tags.get("blindspot.stage")]
+    parents = {r.info.run_id: r for r in found if not r.data.tags.get("blindspot.stage")}
+    assert sorted(r.data.tags["dvc.exp_name"] for r in stages) == sorted(queued)
+    assert sorted(r.data.tags["dvc.exp_name"] for r in parents.values()) == sorted(queued)
+    for r in stages:
+        parent = parents[r.data.tags["mlflow.parentRunId"]]
+        assert parent.data.tags["dvc.exp_name"] == r.data.tags["dvc.exp_name"]
+    _check_runs(root, stages, sizes)
