@@ -17,7 +17,7 @@ from blindspot.cli import main_stage
 from blindspot.io import write_json
 from blindspot.stage import StageResult
 from blindspot.traj.baselines import ConstantVelocity
-from blindspot.traj.direct import NAME, direct_scores, path_splits, train_direct
+from blindspot.traj.direct import NAME, check_fits, direct_scores, path_splits, train_direct
 from blindspot.traj.lstm import LSTMPredictor
 from blindspot.traj.paths import table_to_arrays
 from blindspot.traj.train import torch_threads
@@ -28,6 +28,7 @@ STEPS_S = (1.0, 2.0, 3.0)
 
 def run(cfg, ctx):
     d = experiment.direct(cfg)
+    check_fits(d, experiment.dataset(cfg).window, experiment.calibration(cfg).horizon_frames)
     dt = experiment.dataset(cfg).frame_period_s
     truth, measured, _ = table_to_arrays(pd.read_parquet(ctx.dep("paths.parquet")))
     ids = path_splits(len(truth), *(WindowSet.load(ctx.dep(f"{s}.parquet"))

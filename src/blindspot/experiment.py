@@ -102,21 +102,9 @@ def benchmark(cfg: DictConfig):
 
 
 def direct(cfg: DictConfig) -> DirectConfig:
-    """The scenes' direct multi-step predictor and its training, ``cfg.direct``.
-
-    Raises ConfigError when it cannot serve the stages that use it: ``direct.model.obs_len``
-    above ``dataset.window`` (the calibration pairs' histories) or ``direct.model.horizon``
-    below ``calibration.horizon_frames`` (the calibration pairs' futures)."""
-    d = DirectConfig.from_mapping(cfg.direct)
-    window, horizon = dataset(cfg).window, calibration(cfg).horizon_frames
-    if d.model.obs_len > window:
-        raise ConfigError("direct.model.obs_len", d.model.obs_len,
-                          f"at most dataset.window = {window} (the calibration pairs' histories)")
-    if d.model.horizon < horizon:
-        raise ConfigError("direct.model.horizon", d.model.horizon,
-                          f"at least calibration.horizon_frames = {horizon} (the calibration "
-                          "pairs' futures)")
-    return d
+    """The scenes' direct multi-step predictor and its training, ``cfg.direct`` (whether it
+    fits the calibration pairs: :func:`blindspot.traj.direct.check_fits`)."""
+    return DirectConfig.from_mapping(cfg.direct)
 
 
 def calibration(cfg: DictConfig):

@@ -10,7 +10,8 @@ import pytest
 from blindspot.traj.baselines import ConstantVelocity
 from blindspot.traj.calibration import CalibrationError
 from blindspot.traj.config import DirectConfig, Seq2SeqConfig
-from blindspot.traj.direct import NAME, direct_pairs, direct_scores, path_splits, train_direct
+from blindspot.traj.direct import (NAME, check_fits, direct_pairs, direct_scores, path_splits,
+                                   train_direct)
 from blindspot.traj.windows import WindowSet
 from blindspot.typed_config import ConfigError
 
@@ -76,6 +77,12 @@ def test_settings_are_checked():
         DirectConfig(replace(model_cfg, neighbours=2), stride=2, jobs=1)
     with pytest.raises(ConfigError, match="stride"):
         DirectConfig(model_cfg, stride=0, jobs=1)
+    d = DirectConfig(replace(model_cfg, obs_len=20, horizon=40), stride=2, jobs=1)
+    check_fits(d, window=50, horizon_frames=40)
+    with pytest.raises(ConfigError, match="direct.model.obs_len.*dataset.window = 10"):
+        check_fits(d, window=10, horizon_frames=40)
+    with pytest.raises(ConfigError, match="direct.model.horizon.*horizon_frames = 60"):
+        check_fits(d, window=50, horizon_frames=60)
     rng = np.random.default_rng(2)
     truth, measured = walks(rng, 4, T=12)
     ids = {"train": np.arange(2), "val": np.arange(2, 4)}

@@ -27,8 +27,9 @@ from blindspot.traj.calibration import path_pairs
 from blindspot.traj.config import DirectConfig
 from blindspot.traj.seq2seq import FitReport, Seq2SeqEnsemble, train_ensemble
 from blindspot.traj.windows import WindowSet
+from blindspot.typed_config import ConfigError
 
-__all__ = ["NAME", "path_splits", "direct_pairs", "train_direct", "direct_scores"]
+__all__ = ["NAME", "path_splits", "check_fits", "direct_pairs", "train_direct", "direct_scores"]
 
 #: the predictor's name in the calibration records, the warning's predictor list and reports
 NAME = "lstm_direct"
@@ -47,6 +48,21 @@ def path_splits(n_paths: int, train: WindowSet, val: WindowSet) -> dict[str, np.
                              f"outside the {n_paths} paths of the path table")
     ids["test"] = np.setdiff1d(np.arange(n_paths), np.concatenate([ids["train"], ids["val"]]))
     return ids
+
+
+def check_fits(cfg: DirectConfig, window: int, horizon_frames: int) -> None:
+    """ConfigError unless the model can serve the calibration pairs (histories of ``window``
+    points, futures of ``horizon_frames``): ``direct.model.obs_len`` at most ``window``
+    (``dataset.window``) and ``direct.model.horizon`` at least ``horizon_frames``
+    (``calibration.horizon_frames``). The train_direct stage checks it before training, so a
+    clash does not surface in the calibration stage after the training's minutes."""
+    if cfg.model.obs_len > window:
+        raise ConfigError("direct.model.obs_len", cfg.model.obs_len,
+                          f"at most dataset.window = {window} (the calibration pairs' histories)")
+    if cfg.model.horizon < horizon_frames:
+        raise ConfigError("direct.model.horizon", cfg.model.horizon,
+                          f"at least calibration.horizon_frames = {horizon_frames} (the "
+                          "calibration pairs' futures)")
 
 
 def direct_pairs(measured: np.ndarray, truth: np.ndarray, obs_len: int, horizon: int,
