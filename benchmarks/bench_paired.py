@@ -63,8 +63,8 @@ def main(argv: list[str] | None = None) -> None:
             fa_a, fa_b = (a.aeb_frame >= 0).to_numpy(), (b.aeb_frame >= 0).to_numpy()
             print(f"{inp}: A = {a_name}, B = {b_name} ({it.sum()} intruding, {(~it).sum()} "
                   f"non-intruding scenes)")
-            print(f"  avoided, A - B:           "
-                  f"{paired(a.avoided.to_numpy()[it], b.avoided.to_numpy()[it], args.n_bootstrap, rng)}")
+            av_a, av_b = a.avoided.to_numpy()[it], b.avoided.to_numpy()[it]
+            print(f"  avoided, A - B:           {paired(av_a, av_b, args.n_bootstrap, rng)}")
             print(f"  false activations, A - B: "
                   f"{paired(fa_a[~it], fa_b[~it], args.n_bootstrap, rng)}")
 

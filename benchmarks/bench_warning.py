@@ -8,9 +8,10 @@ one core. Times are CPU time of this process (time.process_time), so other jobs 
 machine inflate them little. Tracking: the tracker (conf/tracker/gnn_cv.yaml) over a 50-frame
 scene of the three walkers (3 points each), per frame. Kalman: an online system keeps each
 track's filtered state, so its row predicts from that state (KalmanCV.forecast_from_state, what
-the safety stage does) instead of re-filtering the history. The predictors are the safety stage's own (calibrated distributions from
-data/calibration/models.json, data/train/model.pt and data/train_direct/model.pt, the "none" error model fitted on the
-validation pairs as the stage does; run `dvc checkout` or `dvc repro calibration` first); the
+the safety stage does) instead of re-filtering the history. The predictors are the safety
+stage's own (calibrated distributions from data/calibration/models.json, data/train/model.pt
+and data/train_direct/model.pt, the "none" error model fitted on the validation pairs as the
+stage does; run `dvc checkout` or `dvc repro calibration` first); the
 tracks are three crossing walkers with 50-frame histories (the longest the stage uses), the ego
 at 50 km/h. Tracking itself is the tracker's benchmark.
 """

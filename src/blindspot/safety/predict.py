@@ -28,8 +28,8 @@ from blindspot.traj.baselines import ConstantVelocity, KalmanCV
 from blindspot.traj.distribution import DistributionError
 from blindspot.traj.windows import interpolate_gaps
 
-__all__ = ["BackfilledHistory", "with_backfill", "track_histories", "doppler_log_ratio", "moving_tracks",
-           "incremental_kalman", "risk_table"]
+__all__ = ["BackfilledHistory", "with_backfill", "track_histories", "doppler_log_ratio",
+           "moving_tracks", "incremental_kalman", "risk_table"]
 
 
 @dataclass(frozen=True, eq=False)

@@ -177,8 +177,8 @@ def calibrate(predictors: dict[str, Any], history: np.ndarray, future: np.ndarra
               scale_method: str = "quantile", scale_level: float = 0.9,
               cv_fit_points: int = 5) -> dict[str, ScaledPredictor]:
     """Give every predictor (``lstm``, ``constant_velocity``, ``kalman``, ``lstm_direct``) a
-    distribution fitted on the validation pairs (history (N, W, 2), future (N, H, 2)) and a per-step scale
-    (``scale_method`` "mle" / "quantile") or scale mixture ("mixture")."""
+    distribution fitted on the validation pairs (history (N, W, 2), future (N, H, 2)) and a
+    per-step scale (``scale_method`` "mle" / "quantile") or scale mixture ("mixture")."""
     out = {}
     for name, p in predictors.items():
         options: tuple = ()
