@@ -92,6 +92,21 @@ def outcome_setup(truth: pd.DataFrame, meta: dict, bodies: dict, shape: EgoShape
     return brakes, sa, impact, scene_info(truth, meta, sa.scenes), replicate_half(sa.scenes)
 
 
+def half_results(rows: pd.DataFrame, setup: tuple, w) -> dict[str, pd.DataFrame]:
+    """{"tune": .., "held_out": ..}: each half's scene results (:func:`scene_results`) of one
+    predictor's risk ``rows`` behind the configured AEB gate and thresholds of ``w``;
+    ``setup`` is :func:`outcome_setup`'s."""
+    brakes, sa, impact, info, tune = setup
+    p_w, p_aeb = frame_risks(rows, sa.scenes, sa.speed_mps, len(sa.time_s), brakes,
+                             gate=w.aeb_gate, margin_s=w.aeb_gate_margin_s,
+                             decision_delay_s=w.decision_delay_s)
+    return {half: scene_results(p_w[m], _subset(info, m), impact[m], sa.time_s, p_aeb=p_aeb[m],
+                                warning_threshold=w.warning_threshold,
+                                decision_delay_s=w.decision_delay_s,
+                                aeb_threshold=w.aeb_threshold)
+            for half, m in (("tune", tune), ("held_out", ~tune))}
+
+
 def load_inputs(data: Path, input_name: str):
     """What the policy benchmarks read: (cfg = params.yaml, the typed warning group, the
     scenario group, bodies {name: (length, width, reference from front) m}, the ego's EgoShape,

@@ -52,7 +52,7 @@ import pandas as pd
 REPO = Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(REPO / "benchmarks"), str(REPO / "stages")]
 
-from bench_aeb_gate import _subset, load_inputs, outcome_setup, trigger_causes  # noqa: E402
+from bench_aeb_gate import half_results, load_inputs, outcome_setup, trigger_causes  # noqa: E402
 from blindspot import experiment  # noqa: E402
 from blindspot.io import write_json  # noqa: E402
 from blindspot.safety.assess import frame_risks  # noqa: E402
@@ -140,7 +140,8 @@ def main(argv: list[str]) -> None:
     scores[f"displacement window {args.window}"] = (
         dr, np.array([0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7]), "lt")
 
-    main_brakes, sa, impact, info, tune = outcome_setup(truth, meta, bodies, shape, w)
+    setup = outcome_setup(truth, meta, bodies, shape, w)
+    main_brakes, sa, impact, info, tune = setup
     F = len(sa.time_s)
     kw = dict(warning_threshold=w.warning_threshold, decision_delay_s=w.decision_delay_s,
               aeb_threshold=w.aeb_threshold)
@@ -169,13 +170,8 @@ def main(argv: list[str]) -> None:
                  f"{w.moving_static_lag_frames} >= {w.moving_static_evidence_min}")
 
     def evaluate(rows: pd.DataFrame):
-        p_w, p_aeb = frame_risks(rows, sa.scenes, sa.speed_mps, F, main_brakes,
-                                 gate=w.aeb_gate, margin_s=w.aeb_gate_margin_s,
-                                 decision_delay_s=w.decision_delay_s)
         out = {}
-        for half, keep in (("tune", tune), ("held_out", ~tune)):
-            res = scene_results(p_w[keep], _subset(info, keep), impact[keep], sa.time_s,
-                                p_aeb=p_aeb[keep], **kw)
+        for half, res in half_results(rows, setup, w).items():
             s = summarise(res, n_bootstrap=w.n_bootstrap, seed=w.seed)
             out[half] = {k: s[k] for k in ("avoided_rate", "avoided_rate_ci95",
                                             "false_activation_rate",

@@ -39,10 +39,8 @@ import pandas as pd
 REPO = Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(REPO / "benchmarks")]
 
-from bench_aeb_gate import _subset, load_inputs, outcome_setup  # noqa: E402
+from bench_aeb_gate import half_results, load_inputs, outcome_setup  # noqa: E402
 from blindspot.io import write_json  # noqa: E402
-from blindspot.safety.assess import frame_risks  # noqa: E402
-from blindspot.safety.evaluation import scene_results  # noqa: E402
 from blindspot.safety.predict import moving_tracks, risk_table, with_backfill  # noqa: E402
 from blindspot.traj.calibration import from_record  # noqa: E402
 
@@ -102,10 +100,7 @@ def main(argv: list[str]) -> None:
     if not np.array_equal(configured, tracks.moving.to_numpy(bool)):
         raise SystemExit(f"{args.data / 'driving/tracks.parquet'}: its moving flag is not the "
                          "configured moving test (params.yaml changed since driving_track ran?)")
-    brakes, sa, impact, info, tune = outcome_setup(truth, meta, bodies, shape, w)
-    n_frames = len(sa.time_s)
-    kw = dict(warning_threshold=w.warning_threshold, decision_delay_s=w.decision_delay_s,
-              aeb_threshold=w.aeb_threshold)
+    setup = outcome_setup(truth, meta, bodies, shape, w)
     key = ["group", "frame", "track_id"]
     candidates = {"off": (None, None),
                   **{f"std {s:g} m/s, bound {b:.2f}": (s, b) for s in STDS for b in BOUNDS}}
@@ -125,14 +120,8 @@ def main(argv: list[str]) -> None:
         results = {}
         for name, flag in flags.items():
             kept = pd.MultiIndex.from_frame(tracks.loc[flag, key])
-            rows = risk[rows_key.isin(kept)]
-            p_w, p_aeb = frame_risks(rows, sa.scenes, sa.speed_mps, n_frames, brakes,
-                                     gate=w.aeb_gate, margin_s=w.aeb_gate_margin_s,
-                                     decision_delay_s=w.decision_delay_s)
             out = {}
-            for half, m in (("tune", tune), ("held_out", ~tune)):
-                res = scene_results(p_w[m], _subset(info, m), impact[m], sa.time_s,
-                                    p_aeb=p_aeb[m], **kw)
+            for half, res in half_results(risk[rows_key.isin(kept)], setup, w).items():
                 it = res.intruding.to_numpy()
                 out[half] = {"n_avoided": int(res.avoided.to_numpy()[it].sum()),
                              "n_intruding": int(it.sum()),
