@@ -40,7 +40,7 @@ def _predictors(cfg, ctx, w):
     c = experiment.calibration(cfg)
     lstm = LSTMPredictor.load(ctx.dep("train/model.pt")).with_workers(experiment.jobs(cfg))
     records = json.loads(ctx.dep("models.json").read_text())
-    base = {**experiment.predictors(cfg, lstm)}
+    base = experiment.predictors(cfg, lstm)          # a new dict: the direct model joins it
     if DIRECT in w.predictors:
         base[DIRECT] = Seq2SeqEnsemble.load(ctx.dep("train_direct/model.pt"))
     out = {}
