@@ -9,6 +9,7 @@ import pytest
 from blindspot.traj.baselines import ConstantVelocity, KalmanCV
 from blindspot.traj.calibration import (CalibrationError, calibrate, calibration_scores,
                                         from_record, path_pairs, to_record)
+from blindspot.traj.windows import interpolate_gaps
 
 
 def cv_paths(n: int, T: int, seed: int, dt: float = 0.1, q: float = 0.3, r: float = 0.05):
@@ -39,6 +40,29 @@ def test_path_pairs_take_the_next_true_points_and_drop_unfillable_windows():
     assert start.tolist() == list(starts[1:]) + list(starts) * 2
     for i in range(len(h2)):
         np.testing.assert_array_equal(f2[i], truth[path[i], start[i] + 10:start[i] + 15])
+
+
+def test_path_pairs_histories_hold_nothing_from_after_the_window():
+    """Each pair's history equals the gaps filled from the path up to the window's end alone (a
+    causal fill): a window ending in a miss, which the whole path's fill would take from the
+    next measurement, in the pair's future, is dropped."""
+    truth, meas = cv_paths(4, 80, seed=3)
+    rng = np.random.default_rng(4)
+    meas[rng.random(meas.shape[:2]) < 0.2] = np.nan
+    meas[0, 29] = np.nan                        # the last point of path 0's window at start 20
+    h, f, path, start = path_pairs(meas, truth, 10, 5, 2, with_index=True)
+    assert not ((path == 0) & (start == 20)).any()
+    for i in range(len(h)):
+        end = start[i] + 10
+        causal = interpolate_gaps(meas[path[i], :end])[start[i]:]
+        np.testing.assert_array_equal(h[i], causal)
+        assert np.isfinite(meas[path[i], end - 1]).all()
+    # what was dropped: exactly the windows that end in a miss or keep one at their start
+    starts = np.arange(0, 80 - 15 + 1, 2)
+    filled = interpolate_gaps(meas)
+    expect = sum(np.isfinite(meas[p, s + 9]).all() and np.isfinite(filled[p, s:s + 10]).all()
+                 for p in range(4) for s in starts)
+    assert len(h) == expect < 4 * len(starts)
 
 
 def test_online_scores_follow_a_scene_the_val_calibration_misjudges():

@@ -9,6 +9,7 @@ from blindspot.traj.windows import (
     WindowError,
     WindowSet,
     interpolate_gaps,
+    last_point_measured,
     make_windows,
     paths_needed,
     split_by_path,
@@ -95,6 +96,31 @@ def test_interpolate_gaps_is_exact_on_straight_lines():
     np.testing.assert_allclose(out[1], paths[1], rtol=1e-12)
     assert np.isnan(out[0, [0, 1, 19]]).all()  # edges are not extrapolated
     np.testing.assert_allclose(interpolate_gaps(gappy[1]), paths[1], rtol=1e-12)
+
+
+def test_windows_ending_in_a_filled_gap_are_flagged():
+    """After the whole path's fill, a window whose last input was a miss holds a point drawn
+    toward its own target; the kept windows equal a fill of the path up to their end alone."""
+    rng = np.random.default_rng(1)
+    measured = rng.normal(size=(3, 40, 2)).cumsum(axis=1)
+    measured[rng.random((3, 40)) < 0.25] = np.nan
+    measured[1, 14] = np.nan                     # window at start 10 ends in a miss
+    measured[1, [15, 16]] = [[1.0, 2.0], [3.0, 4.0]]
+    ws = make_windows(interpolate_gaps(measured), 5)
+    ok = last_point_measured(ws, measured)
+    at = np.flatnonzero((ws.path_id == 1) & (ws.start == 10))
+    assert at.size == 1 and not ok[at[0]]
+    assert ok.any() and not ok.all()
+    for i in np.flatnonzero(ok):
+        p, s = ws.path_id[i], ws.start[i]
+        np.testing.assert_array_equal(ws.x[i], interpolate_gaps(measured[p, :s + 5])[s:]
+                                      .astype(np.float32))
+    for i in np.flatnonzero(~ok):
+        assert np.isnan(measured[ws.path_id[i], ws.start[i] + 4]).any()
+    with pytest.raises(WindowError, match="measured has shape"):
+        last_point_measured(ws, measured[:, :20])
+    with pytest.raises(WindowError, match="no start index"):
+        last_point_measured(WindowSet(ws.x, ws.y, ws.path_id), measured)
 
 
 def _windows_from(n_paths, n_points=60, window=10, seed=0):

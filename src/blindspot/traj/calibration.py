@@ -23,8 +23,8 @@ predict_distribution`) and the mixture's ellipse radii (:meth:`ScaledPredictor.r
 The test paths (and the benchmark's walks) are never used to fit anything.
 
 Pairs (:func:`path_pairs`): from each measured path, windows of ``window`` measured points
-(interior misses linearly interpolated, as the windows stage does) and the next ``horizon``
-true positions, one every ``stride`` points.
+(interior misses linearly interpolated, as the windows stage does; none ending in a miss) and
+the next ``horizon`` true positions, one every ``stride`` points.
 """
 
 from __future__ import annotations
@@ -64,8 +64,9 @@ def path_pairs(measured: np.ndarray, truth: np.ndarray, window: int, horizon: in
     """(history (N, window, 2), future (N, horizon, 2)) pairs of measured paths.
 
     measured, truth: (P, T, 2), m; measured NaN where the radar gave no point. History windows
-    start every ``stride`` points; a window that still holds a miss after linear interpolation
-    of interior gaps (path start / end) is dropped. Vectorised (sliding windows). With
+    start every ``stride`` points; interior misses are linearly interpolated. A window is
+    dropped when it still holds a miss (path start / end) or its last point is a miss (filled
+    from the next measurement, which lies in the pair's future). Vectorised (sliding windows). With
     ``with_index`` also each pair's path (N,) (row of ``measured``) and first frame (N,).
     """
     who = "path_pairs"
@@ -81,7 +82,10 @@ def path_pairs(measured: np.ndarray, truth: np.ndarray, window: int, horizon: in
     fut = starts[:, None] + window + np.arange(horizon)[None, :]             # (S, H)
     hist = filled[:, idx].reshape(-1, window, 2)
     future = t[:, fut].reshape(-1, horizon, 2)
-    keep = np.isfinite(hist).all(axis=(1, 2))
+    # and the window's last point must be measured: a gap filled there was interpolated toward
+    # the next measurement, after the window (windows.last_point_measured)
+    keep = (np.isfinite(hist).all(axis=(1, 2))
+            & np.isfinite(m[:, idx[:, -1]]).all(axis=-1).reshape(-1))
     if not with_index:
         return hist[keep], future[keep]
     path, start = np.divmod(np.arange(m.shape[0] * starts.size), starts.size)

@@ -7,7 +7,8 @@ pairs), ``ceil((T - W) / stride)`` at a larger stride. Windows are views built w
 Missing points (NaN rows: no detection in that frame) are never invented here: a window whose
 W inputs or target contain a NaN is dropped (``nan_policy="drop"``, the default) or refused
 (``"raise"``). Fill gaps first with :func:`interpolate_gaps` (linear, interior gaps only) or a
-smoother if you want those windows. Dropping changes the number of windows per path, which is
+smoother if you want those windows, then drop the windows whose last input was filled
+(:func:`last_point_measured`): that fill came from a point after the window. Dropping changes the number of windows per path, which is
 why :func:`split_by_path` counts windows per path instead of assuming 150.
 
 Splits (paper: 20,000 train / 4,000 validation / 500 test) are made of whole paths so no path is
@@ -286,6 +287,40 @@ def interpolate_gaps(paths: np.ndarray) -> np.ndarray:
     out[fill] = (p0 + frac * (p1 - p0))[fill]
     out[~valid & ~fill] = np.nan
     return out[0] if squeeze else out
+
+
+def last_point_measured(ws: WindowSet, measured: np.ndarray) -> np.ndarray:
+    """Whether each window's last input point is a radar point, not a filled gap.
+
+    :func:`interpolate_gaps` fills a missed point from the measurements on both sides of it. At
+    a window's last point the later one lies after the window, at or beyond its target, so a
+    window ending in a filled gap has seen part of its own future. Keep only windows where this
+    is True; interior gaps (both neighbours inside the window) and gaps at its start (filled
+    from the past) are causal and stay.
+
+    Args:
+        ws: windows cut from ``measured`` (after filling), with ``start`` indices.
+        measured: (P, T, 2) the paths before filling, m, NaN where the radar gave no point;
+            ``ws.path_id`` indexes its rows.
+
+    Returns:
+        (N,) bool.
+
+    Raises:
+        WindowError: ``measured`` not (P, T, 2), ``ws`` without start indices, or a window
+            that does not lie inside ``measured``.
+    """
+    who = "last_point_measured"
+    m = check_array(measured, "measured", ("P", "T", 2), error=WindowError, who=who,
+                    allow_nan=True)
+    if ws.start is None:
+        raise WindowError(f"{who}: the windows carry no start index (start is None)")
+    last = ws.start + ws.window - 1
+    if len(ws) and (ws.path_id.min() < 0 or ws.path_id.max() >= m.shape[0]
+                    or last.max() >= m.shape[1]):
+        raise WindowError(f"{who}: windows reach path {int(ws.path_id.max())}, point "
+                          f"{int(last.max())}; measured has shape {m.shape}")
+    return np.isfinite(m[ws.path_id, last]).all(axis=-1)
 
 
 def split_by_path(
