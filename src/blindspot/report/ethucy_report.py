@@ -103,7 +103,7 @@ _CALIBRATION_WORDS = {
 
 def format_report(results: Results, validation: Results,
                   details: Mapping[str, Mapping[str, Mapping[str, Any]]], folds: Sequence[str],
-                  lstm: Mapping[str, Any] | None, command: str, seconds: float, *,
+                  lstm: Mapping[str, Any] | None, command: str, seconds: float | None, *,
                   seq2seq: Mapping[str, Any] | None = None,
                   calibration: Mapping[str, Mapping[str, Mapping[str, Any]]] | None = None,
                   calibration_method: str | None = None,
@@ -122,7 +122,8 @@ def format_report(results: Results, validation: Results,
         folds: the folds run, in column order.
         lstm: the next-point LSTM's settings as a dict, or None when it was not run.
         command: how the run was started, quoted on the page.
-        seconds: wall time of the run.
+        seconds: wall time of the run, quoted with each model's share; None leaves it out (the
+            pipeline's page, whose bytes a rerun reproduces; the stage logs it to MLflow).
         seq2seq: the direct predictor's settings as a dict, or None.
         calibration: ``{method: {fold: {"coverage_50", "coverage_90", "coverage_95", "nll",
             ...}}}`` (the calibration on the test scenes), or None.
@@ -230,8 +231,9 @@ def format_report(results: Results, validation: Results,
                   "", "Reliability figure: `reports/figures/ethucy_reliability.png`."]
     if ablation:
         parts += ["", "## What helped (ablations)", "", ablation.strip()]
-    timing = ", ".join(f"{m} {sum(details[f][m]['seconds'] for f in folds):.0f} s"
-                       for m in models)
-    parts += ["", "## Run", "", f"Command: `{command}`", "",
-              f"Wall time {seconds:.0f} s ({timing}).", ""]
+    parts += ["", "## Run", "", f"Command: `{command}`", ""]
+    if seconds is not None:
+        timing = ", ".join(f"{m} {sum(details[f][m]['seconds'] for f in folds):.0f} s"
+                           for m in models)
+        parts += [f"Wall time {seconds:.0f} s ({timing}).", ""]
     return "\n".join(parts)

@@ -23,8 +23,6 @@ from __future__ import annotations
 
 import hashlib
 import math
-import os
-import tempfile
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -40,6 +38,7 @@ from torch import nn
 from tqdm.auto import tqdm
 
 from blindspot.arrays import check_array
+from blindspot.io import atomic_path
 from blindspot.traj.config import LSTMConfig, TrainConfig
 from blindspot.traj.lstm import LSTMPredictor, LSTMRegressor, NormStats
 from blindspot.traj.metrics import MetricShapeError, ade, fde
@@ -188,14 +187,11 @@ def _resume_key(model_cfg: LSTMConfig, train_cfg: TrainConfig, fingerprint: str,
 
 
 def _atomic_torch_save(obj: Any, path: Path) -> None:
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    os.close(fd)
-    try:
+    # io.atomic_path's temporary file has the target's own name (in a hidden folder): torch
+    # names the archive's records after the file, so a random temporary name would change the
+    # checkpoint's bytes on every save
+    with atomic_path(path) as tmp:
         torch.save(obj, tmp)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
 
 
 def _make_optimizer(model: nn.Module, cfg: TrainConfig) -> torch.optim.Optimizer:
@@ -433,7 +429,8 @@ def _train(
                     "optimizer": optimizer.state_dict(),
                     "shuffle_rng": shuffle.get_state(),
                     "torch_rng": torch.get_rng_state(),
-                    "history": rows,
+                    # without the wall times: the checkpoint's bytes repeat on a rerun
+                    "history": [{k: v for k, v in r.items() if k != "seconds"} for r in rows],
                 },
                 ckpt_path,
             )
