@@ -11,6 +11,7 @@ from blindspot.traj.ethucy import EthUcyDataError
 from blindspot.traj.pretrain import (
     catmull_rom_resample,
     ethucy_next_point_windows,
+    ethucy_sequences,
     stretch_length,
     upsampling_factor,
 )
@@ -84,6 +85,26 @@ def test_windows_tile_every_start_of_a_straight_walk_once(tmp_path):
     step = np.linalg.norm(rotated.y - rotated.x[:, -1], axis=1)
     np.testing.assert_allclose(np.sort(step), np.sort(np.linalg.norm(ws.y - ws.x[:, -1], axis=1)),
                                atol=1e-5)   # rotation keeps the speeds
+
+
+def test_sequences_start_at_every_annotated_frame_at_the_radar_rate(tmp_path):
+    """A straight walk of F annotated frames at 0.4 s: walks of 60 points at 0.1 s, one per
+    stretch of ceil(59 / 4) + 1 = 16 frames, i.e. F - 15 of them, consecutive ones starting
+    0.4 s apart, each stepping exactly v * 0.1 s per point."""
+    F, v = 30, np.array([1.2, -0.5])
+    walker = np.column_stack([10.0 * np.arange(F), np.ones(F), 1.0 + v[0] * 0.4 * np.arange(F),
+                              2.0 + v[1] * 0.4 * np.arange(F)])
+    _write_fold(tmp_path, "eth", walker)
+    seq = ethucy_sequences(tmp_path, 60, 0.1, folds=("eth",), rotate=False)
+    assert seq.shape == (F - 15, 60, 2)
+    np.testing.assert_allclose(np.diff(seq, axis=1), np.broadcast_to(v * 0.1, (F - 15, 59, 2)),
+                               atol=1e-9)
+    np.testing.assert_allclose(np.diff(np.sort(seq[:, 0, 0])), v[0] * 0.4, atol=1e-9)
+    turned = ethucy_sequences(tmp_path, 60, 0.1, folds=("eth",), seed=2)
+    np.testing.assert_allclose(np.linalg.norm(np.diff(turned, axis=1), axis=-1),
+                               np.linalg.norm(v) * 0.1, atol=1e-9)   # rotation keeps the speed
+    with pytest.raises(EthUcyDataError, match="n_points"):
+        ethucy_sequences(tmp_path, 1, 0.1, folds=("eth",))
 
 
 def test_missing_data_folder_is_named(tmp_path):

@@ -307,3 +307,36 @@ def test_ensemble_moments_taken_in_the_frame_equal_the_members_world_moments(fra
     cov = np.mean([f.cov for f in fcs], axis=0) + np.einsum("kbhi,kbhj->bhij", d, d) / 3
     np.testing.assert_allclose(fc.mean, mu, atol=1e-12)
     np.testing.assert_allclose(fc.cov, cov, rtol=1e-9, atol=1e-15)
+
+
+def test_fine_tuning_starts_from_the_pretrained_weights_and_keeps_what_they_learned():
+    """A network pre-trained on 3000 arcs, then trained on 40: with a vanishing learning rate it
+    still predicts what the pre-trained one does (the weights were loaded, not drawn); with the
+    usual one it beats the same 40 arcs trained from scratch on held-out arcs."""
+    from blindspot.traj.seq2seq import train_ensemble
+
+    rng = np.random.default_rng(11)
+    pre_xy, small, val, test = (turning_tracks(rng, n) for n in (3000, 40, 200, 300))
+    pre, _ = train_seq2seq(pre_xy, val, CFG)
+    frozen, _ = train_seq2seq(small, val, replace(CFG, epochs=1, lr=1e-12), init=pre)
+    np.testing.assert_allclose(frozen.predict(test[:, :8], 12), pre.predict(test[:, :8], 12),
+                               atol=1e-5)
+    tuned, _ = train_seq2seq(small, val, CFG, init=pre)
+    scratch, _ = train_seq2seq(small, val, CFG)
+
+    def ade(m):
+        return np.linalg.norm(m.predict(test[:, :8], 12) - test[:, 8:], axis=-1).mean()
+
+    assert ade(tuned) < 0.7 * ade(scratch), (ade(tuned), ade(scratch))
+    with pytest.raises(ValueError, match=r"hidden_size \(16, expected 8\)"):
+        train_seq2seq(small, val, replace(CFG, hidden_size=8), init=pre)
+    # an ensemble fine-tunes member by member, in worker processes to the same bits
+    cfg2 = replace(CFG, epochs=1, ensemble=2)
+    pre2, _ = train_ensemble(pre_xy[:300], val, cfg2)
+    here, _ = train_ensemble(small, val, cfg2, init=pre2)
+    there, _ = train_ensemble(small, val, cfg2, init=pre2, jobs=2)
+    for a, b in zip(here.members, there.members):
+        for (k, va), vb in zip(a.net.state_dict().items(), b.net.state_dict().values()):
+            assert np.array_equal(va.numpy(), vb.numpy()), k
+    with pytest.raises(ValueError, match="init holds 1 members"):
+        train_ensemble(small, val, cfg2, init=Seq2SeqEnsemble([pre]))

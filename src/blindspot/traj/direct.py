@@ -10,10 +10,11 @@ trained on the mean Euclidean error over the whole horizon (the score itself) ag
 noise as well as to extrapolate (the next-point LSTM is trained on the noisy next point).
 
 Pairs (:func:`direct_pairs`): from each measured path, the last ``obs_len`` measured points
-(interior misses linearly interpolated; windows that still hold a miss dropped) and the next
-``horizon`` true positions, a pair every ``stride`` points (:func:`blindspot.traj.calibration.
-path_pairs`). Paths are split as the windows stage split them: training paths train, validation
-paths choose each member's epoch, every other path is held out (:func:`path_splits`).
+(interior misses linearly interpolated; windows that still hold a miss, or end in one,
+dropped) and the next ``horizon`` true positions, a pair every ``stride`` points
+(:func:`blindspot.traj.calibration.path_pairs`). Paths are split as the windows stage split
+them: training paths train, validation paths choose each member's epoch, every other path is
+held out (:func:`path_splits`).
 
 Shapes: measured and true paths (P, T, 2) metres (measured NaN where the radar saw nothing);
 pairs (N, obs_len + horizon, 2) metres.

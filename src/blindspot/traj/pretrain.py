@@ -1,4 +1,5 @@
-"""ETH/UCY walks as next-point windows at the radar's frame rate, to pre-train the scene LSTM.
+"""ETH/UCY walks at the radar's frame rate, to pre-train the scene LSTM (next-point windows) and
+the direct multi-step LSTM (whole walks, :func:`ethucy_sequences`).
 
 Issue 10 asks whether real pedestrians help the radar scenes: the scene LSTM (a next-point model
 on ``W`` = 50 points at the radar's frame period, 0.1 s) is trained on windows of the radar
@@ -32,7 +33,8 @@ from blindspot.arrays import check_array, check_count
 from blindspot.traj.ethucy import FOLDS, FRAME_PERIOD_S, EthUcyDataError, load_split, random_rotations
 from blindspot.traj.windows import WindowSet
 
-__all__ = ["catmull_rom_resample", "upsampling_factor", "stretch_length", "ethucy_next_point_windows"]
+__all__ = ["catmull_rom_resample", "upsampling_factor", "stretch_length", "ethucy_next_point_windows",
+           "ethucy_sequences"]
 
 
 def upsampling_factor(dt_s: float, period_s: float = FRAME_PERIOD_S) -> int:
@@ -125,18 +127,57 @@ def ethucy_next_point_windows(data_dir: str | Path, window: int, dt_s: float, *,
         EthUcyDataError: see :func:`upsampling_factor`, :func:`blindspot.traj.ethucy.load_split`.
     """
     factor = upsampling_factor(dt_s)
-    length = stretch_length(window, factor)
+    fine = _resampled_stretches(data_dir, stretch_length(window, factor), factor, folds, rotate,
+                                seed)                                     # (S, (L-1) r + 1, 2)
+    n_stretch = fine.shape[0]
+    offsets = np.arange(factor)
+    idx = offsets[:, None] + np.arange(window + 1)[None, :]              # (r, W+1)
+    pairs = fine[:, idx].reshape(-1, window + 1, 2)                       # (S * r, W+1, 2)
+    return WindowSet(x=pairs[:, :window], y=pairs[:, window],
+                     path_id=np.repeat(np.arange(n_stretch), factor),
+                     start=np.tile(offsets, n_stretch))
+
+
+def ethucy_sequences(data_dir: str | Path, n_points: int, dt_s: float, *,
+                     folds: tuple[str, ...] = FOLDS, rotate: bool = True,
+                     seed: int = 0) -> np.ndarray:
+    """Walks of ``n_points`` points at ``dt_s`` from every ETH/UCY recording, one starting at
+    every annotated frame (0.4 s apart) of every pedestrian: the (history, future) pairs of a
+    direct multi-step model (:mod:`blindspot.traj.direct`) at the radar's frame rate.
+
+    Each fold's ``test`` split (one whole recording) is read; every stretch of
+    ``ceil((n_points - 1) / r) + 1`` annotated frames is turned by its own random angle about its
+    first point (``rotate``; :func:`blindspot.traj.ethucy.random_rotations`) and resampled with
+    :func:`catmull_rom_resample`; its first ``n_points`` points are the walk.
+
+    Args:
+        data_dir: folder holding ``eth/ hotel/ univ/ zara1/ zara2/``.
+        n_points: points per walk (obs_len + horizon), >= 2.
+        dt_s: the radar's frame period; 0.4 s must be a whole multiple of it.
+        folds, rotate, seed: as :func:`ethucy_next_point_windows`.
+
+    Returns:
+        (S, n_points, 2) float64, metres, oldest first.
+
+    Raises:
+        EthUcyDataError: ``n_points`` < 2, see :func:`upsampling_factor`,
+            :func:`blindspot.traj.ethucy.load_split`.
+    """
+    n_points = check_count(n_points, "n_points", ge=2, error=EthUcyDataError,
+                           who="ethucy_sequences")
+    factor = upsampling_factor(dt_s)
+    length = math.ceil((n_points - 1) / factor) + 1
+    return _resampled_stretches(data_dir, length, factor, folds, rotate, seed)[:, :n_points]
+
+
+def _resampled_stretches(data_dir: str | Path, length: int, factor: int,
+                         folds: tuple[str, ...], rotate: bool, seed: int) -> np.ndarray:
+    """(S, (length - 1) * factor + 1, 2): every stretch of ``length`` annotated frames of the
+    folds' test recordings, each rotated about its first point (``rotate``), resampled."""
     stretches = np.concatenate([load_split(data_dir, fold, "test", seq_len=length, min_peds=1).xy
                                 for fold in folds])                       # (S, L, 2)
     if rotate:
         # about each stretch's first point, so the rotation does not move it across the scene
         origin = stretches[:, :1]
         stretches = random_rotations(stretches - origin, 1, np.random.default_rng(seed)) + origin
-    fine = catmull_rom_resample(stretches, factor)                        # (S, (L-1) r + 1, 2)
-    offsets = np.arange(factor)
-    idx = offsets[:, None] + np.arange(window + 1)[None, :]              # (r, W+1)
-    pairs = fine[:, idx].reshape(-1, window + 1, 2)                       # (S * r, W+1, 2)
-    n_stretch = stretches.shape[0]
-    return WindowSet(x=pairs[:, :window], y=pairs[:, window],
-                     path_id=np.repeat(np.arange(n_stretch), factor),
-                     start=np.tile(offsets, n_stretch))
+    return catmull_rom_resample(stretches, factor)

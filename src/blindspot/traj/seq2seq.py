@@ -582,8 +582,8 @@ def _loss(out: torch.Tensor, base: torch.Tensor, y: torch.Tensor, cfg: Seq2SeqCo
 def train_seq2seq(train_xy: np.ndarray, val_xy: np.ndarray, cfg: Seq2SeqConfig, *,
                   seed: int | None = None, name: str = "seq2seq",
                   progress: Callable[[str], None] | None = None,
-                  train_nb: np.ndarray | None = None, val_nb: np.ndarray | None = None
-                  ) -> tuple[Seq2SeqModel, FitReport]:
+                  train_nb: np.ndarray | None = None, val_nb: np.ndarray | None = None,
+                  init: Seq2SeqModel | None = None) -> tuple[Seq2SeqModel, FitReport]:
     """Train one network on windows (N, obs_len + horizon, 2) metres; keep the epoch with the
     lowest ADE on ``val_xy`` (model selection on validation data only).
 
@@ -595,14 +595,20 @@ def train_seq2seq(train_xy: np.ndarray, val_xy: np.ndarray, cfg: Seq2SeqConfig, 
         progress: called with one line per epoch (None = silent).
         train_nb, val_nb: (N, K, obs_len, 2) neighbours of the windows (metres, NaN =
             absent; ``Windows.neighbours``), read when ``cfg.neighbours`` > 0.
+        init: start from this model's weights instead of a fresh draw (fine-tuning a
+            pre-trained network); the optimiser and its schedule start afresh. Its config must
+            equal ``cfg`` in every architecture key.
 
     Returns:
         ``(model, report)``.
 
     Raises:
         HistoryError: windows not (N, obs_len + horizon, 2) finite arrays, or none.
+        ValueError: ``init`` of another architecture (names the keys).
     """
     t0 = time.perf_counter()
+    if init is not None:
+        _check_architecture(init.cfg, cfg, "train_seq2seq: init")
     seq = cfg.obs_len + cfg.horizon
     for key, arr in (("train_xy", train_xy), ("val_xy", val_xy)):
         a = check_array(arr, key, ("N", seq, 2), error=HistoryError, who="train_seq2seq")
@@ -624,6 +630,8 @@ def train_seq2seq(train_xy: np.ndarray, val_xy: np.ndarray, cfg: Seq2SeqConfig, 
         torch.manual_seed(seed)
         gen = torch.Generator().manual_seed(seed)
         net = Seq2SeqNet(cfg)
+        if init is not None:
+            net.load_state_dict(init.net.state_dict())
         opt = torch.optim.AdamW(net.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
         sched = torch.optim.lr_scheduler.CosineAnnealingLR(opt, T_max=cfg.epochs)
         x_all = torch.as_tensor(x_np, dtype=torch.float32)
@@ -668,30 +676,52 @@ def train_seq2seq(train_xy: np.ndarray, val_xy: np.ndarray, cfg: Seq2SeqConfig, 
 def train_ensemble(train_xy: np.ndarray, val_xy: np.ndarray, cfg: Seq2SeqConfig, *,
                    name: str = "seq2seq", progress: Callable[[str], None] | None = None,
                    train_nb: np.ndarray | None = None, val_nb: np.ndarray | None = None,
-                   jobs: int = 1) -> tuple[Seq2SeqEnsemble, list[FitReport]]:
+                   jobs: int = 1, init: Seq2SeqEnsemble | None = None
+                   ) -> tuple[Seq2SeqEnsemble, list[FitReport]]:
     """``cfg.ensemble`` members with seeds ``cfg.seed + k`` (see :func:`train_seq2seq`).
 
     ``jobs`` > 1: one worker process per member, confined to ``jobs`` CPUs
     (:func:`blindspot.parallel.parallel_map`); each member is trained on ``cfg.threads``
     threads either way, so its weights are the same bits as in this process. ``progress`` is
-    called in this process only (``jobs`` = 1)."""
+    called in this process only (``jobs`` = 1). ``init``: member ``k`` starts from ``init``'s
+    member ``k`` (fine-tuning); it must hold ``cfg.ensemble`` members (ValueError)."""
     seeds = [cfg.seed + k for k in range(cfg.ensemble)]
+    if init is not None and len(init.members) != len(seeds):
+        raise ValueError(f"train_ensemble: init holds {len(init.members)} members, "
+                         f"cfg.ensemble = {len(seeds)}")
+    starts = [None] * len(seeds) if init is None else list(init.members)
     if jobs <= 1 or len(seeds) == 1:
         runs = [train_seq2seq(train_xy, val_xy, cfg, seed=s, name=name, progress=progress,
-                              train_nb=train_nb, val_nb=val_nb) for s in seeds]
+                              train_nb=train_nb, val_nb=val_nb, init=m0)
+                for s, m0 in zip(seeds, starts)]
     else:
         from functools import partial
 
         from blindspot.parallel import parallel_map
 
         runs = parallel_map(partial(_train_member, train_xy, val_xy, cfg, name, train_nb,
-                                    val_nb), seeds, len(seeds), cpus=int(jobs))
+                                    val_nb), list(zip(seeds, starts)), len(seeds),
+                            cpus=int(jobs))
     return Seq2SeqEnsemble([m for m, _ in runs], name=name), [r for _, r in runs]
 
 
 def _train_member(train_xy: np.ndarray, val_xy: np.ndarray, cfg: Seq2SeqConfig, name: str,
-                  train_nb: np.ndarray | None, val_nb: np.ndarray | None, seed: int
-                  ) -> tuple[Seq2SeqModel, FitReport]:
+                  train_nb: np.ndarray | None, val_nb: np.ndarray | None,
+                  member: tuple[int, Seq2SeqModel | None]) -> tuple[Seq2SeqModel, FitReport]:
     """One member in a worker process (module level, so it pickles)."""
+    seed, init = member
     return train_seq2seq(train_xy, val_xy, cfg, seed=seed, name=name, train_nb=train_nb,
-                         val_nb=val_nb)
+                         val_nb=val_nb, init=init)
+
+
+# what the weights compute (Seq2SeqNet's shapes, and the frame and encoding of its inputs and
+# outputs); the rest are training settings a fine-tuning may change
+_ARCHITECTURE = ("cell", "hidden_size", "num_layers", "head_hidden", "obs_len", "horizon",
+                 "inputs", "outputs", "frame", "residual", "speed_floor", "neighbours")
+
+
+def _check_architecture(have: Seq2SeqConfig, want: Seq2SeqConfig, who: str) -> None:
+    diff = [k for k in _ARCHITECTURE if getattr(have, k) != getattr(want, k)]
+    if diff:
+        raise ValueError(f"{who}: made with another " + ", ".join(
+            f"{k} ({getattr(have, k)!r}, expected {getattr(want, k)!r})" for k in diff))

@@ -1,0 +1,181 @@
+"""Does ETH/UCY pre-training help the scenes' direct multi-step LSTM (``lstm_direct``)? Issue 10,
+section 1, last item, for the model the scenes use since the direct model came in (the paper's
+next-point LSTM has its own answer: ``bench_pretrain.py``). Prints a table.
+
+    .venv/bin/python benchmarks/bench_pretrain_direct.py [--pretrain-epochs 5]
+        [--fractions 1.0 0.1] [--history-noise auto] [--json out.json]
+
+Reads the last ``dvc repro``'s radar path data set (``data/paths/paths.parquet``) and the
+windows stage's splits (``data/windows/{train,val}.parquet``: which paths train and validate;
+every other path is held out, :func:`blindspot.traj.direct.path_splits`), and the ETH/UCY
+recordings (``BLINDSPOT_SHARED``). The model, its training and its pairs are the train_direct
+stage's (``conf/direct``: obs_len 20, horizon 40 at 0.1 s, ``direct.model.ensemble`` members,
+one pair every ``direct.stride`` points, each member's epoch chosen on the validation paths).
+For every fraction of the training paths (1.0 = the stage's set; 0.1 = a tenth, where
+pre-training usually matters):
+
+- ``scratch``: trained on the radar pairs alone, as the stage does;
+- ``ethucy``: trained on ETH/UCY alone, never on a radar pair: every pedestrian's walk of
+  obs_len + horizon points resampled to the radar's 0.1 s, one starting at every annotated
+  frame, each turned by a random angle (:func:`blindspot.traj.pretrain.ethucy_sequences`), its
+  history given the radar's point error (``--history-noise``: ``auto`` = the rms per axis of
+  measured minus true points on the training paths; the future stays as annotated, like the
+  radar pairs' true futures), ``--pretrain-epochs`` epochs, each member's epoch chosen on the
+  radar validation pairs;
+- ``finetuned``: that ensemble, member by member, trained on the radar pairs like ``scratch``
+  (same epochs, learning rate and schedule; :func:`blindspot.traj.seq2seq.train_ensemble`
+  ``init``).
+
+Scored on the held-out paths' pairs (one every ``calibration.stride`` points, the train_direct
+stage's scoring set): ADE / FDE over 1, 2 and 3 s, each path's mean a sample, 95 % bootstrap
+intervals over the held-out paths and the paired differences against ``scratch`` at the same
+fraction (:func:`blindspot.traj.benchmark.bootstrap_means`, ``paired_differences``). Constant
+velocity on the same pairs for reference. Training runs ``direct.jobs`` processes of one torch
+thread; about 10 minutes on the 2-core machine.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parents[1]
+STEPS_S = (1.0, 2.0, 3.0)
+
+
+def _path_subset(ids: np.ndarray, fraction: float, seed: int) -> np.ndarray:
+    if fraction >= 1.0:
+        return ids
+    n = max(1, round(fraction * ids.size))
+    return np.sort(np.random.default_rng(seed).choice(ids, n, replace=False))
+
+
+def history_noise_m(measured: np.ndarray, truth: np.ndarray) -> float:
+    """The radar point's rms error per axis (m) over the finite points of the given paths."""
+    res = (measured - truth)[np.isfinite(measured).all(axis=-1)]
+    return float(np.sqrt(np.mean(res ** 2)))
+
+
+def per_path_scores(model, hist: np.ndarray, fut: np.ndarray, path: np.ndarray,
+                    steps: dict[str, int]) -> dict[str, np.ndarray]:
+    """{"ade_1s": (P,), "fde_1s": (P,), ...}: each held-out path's mean over its pairs."""
+    err = np.linalg.norm(np.asarray(model.predict(hist, max(steps.values()))) - fut, axis=-1)
+    _, row = np.unique(path, return_inverse=True)
+    count = np.bincount(row)
+    out = {}
+    for label, k in steps.items():
+        out[f"ade_{label}"] = np.bincount(row, err[:, :k].mean(axis=1)) / count
+        out[f"fde_{label}"] = np.bincount(row, err[:, k - 1]) / count
+    return out
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--pretrain-epochs", type=int, default=5,
+                    help="epochs over the ETH/UCY walks (default 5)")
+    ap.add_argument("--fractions", type=float, nargs="+", default=[1.0, 0.1],
+                    help="fractions of the radar training paths (default 1.0 0.1)")
+    ap.add_argument("--history-noise", default="auto",
+                    help="std (m) of the noise added to each ETH/UCY history, or 'auto' (default)")
+    ap.add_argument("--data", default=str(REPO / "data"), help="the repro's data folder")
+    ap.add_argument("--json", help="also write the figures here")
+    args = ap.parse_args()
+
+    import pandas as pd
+
+    from blindspot import config, experiment
+    from blindspot.traj.baselines import ConstantVelocity
+    from blindspot.traj.benchmark import bootstrap_means, paired_differences
+    from blindspot.traj.calibration import path_pairs
+    from blindspot.traj.direct import NAME, direct_pairs, path_splits
+    from blindspot.traj.ethucy import default_data_dir
+    from blindspot.traj.paths import table_to_arrays
+    from blindspot.traj.pretrain import ethucy_sequences
+    from blindspot.traj.seq2seq import train_ensemble
+    from blindspot.traj.train import torch_threads
+    from blindspot.traj.windows import WindowSet
+
+    cfg = config.compose([], config_dir=REPO / "conf")
+    d = experiment.direct(cfg)
+    m = d.model
+    dt = experiment.dataset(cfg).frame_period_s
+    seed = int(cfg.seed)
+    data = Path(args.data)
+    truth, measured, _ = table_to_arrays(pd.read_parquet(data / "paths" / "paths.parquet"))
+    ids = path_splits(len(truth), *(WindowSet.load(data / "windows" / f"{s}.parquet")
+                                    for s in ("train", "val")))
+    val_xy = direct_pairs(measured[ids["val"]], truth[ids["val"]], m.obs_len, m.horizon, d.stride)
+
+    noise = (history_noise_m(measured[ids["train"]], truth[ids["train"]])
+             if args.history_noise == "auto" else float(args.history_noise))
+    walks = ethucy_sequences(default_data_dir(), m.obs_len + m.horizon, dt, seed=seed)
+    rng = np.random.default_rng(seed)
+    walks[:, :m.obs_len] += rng.normal(0.0, noise, walks[:, :m.obs_len].shape)
+    print(f"ETH/UCY: {len(walks)} walks of {m.obs_len} + {m.horizon} points at {dt} s, history "
+          f"noise {noise:.3f} m per axis; radar: {ids['train'].size} train / {ids['val'].size} "
+          f"val / {ids['test'].size} held-out paths, {len(val_xy)} val pairs")
+
+    t0 = time.perf_counter()
+    pre, pre_rep = train_ensemble(walks, val_xy, replace(m, epochs=args.pretrain_epochs),
+                                  name=NAME, jobs=d.jobs)
+    print(f"pre-trained {len(pre.members)} members in {time.perf_counter() - t0:.0f} s, best "
+          f"epochs {[r.best_epoch for r in pre_rep]}")
+
+    models: dict = {"constant_velocity": ConstantVelocity(
+        k=experiment.evaluation(cfg).cv_fit_points, name="constant_velocity"), "ethucy": pre}
+    n_pairs = {}
+    for fraction in args.fractions:
+        train_ids = _path_subset(ids["train"], fraction, seed)
+        train_xy = direct_pairs(measured[train_ids], truth[train_ids], m.obs_len, m.horizon,
+                                d.stride)
+        n_pairs[f"{fraction:g}"] = {"paths": int(train_ids.size), "pairs": int(len(train_xy))}
+        t0 = time.perf_counter()
+        models[f"scratch@{fraction:g}"], _ = train_ensemble(train_xy, val_xy, m, name=NAME,
+                                                            jobs=d.jobs)
+        models[f"finetuned@{fraction:g}"], _ = train_ensemble(train_xy, val_xy, m, name=NAME,
+                                                              jobs=d.jobs, init=pre)
+        print(f"fraction {fraction:g}: {train_ids.size} paths, {len(train_xy)} pairs, "
+              f"scratch and fine-tuned in {time.perf_counter() - t0:.0f} s")
+
+    steps = {f"{s:g}s": min(int(round(s / dt)), m.horizon) for s in STEPS_S}
+    hist, fut, path, _ = path_pairs(measured[ids["test"]], truth[ids["test"]], m.obs_len,
+                                    max(steps.values()), experiment.calibration(cfg).stride,
+                                    with_index=True)
+    with torch_threads(1):
+        scores = {name: per_path_scores(model, hist, fut, path, steps)
+                  for name, model in models.items()}
+    boot = dict(n_boot=2000, seed=seed)
+    means = bootstrap_means(scores, **boot)
+    pairs = ([(f"finetuned@{f:g}", f"scratch@{f:g}") for f in args.fractions]
+             + [("ethucy", f"scratch@{f:g}") for f in args.fractions])
+    paired = paired_differences(scores, pairs, **boot)
+
+    n_paths = np.unique(path).size
+    print(f"\nheld-out radar paths: {n_paths} paths, {len(hist)} pairs; each path's mean a sample,"
+          " mean [95 % bootstrap interval], m")
+    keys = [f"{k}_{s}" for s in ("1s", "3s") for k in ("ade", "fde")]
+    print(f"{'model':22s} " + "  ".join(f"{k:>22s}" for k in keys))
+    for name in models:
+        print(f"{name:22s} " + "  ".join(
+            f"{means[name][k]['mean']:6.3f} [{means[name][k]['ci95'][0]:.3f}, "
+            f"{means[name][k]['ci95'][1]:.3f}]" for k in keys))
+    print("\npaired differences (a - b; negative: a closer to the truth):")
+    for pair, diff in paired.items():
+        print(f"{pair:30s} " + "  ".join(
+            f"{k} {diff[k]['mean']:+.3f} [{diff[k]['ci95'][0]:+.3f}, {diff[k]['ci95'][1]:+.3f}]"
+            for k in ("ade_1s", "ade_3s", "fde_3s")))
+    if args.json:
+        Path(args.json).write_text(json.dumps(
+            {"history_noise_m": noise, "n_ethucy_walks": int(len(walks)),
+             "pretrain_epochs": args.pretrain_epochs, "pretrain_best_epochs":
+             [r.best_epoch for r in pre_rep], "train": n_pairs, "n_test_paths": int(n_paths),
+             "n_test_pairs": int(len(hist)), "means": means, "paired": paired}, indent=1))
+
+
+if __name__ == "__main__":
+    main()
