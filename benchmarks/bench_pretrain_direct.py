@@ -3,7 +3,7 @@ section 1, last item, for the model the scenes use since the direct model came i
 next-point LSTM has its own answer: ``bench_pretrain.py``). Prints a table.
 
     .venv/bin/python benchmarks/bench_pretrain_direct.py [--pretrain-epochs 5]
-        [--fractions 1.0 0.1] [--history-noise auto] [--json out.json]
+        [--fractions 1.0 0.1] [--history-noise residuals] [--json out.json]
 
 Reads the last ``dvc repro``'s radar path data set (``data/paths/paths.parquet``) and the
 windows stage's splits (``data/windows/{train,val}.parquet``: which paths train and validate;
@@ -14,24 +14,31 @@ one pair every ``direct.stride`` points, each member's epoch chosen on the valid
 For every fraction of the training paths (1.0 = the stage's set; 0.1 = a tenth, where
 pre-training usually matters):
 
-- ``scratch``: trained on the radar pairs alone, as the stage does;
+- ``scratch``: trained on the radar pairs alone, as the stage does; at a fraction below 1 for
+  ``direct.model.epochs / fraction`` epochs, so it takes as many optimiser steps as on all the
+  paths (fewer pairs must not also mean less training);
 - ``ethucy``: trained on ETH/UCY alone, never on a radar pair: every pedestrian's walk of
   obs_len + horizon points resampled to the radar's 0.1 s, one starting at every annotated
   frame, each turned by a random angle (:func:`blindspot.traj.pretrain.ethucy_sequences`), its
-  history given the radar's point error (``--history-noise``: ``auto`` = the rms per axis of
-  measured minus true points on the training paths; the future stays as annotated, like the
-  radar pairs' true futures), ``--pretrain-epochs`` epochs, each member's epoch chosen on the
-  radar validation pairs;
+  history given radar-like point errors (``--history-noise``: ``residuals`` = each point gets a
+  measured-minus-true error vector drawn at random from the training paths' points, heavy tails
+  and all, independently per point; or a number, the std in m of isotropic Gaussian noise; the
+  future stays as annotated, like the radar pairs' true futures), ``--pretrain-epochs`` epochs,
+  each member's epoch chosen on the radar validation pairs;
 - ``finetuned``: that ensemble, member by member, trained on the radar pairs like ``scratch``
   (same epochs, learning rate and schedule; :func:`blindspot.traj.seq2seq.train_ensemble`
-  ``init``).
+  ``init``; the pre-trained weights are kept where no epoch beats them on val).
 
-Scored on the held-out paths' pairs (one every ``calibration.stride`` points, the train_direct
-stage's scoring set): ADE / FDE over 1, 2 and 3 s, each path's mean a sample, 95 % bootstrap
-intervals over the held-out paths and the paired differences against ``scratch`` at the same
-fraction (:func:`blindspot.traj.benchmark.bootstrap_means`, ``paired_differences``). Constant
-velocity on the same pairs for reference. Training runs ``direct.jobs`` processes of one torch
-thread; about 10 minutes on the 2-core machine.
+Scored on the held-out paths' pairs, one every ``calibration.stride`` points, each history the
+model's own ``obs_len`` points and each future 3 s (so more pairs than the train_direct stage
+scores, whose histories are 50 points long for the next-point LSTM): ADE / FDE over 1, 2 and
+3 s (printed: 1 and 3 s; ``--json``: all), each held-out path's mean a sample, 95 % bootstrap
+intervals over the held-out paths, and the paired differences of ``finetuned`` and of
+``ethucy`` against ``scratch`` at the same fraction
+(:func:`blindspot.traj.benchmark.bootstrap_means`, ``paired_differences``). The intervals
+cover the sampling of held-out paths only: one draw of the training subset, fixed seeds.
+Constant velocity on the same pairs for reference. Training runs ``direct.jobs`` processes of
+one torch thread; about 15 minutes on the 2-core machine.
 """
 
 from __future__ import annotations
@@ -55,10 +62,9 @@ def _path_subset(ids: np.ndarray, fraction: float, seed: int) -> np.ndarray:
     return np.sort(np.random.default_rng(seed).choice(ids, n, replace=False))
 
 
-def history_noise_m(measured: np.ndarray, truth: np.ndarray) -> float:
-    """The radar point's rms error per axis (m) over the finite points of the given paths."""
-    res = (measured - truth)[np.isfinite(measured).all(axis=-1)]
-    return float(np.sqrt(np.mean(res ** 2)))
+def point_residuals(measured: np.ndarray, truth: np.ndarray) -> np.ndarray:
+    """(K, 2) measured minus true position (m) at every radar point of the given paths."""
+    return (measured - truth)[np.isfinite(measured).all(axis=-1)]
 
 
 def per_path_scores(model, hist: np.ndarray, fut: np.ndarray, path: np.ndarray,
@@ -80,8 +86,9 @@ def main() -> None:
                     help="epochs over the ETH/UCY walks (default 5)")
     ap.add_argument("--fractions", type=float, nargs="+", default=[1.0, 0.1],
                     help="fractions of the radar training paths (default 1.0 0.1)")
-    ap.add_argument("--history-noise", default="auto",
-                    help="std (m) of the noise added to each ETH/UCY history, or 'auto' (default)")
+    ap.add_argument("--history-noise", default="residuals",
+                    help="'residuals' (default: the training paths' point errors, resampled) or "
+                         "the std (m) of isotropic Gaussian noise on each ETH/UCY history")
     ap.add_argument("--data", default=str(REPO / "data"), help="the repro's data folder")
     ap.add_argument("--json", help="also write the figures here")
     args = ap.parse_args()
@@ -111,14 +118,22 @@ def main() -> None:
                                     for s in ("train", "val")))
     val_xy = direct_pairs(measured[ids["val"]], truth[ids["val"]], m.obs_len, m.horizon, d.stride)
 
-    noise = (history_noise_m(measured[ids["train"]], truth[ids["train"]])
-             if args.history_noise == "auto" else float(args.history_noise))
     walks = ethucy_sequences(default_data_dir(), m.obs_len + m.horizon, dt, seed=seed)
-    rng = np.random.default_rng(seed)
-    walks[:, :m.obs_len] += rng.normal(0.0, noise, walks[:, :m.obs_len].shape)
+    # its own stream: ethucy_sequences' rotations draw from default_rng(seed)
+    rng = np.random.default_rng(np.random.SeedSequence(seed).spawn(1)[0])
+    shape = walks[:, :m.obs_len].shape
+    if args.history_noise == "residuals":
+        res = point_residuals(measured[ids["train"]], truth[ids["train"]])
+        walks[:, :m.obs_len] += res[rng.integers(0, len(res), shape[:2])]
+        noise = (f"the training paths' {len(res)} point errors resampled (median "
+                 f"{np.median(np.hypot(*res.T)):.3f} m, rms per axis "
+                 f"{np.sqrt(np.mean(res ** 2)):.3f} m)")
+    else:
+        walks[:, :m.obs_len] += rng.normal(0.0, float(args.history_noise), shape)
+        noise = f"Gaussian, std {float(args.history_noise):.3f} m per axis"
     print(f"ETH/UCY: {len(walks)} walks of {m.obs_len} + {m.horizon} points at {dt} s, history "
-          f"noise {noise:.3f} m per axis; radar: {ids['train'].size} train / {ids['val'].size} "
-          f"val / {ids['test'].size} held-out paths, {len(val_xy)} val pairs")
+          f"noise: {noise}; radar: {ids['train'].size} train / {ids['val'].size} val / "
+          f"{ids['test'].size} held-out paths, {len(val_xy)} val pairs")
 
     t0 = time.perf_counter()
     pre, pre_rep = train_ensemble(walks, val_xy, replace(m, epochs=args.pretrain_epochs),
@@ -134,13 +149,19 @@ def main() -> None:
         train_xy = direct_pairs(measured[train_ids], truth[train_ids], m.obs_len, m.horizon,
                                 d.stride)
         n_pairs[f"{fraction:g}"] = {"paths": int(train_ids.size), "pairs": int(len(train_xy))}
+        # as many optimiser steps as on all the paths
+        fm = replace(m, epochs=max(1, round(m.epochs / min(fraction, 1.0))))
         t0 = time.perf_counter()
-        models[f"scratch@{fraction:g}"], _ = train_ensemble(train_xy, val_xy, m, name=NAME,
-                                                            jobs=d.jobs)
-        models[f"finetuned@{fraction:g}"], _ = train_ensemble(train_xy, val_xy, m, name=NAME,
-                                                              jobs=d.jobs, init=pre)
+        models[f"scratch@{fraction:g}"], rs = train_ensemble(train_xy, val_xy, fm, name=NAME,
+                                                             jobs=d.jobs)
+        models[f"finetuned@{fraction:g}"], rf = train_ensemble(train_xy, val_xy, fm, name=NAME,
+                                                               jobs=d.jobs, init=pre)
+        n_pairs[f"{fraction:g}"].update(epochs=fm.epochs,
+                                        best_epochs_scratch=[r.best_epoch for r in rs],
+                                        best_epochs_finetuned=[r.best_epoch for r in rf])
         print(f"fraction {fraction:g}: {train_ids.size} paths, {len(train_xy)} pairs, "
-              f"scratch and fine-tuned in {time.perf_counter() - t0:.0f} s")
+              f"{fm.epochs} epochs; best epochs scratch {[r.best_epoch for r in rs]}, "
+              f"fine-tuned {[r.best_epoch for r in rf]}; {time.perf_counter() - t0:.0f} s")
 
     steps = {f"{s:g}s": min(int(round(s / dt)), m.horizon) for s in STEPS_S}
     hist, fut, path, _ = path_pairs(measured[ids["test"]], truth[ids["test"]], m.obs_len,
@@ -171,7 +192,7 @@ def main() -> None:
             for k in ("ade_1s", "ade_3s", "fde_3s")))
     if args.json:
         Path(args.json).write_text(json.dumps(
-            {"history_noise_m": noise, "n_ethucy_walks": int(len(walks)),
+            {"history_noise": noise, "n_ethucy_walks": int(len(walks)),
              "pretrain_epochs": args.pretrain_epochs, "pretrain_best_epochs":
              [r.best_epoch for r in pre_rep], "train": n_pairs, "n_test_paths": int(n_paths),
              "n_test_pairs": int(len(hist)), "means": means, "paired": paired}, indent=1))

@@ -323,6 +323,10 @@ def test_fine_tuning_starts_from_the_pretrained_weights_and_keeps_what_they_lear
                                atol=1e-5)
     tuned, _ = train_seq2seq(small, val, CFG, init=pre)
     scratch, _ = train_seq2seq(small, val, CFG)
+    # a fine-tuning that only wrecks the weights keeps the pre-trained ones (epoch 0)
+    wrecked, rep = train_seq2seq(small, val, replace(CFG, epochs=2, lr=50.0), init=pre)
+    assert rep.best_epoch == 0 and rep.init_val_ade < min(rep.val_ade)
+    np.testing.assert_array_equal(wrecked.predict(test[:, :8], 12), pre.predict(test[:, :8], 12))
 
     def ade(m):
         return np.linalg.norm(m.predict(test[:, :8], 12) - test[:, 8:], axis=-1).mean()

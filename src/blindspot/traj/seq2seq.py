@@ -248,12 +248,15 @@ def _cv_offsets(framed_obs: np.ndarray, horizon: int) -> np.ndarray:
 
 @dataclass
 class FitReport:
-    """What training one member did: the epoch kept, validation ADE/FDE per epoch (m), time."""
+    """What training one member did: the epoch kept (0: the ``init`` weights, which no epoch
+    beat on val), validation ADE/FDE per epoch (m), the ``init`` weights' val ADE (m; None
+    without ``init``), time."""
 
     best_epoch: int
     val_ade: list[float] = field(default_factory=list)
     val_fde: list[float] = field(default_factory=list)
     seconds: float = 0.0
+    init_val_ade: float | None = None
 
 
 class Seq2SeqModel:
@@ -596,8 +599,9 @@ def train_seq2seq(train_xy: np.ndarray, val_xy: np.ndarray, cfg: Seq2SeqConfig, 
         train_nb, val_nb: (N, K, obs_len, 2) neighbours of the windows (metres, NaN =
             absent; ``Windows.neighbours``), read when ``cfg.neighbours`` > 0.
         init: start from this model's weights instead of a fresh draw (fine-tuning a
-            pre-trained network); the optimiser and its schedule start afresh. Its config must
-            equal ``cfg`` in every architecture key.
+            pre-trained network); the optimiser and its schedule start afresh, and the weights
+            themselves are scored on ``val_xy`` as epoch 0 (kept if no epoch beats them). Its
+            config must equal ``cfg`` in every architecture key.
 
     Returns:
         ``(model, report)``.
@@ -640,6 +644,13 @@ def train_seq2seq(train_xy: np.ndarray, val_xy: np.ndarray, cfg: Seq2SeqConfig, 
         n = x_all.shape[0]
         report = FitReport(best_epoch=0)
         best_state, best_ade = None, np.inf
+        if init is not None:
+            # the pre-trained weights are epoch 0's candidate: fine-tuning keeps them when no
+            # epoch scores better on val
+            err = np.linalg.norm(Seq2SeqModel(net, cfg, name)._mean_of_framed(
+                val_framed, cfg.horizon) - val_fut, axis=-1)
+            best_ade = report.init_val_ade = float(err.mean())
+            best_state = {k: v.clone() for k, v in net.state_dict().items()}
         for epoch in range(1, cfg.epochs + 1):
             net.train()
             order = torch.randperm(n, generator=gen)

@@ -77,7 +77,9 @@ class TrainResult:
 
     Attributes:
         predictor: the trained model with its normalisation (weights after the last epoch).
-        history: one row per epoch, columns :data:`HISTORY_COLUMNS` (epoch counts from 1).
+        history: one row per epoch, columns :data:`HISTORY_COLUMNS` (epoch counts from 1);
+            ``seconds`` is NaN for the epochs a resumed run read from its checkpoint (the
+            checkpoint keeps no wall times, so its bytes repeat).
         val_rmse_m: per-coordinate validation RMSE in metres after the last epoch.
     """
 
