@@ -3,7 +3,7 @@ section 1, last item, for the model the scenes use since the direct model came i
 next-point LSTM has its own answer: ``bench_pretrain.py``). Prints a table.
 
     .venv/bin/python benchmarks/bench_pretrain_direct.py [--pretrain-epochs 5]
-        [--fractions 1.0 0.1] [--history-noise residuals] [--json out.json]
+        [--fractions 1.0 0.1] [--json out.json]
 
 Reads the last ``dvc repro``'s radar path data set (``data/paths/paths.parquet``) and the
 windows stage's splits (``data/windows/{train,val}.parquet``: which paths train and validate;
@@ -14,20 +14,21 @@ one pair every ``direct.stride`` points, each member's epoch chosen on the valid
 For every fraction of the training paths (1.0 = the stage's set; 0.1 = a tenth, where
 pre-training usually matters):
 
-- ``scratch``: trained on the radar pairs alone, as the stage does; at a fraction below 1 for
+- ``scratch``: trained on the radar pairs alone (the stage with ``direct.pretrain_epochs: 0``);
+  at a fraction below 1 for
   ``direct.model.epochs / fraction`` epochs, so it takes as many optimiser steps as on all the
   paths (fewer pairs must not also mean less training);
 - ``ethucy``: trained on ETH/UCY alone, never on a radar pair: every pedestrian's walk of
   obs_len + horizon points resampled to the radar's 0.1 s, one starting at every annotated
-  frame, each turned by a random angle (:func:`blindspot.traj.pretrain.ethucy_sequences`), its
-  history given radar-like point errors (``--history-noise``: ``residuals`` = each point gets a
-  measured-minus-true error vector drawn at random from the training paths' points, heavy tails
-  and all, independently per point; or a number, the std in m of isotropic Gaussian noise; the
-  future stays as annotated, like the radar pairs' true futures), ``--pretrain-epochs`` epochs,
-  each member's epoch chosen on the radar validation pairs;
+  frame, each turned by a random angle, each history point moved by a measured-minus-true error
+  vector drawn at random from the training paths' radar points (heavy tails and all,
+  independently per point), the future left as annotated like the radar pairs' true futures
+  (:func:`blindspot.traj.direct.pretraining_walks`, what the stage pre-trains on),
+  ``--pretrain-epochs`` epochs, each member's epoch chosen on the radar validation pairs;
 - ``finetuned``: that ensemble, member by member, trained on the radar pairs like ``scratch``
   (same epochs, learning rate and schedule; :func:`blindspot.traj.seq2seq.train_ensemble`
-  ``init``; the pre-trained weights are kept where no epoch beats them on val).
+  ``init``; the pre-trained weights are kept where no epoch beats them on val): what the
+  train_direct stage does with ``direct.pretrain_epochs`` > 0 at fraction 1.
 
 Scored on the held-out paths' pairs, one every ``calibration.stride`` points, each history the
 model's own ``obs_len`` points and each future 3 s (so more pairs than the train_direct stage
@@ -62,11 +63,6 @@ def _path_subset(ids: np.ndarray, fraction: float, seed: int) -> np.ndarray:
     return np.sort(np.random.default_rng(seed).choice(ids, n, replace=False))
 
 
-def point_residuals(measured: np.ndarray, truth: np.ndarray) -> np.ndarray:
-    """(K, 2) measured minus true position (m) at every radar point of the given paths."""
-    return (measured - truth)[np.isfinite(measured).all(axis=-1)]
-
-
 def per_path_scores(model, hist: np.ndarray, fut: np.ndarray, path: np.ndarray,
                     steps: dict[str, int]) -> dict[str, np.ndarray]:
     """{"ade_1s": (P,), "fde_1s": (P,), ...}: each held-out path's mean over its pairs."""
@@ -86,9 +82,6 @@ def main() -> None:
                     help="epochs over the ETH/UCY walks (default 5)")
     ap.add_argument("--fractions", type=float, nargs="+", default=[1.0, 0.1],
                     help="fractions of the radar training paths (default 1.0 0.1)")
-    ap.add_argument("--history-noise", default="residuals",
-                    help="'residuals' (default: the training paths' point errors, resampled) or "
-                         "the std (m) of isotropic Gaussian noise on each ETH/UCY history")
     ap.add_argument("--data", default=str(REPO / "data"), help="the repro's data folder")
     ap.add_argument("--json", help="also write the figures here")
     args = ap.parse_args()
@@ -99,10 +92,9 @@ def main() -> None:
     from blindspot.traj.baselines import ConstantVelocity
     from blindspot.traj.benchmark import bootstrap_means, paired_differences
     from blindspot.traj.calibration import path_pairs
-    from blindspot.traj.direct import NAME, direct_pairs, path_splits
+    from blindspot.traj.direct import NAME, direct_pairs, path_splits, pretraining_walks
     from blindspot.traj.ethucy import default_data_dir
     from blindspot.traj.paths import table_to_arrays
-    from blindspot.traj.pretrain import ethucy_sequences
     from blindspot.traj.seq2seq import train_ensemble
     from blindspot.traj.train import torch_threads
     from blindspot.traj.windows import WindowSet
@@ -118,19 +110,12 @@ def main() -> None:
                                     for s in ("train", "val")))
     val_xy = direct_pairs(measured[ids["val"]], truth[ids["val"]], m.obs_len, m.horizon, d.stride)
 
-    walks = ethucy_sequences(default_data_dir(), m.obs_len + m.horizon, dt, seed=seed)
-    # its own stream: ethucy_sequences' rotations draw from default_rng(seed)
-    rng = np.random.default_rng(np.random.SeedSequence(seed).spawn(1)[0])
-    shape = walks[:, :m.obs_len].shape
-    if args.history_noise == "residuals":
-        res = point_residuals(measured[ids["train"]], truth[ids["train"]])
-        walks[:, :m.obs_len] += res[rng.integers(0, len(res), shape[:2])]
-        noise = (f"the training paths' {len(res)} point errors resampled (median "
-                 f"{np.median(np.hypot(*res.T)):.3f} m, rms per axis "
-                 f"{np.sqrt(np.mean(res ** 2)):.3f} m)")
-    else:
-        walks[:, :m.obs_len] += rng.normal(0.0, float(args.history_noise), shape)
-        noise = f"Gaussian, std {float(args.history_noise):.3f} m per axis"
+    walks = pretraining_walks(default_data_dir(), measured[ids["train"]], truth[ids["train"]],
+                              replace(d, pretrain_walks=0), dt)
+    res = (measured - truth)[ids["train"]]
+    res = res[np.isfinite(res).all(axis=-1)]
+    noise = (f"the training paths' {len(res)} point errors resampled (median "
+             f"{np.median(np.hypot(*res.T)):.3f} m, rms per axis {np.sqrt(np.mean(res ** 2)):.3f} m)")
     print(f"ETH/UCY: {len(walks)} walks of {m.obs_len} + {m.horizon} points at {dt} s, history "
           f"noise: {noise}; radar: {ids['train'].size} train / {ids['val'].size} val / "
           f"{ids['test'].size} held-out paths, {len(val_xy)} val pairs")

@@ -1,6 +1,8 @@
 """train_direct: the scenes' direct multi-step predictor (lstm_direct, blindspot.traj.direct) on
-the radar path data set: ``direct.model.ensemble`` networks trained on the training paths' pairs
-(measured history, true future), each member's epoch chosen on the validation paths.
+the radar path data set: ``direct.model.ensemble`` networks, pre-trained on ETH/UCY walks with
+radar-like history errors (``direct.pretrain_epochs`` > 0; the recordings under
+``paths.shared_dir``/``direct.pretrain_data``), trained on the training paths' pairs (measured
+history, true future), each member's epoch chosen on the validation paths.
 
 train_direct.json: ADE / FDE over 1, 2 and 3 s (and the model's whole horizon) on the validation
 and held-out paths, beside the paper's next-point LSTM ensemble (data/train/model.pt, rolled out)
@@ -14,10 +16,12 @@ import pandas as pd
 
 from blindspot import experiment
 from blindspot.cli import main_stage
+from blindspot.config import shared_dir
 from blindspot.io import write_json
 from blindspot.stage import StageResult
 from blindspot.traj.baselines import ConstantVelocity
-from blindspot.traj.direct import NAME, check_fits, direct_scores, path_splits, train_direct
+from blindspot.traj.direct import (NAME, check_fits, direct_scores, path_splits,
+                                   pretraining_walks, train_direct)
 from blindspot.traj.lstm import LSTMPredictor
 from blindspot.traj.paths import table_to_arrays
 from blindspot.traj.train import torch_threads
@@ -33,7 +37,9 @@ def run(cfg, ctx):
     truth, measured, _ = table_to_arrays(pd.read_parquet(ctx.dep("paths.parquet")))
     ids = path_splits(len(truth), *(WindowSet.load(ctx.dep(f"{s}.parquet"))
                                     for s in ("train", "val")))
-    model, reports = train_direct(measured, truth, ids, d)
+    walks = (pretraining_walks(shared_dir(cfg) / d.pretrain_data, measured[ids["train"]],
+                               truth[ids["train"]], d, dt) if d.pretrain_epochs > 0 else None)
+    model, reports, pre_reports = train_direct(measured, truth, ids, d, pretrain=walks)
     model_path = model.save(ctx.out("model.pt"))
     steps = tuple(sorted({min(int(round(s / dt)), d.model.horizon) for s in STEPS_S}
                          | {d.model.horizon}))
@@ -51,11 +57,19 @@ def run(cfg, ctx):
                "steps_frames": list(steps), "frame_period_s": dt,
                "n_paths": {s: int(len(v)) for s, v in ids.items()},
                "members": [{"seed": d.model.seed + k, "best_epoch": r.best_epoch,
-                            "val_ade_m": r.val_ade[r.best_epoch - 1]}
-                           for k, r in enumerate(reports)]}   # no wall times: same bytes each run
+                            "val_ade_m": (r.val_ade[r.best_epoch - 1] if r.best_epoch
+                                          else r.init_val_ade)}
+                           for k, r in enumerate(reports)],   # no wall times: same bytes each run
+               "pretrain": {"epochs": d.pretrain_epochs,
+                            "n_walks": 0 if walks is None else int(len(walks)),
+                            "best_epochs": [r.best_epoch for r in pre_reports],
+                            "val_ade_m": [r.val_ade[r.best_epoch - 1] for r in pre_reports]}}
     write_json(ctx.out("train_direct.json"), metrics)
     k = steps[min(2, len(steps) - 1)]
-    print(f"train_direct: {len(reports)} members, best epochs "
+    pre = (f"pre-trained {d.pretrain_epochs} epochs on {len(walks)} ETH/UCY walks (best epochs "
+           f"{[r.best_epoch for r in pre_reports]}, {max(r.seconds for r in pre_reports):.0f} s "
+           "each at most), " if pre_reports else "")
+    print(f"train_direct: {len(reports)} members, {pre}best epochs "
           f"{[r.best_epoch for r in reports]}, {max(r.seconds for r in reports):.0f} s each at "
           f"most; held-out ADE/FDE over {k * dt:.1f} s: "
           + ", ".join(f"{n} {v['test'][f'ade_{k}']:.3f}/{v['test'][f'fde_{k}']:.3f} m"

@@ -11,7 +11,7 @@ from blindspot.traj.baselines import ConstantVelocity
 from blindspot.traj.calibration import CalibrationError
 from blindspot.traj.config import DirectConfig, Seq2SeqConfig
 from blindspot.traj.direct import (NAME, check_fits, direct_pairs, direct_scores, path_splits,
-                                   train_direct)
+                                   pretraining_walks, train_direct)
 from blindspot.traj.windows import WindowSet
 from blindspot.typed_config import ConfigError
 
@@ -62,8 +62,9 @@ def test_direct_model_looks_through_the_noise_constant_velocity_follows():
     model_cfg = Seq2SeqConfig(cell="lstm", hidden_size=16, head_hidden=32, obs_len=10,
                               horizon=10, epochs=4, batch_size=128, ensemble=2, neighbours=0,
                               lr=0.01)
-    model, reports = train_direct(measured, truth, ids, DirectConfig(model_cfg, stride=2, jobs=1))
-    assert model.name == NAME and len(reports) == 2
+    model, reports, pre = train_direct(measured, truth, ids,
+                                       DirectConfig(model_cfg, stride=2, jobs=1))
+    assert model.name == NAME and len(reports) == 2 and pre == []
     t = ids["test"]
     scores = direct_scores({NAME: model, "constant_velocity": ConstantVelocity(k=5)},
                            measured[t], truth[t], 10, (5, 10), stride=5)
@@ -93,3 +94,59 @@ def test_settings_are_checked():
     short = replace(model_cfg, obs_len=10, horizon=10)
     with pytest.raises(ValueError, match="val paths yield no"):
         train_direct(measured, truth, ids, DirectConfig(short, stride=40, jobs=1))
+
+
+def test_pretraining_on_many_walks_helps_when_radar_paths_are_few():
+    """Six noisy training paths are too few for the network (from scratch it does worse than
+    constant velocity); pre-trained on 3000 clean walks of the same kind (their histories given
+    the paths' own point errors), then fine-tuned on the six, it must beat both on held-out
+    paths."""
+    rng = np.random.default_rng(5)
+    truth, measured = walks(rng, 66)
+    ids = {"train": np.arange(6), "val": np.arange(6, 26), "test": np.arange(26, 66)}
+    clean, _ = walks(rng, 3000, T=20, noise_m=0.0, miss=0.0)
+    errors = (measured - truth)[np.isfinite(measured).all(-1)]
+    pre_walks = clean + np.concatenate(
+        [errors[rng.integers(0, len(errors), (3000, 10))], np.zeros((3000, 10, 2))], axis=1)
+    model_cfg = Seq2SeqConfig(cell="lstm", hidden_size=16, head_hidden=32, obs_len=10,
+                              horizon=10, epochs=4, batch_size=64, ensemble=2, neighbours=0,
+                              lr=0.01)
+    cfg = DirectConfig(model_cfg, stride=2, jobs=1, pretrain_epochs=3)
+    tuned, reports, pre = train_direct(measured, truth, ids, cfg, pretrain=pre_walks)
+    scratch, _, none = train_direct(measured, truth, ids, replace(cfg, pretrain_epochs=0),
+                                    pretrain=pre_walks)
+    assert len(pre) == 2 and none == [] and all(r.init_val_ade is not None for r in reports)
+    t = ids["test"]
+    s = direct_scores({"tuned": tuned, "scratch": scratch, "cv": ConstantVelocity(k=5)},
+                      measured[t], truth[t], 10, (10,), 5)
+    assert s["tuned"]["ade_10"] < 0.6 * min(s["scratch"]["ade_10"], s["cv"]["ade_10"]), s
+
+
+def test_pretraining_walks_are_seeded_subsets_with_radar_errors_on_their_histories(tmp_path):
+    """A folder of one straight ETH/UCY walker: the walks' futures are the resampled walk
+    itself, each history point is moved by one of the given paths' error vectors, at most
+    pretrain_walks of them, the same for the same seed."""
+    F, v = 40, np.array([1.0, 0.5])
+    ped = np.column_stack([10.0 * np.arange(F), np.ones(F), v[0] * 0.4 * np.arange(F),
+                           v[1] * 0.4 * np.arange(F)])
+    for fold in ("eth", "hotel", "univ", "zara1", "zara2"):    # every fold is read
+        (tmp_path / fold / "test").mkdir(parents=True)
+        np.savetxt(tmp_path / fold / "test" / "walk.txt", ped, delimiter="\t")
+    truth = np.zeros((2, 5, 2))
+    measured = truth.copy()
+    measured[0, :, 0] = 0.3                    # every radar point 0.3 m off in x, or missed
+    measured[1] = np.nan
+    model_cfg = Seq2SeqConfig(obs_len=6, horizon=4, neighbours=0, seed=3)
+    cfg = DirectConfig(model_cfg, stride=1, jobs=1, pretrain_epochs=1, pretrain_walks=5)
+    a = pretraining_walks(tmp_path, measured, truth, cfg, 0.1)
+    b = pretraining_walks(tmp_path, measured, truth, cfg, 0.1)
+    np.testing.assert_array_equal(a, b)
+    assert a.shape == (5, 10, 2)
+    steps = np.diff(a[:, 6:], axis=1)          # futures: the walk at v * 0.1 s per point
+    np.testing.assert_allclose(np.linalg.norm(steps, axis=-1), np.linalg.norm(v) * 0.1,
+                               atol=1e-9)
+    # histories: the same straight walk shifted by exactly (0.3, 0) at every point
+    err = a[:, :6] - (a[:, 6:7] - np.arange(6, 0, -1)[None, :, None] * steps[:, :1])
+    np.testing.assert_allclose(err, np.broadcast_to([0.3, 0.0], err.shape), atol=1e-9)
+    with pytest.raises(ValueError, match="no radar point"):
+        pretraining_walks(tmp_path, measured[1:], truth[1:], cfg, 0.1)

@@ -13,6 +13,7 @@ from blindspot.traj.pretrain import (
     ethucy_next_point_windows,
     ethucy_sequences,
     stretch_length,
+    with_point_errors,
     upsampling_factor,
 )
 
@@ -110,3 +111,17 @@ def test_sequences_start_at_every_annotated_frame_at_the_radar_rate(tmp_path):
 def test_missing_data_folder_is_named(tmp_path):
     with pytest.raises(EthUcyDataError, match="test"):
         ethucy_next_point_windows(tmp_path / "nowhere", 50, 0.1, folds=("eth",))
+
+
+def test_point_errors_move_history_points_by_drawn_vectors_and_leave_futures():
+    walks = np.random.default_rng(0).normal(size=(50, 12, 2))
+    errors = np.array([[0.1, 0.0], [0.0, -0.2], [0.3, 0.3]])
+    out = with_point_errors(walks, 8, errors, np.random.default_rng(1))
+    moved = (out - walks)[:, :8].reshape(-1, 2)
+    match = np.isclose(moved[:, None], errors[None]).all(-1)      # (400, 3)
+    assert (match.sum(1) == 1).all() and match.any(0).all()        # each one of them, all used
+    np.testing.assert_array_equal(out[:, 8:], walks[:, 8:])
+    with pytest.raises(EthUcyDataError, match="n_history"):
+        with_point_errors(walks, 13, errors, np.random.default_rng(1))
+    with pytest.raises(EthUcyDataError, match="errors"):
+        with_point_errors(walks, 8, np.array([[np.nan, 0.0]]), np.random.default_rng(1))

@@ -423,7 +423,13 @@ class DirectConfig(TypedConfig):
     stride: points between the starts of two training pairs of one path;
     jobs: CPUs the ensemble's training may use; with ``jobs`` > 1 every member is trained in
         its own process, the processes confined to ``jobs`` CPUs (the same weights as in one
-        process).
+        process);
+    pretrain_epochs: > 0: each member is first trained this many epochs on ETH/UCY walks
+        resampled to the radar's frame period, their histories given the radar's own point
+        errors (:func:`blindspot.traj.direct.pretraining_walks`), then fine-tuned on the radar
+        pairs; 0: trained on the radar pairs alone;
+    pretrain_walks: at most this many ETH/UCY walks (a seeded random subset; 0 = all of them);
+    pretrain_data: the ETH/UCY folder, relative to ``paths.shared_dir``.
     """
 
     GROUP = "direct"
@@ -431,6 +437,9 @@ class DirectConfig(TypedConfig):
     model: Seq2SeqConfig = setting()
     stride: int = setting(ge=1, le=1000)
     jobs: int = setting(ge=1)
+    pretrain_epochs: int = setting(0, ge=0, le=1000)
+    pretrain_walks: int = setting(0, ge=0)
+    pretrain_data: str = setting("data/ethucy")
 
     def validate(self) -> None:
         if self.model.neighbours != 0:

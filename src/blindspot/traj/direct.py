@@ -16,6 +16,11 @@ dropped) and the next ``horizon`` true positions, a pair every ``stride`` points
 them: training paths train, validation paths choose each member's epoch, every other path is
 held out (:func:`path_splits`).
 
+Pre-training (``direct.pretrain_epochs`` > 0, :func:`pretraining_walks`): the members first learn
+from real pedestrians, every ETH/UCY walk resampled to the radar's frame period with radar-like
+errors on its history, then are fine-tuned on the radar pairs (issue 10: it helps this model by
+10 % at 3 s on held-out radar paths, where it did not help the next-point LSTM).
+
 Shapes: measured and true paths (P, T, 2) metres (measured NaN where the radar saw nothing);
 pairs (N, obs_len + horizon, 2) metres.
 """
@@ -24,13 +29,18 @@ from __future__ import annotations
 
 import numpy as np
 
+from dataclasses import replace
+from pathlib import Path
+
 from blindspot.traj.calibration import path_pairs
 from blindspot.traj.config import DirectConfig
+from blindspot.traj.pretrain import ethucy_sequences, with_point_errors
 from blindspot.traj.seq2seq import FitReport, Seq2SeqEnsemble, train_ensemble
 from blindspot.traj.windows import WindowSet
 from blindspot.typed_config import ConfigError
 
-__all__ = ["NAME", "path_splits", "check_fits", "direct_pairs", "train_direct", "direct_scores"]
+__all__ = ["NAME", "path_splits", "check_fits", "direct_pairs", "pretraining_walks", "train_direct",
+           "direct_scores"]
 
 #: the predictor's name in the calibration records, the warning's predictor list and reports
 NAME = "lstm_direct"
@@ -74,15 +84,48 @@ def direct_pairs(measured: np.ndarray, truth: np.ndarray, obs_len: int, horizon:
     return np.concatenate([hist, fut], axis=1)
 
 
+def pretraining_walks(data_dir: str | Path, measured: np.ndarray, truth: np.ndarray,
+                      cfg: DirectConfig, dt_s: float) -> np.ndarray:
+    """(S, obs_len + horizon, 2) ETH/UCY walks for pre-training, metres: every pedestrian's walk
+    from every annotated frame resampled to ``dt_s``, each turned by a random angle
+    (:func:`blindspot.traj.pretrain.ethucy_sequences`), at most ``cfg.pretrain_walks`` of them
+    (a random subset; 0 = all), each history point moved by a measured-minus-true error drawn
+    from the given paths' radar points (:func:`blindspot.traj.pretrain.with_point_errors`; pass
+    the training paths only). Seeded by ``cfg.model.seed``, rotations and draws on separate
+    streams.
+
+    Measured (bench_pretrain_direct.py, 21 held-out radar paths): pre-training 5 epochs on all
+    39,649 walks, then fine-tuning, cut the 3 s ADE / FDE by 10 % against training from scratch.
+
+    Raises EthUcyDataError (folder, frame period, shapes) and ValueError when the paths hold no
+    radar point."""
+    m = cfg.model
+    walks = ethucy_sequences(data_dir, m.obs_len + m.horizon, dt_s, seed=m.seed)
+    pick, noise = (np.random.default_rng(s) for s in np.random.SeedSequence(m.seed).spawn(2))
+    if 0 < cfg.pretrain_walks < len(walks):
+        walks = walks[np.sort(pick.choice(len(walks), cfg.pretrain_walks, replace=False))]
+    errors = (measured - truth)[np.isfinite(measured).all(axis=-1)]
+    if not len(errors):
+        raise ValueError("pretraining_walks: the paths hold no radar point to draw errors from")
+    return with_point_errors(walks, m.obs_len, errors, noise)
+
+
 def train_direct(measured: np.ndarray, truth: np.ndarray, ids: dict[str, np.ndarray],
-                 cfg: DirectConfig) -> tuple[Seq2SeqEnsemble, list[FitReport]]:
+                 cfg: DirectConfig, pretrain: np.ndarray | None = None
+                 ) -> tuple[Seq2SeqEnsemble, list[FitReport], list[FitReport]]:
     """Train ``cfg.model.ensemble`` members (seeds ``cfg.model.seed + k``, ``cfg.jobs``
     processes) on the pairs of the ``train`` paths; each keeps the epoch of lowest ADE on the
-    ``val`` paths' pairs. Returns the ensemble (named :data:`NAME`) and each member's report.
+    ``val`` paths' pairs. With ``pretrain`` walks ((S, obs_len + horizon, 2), metres; see
+    :func:`pretraining_walks`) and ``cfg.pretrain_epochs`` > 0, the members are first trained
+    that many epochs on them (epoch chosen on the same ``val`` pairs), then fine-tuned on the
+    radar pairs (:func:`blindspot.traj.seq2seq.train_ensemble` ``init``).
+
+    Returns the ensemble (named :data:`NAME`), each member's report, and each member's
+    pre-training report (empty without pre-training).
 
     Raises CalibrationError (from :func:`~blindspot.traj.calibration.path_pairs`) when the paths
     are shorter than ``obs_len + horizon``, ValueError when a split yields no pair (every
-    window holding a miss)."""
+    window holding a miss), HistoryError for malformed ``pretrain`` walks."""
     m = cfg.model
     xy = {s: direct_pairs(measured[ids[s]], truth[ids[s]], m.obs_len, m.horizon, cfg.stride)
           for s in ("train", "val")}
@@ -90,7 +133,14 @@ def train_direct(measured: np.ndarray, truth: np.ndarray, ids: dict[str, np.ndar
         if not len(a):
             raise ValueError(f"train_direct: the {split} paths yield no (obs_len={m.obs_len}, "
                              f"horizon={m.horizon}) pair")
-    return train_ensemble(xy["train"], xy["val"], m, name=NAME, jobs=cfg.jobs)
+    init, pre_reports = None, []
+    if pretrain is not None and cfg.pretrain_epochs > 0:
+        init, pre_reports = train_ensemble(pretrain, xy["val"],
+                                           replace(m, epochs=cfg.pretrain_epochs), name=NAME,
+                                           jobs=cfg.jobs)
+    model, reports = train_ensemble(xy["train"], xy["val"], m, name=NAME, jobs=cfg.jobs,
+                                    init=init)
+    return model, reports, pre_reports
 
 
 def direct_scores(predictors: dict, measured: np.ndarray, truth: np.ndarray, obs_len: int,

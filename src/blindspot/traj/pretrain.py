@@ -34,7 +34,7 @@ from blindspot.traj.ethucy import FOLDS, FRAME_PERIOD_S, EthUcyDataError, load_s
 from blindspot.traj.windows import WindowSet
 
 __all__ = ["catmull_rom_resample", "upsampling_factor", "stretch_length", "ethucy_next_point_windows",
-           "ethucy_sequences"]
+           "ethucy_sequences", "with_point_errors"]
 
 
 def upsampling_factor(dt_s: float, period_s: float = FRAME_PERIOD_S) -> int:
@@ -181,3 +181,33 @@ def _resampled_stretches(data_dir: str | Path, length: int, factor: int,
         origin = stretches[:, :1]
         stretches = random_rotations(stretches - origin, 1, np.random.default_rng(seed)) + origin
     return catmull_rom_resample(stretches, factor)
+
+
+def with_point_errors(walks: np.ndarray, n_history: int, errors: np.ndarray,
+                      rng: np.random.Generator) -> np.ndarray:
+    """The walks with each of their first ``n_history`` points moved by an error vector drawn
+    at random (with replacement, independently per point) from ``errors``: ETH/UCY histories
+    made to look like radar histories, heavy tails and all, their futures left as annotated.
+
+    Args:
+        walks: (S, T, 2) metres.
+        n_history: points of each walk that are history, 0 <= n_history <= T.
+        errors: (K, 2) measured-minus-true positions of radar points, metres, K >= 1.
+        rng: the draws' generator.
+
+    Returns:
+        (S, T, 2) float64, a new array.
+
+    Raises:
+        EthUcyDataError: shapes as above violated, or a non-finite error vector.
+    """
+    who = "with_point_errors"
+    w = check_array(walks, "walks", ("S", "T", 2), error=EthUcyDataError, who=who)
+    e = check_array(errors, "errors", ("K", 2), error=EthUcyDataError, who=who)
+    n_history = check_count(n_history, "n_history", ge=0, error=EthUcyDataError, who=who)
+    if n_history > w.shape[1] or len(e) == 0:
+        raise EthUcyDataError(f"{who}: need 0 <= n_history <= {w.shape[1]} and at least one "
+                              f"error vector, found n_history {n_history}, {len(e)} vectors")
+    out = np.array(w, dtype=float)
+    out[:, :n_history] += e[rng.integers(0, len(e), (w.shape[0], n_history))]
+    return out
