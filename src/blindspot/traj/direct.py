@@ -27,10 +27,10 @@ pairs (N, obs_len + horizon, 2) metres.
 
 from __future__ import annotations
 
-import numpy as np
-
 from dataclasses import replace
 from pathlib import Path
+
+import numpy as np
 
 from blindspot.traj.calibration import path_pairs
 from blindspot.traj.config import DirectConfig
