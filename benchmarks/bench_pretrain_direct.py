@@ -95,6 +95,7 @@ def main() -> None:
     from blindspot.traj.direct import NAME, direct_pairs, path_splits, pretraining_walks
     from blindspot.traj.ethucy import default_data_dir
     from blindspot.traj.paths import table_to_arrays
+    from blindspot.traj.pretrain import radar_point_errors
     from blindspot.traj.seq2seq import train_ensemble
     from blindspot.traj.train import torch_threads
     from blindspot.traj.windows import WindowSet
@@ -112,8 +113,7 @@ def main() -> None:
 
     walks = pretraining_walks(default_data_dir(), measured[ids["train"]], truth[ids["train"]],
                               replace(d, pretrain_walks=0), dt)
-    res = (measured - truth)[ids["train"]]
-    res = res[np.isfinite(res).all(axis=-1)]
+    res = radar_point_errors(measured[ids["train"]], truth[ids["train"]])
     noise = (f"the training paths' {len(res)} point errors resampled (median "
              f"{np.median(np.hypot(*res.T)):.3f} m, rms per axis {np.sqrt(np.mean(res ** 2)):.3f} m)")
     print(f"ETH/UCY: {len(walks)} walks of {m.obs_len} + {m.horizon} points at {dt} s, history "

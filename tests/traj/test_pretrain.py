@@ -13,6 +13,7 @@ from blindspot.traj.pretrain import (
     ethucy_next_point_windows,
     ethucy_sequences,
     stretch_length,
+    radar_point_errors,
     with_point_errors,
     upsampling_factor,
 )
@@ -125,3 +126,13 @@ def test_point_errors_move_history_points_by_drawn_vectors_and_leave_futures():
         with_point_errors(walks, 13, errors, np.random.default_rng(1))
     with pytest.raises(EthUcyDataError, match="errors"):
         with_point_errors(walks, 8, np.array([[np.nan, 0.0]]), np.random.default_rng(1))
+
+
+def test_radar_point_errors_are_measured_minus_true_at_the_radar_points_only():
+    truth = np.zeros((2, 3, 2))
+    measured = np.array([[[0.1, 0.0], [np.nan, np.nan], [0.0, -0.2]],
+                         [[np.nan, 0.0], [0.3, 0.3], [np.nan, np.nan]]])
+    np.testing.assert_allclose(radar_point_errors(measured, truth),
+                               [[0.1, 0.0], [0.0, -0.2], [0.3, 0.3]])
+    with pytest.raises(EthUcyDataError, match="truth"):
+        radar_point_errors(measured, truth[:1])

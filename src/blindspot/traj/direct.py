@@ -34,7 +34,7 @@ import numpy as np
 
 from blindspot.traj.calibration import path_pairs
 from blindspot.traj.config import DirectConfig
-from blindspot.traj.pretrain import ethucy_sequences, with_point_errors
+from blindspot.traj.pretrain import ethucy_sequences, radar_point_errors, with_point_errors
 from blindspot.traj.seq2seq import FitReport, Seq2SeqEnsemble, train_ensemble
 from blindspot.traj.windows import WindowSet
 from blindspot.typed_config import ConfigError
@@ -104,7 +104,7 @@ def pretraining_walks(data_dir: str | Path, measured: np.ndarray, truth: np.ndar
     pick, noise = (np.random.default_rng(s) for s in np.random.SeedSequence(m.seed).spawn(2))
     if 0 < cfg.pretrain_walks < len(walks):
         walks = walks[np.sort(pick.choice(len(walks), cfg.pretrain_walks, replace=False))]
-    errors = (measured - truth)[np.isfinite(measured).all(axis=-1)]
+    errors = radar_point_errors(measured, truth)
     if not len(errors):
         raise ValueError("pretraining_walks: the paths hold no radar point to draw errors from")
     return with_point_errors(walks, m.obs_len, errors, noise)

@@ -34,7 +34,7 @@ from blindspot.traj.ethucy import FOLDS, FRAME_PERIOD_S, EthUcyDataError, load_s
 from blindspot.traj.windows import WindowSet
 
 __all__ = ["catmull_rom_resample", "upsampling_factor", "stretch_length", "ethucy_next_point_windows",
-           "ethucy_sequences", "with_point_errors"]
+           "ethucy_sequences", "radar_point_errors", "with_point_errors"]
 
 
 def upsampling_factor(dt_s: float, period_s: float = FRAME_PERIOD_S) -> int:
@@ -181,6 +181,16 @@ def _resampled_stretches(data_dir: str | Path, length: int, factor: int,
         origin = stretches[:, :1]
         stretches = random_rotations(stretches - origin, 1, np.random.default_rng(seed)) + origin
     return catmull_rom_resample(stretches, factor)
+
+
+def radar_point_errors(measured: np.ndarray, truth: np.ndarray) -> np.ndarray:
+    """(K, 2) measured minus true position, metres, at every radar point of the paths
+    (measured, truth: (P, T, 2); measured NaN where the radar gave no point): what
+    :func:`with_point_errors` draws from."""
+    m = check_array(measured, "measured", ("P", "T", 2), error=EthUcyDataError,
+                    who="radar_point_errors", allow_nan=True)
+    t = check_array(truth, "truth", m.shape, error=EthUcyDataError, who="radar_point_errors")
+    return (m - t)[np.isfinite(m).all(axis=-1)]
 
 
 def with_point_errors(walks: np.ndarray, n_history: int, errors: np.ndarray,

@@ -644,13 +644,20 @@ def train_seq2seq(train_xy: np.ndarray, val_xy: np.ndarray, cfg: Seq2SeqConfig, 
         n = x_all.shape[0]
         report = FitReport(best_epoch=0)
         best_state, best_ade = None, np.inf
+
+        def val_errors() -> np.ndarray:
+            """(N_val, horizon) m: the network's errors on the val windows as they stand."""
+            pred = Seq2SeqModel(net, cfg, name)._mean_of_framed(val_framed, cfg.horizon)
+            return np.linalg.norm(pred - val_fut, axis=-1)
+
+        def weights() -> dict[str, torch.Tensor]:
+            return {k: v.clone() for k, v in net.state_dict().items()}
+
         if init is not None:
             # the pre-trained weights are epoch 0's candidate: fine-tuning keeps them when no
             # epoch scores better on val
-            err = np.linalg.norm(Seq2SeqModel(net, cfg, name)._mean_of_framed(
-                val_framed, cfg.horizon) - val_fut, axis=-1)
-            best_ade = report.init_val_ade = float(err.mean())
-            best_state = {k: v.clone() for k, v in net.state_dict().items()}
+            best_ade = report.init_val_ade = float(val_errors().mean())
+            best_state = weights()
         for epoch in range(1, cfg.epochs + 1):
             net.train()
             order = torch.randperm(n, generator=gen)
@@ -668,14 +675,12 @@ def train_seq2seq(train_xy: np.ndarray, val_xy: np.ndarray, cfg: Seq2SeqConfig, 
                 loss.backward()
                 opt.step()
             sched.step()
-            model = Seq2SeqModel(net, cfg, name)
-            pred = model._mean_of_framed(val_framed, cfg.horizon)
-            err = np.linalg.norm(pred - val_fut, axis=-1)
+            err = val_errors()
             report.val_ade.append(float(err.mean()))
             report.val_fde.append(float(err[:, -1].mean()))
             if report.val_ade[-1] < best_ade:
                 best_ade, report.best_epoch = report.val_ade[-1], epoch
-                best_state = {k: v.clone() for k, v in net.state_dict().items()}
+                best_state = weights()
             if progress is not None:
                 progress(f"{name} seed {seed} epoch {epoch}: val ADE {report.val_ade[-1]:.4f} "
                          f"FDE {report.val_fde[-1]:.4f}")
