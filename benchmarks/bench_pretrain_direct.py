@@ -3,7 +3,7 @@ section 1, last item, for the model the scenes use since the direct model came i
 next-point LSTM has its own answer: ``bench_pretrain.py``). Prints a table.
 
     .venv/bin/python benchmarks/bench_pretrain_direct.py [--pretrain-epochs 5]
-        [--fractions 1.0 0.1] [--json out.json]
+        [--fractions 1.0 0.1] [--walks 300] [--walk-seed S] [--json out.json]
 
 Reads the last ``dvc repro``'s radar path data set (``data/paths/paths.parquet``) and the
 windows stage's splits (``data/windows/{train,val}.parquet``: which paths train and validate;
@@ -38,8 +38,22 @@ intervals over the held-out paths, and the paired differences of ``finetuned`` a
 ``ethucy`` against ``scratch`` at the same fraction
 (:func:`blindspot.traj.benchmark.bootstrap_means`, ``paired_differences``). The intervals
 cover the sampling of held-out paths only: one draw of the training subset, fixed seeds.
-Constant velocity on the same pairs for reference. Training runs ``direct.jobs`` processes of
-one torch thread; about 15 minutes on the 2-core machine.
+Constant velocity on the same pairs for reference.
+
+The scenes themselves (``--walks``, default ``benchmark.n_walks``; 0 skips): every model is also
+scored on the benchmark stage's randomised occluded walks of the paper's scene (the same draws,
+the same radar chain, :mod:`blindspot.synth.scene_walks`), each predicting 2.5 s from the track
+filled up to the prediction time, once with the configured fill (``eval.prediction_input``, the
+benchmark stage's input; its next-point LSTM is ``data/train/model.pt``) and once with the
+Kalman smoother's fill; the paper's metric and ADE / FDE at 0.5, 1 and 2 s per walk, intervals
+and paired differences over walks (:func:`blindspot.synth.scene_benchmark.score_scene_walks`;
+a forecast asked past the 40 steps, from a walk last seen long before, continues at its last
+step's velocity: :class:`blindspot.traj.predictor.ConstantVelocityTail`, as in the stage).
+``--walk-seed`` draws other walks than the stage's (default: the config's ``seed``, the stage's
+own): walks from another seed are a validation set of the scene, disjoint from the benchmark's.
+
+Training runs ``direct.jobs`` processes of one torch thread; about 7 minutes on the 2-core
+machine.
 """
 
 from __future__ import annotations
@@ -82,6 +96,12 @@ def main() -> None:
                     help="epochs over the ETH/UCY walks (default 5)")
     ap.add_argument("--fractions", type=float, nargs="+", default=[1.0, 0.1],
                     help="fractions of the radar training paths (default 1.0 0.1)")
+    ap.add_argument("--walks", type=int, default=None,
+                    help="occluded walks of the paper's scene to score on too (default "
+                         "benchmark.n_walks; 0 = none)")
+    ap.add_argument("--walk-seed", type=int, default=None,
+                    help="seed of the walks (default: the config's seed, the benchmark stage's "
+                         "walks); another seed gives walks disjoint from the benchmark's")
     ap.add_argument("--data", default=str(REPO / "data"), help="the repro's data folder")
     ap.add_argument("--json", help="also write the figures here")
     args = ap.parse_args()
@@ -175,12 +195,72 @@ def main() -> None:
         print(f"{pair:30s} " + "  ".join(
             f"{k} {diff[k]['mean']:+.3f} [{diff[k]['ci95'][0]:+.3f}, {diff[k]['ci95'][1]:+.3f}]"
             for k in ("ade_1s", "ade_3s", "fde_3s")))
+    scenes = scene_walk_scores(cfg, models, data, args.walks, pairs, boot,
+                               walk_seed=args.walk_seed)
     if args.json:
         Path(args.json).write_text(json.dumps(
             {"history_noise": noise, "n_ethucy_walks": int(len(walks)),
              "pretrain_epochs": args.pretrain_epochs, "pretrain_best_epochs":
              [r.best_epoch for r in pre_rep], "train": n_pairs, "n_test_paths": int(n_paths),
-             "n_test_pairs": int(len(hist)), "means": means, "paired": paired}, indent=1))
+             "n_test_pairs": int(len(hist)), "means": means, "paired": paired,
+             "scene_walks": scenes}, indent=1))
+
+
+def scene_walk_scores(cfg, models: dict, data: Path, n_walks: int | None,
+                      pairs: list[tuple[str, str]], boot: dict, walk_seed: int | None = None
+                      ) -> dict:
+    """Score ``models`` on the benchmark stage's occluded walks of the paper's scene (printed);
+    {fill: {"means": .., "paired": ..}}, {} when ``n_walks`` is 0."""
+    from dataclasses import replace
+
+    from blindspot import experiment
+    from blindspot.synth.path_measurement import PedestrianModel
+    from blindspot.synth.scene_benchmark import score_scene_walks
+    from blindspot.synth.scene_walks import draw_scene_walks, measure_scene_walks
+    from blindspot.traj.benchmark import bootstrap_means, paired_differences
+    from blindspot.traj.lstm import LSTMPredictor
+    from blindspot.traj.predictor import ConstantVelocityTail
+
+    bench = experiment.benchmark(cfg)
+    if n_walks is not None:
+        bench = replace(bench, n_walks=int(n_walks))
+    if bench.n_walks == 0:
+        return {}
+    ev = experiment.evaluation(cfg)
+    radar = experiment.radar(cfg)
+    car = next(s for s in experiment.scenes(cfg).values() if s.with_car)
+    seed = int(cfg.seed) if walk_seed is None else int(walk_seed)
+    walks = draw_scene_walks(bench, radar.frame_period_s, seed=seed)
+    measured = measure_scene_walks(
+        walks, radar, experiment.cfar(cfg), experiment.doa(cfg), experiment.detect(cfg),
+        pedestrian=PedestrianModel.from_scene(car), occlusion_db=car.occlusion_db,
+        seed=seed, jobs=experiment.jobs(cfg), progress=False)
+    lstm = LSTMPredictor.load(data / "train" / "model.pt")
+    tailed = {n: (ConstantVelocityTail(m, m.cfg.horizon) if hasattr(m, "cfg") else m)
+              for n, m in models.items()}
+    out = {}
+    for fill in dict.fromkeys((ev.prediction_input, "kalman")):
+        scores, _ = score_scene_walks(
+            walks, measured, predictors=tailed, interpolation_methods=(), prediction_input=fill,
+            gap_predictor=lstm, smoother=experiment.kalman(cfg).smooth_batch,
+            horizon=bench.horizon_frames, dt_s=radar.frame_period_s, horizons_s=ev.horizons_s,
+            threads=1)
+        means = bootstrap_means(scores, **boot)
+        paired = paired_differences(scores, pairs, **boot)
+        out[fill] = {"means": means, "paired": paired}
+        keys = ("path_error_mean_m", "ade_1s", "ade_2s", "fde_2s")
+        print(f"\n{len(walks)} occluded walks of the paper's scene (walk seed {seed}), predicted "
+              f"from the {fill} fill, mean [95 % bootstrap interval over walks], m")
+        print(f"{'model':22s} " + "  ".join(f"{k:>22s}" for k in keys))
+        for name in tailed:
+            print(f"{name:22s} " + "  ".join(
+                f"{means[name][k]['mean']:6.3f} [{means[name][k]['ci95'][0]:.3f}, "
+                f"{means[name][k]['ci95'][1]:.3f}]" for k in keys))
+        for pair, diff in paired.items():
+            print(f"{pair:30s} " + "  ".join(
+                f"{k} {diff[k]['mean']:+.3f} [{diff[k]['ci95'][0]:+.3f}, "
+                f"{diff[k]['ci95'][1]:+.3f}]" for k in keys))
+    return out
 
 
 if __name__ == "__main__":

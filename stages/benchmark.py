@@ -3,7 +3,9 @@
 ``benchmark.n_walks`` walks (car pose and size, speed, turn angle, where the walk turns and when
 the prediction starts drawn per walk; blindspot.synth.scene_walks) go through the paths stage's
 validated reduced radar chain with the car as occluder, then through the interpolate and predict
-stages' own library calls batched over walks (blindspot.synth.scene_benchmark). Every metric's
+stages' own library calls batched over walks (blindspot.synth.scene_benchmark); predicted by the
+paper's methods (eval.prediction_methods) and by the scenes' direct multi-step LSTM (lstm_direct,
+the train_direct stage's, pre-trained on ETH/UCY and fine-tuned on the radar paths). Every metric's
 mean over walks gets a 95 % percentile-bootstrap interval, and the differences between methods a
 paired bootstrap of per-walk differences (blindspot.traj.benchmark). The predictive distributions
 calibrated on validation paths by the calibration stage are scored on the walks too (coverage
@@ -30,7 +32,10 @@ from blindspot.synth.scene_walks import draw_scene_walks, measure_scene_walks
 from blindspot.traj.benchmark import bootstrap_means, paired_differences
 from blindspot.traj.calibration import from_record
 from blindspot.traj.conformal import AdaptiveConformal
+from blindspot.traj.direct import NAME as DIRECT
 from blindspot.traj.lstm import LSTMPredictor
+from blindspot.traj.predictor import ConstantVelocityTail
+from blindspot.traj.seq2seq import Seq2SeqEnsemble
 
 COMMAND = "dvc repro benchmark"
 
@@ -48,9 +53,15 @@ def run(cfg, ctx):
         pedestrian=PedestrianModel.from_scene(car_scene), occlusion_db=car_scene.occlusion_db,
         seed=int(cfg.seed), jobs=experiment.jobs(cfg), progress=bool(cfg.progress))
     t_radar = time.perf_counter() - t0
-    lstm = LSTMPredictor.load(ctx.dep("model.pt")).with_workers(experiment.jobs(cfg))
+    lstm = LSTMPredictor.load(ctx.dep("train/model.pt")).with_workers(experiment.jobs(cfg))
     kalman = experiment.kalman(cfg)
-    predictors = experiment.predictors(cfg, lstm)
+    # the paper's methods and the scenes' direct multi-step LSTM (the train_direct stage's,
+    # pre-trained on ETH/UCY; one network call per prediction). Its forecast counts from the
+    # last point seen, and a few walks were last seen long before the prediction time (3 of the
+    # 300 need more than its 40 steps): those steps continue at its last step's velocity.
+    direct = Seq2SeqEnsemble.load(ctx.dep("train_direct/model.pt"))
+    predictors = {**experiment.predictors(cfg, lstm),
+                  DIRECT: ConstantVelocityTail(direct, direct.cfg.horizon)}
     records = json.loads(ctx.dep("models.json").read_text())   # fitted by the calibration stage
     distributions = {n: from_record(records[n], p, n) for n, p in predictors.items()
                      if n in records}

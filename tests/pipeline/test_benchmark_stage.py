@@ -116,6 +116,11 @@ def test_calibration_then_benchmark_on_a_tiny_setting(tiny):
         assert 0.0 <= entry["mean"] <= 1.0 and len(entry["ci95"]) == 2
     assert "Adaptive conformal ellipses" in (root / "reports/tables/benchmark.md").read_text()
     assert "lstm - kalman" in m["paired"]
+    # the scenes' direct LSTM beside the paper's methods: scored, calibrated, paired
+    assert {"path_error_mean_m", "ade_1s", "fde_2s", "coverage_90", "online_coverage_90"} <= \
+        set(m["lstm_direct"])
+    assert "kalman - lstm_direct" in m["paired"]
+    assert "direct LSTM (ours)" in (root / "reports/tables/benchmark.md").read_text()
     # each ensemble member scored alone, its range summarised, no pairs of members
     assert set(m["lstm_member1"]) >= {"path_error_mean_m", "ade_1s"}
     assert m["lstm_members"]["n_members"] == 2

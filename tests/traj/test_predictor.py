@@ -153,3 +153,46 @@ def test_world_rollout_appends_and_slides():
     h = walks(7)
     np.testing.assert_allclose(NextPointRollout(ConstantVelocityStep()).predict(h, 6),
                                ConstantVelocity().predict(h, 6), atol=1e-9)
+
+
+class _FixedHorizon:
+    """A direct model that emits at most 4 steps: a curve (quadratic in the step)."""
+
+    name = "fixed"
+    window = 3
+
+    def predict(self, history, horizon):
+        if horizon > 4:
+            raise HistoryError(f"emits 4 steps, asked for {horizon}")
+        k = np.arange(1, horizon + 1, dtype=float)
+        last = history[:, -1]
+        return last[:, None, :] + np.stack([k, 0.1 * k ** 2], axis=-1)[None]
+
+    def predict_distribution(self, history, horizon, **options):
+        return ("dist", horizon, options)
+
+
+def test_constant_velocity_tail_keeps_the_model_and_continues_its_last_step():
+    from blindspot.traj.predictor import ConstantVelocityTail
+
+    base = _FixedHorizon()
+    tail = ConstantVelocityTail(base, 4)
+    hist = np.random.default_rng(0).normal(size=(3, 5, 2))
+    np.testing.assert_array_equal(tail.predict(hist, 3), base.predict(hist, 3))
+    long = tail.predict(hist, 9)
+    assert long.shape == (3, 9, 2)
+    np.testing.assert_array_equal(long[:, :4], base.predict(hist, 4))
+    # steps 5..9: the 4th point plus k times the 4th step (1, 0.7): a straight line at that speed
+    last = base.predict(hist, 4)
+    step = last[:, 3] - last[:, 2]
+    np.testing.assert_allclose(step, np.tile([1.0, 0.7], (3, 1)))
+    np.testing.assert_allclose(np.diff(long[:, 3:], axis=1), np.broadcast_to(step[:, None], (3, 5, 2)))
+    assert tail.window == 3 and tail.name == "fixed"
+    assert tail.predict_distribution(hist, 2, measured=False) == ("dist", 2, {"measured": False})
+
+
+def test_constant_velocity_tail_needs_a_last_step():
+    from blindspot.traj.predictor import ConstantVelocityTail
+
+    with pytest.raises(ValueError, match="max_horizon must be >= 2"):
+        ConstantVelocityTail(_FixedHorizon(), 1)

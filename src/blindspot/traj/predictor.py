@@ -26,6 +26,7 @@ __all__ = [
     "NextPointRollout",
     "HeadingFrameRollout",
     "MeanNextPoint",
+    "ConstantVelocityTail",
 ]
 
 
@@ -294,3 +295,48 @@ class MeanNextPoint:
     def predict_next(self, windows: np.ndarray) -> np.ndarray:
         """(B, window, 2) -> (B, 2): mean of the models' next points."""
         return np.mean([np.asarray(m.predict_next(windows), float) for m in self.models], axis=0)
+
+
+class ConstantVelocityTail:
+    """A fixed-horizon predictor (a direct multi-step model emits ``max_horizon`` steps and no
+    more) carried past its last step at the velocity of that step.
+
+    Needed where a forecast has to reach further than the model was trained to: a track whose
+    last point was seen ``lead`` frames before the prediction time is forecast ``lead + horizon``
+    steps from that point (:func:`blindspot.traj.forecast.forecast_tracks`). Steps up to
+    ``max_horizon`` are the base model's own; step ``max_horizon + k`` is its last point plus
+    ``k`` times its last step, ``p_H + k (p_H - p_{H-1})`` (constant velocity, as
+    :class:`blindspot.traj.baselines.ConstantVelocity` extrapolates the observed track).
+    ``predict_distribution`` is the base model's, unchanged (it refuses steps past its horizon:
+    no distribution is invented for them).
+
+    Args:
+        base: a :class:`PathPredictor` that emits at most ``max_horizon`` steps.
+        max_horizon: the base model's horizon, >= 2 frames.
+    Raises ValueError: ``max_horizon`` < 2.
+    """
+
+    def __init__(self, base, max_horizon: int) -> None:
+        if int(max_horizon) < 2:
+            raise ValueError(f"ConstantVelocityTail: max_horizon must be >= 2 frames (a last "
+                             f"step to carry on), found {max_horizon}")
+        self.base = base
+        self.max_horizon = int(max_horizon)
+        self.name = getattr(base, "name", type(base).__name__)
+
+    @property
+    def window(self):
+        return getattr(self.base, "window", None)
+
+    def predict(self, history: np.ndarray, horizon: int) -> np.ndarray:
+        """(B, T, 2) history -> (B, horizon, 2) metres; any ``horizon`` >= 1."""
+        n = min(int(horizon), self.max_horizon)
+        pred = np.asarray(self.base.predict(history, n), float)
+        if horizon <= n:
+            return pred
+        step = pred[:, -1] - pred[:, -2]                                        # (B, 2)
+        k = np.arange(1, int(horizon) - n + 1, dtype=float)
+        return np.concatenate([pred, pred[:, -1:] + k[None, :, None] * step[:, None, :]], axis=1)
+
+    def predict_distribution(self, history: np.ndarray, horizon: int, **options):
+        return self.base.predict_distribution(history, horizon, **options)
