@@ -334,7 +334,10 @@ def test_benchmark_and_calibration_rows_carry_their_intervals():
              **{m: {"path_error_mean_m": {"mean": v, "ci95": [v - 0.05, v + 0.05]},
                     "ade_1s": {"mean": v / 2, "ci95": [v / 2 - 0.02, v / 2 + 0.02]}}
                 for m, v in (("lstm", 0.6), ("kalman", 0.35))},
-             "fill_kalman": {"hidden_mean_m": {"mean": 0.25, "ci95": [0.22, 0.28]}}}
+             "fill_kalman": {"hidden_mean_m": {"mean": 0.25, "ci95": [0.22, 0.28]}},
+             # the seed-ensemble members and their summary have a table of their own
+             "lstm_member0": {"path_error_mean_m": {"mean": 0.7, "ci95": [0.6, 0.8]}},
+             "lstm_members": {"n_members": 1, "path_error_mean_m": {"min": 0.7, "max": 0.7}}}
     cal = {"lstm": {"sim_paths": {"coverage_50": 0.6, "coverage_90": 0.85, "coverage_95": 0.87,
                                   "nll": 0.7}}}
     page = build_page(page_metrics(benchmark=bench, calibration=cal),

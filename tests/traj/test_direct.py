@@ -120,6 +120,23 @@ def test_pretraining_on_many_walks_helps_when_radar_paths_are_few():
     s = direct_scores({"tuned": tuned, "scratch": scratch, "cv": ConstantVelocity(k=5)},
                       measured[t], truth[t], 10, (10,), 5)
     assert s["tuned"]["ade_10"] < 0.6 * min(s["scratch"]["ade_10"], s["cv"]["ade_10"]), s
+    # direct.finetune false: the pre-trained members themselves, their reports the pre-training's
+    kept, kept_reports, kept_pre = train_direct(measured, truth, ids, replace(cfg, finetune=False),
+                                                pretrain=pre_walks)
+    assert kept_reports is kept_pre and [r.best_epoch for r in kept_pre] == [r.best_epoch
+                                                                             for r in pre]
+    h = measured[t][:, :10]
+    h = np.where(np.isfinite(h), h, truth[t][:, :10])
+    tuned_pred, kept_pred = tuned.predict(h, 10), kept.predict(h, 10)
+    moved = [r.best_epoch > 0 for r in reports]               # members whose fine-tuning won
+    assert np.allclose(tuned_pred, kept_pred) == (not any(moved))
+    again, _, _ = train_direct(measured, truth, ids, replace(cfg, finetune=False, model=replace(
+        model_cfg, epochs=1)), pretrain=pre_walks)             # radar epochs are not read
+    np.testing.assert_array_equal(again.predict(h, 10), kept_pred)
+    with pytest.raises(ConfigError, match="finetune"):
+        replace(cfg, pretrain_epochs=0, finetune=False)
+    with pytest.raises(ValueError, match="no pre-training walks"):
+        train_direct(measured, truth, ids, replace(cfg, finetune=False))
 
 
 def test_pretraining_walks_are_seeded_subsets_with_radar_errors_on_their_histories(tmp_path):

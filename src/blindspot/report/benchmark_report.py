@@ -15,7 +15,7 @@ from matplotlib.figure import Figure
 
 from blindspot.report.style import method_colour, method_label, new_grid, panel_title
 
-__all__ = ["benchmark_figure", "benchmark_table", "PREDICTION_METRICS"]
+__all__ = ["benchmark_figure", "benchmark_table", "benchmark_methods", "PREDICTION_METRICS"]
 
 PREDICTION_METRICS = ("path_error_mean_m", "path_error_first_m", "ade_0.5s", "fde_0.5s",
                       "ade_1s", "fde_1s", "ade_2s", "fde_2s")
@@ -31,7 +31,7 @@ def _fmt(entry: Mapping[str, Any] | None, digits: int = 3) -> str:
     return f"{entry['mean']:.{digits}f} [{lo:.{digits}f}, {hi:.{digits}f}]"
 
 
-def _methods(metrics: Mapping[str, Any]) -> tuple[list[str], list[str]]:
+def benchmark_methods(metrics: Mapping[str, Any]) -> tuple[list[str], list[str]]:
     """(prediction methods, fill methods); the seed-ensemble members are left to their own rows."""
     keys = [k for k, v in metrics.items() if isinstance(v, Mapping)
             and k not in ("paired", "lstm_members") and not k.startswith("lstm_member")]
@@ -46,7 +46,7 @@ def _members(metrics: Mapping[str, Any]) -> list[str]:
 def benchmark_table(metrics: Mapping[str, Any], command: str) -> str:
     """Markdown: prediction metrics per method, interpolation per fill method, coverage where a
     method gives a distribution, paired differences; every cell ``mean [95 % interval]`` (m)."""
-    preds, fills = _methods(metrics)
+    preds, fills = benchmark_methods(metrics)
     n = metrics.get("n_walks")
     lines = [f"Many-walk benchmark: {n} randomised occluded walks of the paper's scene, mean "
              f"[95 % bootstrap interval] over walks, m. `{command}`", ""]
@@ -103,7 +103,7 @@ def benchmark_figure(metrics: Mapping[str, Any], three_walks: Mapping[str, Any] 
     """(a) ADE / FDE at 0.5, 1, 2 s and the paper's metric per prediction method, mean with
     its 95 % interval over the walks (the three-walk values of ``evaluate.json`` as open
     markers where given); (b) interpolation error on hidden frames per fill method."""
-    preds, fills = _methods(metrics)
+    preds, fills = benchmark_methods(metrics)
     fig, axes = new_grid(1, 2, 13.0, 4.6)
     ax_a, ax_b = axes[0]
     x = np.arange(len(PREDICTION_METRICS))

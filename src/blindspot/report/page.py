@@ -14,6 +14,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
+from blindspot.report.benchmark_report import benchmark_methods
 from blindspot.report.paper_values import (
     ETHUCY_CVM,
     FIG6E_ACCUMULATED_FRAMES,
@@ -239,8 +240,7 @@ def benchmark_rows(bench: Metrics) -> list[tuple[str, str, str, str, str]]:
                  command("benchmark"))]
     n = bench.get("n_walks")
     tag = f", {n}-walk benchmark (95 % interval)"
-    preds = [m for m, v in bench.items() if isinstance(v, Mapping) and m != "paired"
-             and not m.startswith("fill_")]
+    preds, fills = benchmark_methods(bench)       # the seed-ensemble members have their own table
     ours = "lstm" if "lstm" in preds else (preds[0] if preds else None)
     rows = []
     if ours:
@@ -254,7 +254,6 @@ def benchmark_rows(bench: Metrics) -> list[tuple[str, str, str, str, str]]:
             rows.append((quantity + tag, paper, f"{method_label(ours)} {_ci(bench[ours].get(key))}",
                          "; ".join(f"{method_label(m)} {_ci(bench[m].get(key))}"
                                    for m in preds if m != ours), command("benchmark")))
-    fills = [m for m in bench if m.startswith("fill_")]
     if fills:
         rows.append(("Interpolation error on hidden frames" + tag, "no number (Fig. 8 only)",
                      "; ".join(f"{m[len('fill_'):]} {_ci(bench[m].get('hidden_mean_m'))}"

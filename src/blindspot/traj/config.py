@@ -428,6 +428,10 @@ class DirectConfig(TypedConfig):
         resampled to the radar's frame period, their histories given the radar's own point
         errors (:func:`blindspot.traj.direct.pretraining_walks`), then fine-tuned on the radar
         pairs; 0: trained on the radar pairs alone;
+    finetune: True: after pre-training, train on the radar pairs (the epochs of ``model``);
+        False: the pre-trained members are the model, never trained on a radar pair (needs
+        ``pretrain_epochs`` > 0). On occluded walks of the paper's scene the ETH/UCY-only
+        network forecasts better (benchmarks/bench_pretrain_direct.py);
     pretrain_walks: at most this many ETH/UCY walks (a seeded random subset; 0 = all of them);
     pretrain_data: the ETH/UCY folder, relative to ``paths.shared_dir``.
     """
@@ -438,6 +442,7 @@ class DirectConfig(TypedConfig):
     stride: int = setting(ge=1, le=1000)
     jobs: int = setting(ge=1)
     pretrain_epochs: int = setting(0, ge=0, le=1000)
+    finetune: bool = setting(True)
     pretrain_walks: int = setting(0, ge=0)
     pretrain_data: str = setting("data/ethucy")
 
@@ -445,6 +450,10 @@ class DirectConfig(TypedConfig):
         if self.model.neighbours != 0:
             raise ConfigError("model.neighbours", self.model.neighbours,
                               "0 (the scenes' paths have no neighbours)")
+        if not self.finetune and self.pretrain_epochs == 0:
+            raise ConfigError("finetune", self.finetune,
+                              "true unless pretrain_epochs > 0 (without pre-training and "
+                              "fine-tuning the network would never be trained)")
 
 
 @dataclass(frozen=True)

@@ -118,10 +118,11 @@ def train_direct(measured: np.ndarray, truth: np.ndarray, ids: dict[str, np.ndar
     ``val`` paths' pairs. With ``pretrain`` walks ((S, obs_len + horizon, 2), metres; see
     :func:`pretraining_walks`) and ``cfg.pretrain_epochs`` > 0, the members are first trained
     that many epochs on them (epoch chosen on the same ``val`` pairs), then fine-tuned on the
-    radar pairs (:func:`blindspot.traj.seq2seq.train_ensemble` ``init``).
+    radar pairs (:func:`blindspot.traj.seq2seq.train_ensemble` ``init``), or, with
+    ``cfg.finetune`` false, kept as they are.
 
-    Returns the ensemble (named :data:`NAME`), each member's report, and each member's
-    pre-training report (empty without pre-training).
+    Returns the ensemble (named :data:`NAME`), each member's report (the pre-training's when
+    not fine-tuned), and each member's pre-training report (empty without pre-training).
 
     Raises CalibrationError (from :func:`~blindspot.traj.calibration.path_pairs`) when the paths
     are shorter than ``obs_len + horizon``, ValueError when a split yields no pair (every
@@ -138,6 +139,11 @@ def train_direct(measured: np.ndarray, truth: np.ndarray, ids: dict[str, np.ndar
         init, pre_reports = train_ensemble(pretrain, xy["val"],
                                            replace(m, epochs=cfg.pretrain_epochs), name=NAME,
                                            jobs=cfg.jobs)
+        if not cfg.finetune:
+            return init, pre_reports, pre_reports
+    elif not cfg.finetune:
+        raise ValueError("train_direct: direct.finetune is false, so the model is the "
+                         "pre-trained one, but no pre-training walks were given")
     model, reports = train_ensemble(xy["train"], xy["val"], m, name=NAME, jobs=cfg.jobs,
                                     init=init)
     return model, reports, pre_reports
