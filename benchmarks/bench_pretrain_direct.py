@@ -105,6 +105,9 @@ def main() -> None:
     ap.add_argument("--data", default=str(REPO / "data"), help="the repro's data folder")
     ap.add_argument("--json", help="also write the figures here")
     args = ap.parse_args()
+    if args.walks is not None and (args.walks == 1 or args.walks < 0):
+        ap.error(f"--walks: expected 0 (none) or at least 2 walks (the bootstrap needs two), "
+                 f"found {args.walks}")
 
     import pandas as pd
 
@@ -209,8 +212,23 @@ def main() -> None:
 def scene_walk_scores(cfg, models: dict, data: Path, n_walks: int | None,
                       pairs: list[tuple[str, str]], boot: dict, walk_seed: int | None = None
                       ) -> dict:
-    """Score ``models`` on the benchmark stage's occluded walks of the paper's scene (printed);
-    {fill: {"means": .., "paired": ..}}, {} when ``n_walks`` is 0."""
+    """Score ``models`` and the Kalman filter (``eval.kalman``) on occluded walks of the paper's
+    scene, from each of two fills (module docstring), and print the table.
+
+    Args:
+        cfg: the composed config. models: {name: PathPredictor}; a Seq2SeqEnsemble is carried
+            past its horizon by :class:`~blindspot.traj.predictor.ConstantVelocityTail`.
+        data: the repro's data folder (``train/model.pt``: the next-point LSTM the two-sided
+            fill rolls out).
+        n_walks: walks to draw (None: ``benchmark.n_walks``; 0: none, return {}; else >= 2).
+        pairs: (a, b) model names whose per-walk differences a - b are bootstrapped, besides
+            each model against constant velocity and Kalman.
+        boot: ``bootstrap_means`` / ``paired_differences`` options (n_boot, seed).
+        walk_seed: seed of the walks (None: ``cfg.seed``, the benchmark stage's walks).
+
+    Returns {fill: {"means": {model: {metric: {"mean", "ci95"}}}, "paired": {"a - b": ..}}}.
+    Raises ConfigError (``n_walks`` 1 or negative), FileNotFoundError (no ``train/model.pt``).
+    """
     from dataclasses import replace
 
     from blindspot import experiment
@@ -220,12 +238,13 @@ def scene_walk_scores(cfg, models: dict, data: Path, n_walks: int | None,
     from blindspot.traj.benchmark import bootstrap_means, paired_differences
     from blindspot.traj.lstm import LSTMPredictor
     from blindspot.traj.predictor import ConstantVelocityTail
+    from blindspot.traj.seq2seq import Seq2SeqEnsemble
 
+    if n_walks == 0:
+        return {}
     bench = experiment.benchmark(cfg)
     if n_walks is not None:
         bench = replace(bench, n_walks=int(n_walks))
-    if bench.n_walks == 0:
-        return {}
     ev = experiment.evaluation(cfg)
     radar = experiment.radar(cfg)
     car = next(s for s in experiment.scenes(cfg).values() if s.with_car)
@@ -236,8 +255,11 @@ def scene_walk_scores(cfg, models: dict, data: Path, n_walks: int | None,
         pedestrian=PedestrianModel.from_scene(car), occlusion_db=car.occlusion_db,
         seed=seed, jobs=experiment.jobs(cfg), progress=False)
     lstm = LSTMPredictor.load(data / "train" / "model.pt")
-    tailed = {n: (ConstantVelocityTail(m, m.cfg.horizon) if hasattr(m, "cfg") else m)
-              for n, m in models.items()}
+    tailed = {n: (ConstantVelocityTail(m, m.cfg.horizon) if isinstance(m, Seq2SeqEnsemble)
+                  else m) for n, m in models.items()}
+    tailed["kalman"] = experiment.kalman(cfg)
+    pairs = list(dict.fromkeys([*pairs, *((n, b) for n in models if n != "constant_velocity"
+                                          for b in ("constant_velocity", "kalman"))]))
     out = {}
     for fill in dict.fromkeys((ev.prediction_input, "kalman")):
         scores, _ = score_scene_walks(

@@ -5,7 +5,8 @@ the prediction starts drawn per walk; blindspot.synth.scene_walks) go through th
 validated reduced radar chain with the car as occluder, then through the interpolate and predict
 stages' own library calls batched over walks (blindspot.synth.scene_benchmark); predicted by the
 paper's methods (eval.prediction_methods) and by the scenes' direct multi-step LSTM (lstm_direct,
-the train_direct stage's, pre-trained on ETH/UCY and fine-tuned on the radar paths). Every metric's
+the train_direct stage's: pre-trained on ETH/UCY, then fine-tuned on the radar paths unless
+direct.finetune is false). Every metric's
 mean over walks gets a 95 % percentile-bootstrap interval, and the differences between methods a
 paired bootstrap of per-walk differences (blindspot.traj.benchmark). The predictive distributions
 calibrated on validation paths by the calibration stage are scored on the walks too (coverage
@@ -55,8 +56,8 @@ def run(cfg, ctx):
     t_radar = time.perf_counter() - t0
     lstm = LSTMPredictor.load(ctx.dep("train/model.pt")).with_workers(experiment.jobs(cfg))
     kalman = experiment.kalman(cfg)
-    # the paper's methods and the scenes' direct multi-step LSTM (the train_direct stage's,
-    # pre-trained on ETH/UCY; one network call per prediction). Its forecast counts from the
+    # the paper's methods and the scenes' direct multi-step LSTM (the train_direct stage's; one
+    # network call per prediction). Its forecast counts from the
     # last point seen, and a few walks were last seen long before the prediction time (3 of the
     # 300 need more than its 40 steps): those steps continue at its last step's velocity.
     direct = Seq2SeqEnsemble.load(ctx.dep("train_direct/model.pt"))

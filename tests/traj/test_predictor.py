@@ -186,7 +186,8 @@ def test_constant_velocity_tail_keeps_the_model_and_continues_its_last_step():
     last = base.predict(hist, 4)
     step = last[:, 3] - last[:, 2]
     np.testing.assert_allclose(step, np.tile([1.0, 0.7], (3, 1)))
-    np.testing.assert_allclose(np.diff(long[:, 3:], axis=1), np.broadcast_to(step[:, None], (3, 5, 2)))
+    np.testing.assert_allclose(np.diff(long[:, 3:], axis=1),
+                               np.broadcast_to(step[:, None], (3, 5, 2)))
     assert tail.window == 3 and tail.name == "fixed"
     assert tail.predict_distribution(hist, 2, measured=False) == ("dist", 2, {"measured": False})
 
@@ -196,3 +197,37 @@ def test_constant_velocity_tail_needs_a_last_step():
 
     with pytest.raises(ValueError, match="max_horizon must be >= 2"):
         ConstantVelocityTail(_FixedHorizon(), 1)
+
+
+def test_constant_velocity_tail_serves_a_direct_model_through_forecast_tracks():
+    """A real (untrained) direct model of 6 steps, forecast through ``forecast_tracks`` for
+    tracks last seen 0, 3 and 9 frames before the start: the steps the model emits are its own
+    (the same as asking it directly), the rest a straight line at its last step's velocity."""
+    import torch
+
+    from blindspot.traj.config import Seq2SeqConfig
+    from blindspot.traj.forecast import forecast_tracks
+    from blindspot.traj.predictor import ConstantVelocityTail
+    from blindspot.traj.seq2seq import Seq2SeqEnsemble, Seq2SeqModel, Seq2SeqNet
+
+    torch.manual_seed(0)
+    cfg = Seq2SeqConfig(cell="lstm", hidden_size=8, head_hidden=16, obs_len=5, horizon=6,
+                        neighbours=0)
+    model = Seq2SeqEnsemble([Seq2SeqModel(Seq2SeqNet(cfg), cfg)], name="lstm_direct")
+    t = np.arange(40) * 0.1
+    track = np.stack([1.2 * t, 5 + 0.3 * t + 0.2 * np.sin(t)], axis=-1)
+    tracks = np.repeat(track[None], 3, axis=0)
+    start = np.array([20, 20, 20])
+    for b, lead in enumerate((0, 3, 9)):
+        tracks[b, 20 - lead:20] = np.nan                       # last seen lead frames before
+    tail = ConstantVelocityTail(model, cfg.horizon)
+    with pytest.raises(HistoryError, match="emits 6 steps"):
+        forecast_tracks(tracks, start, model, end=start + 4)   # lead 9 + 4 steps > 6
+    pred = forecast_tracks(tracks, start, tail, end=start + 4)
+    assert pred.shape == (3, 4, 2) and np.isfinite(pred).all()
+    for b, lead in enumerate((0, 3, 9)):
+        own = model.predict(tracks[b:b + 1, 20 - lead - cfg.obs_len:20 - lead], cfg.horizon)[0]
+        steps = lead + np.arange(4)                            # steps from the last point seen
+        want = np.where((steps < cfg.horizon)[:, None], own[np.minimum(steps, cfg.horizon - 1)],
+                        own[-1] + (steps - cfg.horizon + 1)[:, None] * (own[-1] - own[-2]))
+        np.testing.assert_allclose(pred[b], want, atol=1e-9)

@@ -126,7 +126,8 @@ def train_direct(measured: np.ndarray, truth: np.ndarray, ids: dict[str, np.ndar
 
     Raises CalibrationError (from :func:`~blindspot.traj.calibration.path_pairs`) when the paths
     are shorter than ``obs_len + horizon``, ValueError when a split yields no pair (every
-    window holding a miss), HistoryError for malformed ``pretrain`` walks."""
+    window holding a miss) or when ``cfg.finetune`` is false and no ``pretrain`` walks are
+    given, HistoryError for malformed ``pretrain`` walks."""
     m = cfg.model
     xy = {s: direct_pairs(measured[ids[s]], truth[ids[s]], m.obs_len, m.horizon, cfg.stride)
           for s in ("train", "val")}

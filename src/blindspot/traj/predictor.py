@@ -326,10 +326,12 @@ class ConstantVelocityTail:
 
     @property
     def window(self):
+        """The base model's history length in frames (None when it has none)."""
         return getattr(self.base, "window", None)
 
     def predict(self, history: np.ndarray, horizon: int) -> np.ndarray:
-        """(B, T, 2) history -> (B, horizon, 2) metres; any ``horizon`` >= 1."""
+        """(B, T, 2) history -> (B, horizon, 2) metres; any ``horizon`` >= 1. Raises what the
+        base model raises for a malformed history (e.g. HistoryError)."""
         n = min(int(horizon), self.max_horizon)
         pred = np.asarray(self.base.predict(history, n), float)
         if horizon <= n:
@@ -339,4 +341,8 @@ class ConstantVelocityTail:
         return np.concatenate([pred, pred[:, -1:] + k[None, :, None] * step[:, None, :]], axis=1)
 
     def predict_distribution(self, history: np.ndarray, horizon: int, **options):
+        """The base model's Gaussian forecast, unchanged (a
+        :class:`blindspot.traj.distribution.GaussianForecast`: mean (B, horizon, 2) m, cov
+        (B, horizon, 2, 2) m^2); ``horizon`` at most ``max_horizon``, else the base model's
+        error."""
         return self.base.predict_distribution(history, horizon, **options)
