@@ -57,9 +57,9 @@ def run(cfg, ctx):
     lstm = LSTMPredictor.load(ctx.dep("train/model.pt")).with_workers(experiment.jobs(cfg))
     kalman = experiment.kalman(cfg)
     # the paper's methods and the scenes' direct multi-step LSTM (the train_direct stage's; one
-    # network call per prediction). Its forecast counts from the
-    # last point seen, and a few walks were last seen long before the prediction time (3 of the
-    # 300 need more than its 40 steps): those steps continue at its last step's velocity.
+    # network call per prediction). Its forecast counts from the last point seen, and a few
+    # walks were last seen long before the prediction time (3 of the 300 need more than its 40
+    # steps): those steps continue at its last step's velocity.
     direct = Seq2SeqEnsemble.load(ctx.dep("train_direct/model.pt"))
     predictors = {**experiment.predictors(cfg, lstm),
                   DIRECT: ConstantVelocityTail(direct, direct.cfg.horizon)}
