@@ -57,13 +57,11 @@ def run(cfg, ctx):
                "steps_frames": list(steps), "frame_period_s": dt,
                "n_paths": {s: int(len(v)) for s, v in ids.items()},
                "members": [{"seed": d.model.seed + k, "best_epoch": r.best_epoch,
-                            "val_ade_m": (r.val_ade[r.best_epoch - 1] if r.best_epoch
-                                          else r.init_val_ade)}
-                           for k, r in enumerate(reports)],   # no wall times: same bytes each run
+                            "val_ade_m": r.best_val_ade} for k, r in enumerate(reports)],   # no wall times: same bytes each run
                "pretrain": {"epochs": d.pretrain_epochs,
                             "n_walks": 0 if walks is None else int(len(walks)),
                             "best_epochs": [r.best_epoch for r in pre_reports],
-                            "val_ade_m": [r.val_ade[r.best_epoch - 1] for r in pre_reports]}}
+                            "val_ade_m": [r.best_val_ade for r in pre_reports]}}
     write_json(ctx.out("train_direct.json"), metrics)
     k = steps[min(2, len(steps) - 1)]
     pre = (f"pre-trained {d.pretrain_epochs} epochs on {len(walks)} ETH/UCY walks (best epochs "

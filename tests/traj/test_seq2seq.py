@@ -72,6 +72,7 @@ def test_learns_a_turn_that_constant_velocity_cannot_follow():
     cv = np.linalg.norm(ConstantVelocity().predict(test[:, :8], 12) - test[:, 8:], axis=-1).mean()
     assert err < 0.5 * cv, (err, cv)
     assert report.val_ade[report.best_epoch - 1] == min(report.val_ade)
+    assert report.best_val_ade == min(report.val_ade) and report.init_val_ade is None
 
 
 def test_retraining_with_the_same_seed_gives_the_same_weights():
@@ -326,6 +327,7 @@ def test_fine_tuning_starts_from_the_pretrained_weights_and_keeps_what_they_lear
     # a fine-tuning that only wrecks the weights keeps the pre-trained ones (epoch 0)
     wrecked, rep = train_seq2seq(small, val, replace(CFG, epochs=2, lr=50.0), init=pre)
     assert rep.best_epoch == 0 and rep.init_val_ade < min(rep.val_ade)
+    assert rep.best_val_ade == rep.init_val_ade            # the weights kept are the init's
     np.testing.assert_array_equal(wrecked.predict(test[:, :8], 12), pre.predict(test[:, :8], 12))
 
     def ade(m):

@@ -258,6 +258,12 @@ class FitReport:
     seconds: float = 0.0
     init_val_ade: float | None = None
 
+    @property
+    def best_val_ade(self) -> float | None:
+        """Val ADE (m) of the weights kept: the best epoch's, or the ``init`` weights' when no
+        epoch beat them (``best_epoch`` 0; None without ``init``)."""
+        return self.val_ade[self.best_epoch - 1] if self.best_epoch else self.init_val_ade
+
 
 class Seq2SeqModel:
     """One trained network with its config; predicts means and Gaussians in world metres."""
