@@ -17,9 +17,14 @@ scenes.json from `dvc repro driving_scenes`); only the detection settings change
 - ``budget96``: 96 instead of ``ego_motion.max_detections`` angle estimates per frame;
 - ``no_peak_only``: every CFAR cell, not only the 3 x 3 local maxima of the map;
 - ``no_peak_budget400``: the same with 400 angle estimates per frame (the budget no longer
-  binds: what the peak rule hides).
+  binds: what the peak rule hides);
+- ``rda_peaks``: ``ego_motion.peak_search: range_doppler_angle``, every CFAR cell beam-scanned
+  with its neighbours and kept when it is a local maximum in range, Doppler and angle together
+  (:func:`blindspot.dsp.detections.angle_peaks`); ``rda_peaks_budget96`` the same with 96 angle
+  estimates per frame (whether the budget binds).
 
-Time: about 1 min per variant and speed on 2 cores (``no_peak_budget400`` about 5 min).
+Time: about 20-40 s per variant and speed on 2 cores (``rda_peaks`` twice the baseline,
+``no_peak_budget400`` about 5 min).
 """
 
 from __future__ import annotations
@@ -35,7 +40,7 @@ import pandas as pd
 
 REPO = Path(__file__).resolve().parents[1]
 VARIANTS = ("baseline", "so_cfar", "os_cfar", "ca_pfa", "budget96", "no_peak_only",
-            "no_peak_budget400")
+            "no_peak_budget400", "rda_peaks", "rda_peaks_budget96")
 
 
 def settings(cfg, name: str) -> dict:
@@ -55,6 +60,11 @@ def settings(cfg, name: str) -> dict:
         if name == "no_peak_budget400":
             out["ego"] = dataclasses.replace(base["ego"], max_detections=400)
         return out
+    if name in ("rda_peaks", "rda_peaks_budget96"):
+        ego = dataclasses.replace(base["ego"], peak_search="range_doppler_angle")
+        if name == "rda_peaks_budget96":
+            ego = dataclasses.replace(ego, max_detections=96)
+        return {**base, "ego": ego}
     return base
 
 

@@ -30,11 +30,13 @@ REPO = Path(__file__).resolve().parents[2]
 pytestmark = pytest.mark.slow
 
 
-@pytest.fixture(scope="module")
-def both():
+@pytest.fixture(scope="module", params=["range_doppler", "range_doppler_angle"])
+def both(request):
+    """Both chains on the same frames, under each peak rule (``ego_motion.peak_search``)."""
     cfg = compose(config_dir=REPO / "conf")
     group, named = ex.scenarios(cfg)
-    radar, ego = ex.driving_radar(cfg), ex.ego_motion(cfg)
+    radar = ex.driving_radar(cfg)
+    ego = replace(ex.ego_motion(cfg), peak_search=request.param)
     chain = (ex.cfar(cfg), ex.doa(cfg), ex.detect(cfg))
     gap, tol = ex.detect(cfg).cluster_gap_m, ego.static_tolerance_mps
     full, fast, truth, egos, counts = [], [], [], [], []

@@ -9,6 +9,7 @@ must give the same points in one process or in worker processes."""
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -23,12 +24,13 @@ REPO = Path(__file__).resolve().parents[2]
 FRAMES = np.arange(20, 26)          # six frames of each scene: one batch each below
 
 
-@pytest.fixture(scope="module")
-def setup():
+@pytest.fixture(scope="module", params=["range_doppler", "range_doppler_angle"])
+def setup(request):
+    """The configured chain under each peak rule (``ego_motion.peak_search``)."""
     cfg = compose(config_dir=REPO / "conf")
     group, named = ex.scenarios(cfg)
     args = (group, ex.driving_radar(cfg), ex.cfar(cfg), ex.doa(cfg), ex.detect(cfg),
-            ex.ego_motion(cfg))
+            replace(ex.ego_motion(cfg), peak_search=request.param))
     return named, args, ex.sim(cfg).adc_headroom_db
 
 

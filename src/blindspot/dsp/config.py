@@ -111,6 +111,11 @@ class DetectConfig(TypedConfig):
                               f"null or more than min_range_m = {self.min_range_m}")
 
 
+# the moving-car chain's peak rule: the detect group's 3 x 3 range-Doppler rule (peak_only), or
+# range, Doppler and angle together (blindspot.dsp.detections.angle_peaks)
+PEAK_SEARCHES = ("range_doppler", "range_doppler_angle")
+
+
 @dataclass(frozen=True)
 class EgoMotionConfig(TypedConfig):
     """The Hydra group ``ego_motion`` (``conf/ego_motion/default.yaml``): odometry model,
@@ -130,6 +135,8 @@ class EgoMotionConfig(TypedConfig):
     sweep_frames: int = setting(ge=1, le=10_000)
     sweep_yaw_rate_deg_s: float = setting(0.0, ge=-60.0, le=60.0)
     seed: int = setting(0, ge=0, le=2**63 - 1)
+    peak_search: str = setting("range_doppler", choices=PEAK_SEARCHES)
+    max_candidates: int = setting(256, ge=1, le=100_000)
 
 
 BRIDGE_METHODS = ("track_gate", "none")

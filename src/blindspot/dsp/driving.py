@@ -5,7 +5,11 @@ removal on the ego-motion Doppler curve, points in the vehicle frame.
 Per batch of frames (every step vectorised over the batch's detections):
 
 1. Range and Doppler FFTs, detection map, CFAR and local maxima: the steps of
-   :class:`blindspot.dsp.chain.DetectionChain` (same configuration groups).
+   :class:`blindspot.dsp.chain.DetectionChain` (same configuration groups). With
+   ``ego_motion.peak_search: range_doppler_angle`` the local maxima are taken in range, Doppler
+   and angle together instead (:func:`~blindspot.dsp.detections.angle_peaks` on the strongest
+   ``max_candidates`` CFAR cells of each frame), so a weak target beside a strong one at
+   another angle keeps its cell.
 2. The ``max_detections`` strongest peaks of each frame get angles (the static world gives most
    of them: the ego-motion fit needs them).
 3. Ambiguity order (:func:`unwrap_and_angles`): the Doppler bin gives v modulo 2 v_max. For
@@ -34,6 +38,7 @@ import numpy as np
 import pandas as pd
 
 from blindspot.dsp.chain import DetectionChain
+from blindspot.dsp.detections import angle_peaks, rank_in_frame
 from blindspot.dsp.doa import doa_angles
 from blindspot.dsp.doppler_compensation import compensate_tdm_velocity
 from blindspot.dsp.ego_motion import (
@@ -44,10 +49,15 @@ from blindspot.radar.array import VirtualArray
 from blindspot.radar.config import RadarConfig
 
 ORDER_GRID_DEG = np.arange(-80.0, 80.01, 0.5)   # Bartlett grid of the order choice
+# unwrap_and_angles with peak_centre: the estimator's peak must lie this close to the angle of
+# the range-Doppler-angle maximum (the Hann-tapered 86-element beam's half-power width at
+# boresight is about 1.7 deg; the MUSIC peak of the same return lies well inside it)
+HINT_TOLERANCE_DEG = 2.0
 
 
 def unwrap_and_angles(ula: np.ndarray, v_wrapped: np.ndarray, odometry_mps: np.ndarray,
-                      chain: DetectionChain, v_max_mps: float
+                      chain: DetectionChain, v_max_mps: float, *,
+                      peak_centre: int | None = None
                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Doppler ambiguity order, unwrapped radial velocity and angle of each detection.
 
@@ -60,7 +70,13 @@ def unwrap_and_angles(ula: np.ndarray, v_wrapped: np.ndarray, odometry_mps: np.n
     (``sum_l |a(theta)^H x_l|^2`` on a 0.5 deg grid, cheap) gives ``theta_m``; the order kept
     minimises ``|v_m + v_odo cos(theta_m)|`` (:func:`~blindspot.dsp.ego_motion.unwrap_doppler` at
     the angle found under that order). The final angle is the configured estimator (MUSIC) on
-    the snapshots compensated with the chosen velocity.
+    the snapshots compensated with the chosen velocity: its strongest peak, or, with
+    ``peak_centre`` (the index of each detection's own cell along L; detections chosen by the
+    range-Doppler-angle rule), the peak nearest the angle at which the cell is a
+    range-Doppler-angle maximum (:func:`~blindspot.dsp.detections.angle_peaks` on the same
+    snapshots), within ``HINT_TOLERANCE_DEG`` (NaN beyond it, or where no peak qualifies): a
+    cell on a parked car's flank is kept for the child in it, whose angle is not the cell's
+    strongest.
 
     Returns (order (D,) int64, velocity (D,) m/s, angle (D,) deg, NaN without a peak).
     """
@@ -89,10 +105,18 @@ def unwrap_and_angles(ula: np.ndarray, v_wrapped: np.ndarray, odometry_mps: np.n
     v = v_m[rows, best]
     x = compensate_tdm_velocity(ula, v, wl, chain.slot_times_s, chain.ula_tx)
     o = chain.doa
-    angle = doa_angles(x, chain.ula_pos, 1, o.n_signals, chain.grid_deg, method=o.method,
+    n_targets = 1 if peak_centre is None else max(o.n_signals, 1)
+    peaks = doa_angles(x, chain.ula_pos, n_targets, o.n_signals, chain.grid_deg, method=o.method,
                        forward_backward=o.forward_backward, subarray=o.subarray,
                        loading=o.loading,
-                       backend="torch" if o.method == "music" and o.loading == 0 else "numpy")[:, 0]
+                       backend="torch" if o.method == "music" and o.loading == 0 else "numpy")
+    if peak_centre is None:
+        angle = peaks[:, 0]
+    else:
+        _, hint = angle_peaks(x, peak_centre, float(chain.ula_pos[1] - chain.ula_pos[0]))
+        off = np.abs(np.nan_to_num(peaks, nan=np.inf) - hint[:, None])
+        near = np.argmin(off, axis=1)
+        angle = np.where(off[rows, near] <= HINT_TOLERANCE_DEG, peaks[rows, near], np.nan)
     return orders[best].astype(np.int64), v, angle
 
 
@@ -131,6 +155,22 @@ class DrivingChain:
         self.radar, self.ego = radar, ego
         self.v_max = radar.max_velocity_mps
 
+    def _angle_peaks(self, rd: np.ndarray, fi: np.ndarray, rb: np.ndarray, db: np.ndarray,
+                     pw: np.ndarray) -> tuple[np.ndarray, ...]:
+        """The candidates (sorted by frame, strongest first) that are range-Doppler-angle peaks
+        (:func:`~blindspot.dsp.detections.angle_peaks`): the strongest ``max_candidates`` of
+        each frame, beam-scanned with their neighbourhood cells (``detect.cell_half``) on the
+        ULA elements, TDM-compensated with the Doppler bin's velocity."""
+        ch = self.base
+        cand = rank_in_frame(fi) < self.ego.max_candidates
+        fi, rb, db, pw = fi[cand], rb[cand], db[cand], pw[cand]
+        ula = cell_snapshots(rd, rb, db, ch.detect.cell_half, frame=fi,
+                             elements=(ch.ula_tx, ch.ula_rx))          # (D, E, L), centre first
+        comp = compensate_tdm_velocity(ula, ch.velocity_axis_mps[db], self.radar.wavelength_m,
+                                       ch.slot_times_s, ch.ula_tx)
+        peak, _ = angle_peaks(comp, 0, float(ch.ula_pos[1] - ch.ula_pos[0]))
+        return fi[peak], rb[peak], db[peak], pw[peak]
+
     def process_batch(self, cubes: np.ndarray, odometry_mps: np.ndarray, frames: np.ndarray,
                       *, keep_maps: bool = False) -> DrivingBatch:
         """cubes (F, chirps, tx, rx, samples), odometry speed (F,) m/s, frame numbers (F,)."""
@@ -140,17 +180,24 @@ class DrivingChain:
         rd, _ = ch.range_doppler(cubes)
         power = ch.detection_map(rd)
         mask, threshold, noise = ch.run_cfar(power)
-        fi, rb, db = ch.select_cells(power, mask)
+        angle_rule = self.ego.peak_search == "range_doppler_angle"
+        if angle_rule:                                       # every CFAR cell a candidate
+            fi, rb, db = np.nonzero(mask & ch.range_ok[:, None])
+        else:
+            fi, rb, db = ch.select_cells(power, mask)
         pw = power[fi, rb, db]
         order = np.lexsort((-pw, fi))                        # per frame strongest first
         fi, rb, db, pw = fi[order], rb[order], db[order], pw[order]
+        if angle_rule:
+            fi, rb, db, pw = self._angle_peaks(rd, fi, rb, db, pw)
         keep = ch.doa_budget(fi)
         fi, rb, db, pw = fi[keep], rb[keep], db[keep], pw[keep]
         snr = 10 * np.log10(pw / noise[fi, rb, db])
         v_w = ch.velocity_axis_mps[db]
         x = cell_snapshots(rd, rb, db, ch.detect.cell_half, frame=fi)
         ula = x[:, ch.ula_tx, ch.ula_rx, :]                    # (D, n_ula, L)
-        order_m, v, angle = unwrap_and_angles(ula, v_w, odo[fi], ch, self.v_max)
+        order_m, v, angle = unwrap_and_angles(ula, v_w, odo[fi], ch, self.v_max,
+                                              peak_centre=0 if angle_rule else None)
         n_d = len(fi)
         # ego speed (and yaw rate) per frame from the radar (RANSAC, Kellner et al. 2013),
         # static = on its Doppler curve -(v_x sin theta + v_y cos theta)

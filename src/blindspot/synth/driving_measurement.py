@@ -19,7 +19,10 @@ Per batch of frames (every step vectorised over the batch):
 3. The chain's own CFAR on the whole map (so the parked cars' and kerb's returns raise the
    training-cell estimate around the pedestrian exactly where they fall), local maxima, the
    range window, strongest first and the ``max_detections`` budget per frame, as
-   :meth:`DrivingChain.process_batch`.
+   :meth:`DrivingChain.process_batch`. With ``ego_motion.peak_search: range_doppler_angle``
+   every CFAR cell (the strongest ``max_candidates`` of a frame) gets its snapshots of step 4
+   first, and those that are range-Doppler-angle maxima
+   (:func:`blindspot.dsp.detections.angle_peaks`) go on to the budget.
 4. Snapshots of each detection's 3 x 3 neighbourhood on the ULA elements: the coherent signal of
    the ``N_NEAR`` scatterers strongest in that cell plus noise correlated across cells as the
    windowed FFTs correlate it; Doppler ambiguity order with the odometry speed, TDM compensation
@@ -43,7 +46,10 @@ one car face; the CFAR training mean sees their mean energy); (2) the detection 
 independent between cells (as in :mod:`blindspot.synth.path_measurement`); (3) a snapshot holds
 the ``N_NEAR`` scatterers strongest in its cell (the others' sidelobes lie far below the noise);
 (4) the static test uses the true ego speed (the full chain's RANSAC estimate is within
-0.1 m/s RMS, well inside the 0.35 m/s tolerance). Validated against the full FMCW simulation of
+0.1 m/s RMS, well inside the 0.35 m/s tolerance); (5) with the range-Doppler-angle rule, a
+candidate's neighbour cells carry the scatterers strongest in the candidate's cell and noise
+drawn with the candidate's neighbourhood, so two neighbouring candidates see each other's cell
+with different noise (the full chain's cells are one array). Validated against the full FMCW simulation of
 the same frames (tests/synth/test_driving_measurement.py, slow; ``benchmarks/bench_driving.py
 --scene cpfa cpna25 cpna75``): detection rate +1.5 %, and on the frames both chains have the
 pedestrian's point (:func:`blindspot.synth.driving_detection.paired_point_statistics`) median
@@ -58,7 +64,8 @@ import numpy as np
 import pandas as pd
 
 from blindspot.dsp.chain import DetectionChain
-from blindspot.dsp.detections import local_maxima
+from blindspot.dsp.detections import angle_peaks, local_maxima, rank_in_frame
+from blindspot.dsp.doppler_compensation import compensate_tdm_velocity
 from blindspot.dsp.driving import unwrap_and_angles
 from blindspot.dsp.ego_motion import odometry_speed
 from blindspot.dsp.points import group_points
@@ -158,12 +165,44 @@ def _tone_power(table: np.ndarray, n: int, nu: np.ndarray, bins: np.ndarray) -> 
     return table[q]
 
 
-def _near_snapshots(setup, sc, bi, ki, di, tables, rng) -> tuple[np.ndarray, np.ndarray]:
+def _dtft_table(window: np.ndarray) -> np.ndarray:
+    """(N * OVERSAMPLE + 1,) complex ``T(g) = sum_i w_i exp(j 2 pi g (i - (N - 1) / 2))`` on
+    g = -1/2 .. 1/2 cycles/sample in steps of 1 / (N OVERSAMPLE): the window's DTFT without its
+    linear phase, smooth enough for linear interpolation (:func:`_tone_dft_interpolated`)."""
+    w = np.asarray(window, dtype=np.float64)
+    n = w.shape[0]
+    size = n * OVERSAMPLE
+    y = np.fft.ifft(w, size) * size                  # sum_i w_i exp(+j 2 pi q i / size)
+    q = np.arange(-size // 2, size // 2 + 1)
+    return y[q % size] * np.exp(-2j * np.pi * (q / size) * (n - 1) / 2)
+
+
+def _tone_dft_interpolated(table: np.ndarray, n: int, nu: np.ndarray, bins: np.ndarray
+                           ) -> np.ndarray:
+    """:func:`blindspot.radar.rd_patch.tone_dft` of unit tones at ``nu`` (...) cycles/sample at
+    the integer bins ``bins`` (broadcast against nu) from :func:`_dtft_table`: one complex
+    exponential per bin instead of one per sample (the window's DTFT at ``g = nu - bin / N``
+    reduced to [-1/2, 1/2), its linear phase exact, the rest interpolated linearly; relative
+    error below 1e-4 in the main lobe, tested against tone_dft)."""
+    g = nu - bins / n
+    g = g - np.round(g)
+    pos = (g + 0.5) * (n * OVERSAMPLE)
+    i0 = np.clip(np.floor(pos).astype(np.int64), 0, table.size - 2)
+    frac = pos - i0
+    t = table[i0] * (1.0 - frac) + table[i0 + 1] * frac
+    return t * np.exp(1j * np.pi * g * (n - 1))
+
+
+def _near_snapshots(setup, sc, bi, ki, di, tables, rng, dtft=None
+                    ) -> tuple[np.ndarray, np.ndarray]:
     """(D, n_ula, L) snapshots of the detections (frame bi, row ki, Doppler column di) of the
     scatterers ``sc`` (B, S): the ``N_NEAR`` scatterers strongest in the cell, their exact signal
     (windowed DTFTs, channel phasors of the ULA elements) on the 3 x 3 neighbourhood plus noise
     correlated across cells as the windowed FFTs correlate it; and the (D,) index of the
-    scatterer strongest in the cell."""
+    scatterer strongest in the cell. ``dtft``: the range and Doppler windows'
+    :func:`_dtft_table`, to interpolate the windowed DTFTs (one exponential per bin instead of
+    one per sample: the range-Doppler-angle rule's snapshots of every CFAR cell) instead of
+    summing them exactly."""
     import torch
 
     from blindspot.radar.rd_patch import (
@@ -182,12 +221,24 @@ def _near_snapshots(setup, sc, bi, ki, di, tables, rng) -> tuple[np.ndarray, np.
     near = np.argpartition(-w, n_near - 1, axis=1)[:, :n_near]                      # (D, N)
     top = near[np.arange(len(bi)), np.argmax(np.take_along_axis(w, near, 1), axis=1)]
     take = lambda a: np.take_along_axis(a[bi], near, axis=1)  # noqa: E731
-    r3 = tone_dft(take(nu_r), (ki - hr)[:, None], 2 * hr + 1, setup.range_window) \
-        * take(amp)[..., None]                                                      # (D, N, 3)
-    d3 = tone_dft(take(nu_d), (di - m // 2 - hd)[:, None], 2 * hd + 1, setup.doppler_window)
-    el = None if sc.elevation_rad is None else take(sc.elevation_rad)
-    c_ula = channel_phasors(take(sc.velocity_mps), take(sc.azimuth_rad), radar, chain.array,
-                            "ula", el)                                              # (D, N, E)
+    if dtft is None:
+        r3 = tone_dft(take(nu_r), (ki - hr)[:, None], 2 * hr + 1, setup.range_window)
+        d3 = tone_dft(take(nu_d), (di - m // 2 - hd)[:, None], 2 * hd + 1, setup.doppler_window)
+    else:
+        r3 = _tone_dft_interpolated(dtft[0], n, take(nu_r)[..., None],
+                                    (ki - hr)[:, None, None] + np.arange(2 * hr + 1))
+        d3 = _tone_dft_interpolated(dtft[1], m, take(nu_d)[..., None],
+                                    (di - m // 2 - hd)[:, None, None] + np.arange(2 * hd + 1))
+    r3 = r3 * take(amp)[..., None]                                                  # (D, N, 3)
+    if near.size > np.size(sc.velocity_mps):
+        # more (detection, scatterer) pairs than scatterers: each scatterer's phasors once,
+        # then gathered (the same elementwise values, so the same bytes)
+        c_ula = channel_phasors(sc.velocity_mps, sc.azimuth_rad, radar, chain.array, "ula",
+                                sc.elevation_rad)[bi[:, None], near]                # (D, N, E)
+    else:
+        el = None if sc.elevation_rad is None else take(sc.elevation_rad)
+        c_ula = channel_phasors(take(sc.velocity_mps), take(sc.azimuth_rad), radar, chain.array,
+                                "ula", el)                                          # (D, N, E)
     dr, dd = np.meshgrid(np.arange(-hr, hr + 1), np.arange(-hd, hd + 1), indexing="ij")
     dr, dd = dr.ravel(), dd.ravel()
     rows = np.clip(ki[:, None] + dr, 0, n_rows - 1)                                 # as the chain
@@ -201,6 +252,13 @@ def _near_snapshots(setup, sc, bi, ki, di, tables, rng) -> tuple[np.ndarray, np.
     blk = z @ setup.block_chol.T
     cell = (rows - ki[:, None] + hr) * (2 * hd + 1) + (dd + hd)
     return x + np.take_along_axis(blk, cell[:, None, :], axis=2), top
+
+
+def _centre_cell(chain: DetectionChain) -> int:
+    """Index of a detection's own cell along the L axis of :func:`_near_snapshots` (the
+    neighbourhood in (range, Doppler) row-major order, not centre first)."""
+    hr, hd = chain.detect.cell_half
+    return hr * (2 * hd + 1) + hd
 
 
 _BATCH_STATE: dict | None = None    # measure_driving's inputs, read by _measure_batch
@@ -272,20 +330,34 @@ def _measure_batch_1(span: tuple[int, int, int]) -> dict[str, np.ndarray] | None
     power = noncoherent_power(rng, e_static + e_move, n_ch, setup.cell_noise_power)
     mask, _, noise = chain.run_cfar(power)
     keep = mask & chain.range_ok[None, :, None]
-    if chain.detect.peak_only:
+    angle_rule = ego.peak_search == "range_doppler_angle"
+    if chain.detect.peak_only and not angle_rule:
         keep &= local_maxima(power)
     bi, ki, di = np.nonzero(keep)
     pw = power[bi, ki, di]
     o = np.lexsort((-pw, bi))                                       # per frame strongest first
     bi, ki, di, pw = bi[o], ki[o], di[o], pw[o]
+    if angle_rule:      # every CFAR cell a candidate (strongest max_candidates), 3-D peaks kept
+        cand = rank_in_frame(bi) < ego.max_candidates
+        bi, ki, di, pw = bi[cand], ki[cand], di[cand], pw[cand]
+        x, top = _near_snapshots(setup, sc, bi, ki, di, tables, rng, st["dtft"])
+        peak, _ = angle_peaks(compensate_tdm_velocity(x, chain.velocity_axis_mps[di],
+                                                      radar.wavelength_m, chain.slot_times_s,
+                                                      chain.ula_tx), _centre_cell(chain),
+                              float(chain.ula_pos[1] - chain.ula_pos[0]))
+        bi, ki, di, pw, x, top = bi[peak], ki[peak], di[peak], pw[peak], x[peak], top[peak]
     sel = chain.doa_budget(bi)
     bi, ki, di, pw = bi[sel], ki[sel], di[sel], pw[sel]
     if not bi.size:
         return None
     snr = 10 * np.log10(pw / noise[bi, ki, di])
-    x, top = _near_snapshots(setup, sc, bi, ki, di, tables, rng)
+    if angle_rule:
+        x, top = x[sel], top[sel]
+    else:
+        x, top = _near_snapshots(setup, sc, bi, ki, di, tables, rng)
     v_w = chain.velocity_axis_mps[di]
-    order, v, angle = unwrap_and_angles(x, v_w, st["odo"][lo:hi][bi], chain, vmax)
+    order, v, angle = unwrap_and_angles(x, v_w, st["odo"][lo:hi][bi], chain, vmax,
+                                        peak_centre=_centre_cell(chain) if angle_rule else None)
     off = v - _static_curve(np.nan_to_num(angle), st["speed"][lo:hi][bi],
                             st["v_lat"][lo:hi][bi])
     return {"row": ki, "bi": bi + lo, "rng": chain.range_axis_m[ki], "ang": angle, "v": v,
@@ -380,13 +452,14 @@ def measure_driving(scenes: list[DrivingScene], group: ScenarioGroup, radar: Rad
                       for s in scenes])[scene_i]
     n = len(fidx)
     tables = (_response_table(setup.range_window), _response_table(setup.doppler_window))
+    dtft = (_dtft_table(setup.range_window), _dtft_table(setup.doppler_window))
     # the batches are independent (each draws its own noise from SeedSequence([seed, 31, b])),
     # so worker processes (forked: they inherit this state) measure them in any order with the
     # same result as in this process
     global _BATCH_STATE
     _BATCH_STATE = dict(pos=pos, v3=v3, rcs=rcs, att=att, label=label, odo=odo, speed=speed,
                         v_lat=v_lat, n_q=n_q, setup=setup, chain=chain, radar=radar, ego=ego,
-                        tables=tables)
+                        tables=tables, dtft=dtft)
     spans = [(b, lo, min(lo + frames_per_batch, n))
              for b, lo in enumerate(range(0, n, frames_per_batch))]
     try:
