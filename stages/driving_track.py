@@ -61,11 +61,13 @@ def run(cfg, ctx):
                           "visible truth points"),
     }
     frames = truth[["scene", "frame", "time_s"]].drop_duplicates(["scene", "frame"])
-    pts = frames.merge(every[["scene", "frame", "x_m", "y_m", "velocity_over_ground_mps"]],
-                       on=["scene", "frame"], how="left").rename(columns={"scene": "group"})
-    tracks = track_points(pts, tcfg, jobs=int(cfg.jobs))
     ego = (truth.groupby(["scene", "frame"], as_index=False)[["ego_x_m", "ego_y_m"]].first()
            .rename(columns={"scene": "group"}))
+    pts = (frames.merge(every[["scene", "frame", "x_m", "y_m", "velocity_over_ground_mps"]],
+                        on=["scene", "frame"], how="left").rename(columns={"scene": "group"})
+           .merge(ego.rename(columns={"ego_x_m": "sensor_x_m", "ego_y_m": "sensor_y_m"}),
+                  on=["group", "frame"], how="left"))
+    tracks = track_points(pts, tcfg, jobs=int(cfg.jobs))
     kinematic = moving_tracks(tracks, w.moving_speed_mps, w.moving_probability)
     tracks["moving"] = moving_tracks(tracks, w.moving_speed_mps, w.moving_probability, ego=ego,
                                      doppler_std_mps=w.moving_doppler_std_mps,

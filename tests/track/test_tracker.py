@@ -329,3 +329,44 @@ def test_a_confirmed_track_coasts_max_misses_frames_then_is_deleted(name, gap):
         assert first.coasting.sum() == gap
     else:                              # M coasting frames, gone at the (M + 1)-th miss
         assert first.frame.max() == 10 + M - 1 and first.coasting.sum() == M
+
+
+def _slider_then_crosser(doppler_after: float) -> pd.DataFrame:
+    """A clutter object sliding along +y at 2.5 m/s for 12 frames (as a parked car's face does
+    past a moving radar), with the radial speed its velocity gives; then, where it would be, a
+    detection whose Doppler is ``doppler_after``. Sensor 10 m behind on the y axis."""
+    f = np.arange(14)
+    xy = np.column_stack([np.full(f.size, 2.0), 2.5 * DT * f])
+    df = frame_table(f, xy).assign(sensor_x_m=0.0, sensor_y_m=-10.0)
+    los = xy - np.array([0.0, -10.0])
+    u = los / np.hypot(los[:, 0], los[:, 1])[:, None]
+    dop = u[:, 1] * 2.5                                 # u.v of the sliding velocity
+    dop[12:] = doppler_after
+    return df.assign(velocity_over_ground_mps=dop)
+
+
+@pytest.mark.parametrize("gate_on", [False, True])
+def test_doppler_gate_keeps_a_contradicting_detection_from_a_sliding_track(gate_on):
+    cfg = config(doppler_std_mps=0.3 if gate_on else None)
+    consistent = track_points(_slider_then_crosser(2.4), cfg)
+    assert consistent.track_id.nunique() == 1          # its own Doppler: one track either way
+    out = track_points(_slider_then_crosser(-0.6), cfg)   # a crossing child's radial speed
+    last = out[out.frame >= 12]
+    if gate_on:      # the sliding track coasts, the child's detection starts its own track
+        assert set(last[last.track_id == 0].coasting) == {True}
+        assert (last.track_id > 0).any()
+    else:
+        assert not last[last.track_id == 0].coasting.any()
+        assert out.track_id.nunique() == 1
+
+
+def test_doppler_gate_without_a_doppler_column_is_the_position_gate():
+    df = _slider_then_crosser(-0.6).drop(columns="velocity_over_ground_mps")
+    pd.testing.assert_frame_equal(track_points(df, config(doppler_std_mps=0.3)),
+                                  track_points(df, config()))
+
+
+def test_doppler_gate_needs_gnn():
+    with pytest.raises(ConfigError, match="tracker.doppler_std_mps"):
+        TrackerConfig.from_mapping({**dataclasses.asdict(config("jpda_cv")),
+                                    "doppler_std_mps": 0.3})

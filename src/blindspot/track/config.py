@@ -47,6 +47,11 @@ class TrackerConfig(TypedConfig):
             sec. 6.3).
         max_misses: a confirmed track is deleted after this many consecutive frames without a
             measurement; until then it coasts (predicted only).
+        doppler_std_mps: the spread of one point's ego-motion-compensated radial speed (m/s);
+            set, the GNN gate and assignment cost take each object's median radial speed
+            against the one the track's predicted velocity gives along the line of sight (a
+            third, Doppler dimension of the Mahalanobis distance), where the points carry
+            ``velocity_over_ground_mps``; null gates on position alone.
     """
 
     GROUP = "tracker"
@@ -65,11 +70,15 @@ class TrackerConfig(TypedConfig):
     confirm_m: int = setting(ge=1, le=1000)
     confirm_n: int = setting(ge=1, le=1000)
     max_misses: int = setting(ge=0, le=100_000)
+    doppler_std_mps: float | None = setting(None, gt=0.0, le=100.0)
 
     def validate(self) -> None:
         if self.confirm_m > self.confirm_n:
             raise ConfigError("confirm_m", self.confirm_m,
                               f"at most confirm_n = {self.confirm_n} (M of N frames)")
+        if self.doppler_std_mps is not None and self.association != "gnn":
+            raise ConfigError("doppler_std_mps", self.doppler_std_mps,
+                              "null with association jpda (the Doppler gate is GNN's)")
 
 
 #: Point-cloud log formats the real_tracking stage reads (blindspot.radar.capture).

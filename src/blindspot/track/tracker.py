@@ -50,6 +50,10 @@ OUTPUT_COLUMNS = ("frame", "time_s", "track_id", "x_m", "y_m", "vx_mps", "vy_mps
 #: ego-motion-compensated radial speed of a point (measured radial speed minus the one a static
 #: point at its angle would show, m/s; blindspot.synth.driving_measurement).
 DOPPLER_COLUMN = "velocity_over_ground_mps"
+#: Optional point columns: the sensor's position in the points' frame of reference at the
+#: point's frame (m; a moving radar's world position), the origin of the line of sight of the
+#: Doppler gate (``tracker.doppler_std_mps``). Without them the sensor is at the origin.
+SENSOR_COLUMNS = ("sensor_x_m", "sensor_y_m")
 
 _EPOCH = dt.datetime(2000, 1, 1)
 
@@ -118,6 +122,7 @@ def _labelled(points: pd.DataFrame, keys: list[str], config: TrackerConfig) -> p
     cols = keys + ["time_s", "x_m", "y_m"]
     if DOPPLER_COLUMN in valid.columns:
         cols.append(DOPPLER_COLUMN)
+    cols += [c for c in SENSOR_COLUMNS if c in valid.columns]
     if valid.empty:
         return valid[cols].assign(_label=np.empty(0, np.int64))
     k = valid.groupby(keys, sort=False).ngroup().to_numpy(float)
@@ -229,12 +234,29 @@ def _numpy_kalman(transition_model, measurement_model):
             NumpyKalmanUpdater(measurement_model, force_symmetric_covariance=True))
 
 
-def _gated_hypothesiser(predictor, updater, gate: float):
+def _gated_hypothesiser(predictor, updater, gate: float, doppler_std_mps: float | None = None,
+                        gate_doppler: float | None = None):
     """Stone Soup's ``DistanceHypothesiser`` with the ``Mahalanobis`` measure, gating every
     detection of a frame in one numpy expression: d^2 = v^T S^-1 v for the innovations v of all
     detections against the track's one measurement prediction (every detection shares the
     measurement model). Returns the same hypotheses as the parent class, which evaluates the
-    measure detection by detection."""
+    measure detection by detection.
+
+    With ``doppler_std_mps``, a detection whose metadata carries a finite ``doppler_mps`` (the
+    median ego-motion-compensated radial speed of its n points) and ``sensor_xy`` adds the
+    Doppler innovation: the track's predicted velocity v along the unit line of sight u from
+    the sensor to the detection predicts u.v with variance u^T P_v u, the measurement's own
+    variance is doppler_std^2 / n, and
+
+        d^2 = v^T S^-1 v + (doppler - u.v)^2 / (doppler_std^2 / n + u^T P_v u),
+
+    gated at ``gate_doppler`` (the chi-square quantile of 3 degrees of freedom; the position
+    and Doppler innovations are taken as independent, which drops their cross-covariance
+    through the predicted state). A range-rate gate in the manner of Blackman & Popoli 1999
+    (sec. 6.2): a clutter track on a parked car's face, sliding at the ego's speed, predicts a
+    radial speed that a crossing child's Doppler contradicts, so it cannot take the child's
+    detection; nor can it keep its own static points. Detections without a Doppler value gate
+    on position alone."""
     from stonesoup.hypothesiser.distance import DistanceHypothesiser
     from stonesoup.measures import Mahalanobis
     from stonesoup.types.detection import MissedDetection
@@ -243,6 +265,7 @@ def _gated_hypothesiser(predictor, updater, gate: float):
 
     class GatedDistanceHypothesiser(DistanceHypothesiser):
         _last: tuple = (None, [], None)      # (detections, their list, (2, n) positions)
+        _doppler: tuple = (None,)            # (detections, Doppler, n points, u, has Doppler)
 
         def _stacked(self, detections):
             """The detections as a list and their (2, n) positions, built once per set: the
@@ -264,11 +287,38 @@ def _gated_hypothesiser(predictor, updater, gate: float):
                 mp = self.updater.predict_measurement(prediction, dets[0].measurement_model)
                 v = z - np.asarray(mp.state_vector, float)
                 w = np.linalg.solve(np.asarray(mp.covar, float), v)
-                dist = np.sqrt(np.einsum("ij,ij->j", v, w))
-                for j in np.flatnonzero(dist < self.missed_distance):
+                d2 = np.einsum("ij,ij->j", v, w)
+                if doppler_std_mps is None:
+                    dist, inside = np.sqrt(d2), np.sqrt(d2) < self.missed_distance
+                else:
+                    dist, inside = self._with_doppler(prediction, z, d2)
+                for j in np.flatnonzero(inside):
                     hypotheses.append(SingleDistanceHypothesis(prediction, dets[j],
                                                                float(dist[j]), mp))
             return MultipleHypothesis(sorted(hypotheses, reverse=True))
+
+        def _with_doppler(self, prediction, z, d2):
+            """(distance, inside the gate) (n,) of the detections ``self._last`` holds, with
+            the Doppler innovation where a detection has one (class docstring)."""
+            if self._last[0] is not self._doppler[0]:
+                dets = self._last[1]
+                dop = np.array([d.metadata.get("doppler_mps", np.nan) for d in dets], float)
+                n_pts = np.array([d.metadata.get("n_points", 1) for d in dets], float)
+                sensor = np.array([d.metadata.get("sensor_xy", (0.0, 0.0)) for d in dets],
+                                  float).T
+                los = z - sensor
+                rng = np.hypot(los[0], los[1])
+                u = los / np.where(rng > 0, rng, 1.0)
+                self._doppler = (self._last[0], dop, np.maximum(n_pts, 1.0), u,
+                                 np.isfinite(dop) & (rng > 0))
+            _, dop, n_pts, u, has = self._doppler
+            sv = np.asarray(prediction.state_vector, float).ravel()
+            pc = np.asarray(prediction.covar, float)
+            uv = u[0] * sv[1] + u[1] * sv[3]
+            pu = pc[1, 1] * u[0] ** 2 + 2 * pc[1, 3] * u[0] * u[1] + pc[3, 3] * u[1] ** 2
+            r2 = (np.nan_to_num(dop) - uv) ** 2 / (doppler_std_mps ** 2 / n_pts + pu)
+            dist = np.sqrt(np.where(has, d2 + r2, d2))
+            return dist, np.where(has, dist < gate_doppler, dist < self.missed_distance)
 
     return GatedDistanceHypothesiser(predictor, updater, measure=Mahalanobis(),
                                      missed_distance=gate)
@@ -330,7 +380,9 @@ def _parts(config: TrackerConfig) -> _Parts:
     predictor, updater = _numpy_kalman(transition, measurement_model)
     if config.association == "gnn":
         gate = float(np.sqrt(chi2.ppf(config.gate_probability, df=2)))
-        hypothesiser = _gated_hypothesiser(predictor, updater, gate)
+        gate3 = float(np.sqrt(chi2.ppf(config.gate_probability, df=3)))
+        hypothesiser = _gated_hypothesiser(predictor, updater, gate, config.doppler_std_mps,
+                                           gate3)
         associator = GNNWith2DAssignment(hypothesiser)
     else:
         hypothesiser = PDAHypothesiser(predictor, updater,
@@ -401,6 +453,10 @@ def _track_group(labelled: pd.DataFrame, frames: pd.DataFrame, config: TrackerCo
     starts = of[np.r_[0, cut]] if len(of) else []
     by_frame = dict(zip(starts, zip(np.split(labelled[["x_m", "y_m"]].to_numpy(float), cut),
                                     np.split(labelled["_label"].to_numpy(np.int64), cut))))
+    # the sensor's position per frame (the Doppler gate's line of sight; origin without it)
+    has_sensor = all(c in labelled.columns for c in SENSOR_COLUMNS)
+    sensor_of = (dict(zip(starts, labelled[list(SENSOR_COLUMNS)].to_numpy(float)[np.r_[0, cut]]))
+                 if has_sensor and len(of) else {})
     no_points = (np.empty((0, 2)), np.empty(0, np.int64))
     # per object (label): the median ego-motion-compensated radial speed of its points
     doppler = (labelled.groupby("_label")[DOPPLER_COLUMN].median()
@@ -421,9 +477,11 @@ def _track_group(labelled: pd.DataFrame, frames: pd.DataFrame, config: TrackerCo
         ulab = np.unique(plabels)
         dop = (dop_value[np.searchsorted(dop_label, ulab)] if doppler is not None
                else np.full(len(ulab), np.nan))
+        sensor = tuple(float(c) for c in sensor_of.get(frame, (0.0, 0.0)))
         order = [Detection(p.reshape(2, 1), timestamp=ts,
                            measurement_model=parts.measurement_model,
-                           metadata={"n_points": int(k), "doppler_mps": float(d)})
+                           metadata={"n_points": int(k), "doppler_mps": float(d),
+                                     "sensor_xy": sensor})
                  for p, k, d in zip(xy, counts, dop)]
         detections = set(order)
         used: set = set()
@@ -531,7 +589,10 @@ def track_points(points: pd.DataFrame, config: TrackerConfig, jobs: int = 1) -> 
             position tracker). A row with NaN ``x_m``/``y_m`` marks a frame that was observed
             without any point (tracks coast through it); frames absent from ``points`` are not
             stepped. Optional ``velocity_over_ground_mps`` (ego-motion-compensated radial speed,
-            m/s): its per-object median is carried to the track rows (``doppler_mps``).
+            m/s): its per-object median is carried to the track rows (``doppler_mps``) and,
+            with ``config.doppler_std_mps``, gates the association; optional ``sensor_x_m``,
+            ``sensor_y_m``: the sensor's position at the point's frame (m, same frame of
+            reference; the origin without them), the Doppler's line of sight.
         config: the tracker group (:class:`~blindspot.track.config.TrackerConfig`).
         jobs: worker processes over the groups (:func:`blindspot.parallel.parallel_map`; the
             result does not depend on it).
