@@ -73,8 +73,12 @@ def test_noise_alone_does_not_make_a_flank_cell_a_peak():
 
 def test_bad_input_names_what_was_expected():
     x = _beam_snapshots([[(0.0, 1.0)], [(0.0, 1.0)]])
-    with pytest.raises(DetectionError, match="centre must index the 2"):
+    with pytest.raises(DetectionError, match="centre must be an integer index of the 2"):
         angle_peaks(x, centre=2, spacing_wl=0.5)
+    with pytest.raises(DetectionError, match="centre must be an integer index"):
+        angle_peaks(x, centre=0.5, spacing_wl=0.5)
+    with pytest.raises(DetectionError, match="must be complex"):
+        angle_peaks(x.real, centre=0, spacing_wl=0.5)
     with pytest.raises(DetectionError, match="n_fft must be >= the 86 elements"):
         angle_peaks(x, centre=0, spacing_wl=0.5, n_fft=64)
     with pytest.raises(DetectionError, match="spacing_wl must be a positive"):
@@ -98,18 +102,25 @@ def chains():
     return radar, array, chain("range_doppler"), chain("range_doppler_angle")
 
 
-def test_driving_chain_keeps_a_child_beside_a_parked_car_only_with_the_angle_rule(chains):
+@pytest.mark.parametrize("order", [0, -1, -2])
+def test_driving_chain_keeps_a_child_beside_a_parked_car_only_with_the_angle_rule(chains, order):
+    """At 10 km/h and above the static world's Doppler wraps (v_max 5.4 m/s): ``order`` is the
+    ambiguity order of the car and the child, the ego's odometry the speed at which the car is
+    static; the TX slots must be compensated with the unwrapped velocity, or the car's beam
+    splits into lobes that mask the child."""
     radar, array, rd_chain, rda_chain = chains
     axis_r, axis_v = rd_chain.base.range_axis_m, rd_chain.base.velocity_axis_mps
     k0 = int(np.searchsorted(axis_r, 12.0))
     d0 = int(np.searchsorted(axis_v, 1.0))
-    car = (axis_r[k0], axis_v[d0], 20.0, 30.0)
-    child = (axis_r[k0 + 1], axis_v[d0], -10.0, 1.0)           # one range bin further, 30 dB down
+    v = axis_v[d0] + 2 * radar.max_velocity_mps * order
+    odo = 0.0 if order == 0 else -v / np.cos(np.radians(20.0))
+    car = (axis_r[k0], v, 20.0, 30.0)
+    child = (axis_r[k0 + 1], v, -10.0, 1.0)                    # one range bin further, 30 dB down
     cube = tone_cube(radar, array, [car, child], noise_power=1e-4,
                      rng=np.random.default_rng(3))[None]
     found = {}
     for name, ch in (("rd", rd_chain), ("rda", rda_chain)):
-        det = ch.process_batch(cube, np.zeros(1), np.zeros(1, np.int64)).detections
+        det = ch.process_batch(cube, np.full(1, odo), np.zeros(1, np.int64)).detections
         near = lambda ang: det[(np.abs(det.angle_deg - ang) < 1.0)  # noqa: E731
                                & (np.abs(det.range_m - axis_r[k0]) < 1.5)]
         found[name] = (len(near(car[2])), len(near(child[2])))

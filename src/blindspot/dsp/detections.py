@@ -140,9 +140,10 @@ def angle_peaks(snapshots: np.ndarray, centre: int, spacing_wl: float, n_fft: in
 
     Args:
         snapshots: (D, E, L) complex, each candidate's L neighbourhood cells on the E ULA
-            elements, TDM-compensated with the candidate's velocity (a wrong Doppler ambiguity
-            order shifts every cell's beam alike; the comparison is between cells of one
-            candidate, so it holds).
+            elements, TDM-compensated with the candidate's unwrapped velocity (with a wrong
+            Doppler ambiguity order the TX slots' leftover phase splits a strong target's beam
+            into lobes that can mask the candidate;
+            :func:`blindspot.dsp.driving.angle_peak_candidates` chooses the order first).
         centre: the index of the candidate's own cell along L.
         spacing_wl: the ULA's element spacing in wavelengths (steering phase
             ``2 pi e spacing sin(theta)`` on element e).
@@ -157,15 +158,19 @@ def angle_peaks(snapshots: np.ndarray, centre: int, spacing_wl: float, n_fft: in
         peak nearest to it.
 
     Raises:
-        DetectionError: snapshots not a 3-D complex array of finite values, ``centre`` outside
-            0..L-1, ``n_fft`` below the element count, or a spacing that is not positive.
+        DetectionError: snapshots not a 3-D complex array of finite values, ``centre`` not an
+            integer in 0..L-1, ``n_fft`` below the element count, or a spacing that is not
+            positive.
     """
     x = checked_array(snapshots, "snapshots", DetectionError, where="angle_peaks", ndim=3,
                       kind="numeric", axes="neighbourhood snapshots (D, elements, cells)")
+    if not np.iscomplexobj(x):
+        raise DetectionError(f"angle_peaks: snapshots must be complex (the array's phases); "
+                             f"found dtype {x.dtype}")
     n_el, n_l = x.shape[1:]
-    if not 0 <= int(centre) < n_l:
-        raise DetectionError(f"angle_peaks: centre must index the {n_l} neighbourhood cells "
-                             f"(0..{n_l - 1}); found {centre}")
+    if not (isinstance(centre, (int, np.integer)) and 0 <= centre < n_l):
+        raise DetectionError(f"angle_peaks: centre must be an integer index of the {n_l} "
+                             f"neighbourhood cells (0..{n_l - 1}); found {centre!r}")
     if n_fft < n_el:
         raise DetectionError(f"angle_peaks: n_fft must be >= the {n_el} elements; found {n_fft}")
     if not (np.isfinite(spacing_wl) and spacing_wl > 0):

@@ -36,6 +36,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 import pandas as pd
+import scipy.fft
 
 from blindspot.dsp.chain import DetectionChain
 from blindspot.dsp.detections import angle_peaks, rank_in_frame
@@ -51,7 +52,7 @@ from blindspot.radar.config import RadarConfig
 ORDER_GRID_DEG = np.arange(-80.0, 80.01, 0.5)   # Bartlett grid of the order choice
 # unwrap_and_angles with peak_centre: the estimator's peak must lie this close to the angle of
 # the range-Doppler-angle maximum (the Hann-tapered 86-element beam's half-power width at
-# boresight is about 1.7 deg; the MUSIC peak of the same return lies well inside it)
+# boresight is about 1.9 deg; the MUSIC peak of the same return lies well inside it)
 HINT_TOLERANCE_DEG = 2.0
 
 
@@ -113,11 +114,57 @@ def unwrap_and_angles(ula: np.ndarray, v_wrapped: np.ndarray, odometry_mps: np.n
     if peak_centre is None:
         angle = peaks[:, 0]
     else:
-        _, hint = angle_peaks(x, peak_centre, float(chain.ula_pos[1] - chain.ula_pos[0]))
+        _, hint = angle_peaks(x, peak_centre, _ula_spacing_wl(chain))
         off = np.abs(np.nan_to_num(peaks, nan=np.inf) - hint[:, None])
         near = np.argmin(off, axis=1)
         angle = np.where(off[rows, near] <= HINT_TOLERANCE_DEG, peaks[rows, near], np.nan)
     return orders[best].astype(np.int64), v, angle
+
+
+def _ula_spacing_wl(chain: DetectionChain) -> float:
+    """The chain's ULA element spacing in wavelengths."""
+    return float(chain.ula_pos[1] - chain.ula_pos[0])
+
+
+def angle_peak_candidates(ula: np.ndarray, v_wrapped: np.ndarray, odometry_mps: np.ndarray,
+                          chain: DetectionChain, v_max_mps: float, centre: int) -> np.ndarray:
+    """(D,) bool: the candidate cells that are range-Doppler-angle maxima
+    (:func:`~blindspot.dsp.detections.angle_peaks`), each TDM-compensated with its unwrapped
+    velocity.
+
+    ula: (D, E, L) snapshots of each candidate's neighbourhood on the ULA elements (its own
+    cell at index ``centre`` of L); v_wrapped, odometry_mps: (D,) m/s, as for
+    :func:`unwrap_and_angles`.
+
+    The Doppler ambiguity order is chosen by :func:`unwrap_and_angles`' rule (the order whose
+    velocity lies nearest the static world's at the angle found under it), with the angle from
+    a 256-point FFT beam of the candidate's own cell instead of the 0.5 deg Bartlett scan of
+    its whole neighbourhood (every CFAR cell is a candidate, so the scan is kept cheap). The
+    order matters: the TX slots of the ULA's elements interleave, so a wrong order leaves a
+    phase that repeats across the array and splits a strong target's beam into lobes far above
+    the taper's sidelobes, which then mask a weak target beside it.
+    """
+    from blindspot.dsp.detections import ANGLE_FFT
+
+    d = len(v_wrapped)
+    if d == 0:
+        return np.zeros(0, dtype=bool)
+    odo = np.asarray(odometry_mps, dtype=float)
+    lo = int(np.floor((-np.max(np.abs(odo)) - 2 * v_max_mps) / (2 * v_max_mps)))
+    orders = np.arange(lo, 2)
+    v_m = v_wrapped[:, None] + 2 * v_max_mps * orders[None, :]               # (D, M)
+    wl, spacing = chain.radar.wavelength_m, _ula_spacing_wl(chain)
+    own = np.repeat(ula[:, :, centre:centre + 1], len(orders), axis=0)       # (D*M, E, 1)
+    comp = compensate_tdm_velocity(own, v_m.reshape(-1), wl, chain.slot_times_s, chain.ula_tx)
+    z = scipy.fft.fft(comp[:, :, 0].astype(np.complex64), n=ANGLE_FFT, axis=-1)
+    k = np.argmax(z.real ** 2 + z.imag ** 2, axis=-1)
+    cycles = (k / ANGLE_FFT + 0.5) % 1.0 - 0.5
+    theta = np.degrees(np.arcsin(np.clip(cycles / spacing, -1.0, 1.0))).reshape(d, len(orders))
+    resid = np.abs(v_m - static_radial_velocity(theta, 1.0) * odo[:, None])
+    v = v_m[np.arange(d), np.argmin(resid, axis=1)]
+    x = compensate_tdm_velocity(ula, v, wl, chain.slot_times_s, chain.ula_tx)
+    keep, _ = angle_peaks(x, centre, spacing)
+    return keep
 
 
 DRIVING_DETECTION_COLUMNS = (
@@ -156,19 +203,17 @@ class DrivingChain:
         self.v_max = radar.max_velocity_mps
 
     def _angle_peaks(self, rd: np.ndarray, fi: np.ndarray, rb: np.ndarray, db: np.ndarray,
-                     pw: np.ndarray) -> tuple[np.ndarray, ...]:
+                     pw: np.ndarray, odo: np.ndarray) -> tuple[np.ndarray, ...]:
         """The candidates (sorted by frame, strongest first) that are range-Doppler-angle peaks
-        (:func:`~blindspot.dsp.detections.angle_peaks`): the strongest ``max_candidates`` of
-        each frame, beam-scanned with their neighbourhood cells (``detect.cell_half``) on the
-        ULA elements, TDM-compensated with the Doppler bin's velocity."""
+        (:func:`angle_peak_candidates`): the strongest ``max_candidates`` of each frame with
+        their neighbourhood cells (``detect.cell_half``) on the ULA elements; ``odo`` (F,) the
+        frames' odometry speeds."""
         ch = self.base
         cand = rank_in_frame(fi) < self.ego.max_candidates
         fi, rb, db, pw = fi[cand], rb[cand], db[cand], pw[cand]
         ula = cell_snapshots(rd, rb, db, ch.detect.cell_half, frame=fi,
                              elements=(ch.ula_tx, ch.ula_rx))          # (D, E, L), centre first
-        comp = compensate_tdm_velocity(ula, ch.velocity_axis_mps[db], self.radar.wavelength_m,
-                                       ch.slot_times_s, ch.ula_tx)
-        peak, _ = angle_peaks(comp, 0, float(ch.ula_pos[1] - ch.ula_pos[0]))
+        peak = angle_peak_candidates(ula, ch.velocity_axis_mps[db], odo[fi], ch, self.v_max, 0)
         return fi[peak], rb[peak], db[peak], pw[peak]
 
     def process_batch(self, cubes: np.ndarray, odometry_mps: np.ndarray, frames: np.ndarray,
@@ -189,7 +234,7 @@ class DrivingChain:
         order = np.lexsort((-pw, fi))                        # per frame strongest first
         fi, rb, db, pw = fi[order], rb[order], db[order], pw[order]
         if angle_rule:
-            fi, rb, db, pw = self._angle_peaks(rd, fi, rb, db, pw)
+            fi, rb, db, pw = self._angle_peaks(rd, fi, rb, db, pw, odo)
         keep = ch.doa_budget(fi)
         fi, rb, db, pw = fi[keep], rb[keep], db[keep], pw[keep]
         snr = 10 * np.log10(pw / noise[fi, rb, db])

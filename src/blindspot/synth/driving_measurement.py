@@ -64,9 +64,8 @@ import numpy as np
 import pandas as pd
 
 from blindspot.dsp.chain import DetectionChain
-from blindspot.dsp.detections import angle_peaks, local_maxima, rank_in_frame
-from blindspot.dsp.doppler_compensation import compensate_tdm_velocity
-from blindspot.dsp.driving import unwrap_and_angles
+from blindspot.dsp.detections import local_maxima, rank_in_frame
+from blindspot.dsp.driving import angle_peak_candidates, unwrap_and_angles
 from blindspot.dsp.ego_motion import odometry_speed
 from blindspot.dsp.points import group_points
 from blindspot.parallel import parallel_map
@@ -341,10 +340,8 @@ def _measure_batch_1(span: tuple[int, int, int]) -> dict[str, np.ndarray] | None
         cand = rank_in_frame(bi) < ego.max_candidates
         bi, ki, di, pw = bi[cand], ki[cand], di[cand], pw[cand]
         x, top = _near_snapshots(setup, sc, bi, ki, di, tables, rng, st["dtft"])
-        peak, _ = angle_peaks(compensate_tdm_velocity(x, chain.velocity_axis_mps[di],
-                                                      radar.wavelength_m, chain.slot_times_s,
-                                                      chain.ula_tx), _centre_cell(chain),
-                              float(chain.ula_pos[1] - chain.ula_pos[0]))
+        peak = angle_peak_candidates(x, chain.velocity_axis_mps[di], st["odo"][lo:hi][bi], chain,
+                                     vmax, _centre_cell(chain))
         bi, ki, di, pw, x, top = bi[peak], ki[peak], di[peak], pw[peak], x[peak], top[peak]
     sel = chain.doa_budget(bi)
     bi, ki, di, pw = bi[sel], ki[sel], di[sel], pw[sel]
