@@ -360,6 +360,32 @@ def test_doppler_gate_keeps_a_contradicting_detection_from_a_sliding_track(gate_
         assert out.track_id.nunique() == 1
 
 
+def test_doppler_gate_looks_from_the_sensor_position_it_is_given():
+    """The same sliding object seen by a radar 28 m to its side: its radial speeds, as that
+    radar measures them, are small; from the origin the track's velocity would predict up to
+    2 m/s. With the sensor columns the gate agrees with every detection (one track); without
+    them (the sensor at the origin) it contradicts them and the track breaks."""
+    f = np.arange(14)
+    xy = np.column_stack([np.full(f.size, 2.0), 2.5 * DT * f])
+    sensor = np.array([30.0, 6.0])
+    los = xy - sensor
+    dop = 2.5 * los[:, 1] / np.hypot(los[:, 0], los[:, 1])
+    df = frame_table(f, xy).assign(velocity_over_ground_mps=dop)
+    cfg = config(doppler_std_mps=0.3)
+    seen = track_points(df.assign(sensor_x_m=sensor[0], sensor_y_m=sensor[1]), cfg)
+    assert seen.track_id.nunique() == 1 and not seen[seen.frame > 0].coasting.any()
+    assert track_points(df, cfg).track_id.nunique() > 1
+
+
+def test_doppler_distance_keeps_the_gates_tail_probability():
+    from blindspot.track.tracker import _equivalent_2dof
+
+    x = np.r_[0.0, np.linspace(0.01, 60.0, 400)]
+    assert np.allclose(chi2.sf(_equivalent_2dof(x), 2), chi2.sf(x, 3), rtol=1e-9, atol=1e-300)
+    assert _equivalent_2dof(np.array([0.0]))[0] == 0.0
+    assert _equivalent_2dof(np.array([5000.0]))[0] == np.inf       # tail underflows: outside
+
+
 def test_doppler_gate_without_a_doppler_column_is_the_position_gate():
     df = _slider_then_crosser(-0.6).drop(columns="velocity_over_ground_mps")
     pd.testing.assert_frame_equal(track_points(df, config(doppler_std_mps=0.3)),

@@ -50,8 +50,9 @@ class TrackerConfig(TypedConfig):
         doppler_std_mps: the spread of one point's ego-motion-compensated radial speed (m/s);
             set, the GNN gate and assignment cost take each object's median radial speed
             against the one the track's predicted velocity gives along the line of sight (a
-            third, Doppler dimension of the Mahalanobis distance), where the points carry
-            ``velocity_over_ground_mps``; null gates on position alone.
+            third, Doppler dimension of the Mahalanobis distance, gated at the tail probability
+            of ``gate_probability``), where the points carry ``velocity_over_ground_mps``; null
+            gates on position alone.
     """
 
     GROUP = "tracker"

@@ -234,8 +234,20 @@ def _numpy_kalman(transition_model, measurement_model):
             NumpyKalmanUpdater(measurement_model, force_symmetric_covariance=True))
 
 
-def _gated_hypothesiser(predictor, updater, gate: float, doppler_std_mps: float | None = None,
-                        gate_doppler: float | None = None):
+def _equivalent_2dof(d2: np.ndarray) -> np.ndarray:
+    """The chi-square (2 dof) value with the tail probability that ``d2`` has under 3 dof:
+    ``-2 ln(sf_3(x))`` with ``sf_3(x) = erfc(sqrt(x / 2)) + sqrt(2 x / pi) exp(-x / 2)``
+    (closed forms of both tails; Abramowitz & Stegun 26.4.4-26.4.5). (...) -> (...), inf
+    where the 3-dof tail underflows."""
+    from scipy.special import erfc
+
+    x = np.asarray(d2, dtype=float)
+    sf = erfc(np.sqrt(x / 2)) + np.sqrt(2 * x / np.pi) * np.exp(-x / 2)
+    with np.errstate(divide="ignore"):
+        return -2.0 * np.log(np.minimum(sf, 1.0))
+
+
+def _gated_hypothesiser(predictor, updater, gate: float, doppler_std_mps: float | None = None):
     """Stone Soup's ``DistanceHypothesiser`` with the ``Mahalanobis`` measure, gating every
     detection of a frame in one numpy expression: d^2 = v^T S^-1 v for the innovations v of all
     detections against the track's one measurement prediction (every detection shares the
@@ -248,15 +260,19 @@ def _gated_hypothesiser(predictor, updater, gate: float, doppler_std_mps: float 
     the sensor to the detection predicts u.v with variance u^T P_v u, the measurement's own
     variance is doppler_std^2 / n, and
 
-        d^2 = v^T S^-1 v + (doppler - u.v)^2 / (doppler_std^2 / n + u^T P_v u),
+        d3^2 = v^T S^-1 v + (doppler - u.v)^2 / (doppler_std^2 / n + u^T P_v u),
 
-    gated at ``gate_doppler`` (the chi-square quantile of 3 degrees of freedom; the position
-    and Doppler innovations are taken as independent, which drops their cross-covariance
-    through the predicted state). A range-rate gate in the manner of Blackman & Popoli 1999
-    (sec. 6.2): a clutter track on a parked car's face, sliding at the ego's speed, predicts a
-    radial speed that a crossing child's Doppler contradicts, so it cannot take the child's
-    detection; nor can it keep its own static points. Detections without a Doppler value gate
-    on position alone."""
+    a chi-square variable of 3 degrees of freedom (the position and Doppler innovations taken
+    as independent, which drops their cross-covariance through the predicted state; the median
+    of n points taken as their mean, so ``doppler_std`` is an empirical spread, as in the
+    moving test of blindspot.safety.predict). It is mapped to the 2-dof distance of the same
+    tail probability, ``chi2_2.isf(chi2_3.sf(d3^2))`` (:func:`_equivalent_2dof`), so the gate
+    and the missed-detection cost keep their 2-dof ``gate_probability`` meaning and a
+    detection with a Doppler value competes on the same scale as one without. A range-rate
+    gate in the manner of Blackman & Popoli 1999 (sec. 6.2): a clutter track on a parked
+    car's face, sliding at the ego's speed, predicts a radial speed that a crossing child's
+    Doppler contradicts, so it cannot take the child's detection; nor can it keep its own
+    static points. Detections without a Doppler value gate on position alone."""
     from stonesoup.hypothesiser.distance import DistanceHypothesiser
     from stonesoup.measures import Mahalanobis
     from stonesoup.types.detection import MissedDetection
@@ -317,8 +333,8 @@ def _gated_hypothesiser(predictor, updater, gate: float, doppler_std_mps: float 
             uv = u[0] * sv[1] + u[1] * sv[3]
             pu = pc[1, 1] * u[0] ** 2 + 2 * pc[1, 3] * u[0] * u[1] + pc[3, 3] * u[1] ** 2
             r2 = (np.nan_to_num(dop) - uv) ** 2 / (doppler_std_mps ** 2 / n_pts + pu)
-            dist = np.sqrt(np.where(has, d2 + r2, d2))
-            return dist, np.where(has, dist < gate_doppler, dist < self.missed_distance)
+            dist = np.sqrt(np.where(has, _equivalent_2dof(d2 + np.where(has, r2, 0.0)), d2))
+            return dist, dist < self.missed_distance
 
     return GatedDistanceHypothesiser(predictor, updater, measure=Mahalanobis(),
                                      missed_distance=gate)
@@ -380,9 +396,7 @@ def _parts(config: TrackerConfig) -> _Parts:
     predictor, updater = _numpy_kalman(transition, measurement_model)
     if config.association == "gnn":
         gate = float(np.sqrt(chi2.ppf(config.gate_probability, df=2)))
-        gate3 = float(np.sqrt(chi2.ppf(config.gate_probability, df=3)))
-        hypothesiser = _gated_hypothesiser(predictor, updater, gate, config.doppler_std_mps,
-                                           gate3)
+        hypothesiser = _gated_hypothesiser(predictor, updater, gate, config.doppler_std_mps)
         associator = GNNWith2DAssignment(hypothesiser)
     else:
         hypothesiser = PDAHypothesiser(predictor, updater,
