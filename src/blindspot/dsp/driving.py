@@ -81,30 +81,14 @@ def unwrap_and_angles(ula: np.ndarray, v_wrapped: np.ndarray, odometry_mps: np.n
 
     Returns (order (D,) int64, velocity (D,) m/s, angle (D,) deg, NaN without a peak).
     """
-    from blindspot.dsp.doa import steering_matrix
-
     d = len(v_wrapped)
-    odo = np.asarray(odometry_mps, dtype=float)
     if d == 0:
         return np.zeros(0, np.int64), np.zeros(0), np.zeros(0)
-    lo = int(np.floor((-np.max(np.abs(odo)) - 2 * v_max_mps) / (2 * v_max_mps)))
-    orders = np.arange(lo, 2)
-    v_m = v_wrapped[:, None] + 2 * v_max_mps * orders[None, :]               # (D, M)
-    wl = chain.radar.wavelength_m
-    comp = compensate_tdm_velocity(np.repeat(ula, len(orders), axis=0), v_m.reshape(-1), wl,
-                                   chain.slot_times_s, chain.ula_tx)          # (D*M, E, L)
-    a = steering_matrix(chain.ula_pos, ORDER_GRID_DEG).conj().T.astype(np.complex64)  # (G, E)
-    # one (G, E) x (E, D*M*L) GEMM (a stacked matmul over D*M would take numpy's slow loop)
-    n_e, n_l = comp.shape[1], comp.shape[2]
-    flat = np.ascontiguousarray(comp.astype(np.complex64).transpose(1, 0, 2)).reshape(n_e, -1)
-    z = (a @ flat).reshape(len(ORDER_GRID_DEG), -1, n_l)                     # (G, D*M, L)
-    beam = (z.real ** 2 + z.imag ** 2).sum(-1)                               # (G, D*M)
-    theta = ORDER_GRID_DEG[np.argmax(beam, axis=0)].reshape(d, len(orders))
-    resid = np.abs(v_m - static_radial_velocity(theta, 1.0) * odo[:, None])
-    best = np.argmin(resid, axis=1)
+    order, v = _choose_order(ula, v_wrapped, odometry_mps, chain, v_max_mps,
+                             lambda comp: _bartlett_angles(comp, chain))
     rows = np.arange(d)
-    v = v_m[rows, best]
-    x = compensate_tdm_velocity(ula, v, wl, chain.slot_times_s, chain.ula_tx)
+    x = compensate_tdm_velocity(ula, v, chain.radar.wavelength_m, chain.slot_times_s,
+                                chain.ula_tx)
     o = chain.doa
     n_targets = 1 if peak_centre is None else max(o.n_signals, 1)
     peaks = doa_angles(x, chain.ula_pos, n_targets, o.n_signals, chain.grid_deg, method=o.method,
@@ -114,16 +98,57 @@ def unwrap_and_angles(ula: np.ndarray, v_wrapped: np.ndarray, odometry_mps: np.n
     if peak_centre is None:
         angle = peaks[:, 0]
     else:
-        _, hint = angle_peaks(x, peak_centre, _ula_spacing_wl(chain))
+        _, hint = angle_peaks(x, peak_centre, chain.array.spacing_wl)
         off = np.abs(np.nan_to_num(peaks, nan=np.inf) - hint[:, None])
         near = np.argmin(off, axis=1)
         angle = np.where(off[rows, near] <= HINT_TOLERANCE_DEG, peaks[rows, near], np.nan)
-    return orders[best].astype(np.int64), v, angle
+    return order, v, angle
 
 
-def _ula_spacing_wl(chain: DetectionChain) -> float:
-    """The chain's ULA element spacing in wavelengths."""
-    return float(chain.ula_pos[1] - chain.ula_pos[0])
+def _choose_order(ula: np.ndarray, v_wrapped: np.ndarray, odometry_mps: np.ndarray,
+                  chain: DetectionChain, v_max_mps: float, scan) -> tuple[np.ndarray, np.ndarray]:
+    """The Doppler ambiguity order of each detection and its unwrapped velocity, (D,) int64 and
+    (D,) m/s: for every order m that can reach the static world, the snapshots ``ula`` (D, E, L)
+    are TDM-compensated with ``v_m = v_wrapped + 2 m v_max`` and ``scan`` maps them,
+    (D*M, E, L), to angles (D*M,) deg; the order kept minimises ``|v_m + v_odo cos(theta_m)|``
+    (module docstring, step 3)."""
+    d = len(v_wrapped)
+    odo = np.asarray(odometry_mps, dtype=float)
+    lo = int(np.floor((-np.max(np.abs(odo)) - 2 * v_max_mps) / (2 * v_max_mps)))
+    orders = np.arange(lo, 2)
+    v_m = v_wrapped[:, None] + 2 * v_max_mps * orders[None, :]               # (D, M)
+    comp = compensate_tdm_velocity(np.repeat(ula, len(orders), axis=0), v_m.reshape(-1),
+                                   chain.radar.wavelength_m, chain.slot_times_s,
+                                   chain.ula_tx)                              # (D*M, E, L)
+    theta = scan(comp).reshape(d, len(orders))
+    resid = np.abs(v_m - static_radial_velocity(theta, 1.0) * odo[:, None])
+    best = np.argmin(resid, axis=1)
+    return orders[best].astype(np.int64), v_m[np.arange(d), best]
+
+
+def _bartlett_angles(comp: np.ndarray, chain: DetectionChain) -> np.ndarray:
+    """(K,) deg: the Bartlett beam's peak on ``ORDER_GRID_DEG`` of snapshots (K, E, L), summed
+    over the L cells."""
+    from blindspot.dsp.doa import steering_matrix
+
+    a = steering_matrix(chain.ula_pos, ORDER_GRID_DEG).conj().T.astype(np.complex64)  # (G, E)
+    # one (G, E) x (E, K*L) GEMM (a stacked matmul over K would take numpy's slow loop)
+    n_e, n_l = comp.shape[1], comp.shape[2]
+    flat = np.ascontiguousarray(comp.astype(np.complex64).transpose(1, 0, 2)).reshape(n_e, -1)
+    z = (a @ flat).reshape(len(ORDER_GRID_DEG), -1, n_l)                     # (G, K, L)
+    beam = (z.real ** 2 + z.imag ** 2).sum(-1)                               # (G, K)
+    return ORDER_GRID_DEG[np.argmax(beam, axis=0)]
+
+
+def _fft_angles(comp: np.ndarray, spacing_wl: float) -> np.ndarray:
+    """(K,) deg: the peak of a 256-point FFT beam of the first cell of snapshots (K, E, L) on a
+    uniform linear array of element spacing ``spacing_wl`` wavelengths."""
+    from blindspot.dsp.detections import ANGLE_FFT
+
+    z = scipy.fft.fft(comp[:, :, 0].astype(np.complex64), n=ANGLE_FFT, axis=-1)
+    k = np.argmax(z.real ** 2 + z.imag ** 2, axis=-1)
+    cycles = (k / ANGLE_FFT + 0.5) % 1.0 - 0.5
+    return np.degrees(np.arcsin(np.clip(cycles / spacing_wl, -1.0, 1.0)))
 
 
 def angle_peak_candidates(ula: np.ndarray, v_wrapped: np.ndarray, odometry_mps: np.ndarray,
@@ -144,25 +169,13 @@ def angle_peak_candidates(ula: np.ndarray, v_wrapped: np.ndarray, odometry_mps: 
     phase that repeats across the array and splits a strong target's beam into lobes far above
     the taper's sidelobes, which then mask a weak target beside it.
     """
-    from blindspot.dsp.detections import ANGLE_FFT
-
-    d = len(v_wrapped)
-    if d == 0:
+    if len(v_wrapped) == 0:
         return np.zeros(0, dtype=bool)
-    odo = np.asarray(odometry_mps, dtype=float)
-    lo = int(np.floor((-np.max(np.abs(odo)) - 2 * v_max_mps) / (2 * v_max_mps)))
-    orders = np.arange(lo, 2)
-    v_m = v_wrapped[:, None] + 2 * v_max_mps * orders[None, :]               # (D, M)
-    wl, spacing = chain.radar.wavelength_m, _ula_spacing_wl(chain)
-    own = np.repeat(ula[:, :, centre:centre + 1], len(orders), axis=0)       # (D*M, E, 1)
-    comp = compensate_tdm_velocity(own, v_m.reshape(-1), wl, chain.slot_times_s, chain.ula_tx)
-    z = scipy.fft.fft(comp[:, :, 0].astype(np.complex64), n=ANGLE_FFT, axis=-1)
-    k = np.argmax(z.real ** 2 + z.imag ** 2, axis=-1)
-    cycles = (k / ANGLE_FFT + 0.5) % 1.0 - 0.5
-    theta = np.degrees(np.arcsin(np.clip(cycles / spacing, -1.0, 1.0))).reshape(d, len(orders))
-    resid = np.abs(v_m - static_radial_velocity(theta, 1.0) * odo[:, None])
-    v = v_m[np.arange(d), np.argmin(resid, axis=1)]
-    x = compensate_tdm_velocity(ula, v, wl, chain.slot_times_s, chain.ula_tx)
+    spacing = chain.array.spacing_wl
+    _, v = _choose_order(ula[:, :, centre:centre + 1], v_wrapped, odometry_mps, chain, v_max_mps,
+                         lambda comp: _fft_angles(comp, spacing))
+    x = compensate_tdm_velocity(ula, v, chain.radar.wavelength_m, chain.slot_times_s,
+                                chain.ula_tx)
     keep, _ = angle_peaks(x, centre, spacing)
     return keep
 

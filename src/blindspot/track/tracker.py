@@ -280,61 +280,61 @@ def _gated_hypothesiser(predictor, updater, gate: float, doppler_std_mps: float 
     from stonesoup.types.multihypothesis import MultipleHypothesis
 
     class GatedDistanceHypothesiser(DistanceHypothesiser):
-        _last: tuple = (None, [], None)      # (detections, their list, (2, n) positions)
-        _doppler: tuple = (None,)            # (detections, Doppler, n points, u, has Doppler)
+        # (detections, their list, (2, n) positions, their Doppler terms or None)
+        _last: tuple = (None, [], None, None)
 
         def _stacked(self, detections):
-            """The detections as a list and their (2, n) positions, built once per set: the
-            associator passes one set object to every track of a frame's stage, so the
-            stacking (a quarter of the gating's time) is not redone per track. The set is
-            held, so its id cannot be reused while cached."""
+            """The detections as a list, their (2, n) positions and, with the Doppler gate,
+            their Doppler terms (:meth:`_doppler_terms`), built once per set: the associator
+            passes one set object to every track of a frame's stage, so the stacking (a quarter
+            of the gating's time) is not redone per track. The set is held, so its id cannot be
+            reused while cached."""
             if self._last[0] is not detections:
                 dets = list(detections)
                 z = np.hstack([np.asarray(d.state_vector, float) for d in dets])
-                self._last = (detections, dets, z)
-            return self._last[1], self._last[2]
+                terms = None if doppler_std_mps is None else self._doppler_terms(dets, z)
+                self._last = (detections, dets, z, terms)
+            return self._last[1:]
+
+        @staticmethod
+        def _doppler_terms(dets, z):
+            """(median radial speed (n,), point count (n,) >= 1, unit line of sight (2, n) from
+            the sensor, has a Doppler value (n,)) of the detections ``dets`` at positions z."""
+            dop = np.array([d.metadata.get("doppler_mps", np.nan) for d in dets], float)
+            n_pts = np.array([d.metadata.get("n_points", 1) for d in dets], float)
+            sensor = np.array([d.metadata.get("sensor_xy", (0.0, 0.0)) for d in dets], float).T
+            los = z - sensor
+            rng = np.hypot(los[0], los[1])
+            u = los / np.where(rng > 0, rng, 1.0)
+            return dop, np.maximum(n_pts, 1.0), u, np.isfinite(dop) & (rng > 0)
 
         def hypothesise(self, track, detections, timestamp, **kwargs):
             prediction = self.predictor.predict(track, timestamp=timestamp)
             hypotheses = [SingleDistanceHypothesis(
                 prediction, MissedDetection(timestamp=timestamp), self.missed_distance)]
             if detections:
-                dets, z = self._stacked(detections)
+                dets, z, terms = self._stacked(detections)
                 mp = self.updater.predict_measurement(prediction, dets[0].measurement_model)
                 v = z - np.asarray(mp.state_vector, float)
                 w = np.linalg.solve(np.asarray(mp.covar, float), v)
                 d2 = np.einsum("ij,ij->j", v, w)
-                if doppler_std_mps is None:
-                    dist, inside = np.sqrt(d2), np.sqrt(d2) < self.missed_distance
-                else:
-                    dist, inside = self._with_doppler(prediction, z, d2)
-                for j in np.flatnonzero(inside):
+                dist = np.sqrt(d2 if terms is None else self._with_doppler(prediction, d2, terms))
+                for j in np.flatnonzero(dist < self.missed_distance):
                     hypotheses.append(SingleDistanceHypothesis(prediction, dets[j],
                                                                float(dist[j]), mp))
             return MultipleHypothesis(sorted(hypotheses, reverse=True))
 
-        def _with_doppler(self, prediction, z, d2):
-            """(distance, inside the gate) (n,) of the detections ``self._last`` holds, with
-            the Doppler innovation where a detection has one (class docstring)."""
-            if self._last[0] is not self._doppler[0]:
-                dets = self._last[1]
-                dop = np.array([d.metadata.get("doppler_mps", np.nan) for d in dets], float)
-                n_pts = np.array([d.metadata.get("n_points", 1) for d in dets], float)
-                sensor = np.array([d.metadata.get("sensor_xy", (0.0, 0.0)) for d in dets],
-                                  float).T
-                los = z - sensor
-                rng = np.hypot(los[0], los[1])
-                u = los / np.where(rng > 0, rng, 1.0)
-                self._doppler = (self._last[0], dop, np.maximum(n_pts, 1.0), u,
-                                 np.isfinite(dop) & (rng > 0))
-            _, dop, n_pts, u, has = self._doppler
+        @staticmethod
+        def _with_doppler(prediction, d2, terms):
+            """(n,) squared distances on the 2-dof scale with the Doppler innovation where a
+            detection has one (class docstring); ``terms`` from :meth:`_doppler_terms`."""
+            dop, n_pts, u, has = terms
             sv = np.asarray(prediction.state_vector, float).ravel()
             pc = np.asarray(prediction.covar, float)
             uv = u[0] * sv[1] + u[1] * sv[3]
             pu = pc[1, 1] * u[0] ** 2 + 2 * pc[1, 3] * u[0] * u[1] + pc[3, 3] * u[1] ** 2
             r2 = (np.nan_to_num(dop) - uv) ** 2 / (doppler_std_mps ** 2 / n_pts + pu)
-            dist = np.sqrt(np.where(has, _equivalent_2dof(d2 + np.where(has, r2, 0.0)), d2))
-            return dist, dist < self.missed_distance
+            return np.where(has, _equivalent_2dof(d2 + np.where(has, r2, 0.0)), d2)
 
     return GatedDistanceHypothesiser(predictor, updater, measure=Mahalanobis(),
                                      missed_distance=gate)
