@@ -22,7 +22,9 @@ Candidates, each a per-row score from what the car has at that frame (no truth):
   gridmap representations", IEEE ICMIM): every radar point the ego-motion Doppler test calls
   static (points.parquet ``static``) is accumulated in the world frame in cells of
   ``--cell`` m; a track row's score is the number of static points of frames f - ``lag`` and
-  earlier within the 3 x 3 cells around its position. A row whose score reaches k is clutter.
+  earlier within the 3 x 3 cells around its position, a coasting row taking its track's last
+  measured row's score (:func:`blindspot.safety.predict.last_hit_rows`, as the stage). A row
+  whose score reaches k is clutter.
 - ``displacement``: the track's net displacement over its last ``--window`` rows over the path
   its filtered velocity integrates over them (a cluster sliding on a car face moves much less
   than its velocity says); a row below r is clutter.
@@ -58,7 +60,8 @@ from blindspot.io import write_json  # noqa: E402
 from blindspot.safety.assess import frame_risks  # noqa: E402
 from blindspot.safety.evaluation import (aeb_gate_s, replicate_half,  # noqa: E402
                                          scene_results, summarise)
-from blindspot.safety.predict import moving_tracks, static_evidence  # noqa: E402
+from blindspot.safety.predict import (last_hit_rows, moving_frames, moving_tracks,  # noqa: E402
+                                      static_evidence)
 
 
 def displacement_ratio(tracks: pd.DataFrame, window: int) -> np.ndarray:
@@ -88,20 +91,12 @@ def persistence(tracks: pd.DataFrame, ego: pd.DataFrame, w, window: int) -> np.n
     Doppler log-likelihood ratio above its bound); an M-of-N confirmation of the moving class
     (Blackman & Popoli 1999, sec. 6.2, as for track confirmation). tracks sorted by group,
     track_id, frame."""
-    from scipy.stats import chi2
-    from blindspot.safety.predict import doppler_log_ratio
-    vx, vy = tracks.vx_mps.to_numpy(float), tracks.vy_mps.to_numpy(float)
-    a, b, c = (tracks[k].to_numpy(float) for k in ("cov_vxvx", "cov_vxvy", "cov_vyvy"))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        d2 = (c * vx**2 - 2 * b * vx * vy + a * vy**2) / (a * c - b**2)
-    inst = (np.hypot(vx, vy) > w.moving_speed_mps) & (d2 > chi2.ppf(w.moving_probability, 2))
-    inst &= tracks.confirmed.to_numpy(bool)
-    e = tracks[["group", "frame"]].merge(ego, on=["group", "frame"], how="left")
-    llr = doppler_log_ratio(tracks, e[["ego_x_m", "ego_y_m"]].to_numpy(float),
-                            w.moving_doppler_std_mps)
+    inst = moving_frames(tracks, w.moving_speed_mps, w.moving_probability, ego=ego,
+                         doppler_std_mps=w.moving_doppler_std_mps,
+                         doppler_log_ratio_min=w.moving_doppler_log_ratio_min,
+                         doppler_llr=w.moving_doppler_llr,
+                         doppler_log_ratio_floor=w.moving_doppler_log_ratio_floor)
     key = (tracks.group + "\x00" + tracks.track_id.astype(str)).to_numpy()
-    inst &= pd.Series(llr).groupby(key, sort=False).cumsum().to_numpy() \
-        > w.moving_doppler_log_ratio_min
     roll = pd.Series(inst.astype(float)).groupby(key, sort=False).rolling(
         window, min_periods=1).sum().to_numpy()
     return pd.Series(roll).groupby(key, sort=False).cummax().to_numpy()
@@ -127,8 +122,9 @@ def main(argv: list[str]) -> None:
     ego = (truth_all.groupby(["scene", "frame"], as_index=False)[["ego_x_m", "ego_y_m"]]
            .first().rename(columns={"scene": "group"}))
     scores: dict[str, tuple[np.ndarray, np.ndarray, str]] = {}
+    held = last_hit_rows(tracks)       # a coasting row reads its last measured row, as the stage
     for lag in (int(v) for v in args.lags.split(",")):
-        ev = static_evidence(tracks, points, cell_m=args.cell, lag_frames=lag)
+        ev = static_evidence(tracks, points, cell_m=args.cell, lag_frames=lag)[held]
         scores[f"static_evidence cell {args.cell:g} m lag {lag}"] = (
             ev, np.array([1, 2, 3, 5, 8, 12, 20, 30, 50, 80, 120]), "ge")
     scores[f"moving test M of {args.window} rows"] = (
@@ -149,7 +145,9 @@ def main(argv: list[str]) -> None:
     moving = tracks.moving.to_numpy(bool)
     without_grid = moving_tracks(tracks, w.moving_speed_mps, w.moving_probability, ego=ego,
                                  doppler_std_mps=w.moving_doppler_std_mps,
-                                 doppler_log_ratio_min=w.moving_doppler_log_ratio_min)
+                                 doppler_log_ratio_min=w.moving_doppler_log_ratio_min,
+                                 doppler_llr=w.moving_doppler_llr,
+                                 doppler_log_ratio_floor=w.moving_doppler_log_ratio_floor)
     if not np.array_equal(moving, without_grid):
         raise SystemExit(f"{args.data / 'driving/tracks.parquet'}: its moving flag is not the "
                          "moving test without the static-evidence grid (was driving_track run "
@@ -159,7 +157,7 @@ def main(argv: list[str]) -> None:
     import time
     t0 = time.process_time()
     conf_ev = static_evidence(tracks, points, cell_m=w.moving_static_cell_m,
-                              lag_frames=w.moving_static_lag_frames) \
+                              lag_frames=w.moving_static_lag_frames)[held] \
         if w.moving_static_evidence_min > 0 else np.zeros(len(tracks), int)
     cpu = time.process_time() - t0
     n_frames = tracks[["group", "frame"]].drop_duplicates().shape[0]

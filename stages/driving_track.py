@@ -72,6 +72,8 @@ def run(cfg, ctx):
     tracks["moving"] = moving_tracks(tracks, w.moving_speed_mps, w.moving_probability, ego=ego,
                                      doppler_std_mps=w.moving_doppler_std_mps,
                                      doppler_log_ratio_min=w.moving_doppler_log_ratio_min,
+                                     doppler_llr=w.moving_doppler_llr,
+                                     doppler_log_ratio_floor=w.moving_doppler_log_ratio_floor,
                                      points=every[["scene", "frame", "x_m", "y_m", "static"]],
                                      static_evidence_min=w.moving_static_evidence_min,
                                      static_cell_m=w.moving_static_cell_m,

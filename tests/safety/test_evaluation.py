@@ -93,6 +93,10 @@ def test_warning_config_errors_name_the_key():
         WarningConfig.from_mapping({**base, "aeb": {**base["aeb"], "decel_mps2": -1.0}})
     with pytest.raises(ConfigError, match="warning.predictors"):
         WarningConfig.from_mapping({**base, "predictors": ["oracle"]})
+    with pytest.raises(ConfigError, match="warning.moving_doppler_log_ratio_floor"):
+        WarningConfig.from_mapping({**base, "moving_doppler_log_ratio_floor": -1.0})
+    with pytest.raises(ConfigError, match="warning.moving_doppler_llr"):
+        WarningConfig.from_mapping({**base, "moving_doppler_llr": "exact"})
 
 
 def test_a_skipped_frame_inside_a_history_is_interpolated_from_its_past_neighbours():

@@ -4,6 +4,8 @@ warning assesses: from a track's first confirmed frame above the speed on, causa
 import numpy as np
 import pandas as pd
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from blindspot.safety.predict import moving_tracks
 
@@ -127,7 +129,7 @@ def _face_and_tracks():
                           "vx_mps": -1.4, "vy_mps": 0.0})
     own = pd.DataFrame({"scene": "s0", "frame": f, "x_m": x, "y_m": 5.25, "static": True})
     tracks = pd.concat([slide, child], ignore_index=True).assign(
-        cov_vxvx=0.01, cov_vxvy=0.0, cov_vyvy=0.01, confirmed=True)
+        cov_vxvx=0.01, cov_vxvy=0.0, cov_vyvy=0.01, confirmed=True, n_points=3)
     return tracks, pd.concat([face, own], ignore_index=True), x
 
 
@@ -143,3 +145,117 @@ def test_static_evidence_removes_a_cluster_sliding_along_a_parked_car():
     assert np.flatnonzero(child)[0] <= 8 + 3                # within 11 frames of stepping out
     # off (0) is the stage's test without the grid
     assert moving_tracks(tracks, 0.5, points=points, static_evidence_min=0).all()
+
+
+def test_static_evidence_is_read_at_the_last_hit_of_a_coasting_track():
+    # the sliding cluster loses its points at frame 20 on the car's face and coasts at its
+    # filtered velocity, turned into the lane (-1.4 m/s in x, 1.4 m/s in y): its extrapolated
+    # position leaves the car's static hits, but nothing the radar saw did
+    tracks, points, x = _face_and_tracks()
+    slide = tracks.track_id.to_numpy() == 1
+    coast = slide & (tracks.frame.to_numpy() >= 20)
+    f = tracks.frame.to_numpy() - 20
+    tracks.loc[coast, "x_m"] = 2.0 - 1.4 * 0.1 * f[coast]
+    tracks.loc[coast, "vx_mps"] = -1.4
+    tracks.loc[coast, "n_points"] = 0
+    kw = dict(points=points, static_evidence_min=1, static_cell_m=0.5, static_lag_frames=10)
+    m = moving_tracks(tracks, 0.5, **kw)
+    assert not m[slide & (tracks.frame.to_numpy() >= 10)].any()    # the car's hits are old
+    # read at the extrapolated position (every row measured) the coasting rows pass
+    assert m[~slide].any() and moving_tracks(tracks.assign(n_points=3), 0.5, **kw)[coast].any()
+    # a child who coasts once clear of the car (x < 1 m at its last hit) stays moving
+    child = ~slide
+    gone = child & (tracks.frame.to_numpy() >= 15)
+    m2 = moving_tracks(tracks.assign(n_points=np.where(gone, 0, 3)), 0.5, **kw)
+    np.testing.assert_array_equal(m2[gone], m[gone])
+    assert m2[gone].all()
+
+
+def test_last_hit_rows():
+    from blindspot.safety.predict import last_hit_rows
+
+    t = pd.DataFrame({"group": ["a"] * 5 + ["b"] * 3, "track_id": [1] * 5 + [1] * 3,
+                      "frame": [0, 1, 2, 3, 4, 0, 1, 2], "n_points": [0, 2, 0, 0, 1, 1, 0, 3]})
+    # row 0 has no hit before it: itself; rows 2, 3 hold row 1; group b is its own track
+    np.testing.assert_array_equal(last_hit_rows(t), [0, 1, 1, 1, 4, 5, 5, 7])
+    perm = np.random.default_rng(1).permutation(len(t))
+    inverse = np.argsort(perm)
+    np.testing.assert_array_equal(last_hit_rows(t.iloc[perm]),
+                                  inverse[last_hit_rows(t)[perm]])
+    with pytest.raises(ValueError, match="n_points"):
+        last_hit_rows(t.drop(columns="n_points"))
+
+
+def test_marginal_doppler_ratio_is_the_bayes_factor_and_refutes_an_uncertain_young_track():
+    from scipy.stats import norm
+
+    from blindspot.safety.predict import doppler_log_ratio
+
+    # u = +y; a young track of 10 points on a parked car: filtered velocity (1.9, 0.6) m/s,
+    # fast and significant for the kinematic test (d2 = 9.9 > 9.21), 0.6 m/s of it radial, with
+    # variance 0.4 (m/s)^2 per axis; its Doppler says 0
+    t = _doppler_track(1.9, 0.6, 0.0, x=0.0, n=10).assign(cov_vxvx=0.4, cov_vyvy=0.4)
+    s0, s1 = 0.09 / 10, 0.09 / 10 + 0.4
+    want = norm.logpdf(0.0, 0.6, np.sqrt(s1)) - norm.logpdf(0.0, 0.0, np.sqrt(s0))
+    llr = doppler_log_ratio(t, np.zeros((8, 2)), 0.3, "marginal")
+    np.testing.assert_allclose(llr, want)
+    assert (llr < np.log(0.1)).all()
+    # the common-variance form gives -0.44 per frame: the first frame passes and latches; the
+    # marginal form (-2.35 per frame, an Occam term -1.9 of it) refutes from the first
+    kw = dict(ego=_ego(), doppler_std_mps=0.3, doppler_log_ratio_min=np.log(0.1))
+    assert moving_tracks(t, 0.5, **kw).all()
+    assert not moving_tracks(t, 0.5, doppler_llr="marginal", **kw).any()
+    # a confident velocity (P_v -> 0): the two forms are the same test
+    sure = _doppler_track(0.0, 1.0, 0.4, x=0.0).assign(cov_vxvx=0.0, cov_vyvy=0.0)
+    np.testing.assert_allclose(doppler_log_ratio(sure, np.zeros((8, 2)), 0.3, "marginal"),
+                               doppler_log_ratio(sure, np.zeros((8, 2)), 0.3))
+    coasting = t.assign(n_points=0, doppler_mps=np.nan)
+    assert (doppler_log_ratio(coasting, np.zeros((8, 2)), 0.3, "marginal") == 0).all()
+    with pytest.raises(ValueError, match="form"):
+        doppler_log_ratio(t, np.zeros((8, 2)), 0.3, "exact")
+
+
+def test_floor_lets_a_clutter_track_that_captures_a_child_be_classed_moving():
+    # 8 frames of a cluster sliding along a parked car (u.v = 0.96 m/s predicted, Doppler 0:
+    # "static" by 16.4 per frame, the sum at -131), then the track takes the detections of a
+    # child walking at the same velocity with the matching Doppler (+16.4 per frame) for 6
+    t = pd.concat([_doppler_track(0.0, 1.0, 0.0),
+                   _doppler_track(0.0, 1.0, 10 / np.sqrt(109)).iloc[:6]],
+                  ignore_index=True).assign(frame=np.arange(14))
+    ego = pd.DataFrame({"group": "s0", "frame": np.arange(14), "ego_x_m": 0.0, "ego_y_m": 0.0})
+    kw = dict(ego=ego, doppler_std_mps=0.3, doppler_log_ratio_min=np.log(0.1))
+    assert not moving_tracks(t, 0.5, **kw).any()            # the clutter's sum is never repaid
+    m = moving_tracks(t, 0.5, doppler_log_ratio_floor=np.log(0.01), **kw)
+    assert not m[:8].any() and m[8:].all()                   # from the child's first frame
+    with pytest.raises(ValueError, match="doppler_log_ratio_floor"):
+        moving_tracks(t, 0.5, doppler_log_ratio_floor=-1.0, **kw)
+
+
+@settings(max_examples=50, deadline=None)
+@given(llr=st.lists(st.floats(-20.0, 20.0), min_size=1, max_size=30),
+       floor=st.floats(-30.0, -2.4))
+def test_floored_sum_is_the_reflected_recursion(llr, floor):
+    # the closed form against max(floor, S + llr) frame by frame, S_0 = 0, through the bound
+    # test of a fast, sure track whose per-frame ratio is set by its Doppler
+    from blindspot.safety.predict import doppler_log_ratio, moving_frames
+
+    n = len(llr)
+    # u = +y, v = (0, 1): llr = (d^2 - (d - 1)^2) / (2 s^2) = (2d - 1) / (2 s^2)
+    s2 = 0.09 / 5 + 1e-4
+    d = (np.asarray(llr) * 2 * s2 + 1) / 2
+    t = pd.DataFrame({"group": "s0", "track_id": 1, "frame": np.arange(n), "x_m": 0.0,
+                      "y_m": 10.0, "vx_mps": 0.0, "vy_mps": 1.0, "cov_vxvx": 1e-4,
+                      "cov_vxvy": 0.0, "cov_vyvy": 1e-4, "confirmed": True, "n_points": 5,
+                      "doppler_mps": d})
+    got = doppler_log_ratio(t, np.zeros((n, 2)), 0.3)
+    np.testing.assert_allclose(got, llr, atol=1e-6, rtol=1e-3)
+    ref, acc = [], 0.0
+    for x in got:
+        acc = max(floor, acc + x)
+        ref.append(acc)
+    ego = pd.DataFrame({"group": "s0", "frame": np.arange(n), "ego_x_m": 0.0, "ego_y_m": 0.0})
+    bound = -2.3
+    ok = moving_frames(t, 0.5, ego=ego, doppler_std_mps=0.3, doppler_log_ratio_min=bound,
+                       doppler_log_ratio_floor=floor)
+    far = np.abs(np.asarray(ref) - bound) > 1e-6                 # not on the boundary
+    np.testing.assert_array_equal(ok[far], (np.asarray(ref) > bound)[far])

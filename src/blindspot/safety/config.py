@@ -11,13 +11,15 @@ from dataclasses import dataclass
 
 from blindspot.typed_config import ConfigError, TypedConfig, setting
 
-__all__ = ["PREDICTORS", "PROBABILITY_METHODS", "LSTM_HISTORY", "AEB_GATES", "BrakingConfig",
+__all__ = ["PREDICTORS", "PROBABILITY_METHODS", "LSTM_HISTORY", "AEB_GATES", "DOPPLER_LLR_FORMS",
+           "BrakingConfig",
            "OracleConfig", "WarningConfig"]
 
 PREDICTORS: tuple[str, ...] = ("none", "constant_velocity", "kalman", "lstm", "lstm_direct")
 PROBABILITY_METHODS: tuple[str, ...] = ("max_step", "union")
 LSTM_HISTORY: tuple[str, ...] = ("cv_backfill", "hold_first")
 AEB_GATES: tuple[str, ...] = ("none", "stopping_time")
+DOPPLER_LLR_FORMS: tuple[str, ...] = ("common_variance", "marginal")
 
 
 @dataclass(frozen=True)
@@ -79,6 +81,8 @@ class WarningConfig(TypedConfig):
     aeb_gate: str = setting("none", choices=AEB_GATES)
     aeb_gate_margin_s: float = setting(0.0, ge=0.0, le=5.0)
     seed: int = setting(0, ge=0, le=2**63 - 1)
+    moving_doppler_llr: str = setting("common_variance", choices=DOPPLER_LLR_FORMS)
+    moving_doppler_log_ratio_floor: float | None = setting(None, ge=-1000.0, le=0.0)
 
     def validate(self) -> None:
         extra = sorted(set(self.reference_predictors) - set(self.predictors))
@@ -92,3 +96,9 @@ class WarningConfig(TypedConfig):
             raise ConfigError("warning_threshold", self.warning_threshold,
                               f"at most warning.aeb_threshold = {self.aeb_threshold} (the warning "
                               "comes before or with the AEB request)")
+        floor = self.moving_doppler_log_ratio_floor
+        if floor is not None and floor > self.moving_doppler_log_ratio_min:
+            raise ConfigError("moving_doppler_log_ratio_floor", floor,
+                              "at most warning.moving_doppler_log_ratio_min = "
+                              f"{self.moving_doppler_log_ratio_min} (a floor above the bound "
+                              "would never let the Doppler test refute a track), or null")

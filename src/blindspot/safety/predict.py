@@ -23,13 +23,14 @@ import numpy as np
 import pandas as pd
 from scipy.stats import chi2
 
+from blindspot.safety.config import DOPPLER_LLR_FORMS
 from blindspot.safety.risk import EgoShape, collision_risk
 from blindspot.traj.baselines import ConstantVelocity, KalmanCV
 from blindspot.traj.distribution import DistributionError
 from blindspot.traj.windows import interpolate_gaps
 
 __all__ = ["BackfilledHistory", "with_backfill", "track_histories", "doppler_log_ratio",
-           "moving_tracks", "incremental_kalman", "risk_table"]
+           "moving_tracks", "moving_frames", "last_hit_rows", "incremental_kalman", "risk_table"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -114,8 +115,8 @@ def track_histories(tracks: pd.DataFrame, max_len: int) -> np.ndarray:
     return out
 
 
-def doppler_log_ratio(tracks: pd.DataFrame, ego_xy: np.ndarray, doppler_std_mps: float
-                      ) -> np.ndarray:
+def doppler_log_ratio(tracks: pd.DataFrame, ego_xy: np.ndarray, doppler_std_mps: float,
+                      form: str = "common_variance") -> np.ndarray:
     """(N,) per row of ``tracks``: the log-likelihood ratio of its Doppler measurement between
     "the object moves with the track's filtered velocity" and "the object is static".
 
@@ -129,13 +130,28 @@ def doppler_log_ratio(tracks: pd.DataFrame, ego_xy: np.ndarray, doppler_std_mps:
 
         llr = (d^2 - (d - u.v)^2) / (2 s^2)
 
-    (the Gaussian log-likelihood ratio of the two mean hypotheses with a common variance;
-    Van Trees 1968, sec. 2.2). Near-tangential motion (a child crossing at boresight) predicts
-    u.v ~ 0 and gets llr ~ 0: Doppler neither confirms nor refutes it, the kinematics decide.
-    A static cluster whose centroid slides along a parked car as the ego passes shows a
-    kinematic velocity with a radial part that its Doppler (~0) refutes: llr < 0. Rows without
-    a measurement (coasting, no ``doppler_mps``) give 0.
+    (``form`` "common_variance": the Gaussian log-likelihood ratio of the two mean hypotheses
+    with a common variance; Van Trees 1968, sec. 2.2). Near-tangential motion (a child crossing
+    at boresight) predicts u.v ~ 0 and gets llr ~ 0: Doppler neither confirms nor refutes it,
+    the kinematics decide. A static cluster whose centroid slides along a parked car as the ego
+    passes shows a kinematic velocity with a radial part that its Doppler (~0) refutes: llr < 0.
+
+    ``form`` "marginal": the static hypothesis keeps only the measurement spread,
+    d ~ N(0, s0^2) with s0^2 = doppler_std^2 / n, while "moving" marginalises the velocity over
+    the track's posterior, d ~ N(u.v, s1^2) with s1^2 = s0^2 + u^T P_v u:
+
+        llr = -ln(s1 / s0) - (d - u.v)^2 / (2 s1^2) + d^2 / (2 s0^2)
+
+    Summed over a track's frames this is the log Bayes factor of its Doppler sequence given its
+    positions (the filter's velocity posterior uses positions only; Kass & Raftery 1995, JASA
+    90(430)). It carries an Occam term -ln(s1 / s0): a young track whose velocity is uncertain
+    along the line of sight is refuted by a Doppler near 0, the clutter tracks born from two
+    hits on different parts of a parked car, and a child crossing near boresight in its first
+    frames too. Rows without a measurement (coasting, no ``doppler_mps``) give 0 in both forms.
+    Raises ValueError for another ``form``.
     """
+    if form not in DOPPLER_LLR_FORMS:
+        raise ValueError(f"form: expected one of {list(DOPPLER_LLR_FORMS)}, found {form!r}")
     n = tracks.n_points.to_numpy(float)
     d = tracks.doppler_mps.to_numpy(float)
     los = tracks[["x_m", "y_m"]].to_numpy(float) - np.asarray(ego_xy, float)
@@ -145,16 +161,22 @@ def doppler_log_ratio(tracks: pd.DataFrame, ego_xy: np.ndarray, doppler_std_mps:
     pu = (tracks.cov_vxvx.to_numpy(float) * u[:, 0] ** 2
           + 2 * tracks.cov_vxvy.to_numpy(float) * u[:, 0] * u[:, 1]
           + tracks.cov_vyvy.to_numpy(float) * u[:, 1] ** 2)
-    s2 = doppler_std_mps ** 2 / np.maximum(n, 1.0) + pu
+    s0 = doppler_std_mps ** 2 / np.maximum(n, 1.0)
+    s1 = s0 + pu
     ok = (n > 0) & np.isfinite(d) & (rng > 0)
     with np.errstate(invalid="ignore", divide="ignore"):
-        llr = (d ** 2 - (d - uv) ** 2) / (2 * s2)
+        if form == "common_variance":
+            llr = (d ** 2 - (d - uv) ** 2) / (2 * s1)
+        else:
+            llr = -0.5 * np.log(s1 / s0) - (d - uv) ** 2 / (2 * s1) + d ** 2 / (2 * s0)
     return np.where(ok, llr, 0.0)
 
 
 def moving_tracks(tracks: pd.DataFrame, speed_mps: float, probability: float = 0.99, *,
                   ego: pd.DataFrame | None = None, doppler_std_mps: float = 0.3,
                   doppler_log_ratio_min: float | None = None,
+                  doppler_llr: str = "common_variance",
+                  doppler_log_ratio_floor: float | None = None,
                   points: pd.DataFrame | None = None, static_evidence_min: int = 0,
                   static_cell_m: float = 0.5, static_lag_frames: int = 10) -> np.ndarray:
     """(N,) bool per row of ``tracks`` (columns group, track_id, frame, vx_mps, vy_mps,
@@ -165,19 +187,51 @@ def moving_tracks(tracks: pd.DataFrame, speed_mps: float, probability: float = 0
     Gaussian with covariance P_v, so it passes with probability 1 - ``probability`` per frame;
     the test of Bar-Shalom, Li & Kirubarajan 2001, sec. 5.4, applied to the velocity), and,
     with ``ego`` and ``doppler_log_ratio_min`` given, whose Doppler does not refute that
-    velocity: the sum over the track's frames so far of :func:`doppler_log_ratio` (a
+    velocity: the sum over the track's frames so far of :func:`doppler_log_ratio` (of form
+    ``doppler_llr``; a
     sequential probability ratio of "moves as tracked" against "static", Wald 1945) is above
     ``doppler_log_ratio_min`` (e.g. -ln 10: the track's own radial speeds make "static" ten
-    times likelier than its kinematic velocity). That needs the columns x_m, y_m, n_points,
+    times likelier than its kinematic velocity; with ``doppler_log_ratio_floor`` the sum is
+    held at or above that floor, max(floor, S + llr) each frame: Page's reflecting barrier
+    (Page 1954, Biometrika 41), so the track of a clutter cluster that captures a pedestrian
+    stepping out keeps no more than ``doppler_log_ratio_min - doppler_log_ratio_floor`` of
+    "static" evidence against the pedestrian's Doppler). That needs the columns x_m, y_m, n_points,
     doppler_mps and ``ego`` (group, frame, ego_x_m, ego_y_m: the radar's world position).
     Causal (a car decides with the frames it has) and latched (a pedestrian stopping at the kerb
     stays a moving object), except that with ``points`` and ``static_evidence_min`` > 0 a row
     standing on the static environment is not moving: :func:`static_evidence` (cells of
-    ``static_cell_m`` m, points of frames ``static_lag_frames`` and more before) reaches
+    ``static_cell_m`` m, points of frames ``static_lag_frames`` and more before), read at the
+    track's last measured row (:func:`last_hit_rows`; needs the column n_points: a clutter
+    track coasting off a parked car's face at its filtered velocity has not left the car's
+    static hits, nothing the radar saw moved there), reaches
     ``static_evidence_min`` (a cluster sliding along a parked car's face, whose kinematic
     velocity passes the tests above while the ego passes the car; a pedestrian standing still
     on its own static hits for ``static_lag_frames`` frames is left out too). Raises ValueError
     naming a missing column or a row without an ego position."""
+    fast = moving_frames(tracks, speed_mps, probability, ego=ego,
+                         doppler_std_mps=doppler_std_mps,
+                         doppler_log_ratio_min=doppler_log_ratio_min, doppler_llr=doppler_llr,
+                         doppler_log_ratio_floor=doppler_log_ratio_floor)
+    order, key = _track_order(tracks)
+    seen = pd.Series(fast[order]).groupby(key, sort=False).cummax().to_numpy(bool)
+    out = np.empty(len(tracks), bool)
+    out[order] = seen
+    if points is not None and static_evidence_min > 0:
+        evidence = static_evidence(tracks, points, cell_m=static_cell_m,
+                                   lag_frames=static_lag_frames)
+        out &= evidence[last_hit_rows(tracks)] < static_evidence_min
+    return out
+
+
+def moving_frames(tracks: pd.DataFrame, speed_mps: float, probability: float = 0.99, *,
+                  ego: pd.DataFrame | None = None, doppler_std_mps: float = 0.3,
+                  doppler_log_ratio_min: float | None = None,
+                  doppler_llr: str = "common_variance",
+                  doppler_log_ratio_floor: float | None = None) -> np.ndarray:
+    """(N,) bool per row of ``tracks``: the row's own frame passes :func:`moving_tracks`'s
+    kinematic and Doppler tests (confirmed, fast, significantly non-zero, the Doppler sum so
+    far above its bound), before the latch and the static-evidence grid; same arguments and
+    errors as :func:`moving_tracks`."""
     need = {"group", "track_id", "frame", "vx_mps", "vy_mps", "cov_vxvx", "cov_vxvy",
             "cov_vyvy", "confirmed"}
     use_doppler = ego is not None and doppler_log_ratio_min is not None
@@ -186,15 +240,17 @@ def moving_tracks(tracks: pd.DataFrame, speed_mps: float, probability: float = 0
     missing = sorted(need - set(tracks.columns))
     if missing:
         raise ValueError(f"tracks: missing columns {missing} (the blindspot.track schema)")
+    if doppler_log_ratio_floor is not None and not (
+            doppler_log_ratio_floor <= (doppler_log_ratio_min or 0.0)):
+        raise ValueError(f"doppler_log_ratio_floor: expected at most doppler_log_ratio_min = "
+                         f"{doppler_log_ratio_min}, found {doppler_log_ratio_floor!r}")
     vx, vy = tracks.vx_mps.to_numpy(float), tracks.vy_mps.to_numpy(float)
     a, b, c = (tracks[k].to_numpy(float) for k in ("cov_vxvx", "cov_vxvy", "cov_vyvy"))
     with np.errstate(divide="ignore", invalid="ignore"):
         d2 = (c * vx**2 - 2 * b * vx * vy + a * vy**2) / (a * c - b**2)
     fast = (np.hypot(vx, vy) > speed_mps) & (d2 > chi2.ppf(probability, 2))
     fast &= tracks.confirmed.to_numpy(bool)
-    order = np.lexsort((tracks.frame.to_numpy(), tracks.track_id.to_numpy(),
-                        tracks.group.astype(str).to_numpy()))
-    key = (tracks.group.astype(str) + "\x00" + tracks.track_id.astype(str)).to_numpy()[order]
+    order, key = _track_order(tracks)
     if use_doppler:
         e = tracks[["group", "frame"]].merge(ego[["group", "frame", "ego_x_m", "ego_y_m"]],
                                              on=["group", "frame"], how="left")
@@ -203,17 +259,43 @@ def moving_tracks(tracks: pd.DataFrame, speed_mps: float, probability: float = 0
             raise ValueError(f"ego: no radar position for group {bad.group!r} frame "
                              f"{bad.frame}")
         llr = doppler_log_ratio(tracks, e[["ego_x_m", "ego_y_m"]].to_numpy(float),
-                                doppler_std_mps)
+                                doppler_std_mps, doppler_llr)
         total = pd.Series(llr[order]).groupby(key, sort=False).cumsum().to_numpy()
+        if doppler_log_ratio_floor is not None:
+            # the sum reflected at the floor, S_t = max(floor, S_t-1 + llr_t) from S_0 = 0:
+            # Lindley's recursion in closed form, S_t = C_t - min(0, min_k<=t (C_k - floor))
+            low = pd.Series(total - doppler_log_ratio_floor).groupby(key, sort=False).cummin()
+            total = total - np.minimum(0.0, low.to_numpy())
         ok = np.empty(len(tracks), bool)
         ok[order] = total > doppler_log_ratio_min
         fast &= ok
-    seen = pd.Series(fast[order]).groupby(key, sort=False).cummax().to_numpy(bool)
-    out = np.empty(len(tracks), bool)
-    out[order] = seen
-    if points is not None and static_evidence_min > 0:
-        out &= static_evidence(tracks, points, cell_m=static_cell_m,
-                               lag_frames=static_lag_frames) < static_evidence_min
+    return fast
+
+
+def _track_order(tracks: pd.DataFrame) -> tuple[np.ndarray, np.ndarray]:
+    """The row order that sorts ``tracks`` by group, track_id, frame, and each sorted row's
+    track key."""
+    order = np.lexsort((tracks.frame.to_numpy(), tracks.track_id.to_numpy(),
+                        tracks.group.astype(str).to_numpy()))
+    key = (tracks.group.astype(str) + "\x00" + tracks.track_id.astype(str)).to_numpy()[order]
+    return order, key
+
+
+def last_hit_rows(tracks: pd.DataFrame) -> np.ndarray:
+    """(N,) int per row of ``tracks`` (columns group, track_id, frame, n_points): the position
+    in ``tracks`` of the row itself where it has a measurement (n_points > 0), else of the
+    track's last earlier row that had one (a coasting row's state is the filter's
+    extrapolation, not something the radar saw); a row with no measured row before it in its
+    track points to itself. Any row order. Raises ValueError naming a missing column."""
+    missing = sorted({"group", "track_id", "frame", "n_points"} - set(tracks.columns))
+    if missing:
+        raise ValueError(f"tracks: missing columns {missing} (the blindspot.track schema)")
+    order, key = _track_order(tracks)
+    hit = tracks.n_points.to_numpy(float)[order] > 0
+    held = (pd.Series(np.where(hit, order, -1)).where(hit).groupby(key, sort=False).ffill()
+            .to_numpy())
+    out = np.empty(len(order), np.int64)
+    out[order] = np.where(np.isnan(held), order, held).astype(np.int64)
     return out
 
 
