@@ -28,7 +28,8 @@ activation (the issue's <= 1 % goal on 54 scenes; ties broken by J). Candidates:
 ``moving_doppler_llr`` in {common_variance, marginal} x ``moving_doppler_std_mps`` in
 {0.15, 0.3, 0.6} x ``moving_doppler_log_ratio_min`` in {-ln 1000, -ln 100, -ln 10, -ln 3,
 -ln 1.5}, each with the configured floor ``moving_doppler_log_ratio_floor`` at the configured
-distance below its bound. Time: 1-2 min on 2 cores.
+distance below its bound; and the configured test with its floor at each ``--floors`` distance
+below the bound. Time: 1-2 min on 2 cores.
 """
 
 from __future__ import annotations
@@ -80,6 +81,9 @@ def main(argv: list[str]) -> None:
     ap.add_argument("--data", type=Path, default=REPO / "data")
     ap.add_argument("--predictors", default="constant_velocity,lstm_direct")
     ap.add_argument("--json", type=Path, default=None)
+    ap.add_argument("--floors", default="0,0.1,0.693,1.099,4.605",
+                    help="distances below the configured bound at which the configured test is "
+                         "also scored with its floor (comma-separated log ratios)")
     args = ap.parse_args(argv)
     from blindspot import experiment
 
@@ -96,14 +100,16 @@ def main(argv: list[str]) -> None:
     margin = (None if w.moving_doppler_log_ratio_floor is None
               else w.moving_doppler_log_ratio_floor - w.moving_doppler_log_ratio_min)
 
-    def moving(form: str | None, std: float | None, bound: float | None) -> np.ndarray:
+    def moving(form: str | None, std: float | None, bound: float | None,
+               below: float | None = None) -> np.ndarray:
+        below = margin if below is None else -below
         return moving_tracks(tracks, w.moving_speed_mps, w.moving_probability,
                              ego=None if bound is None else ego[["group", "frame", "ego_x_m",
                                                                  "ego_y_m"]],
                              doppler_std_mps=std or 0.3, doppler_log_ratio_min=bound,
                              doppler_llr=form or "common_variance",
-                             doppler_log_ratio_floor=(None if margin is None or bound is None
-                                                      else bound + margin),
+                             doppler_log_ratio_floor=(None if below is None or bound is None
+                                                      else bound + below),
                              points=points, static_evidence_min=w.moving_static_evidence_min,
                              static_cell_m=w.moving_static_cell_m,
                              static_lag_frames=w.moving_static_lag_frames)
@@ -121,6 +127,9 @@ def main(argv: list[str]) -> None:
                      for f in FORMS for s in STDS for b in BOUNDS}}
     name_conf = (f"{w.moving_doppler_llr} std {w.moving_doppler_std_mps:g} m/s, bound "
                  f"{w.moving_doppler_log_ratio_min:.2f}")
+    for d in (float(v) for v in args.floors.split(",") if v):
+        candidates[f"{name_conf}, floor bound - {d:.2f}"] = (
+            w.moving_doppler_llr, w.moving_doppler_std_mps, w.moving_doppler_log_ratio_min, d)
     flags = {name: moving(*sb) for name, sb in candidates.items()}
     flags[name_conf] = configured
     report: dict = {"input": "tracker", "aeb_threshold": w.aeb_threshold,
