@@ -60,8 +60,8 @@ from blindspot.io import write_json  # noqa: E402
 from blindspot.safety.assess import frame_risks  # noqa: E402
 from blindspot.safety.evaluation import (aeb_gate_s, replicate_half,  # noqa: E402
                                          scene_results, summarise)
-from blindspot.safety.predict import (last_hit_rows, moving_frames, moving_tracks,  # noqa: E402
-                                      static_evidence)
+from blindspot.safety.predict import (moving_frames, moving_test_settings,  # noqa: E402
+                                      moving_tracks, track_static_evidence)
 
 
 def displacement_ratio(tracks: pd.DataFrame, window: int) -> np.ndarray:
@@ -91,11 +91,7 @@ def persistence(tracks: pd.DataFrame, ego: pd.DataFrame, w, window: int) -> np.n
     Doppler log-likelihood ratio above its bound); an M-of-N confirmation of the moving class
     (Blackman & Popoli 1999, sec. 6.2, as for track confirmation). tracks sorted by group,
     track_id, frame."""
-    inst = moving_frames(tracks, w.moving_speed_mps, w.moving_probability, ego=ego,
-                         doppler_std_mps=w.moving_doppler_std_mps,
-                         doppler_log_ratio_min=w.moving_doppler_log_ratio_min,
-                         doppler_llr=w.moving_doppler_llr,
-                         doppler_log_ratio_floor=w.moving_doppler_log_ratio_floor)
+    inst = moving_frames(tracks, ego=ego, **moving_test_settings(w, grid=False))
     key = (tracks.group + "\x00" + tracks.track_id.astype(str)).to_numpy()
     roll = pd.Series(inst.astype(float)).groupby(key, sort=False).rolling(
         window, min_periods=1).sum().to_numpy()
@@ -122,9 +118,8 @@ def main(argv: list[str]) -> None:
     ego = (truth_all.groupby(["scene", "frame"], as_index=False)[["ego_x_m", "ego_y_m"]]
            .first().rename(columns={"scene": "group"}))
     scores: dict[str, tuple[np.ndarray, np.ndarray, str]] = {}
-    held = last_hit_rows(tracks)       # a coasting row reads its last measured row, as the stage
-    for lag in (int(v) for v in args.lags.split(",")):
-        ev = static_evidence(tracks, points, cell_m=args.cell, lag_frames=lag)[held]
+    for lag in (int(v) for v in args.lags.split(",")):           # as the stage reads it
+        ev = track_static_evidence(tracks, points, cell_m=args.cell, lag_frames=lag)
         scores[f"static_evidence cell {args.cell:g} m lag {lag}"] = (
             ev, np.array([1, 2, 3, 5, 8, 12, 20, 30, 50, 80, 120]), "ge")
     scores[f"moving test M of {args.window} rows"] = (
@@ -143,11 +138,7 @@ def main(argv: list[str]) -> None:
               aeb_threshold=w.aeb_threshold)
     key = ["group", "frame", "track_id"]
     moving = tracks.moving.to_numpy(bool)
-    without_grid = moving_tracks(tracks, w.moving_speed_mps, w.moving_probability, ego=ego,
-                                 doppler_std_mps=w.moving_doppler_std_mps,
-                                 doppler_log_ratio_min=w.moving_doppler_log_ratio_min,
-                                 doppler_llr=w.moving_doppler_llr,
-                                 doppler_log_ratio_floor=w.moving_doppler_log_ratio_floor)
+    without_grid = moving_tracks(tracks, ego=ego, **moving_test_settings(w, grid=False))
     if not np.array_equal(moving, without_grid):
         raise SystemExit(f"{args.data / 'driving/tracks.parquet'}: its moving flag is not the "
                          "moving test without the static-evidence grid (was driving_track run "
@@ -156,8 +147,8 @@ def main(argv: list[str]) -> None:
                          "`dvc exp run -S warning.moving_static_evidence_min=0`")
     import time
     t0 = time.process_time()
-    conf_ev = static_evidence(tracks, points, cell_m=w.moving_static_cell_m,
-                              lag_frames=w.moving_static_lag_frames)[held] \
+    conf_ev = track_static_evidence(tracks, points, cell_m=w.moving_static_cell_m,
+                                    lag_frames=w.moving_static_lag_frames) \
         if w.moving_static_evidence_min > 0 else np.zeros(len(tracks), int)
     cpu = time.process_time() - t0
     n_frames = tracks[["group", "frame"]].drop_duplicates().shape[0]

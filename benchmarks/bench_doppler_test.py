@@ -48,7 +48,8 @@ sys.path[:0] = [str(REPO / "benchmarks")]
 
 from bench_aeb_gate import half_results, load_inputs, outcome_setup  # noqa: E402
 from blindspot.io import write_json  # noqa: E402
-from blindspot.safety.predict import moving_tracks, risk_table, with_backfill  # noqa: E402
+from blindspot.safety.predict import (moving_test_settings, moving_tracks,  # noqa: E402
+                                      risk_table, with_backfill)
 from blindspot.traj.calibration import from_record  # noqa: E402
 
 STDS = (0.15, 0.3, 0.6)
@@ -103,16 +104,14 @@ def main(argv: list[str]) -> None:
     def moving(form: str | None, std: float | None, bound: float | None,
                below: float | None = None) -> np.ndarray:
         below = margin if below is None else -below
-        return moving_tracks(tracks, w.moving_speed_mps, w.moving_probability,
-                             ego=None if bound is None else ego[["group", "frame", "ego_x_m",
-                                                                 "ego_y_m"]],
-                             doppler_std_mps=std or 0.3, doppler_log_ratio_min=bound,
-                             doppler_llr=form or "common_variance",
-                             doppler_log_ratio_floor=(None if below is None or bound is None
-                                                      else bound + below),
-                             points=points, static_evidence_min=w.moving_static_evidence_min,
-                             static_cell_m=w.moving_static_cell_m,
-                             static_lag_frames=w.moving_static_lag_frames)
+        floor = None if below is None or bound is None else bound + below
+        return moving_tracks(tracks, ego=None if bound is None else ego[["group", "frame",
+                                                                         "ego_x_m", "ego_y_m"]],
+                             points=points, **{
+                                 **moving_test_settings(w), "doppler_std_mps": std or 0.3,
+                                 "doppler_log_ratio_min": bound,
+                                 "doppler_llr": form or "common_variance",
+                                 "doppler_log_ratio_floor": floor})
 
     superset = moving(None, None, None)
     configured = moving(w.moving_doppler_llr, w.moving_doppler_std_mps,

@@ -27,11 +27,13 @@ import argparse
 import json
 import time
 from dataclasses import replace
+import sys
 from pathlib import Path
 
 import numpy as np
 
 REPO = Path(__file__).resolve().parents[1]
+sys.path[:0] = [str(REPO / "stages")]
 VARIANTS = ("scratch", "ethucy", "finetuned")
 
 
@@ -154,20 +156,14 @@ def main() -> None:
 def _walk_benchmark(cfg, ensembles: dict, n_walks: int) -> dict:
     """The benchmark stage's walks and scoring with these ensembles as the predictors."""
     from blindspot import experiment
-    from blindspot.synth.path_measurement import PedestrianModel
+    from benchmark import measured_walks      # the benchmark stage's walks
     from blindspot.synth.scene_benchmark import score_scene_walks
-    from blindspot.synth.scene_walks import draw_scene_walks, measure_scene_walks
     from blindspot.traj.benchmark import bootstrap_means, paired_differences
 
     bench = replace(experiment.benchmark(cfg), n_walks=n_walks)
     ev = experiment.evaluation(cfg)
     radar = experiment.radar(cfg)
-    car = next(s for s in experiment.scenes(cfg).values() if s.with_car)
-    walks = draw_scene_walks(bench, radar.frame_period_s, seed=int(cfg.seed))
-    measured = measure_scene_walks(
-        walks, radar, experiment.cfar(cfg), experiment.doa(cfg), experiment.detect(cfg),
-        pedestrian=PedestrianModel.from_scene(car), occlusion_db=car.occlusion_db,
-        seed=int(cfg.seed), jobs=int(cfg.jobs), progress=False)
+    walks, measured = measured_walks(cfg, bench, seed=int(cfg.seed), jobs=int(cfg.jobs))
     gap = ensembles.get("scratch@1", next(iter(ensembles.values())))   # the train stage's kind
     scores, _ = score_scene_walks(
         walks, measured, predictors=ensembles, interpolation_methods=ev.interpolation_methods,

@@ -62,11 +62,13 @@ import argparse
 import json
 import time
 from dataclasses import replace
+import sys
 from pathlib import Path
 
 import numpy as np
 
 REPO = Path(__file__).resolve().parents[1]
+sys.path[:0] = [str(REPO / "stages")]
 STEPS_S = (1.0, 2.0, 3.0)
 
 
@@ -232,9 +234,8 @@ def scene_walk_scores(cfg, models: dict, data: Path, n_walks: int | None,
     from dataclasses import replace
 
     from blindspot import experiment
-    from blindspot.synth.path_measurement import PedestrianModel
+    from benchmark import measured_walks      # the benchmark stage's walks
     from blindspot.synth.scene_benchmark import score_scene_walks
-    from blindspot.synth.scene_walks import draw_scene_walks, measure_scene_walks
     from blindspot.traj.benchmark import bootstrap_means, paired_differences
     from blindspot.traj.lstm import LSTMPredictor
     from blindspot.traj.predictor import ConstantVelocityTail
@@ -247,13 +248,8 @@ def scene_walk_scores(cfg, models: dict, data: Path, n_walks: int | None,
         bench = replace(bench, n_walks=int(n_walks))
     ev = experiment.evaluation(cfg)
     radar = experiment.radar(cfg)
-    car = next(s for s in experiment.scenes(cfg).values() if s.with_car)
     seed = int(cfg.seed) if walk_seed is None else int(walk_seed)
-    walks = draw_scene_walks(bench, radar.frame_period_s, seed=seed)
-    measured = measure_scene_walks(
-        walks, radar, experiment.cfar(cfg), experiment.doa(cfg), experiment.detect(cfg),
-        pedestrian=PedestrianModel.from_scene(car), occlusion_db=car.occlusion_db,
-        seed=seed, jobs=experiment.jobs(cfg), progress=False)
+    walks, measured = measured_walks(cfg, bench, seed=seed, jobs=experiment.jobs(cfg))
     lstm = LSTMPredictor.load(data / "train" / "model.pt")
     tailed = {n: (ConstantVelocityTail(m, m.cfg.horizon) if isinstance(m, Seq2SeqEnsemble)
                   else m) for n, m in models.items()}

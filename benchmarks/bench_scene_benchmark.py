@@ -16,9 +16,11 @@ import argparse
 import os
 import time
 from dataclasses import replace
+import sys
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
+sys.path[:0] = [str(REPO / "stages")]
 
 
 def main() -> None:
@@ -30,9 +32,8 @@ def main() -> None:
     args = ap.parse_args()
 
     from blindspot import config, experiment
-    from blindspot.synth.path_measurement import PedestrianModel
+    from benchmark import measured_walks      # the benchmark stage's walks
     from blindspot.synth.scene_benchmark import score_scene_walks
-    from blindspot.synth.scene_walks import draw_scene_walks, measure_scene_walks
     from blindspot.traj.lstm import LSTMPredictor
 
     cfg = config.compose([], config_dir=REPO / "conf")
@@ -40,13 +41,8 @@ def main() -> None:
     bench = replace(full, n_walks=args.walks)
     ev = experiment.evaluation(cfg)
     radar = experiment.radar(cfg)
-    car = next(s for s in experiment.scenes(cfg).values() if s.with_car)
     t0 = time.perf_counter()
-    walks = draw_scene_walks(bench, radar.frame_period_s, seed=0)
-    measured = measure_scene_walks(walks, radar, experiment.cfar(cfg), experiment.doa(cfg),
-                                   experiment.detect(cfg),
-                                   pedestrian=PedestrianModel.from_scene(car),
-                                   occlusion_db=car.occlusion_db, seed=0, jobs=args.jobs)
+    walks, measured = measured_walks(cfg, bench, seed=0, jobs=args.jobs)
     t1 = time.perf_counter()
     lstm = LSTMPredictor.load(args.model)
     score_scene_walks(walks, measured, predictors=experiment.predictors(cfg, lstm),

@@ -41,18 +41,30 @@ from blindspot.traj.seq2seq import Seq2SeqEnsemble
 COMMAND = "dvc repro benchmark"
 
 
+def measured_walks(cfg, bench, *, seed: int, jobs: int, progress: bool = False):
+    """(walks, measured): ``bench``'s occluded walks of the paper's car scene drawn with
+    ``seed`` and measured through the paper's chain with the first scene that has the car (its
+    pedestrian model and occlusion loss), on ``jobs`` worker processes; what this stage and the
+    benchmarks that score other models on its walks (bench_pretrain, bench_pretrain_direct,
+    bench_scene_benchmark) draw."""
+    radar = experiment.radar(cfg)
+    car = next(s for s in experiment.scenes(cfg).values() if s.with_car)
+    walks = draw_scene_walks(bench, radar.frame_period_s, seed=seed)
+    measured = measure_scene_walks(
+        walks, radar, experiment.cfar(cfg), experiment.doa(cfg), experiment.detect(cfg),
+        pedestrian=PedestrianModel.from_scene(car), occlusion_db=car.occlusion_db, seed=seed,
+        jobs=jobs, progress=progress)
+    return walks, measured
+
+
 def run(cfg, ctx):
     t0 = time.perf_counter()
     bench = experiment.benchmark(cfg)
     ev = experiment.evaluation(cfg)
     radar = experiment.radar(cfg)
     dt = radar.frame_period_s
-    car_scene = next(s for s in experiment.scenes(cfg).values() if s.with_car)
-    walks = draw_scene_walks(bench, dt, seed=int(cfg.seed))
-    measured = measure_scene_walks(
-        walks, radar, experiment.cfar(cfg), experiment.doa(cfg), experiment.detect(cfg),
-        pedestrian=PedestrianModel.from_scene(car_scene), occlusion_db=car_scene.occlusion_db,
-        seed=int(cfg.seed), jobs=experiment.jobs(cfg), progress=bool(cfg.progress))
+    walks, measured = measured_walks(cfg, bench, seed=int(cfg.seed), jobs=experiment.jobs(cfg),
+                                     progress=bool(cfg.progress))
     t_radar = time.perf_counter() - t0
     lstm = LSTMPredictor.load(ctx.dep("train/model.pt")).with_workers(experiment.jobs(cfg))
     kalman = experiment.kalman(cfg)

@@ -39,7 +39,7 @@ from blindspot import experiment
 from blindspot.cli import main_stage
 from blindspot.io import write_json, write_parquet
 from blindspot.safety.oracle import oracle_tracks, visible_truth_points
-from blindspot.safety.predict import moving_tracks
+from blindspot.safety.predict import moving_test_settings, moving_tracks
 from blindspot.track.tracker import track_points
 from blindspot.stage import StageResult
 
@@ -69,15 +69,8 @@ def run(cfg, ctx):
                   on=["group", "frame"], how="left"))
     tracks = track_points(pts, tcfg, jobs=int(cfg.jobs))
     kinematic = moving_tracks(tracks, w.moving_speed_mps, w.moving_probability)
-    tracks["moving"] = moving_tracks(tracks, w.moving_speed_mps, w.moving_probability, ego=ego,
-                                     doppler_std_mps=w.moving_doppler_std_mps,
-                                     doppler_log_ratio_min=w.moving_doppler_log_ratio_min,
-                                     doppler_llr=w.moving_doppler_llr,
-                                     doppler_log_ratio_floor=w.moving_doppler_log_ratio_floor,
-                                     points=every[["scene", "frame", "x_m", "y_m", "static"]],
-                                     static_evidence_min=w.moving_static_evidence_min,
-                                     static_cell_m=w.moving_static_cell_m,
-                                     static_lag_frames=w.moving_static_lag_frames)
+    tracks["moving"] = moving_tracks(tracks, ego=ego, **moving_test_settings(w),
+                                     points=every[["scene", "frame", "x_m", "y_m", "static"]])
     write_parquet(ctx.out("tracks.parquet"), tracks)
     labels = track_labels(tracks, every, tcfg.cluster_eps_m)
     metrics = {"tracker": {**_counts(tracks), "classifier": {

@@ -174,10 +174,12 @@ def test_static_evidence_is_read_at_the_last_hit_of_a_coasting_track():
 def test_last_hit_rows():
     from blindspot.safety.predict import last_hit_rows
 
-    t = pd.DataFrame({"group": ["a"] * 5 + ["b"] * 3, "track_id": [1] * 5 + [1] * 3,
-                      "frame": [0, 1, 2, 3, 4, 0, 1, 2], "n_points": [0, 2, 0, 0, 1, 1, 0, 3]})
-    # row 0 has no hit before it: itself; rows 2, 3 hold row 1; group b is its own track
-    np.testing.assert_array_equal(last_hit_rows(t), [0, 1, 1, 1, 4, 5, 5, 7])
+    t = pd.DataFrame({"group": ["a"] * 7 + ["b"] * 3, "track_id": [1] * 5 + [2] * 2 + [1] * 3,
+                      "frame": [0, 1, 2, 3, 4, 0, 1, 0, 1, 2],
+                      "n_points": [0, 2, 0, 0, 1, 0, 0, 0, 0, 3]})
+    # row 0 has no hit before it: itself; rows 2, 3 hold row 1; track a/2 and b/1 start
+    # coasting and never take a hit from another track
+    np.testing.assert_array_equal(last_hit_rows(t), [0, 1, 1, 1, 4, 5, 6, 7, 8, 9])
     perm = np.random.default_rng(1).permutation(len(t))
     inverse = np.argsort(perm)
     np.testing.assert_array_equal(last_hit_rows(t.iloc[perm]),
@@ -232,30 +234,40 @@ def test_floor_lets_a_clutter_track_that_captures_a_child_be_classed_moving():
 
 
 @settings(max_examples=50, deadline=None)
-@given(llr=st.lists(st.floats(-20.0, 20.0), min_size=1, max_size=30),
-       floor=st.floats(-30.0, -2.4))
-def test_floored_sum_is_the_reflected_recursion(llr, floor):
-    # the closed form against max(floor, S + llr) frame by frame, S_0 = 0, through the bound
-    # test of a fast, sure track whose per-frame ratio is set by its Doppler
+@given(llr=st.lists(st.lists(st.floats(-20.0, 20.0), min_size=1, max_size=12), min_size=2,
+                    max_size=4),
+       floor=st.floats(-30.0, -2.4), shuffle=st.randoms(use_true_random=False))
+def test_floored_sum_is_the_reflected_recursion(llr, floor, shuffle):
+    # the closed form against max(floor, S + llr) frame by frame, S_0 = 0, for several tracks
+    # of two groups with their rows shuffled, through the bound test of fast, sure tracks whose
+    # per-frame ratio is set by their Doppler
     from blindspot.safety.predict import doppler_log_ratio, moving_frames
 
-    n = len(llr)
     # u = +y, v = (0, 1): llr = (d^2 - (d - 1)^2) / (2 s^2) = (2d - 1) / (2 s^2)
     s2 = 0.09 / 5 + 1e-4
-    d = (np.asarray(llr) * 2 * s2 + 1) / 2
-    t = pd.DataFrame({"group": "s0", "track_id": 1, "frame": np.arange(n), "x_m": 0.0,
-                      "y_m": 10.0, "vx_mps": 0.0, "vy_mps": 1.0, "cov_vxvx": 1e-4,
-                      "cov_vxvy": 0.0, "cov_vyvy": 1e-4, "confirmed": True, "n_points": 5,
-                      "doppler_mps": d})
-    got = doppler_log_ratio(t, np.zeros((n, 2)), 0.3)
-    np.testing.assert_allclose(got, llr, atol=1e-6, rtol=1e-3)
-    ref, acc = [], 0.0
-    for x in got:
-        acc = max(floor, acc + x)
-        ref.append(acc)
-    ego = pd.DataFrame({"group": "s0", "frame": np.arange(n), "ego_x_m": 0.0, "ego_y_m": 0.0})
+    parts = [pd.DataFrame({"group": f"g{i % 2}", "track_id": i, "frame": np.arange(len(x)),
+                           "doppler_mps": (np.asarray(x) * 2 * s2 + 1) / 2})
+             for i, x in enumerate(llr)]
+    t = pd.concat(parts, ignore_index=True).assign(
+        x_m=0.0, y_m=10.0, vx_mps=0.0, vy_mps=1.0, cov_vxvx=1e-4, cov_vxvy=0.0, cov_vyvy=1e-4,
+        confirmed=True, n_points=5)
+    order = list(range(len(t)))
+    shuffle.shuffle(order)
+    t = t.iloc[order].reset_index(drop=True)
+    got = doppler_log_ratio(t, np.zeros((len(t), 2)), 0.3)
+    ref = np.empty(len(t))
+    for _, rows in t.groupby("track_id").groups.items():
+        rows = t.loc[rows].sort_values("frame").index
+        acc = 0.0
+        for r in rows:
+            acc = max(floor, acc + got[r])
+            ref[r] = acc
+    np.testing.assert_allclose(np.sort(got), np.sort(np.concatenate(llr)), atol=1e-6, rtol=1e-3)
+    n = int(t.frame.max()) + 1
+    ego = pd.DataFrame({"group": np.repeat(["g0", "g1"], n), "frame": np.tile(np.arange(n), 2),
+                        "ego_x_m": 0.0, "ego_y_m": 0.0})
     bound = -2.3
     ok = moving_frames(t, 0.5, ego=ego, doppler_std_mps=0.3, doppler_log_ratio_min=bound,
                        doppler_log_ratio_floor=floor)
-    far = np.abs(np.asarray(ref) - bound) > 1e-6                 # not on the boundary
-    np.testing.assert_array_equal(ok[far], (np.asarray(ref) > bound)[far])
+    far = np.abs(ref - bound) > 1e-6                                 # not on the boundary
+    np.testing.assert_array_equal(ok[far], (ref > bound)[far])

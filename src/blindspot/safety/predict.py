@@ -30,7 +30,8 @@ from blindspot.traj.distribution import DistributionError
 from blindspot.traj.windows import interpolate_gaps
 
 __all__ = ["BackfilledHistory", "with_backfill", "track_histories", "doppler_log_ratio",
-           "moving_tracks", "moving_frames", "last_hit_rows", "incremental_kalman", "risk_table"]
+           "moving_tracks", "moving_frames", "doppler_evidence", "moving_test_settings", "last_hit_rows",
+           "track_static_evidence", "incremental_kalman", "risk_table"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -142,13 +143,16 @@ def doppler_log_ratio(tracks: pd.DataFrame, ego_xy: np.ndarray, doppler_std_mps:
 
         llr = -ln(s1 / s0) - (d - u.v)^2 / (2 s1^2) + d^2 / (2 s0^2)
 
-    Summed over a track's frames this is the log Bayes factor of its Doppler sequence given its
-    positions (the filter's velocity posterior uses positions only; Kass & Raftery 1995, JASA
-    90(430)). It carries an Occam term -ln(s1 / s0): a young track whose velocity is uncertain
-    along the line of sight is refuted by a Doppler near 0, the clutter tracks born from two
-    hits on different parts of a parked car, and a child crossing near boresight in its first
-    frames too. Rows without a measurement (coasting, no ``doppler_mps``) give 0 in both forms.
-    Raises ValueError for another ``form``.
+    the per-frame marginal likelihood ratio of one Doppler measurement given the positions (the
+    filter's velocity posterior uses positions only; Kass & Raftery 1995, JASA 90(430)). It
+    carries an Occam term -ln(s1 / s0): a young track whose velocity is uncertain along the line
+    of sight is refuted by a Doppler near 0, the clutter tracks born from two hits on different
+    parts of a parked car, and a child crossing near boresight in its first frames too. Summed
+    over frames it is not the Bayes factor of the Doppler sequence: the frames share one
+    velocity, so their Dopplers are correlated under "moving" and the sequential predictive
+    would pay the Occam term about once; the sum pays it every frame (a stricter test, which is
+    what refutes the young clutter tracks). Rows without a measurement (coasting, no
+    ``doppler_mps``) give 0 in both forms. Raises ValueError for another ``form``.
     """
     if form not in DOPPLER_LLR_FORMS:
         raise ValueError(f"form: expected one of {list(DOPPLER_LLR_FORMS)}, found {form!r}")
@@ -161,14 +165,15 @@ def doppler_log_ratio(tracks: pd.DataFrame, ego_xy: np.ndarray, doppler_std_mps:
     pu = (tracks.cov_vxvx.to_numpy(float) * u[:, 0] ** 2
           + 2 * tracks.cov_vxvy.to_numpy(float) * u[:, 0] * u[:, 1]
           + tracks.cov_vyvy.to_numpy(float) * u[:, 1] ** 2)
-    s0 = doppler_std_mps ** 2 / np.maximum(n, 1.0)
-    s1 = s0 + pu
+    var0 = doppler_std_mps ** 2 / np.maximum(n, 1.0)        # s0^2, s1^2 of the docstring
+    var1 = var0 + pu
     ok = (n > 0) & np.isfinite(d) & (rng > 0)
     with np.errstate(invalid="ignore", divide="ignore"):
         if form == "common_variance":
-            llr = (d ** 2 - (d - uv) ** 2) / (2 * s1)
+            llr = (d ** 2 - (d - uv) ** 2) / (2 * var1)
         else:
-            llr = -0.5 * np.log(s1 / s0) - (d - uv) ** 2 / (2 * s1) + d ** 2 / (2 * s0)
+            llr = (-0.5 * np.log(var1 / var0) - (d - uv) ** 2 / (2 * var1)
+                   + d ** 2 / (2 * var0))
     return np.where(ok, llr, 0.0)
 
 
@@ -203,11 +208,12 @@ def moving_tracks(tracks: pd.DataFrame, speed_mps: float, probability: float = 0
     ``static_cell_m`` m, points of frames ``static_lag_frames`` and more before), read at the
     track's last measured row (:func:`last_hit_rows`; needs the column n_points: a clutter
     track coasting off a parked car's face at its filtered velocity has not left the car's
-    static hits, nothing the radar saw moved there), reaches
+    static hits, nothing the radar saw moved there; :func:`track_static_evidence`), reaches
     ``static_evidence_min`` (a cluster sliding along a parked car's face, whose kinematic
     velocity passes the tests above while the ego passes the car; a pedestrian standing still
     on its own static hits for ``static_lag_frames`` frames is left out too). Raises ValueError
-    naming a missing column or a row without an ego position."""
+    naming a missing column, a row without an ego position, a ``doppler_llr`` not in
+    DOPPLER_LLR_FORMS, or a ``doppler_log_ratio_floor`` above ``doppler_log_ratio_min``."""
     fast = moving_frames(tracks, speed_mps, probability, ego=ego,
                          doppler_std_mps=doppler_std_mps,
                          doppler_log_ratio_min=doppler_log_ratio_min, doppler_llr=doppler_llr,
@@ -217,9 +223,8 @@ def moving_tracks(tracks: pd.DataFrame, speed_mps: float, probability: float = 0
     out = np.empty(len(tracks), bool)
     out[order] = seen
     if points is not None and static_evidence_min > 0:
-        evidence = static_evidence(tracks, points, cell_m=static_cell_m,
-                                   lag_frames=static_lag_frames)
-        out &= evidence[last_hit_rows(tracks)] < static_evidence_min
+        out &= track_static_evidence(tracks, points, cell_m=static_cell_m,
+                                     lag_frames=static_lag_frames) < static_evidence_min
     return out
 
 
@@ -240,8 +245,11 @@ def moving_frames(tracks: pd.DataFrame, speed_mps: float, probability: float = 0
     missing = sorted(need - set(tracks.columns))
     if missing:
         raise ValueError(f"tracks: missing columns {missing} (the blindspot.track schema)")
-    if doppler_log_ratio_floor is not None and not (
-            doppler_log_ratio_floor <= (doppler_log_ratio_min or 0.0)):
+    if doppler_llr not in DOPPLER_LLR_FORMS:
+        raise ValueError(f"doppler_llr: expected one of {list(DOPPLER_LLR_FORMS)}, found "
+                         f"{doppler_llr!r}")
+    if doppler_log_ratio_floor is not None and doppler_log_ratio_min is not None and not (
+            doppler_log_ratio_floor <= doppler_log_ratio_min):
         raise ValueError(f"doppler_log_ratio_floor: expected at most doppler_log_ratio_min = "
                          f"{doppler_log_ratio_min}, found {doppler_log_ratio_floor!r}")
     vx, vy = tracks.vx_mps.to_numpy(float), tracks.vy_mps.to_numpy(float)
@@ -250,26 +258,36 @@ def moving_frames(tracks: pd.DataFrame, speed_mps: float, probability: float = 0
         d2 = (c * vx**2 - 2 * b * vx * vy + a * vy**2) / (a * c - b**2)
     fast = (np.hypot(vx, vy) > speed_mps) & (d2 > chi2.ppf(probability, 2))
     fast &= tracks.confirmed.to_numpy(bool)
-    order, key = _track_order(tracks)
     if use_doppler:
-        e = tracks[["group", "frame"]].merge(ego[["group", "frame", "ego_x_m", "ego_y_m"]],
-                                             on=["group", "frame"], how="left")
-        if e.ego_x_m.isna().any():
-            bad = e[e.ego_x_m.isna()].iloc[0]
-            raise ValueError(f"ego: no radar position for group {bad.group!r} frame "
-                             f"{bad.frame}")
-        llr = doppler_log_ratio(tracks, e[["ego_x_m", "ego_y_m"]].to_numpy(float),
-                                doppler_std_mps, doppler_llr)
-        total = pd.Series(llr[order]).groupby(key, sort=False).cumsum().to_numpy()
-        if doppler_log_ratio_floor is not None:
-            # the sum reflected at the floor, S_t = max(floor, S_t-1 + llr_t) from S_0 = 0:
-            # Lindley's recursion in closed form, S_t = C_t - min(0, min_k<=t (C_k - floor))
-            low = pd.Series(total - doppler_log_ratio_floor).groupby(key, sort=False).cummin()
-            total = total - np.minimum(0.0, low.to_numpy())
-        ok = np.empty(len(tracks), bool)
-        ok[order] = total > doppler_log_ratio_min
-        fast &= ok
+        fast &= doppler_evidence(tracks, ego, doppler_std_mps, doppler_llr,
+                                 doppler_log_ratio_floor) > doppler_log_ratio_min
     return fast
+
+
+def doppler_evidence(tracks: pd.DataFrame, ego: pd.DataFrame, doppler_std_mps: float,
+                     form: str = "common_variance", floor: float | None = None) -> np.ndarray:
+    """(N,) per row of ``tracks``: the sum of :func:`doppler_log_ratio` (of ``form``) over the
+    row's track up to and including its frame, "moves as tracked" against "static" in natural
+    log units; with ``floor`` reflected at it, S_t = max(floor, S_t-1 + llr_t) from S_0 = 0
+    (Page 1954). ``ego``: columns group, frame, ego_x_m, ego_y_m (the radar's world position,
+    m). Any row order. Raises ValueError naming a row without an ego position or a bad
+    ``form``."""
+    e = tracks[["group", "frame"]].merge(ego[["group", "frame", "ego_x_m", "ego_y_m"]],
+                                         on=["group", "frame"], how="left")
+    if e.ego_x_m.isna().any():
+        bad = e[e.ego_x_m.isna()].iloc[0]
+        raise ValueError(f"ego: no radar position for group {bad.group!r} frame {bad.frame}")
+    llr = doppler_log_ratio(tracks, e[["ego_x_m", "ego_y_m"]].to_numpy(float),
+                            doppler_std_mps, form)
+    order, key = _track_order(tracks)
+    total = pd.Series(llr[order]).groupby(key, sort=False).cumsum().to_numpy()
+    if floor is not None:
+        # Lindley's recursion in closed form: S_t = C_t - min(0, min_k<=t (C_k - floor))
+        low = pd.Series(total - floor).groupby(key, sort=False).cummin()
+        total = total - np.minimum(0.0, low.to_numpy())
+    out = np.empty(len(tracks))
+    out[order] = total
+    return out
 
 
 def _track_order(tracks: pd.DataFrame) -> tuple[np.ndarray, np.ndarray]:
@@ -296,6 +314,35 @@ def last_hit_rows(tracks: pd.DataFrame) -> np.ndarray:
             .to_numpy())
     out = np.empty(len(order), np.int64)
     out[order] = np.where(np.isnan(held), order, held).astype(np.int64)
+    return out
+
+
+def track_static_evidence(tracks: pd.DataFrame, points: pd.DataFrame, *, cell_m: float,
+                          lag_frames: int) -> np.ndarray:
+    """(N,) int per row of ``tracks`` (columns group, track_id, frame, x_m, y_m, n_points): the
+    :func:`static_evidence` count of the row's track at its last measured row
+    (:func:`last_hit_rows`): a measured row's own count; a coasting row the count its track had
+    at its last hit, at that hit's position and frame. The count is frozen there on purpose:
+    the coasting row's position is the filter's extrapolation, and static hits that appear later
+    at the last hit's position say nothing about where the object went. Same errors as the two.
+    """
+    return static_evidence(tracks, points, cell_m=cell_m,
+                           lag_frames=lag_frames)[last_hit_rows(tracks)]
+
+
+def moving_test_settings(w, grid: bool = True) -> dict[str, Any]:
+    """The keyword arguments of :func:`moving_tracks` (``grid`` False: of
+    :func:`moving_frames`, without the static-evidence grid's) that the warning group ``w``
+    (:class:`blindspot.safety.config.WarningConfig`, its ``moving_*`` settings) configures."""
+    out = dict(speed_mps=w.moving_speed_mps, probability=w.moving_probability,
+               doppler_std_mps=w.moving_doppler_std_mps,
+               doppler_log_ratio_min=w.moving_doppler_log_ratio_min,
+               doppler_llr=w.moving_doppler_llr,
+               doppler_log_ratio_floor=w.moving_doppler_log_ratio_floor)
+    if grid:
+        out.update(static_evidence_min=w.moving_static_evidence_min,
+                   static_cell_m=w.moving_static_cell_m,
+                   static_lag_frames=w.moving_static_lag_frames)
     return out
 
 
