@@ -21,7 +21,9 @@ scenes.json from `dvc repro driving_scenes`); only the detection settings change
 - ``rda_peaks``: ``ego_motion.peak_search: range_doppler_angle``, every CFAR cell beam-scanned
   with its neighbours and kept when it is a local maximum in range, Doppler and angle together
   (:func:`blindspot.dsp.detections.angle_peaks`); ``rda_peaks_budget96`` the same with 96 angle
-  estimates per frame (whether the budget binds).
+  estimates per frame (whether the budget binds); ``rda_peaks_cand96`` / ``rda_peaks_cand512``
+  with 96 / 512 instead of ``ego_motion.max_candidates`` (256) CFAR cells beam-scanned per
+  frame, the strongest (what the scan costs against what it finds).
 
 Time: about 20-40 s per variant and speed on 2 cores (``rda_peaks`` twice the baseline,
 ``no_peak_budget400`` about 5 min).
@@ -40,7 +42,8 @@ import pandas as pd
 
 REPO = Path(__file__).resolve().parents[1]
 VARIANTS = ("baseline", "so_cfar", "os_cfar", "ca_pfa", "budget96", "no_peak_only",
-            "no_peak_budget400", "rda_peaks", "rda_peaks_budget96")
+            "no_peak_budget400", "rda_peaks", "rda_peaks_budget96", "rda_peaks_cand96",
+            "rda_peaks_cand512")
 
 
 def settings(cfg, name: str) -> dict:
@@ -60,10 +63,12 @@ def settings(cfg, name: str) -> dict:
         if name == "no_peak_budget400":
             out["ego"] = dataclasses.replace(base["ego"], max_detections=400)
         return out
-    if name in ("rda_peaks", "rda_peaks_budget96"):
+    if name in ("rda_peaks", "rda_peaks_budget96", "rda_peaks_cand96", "rda_peaks_cand512"):
         ego = dataclasses.replace(base["ego"], peak_search="range_doppler_angle")
         if name == "rda_peaks_budget96":
             ego = dataclasses.replace(ego, max_detections=96)
+        if name in ("rda_peaks_cand96", "rda_peaks_cand512"):
+            ego = dataclasses.replace(ego, max_candidates=int(name.removeprefix("rda_peaks_cand")))
         return {**base, "ego": ego}
     return base
 
