@@ -2,8 +2,9 @@
 stored outputs. Prints figures, asserts nothing (README, "Coasting clutter tracks and captured
 children").
 
-    BLINDSPOT_SHARED=../shared PYTHONPATH=src .venv/bin/python benchmarks/bench_moving_diagnosis.py \
-        [--data data] [--predictor constant_velocity] [--track SCENE:TRACK_ID ...]
+    BLINDSPOT_SHARED=../shared PYTHONPATH=src .venv/bin/python \
+        benchmarks/bench_moving_diagnosis.py [--data data] [--predictor constant_velocity] \
+        [--track SCENE:TRACK_ID ...]
 
 From DIR (default ``data``: ``driving/tracks.parquet``, ``driving/points.parquet``,
 ``driving/truth.parquet``, ``safety/risk.parquet``, ``safety/scene_outcomes.parquet`` of a

@@ -30,8 +30,8 @@ from blindspot.traj.distribution import DistributionError
 from blindspot.traj.windows import interpolate_gaps
 
 __all__ = ["BackfilledHistory", "with_backfill", "track_histories", "doppler_log_ratio",
-           "moving_tracks", "moving_frames", "doppler_evidence", "moving_test_settings", "last_hit_rows",
-           "track_static_evidence", "incremental_kalman", "risk_table"]
+           "moving_tracks", "moving_frames", "doppler_evidence", "moving_test_settings",
+           "last_hit_rows", "track_static_evidence", "incremental_kalman", "risk_table"]
 
 
 @dataclass(frozen=True, eq=False)
