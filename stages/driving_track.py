@@ -9,14 +9,16 @@ row carries its object's point count and median ego-motion-compensated radial sp
 (``velocity_over_ground_mps``). A confirmed track is a moving object (what the warning assesses)
 from its first frame whose filtered world-frame velocity is above ``warning.moving_speed_mps``,
 significantly non-zero (``warning.moving_probability``) and not refuted by the track's own
-Doppler (the summed log-likelihood ratio "moves as tracked" vs "static" above
+Doppler (the summed log-likelihood ratio "moves as tracked" vs "static", of form
+``warning.moving_doppler_llr``, held above ``warning.moving_doppler_log_ratio_floor``, above
 ``warning.moving_doppler_log_ratio_min``, point spread ``warning.moving_doppler_std_mps``;
 blindspot.safety.predict.moving_tracks) and, per row, not standing on the static environment
 (the static points of frames ``warning.moving_static_lag_frames`` and more before, in the 3 x 3
 cells of ``warning.moving_static_cell_m`` around the track, fewer than
-``warning.moving_static_evidence_min``; blindspot.safety.predict.static_evidence), so parked cars
-and kerb clutter are tracked and left out by their own motion and by where they are, and a child crossing near boresight, whose Doppler looks static, is
-found by its motion over frames. The points' truth labels only score that split
+``warning.moving_static_evidence_min``, a coasting row read at its track's last measured row;
+blindspot.safety.predict.track_static_evidence), so parked cars and kerb clutter are tracked
+and left out by their own motion and by where they are, and a child crossing near boresight,
+whose Doppler looks static, is found by its motion over frames. The points' truth labels only score that split
 (driving_track.json ``classifier``): static-world tracks classed moving, the lead pedestrian's
 tracks of the intruding Monte-Carlo scenes never classed moving, and the time to collision
 (without braking) when the first of them is, for the kinematic test alone ("kinematic") and
