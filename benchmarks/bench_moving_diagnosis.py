@@ -42,11 +42,15 @@ sys.path[:0] = [str(REPO / "stages")]
 
 from blindspot import experiment  # noqa: E402
 from blindspot.safety.predict import (doppler_evidence, doppler_log_ratio,  # noqa: E402
-                                      static_evidence, track_static_evidence)
+                                      last_hit_rows, static_evidence, velocity_chi2)
 
 
 def false_activations(tracks, labels, risk, outcomes, truth, predictor: str) -> pd.DataFrame:
     """One row per false AEB request of ``predictor`` (tracker input): its trigger track."""
+    known = sorted(outcomes.predictor[outcomes.input == "tracker"].unique())
+    if predictor not in known:
+        raise SystemExit(f"--predictor: {predictor!r} has no tracker-input outcomes in the run; "
+                         f"expected one of {known}")
     o = outcomes[(outcomes.input == "tracker") & (outcomes.predictor == predictor)
                  & outcomes.evaluated & ~outcomes.intruding & (outcomes.aeb_frame >= 0)]
     r = risk[(risk.input == "tracker") & (risk.predictor == predictor)]
@@ -80,20 +84,20 @@ def track_history(tracks, points, ego, w, scene: str, track_id: int) -> pd.DataF
                             w.moving_doppler_std_mps, w.moving_doppler_llr)
     total = doppler_evidence(t, ego, w.moving_doppler_std_mps, w.moving_doppler_llr,
                              w.moving_doppler_log_ratio_floor)
-    kw = dict(cell_m=w.moving_static_cell_m, lag_frames=w.moving_static_lag_frames)
-    a, b, c = (t[k].to_numpy(float) for k in ("cov_vxvx", "cov_vxvy", "cov_vyvy"))
-    vx, vy = t.vx_mps.to_numpy(float), t.vy_mps.to_numpy(float)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        d2 = (c * vx**2 - 2 * b * vx * vy + a * vy**2) / (a * c - b**2)
-    t = t.assign(chi2_velocity=d2, doppler_llr=llr, doppler_sum=total,
+    hits = static_evidence(t, pts, cell_m=w.moving_static_cell_m,
+                           lag_frames=w.moving_static_lag_frames)
+    t = t.assign(chi2_velocity=velocity_chi2(t), doppler_llr=llr, doppler_sum=total,
                  doppler_sum_no_floor=doppler_evidence(t, ego, w.moving_doppler_std_mps,
                                                        w.moving_doppler_llr),
-                 static_hits=static_evidence(t, pts, **kw),
-                 static_hits_last_hit=track_static_evidence(t, pts, **kw))
+                 static_hits=hits, static_hits_last_hit=hits[last_hit_rows(t)])
     cols = ["frame", "x_m", "y_m", "vx_mps", "vy_mps", "n_points", "doppler_mps", "confirmed",
             "chi2_velocity", "doppler_llr", "doppler_sum", "doppler_sum_no_floor", "static_hits",
             "static_hits_last_hit", "moving"]
-    return t.loc[t.track_id == track_id, cols].round(2)
+    rows = t.loc[t.track_id == track_id, cols]
+    if rows.empty:
+        raise SystemExit(f"--track: no track {track_id} in scene {scene!r} of the run's "
+                         "driving/tracks.parquet")
+    return rows.round(2)
 
 
 def main(argv: list[str]) -> None:

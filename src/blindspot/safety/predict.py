@@ -30,7 +30,8 @@ from blindspot.traj.distribution import DistributionError
 from blindspot.traj.windows import interpolate_gaps
 
 __all__ = ["BackfilledHistory", "with_backfill", "track_histories", "doppler_log_ratio",
-           "moving_tracks", "moving_frames", "doppler_evidence", "moving_test_settings",
+           "moving_tracks", "moving_frames", "velocity_chi2", "doppler_evidence",
+           "moving_test_settings",
            "last_hit_rows", "track_static_evidence", "incremental_kalman", "risk_table"]
 
 
@@ -252,16 +253,24 @@ def moving_frames(tracks: pd.DataFrame, speed_mps: float, probability: float = 0
             doppler_log_ratio_floor <= doppler_log_ratio_min):
         raise ValueError(f"doppler_log_ratio_floor: expected at most doppler_log_ratio_min = "
                          f"{doppler_log_ratio_min}, found {doppler_log_ratio_floor!r}")
-    vx, vy = tracks.vx_mps.to_numpy(float), tracks.vy_mps.to_numpy(float)
-    a, b, c = (tracks[k].to_numpy(float) for k in ("cov_vxvx", "cov_vxvy", "cov_vyvy"))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        d2 = (c * vx**2 - 2 * b * vx * vy + a * vy**2) / (a * c - b**2)
-    fast = (np.hypot(vx, vy) > speed_mps) & (d2 > chi2.ppf(probability, 2))
+    speed = np.hypot(tracks.vx_mps.to_numpy(float), tracks.vy_mps.to_numpy(float))
+    fast = (speed > speed_mps) & (velocity_chi2(tracks) > chi2.ppf(probability, 2))
     fast &= tracks.confirmed.to_numpy(bool)
     if use_doppler:
         fast &= doppler_evidence(tracks, ego, doppler_std_mps, doppler_llr,
                                  doppler_log_ratio_floor) > doppler_log_ratio_min
     return fast
+
+
+def velocity_chi2(tracks: pd.DataFrame) -> np.ndarray:
+    """(N,) per row of ``tracks`` (columns vx_mps, vy_mps, cov_vxvx, cov_vxvy, cov_vyvy): the
+    filtered velocity's squared Mahalanobis distance from zero, v^T P_v^-1 v (chi-square of 2
+    degrees of freedom for a static object; :func:`moving_tracks`' kinematic test). NaN or inf
+    where P_v is singular."""
+    vx, vy = tracks.vx_mps.to_numpy(float), tracks.vy_mps.to_numpy(float)
+    a, b, c = (tracks[k].to_numpy(float) for k in ("cov_vxvx", "cov_vxvy", "cov_vyvy"))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return (c * vx**2 - 2 * b * vx * vy + a * vy**2) / (a * c - b**2)
 
 
 def doppler_evidence(tracks: pd.DataFrame, ego: pd.DataFrame, doppler_std_mps: float,
