@@ -98,13 +98,16 @@ def main(argv: list[str]) -> None:
            [["ego_x_m", "ego_y_m", "ego_yaw_deg", "ego_speed_mps"]].first()
            .rename(columns={"scene": "group"}))
 
-    margin = (None if w.moving_doppler_log_ratio_floor is None
-              else w.moving_doppler_log_ratio_floor - w.moving_doppler_log_ratio_min)
+    # the configured floor's distance below the configured bound (None: no floor)
+    configured_below = (None if w.moving_doppler_log_ratio_floor is None
+                        else w.moving_doppler_log_ratio_min - w.moving_doppler_log_ratio_floor)
 
     def moving(form: str | None, std: float | None, bound: float | None,
                below: float | None = None) -> np.ndarray:
-        below = margin if below is None else -below
-        floor = None if below is None or bound is None else bound + below
+        """The moving flags of a candidate; its floor ``below`` (default the configured
+        distance) under its bound."""
+        below = configured_below if below is None else below
+        floor = None if below is None or bound is None else bound - below
         return moving_tracks(tracks, ego=None if bound is None else ego[["group", "frame",
                                                                          "ego_x_m", "ego_y_m"]],
                              points=points, **{
