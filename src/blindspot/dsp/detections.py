@@ -27,8 +27,8 @@ import scipy.fft
 
 from blindspot.arrays import check_same_shape, checked_array
 
-__all__ = ["DetectionError", "angle_peaks", "local_maxima", "local_maxima_at",
-           "detection_order", "rank_in_frame"]
+__all__ = ["DetectionError", "angle_peaks", "fft_beam_angle_deg", "local_maxima",
+           "local_maxima_at", "detection_order", "rank_in_frame"]
 
 ANGLE_FFT = 256         # beam-scan points of angle_peaks over sin(theta) in [-1, 1)
 ANGLE_PEAK_MARGIN_DB = 13.0   # angle_peaks: a peak's least height over its beam's median
@@ -194,9 +194,17 @@ def angle_peaks(snapshots: np.ndarray, centre: int, spacing_wl: float, n_fft: in
     a, b, c = lg[rows, k - 1], lg[rows, k], lg[rows, (k + 1) % n_fft]
     den = a - 2 * b + c
     delta = np.where(den < 0, 0.5 * (a - c) / np.where(den < 0, den, -1.0), 0.0)
-    cycles = ((k + delta) / n_fft + 0.5) % 1.0 - 0.5                   # per element, [-0.5, 0.5)
-    sine = np.clip(cycles / spacing_wl, -1.0, 1.0)
-    return keep, np.where(keep, np.degrees(np.arcsin(sine)), np.nan)
+    return keep, np.where(keep, fft_beam_angle_deg(k + delta, n_fft, spacing_wl), np.nan)
+
+
+def fft_beam_angle_deg(bins: np.ndarray, n_fft: int, spacing_wl: float) -> np.ndarray:
+    """(...) deg: the arrival angle of (fractional) bins of an ``n_fft``-point FFT taken over
+    the elements of a uniform linear array of element spacing ``spacing_wl`` wavelengths: the
+    bin is a phase step of ``bins / n_fft`` cycles per element, wrapped to [-0.5, 0.5), and
+    sin(theta) = cycles / spacing (clipped to [-1, 1] where the spacing exceeds half a
+    wavelength's reach)."""
+    cycles = (np.asarray(bins) / n_fft + 0.5) % 1.0 - 0.5             # per element, [-0.5, 0.5)
+    return np.degrees(np.arcsin(np.clip(cycles / spacing_wl, -1.0, 1.0)))
 
 
 def detection_order(frame: np.ndarray, power: np.ndarray, is_moving: np.ndarray) -> np.ndarray:

@@ -39,7 +39,7 @@ import pandas as pd
 import scipy.fft
 
 from blindspot.dsp.chain import DetectionChain
-from blindspot.dsp.detections import angle_peaks, rank_in_frame
+from blindspot.dsp.detections import ANGLE_FFT, angle_peaks, fft_beam_angle_deg, rank_in_frame
 from blindspot.dsp.doa import doa_angles
 from blindspot.dsp.doppler_compensation import compensate_tdm_velocity
 from blindspot.dsp.ego_motion import (
@@ -143,12 +143,9 @@ def _bartlett_angles(comp: np.ndarray, chain: DetectionChain) -> np.ndarray:
 def _fft_angles(comp: np.ndarray, spacing_wl: float) -> np.ndarray:
     """(K,) deg: the peak of a 256-point FFT beam of the first cell of snapshots (K, E, L) on a
     uniform linear array of element spacing ``spacing_wl`` wavelengths."""
-    from blindspot.dsp.detections import ANGLE_FFT
-
     z = scipy.fft.fft(comp[:, :, 0].astype(np.complex64), n=ANGLE_FFT, axis=-1)
-    k = np.argmax(z.real ** 2 + z.imag ** 2, axis=-1)
-    cycles = (k / ANGLE_FFT + 0.5) % 1.0 - 0.5
-    return np.degrees(np.arcsin(np.clip(cycles / spacing_wl, -1.0, 1.0)))
+    return fft_beam_angle_deg(np.argmax(z.real ** 2 + z.imag ** 2, axis=-1), ANGLE_FFT,
+                              spacing_wl)
 
 
 def angle_peak_candidates(ula: np.ndarray, v_wrapped: np.ndarray, odometry_mps: np.ndarray,
