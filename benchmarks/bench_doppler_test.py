@@ -2,7 +2,8 @@
 reported on the other. Prints figures, asserts nothing.
 
     BLINDSPOT_SHARED=../shared .venv/bin/python benchmarks/bench_doppler_test.py \
-        [--data data] [--predictors constant_velocity,lstm_direct] [--json OUT]
+        [--data data] [--predictors constant_velocity,lstm_direct] [--json OUT] \
+        [--floors 0,0.1,...] [--spread 0.27,0.79]
 
 The moving test (:func:`blindspot.safety.predict.moving_tracks`, settings ``warning.moving_*``)
 has three Doppler settings, chosen on the same simulated set the README reports (its "doubtful"
@@ -28,8 +29,11 @@ activation (the issue's <= 1 % goal on 54 scenes; ties broken by J). Candidates:
 ``moving_doppler_llr`` in {common_variance, marginal} x ``moving_doppler_std_mps`` in
 {0.15, 0.3, 0.6} x ``moving_doppler_log_ratio_min`` in {-ln 1000, -ln 100, -ln 10, -ln 3,
 -ln 1.5}, each with the configured floor ``moving_doppler_log_ratio_floor`` at the configured
-distance below its bound; and the configured test with its floor at each ``--floors`` distance
-below the bound. Time: 1-2 min on 2 cores.
+distance below its bound, and each without and with the micro-Doppler spread ratio
+(``moving_doppler_spread_std_mps``) at the ``--spread`` pair (default 0.27,0.79 m/s: static and
+walker, the tuning half's pooled within-object spreads in driving_track.json ``doppler_spread``);
+and the configured test with its floor at each ``--floors`` distance below the bound. Time:
+2-4 min on 2 cores.
 """
 
 from __future__ import annotations
@@ -85,7 +89,17 @@ def main(argv: list[str]) -> None:
     ap.add_argument("--floors", default="0,0.1,0.693,1.099,4.605",
                     help="distances below the configured bound at which the configured test is "
                          "also scored with its floor (comma-separated log ratios)")
+    ap.add_argument("--spread", default="0.27,0.79",
+                    help="static,walker micro-Doppler spreads (m/s) of the candidates with the "
+                         "spread ratio")
     args = ap.parse_args(argv)
+    try:
+        spread = tuple(float(v) for v in args.spread.split(","))
+    except ValueError:
+        spread = ()
+    if len(spread) != 2 or not 0 < spread[0] < spread[1]:
+        ap.error(f"--spread: expected static,walker with 0 < static < walker, found "
+                 f"{args.spread!r}")
     from blindspot import experiment
 
     cfg, w, _, bodies, shape, truth_all, meta, _ = load_inputs(args.data, "tracker")
@@ -103,9 +117,11 @@ def main(argv: list[str]) -> None:
                         else w.moving_doppler_log_ratio_min - w.moving_doppler_log_ratio_floor)
 
     def moving(form: str | None, std: float | None, bound: float | None,
-               below: float | None = None) -> np.ndarray:
+               below: float | None = None, pair: tuple | None | str = "configured"
+               ) -> np.ndarray:
         """The moving flags of a candidate; its floor ``below`` (default the configured
-        distance) under its bound."""
+        distance) under its bound; its spread pair (default the configured one)."""
+        pair = w.moving_doppler_spread_std_mps if pair == "configured" else pair
         below = configured_below if below is None else below
         floor = None if below is None or bound is None else bound - below
         return moving_tracks(tracks, ego=None if bound is None else ego[["group", "frame",
@@ -114,7 +130,8 @@ def main(argv: list[str]) -> None:
                                  **moving_test_settings(w), "doppler_std_mps": std or 0.3,
                                  "doppler_log_ratio_min": bound,
                                  "doppler_llr": form or "common_variance",
-                                 "doppler_log_ratio_floor": floor})
+                                 "doppler_log_ratio_floor": floor,
+                                 "doppler_spread_std_mps": None if bound is None else pair})
 
     superset = moving(None, None, None)
     configured = moving(w.moving_doppler_llr, w.moving_doppler_std_mps,
@@ -124,11 +141,15 @@ def main(argv: list[str]) -> None:
                          "configured moving test (params.yaml changed since driving_track ran?)")
     setup = outcome_setup(truth, meta, bodies, shape, w)
     key = ["group", "frame", "track_id"]
+    def label(f, s, b, pair):
+        return (f"{f} std {s:g} m/s, bound {b:.2f}"
+                + ("" if pair is None else f", spread {pair[0]:g}/{pair[1]:g}"))
+
     candidates = {"off": (None, None, None),
-                  **{f"{f} std {s:g} m/s, bound {b:.2f}": (f, s, b)
-                     for f in FORMS for s in STDS for b in BOUNDS}}
-    name_conf = (f"{w.moving_doppler_llr} std {w.moving_doppler_std_mps:g} m/s, bound "
-                 f"{w.moving_doppler_log_ratio_min:.2f}")
+                  **{label(f, s, b, p): (f, s, b, None, p)
+                     for p in (None, spread) for f in FORMS for s in STDS for b in BOUNDS}}
+    name_conf = label(w.moving_doppler_llr, w.moving_doppler_std_mps,
+                      w.moving_doppler_log_ratio_min, w.moving_doppler_spread_std_mps)
     for d in (float(v) for v in args.floors.split(",") if v):
         candidates[f"{name_conf}, floor bound - {d:.2f}"] = (
             w.moving_doppler_llr, w.moving_doppler_std_mps, w.moving_doppler_log_ratio_min, d)
@@ -168,7 +189,7 @@ def main(argv: list[str]) -> None:
         for name, r in results.items():
             mark = ("configured" if name == name_conf else "") + (
                 " J-pick" if name == best else "") + (" 0-FA-pick" if name == best_quiet else "")
-            print(f"  {name:44s} {mark:28s} " + " | ".join(
+            print(f"  {name:80s} {mark:28s} " + " | ".join(
                 f"avoided {r[h]['n_avoided']}/{r[h]['n_intruding']}, false {r[h]['n_false']}/"
                 f"{r[h]['n_non_intruding']}, J {r[h]['j']:+.3f}" for h in ("tune", "held_out")))
     if args.json:

@@ -18,10 +18,11 @@ From DIR (default ``data``: ``driving/tracks.parquet``, ``driving/points.parquet
 2. the confirmed static-world track rows (by label) that coast faster than
    ``warning.moving_speed_mps`` (what a coasting clutter track's extrapolation can carry into
    the lane);
-3. per ``--track``: its rows with filtered velocity, hits, Doppler, the kinematic chi-square
-   v' P_v^-1 v, the per-frame Doppler log ratio and its sum (configured, with its floor; and
-   without a floor), the static evidence at the row and at its last hit, and the moving flag
-   (the run's).
+3. per ``--track``: its rows with filtered velocity, hits, Doppler and its spread, the
+   kinematic chi-square v' P_v^-1 v, the per-frame Doppler log ratio, the micro-Doppler spread
+   log ratio (0 when ``warning.moving_doppler_spread_std_mps`` is null) and their sum
+   (configured, with its floor; and without a floor), the static evidence at the row and at its
+   last hit, and the moving flag (the run's).
 
 Time: about 20 s.
 """
@@ -42,7 +43,8 @@ sys.path[:0] = [str(REPO / "stages")]
 
 from blindspot import experiment  # noqa: E402
 from blindspot.safety.predict import (doppler_evidence, doppler_log_ratio,  # noqa: E402
-                                      last_hit_rows, static_evidence, velocity_chi2)
+                                      doppler_spread_log_ratio, last_hit_rows, static_evidence,
+                                      velocity_chi2)
 
 
 def false_activations(tracks, labels, risk, outcomes, truth, predictor: str) -> pd.DataFrame:
@@ -82,17 +84,23 @@ def track_history(tracks, points, ego, w, scene: str, track_id: int) -> pd.DataF
     e = t[["group", "frame"]].merge(ego, on=["group", "frame"], how="left")
     llr = doppler_log_ratio(t, e[["ego_x_m", "ego_y_m"]].to_numpy(float),
                             w.moving_doppler_std_mps, w.moving_doppler_llr)
+    spread = w.moving_doppler_spread_std_mps
     total = doppler_evidence(t, ego, w.moving_doppler_std_mps, w.moving_doppler_llr,
-                             w.moving_doppler_log_ratio_floor)
+                             w.moving_doppler_log_ratio_floor, spread_std_mps=spread)
     hits = static_evidence(t, pts, cell_m=w.moving_static_cell_m,
                            lag_frames=w.moving_static_lag_frames)
-    t = t.assign(chi2_velocity=velocity_chi2(t), doppler_llr=llr, doppler_sum=total,
+    t = t.assign(chi2_velocity=velocity_chi2(t), doppler_llr=llr,
+                 spread_llr=(doppler_spread_log_ratio(t, *spread) if spread is not None
+                             else np.zeros(len(t))),
+                 doppler_sum=total,
                  doppler_sum_no_floor=doppler_evidence(t, ego, w.moving_doppler_std_mps,
-                                                       w.moving_doppler_llr),
+                                                       w.moving_doppler_llr,
+                                                       spread_std_mps=spread),
                  static_hits=hits, static_hits_last_hit=hits[last_hit_rows(t)])
-    cols = ["frame", "x_m", "y_m", "vx_mps", "vy_mps", "n_points", "doppler_mps", "confirmed",
-            "chi2_velocity", "doppler_llr", "doppler_sum", "doppler_sum_no_floor", "static_hits",
-            "static_hits_last_hit", "moving"]
+    cols = ["frame", "x_m", "y_m", "vx_mps", "vy_mps", "n_points", "doppler_mps",
+            "doppler_spread_mps", "confirmed", "chi2_velocity", "doppler_llr", "spread_llr",
+            "doppler_sum", "doppler_sum_no_floor", "static_hits", "static_hits_last_hit",
+            "moving"]
     rows = t.loc[t.track_id == track_id, cols]
     if rows.empty:
         raise SystemExit(f"--track: no track {track_id} in scene {scene!r} of the run's "

@@ -40,9 +40,10 @@ import pandas as pd
 from blindspot import experiment
 from blindspot.cli import main_stage
 from blindspot.io import write_json, write_parquet
+from blindspot.safety.evaluation import replicate_half
 from blindspot.safety.oracle import oracle_tracks, visible_truth_points
 from blindspot.safety.predict import moving_test_settings, moving_tracks
-from blindspot.track.tracker import track_points
+from blindspot.track.tracker import label_objects, track_points
 from blindspot.stage import StageResult
 
 
@@ -83,7 +84,8 @@ def run(cfg, ctx):
         "moving_doppler_log_ratio_min": w.moving_doppler_log_ratio_min,
         "moving_static_evidence_min": w.moving_static_evidence_min,
         "moving_static_cell_m": w.moving_static_cell_m,
-        "moving_static_lag_frames": w.moving_static_lag_frames}}}
+        "moving_static_lag_frames": w.moving_static_lag_frames}},
+        "doppler_spread": doppler_spread_by_label(every, tcfg)}
     m = metrics["tracker"]
     print(f"driving_track: tracker on {len(every)} points, {m['n_tracks']} tracks "
           f"({m['n_moving_tracks']} moving), {m['n_rows']} rows")
@@ -101,6 +103,36 @@ def run(cfg, ctx):
         print(f"driving_track: {name}, {metrics[name]['n_tracks']} tracks, {len(tracks)} rows")
     write_json(ctx.out("driving_track.json"), metrics)
     return StageResult(metrics=metrics)
+
+
+def doppler_spread_by_label(points, tcfg):
+    """The micro-Doppler spread the moving test's ``warning.moving_doppler_spread_std_mps``
+    models, measured (truth labels score it): the pooled within-object standard deviation of
+    the points' ``velocity_over_ground_mps`` about their object's mean, sqrt(sum of squared
+    residuals / sum of (n - 1)), over the tracker's objects (:func:`blindspot.track.tracker
+    .label_objects`) of two or more points that are all static-world points or all one
+    pedestrian's, per half of the Monte-Carlo replicates (even: tuning, odd: held out); no
+    ``pooled_std_mps`` where there is no such object (a tiny profile)."""
+    mc = points[points.scene.str.startswith("mc_")]
+    obj = label_objects(mc.rename(columns={"scene": "group"})
+                        .assign(time_s=mc.frame.astype(float)), tcfg)
+    p = mc.assign(obj=obj.to_numpy(), tuning=replicate_half(mc.scene.to_numpy()))
+    p = p[p.obj >= 0]
+    g = p.groupby("obj")
+    per = pd.DataFrame({"n": g.size(), "sources": g.source.nunique(),
+                        "static": g.source.first() == "static", "tuning": g.tuning.first(),
+                        "ss": g.velocity_over_ground_mps.var(ddof=1) * (g.size() - 1)})
+    per = per[(per.n >= 2) & (per.sources == 1)]
+    out = {}
+    for half, sel in (("tuning", per.tuning), ("held_out", ~per.tuning)):
+        for name, lab in (("static", per.static), ("pedestrian", ~per.static)):
+            q = per[sel & lab]
+            dof = float((q.n - 1).sum())
+            out.setdefault(half, {})[name] = {"n_objects": int(len(q)),
+                                              "degrees_of_freedom": int(dof)}
+            if dof:                                     # none without a multi-point object
+                out[half][name]["pooled_std_mps"] = float(np.sqrt(q.ss.sum() / dof))
+    return out
 
 
 def own_points(points):

@@ -97,6 +97,11 @@ def test_warning_config_errors_name_the_key():
         WarningConfig.from_mapping({**base, "moving_doppler_log_ratio_floor": -1.0})
     with pytest.raises(ConfigError, match="warning.moving_doppler_llr"):
         WarningConfig.from_mapping({**base, "moving_doppler_llr": "exact"})
+    for bad in ([0.5, 0.5], [0.8, 0.3], [0.0, 0.8], [0.3]):      # equal, swapped, zero, one
+        with pytest.raises(ConfigError, match="warning.moving_doppler_spread_std_mps"):
+            WarningConfig.from_mapping({**base, "moving_doppler_spread_std_mps": bad})
+    ok = WarningConfig.from_mapping({**base, "moving_doppler_spread_std_mps": [0.27, 0.79]})
+    assert ok.moving_doppler_spread_std_mps == (0.27, 0.79)
 
 
 def test_a_skipped_frame_inside_a_history_is_interpolated_from_its_past_neighbours():

@@ -271,3 +271,49 @@ def test_floored_sum_is_the_reflected_recursion(llr, floor, shuffle):
                        doppler_log_ratio_floor=floor)
     far = np.abs(ref - bound) > 1e-6                                 # not on the boundary
     np.testing.assert_array_equal(ok[far], (ref > bound)[far])
+
+
+def test_spread_ratio_is_the_ratio_of_two_scaled_chi_square_densities():
+    from scipy.stats import chi2 as chi2_dist
+
+    from blindspot.safety.predict import doppler_spread_log_ratio
+
+    # Q = (n - 1) s^2 ~ sigma^2 chi2(n - 1): the ratio of the densities of Q under the walker's
+    # and the static object's sigma; one point or a coasting row carries no spread
+    n = np.array([2, 3, 5, 8, 1, 0, 4])
+    sd = np.array([0.1, 0.3, 0.8, 1.2, np.nan, np.nan, np.nan])
+    t = pd.DataFrame({"n_points": n, "doppler_spread_mps": sd})
+    got = doppler_spread_log_ratio(t, 0.27, 0.79)
+    q, k = (n[:4] - 1) * sd[:4] ** 2, n[:4] - 1
+    want = (chi2_dist.logpdf(q / 0.79**2, k) - 2 * np.log(0.79)
+            - chi2_dist.logpdf(q / 0.27**2, k) + 2 * np.log(0.27))
+    np.testing.assert_allclose(got[:4], want, rtol=1e-10)
+    assert got[0] < 0 < got[3] and (got[4:] == 0).all()
+    with pytest.raises(ValueError, match="static < walker"):
+        doppler_spread_log_ratio(t, 0.8, 0.3)
+    with pytest.raises(ValueError, match="doppler_spread_mps"):
+        doppler_spread_log_ratio(t.drop(columns="doppler_spread_mps"), 0.27, 0.79)
+
+
+def test_spread_refutes_a_tangential_slide_that_the_mean_doppler_cannot():
+    # a cluster sliding at 1.4 m/s across the line of sight at boresight (x = 0, 10 m ahead):
+    # its mean Doppler 0 agrees with the tangential velocity (llr 0), so the mean test keeps it;
+    # its 3 points a frame spread 0.25 m/s (one rigid static object, the 0.27 m/s pooled spread
+    # of driving_track.json), which "static" explains better each frame, by
+    # 2 ln(0.27 / 0.79) + 0.25^2 (1 / 0.27^2 - 1 / 0.79^2) = -1.39: the per-frame test fails
+    # from the second frame on (sum -2.78 < ln 0.1). A child crossing there, 3 points spread
+    # 0.8 m/s (limbs), stays moving.
+    from blindspot.safety.predict import moving_frames
+
+    kw = dict(ego=_ego(), doppler_std_mps=0.3, doppler_log_ratio_min=np.log(0.1))
+    slide = _doppler_track(1.4, 0.0, 0.0, x=0.0, n=3).assign(doppler_spread_mps=0.25)
+    child = slide.assign(doppler_spread_mps=0.8)
+    assert moving_frames(slide, 0.5, **kw).all()                       # mean Doppler only
+    per_frame = moving_frames(slide, 0.5, doppler_spread_std_mps=(0.27, 0.79), **kw)
+    assert per_frame.tolist() == [True] + [False] * 7
+    # moving_tracks latches its first moving frame (a walker stopping stays an object to watch)
+    assert moving_tracks(slide, 0.5, doppler_spread_std_mps=(0.27, 0.79), **kw).all()
+    assert moving_tracks(child, 0.5, doppler_spread_std_mps=(0.27, 0.79), **kw).all()
+    with pytest.raises(ValueError, match="doppler_spread_mps"):
+        moving_tracks(slide.drop(columns="doppler_spread_mps"), 0.5,
+                      doppler_spread_std_mps=(0.27, 0.79), **kw)

@@ -190,9 +190,10 @@ def test_output_columns_and_types():
     assert list(tracks.columns) == ["frame", "time_s", "track_id", "x_m", "y_m", "vx_mps",
                                     "vy_mps", "cov_xx", "cov_xy", "cov_yy", "cov_vxvx",
                                     "cov_vxvy", "cov_vyvy", "confirmed", "coasting", "n_points",
-                                    "doppler_mps"]
+                                    "doppler_mps", "doppler_spread_mps"]
     assert tracks.frame.dtype == np.int64 and tracks.track_id.dtype == np.int64
     assert tracks.n_points.dtype == np.int64 and tracks.doppler_mps.isna().all()   # no column
+    assert tracks.doppler_spread_mps.isna().all()
     assert tracks.confirmed.dtype == bool and tracks.coasting.dtype == bool
     empty = track_points(frame_table(np.array([0, 1]), np.full((2, 2), np.nan)), config())
     assert empty.empty and list(empty.columns) == list(tracks.columns)
@@ -213,8 +214,27 @@ def test_track_rows_carry_the_updating_objects_points_and_median_doppler():
     assert tr.track_id.nunique() == 1
     hit = ~tr.coasting
     assert (tr.n_points[hit] == 3).all() and np.allclose(tr.doppler_mps[hit], 1.0)
+    # ... and their sample standard deviation (ddof 1), the object's micro-Doppler spread
+    assert np.allclose(tr.doppler_spread_mps[hit], np.std([0.9, 1.0, 5.0], ddof=1))
     assert tr.coasting.to_numpy()[6] and tr.n_points.to_numpy()[6] == 0
-    assert np.isnan(tr.doppler_mps.to_numpy()[6])
+    assert np.isnan(tr.doppler_mps.to_numpy()[6]) and np.isnan(tr.doppler_spread_mps.to_numpy()[6])
+
+
+def test_label_objects_are_the_points_behind_each_track_row():
+    from blindspot.track.tracker import label_objects
+
+    # two walkers 3 m apart, 3 points each per frame, and a lone point 20 m away in frame 0
+    # that DBSCAN with min_samples 2 calls noise (-1): each walker's points of a frame share one
+    # label, labels differ between frames and walkers
+    rows = [(f, f * DT, x + dx, 6.0) for f in range(4) for x in (-1.5, 1.5)
+            for dx in (-0.1, 0.0, 0.1)] + [(0, 0.0, 20.0, 20.0)]
+    pts = pd.DataFrame(rows, columns=["frame", "time_s", "x_m", "y_m"])
+    lab = label_objects(pts, config(cluster_min_samples=2))
+    assert lab.index.equals(pts.index) and lab.iloc[-1] == -1 and (lab.iloc[:-1] >= 0).all()
+    per = pts.iloc[:-1].assign(o=lab.iloc[:-1], w=np.sign(pts.x_m.iloc[:-1])).groupby("o").agg(
+        n=("w", "size"), walkers=("w", "nunique"), frames=("frame", "nunique"))
+    assert (per.n == 3).all() and (per.walkers == 1).all() and (per.frames == 1).all()
+    assert len(per) == 8
 
 
 @settings(max_examples=8)

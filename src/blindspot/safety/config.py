@@ -83,6 +83,8 @@ class WarningConfig(TypedConfig):
     seed: int = setting(0, ge=0, le=2**63 - 1)
     moving_doppler_llr: str = setting("common_variance", choices=DOPPLER_LLR_FORMS)
     moving_doppler_log_ratio_floor: float | None = setting(None, ge=-1000.0, le=0.0)
+    moving_doppler_spread_std_mps: tuple[float, float] | None = setting(None, gt=0.0, le=10.0,
+                                                                        ordered=True)
 
     def validate(self) -> None:
         extra = sorted(set(self.reference_predictors) - set(self.predictors))
@@ -96,6 +98,11 @@ class WarningConfig(TypedConfig):
             raise ConfigError("warning_threshold", self.warning_threshold,
                               f"at most warning.aeb_threshold = {self.aeb_threshold} (the warning "
                               "comes before or with the AEB request)")
+        spread = self.moving_doppler_spread_std_mps
+        if spread is not None and not spread[0] < spread[1]:
+            raise ConfigError("moving_doppler_spread_std_mps", list(spread),
+                              "[static, walker] with static < walker (a walker's limbs spread "
+                              "its points' Doppler wider than a static object's), or null")
         floor = self.moving_doppler_log_ratio_floor
         if floor is not None and floor > self.moving_doppler_log_ratio_min:
             raise ConfigError("moving_doppler_log_ratio_floor", floor,

@@ -178,11 +178,47 @@ def doppler_log_ratio(tracks: pd.DataFrame, ego_xy: np.ndarray, doppler_std_mps:
     return np.where(ok, llr, 0.0)
 
 
+def doppler_spread_log_ratio(tracks: pd.DataFrame, static_std_mps: float,
+                             walker_std_mps: float) -> np.ndarray:
+    """(N,) per row of ``tracks`` (columns n_points, doppler_spread_mps): the log-likelihood
+    ratio of its object's micro-Doppler spread between "a walker" and "static".
+
+    A walker's limbs swing about its torso, so the ego-motion-compensated radial speeds of the
+    points of one walker in one frame spread about their mean (micro-Doppler; V. C. Chen, "The
+    Micro-Doppler Effect in Radar", Artech House 2011); a rigid static object's points share one radial
+    speed up to the Doppler bin and the angle error. With the points' speeds Gaussian about
+    their mean with standard deviation sigma, the residual sum of squares of n points,
+    Q = (n - 1) s^2 (s = ``doppler_spread_mps``, the sample standard deviation), is sigma^2
+    chi-square with n - 1 degrees of freedom, and the ratio of its densities under sigma_w =
+    ``walker_std_mps`` and sigma_s = ``static_std_mps`` is
+
+        llr = (n - 1) ln(sigma_s / sigma_w) + Q / 2 (1 / sigma_s^2 - 1 / sigma_w^2)
+
+    (the ratio of the two scaled chi-square densities of Q, the sufficient statistic of a
+    Gaussian's variance with the mean unknown). It does not depend on the geometry: unlike :func:`doppler_log_ratio` it
+    refutes a cluster that slides tangentially along a parked car (no radial velocity to
+    contradict) and supports a child crossing at boresight. Rows with fewer than two points or
+    no spread (coasting) give 0. Raises ValueError naming a missing column or standard
+    deviations that are not 0 < static < walker."""
+    missing = sorted({"n_points", "doppler_spread_mps"} - set(tracks.columns))
+    if missing:
+        raise ValueError(f"tracks: missing columns {missing} (the blindspot.track schema)")
+    if not (0.0 < static_std_mps < walker_std_mps):
+        raise ValueError(f"static_std_mps, walker_std_mps: expected 0 < static < walker, found "
+                         f"{static_std_mps!r}, {walker_std_mps!r}")
+    dof = tracks.n_points.to_numpy(float) - 1.0
+    q = dof * tracks.doppler_spread_mps.to_numpy(float) ** 2
+    llr = (dof * np.log(static_std_mps / walker_std_mps)
+           + 0.5 * q * (1.0 / static_std_mps ** 2 - 1.0 / walker_std_mps ** 2))
+    return np.where((dof >= 1) & np.isfinite(q), llr, 0.0)
+
+
 def moving_tracks(tracks: pd.DataFrame, speed_mps: float, probability: float = 0.99, *,
                   ego: pd.DataFrame | None = None, doppler_std_mps: float = 0.3,
                   doppler_log_ratio_min: float | None = None,
                   doppler_llr: str = "common_variance",
                   doppler_log_ratio_floor: float | None = None,
+                  doppler_spread_std_mps: tuple[float, float] | None = None,
                   points: pd.DataFrame | None = None, static_evidence_min: int = 0,
                   static_cell_m: float = 0.5, static_lag_frames: int = 10) -> np.ndarray:
     """(N,) bool per row of ``tracks`` (columns group, track_id, frame, vx_mps, vy_mps,
@@ -197,7 +233,9 @@ def moving_tracks(tracks: pd.DataFrame, speed_mps: float, probability: float = 0
     ``doppler_llr``; a
     sequential probability ratio of "moves as tracked" against "static", Wald 1945) is above
     ``doppler_log_ratio_min`` (e.g. -ln 10: the track's own radial speeds make "static" ten
-    times likelier than its kinematic velocity; with ``doppler_log_ratio_floor`` the sum is
+    times likelier than its kinematic velocity; with ``doppler_spread_std_mps`` = (static,
+    walker) each frame's micro-Doppler spread ratio :func:`doppler_spread_log_ratio` joins the
+    sum, which needs the column doppler_spread_mps; with ``doppler_log_ratio_floor`` the sum is
     held at or above that floor, max(floor, S + llr) each frame: Page's reflecting barrier
     (Page 1954, Biometrika 41), so the track of a clutter cluster that captures a pedestrian
     stepping out keeps no more than ``doppler_log_ratio_min - doppler_log_ratio_floor`` of
@@ -218,7 +256,8 @@ def moving_tracks(tracks: pd.DataFrame, speed_mps: float, probability: float = 0
     fast = moving_frames(tracks, speed_mps, probability, ego=ego,
                          doppler_std_mps=doppler_std_mps,
                          doppler_log_ratio_min=doppler_log_ratio_min, doppler_llr=doppler_llr,
-                         doppler_log_ratio_floor=doppler_log_ratio_floor)
+                         doppler_log_ratio_floor=doppler_log_ratio_floor,
+                         doppler_spread_std_mps=doppler_spread_std_mps)
     order, key = _track_order(tracks)
     seen = pd.Series(fast[order]).groupby(key, sort=False).cummax().to_numpy(bool)
     out = np.empty(len(tracks), bool)
@@ -233,7 +272,8 @@ def moving_frames(tracks: pd.DataFrame, speed_mps: float, probability: float = 0
                   ego: pd.DataFrame | None = None, doppler_std_mps: float = 0.3,
                   doppler_log_ratio_min: float | None = None,
                   doppler_llr: str = "common_variance",
-                  doppler_log_ratio_floor: float | None = None) -> np.ndarray:
+                  doppler_log_ratio_floor: float | None = None,
+                  doppler_spread_std_mps: tuple[float, float] | None = None) -> np.ndarray:
     """(N,) bool per row of ``tracks``: the row's own frame passes :func:`moving_tracks`'s
     kinematic and Doppler tests (confirmed, fast, significantly non-zero, the Doppler sum so
     far above its bound), before the latch and the static-evidence grid; same arguments and
@@ -243,6 +283,8 @@ def moving_frames(tracks: pd.DataFrame, speed_mps: float, probability: float = 0
     use_doppler = ego is not None and doppler_log_ratio_min is not None
     if use_doppler:
         need |= {"x_m", "y_m", "n_points", "doppler_mps"}
+        if doppler_spread_std_mps is not None:
+            need.add("doppler_spread_mps")
     missing = sorted(need - set(tracks.columns))
     if missing:
         raise ValueError(f"tracks: missing columns {missing} (the blindspot.track schema)")
@@ -258,7 +300,8 @@ def moving_frames(tracks: pd.DataFrame, speed_mps: float, probability: float = 0
     fast &= tracks.confirmed.to_numpy(bool)
     if use_doppler:
         fast &= doppler_evidence(tracks, ego, doppler_std_mps, doppler_llr,
-                                 doppler_log_ratio_floor) > doppler_log_ratio_min
+                                 doppler_log_ratio_floor,
+                                 spread_std_mps=doppler_spread_std_mps) > doppler_log_ratio_min
     return fast
 
 
@@ -274,13 +317,17 @@ def velocity_chi2(tracks: pd.DataFrame) -> np.ndarray:
 
 
 def doppler_evidence(tracks: pd.DataFrame, ego: pd.DataFrame, doppler_std_mps: float,
-                     form: str = "common_variance", floor: float | None = None) -> np.ndarray:
+                     form: str = "common_variance", floor: float | None = None, *,
+                     spread_std_mps: tuple[float, float] | None = None) -> np.ndarray:
     """(N,) per row of ``tracks``: the sum of :func:`doppler_log_ratio` (of ``form``) over the
     row's track up to and including its frame, "moves as tracked" against "static" in natural
-    log units; with ``floor`` reflected at it, S_t = max(floor, S_t-1 + llr_t) from S_0 = 0
+    log units; with ``spread_std_mps`` = (static, walker) standard deviations (m/s) each
+    frame's :func:`doppler_spread_log_ratio` is added (for Gaussian points the sample mean and
+    the spread about it are independent, so their ratios add; the object's speed here is its
+    points' median, close to the mean); with ``floor`` reflected at it, S_t = max(floor, S_t-1 + llr_t) from S_0 = 0
     (Page 1954). ``ego``: columns group, frame, ego_x_m, ego_y_m (the radar's world position,
-    m). Any row order. Raises ValueError naming a row without an ego position or a bad
-    ``form``."""
+    m). Any row order. Raises ValueError naming a row without an ego position, a bad
+    ``form`` or bad spreads."""
     e = tracks[["group", "frame"]].merge(ego[["group", "frame", "ego_x_m", "ego_y_m"]],
                                          on=["group", "frame"], how="left")
     if e.ego_x_m.isna().any():
@@ -288,6 +335,8 @@ def doppler_evidence(tracks: pd.DataFrame, ego: pd.DataFrame, doppler_std_mps: f
         raise ValueError(f"ego: no radar position for group {bad.group!r} frame {bad.frame}")
     llr = doppler_log_ratio(tracks, e[["ego_x_m", "ego_y_m"]].to_numpy(float),
                             doppler_std_mps, form)
+    if spread_std_mps is not None:
+        llr = llr + doppler_spread_log_ratio(tracks, *spread_std_mps)
     order, key = _track_order(tracks)
     total = pd.Series(llr[order]).groupby(key, sort=False).cumsum().to_numpy()
     if floor is not None:
@@ -347,7 +396,8 @@ def moving_test_settings(w, grid: bool = True) -> dict[str, Any]:
                doppler_std_mps=w.moving_doppler_std_mps,
                doppler_log_ratio_min=w.moving_doppler_log_ratio_min,
                doppler_llr=w.moving_doppler_llr,
-               doppler_log_ratio_floor=w.moving_doppler_log_ratio_floor)
+               doppler_log_ratio_floor=w.moving_doppler_log_ratio_floor,
+               doppler_spread_std_mps=w.moving_doppler_spread_std_mps)
     if grid:
         out.update(static_evidence_min=w.moving_static_evidence_min,
                    static_cell_m=w.moving_static_cell_m,

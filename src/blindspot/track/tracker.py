@@ -38,17 +38,19 @@ from sklearn.cluster import DBSCAN
 from blindspot.parallel import parallel_map
 from blindspot.track.config import TrackerConfig
 
-__all__ = ["INPUT_COLUMNS", "OUTPUT_COLUMNS", "TrackingError", "cluster_points", "track_points"]
+__all__ = ["INPUT_COLUMNS", "OUTPUT_COLUMNS", "TrackingError", "cluster_points", "label_objects",
+           "track_points"]
 
 #: Required input columns (``group``, ``velocity_mps``, ``velocity_over_ground_mps`` optional).
 INPUT_COLUMNS = ("frame", "time_s", "x_m", "y_m")
 #: Output columns after the optional ``group``.
 OUTPUT_COLUMNS = ("frame", "time_s", "track_id", "x_m", "y_m", "vx_mps", "vy_mps",
                   "cov_xx", "cov_xy", "cov_yy", "cov_vxvx", "cov_vxvy", "cov_vyvy",
-                  "confirmed", "coasting", "n_points", "doppler_mps")
-#: The optional point column whose per-object median the tracks carry as ``doppler_mps``: the
-#: ego-motion-compensated radial speed of a point (measured radial speed minus the one a static
-#: point at its angle would show, m/s; blindspot.synth.driving_measurement).
+                  "confirmed", "coasting", "n_points", "doppler_mps", "doppler_spread_mps")
+#: The optional point column whose per-object median and sample standard deviation the tracks
+#: carry as ``doppler_mps`` and ``doppler_spread_mps``: the ego-motion-compensated radial speed
+#: of a point (measured radial speed minus the one a static point at its angle would show, m/s;
+#: blindspot.synth.driving_measurement).
 DOPPLER_COLUMN = "velocity_over_ground_mps"
 #: Optional point columns: the sensor's position in the points' frame of reference at the
 #: point's frame (m; a moving radar's world position), the origin of the line of sight of the
@@ -113,6 +115,18 @@ def cluster_points(points: pd.DataFrame, config: TrackerConfig) -> pd.DataFrame:
     has_group = _check_points(points)
     keys = (["group"] if has_group else []) + ["frame"]
     return _centroids(_labelled(points, keys, config), keys)
+
+
+def label_objects(points: pd.DataFrame, config: TrackerConfig) -> pd.Series:
+    """(N,) int per row of ``points`` (as :func:`cluster_points`): the object (DBSCAN cluster,
+    a number unique over every frame and group) the tracker makes of the point, -1 for a point
+    DBSCAN calls noise or one without coordinates; index that of ``points``. The points of one
+    object are what one track row's ``n_points``, ``doppler_mps`` and ``doppler_spread_mps``
+    summarise. Raises TrackingError as :func:`track_points`."""
+    has_group = _check_points(points)
+    keys = (["group"] if has_group else []) + ["frame"]
+    kept = _labelled(points, keys, config)["_label"]
+    return kept.reindex(points.index, fill_value=-1).astype(np.int64)
 
 
 def _labelled(points: pd.DataFrame, keys: list[str], config: TrackerConfig) -> pd.DataFrame:
@@ -472,13 +486,15 @@ def _track_group(labelled: pd.DataFrame, frames: pd.DataFrame, config: TrackerCo
     sensor_of = (dict(zip(starts, labelled[list(SENSOR_COLUMNS)].to_numpy(float)[np.r_[0, cut]]))
                  if has_sensor and len(of) else {})
     no_points = (np.empty((0, 2)), np.empty(0, np.int64))
-    # per object (label): the median ego-motion-compensated radial speed of its points
-    doppler = (labelled.groupby("_label")[DOPPLER_COLUMN].median()
-               if DOPPLER_COLUMN in labelled.columns else None)
+    # per object (label): the median ego-motion-compensated radial speed of its points and
+    # their sample standard deviation (the micro-Doppler spread; NaN for one point)
+    by_label = (labelled.groupby("_label")[DOPPLER_COLUMN].agg(["median", "std"])
+                if DOPPLER_COLUMN in labelled.columns else None)
     # a frame's labels are looked up in the sorted label index (a pandas reindex per frame
     # cost more than the lookup); every label of a frame is in it
-    dop_label = None if doppler is None else doppler.index.to_numpy()
-    dop_value = None if doppler is None else doppler.to_numpy(float)
+    dop_label = None if by_label is None else by_label.index.to_numpy()
+    dop_value = None if by_label is None else by_label["median"].to_numpy(float)
+    dop_spread = None if by_label is None else by_label["std"].to_numpy(float)
     steps = config.max_misses + 1            # UpdateTimeStepsDeleter's time_steps_since_update
     live: dict[object, _Book] = {}
     next_id = 0
@@ -489,14 +505,15 @@ def _track_group(labelled: pd.DataFrame, frames: pd.DataFrame, config: TrackerCo
         xy, counts = _objects(pxy, plabels) if len(pxy) else (np.empty((0, 2)),
                                                               np.empty(0, np.int64))
         ulab = np.unique(plabels)
-        dop = (dop_value[np.searchsorted(dop_label, ulab)] if doppler is not None
-               else np.full(len(ulab), np.nan))
+        at = None if by_label is None else np.searchsorted(dop_label, ulab)
+        dop = dop_value[at] if at is not None else np.full(len(ulab), np.nan)
+        spread = dop_spread[at] if at is not None else np.full(len(ulab), np.nan)
         sensor = tuple(float(c) for c in sensor_of.get(frame, (0.0, 0.0)))
         order = [Detection(p.reshape(2, 1), timestamp=ts,
                            measurement_model=parts.measurement_model,
                            metadata={"n_points": int(k), "doppler_mps": float(d),
-                                     "sensor_xy": sensor})
-                 for p, k, d in zip(xy, counts, dop)]
+                                     "doppler_spread_mps": float(sd), "sensor_xy": sensor})
+                 for p, k, d, sd in zip(xy, counts, dop, spread)]
         detections = set(order)
         used: set = set()
         hit_now: dict[object, bool] = {}
@@ -577,6 +594,8 @@ def _track_group(labelled: pd.DataFrame, frames: pd.DataFrame, config: TrackerCo
             det = meas_of.get(track)
             out["n_points"].append(det.metadata["n_points"] if det is not None else 0)
             out["doppler_mps"].append(det.metadata["doppler_mps"] if det is not None else np.nan)
+            out["doppler_spread_mps"].append(det.metadata["doppler_spread_mps"]
+                                             if det is not None else np.nan)
     return out
 
 
@@ -619,7 +638,9 @@ def track_points(points: pd.DataFrame, config: TrackerConfig, jobs: int = 1) -> 
         passed), ``coasting`` (predicted without a measurement this frame), ``n_points`` (points
         of the object that updated the track this frame, 0 when coasting), ``doppler_mps`` (the
         median ``velocity_over_ground_mps`` of those points, m/s; NaN when coasting or when the
-        points lack that column: the evidence of :mod:`blindspot.track.classify`). Tentative
+        points lack that column: the evidence of :func:`blindspot.safety.predict.moving_tracks`),
+        ``doppler_spread_mps`` (their sample standard deviation, ddof 1, m/s: the object's
+        micro-Doppler spread; NaN as ``doppler_mps`` and for a one-point object). Tentative
         tracks are included (``confirmed`` False): filter on ``confirmed`` for reported tracks.
 
     Raises:
