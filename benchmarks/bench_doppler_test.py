@@ -29,11 +29,12 @@ activation (the issue's <= 1 % goal on 54 scenes; ties broken by J). Candidates:
 ``moving_doppler_llr`` in {common_variance, marginal} x ``moving_doppler_std_mps`` in
 {0.15, 0.3, 0.6} x ``moving_doppler_log_ratio_min`` in {-ln 1000, -ln 100, -ln 10, -ln 3,
 -ln 1.5}, each with the configured floor ``moving_doppler_log_ratio_floor`` at the configured
-distance below its bound, and each without and with the micro-Doppler spread ratio
+distance below its bound, each without and with the Doppler spread ratio
 (``moving_doppler_spread_std_mps``) at the ``--spread`` pair (default 0.27,0.79 m/s: static and
-walker, the tuning half's pooled within-object spreads in driving_track.json ``doppler_spread``);
-and the configured test with its floor at each ``--floors`` distance below the bound. Time:
-2-4 min on 2 cores.
+walker, the tuning half's pooled within-object spreads in driving_track.json ``doppler_spread``),
+and each with its Doppler judged against the velocity of its frame or the current one
+(``moving_doppler_reference``); and the configured test with its floor at each ``--floors``
+distance below the bound. Time: 4-6 min on 2 cores.
 """
 
 from __future__ import annotations
@@ -59,6 +60,7 @@ from blindspot.traj.calibration import from_record  # noqa: E402
 STDS = (0.15, 0.3, 0.6)
 BOUNDS = (-np.log(1000.0), -np.log(100.0), -np.log(10.0), -np.log(3.0), -np.log(1.5))
 FORMS = ("common_variance", "marginal")
+REFERENCES = ("frame", "current")
 
 
 def calibrated(cfg, name: str, data: Path):
@@ -117,11 +119,13 @@ def main(argv: list[str]) -> None:
                         else w.moving_doppler_log_ratio_min - w.moving_doppler_log_ratio_floor)
 
     def moving(form: str | None, std: float | None, bound: float | None,
-               below: float | None = None, pair: tuple | None | str = "configured"
-               ) -> np.ndarray:
+               below: float | None = None, pair: tuple | None | str = "configured",
+               reference: str | None = None) -> np.ndarray:
         """The moving flags of a candidate; its floor ``below`` (default the configured
-        distance) under its bound; its spread pair (default the configured one)."""
+        distance) under its bound; its spread pair and Doppler reference (default the
+        configured ones)."""
         pair = w.moving_doppler_spread_std_mps if pair == "configured" else pair
+        reference = reference or w.moving_doppler_reference
         below = configured_below if below is None else below
         floor = None if below is None or bound is None else bound - below
         return moving_tracks(tracks, ego=None if bound is None else ego[["group", "frame",
@@ -131,7 +135,8 @@ def main(argv: list[str]) -> None:
                                  "doppler_log_ratio_min": bound,
                                  "doppler_llr": form or "common_variance",
                                  "doppler_log_ratio_floor": floor,
-                                 "doppler_spread_std_mps": None if bound is None else pair})
+                                 "doppler_spread_std_mps": None if bound is None else pair,
+                                 "doppler_reference": reference})
 
     superset = moving(None, None, None)
     configured = moving(w.moving_doppler_llr, w.moving_doppler_std_mps,
@@ -141,15 +146,18 @@ def main(argv: list[str]) -> None:
                          "configured moving test (params.yaml changed since driving_track ran?)")
     setup = outcome_setup(truth, meta, bodies, shape, w)
     key = ["group", "frame", "track_id"]
-    def label(f, s, b, pair):
+    def label(f, s, b, pair, ref):
         return (f"{f} std {s:g} m/s, bound {b:.2f}"
-                + ("" if pair is None else f", spread {pair[0]:g}/{pair[1]:g}"))
+                + ("" if pair is None else f", spread {pair[0]:g}/{pair[1]:g}")
+                + ("" if ref == "frame" else f", {ref} velocity"))
 
     candidates = {"off": (None, None, None),
-                  **{label(f, s, b, p): (f, s, b, None, p)
-                     for p in (None, spread) for f in FORMS for s in STDS for b in BOUNDS}}
+                  **{label(f, s, b, p, r): (f, s, b, None, p, r)
+                     for r in REFERENCES for p in (None, spread) for f in FORMS for s in STDS
+                     for b in BOUNDS}}
     name_conf = label(w.moving_doppler_llr, w.moving_doppler_std_mps,
-                      w.moving_doppler_log_ratio_min, w.moving_doppler_spread_std_mps)
+                      w.moving_doppler_log_ratio_min, w.moving_doppler_spread_std_mps,
+                      w.moving_doppler_reference)
     for d in (float(v) for v in args.floors.split(",") if v):
         candidates[f"{name_conf}, floor bound - {d:.2f}"] = (
             w.moving_doppler_llr, w.moving_doppler_std_mps, w.moving_doppler_log_ratio_min, d)

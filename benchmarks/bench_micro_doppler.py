@@ -25,7 +25,7 @@ Prints figures, asserts nothing.
    static points at exactly 0): the objects of its moving points, and the share whose points
    all sit in one Doppler bin.
 
-Time: about 10 s.
+Time: about 7 s.
 """
 
 from __future__ import annotations

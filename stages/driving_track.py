@@ -11,7 +11,10 @@ from its first frame whose filtered world-frame velocity is above ``warning.movi
 significantly non-zero (``warning.moving_probability``) and not refuted by the track's own
 Doppler (the summed log-likelihood ratio "moves as tracked" vs "static", of form
 ``warning.moving_doppler_llr``, held above ``warning.moving_doppler_log_ratio_floor``, above
-``warning.moving_doppler_log_ratio_min``, point spread ``warning.moving_doppler_std_mps``;
+``warning.moving_doppler_log_ratio_min``, point spread ``warning.moving_doppler_std_mps``,
+optionally with the objects' Doppler spread ratio ``warning.moving_doppler_spread_std_mps``
+and judged against the velocity of the frame or the current one,
+``warning.moving_doppler_reference``;
 blindspot.safety.predict.moving_tracks) and, per row, not standing on the static environment
 (the static points of frames ``warning.moving_static_lag_frames`` and more before, in the 3 x 3
 cells of ``warning.moving_static_cell_m`` around the track, fewer than
@@ -19,7 +22,8 @@ cells of ``warning.moving_static_cell_m`` around the track, fewer than
 blindspot.safety.predict.track_static_evidence), so parked cars and kerb clutter are tracked
 and left out by their own motion and by where they are, and a child crossing near boresight,
 whose Doppler looks static, is found by its motion over frames. The points' truth labels only score that split
-(driving_track.json ``classifier``): static-world tracks classed moving, the lead pedestrian's
+(driving_track.json ``classifier``; ``doppler_spread`` measures the objects' Doppler spread
+per label): static-world tracks classed moving, the lead pedestrian's
 tracks of the intruding Monte-Carlo scenes never classed moving, and the time to collision
 (without braking) when the first of them is, for the kinematic test alone ("kinematic") and
 with the Doppler test ("doppler").

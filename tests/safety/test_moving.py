@@ -313,7 +313,81 @@ def test_spread_refutes_a_tangential_slide_that_the_mean_doppler_cannot():
     assert per_frame.tolist() == [True] + [False] * 7
     # moving_tracks latches its first moving frame (a walker stopping stays an object to watch)
     assert moving_tracks(slide, 0.5, doppler_spread_std_mps=(0.27, 0.79), **kw).all()
-    assert moving_tracks(child, 0.5, doppler_spread_std_mps=(0.27, 0.79), **kw).all()
+    assert moving_frames(child, 0.5, doppler_spread_std_mps=(0.27, 0.79), **kw).all()
     with pytest.raises(ValueError, match="doppler_spread_mps"):
         moving_tracks(slide.drop(columns="doppler_spread_mps"), 0.5,
                       doppler_spread_std_mps=(0.27, 0.79), **kw)
+
+
+def _random_tracks(seed: int, n_tracks: int = 4) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """Tracks of 2 groups with random positions, velocities, covariances, point counts and
+    Dopplers (some rows coasting), rows shuffled; the radar's positions per group and frame."""
+    rng = np.random.default_rng(seed)
+    parts = []
+    for i in range(n_tracks):
+        k = int(rng.integers(1, 12))
+        c = rng.uniform(0.01, 0.5, k)
+        n = rng.integers(0, 4, k)
+        parts.append(pd.DataFrame({
+            "group": f"g{i % 2}", "track_id": i, "frame": np.arange(k) + int(rng.integers(0, 4)),
+            "x_m": rng.uniform(-5, 5, k), "y_m": rng.uniform(3, 30, k),
+            "vx_mps": rng.normal(0, 1.5, k), "vy_mps": rng.normal(0, 1.5, k),
+            "cov_vxvx": c, "cov_vxvy": 0.3 * c * rng.uniform(-1, 1, k), "cov_vyvy": 1.5 * c,
+            "confirmed": True, "n_points": n,
+            "doppler_mps": np.where(n > 0, rng.normal(0, 0.8, k), np.nan)}))
+    t = pd.concat(parts, ignore_index=True)
+    t = t.iloc[rng.permutation(len(t))].reset_index(drop=True)
+    frames = np.arange(20)
+    ego = pd.DataFrame({"group": np.repeat(["g0", "g1"], 20), "frame": np.tile(frames, 2),
+                        "ego_x_m": 0.0, "ego_y_m": np.tile(frames * 0.8, 2)})
+    return t, ego
+
+
+@pytest.mark.parametrize("form", ["common_variance", "marginal"])
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_doppler_terms_are_the_ratio_as_a_quadratic_in_the_velocity(form, seed):
+    from blindspot.safety.predict import doppler_evidence, doppler_log_ratio, doppler_log_ratio_terms
+
+    t, ego = _random_tracks(seed)
+    xy = t[["group", "frame"]].merge(ego, on=["group", "frame"], how="left")[
+        ["ego_x_m", "ego_y_m"]].to_numpy()
+    c, a, b = doppler_log_ratio_terms(t, xy, 0.3, form)
+    v = t[["vx_mps", "vy_mps"]].to_numpy()
+    own = c + np.einsum("ni,ni->n", a, v) - 0.5 * np.einsum("ni,nij,nj->n", v, b, v)
+    np.testing.assert_allclose(own, doppler_log_ratio(t, xy, 0.3, form), rtol=1e-9, atol=1e-9)
+    # "current": each row's track's Dopplers so far, each ratio taken at this row's velocity
+    got = doppler_evidence(t, ego, 0.3, form, reference="current")
+    for i in range(len(t)):
+        past = t[(t.group == t.group[i]) & (t.track_id == t.track_id[i])
+                 & (t.frame <= t.frame[i])]
+        at_now = past.assign(vx_mps=t.vx_mps[i], vy_mps=t.vy_mps[i])
+        pxy = at_now[["group", "frame"]].merge(ego, on=["group", "frame"], how="left")[
+            ["ego_x_m", "ego_y_m"]].to_numpy()
+        assert got[i] == pytest.approx(doppler_log_ratio(at_now, pxy, 0.3, form).sum(),
+                                       rel=1e-9, abs=1e-9)
+    with pytest.raises(ValueError, match="reference"):
+        doppler_evidence(t, ego, 0.3, form, reference="latest")
+
+
+def test_current_velocity_reference_forgives_a_corrected_velocity_but_not_a_sliding_one():
+    # 8 frames of a cluster sliding along a parked car at (0, 1) m/s with Doppler 0 (refuted,
+    # -16.4 a frame), then the track takes a child's detections: the filter's velocity turns to
+    # the child's, (-1.4, 0.3) m/s, and its Doppler matches it. Judged frame by frame the
+    # clutter's -131 is never repaid (no floor); judged against the velocity it has now, the
+    # clutter's Dopplers (0) ask only u.(-1.4, 0.3) = 0 of it and the child is moving at once.
+    # The cluster that keeps sliding stays refuted either way.
+    u = np.array([3.0, 10.0]) / np.sqrt(109)
+    child_v = np.array([-1.4, 0.3])
+    t = pd.concat([_doppler_track(0.0, 1.0, 0.0),
+                   _doppler_track(*child_v, float(u @ child_v)).iloc[:6]],
+                  ignore_index=True).assign(frame=np.arange(14))
+    ego = pd.DataFrame({"group": "s0", "frame": np.arange(14), "ego_x_m": 0.0, "ego_y_m": 0.0})
+    kw = dict(ego=ego, doppler_std_mps=0.3, doppler_log_ratio_min=np.log(0.1))
+    assert not moving_tracks(t, 0.5, **kw).any()
+    m = moving_tracks(t, 0.5, doppler_reference="current", **kw)
+    assert not m[:8].any() and m[8:].all()
+    slide = _doppler_track(0.0, 1.0, 0.0)
+    assert not moving_tracks(slide, 0.5, doppler_reference="current",
+                             **{**kw, "ego": ego[ego.frame < 8]}).any()
+    with pytest.raises(ValueError, match="doppler_reference"):
+        moving_tracks(t, 0.5, doppler_reference="now", **kw)

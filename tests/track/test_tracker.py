@@ -220,6 +220,46 @@ def test_track_rows_carry_the_updating_objects_points_and_median_doppler():
     assert np.isnan(tr.doppler_mps.to_numpy()[6]) and np.isnan(tr.doppler_spread_mps.to_numpy()[6])
 
 
+@pytest.mark.parametrize("name", ["gnn_cv", "jpda_cv"])
+def test_each_track_row_carries_its_own_objects_doppler_spread(name):
+    # two walkers 3 m apart, 3 points each per frame, radial speeds spread differently (left:
+    # 1.0 +- 0.1, right: -0.5 +- 0.6 m/s, the spread changing per frame), one frame without
+    # points: each track's hit rows carry its own object's median and sample standard
+    # deviation, the same as the points label_objects groups into that row's object
+    from blindspot.track.tracker import label_objects
+
+    rows = []
+    for f in range(8):
+        if f == 5:
+            continue
+        for x0, mean, half in ((-1.5, 1.0, 0.1), (1.5, -0.5, 0.3 + 0.05 * f)):
+            for dx, dv in ((-0.1, -half), (0.0, 0.0), (0.1, 2 * half)):
+                rows.append((f, f * DT, x0 + 0.05 * f + dx, 6.0, mean + dv))
+    pts = pd.DataFrame(rows, columns=["frame", "time_s", "x_m", "y_m",
+                                      "velocity_over_ground_mps"])
+    pts = pd.concat([pts, pd.DataFrame({"frame": [5], "time_s": [5 * DT], "x_m": [np.nan],
+                                        "y_m": [np.nan]})]).sort_values("frame", kind="stable")
+    pts = pts.reset_index(drop=True)
+    cfg = config(name, cluster_min_samples=2)
+    tr = track_points(pts, cfg)
+    assert tr.track_id.nunique() == 2
+    obj = pts.assign(o=label_objects(pts, cfg)).query("o >= 0")
+    want = (obj.groupby("o").agg(frame=("frame", "first"), x=("x_m", "mean"),
+                                 n=("x_m", "size"),
+                                 med=("velocity_over_ground_mps", "median"),
+                                 sd=("velocity_over_ground_mps", lambda v: v.std(ddof=1))))
+    hit = tr[~tr.coasting]
+    assert len(hit) == 14 and tr.coasting.sum() == 2 and tr[tr.coasting].frame.eq(5).all()
+    for r in hit.itertuples():
+        w = want[(want.frame == r.frame) & (np.sign(want.x) == np.sign(r.x_m))]
+        assert len(w) == 1 and r.n_points == w.n.iat[0] == 3
+        assert r.doppler_mps == pytest.approx(w.med.iat[0])
+        assert r.doppler_spread_mps == pytest.approx(w.sd.iat[0])
+    right = hit[hit.x_m > 0].sort_values("frame")
+    assert np.diff(right.doppler_spread_mps.to_numpy()).min() > 0       # its own, per frame
+    assert np.isnan(tr[tr.coasting].doppler_spread_mps).all()
+
+
 def test_label_objects_are_the_points_behind_each_track_row():
     from blindspot.track.tracker import label_objects
 

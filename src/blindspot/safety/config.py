@@ -12,14 +12,16 @@ from dataclasses import dataclass
 from blindspot.typed_config import ConfigError, TypedConfig, setting
 
 __all__ = ["PREDICTORS", "PROBABILITY_METHODS", "LSTM_HISTORY", "AEB_GATES", "DOPPLER_LLR_FORMS",
-           "BrakingConfig",
-           "OracleConfig", "WarningConfig"]
+           "DOPPLER_REFERENCES", "BrakingConfig", "OracleConfig", "WarningConfig"]
 
 PREDICTORS: tuple[str, ...] = ("none", "constant_velocity", "kalman", "lstm", "lstm_direct")
 PROBABILITY_METHODS: tuple[str, ...] = ("max_step", "union")
 LSTM_HISTORY: tuple[str, ...] = ("cv_backfill", "hold_first")
 AEB_GATES: tuple[str, ...] = ("none", "stopping_time")
 DOPPLER_LLR_FORMS: tuple[str, ...] = ("common_variance", "marginal")
+#: Which velocity the Doppler evidence judges each Doppler against (blindspot.safety.predict
+#: .doppler_evidence): the track's velocity at that frame, or the one it has now.
+DOPPLER_REFERENCES: tuple[str, ...] = ("frame", "current")
 
 
 @dataclass(frozen=True)
@@ -85,6 +87,7 @@ class WarningConfig(TypedConfig):
     moving_doppler_log_ratio_floor: float | None = setting(None, ge=-1000.0, le=0.0)
     moving_doppler_spread_std_mps: tuple[float, float] | None = setting(None, gt=0.0, le=10.0,
                                                                         ordered=True)
+    moving_doppler_reference: str = setting("frame", choices=DOPPLER_REFERENCES)
 
     def validate(self) -> None:
         extra = sorted(set(self.reference_predictors) - set(self.predictors))

@@ -23,7 +23,7 @@ import numpy as np
 import pandas as pd
 from scipy.stats import chi2
 
-from blindspot.safety.config import DOPPLER_LLR_FORMS
+from blindspot.safety.config import DOPPLER_LLR_FORMS, DOPPLER_REFERENCES
 from blindspot.safety.risk import EgoShape, collision_risk
 from blindspot.traj.baselines import ConstantVelocity, KalmanCV
 from blindspot.traj.distribution import DistributionError
@@ -155,20 +155,8 @@ def doppler_log_ratio(tracks: pd.DataFrame, ego_xy: np.ndarray, doppler_std_mps:
     what refutes the young clutter tracks). Rows without a measurement (coasting, no
     ``doppler_mps``) give 0 in both forms. Raises ValueError for another ``form``.
     """
-    if form not in DOPPLER_LLR_FORMS:
-        raise ValueError(f"form: expected one of {list(DOPPLER_LLR_FORMS)}, found {form!r}")
-    n = tracks.n_points.to_numpy(float)
-    d = tracks.doppler_mps.to_numpy(float)
-    los = tracks[["x_m", "y_m"]].to_numpy(float) - np.asarray(ego_xy, float)
-    rng = np.hypot(los[:, 0], los[:, 1])
-    u = los / np.where(rng > 0, rng, 1.0)[:, None]
+    d, u, var0, var1, ok = _doppler_geometry(tracks, ego_xy, doppler_std_mps, form)
     uv = u[:, 0] * tracks.vx_mps.to_numpy(float) + u[:, 1] * tracks.vy_mps.to_numpy(float)
-    pu = (tracks.cov_vxvx.to_numpy(float) * u[:, 0] ** 2
-          + 2 * tracks.cov_vxvy.to_numpy(float) * u[:, 0] * u[:, 1]
-          + tracks.cov_vyvy.to_numpy(float) * u[:, 1] ** 2)
-    var0 = doppler_std_mps ** 2 / np.maximum(n, 1.0)        # s0^2, s1^2 of the docstring
-    var1 = var0 + pu
-    ok = (n > 0) & np.isfinite(d) & (rng > 0)
     with np.errstate(invalid="ignore", divide="ignore"):
         if form == "common_variance":
             llr = (d ** 2 - (d - uv) ** 2) / (2 * var1)
@@ -178,27 +166,75 @@ def doppler_log_ratio(tracks: pd.DataFrame, ego_xy: np.ndarray, doppler_std_mps:
     return np.where(ok, llr, 0.0)
 
 
+def _doppler_geometry(tracks: pd.DataFrame, ego_xy: np.ndarray, doppler_std_mps: float,
+                      form: str) -> tuple[np.ndarray, ...]:
+    """Per row: the Doppler d, the unit line of sight u (N, 2), s0^2, s1^2 of
+    :func:`doppler_log_ratio` and whether the row has a Doppler measurement."""
+    if form not in DOPPLER_LLR_FORMS:
+        raise ValueError(f"form: expected one of {list(DOPPLER_LLR_FORMS)}, found {form!r}")
+    n = tracks.n_points.to_numpy(float)
+    d = tracks.doppler_mps.to_numpy(float)
+    los = tracks[["x_m", "y_m"]].to_numpy(float) - np.asarray(ego_xy, float)
+    rng = np.hypot(los[:, 0], los[:, 1])
+    u = los / np.where(rng > 0, rng, 1.0)[:, None]
+    pu = (tracks.cov_vxvx.to_numpy(float) * u[:, 0] ** 2
+          + 2 * tracks.cov_vxvy.to_numpy(float) * u[:, 0] * u[:, 1]
+          + tracks.cov_vyvy.to_numpy(float) * u[:, 1] ** 2)
+    var0 = doppler_std_mps ** 2 / np.maximum(n, 1.0)        # s0^2, s1^2 of the docstring
+    var1 = var0 + pu
+    ok = (n > 0) & np.isfinite(d) & (rng > 0)
+    return d, u, var0, var1, ok
+
+
+def doppler_log_ratio_terms(tracks: pd.DataFrame, ego_xy: np.ndarray, doppler_std_mps: float,
+                            form: str = "common_variance"
+                            ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Each row's :func:`doppler_log_ratio` as a function of a velocity v (m/s, world frame):
+
+        llr(v) = c + a . v - v^T B v / 2
+
+    c (N,), a (N, 2) in s/m, B (N, 2, 2) in s^2/m^2: with d, u, s0^2, s1^2 of :func:`doppler_log_ratio`
+    (the row's own line of sight and variances), the quadratic in v of (d^2 - (d - u.v)^2) /
+    (2 s1^2) ("common_variance": c = 0) or of the "marginal" form (c = -ln(s1 / s0) - d^2 /
+    (2 s1^2) + d^2 / (2 s0^2)); a = d u / s1^2 and B = u u^T / s1^2 in both. At the row's own
+    filtered velocity it is :func:`doppler_log_ratio`; summed over a track's rows and evaluated
+    at its latest velocity it is the evidence of all the track's Dopplers for the velocity it
+    has now (:func:`doppler_evidence`, ``reference="current"``). Rows without a measurement
+    give zeros. Raises ValueError for another ``form``."""
+    d, u, var0, var1, ok = _doppler_geometry(tracks, ego_xy, doppler_std_mps, form)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        c = (np.zeros(len(d)) if form == "common_variance"
+             else -0.5 * np.log(var1 / var0) - d ** 2 / (2 * var1) + d ** 2 / (2 * var0))
+        a = (d / var1)[:, None] * u
+        b = u[:, :, None] * u[:, None, :] / var1[:, None, None]
+    return (np.where(ok, c, 0.0), np.where(ok[:, None], a, 0.0),
+            np.where(ok[:, None, None], b, 0.0))
+
+
 def doppler_spread_log_ratio(tracks: pd.DataFrame, static_std_mps: float,
                              walker_std_mps: float) -> np.ndarray:
     """(N,) per row of ``tracks`` (columns n_points, doppler_spread_mps): the log-likelihood
-    ratio of its object's micro-Doppler spread between "a walker" and "static".
+    ratio of its object's Doppler spread between "a walker" and "static".
 
-    A walker's limbs swing about its torso, so the ego-motion-compensated radial speeds of the
-    points of one walker in one frame spread about their mean (micro-Doppler; V. C. Chen, "The
-    Micro-Doppler Effect in Radar", Artech House 2011); a rigid static object's points share one radial
-    speed up to the Doppler bin and the angle error. With the points' speeds Gaussian about
-    their mean with standard deviation sigma, the residual sum of squares of n points,
-    Q = (n - 1) s^2 (s = ``doppler_spread_mps``, the sample standard deviation), is sigma^2
-    chi-square with n - 1 degrees of freedom, and the ratio of its densities under sigma_w =
-    ``walker_std_mps`` and sigma_s = ``static_std_mps`` is
+    The idea: a walker's limbs swing about its torso, so the ego-motion-compensated radial
+    speeds of one walker's points in one frame may spread about their mean (micro-Doppler;
+    V. C. Chen, "The Micro-Doppler Effect in Radar", Artech House 2011); a rigid static
+    object's points share one radial speed up to the Doppler bin and the angle error. With the
+    points' speeds Gaussian about their mean with standard deviation sigma, the residual sum of
+    squares of n points, Q = (n - 1) s^2 (s = ``doppler_spread_mps``, the sample standard
+    deviation), is sigma^2 chi-square with n - 1 degrees of freedom, and the ratio of its
+    densities under sigma_w = ``walker_std_mps`` and sigma_s = ``static_std_mps`` is
 
         llr = (n - 1) ln(sigma_s / sigma_w) + Q / 2 (1 / sigma_s^2 - 1 / sigma_w^2)
 
     (the ratio of the two scaled chi-square densities of Q, the sufficient statistic of a
-    Gaussian's variance with the mean unknown). It does not depend on the geometry: unlike :func:`doppler_log_ratio` it
-    refutes a cluster that slides tangentially along a parked car (no radial velocity to
-    contradict) and supports a child crossing at boresight. Rows with fewer than two points or
-    no spread (coasting) give 0. Raises ValueError naming a missing column or standard
+    Gaussian's variance with the mean unknown). It asks for no radial velocity, so it can refute
+    a cluster sliding across the line of sight, which :func:`doppler_log_ratio` cannot. Caveats
+    (README, "A micro-Doppler spread ratio"): the spread depends on the chain and on range (the
+    simulated walker's comes mostly from its points within 5 m, and real walkers' points in
+    TI's chains spread less than a static object's here); Doppler bins make an all-equal
+    object (s = 0) pay the full (n - 1) ln(sigma_s / sigma_w). Rows with fewer than two points
+    or no spread (coasting) give 0. Raises ValueError naming a missing column or standard
     deviations that are not 0 < static < walker."""
     missing = sorted({"n_points", "doppler_spread_mps"} - set(tracks.columns))
     if missing:
@@ -219,6 +255,7 @@ def moving_tracks(tracks: pd.DataFrame, speed_mps: float, probability: float = 0
                   doppler_llr: str = "common_variance",
                   doppler_log_ratio_floor: float | None = None,
                   doppler_spread_std_mps: tuple[float, float] | None = None,
+                  doppler_reference: str = "frame",
                   points: pd.DataFrame | None = None, static_evidence_min: int = 0,
                   static_cell_m: float = 0.5, static_lag_frames: int = 10) -> np.ndarray:
     """(N,) bool per row of ``tracks`` (columns group, track_id, frame, vx_mps, vy_mps,
@@ -234,8 +271,11 @@ def moving_tracks(tracks: pd.DataFrame, speed_mps: float, probability: float = 0
     sequential probability ratio of "moves as tracked" against "static", Wald 1945) is above
     ``doppler_log_ratio_min`` (e.g. -ln 10: the track's own radial speeds make "static" ten
     times likelier than its kinematic velocity; with ``doppler_spread_std_mps`` = (static,
-    walker) each frame's micro-Doppler spread ratio :func:`doppler_spread_log_ratio` joins the
-    sum, which needs the column doppler_spread_mps; with ``doppler_log_ratio_floor`` the sum is
+    walker) each frame's Doppler spread ratio :func:`doppler_spread_log_ratio` joins the
+    sum, which needs the column doppler_spread_mps (both only with the Doppler test: without
+    ``ego`` or ``doppler_log_ratio_min`` they are not used); with ``doppler_reference`` "current" every
+    Doppler so far is judged against the track's velocity now instead of its velocity then
+    (:func:`doppler_evidence`); with ``doppler_log_ratio_floor`` the sum is
     held at or above that floor, max(floor, S + llr) each frame: Page's reflecting barrier
     (Page 1954, Biometrika 41), so the track of a clutter cluster that captures a pedestrian
     stepping out keeps no more than ``doppler_log_ratio_min - doppler_log_ratio_floor`` of
@@ -257,7 +297,8 @@ def moving_tracks(tracks: pd.DataFrame, speed_mps: float, probability: float = 0
                          doppler_std_mps=doppler_std_mps,
                          doppler_log_ratio_min=doppler_log_ratio_min, doppler_llr=doppler_llr,
                          doppler_log_ratio_floor=doppler_log_ratio_floor,
-                         doppler_spread_std_mps=doppler_spread_std_mps)
+                         doppler_spread_std_mps=doppler_spread_std_mps,
+                         doppler_reference=doppler_reference)
     order, key = _track_order(tracks)
     seen = pd.Series(fast[order]).groupby(key, sort=False).cummax().to_numpy(bool)
     out = np.empty(len(tracks), bool)
@@ -273,7 +314,8 @@ def moving_frames(tracks: pd.DataFrame, speed_mps: float, probability: float = 0
                   doppler_log_ratio_min: float | None = None,
                   doppler_llr: str = "common_variance",
                   doppler_log_ratio_floor: float | None = None,
-                  doppler_spread_std_mps: tuple[float, float] | None = None) -> np.ndarray:
+                  doppler_spread_std_mps: tuple[float, float] | None = None,
+                  doppler_reference: str = "frame") -> np.ndarray:
     """(N,) bool per row of ``tracks``: the row's own frame passes :func:`moving_tracks`'s
     kinematic and Doppler tests (confirmed, fast, significantly non-zero, the Doppler sum so
     far above its bound), before the latch and the static-evidence grid; same arguments and
@@ -291,6 +333,9 @@ def moving_frames(tracks: pd.DataFrame, speed_mps: float, probability: float = 0
     if doppler_llr not in DOPPLER_LLR_FORMS:
         raise ValueError(f"doppler_llr: expected one of {list(DOPPLER_LLR_FORMS)}, found "
                          f"{doppler_llr!r}")
+    if doppler_reference not in DOPPLER_REFERENCES:
+        raise ValueError(f"doppler_reference: expected one of {list(DOPPLER_REFERENCES)}, "
+                         f"found {doppler_reference!r}")
     if doppler_log_ratio_floor is not None and doppler_log_ratio_min is not None and not (
             doppler_log_ratio_floor <= doppler_log_ratio_min):
         raise ValueError(f"doppler_log_ratio_floor: expected at most doppler_log_ratio_min = "
@@ -300,8 +345,8 @@ def moving_frames(tracks: pd.DataFrame, speed_mps: float, probability: float = 0
     fast &= tracks.confirmed.to_numpy(bool)
     if use_doppler:
         fast &= doppler_evidence(tracks, ego, doppler_std_mps, doppler_llr,
-                                 doppler_log_ratio_floor,
-                                 spread_std_mps=doppler_spread_std_mps) > doppler_log_ratio_min
+                                 doppler_log_ratio_floor, spread_std_mps=doppler_spread_std_mps,
+                                 reference=doppler_reference) > doppler_log_ratio_min
     return fast
 
 
@@ -318,26 +363,55 @@ def velocity_chi2(tracks: pd.DataFrame) -> np.ndarray:
 
 def doppler_evidence(tracks: pd.DataFrame, ego: pd.DataFrame, doppler_std_mps: float,
                      form: str = "common_variance", floor: float | None = None, *,
-                     spread_std_mps: tuple[float, float] | None = None) -> np.ndarray:
+                     spread_std_mps: tuple[float, float] | None = None,
+                     reference: str = "frame") -> np.ndarray:
     """(N,) per row of ``tracks``: the sum of :func:`doppler_log_ratio` (of ``form``) over the
     row's track up to and including its frame, "moves as tracked" against "static" in natural
     log units; with ``spread_std_mps`` = (static, walker) standard deviations (m/s) each
-    frame's :func:`doppler_spread_log_ratio` is added (for Gaussian points the sample mean and
-    the spread about it are independent, so their ratios add; the object's speed here is its
-    points' median, close to the mean); with ``floor`` reflected at it, S_t = max(floor, S_t-1 + llr_t) from S_0 = 0
-    (Page 1954). ``ego``: columns group, frame, ego_x_m, ego_y_m (the radar's world position,
-    m). Any row order. Raises ValueError naming a row without an ego position, a bad
-    ``form`` or bad spreads."""
+    frame's :func:`doppler_spread_log_ratio` is added. That sum is an approximation, not one
+    likelihood: for Gaussian points the sample mean and the spread about it are independent,
+    but the mean's ratio here uses the median and one point spread ``doppler_std_mps`` under
+    both hypotheses, "walker" is not "moves as tracked" (a rigid moving object would be
+    penalised), and frames whose spread comes from a fixed geometry are not independent; with ``floor`` reflected at it, S_t = max(floor, S_t-1 + llr_t) from S_0 = 0
+    (Page 1954).
+
+    ``reference`` "frame" (the above): each frame's ratio is taken at that frame's filtered
+    velocity, so evidence gathered against an earlier velocity stays in the sum after the
+    filter has corrected it (a clutter track that captures a child keeps the clutter's
+    refutation). "current": every Doppler of the track so far is judged against the velocity it
+    has now, S_t = sum_k<=t llr_k(v_t) (:func:`doppler_log_ratio_terms`, the quadratic's
+    coefficients summed per track: vectorised), the log-likelihood ratio of the Doppler
+    sequence for "it has moved at v_t all along" against "static"; the spread ratio (which
+    does not depend on v) is summed as in "frame", and ``floor`` changes no decision (a floor
+    at or below the bound never lifts a sum across it), so it is not applied.
+
+    ``ego``: columns group, frame, ego_x_m, ego_y_m (the radar's world position, m). Any row
+    order. Raises ValueError naming a row without an ego position, a bad ``form``,
+    ``reference`` or bad spreads."""
     e = tracks[["group", "frame"]].merge(ego[["group", "frame", "ego_x_m", "ego_y_m"]],
                                          on=["group", "frame"], how="left")
     if e.ego_x_m.isna().any():
         bad = e[e.ego_x_m.isna()].iloc[0]
         raise ValueError(f"ego: no radar position for group {bad.group!r} frame {bad.frame}")
-    llr = doppler_log_ratio(tracks, e[["ego_x_m", "ego_y_m"]].to_numpy(float),
-                            doppler_std_mps, form)
-    if spread_std_mps is not None:
-        llr = llr + doppler_spread_log_ratio(tracks, *spread_std_mps)
+    if reference not in DOPPLER_REFERENCES:
+        raise ValueError(f"reference: expected one of {list(DOPPLER_REFERENCES)}, found "
+                         f"{reference!r}")
+    ego_xy = e[["ego_x_m", "ego_y_m"]].to_numpy(float)
+    spread = (doppler_spread_log_ratio(tracks, *spread_std_mps) if spread_std_mps is not None
+              else 0.0)
     order, key = _track_order(tracks)
+    if reference == "current":
+        c, a, b = doppler_log_ratio_terms(tracks, ego_xy, doppler_std_mps, form)
+        coef = np.column_stack([c + spread, a, b[:, 0, 0], b[:, 0, 1], b[:, 1, 1]])
+        cum = pd.DataFrame(coef[order]).groupby(key, sort=False).cumsum().to_numpy()
+        vx = tracks.vx_mps.to_numpy(float)[order]
+        vy = tracks.vy_mps.to_numpy(float)[order]
+        total = (cum[:, 0] + cum[:, 1] * vx + cum[:, 2] * vy
+                 - 0.5 * (cum[:, 3] * vx ** 2 + 2 * cum[:, 4] * vx * vy + cum[:, 5] * vy ** 2))
+        out = np.empty(len(tracks))
+        out[order] = total
+        return out
+    llr = doppler_log_ratio(tracks, ego_xy, doppler_std_mps, form) + spread
     total = pd.Series(llr[order]).groupby(key, sort=False).cumsum().to_numpy()
     if floor is not None:
         # Lindley's recursion in closed form: S_t = C_t - min(0, min_k<=t (C_k - floor))
@@ -397,7 +471,8 @@ def moving_test_settings(w, grid: bool = True) -> dict[str, Any]:
                doppler_log_ratio_min=w.moving_doppler_log_ratio_min,
                doppler_llr=w.moving_doppler_llr,
                doppler_log_ratio_floor=w.moving_doppler_log_ratio_floor,
-               doppler_spread_std_mps=w.moving_doppler_spread_std_mps)
+               doppler_spread_std_mps=w.moving_doppler_spread_std_mps,
+               doppler_reference=w.moving_doppler_reference)
     if grid:
         out.update(static_evidence_min=w.moving_static_evidence_min,
                    static_cell_m=w.moving_static_cell_m,

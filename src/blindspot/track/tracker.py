@@ -125,8 +125,10 @@ def label_objects(points: pd.DataFrame, config: TrackerConfig) -> pd.Series:
     summarise. Raises TrackingError as :func:`track_points`."""
     has_group = _check_points(points)
     keys = (["group"] if has_group else []) + ["frame"]
-    kept = _labelled(points, keys, config)["_label"]
-    return kept.reindex(points.index, fill_value=-1).astype(np.int64)
+    kept = _labelled(points.reset_index(drop=True), keys, config)["_label"]
+    out = np.full(len(points), -1, np.int64)
+    out[kept.index.to_numpy()] = kept.to_numpy()
+    return pd.Series(out, index=points.index)
 
 
 def _labelled(points: pd.DataFrame, keys: list[str], config: TrackerConfig) -> pd.DataFrame:
@@ -639,8 +641,9 @@ def track_points(points: pd.DataFrame, config: TrackerConfig, jobs: int = 1) -> 
         of the object that updated the track this frame, 0 when coasting), ``doppler_mps`` (the
         median ``velocity_over_ground_mps`` of those points, m/s; NaN when coasting or when the
         points lack that column: the evidence of :func:`blindspot.safety.predict.moving_tracks`),
-        ``doppler_spread_mps`` (their sample standard deviation, ddof 1, m/s: the object's
-        micro-Doppler spread; NaN as ``doppler_mps`` and for a one-point object). Tentative
+        ``doppler_spread_mps`` (their sample standard deviation, ddof 1, m/s, over the points
+        with a finite radial speed, while ``n_points`` counts them all: the object's Doppler
+        spread; NaN as ``doppler_mps`` and for a one-point object). Tentative
         tracks are included (``confirmed`` False): filter on ``confirmed`` for reported tracks.
 
     Raises:
