@@ -33,8 +33,9 @@ distance below its bound, each without and with the Doppler spread ratio
 (``moving_doppler_spread_std_mps``) at the ``--spread`` pair (default 0.27,0.79 m/s: static and
 walker, the tuning half's pooled within-object spreads in driving_track.json ``doppler_spread``),
 and each with its Doppler judged against the velocity of its frame or the current one
-(``moving_doppler_reference``); and the configured test with its floor at each ``--floors``
-distance below the bound. Time: 4-6 min on 2 cores.
+(``moving_doppler_reference``); and the configured test judged frame by frame (the floor acts
+on that sum only) with its floor at each ``--floors`` distance below the bound. Time: 4-6 min
+on 2 cores.
 """
 
 from __future__ import annotations
@@ -159,8 +160,10 @@ def main(argv: list[str]) -> None:
                       w.moving_doppler_log_ratio_min, w.moving_doppler_spread_std_mps,
                       w.moving_doppler_reference)
     for d in (float(v) for v in args.floors.split(",") if v):
-        candidates[f"{name_conf}, floor bound - {d:.2f}"] = (
-            w.moving_doppler_llr, w.moving_doppler_std_mps, w.moving_doppler_log_ratio_min, d)
+        # the floor acts on the frame-by-frame sum only
+        candidates[f"{name_conf}, frame velocity, floor bound - {d:.2f}"] = (
+            w.moving_doppler_llr, w.moving_doppler_std_mps, w.moving_doppler_log_ratio_min, d,
+            "configured", "frame")
     flags = {name: moving(*sb) for name, sb in candidates.items()}
     flags[name_conf] = configured
     report: dict = {"input": "tracker", "aeb_threshold": w.aeb_threshold,

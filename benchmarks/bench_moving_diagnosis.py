@@ -21,7 +21,7 @@ From DIR (default ``data``: ``driving/tracks.parquet``, ``driving/points.parquet
 3. per ``--track``: its rows with filtered velocity, hits, Doppler and its spread, the
    kinematic chi-square v' P_v^-1 v, the per-frame Doppler log ratio, the micro-Doppler spread
    log ratio (0 when ``warning.moving_doppler_spread_std_mps`` is null) and their sum
-   (configured, with its floor; and without a floor), the static evidence at the row and at its
+   (configured: its reference velocity and floor; and frame by frame without a floor), the static evidence at the row and at its
    last hit, and the moving flag (the run's).
 
 Time: about 20 s.
@@ -86,7 +86,8 @@ def track_history(tracks, points, ego, w, scene: str, track_id: int) -> pd.DataF
                             w.moving_doppler_std_mps, w.moving_doppler_llr)
     spread = w.moving_doppler_spread_std_mps
     total = doppler_evidence(t, ego, w.moving_doppler_std_mps, w.moving_doppler_llr,
-                             w.moving_doppler_log_ratio_floor, spread_std_mps=spread)
+                             w.moving_doppler_log_ratio_floor, spread_std_mps=spread,
+                             reference=w.moving_doppler_reference)
     hits = static_evidence(t, pts, cell_m=w.moving_static_cell_m,
                            lag_frames=w.moving_static_lag_frames)
     t = t.assign(chi2_velocity=velocity_chi2(t), doppler_llr=llr,

@@ -374,8 +374,9 @@ def test_current_velocity_reference_forgives_a_corrected_velocity_but_not_a_slid
     # -16.4 a frame), then the track takes a child's detections: the filter's velocity turns to
     # the child's, (-1.4, 0.3) m/s, and its Doppler matches it. Judged frame by frame the
     # clutter's -131 is never repaid (no floor); judged against the velocity it has now, the
-    # clutter's Dopplers (0) ask only u.(-1.4, 0.3) = 0 of it and the child is moving at once.
-    # The cluster that keeps sliding stays refuted either way.
+    # clutter's Dopplers (0) are asked only for u.(-1.4, 0.3) = -0.12 m/s (a child crossing
+    # nearly across the line of sight) and the child is moving at once. The cluster that keeps
+    # sliding stays refuted either way.
     u = np.array([3.0, 10.0]) / np.sqrt(109)
     child_v = np.array([-1.4, 0.3])
     t = pd.concat([_doppler_track(0.0, 1.0, 0.0),
@@ -391,3 +392,22 @@ def test_current_velocity_reference_forgives_a_corrected_velocity_but_not_a_slid
                              **{**kw, "ego": ego[ego.frame < 8]}).any()
     with pytest.raises(ValueError, match="doppler_reference"):
         moving_tracks(t, 0.5, doppler_reference="now", **kw)
+
+
+def test_current_velocity_reference_is_late_for_a_pedestrian_who_stood_before_walking():
+    # the price of reference "current" (why it is not the default): a pedestrian 3 m aside,
+    # 10 m ahead, stands for 10 frames (velocity 0, Doppler 0), then walks at (-1, -1) m/s
+    # with the matching Doppler. Frame by frame the standing frames ask nothing of the walking
+    # velocity, and the walk is moving from its first frame; against the current velocity
+    # every standing Doppler of 0 contradicts u.(-1, -1) = -1.24 m/s, and the track is not
+    # moving within 6 frames of walking
+    u = np.array([3.0, 10.0]) / np.sqrt(109)
+    walk = np.array([-1.0, -1.0])
+    stand = pd.concat([_doppler_track(0.0, 0.0, 0.0)] * 2).iloc[:10]
+    t = pd.concat([stand, _doppler_track(*walk, float(u @ walk)).iloc[:6]],
+                  ignore_index=True).assign(frame=np.arange(16))
+    ego = pd.DataFrame({"group": "s0", "frame": np.arange(16), "ego_x_m": 0.0, "ego_y_m": 0.0})
+    kw = dict(ego=ego, doppler_std_mps=0.3, doppler_log_ratio_min=np.log(0.1))
+    frame = moving_tracks(t, 0.5, doppler_log_ratio_floor=np.log(0.01), **kw)
+    assert not frame[:10].any() and frame[10:].all()
+    assert not moving_tracks(t, 0.5, doppler_reference="current", **kw).any()

@@ -378,12 +378,15 @@ def doppler_evidence(tracks: pd.DataFrame, ego: pd.DataFrame, doppler_std_mps: f
     ``reference`` "frame" (the above): each frame's ratio is taken at that frame's filtered
     velocity, so evidence gathered against an earlier velocity stays in the sum after the
     filter has corrected it (a clutter track that captures a child keeps the clutter's
-    refutation). "current": every Doppler of the track so far is judged against the velocity it
-    has now, S_t = sum_k<=t llr_k(v_t) (:func:`doppler_log_ratio_terms`, the quadratic's
-    coefficients summed per track: vectorised), the log-likelihood ratio of the Doppler
-    sequence for "it has moved at v_t all along" against "static"; the spread ratio (which
-    does not depend on v) is summed as in "frame", and ``floor`` changes no decision (a floor
-    at or below the bound never lifts a sum across it), so it is not applied.
+    refutation, up to the floor). "current": every Doppler of the track so far is judged
+    against the velocity it has now, S_t = sum_k<=t llr_k(v_t) (:func:`doppler_log_ratio_terms`,
+    the quadratic's coefficients summed per track: vectorised): each frame's ratio re-evaluated
+    at v_t with that frame's own variances (s1^2 holds the frame's velocity covariance, and the
+    marginal form pays its Occam term every frame), so not the exact likelihood ratio of "it
+    has moved at v_t all along". Without forgetting, a pedestrian who stood (Doppler 0) and
+    then walks with a radial component is refuted by the standing frames: the reason it is not
+    the default (README). The spread ratio (which does not depend on v) is summed as in
+    "frame"; Page's floor does not apply (the sum is not a running recursion) and is ignored.
 
     ``ego``: columns group, frame, ego_x_m, ego_y_m (the radar's world position, m). Any row
     order. Raises ValueError naming a row without an ego position, a bad ``form``,
