@@ -104,8 +104,8 @@ class WarningConfig(TypedConfig):
         spread = self.moving_doppler_spread_std_mps
         if spread is not None and not spread[0] < spread[1]:
             raise ConfigError("moving_doppler_spread_std_mps", list(spread),
-                              "[static, walker] with static < walker (a walker's limbs spread "
-                              "its points' Doppler wider than a static object's), or null")
+                              "[static, walker] with static < walker (the walker hypothesis "
+                              "spreads its points' Doppler wider than a static object), or null")
         floor = self.moving_doppler_log_ratio_floor
         if floor is not None and floor > self.moving_doppler_log_ratio_min:
             raise ConfigError("moving_doppler_log_ratio_floor", floor,

@@ -193,8 +193,9 @@ def doppler_log_ratio_terms(tracks: pd.DataFrame, ego_xy: np.ndarray, doppler_st
 
         llr(v) = c + a . v - v^T B v / 2
 
-    c (N,), a (N, 2) in s/m, B (N, 2, 2) in s^2/m^2: with d, u, s0^2, s1^2 of :func:`doppler_log_ratio`
-    (the row's own line of sight and variances), the quadratic in v of (d^2 - (d - u.v)^2) /
+    c (N,), a (N, 2) in s/m, B (N, 2, 2) in s^2/m^2: with d, u, s0^2, s1^2 of
+    :func:`doppler_log_ratio` (the row's own line of sight and variances), the quadratic in v of
+    (d^2 - (d - u.v)^2) /
     (2 s1^2) ("common_variance": c = 0) or of the "marginal" form (c = -ln(s1 / s0) - d^2 /
     (2 s1^2) + d^2 / (2 s0^2)); a = d u / s1^2 and B = u u^T / s1^2 in both. At the row's own
     filtered velocity it is :func:`doppler_log_ratio`; summed over a track's rows and evaluated
@@ -273,9 +274,9 @@ def moving_tracks(tracks: pd.DataFrame, speed_mps: float, probability: float = 0
     times likelier than its kinematic velocity; with ``doppler_spread_std_mps`` = (static,
     walker) each frame's Doppler spread ratio :func:`doppler_spread_log_ratio` joins the
     sum, which needs the column doppler_spread_mps (both only with the Doppler test: without
-    ``ego`` or ``doppler_log_ratio_min`` they are not used); with ``doppler_reference`` "current" every
-    Doppler so far is judged against the track's velocity now instead of its velocity then
-    (:func:`doppler_evidence`); with ``doppler_log_ratio_floor`` the sum is
+    ``ego`` or ``doppler_log_ratio_min`` they are not used); with ``doppler_reference``
+    "current" every Doppler so far is judged against the track's velocity now instead of its
+    velocity then (:func:`doppler_evidence`); with ``doppler_log_ratio_floor`` the sum is
     held at or above that floor, max(floor, S + llr) each frame: Page's reflecting barrier
     (Page 1954, Biometrika 41), so the track of a clutter cluster that captures a pedestrian
     stepping out keeps no more than ``doppler_log_ratio_min - doppler_log_ratio_floor`` of
@@ -372,7 +373,8 @@ def doppler_evidence(tracks: pd.DataFrame, ego: pd.DataFrame, doppler_std_mps: f
     likelihood: for Gaussian points the sample mean and the spread about it are independent,
     but the mean's ratio here uses the median and one point spread ``doppler_std_mps`` under
     both hypotheses, "walker" is not "moves as tracked" (a rigid moving object would be
-    penalised), and frames whose spread comes from a fixed geometry are not independent; with ``floor`` reflected at it, S_t = max(floor, S_t-1 + llr_t) from S_0 = 0
+    penalised), and frames whose spread comes from a fixed geometry are not independent. With
+    ``floor`` the sum is reflected at it, S_t = max(floor, S_t-1 + llr_t) from S_0 = 0
     (Page 1954).
 
     ``reference`` "frame" (the above): each frame's ratio is taken at that frame's filtered
