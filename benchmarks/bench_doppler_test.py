@@ -147,6 +147,7 @@ def main(argv: list[str]) -> None:
                          "configured moving test (params.yaml changed since driving_track ran?)")
     setup = outcome_setup(truth, meta, bodies, shape, w)
     key = ["group", "frame", "track_id"]
+
     def label(f, s, b, pair, ref):
         return (f"{f} std {s:g} m/s, bound {b:.2f}"
                 + ("" if pair is None else f", spread {pair[0]:g}/{pair[1]:g}")
