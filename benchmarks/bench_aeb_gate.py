@@ -107,6 +107,16 @@ def half_results(rows: pd.DataFrame, setup: tuple, w) -> dict[str, pd.DataFrame]
             for half, m in (("tune", tune), ("held_out", ~tune))}
 
 
+def half_counts(res: pd.DataFrame) -> dict[str, int]:
+    """A half's scene results (:func:`half_results`) counted: intruding scenes avoided of
+    intruding scenes, non-intruding scenes with an AEB request (false activations) of
+    non-intruding scenes."""
+    it = res.intruding.to_numpy()
+    return {"n_avoided": int(res.avoided.to_numpy()[it].sum()), "n_intruding": int(it.sum()),
+            "n_false": int((res.aeb_frame.to_numpy()[~it] >= 0).sum()),
+            "n_non_intruding": int((~it).sum())}
+
+
 def load_inputs(data: Path, input_name: str):
     """What the policy benchmarks read: (cfg = params.yaml, the typed warning group, the
     scenario group, bodies {name: (length, width, reference from front) m}, the ego's EgoShape,

@@ -52,7 +52,7 @@ import pandas as pd
 REPO = Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(REPO / "benchmarks")]
 
-from bench_aeb_gate import half_results, load_inputs, outcome_setup  # noqa: E402
+from bench_aeb_gate import half_counts, half_results, load_inputs, outcome_setup  # noqa: E402
 from blindspot.io import write_json  # noqa: E402
 from blindspot.safety.predict import (moving_test_settings, moving_tracks,  # noqa: E402
                                       risk_table, with_backfill)
@@ -181,12 +181,7 @@ def main(argv: list[str]) -> None:
             kept = pd.MultiIndex.from_frame(tracks.loc[flag, key])
             out = {}
             for half, res in half_results(risk[rows_key.isin(kept)], setup, w).items():
-                it = res.intruding.to_numpy()
-                out[half] = {"n_avoided": int(res.avoided.to_numpy()[it].sum()),
-                             "n_intruding": int(it.sum()),
-                             "n_false": int((res.aeb_frame.to_numpy()[~it] >= 0).sum()),
-                             "n_non_intruding": int((~it).sum())}
-                o = out[half]
+                o = out[half] = half_counts(res)
                 o["j"] = (o["n_avoided"] / max(o["n_intruding"], 1)
                           - o["n_false"] / max(o["n_non_intruding"], 1))
             results[name] = out

@@ -46,31 +46,14 @@ from blindspot import experiment  # noqa: E402
 from blindspot.config import shared_dir  # noqa: E402
 from blindspot.safety.predict import doppler_spread_log_ratio  # noqa: E402
 from blindspot.track.recordings import load_points  # noqa: E402
-from blindspot.track.tracker import label_objects  # noqa: E402
-
-
-def _pooled(n: pd.Series, sd: pd.Series) -> float:
-    """sqrt(sum (n - 1) sd^2 / sum (n - 1)): the pooled within-object standard deviation."""
-    dof = (n - 1).to_numpy(float)
-    return float(np.sqrt((dof * sd.to_numpy(float) ** 2).sum() / dof.sum()))
-
-
-def _objects(pts: pd.DataFrame, tracker, speed: str) -> pd.DataFrame:
-    """Per object of >= 2 points (``label_objects``): n_points, doppler_spread_mps (sd of the
-    column ``speed``, ddof 1) and the first row's other columns."""
-    pts = pts.assign(obj=label_objects(pts, tracker).to_numpy())
-    g = pts[pts.obj >= 0].groupby("obj")
-    per = g.first().assign(n_points=g.size(), doppler_spread_mps=g[speed].std(ddof=1),
-                           n_sources=(g.source.nunique() if "source" in pts else 1),
-                           range_mean_m=(g.range_m.mean() if "range_m" in pts else np.nan))
-    return per[per.n_points >= 2]
 
 
 def main(argv: list[str]) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--data", type=Path, default=REPO / "data")
     args = ap.parse_args(argv)
-    from driving_track import doppler_spread_by_label
+    from driving_track import (doppler_spread_by_label, monte_carlo_objects,
+                               object_doppler_spreads, pooled_std)
 
     cfg = OmegaConf.load(REPO / "params.yaml")
     w = experiment.warning(cfg)
@@ -78,18 +61,14 @@ def main(argv: list[str]) -> None:
     print(f"spread ratio scored with static {pair[0]} m/s, walker {pair[1]} m/s"
           + (" (configured)" if w.moving_doppler_spread_std_mps
              else " (the measured pair; not configured)"))
-    sim = doppler_spread_by_label(pd.read_parquet(args.data / "driving/points.parquet"),
+    objects = monte_carlo_objects(pd.read_parquet(args.data / "driving/points.parquet"),
                                   experiment.tracker(cfg))
-    for half, v in sim.items():
+    for half, v in doppler_spread_by_label(objects).items():
         print(f"simulated, {half} half: " + "; ".join(
             f"{k} {x.get('pooled_std_mps', float('nan')):.3f} m/s ({x['n_objects']} objects, "
             f"{x['degrees_of_freedom']} dof)" for k, x in v.items()))
 
-    every = pd.read_parquet(args.data / "driving/points.parquet")
-    mc = every[every.scene.str.startswith("mc_")].rename(columns={"scene": "group"})
-    per = _objects(mc.assign(time_s=mc.frame.astype(float)).reset_index(drop=True),
-                   experiment.tracker(cfg), "velocity_over_ground_mps")
-    per = per[per.n_sources == 1]
+    per = objects[objects.n_sources == 1]
     lead = per[(per.source == "p0") & per.group.str.contains("_int_")]
     static = per[per.source == "static"]
     for lo, hi in ((0, 5), (5, 10), (10, 80)):
@@ -97,14 +76,13 @@ def main(argv: list[str]) -> None:
                 for name, q in (("lead pedestrian (intruding scenes)", lead),
                                 ("static world", static))]
         print(f"simulated, objects {lo}-{hi} m away: " + "; ".join(
-            f"{name} {_pooled(q.n_points, q.doppler_spread_mps):.3f} m/s ({len(q)} objects)"
+            f"{name} {pooled_std(q.n_points, q.doppler_spread_mps):.3f} m/s ({len(q)} objects)"
             if len(q) else f"{name}: none" for name, q in band))
 
     rec, tracker = experiment.real_tracking(cfg)["ti_gtrack_people"]
     pts, _ = load_points(rec, shared_dir(cfg))
-    per = _objects(pts.dropna(subset=["x_m", "y_m"]).reset_index(drop=True), tracker,
-                   "velocity_mps")
-    pooled = _pooled(per.n_points, per.doppler_spread_mps)
+    per = object_doppler_spreads(pts.dropna(subset=["x_m", "y_m"]), tracker, "velocity_mps")
+    pooled = pooled_std(per.n_points, per.doppler_spread_mps)
     llr = doppler_spread_log_ratio(per, *pair)
     q = per.doppler_spread_mps.quantile([0.1, 0.5, 0.9]).to_numpy()
     print(f"real, TI people counting ({rec.path}): {len(per)} objects of >= 2 points "
@@ -113,11 +91,11 @@ def main(argv: list[str]) -> None:
           f"(walker likelier) for {np.mean(llr > 0):.3f} of them, summed {llr.sum():.0f}")
     rec, tracker = experiment.real_tracking(cfg)["radhar_walk"]
     pts, _ = load_points(rec, shared_dir(cfg))
-    moving = pts[~pts.static.astype(bool)].dropna(subset=["x_m", "y_m"]).reset_index(drop=True)
-    per = _objects(moving, tracker, "velocity_mps")
+    moving = pts[~pts.static.astype(bool)].dropna(subset=["x_m", "y_m"])
+    per = object_doppler_spreads(moving, tracker, "velocity_mps")
     print(f"real, RadHAR walk ({rec.path}): {len(per)} objects of >= 2 moving points (median "
           f"{per.n_points.median():.0f}), pooled spread "
-          f"{_pooled(per.n_points, per.doppler_spread_mps):.3f} m/s, all points in one Doppler "
+          f"{pooled_std(per.n_points, per.doppler_spread_mps):.3f} m/s, all points in one Doppler "
           f"bin: {np.mean(per.doppler_spread_mps == 0):.3f} of them")
 
 

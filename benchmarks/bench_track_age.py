@@ -28,7 +28,7 @@ import pandas as pd
 REPO = Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(REPO / "benchmarks")]
 
-from bench_aeb_gate import half_results, load_inputs, outcome_setup  # noqa: E402
+from bench_aeb_gate import half_counts, half_results, load_inputs, outcome_setup  # noqa: E402
 
 
 def main(argv: list[str]) -> None:
@@ -58,10 +58,9 @@ def main(argv: list[str]) -> None:
         cells = []
         for a in ages:
             res = half_results(r[age.loc[r.index] >= a], setup, w)
-            cells.append(f"{a}: " + " | ".join(
-                f"{int(x.avoided.to_numpy()[x.intruding.to_numpy()].sum())}/"
-                f"{int((x.aeb_frame.to_numpy()[~x.intruding.to_numpy()] >= 0).sum())}"
-                for x in (res["tune"], res["held_out"])))
+            counts = [half_counts(res[h]) for h in ("tune", "held_out")]
+            cells.append(f"{a}: " + " | ".join(f"{c['n_avoided']}/{c['n_false']}"
+                                                for c in counts))
         print(f"  {pred:18s} " + ";  ".join(cells))
 
 

@@ -89,7 +89,7 @@ def run(cfg, ctx):
         "moving_static_evidence_min": w.moving_static_evidence_min,
         "moving_static_cell_m": w.moving_static_cell_m,
         "moving_static_lag_frames": w.moving_static_lag_frames}},
-        "doppler_spread": doppler_spread_by_label(every, tcfg)}
+        "doppler_spread": doppler_spread_by_label(monte_carlo_objects(every, tcfg))}
     m = metrics["tracker"]
     print(f"driving_track: tracker on {len(every)} points, {m['n_tracks']} tracks "
           f"({m['n_moving_tracks']} moving), {m['n_rows']} rows")
@@ -109,34 +109,57 @@ def run(cfg, ctx):
     return StageResult(metrics=metrics)
 
 
-def doppler_spread_by_label(points, tcfg):
-    """The micro-Doppler spread the moving test's ``warning.moving_doppler_spread_std_mps``
-    models, measured (truth labels score it): the pooled within-object standard deviation of
-    the points' ``velocity_over_ground_mps`` about their object's mean, sqrt(sum of squared
-    residuals / sum of (n - 1)), over the tracker's objects (:func:`blindspot.track.tracker
-    .label_objects`) of two or more points that are all static-world points or all one
-    pedestrian's, per half of the Monte-Carlo replicates (even: tuning, odd: held out); no
-    ``pooled_std_mps`` where there is no such object (a tiny profile)."""
-    mc = points[points.scene.str.startswith("mc_")]
-    obj = label_objects(mc.rename(columns={"scene": "group"})
-                        .assign(time_s=mc.frame.astype(float)), tcfg)
-    p = mc.assign(obj=obj.to_numpy(), tuning=replicate_half(mc.scene.to_numpy()))
-    p = p[p.obj >= 0]
-    g = p.groupby("obj")
-    per = pd.DataFrame({"n": g.size(), "sources": g.source.nunique(),
-                        "static": g.source.first() == "static", "tuning": g.tuning.first(),
-                        "ss": g.velocity_over_ground_mps.var(ddof=1) * (g.size() - 1)})
-    per = per[(per.n >= 2) & (per.sources == 1)]
+def doppler_spread_by_label(objects):
+    """The Doppler spread the moving test's ``warning.moving_doppler_spread_std_mps`` models,
+    measured (truth labels score it): :func:`pooled_std` over the tracker's objects of the
+    Monte-Carlo scenes (``objects``: :func:`monte_carlo_objects`) that are all static-world
+    points or all one pedestrian's, per half of the replicates (even: tuning, odd: held out);
+    no ``pooled_std_mps`` where there is no such object (a tiny profile)."""
+    per = objects[objects.n_sources == 1]
+    tuning = replicate_half(per.group.to_numpy())
+    static = (per.source == "static").to_numpy()
     out = {}
-    for half, sel in (("tuning", per.tuning), ("held_out", ~per.tuning)):
-        for name, lab in (("static", per.static), ("pedestrian", ~per.static)):
+    for half, sel in (("tuning", tuning), ("held_out", ~tuning)):
+        for name, lab in (("static", static), ("pedestrian", ~static)):
             q = per[sel & lab]
-            dof = float((q.n - 1).sum())
+            dof = int((q.n_points - 1).sum())
             out.setdefault(half, {})[name] = {"n_objects": int(len(q)),
-                                              "degrees_of_freedom": int(dof)}
+                                              "degrees_of_freedom": dof}
             if dof:                                     # none without a multi-point object
-                out[half][name]["pooled_std_mps"] = float(np.sqrt(q.ss.sum() / dof))
+                out[half][name]["pooled_std_mps"] = pooled_std(q.n_points,
+                                                               q.doppler_spread_mps)
     return out
+
+
+def monte_carlo_objects(points, tcfg):
+    """:func:`object_doppler_spreads` of the Monte-Carlo scenes' points (points.parquet; the
+    scene named ``group``) on their ego-compensated radial speeds."""
+    mc = points[points.scene.str.startswith("mc_")].rename(columns={"scene": "group"})
+    return object_doppler_spreads(mc.assign(time_s=mc.frame.astype(float)), tcfg,
+                                  "velocity_over_ground_mps")
+
+
+def object_doppler_spreads(points, tcfg, speed):
+    """One row per object of two or more points (the tracker's DBSCAN objects,
+    :func:`blindspot.track.tracker.label_objects`): ``n_points``, ``doppler_spread_mps`` (the
+    sample standard deviation, ddof 1, of the column ``speed``, m/s), the object's first
+    point's other columns, and with a ``source`` column ``n_sources`` (truth labels among its
+    points), with a ``range_m`` column ``range_mean_m``."""
+    pts = points.assign(obj=label_objects(points, tcfg).to_numpy())
+    g = pts[pts.obj >= 0].groupby("obj")
+    per = g.first().assign(n_points=g.size(), doppler_spread_mps=g[speed].std(ddof=1))
+    if "source" in pts:
+        per["n_sources"] = g.source.nunique()
+    if "range_m" in pts:
+        per["range_mean_m"] = g.range_m.mean()
+    return per[per.n_points >= 2]
+
+
+def pooled_std(n_points, spread):
+    """sqrt(sum (n - 1) s^2 / sum (n - 1)) over objects of ``n_points`` points and sample
+    standard deviations ``spread``: the pooled within-object standard deviation (m/s)."""
+    dof = (np.asarray(n_points, float) - 1)
+    return float(np.sqrt((dof * np.asarray(spread, float) ** 2).sum() / dof.sum()))
 
 
 def own_points(points):
