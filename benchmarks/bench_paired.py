@@ -1,11 +1,17 @@
-"""Two predictors of one safety run compared on the same scenes: paired differences of the avoided
-rate (intruding scenes) and of the false-activation rate (non-intruding scenes), with the
-discordant scene counts and a paired bootstrap interval. Prints figures, asserts nothing
-(README, "Does it protect a child", the LSTM bullet).
+"""Two predictors of one safety run, or one predictor of two runs, compared on the same scenes:
+paired differences of the avoided rate (intruding scenes) and of the false-activation rate
+(non-intruding scenes), with the discordant scene counts and a paired bootstrap interval. Prints
+figures, asserts nothing (README, "Does it protect a child", the LSTM and fresh-draw bullets).
 
     python benchmarks/bench_paired.py [--outcomes data/safety/scene_outcomes.parquet]
         [--pairs lstm_direct:constant_velocity,lstm_direct:kalman,lstm:constant_velocity]
-        [--inputs tracker,oracle,visible_truth] [--n-bootstrap 10000]
+        [--inputs tracker,oracle,visible_truth] [--n-bootstrap 10000] [--against B.parquet]
+
+With ``--against``, A is read from ``--outcomes`` and B from that second run of the same scenes
+(e.g. a setting against the default, both ``dvc repro safety`` on one draw), and a pair may name
+one predictor (``constant_velocity`` = ``constant_velocity:constant_velocity``). The two runs
+must come from one draw (``scenario.monte_carlo.seed``): scene names do not carry the seed, so
+only the names are checked to match.
 
 Both predictors of a pair see the same tracks and the same scenes, so a paired comparison is the
 fair one: the unpaired intervals of README's table overlap even where one predictor is better on
@@ -45,24 +51,36 @@ def main(argv: list[str] | None = None) -> None:
                                        "lstm:constant_velocity")
     ap.add_argument("--inputs", default="tracker,oracle,visible_truth")
     ap.add_argument("--n-bootstrap", type=int, default=10_000)
+    ap.add_argument("--against", type=Path, default=None,
+                    help="a second run's scene_outcomes.parquet: B is read from it")
     args = ap.parse_args(argv)
     s = pd.read_parquet(args.outcomes)
     s = s[s.evaluated]
+    other = s if args.against is None else pd.read_parquet(args.against)
+    other = other[other.evaluated]
     rng = np.random.default_rng(0)
     for inp in args.inputs.split(","):
-        q = s[s.input == inp]
+        q, r = s[s.input == inp], other[other.input == inp]
         for pair in args.pairs.split(","):
-            a_name, b_name = pair.split(":")
+            a_name, _, b_name = pair.partition(":")
+            b_name = b_name or a_name
             a = q[q.predictor == a_name].set_index("scene")
-            b = q[q.predictor == b_name].set_index("scene")
+            b = r[r.predictor == b_name].set_index("scene")
             if a.empty or b.empty:
-                print(f"{inp}: {pair}: not both in {args.outcomes} for this input")
+                print(f"{inp}: {pair}: not both in the runs for this input")
                 continue
+            if set(a.index) != set(b.index):
+                raise SystemExit(f"{inp}: {b_name} of {args.against or args.outcomes} has "
+                                 f"other scene names than {a_name} of {args.outcomes} "
+                                 f"({len(set(a.index) ^ set(b.index))} differ); a paired "
+                                 "comparison needs the same scenes")
             b = b.loc[a.index]
             it = a.intruding.to_numpy()
             fa_a, fa_b = (a.aeb_frame >= 0).to_numpy(), (b.aeb_frame >= 0).to_numpy()
-            print(f"{inp}: A = {a_name}, B = {b_name} ({it.sum()} intruding, {(~it).sum()} "
-                  f"non-intruding scenes)")
+            runs = "" if args.against is None else \
+                f" (A of {args.outcomes}, B of {args.against})"
+            print(f"{inp}: A = {a_name}, B = {b_name}{runs} ({it.sum()} intruding, "
+                  f"{(~it).sum()} non-intruding scenes)")
             av_a, av_b = a.avoided.to_numpy()[it], b.avoided.to_numpy()[it]
             print(f"  avoided, A - B:           {paired(av_a, av_b, args.n_bootstrap, rng)}")
             print(f"  false activations, A - B: "
