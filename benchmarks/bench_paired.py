@@ -3,15 +3,17 @@ paired differences of the avoided rate (intruding scenes) and of the false-activ
 (non-intruding scenes), with the discordant scene counts and a paired bootstrap interval. Prints
 figures, asserts nothing (README, "Does it protect a child", the LSTM and fresh-draw bullets).
 
-    python benchmarks/bench_paired.py [--outcomes data/safety/scene_outcomes.parquet]
+    python benchmarks/bench_paired.py [--outcomes data/safety/scene_outcomes.parquet ...]
         [--pairs lstm_direct:constant_velocity,lstm_direct:kalman,lstm:constant_velocity]
-        [--inputs tracker,oracle,visible_truth] [--n-bootstrap 10000] [--against B.parquet]
+        [--inputs tracker,oracle,visible_truth] [--n-bootstrap 10000] [--against B.parquet ...]
 
 With ``--against``, A is read from ``--outcomes`` and B from that second run of the same scenes
 (e.g. a setting against the default, both ``dvc repro safety`` on one draw), and a pair may name
 one predictor (``constant_velocity`` = ``constant_velocity:constant_velocity``). The two runs
 must come from one draw (``scenario.monte_carlo.seed``): scene names do not carry the seed, so
-only the names are checked to match.
+only the names are checked to match. Several ``--outcomes`` files are several draws pooled
+(e.g. seeds 0 and 1): scene k of file i is its own scene, and ``--against`` then names one file
+per draw, in the same order.
 
 Both predictors of a pair see the same tracks and the same scenes, so a paired comparison is the
 fair one: the unpaired intervals of README's table overlap even where one predictor is better on
@@ -44,20 +46,40 @@ def paired(a: np.ndarray, b: np.ndarray, n_boot: int, rng: np.random.Generator) 
     return f"{d.mean():+.3f} [{lo:+.3f}, {hi:+.3f}]; A only {x}, B only {y}, McNemar p {p:.2f}"
 
 
+def pooled(paths: list[Path]) -> pd.DataFrame:
+    """The evaluated rows of the scene_outcomes files of one or more draws; with several, each
+    scene name is prefixed by its draw's position (``d0/``, ``d1/``, ...) so draws do not pair."""
+    parts = []
+    for i, path in enumerate(paths):
+        t = pd.read_parquet(path)
+        t = t[t.evaluated]
+        if len(paths) > 1:
+            t = t.assign(scene=f"d{i}/" + t.scene.astype(str))
+        parts.append(t)
+    return pd.concat(parts, ignore_index=True)
+
+
+def _names(paths: list[Path]) -> str:
+    return " + ".join(str(x) for x in paths)
+
+
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--outcomes", type=Path, default=REPO / "data/safety/scene_outcomes.parquet")
+    ap.add_argument("--outcomes", type=Path, nargs="+",
+                    default=[REPO / "data/safety/scene_outcomes.parquet"],
+                    help="scene_outcomes.parquet of one or more draws (pooled)")
     ap.add_argument("--pairs", default="lstm_direct:constant_velocity,lstm_direct:kalman,"
                                        "lstm:constant_velocity")
     ap.add_argument("--inputs", default="tracker,oracle,visible_truth")
     ap.add_argument("--n-bootstrap", type=int, default=10_000)
-    ap.add_argument("--against", type=Path, default=None,
-                    help="a second run's scene_outcomes.parquet: B is read from it")
+    ap.add_argument("--against", type=Path, nargs="+", default=None,
+                    help="a second run's scene_outcomes.parquet per draw: B is read from them")
     args = ap.parse_args(argv)
-    s = pd.read_parquet(args.outcomes)
-    s = s[s.evaluated]
-    other = s if args.against is None else pd.read_parquet(args.against)
-    other = other[other.evaluated]
+    if args.against is not None and len(args.against) != len(args.outcomes):
+        ap.error(f"--against: expected one file per --outcomes draw ({len(args.outcomes)}), "
+                 f"found {len(args.against)}")
+    s = pooled(args.outcomes)
+    other = s if args.against is None else pooled(args.against)
     rng = np.random.default_rng(0)
     for inp in args.inputs.split(","):
         q, r = s[s.input == inp], other[other.input == inp]
@@ -70,15 +92,16 @@ def main(argv: list[str] | None = None) -> None:
                 print(f"{inp}: {pair}: not both in the runs for this input")
                 continue
             if set(a.index) != set(b.index):
-                raise SystemExit(f"{inp}: {b_name} of {args.against or args.outcomes} has "
-                                 f"other scene names than {a_name} of {args.outcomes} "
+                raise SystemExit(f"{inp}: {b_name} of {_names(args.against or args.outcomes)} "
+                                 f"has other scene names than {a_name} of "
+                                 f"{_names(args.outcomes)} "
                                  f"({len(set(a.index) ^ set(b.index))} differ); a paired "
                                  "comparison needs the same scenes")
             b = b.loc[a.index]
             it = a.intruding.to_numpy()
             fa_a, fa_b = (a.aeb_frame >= 0).to_numpy(), (b.aeb_frame >= 0).to_numpy()
             runs = "" if args.against is None else \
-                f" (A of {args.outcomes}, B of {args.against})"
+                f" (A of {_names(args.outcomes)}, B of {_names(args.against)})"
             print(f"{inp}: A = {a_name}, B = {b_name}{runs} ({it.sum()} intruding, "
                   f"{(~it).sum()} non-intruding scenes)")
             av_a, av_b = a.avoided.to_numpy()[it], b.avoided.to_numpy()[it]
