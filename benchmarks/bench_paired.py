@@ -11,20 +11,24 @@ With ``--against``, A is read from ``--outcomes`` and B from that second run of 
 (e.g. a setting against the default, both ``dvc repro safety`` on one draw), and a pair may name
 one predictor (``constant_velocity`` = ``constant_velocity:constant_velocity``). The two runs
 must come from one draw (``scenario.monte_carlo.seed``): scene names do not carry the seed, so
-only the names are checked to match. Several ``--outcomes`` files are several draws pooled
-(e.g. seeds 0 and 1): scene k of file i is its own scene, and ``--against`` then names one file
-per draw, in the same order.
+only the names are checked to match, and a run of another draw with the same design passes that
+check unnoticed. Several ``--outcomes`` files are several draws pooled (e.g. seeds 0 and 1):
+scene k of file i is its own scene, and ``--against`` then names one file per draw, in the same
+order. Files with identical contents are refused as two draws.
 
 Both predictors of a pair see the same tracks and the same scenes, so a paired comparison is the
 fair one: the unpaired intervals of README's table overlap even where one predictor is better on
 nearly every scene where they differ. The interval resamples scenes (with replacement, seed 0);
 "A only / B only" count the scenes where just one of the two avoided the collision (or activated
-falsely): the exact two-sided McNemar test on those is printed as p.
+falsely): the exact two-sided McNemar test on those is printed as p. One generator serves all
+pairs in order, so an interval depends on the pairs printed before it (the README's figures are
+for the commands it quotes).
 """
 
 from __future__ import annotations
 
 import argparse
+import hashlib
 from pathlib import Path
 
 import blindspot  # noqa: F401  first: pins the CPU kernels before numpy loads
@@ -63,6 +67,18 @@ def _names(paths: list[Path]) -> str:
     return " + ".join(str(x) for x in paths)
 
 
+def _distinct_draws(ap: argparse.ArgumentParser, option: str, paths: list[Path]) -> None:
+    """Refuse a list of draws in which two files have the same contents (one draw counted
+    twice would narrow every interval)."""
+    seen: dict[str, Path] = {}
+    for path in paths:
+        digest = hashlib.sha256(path.read_bytes()).hexdigest()
+        if digest in seen:
+            ap.error(f"{option}: {path} has the same contents as {seen[digest]}; each file must "
+                     "be another draw of scenes")
+        seen[digest] = path
+
+
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--outcomes", type=Path, nargs="+",
@@ -78,6 +94,15 @@ def main(argv: list[str] | None = None) -> None:
     if args.against is not None and len(args.against) != len(args.outcomes):
         ap.error(f"--against: expected one file per --outcomes draw ({len(args.outcomes)}), "
                  f"found {len(args.against)}")
+    _distinct_draws(ap, "--outcomes", args.outcomes)
+    if args.against is not None:
+        _distinct_draws(ap, "--against", args.against)
+    else:
+        halves = [q.partition(":") for q in args.pairs.split(",")]
+        same = [a + c + b for a, c, b in halves if b in ("", a)]
+        if same:
+            ap.error(f"--pairs: {same} compare a predictor with itself; name two predictors "
+                     "(A:B), or give --against to compare one predictor across two runs")
     s = pooled(args.outcomes)
     other = s if args.against is None else pooled(args.against)
     rng = np.random.default_rng(0)
@@ -89,14 +114,16 @@ def main(argv: list[str] | None = None) -> None:
             a = q[q.predictor == a_name].set_index("scene")
             b = r[r.predictor == b_name].set_index("scene")
             if a.empty or b.empty:
-                print(f"{inp}: {pair}: not both in the runs for this input")
+                print(f"{inp}: {pair}: not both in {_names(args.outcomes)}"
+                      + ("" if args.against is None else f" / {_names(args.against)}")
+                      + " for this input")
                 continue
             if set(a.index) != set(b.index):
-                raise SystemExit(f"{inp}: {b_name} of {_names(args.against or args.outcomes)} "
-                                 f"has other scene names than {a_name} of "
-                                 f"{_names(args.outcomes)} "
-                                 f"({len(set(a.index) ^ set(b.index))} differ); a paired "
-                                 "comparison needs the same scenes")
+                print(f"{inp}: {pair}: {b_name} of {_names(args.against or args.outcomes)} has "
+                      f"other scene names than {a_name} of {_names(args.outcomes)} "
+                      f"({len(set(a.index) ^ set(b.index))} differ); a paired comparison needs "
+                      "the same scenes")
+                continue
             b = b.loc[a.index]
             it = a.intruding.to_numpy()
             fa_a, fa_b = (a.aeb_frame >= 0).to_numpy(), (b.aeb_frame >= 0).to_numpy()
