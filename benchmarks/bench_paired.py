@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import argparse
 import hashlib
+import io
 from pathlib import Path
 
 import blindspot  # noqa: F401  first: pins the CPU kernels before numpy loads
@@ -37,6 +38,9 @@ import pandas as pd
 from scipy.stats import binomtest
 
 REPO = Path(__file__).resolve().parents[1]
+#: the columns of data/safety/scene_outcomes.parquet this benchmark reads
+OUTCOME_COLUMNS = {"scene", "input", "predictor", "evaluated", "intruding", "avoided",
+                   "aeb_frame"}
 
 
 def paired(a: np.ndarray, b: np.ndarray, n_boot: int, rng: np.random.Generator) -> str:
@@ -50,12 +54,29 @@ def paired(a: np.ndarray, b: np.ndarray, n_boot: int, rng: np.random.Generator) 
     return f"{d.mean():+.3f} [{lo:+.3f}, {hi:+.3f}]; A only {x}, B only {y}, McNemar p {p:.2f}"
 
 
-def pooled(paths: list[Path]) -> pd.DataFrame:
+def pooled(ap: argparse.ArgumentParser, option: str, paths: list[Path]) -> pd.DataFrame:
     """The evaluated rows of the scene_outcomes files of one or more draws; with several, each
-    scene name is prefixed by its draw's position (``d0/``, ``d1/``, ...) so draws do not pair."""
-    parts = []
+    scene name is prefixed by its draw's position (``d0/``, ``d1/``, ...) so draws do not pair.
+    Two files of the same contents are refused (one draw counted twice would narrow every
+    interval)."""
+    parts, seen = [], {}
     for i, path in enumerate(paths):
-        t = pd.read_parquet(path)
+        if not path.is_file():
+            ap.error(f"{option}: {path}: no such file (expected a run's "
+                     "data/safety/scene_outcomes.parquet)")
+        raw = path.read_bytes()
+        digest = hashlib.sha256(raw).hexdigest()
+        if digest in seen:
+            ap.error(f"{option}: {path} has the same contents as {seen[digest]}; each file must "
+                     "be another draw of scenes")
+        seen[digest] = path
+        try:
+            t = pd.read_parquet(io.BytesIO(raw))
+        except (OSError, ValueError) as err:   # pyarrow's ArrowInvalid is a ValueError
+            ap.error(f"{option}: {path} is not a Parquet table ({err})")
+        missing = sorted(OUTCOME_COLUMNS - set(t.columns))
+        if missing:
+            ap.error(f"{option}: {path} is not a scene_outcomes table: it lacks {missing}")
         t = t[t.evaluated]
         if len(paths) > 1:
             t = t.assign(scene=f"d{i}/" + t.scene.astype(str))
@@ -65,18 +86,6 @@ def pooled(paths: list[Path]) -> pd.DataFrame:
 
 def _names(paths: list[Path]) -> str:
     return " + ".join(str(x) for x in paths)
-
-
-def _distinct_draws(ap: argparse.ArgumentParser, option: str, paths: list[Path]) -> None:
-    """Refuse a list of draws in which two files have the same contents (one draw counted
-    twice would narrow every interval)."""
-    seen: dict[str, Path] = {}
-    for path in paths:
-        digest = hashlib.sha256(path.read_bytes()).hexdigest()
-        if digest in seen:
-            ap.error(f"{option}: {path} has the same contents as {seen[digest]}; each file must "
-                     "be another draw of scenes")
-        seen[digest] = path
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -94,17 +103,12 @@ def main(argv: list[str] | None = None) -> None:
     if args.against is not None and len(args.against) != len(args.outcomes):
         ap.error(f"--against: expected one file per --outcomes draw ({len(args.outcomes)}), "
                  f"found {len(args.against)}")
-    _distinct_draws(ap, "--outcomes", args.outcomes)
-    if args.against is not None:
-        _distinct_draws(ap, "--against", args.against)
-    else:
-        halves = [q.partition(":") for q in args.pairs.split(",")]
-        same = [a + c + b for a, c, b in halves if b in ("", a)]
-        if same:
-            ap.error(f"--pairs: {same} compare a predictor with itself; name two predictors "
-                     "(A:B), or give --against to compare one predictor across two runs")
-    s = pooled(args.outcomes)
-    other = s if args.against is None else pooled(args.against)
+    same = [q for q in args.pairs.split(",") if len(set(q.split(":"))) == 1]
+    if args.against is None and same:
+        ap.error(f"--pairs: {same} compare a predictor with itself; name two predictors (A:B), "
+                 "or give --against to compare one predictor across two runs")
+    s = pooled(ap, "--outcomes", args.outcomes)
+    other = s if args.against is None else pooled(ap, "--against", args.against)
     rng = np.random.default_rng(0)
     for inp in args.inputs.split(","):
         q, r = s[s.input == inp], other[other.input == inp]
