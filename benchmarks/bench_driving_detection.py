@@ -3,7 +3,7 @@
 driving measurement under variants of the detection settings. Prints figures, asserts nothing.
 
     BLINDSPOT_SHARED=../shared PYTHONPATH=src python benchmarks/bench_driving_detection.py \
-        [--speeds 40] [--variants baseline,so_cfar,...] [--jobs 2]
+        [--speeds 40] [--variants baseline,so_cfar,...] [--jobs 2] [--override OVERRIDE ...]
 
 Per variant: radar points per frame, the lead child's points, and per speed the bound's avoided
 rate and median true TTC of the request for "a radar point of the child" and "a 3-of-5
@@ -11,7 +11,10 @@ confirmable track" (the AEB requested at the first such frame on every intruding
 scenes, truth and AEB model are the pipeline's (conf/, data/driving/truth.parquet and
 scenes.json from `dvc repro driving_scenes`); only the detection settings change:
 
-- ``baseline``: the configured driving chain (``driving_cfar``, ``detect``, ``ego_motion``);
+- ``baseline``: the configured driving chain (``driving_cfar``, ``detect``, ``ego_motion``;
+  smallest-of CFAR since 2026-12-02: ``--override 'cfar@driving_cfar=paper'`` composes the
+  config with the paper's CA-CFAR instead, the baseline of every figure measured before then;
+  each ``--override`` is a Hydra override of the composed config, applied to every variant);
 - ``so_cfar`` / ``os_cfar`` / ``ca_pfa``: the ``cfar`` options so / os / ca_pfa as the driving
   CFAR (smallest-of, ordered-statistic, cell-averaging at a design Pfa);
 - ``budget96``: 96 instead of ``ego_motion.max_detections`` angle estimates per frame;
@@ -80,6 +83,9 @@ def main(argv: list[str]) -> None:
                     help=f"comma-separated, of {', '.join(VARIANTS)}")
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--data", type=Path, default=REPO / "data")
+    ap.add_argument("--override", action="append", default=[], metavar="OVERRIDE",
+                    help="a Hydra override of the composed config (repeatable), e.g. "
+                         "'cfar@driving_cfar=paper'")
     args = ap.parse_args(argv)
     names = args.variants.split(",")
     bad = sorted(set(names) - set(VARIANTS))
@@ -95,7 +101,7 @@ def main(argv: list[str]) -> None:
     from blindspot.safety.risk import EgoShape
     from blindspot.synth.driving_measurement import measure_driving
 
-    cfg = compose([])
+    cfg = compose(args.override)
     group, named = experiment.scenarios(cfg)
     radar = experiment.driving_radar(cfg)
     scenes = [s for s in draw_scenarios(group, named[group.figure_scene])
@@ -108,9 +114,10 @@ def main(argv: list[str]) -> None:
     warning, tracker = experiment.warning(cfg), experiment.tracker(cfg)
     bodies = body_boxes(group)
     shape = EgoShape(group.ego.width_m, group.ego.length_m)
-    print(f"bench_driving_detection: {len(scenes)} Monte-Carlo scenes at {args.speeds} km/h; "
-          "bound = AEB at the first frame of a radar point of the child / of a 3-of-5 "
-          "confirmable track; avoided rate (median true TTC of the request, s)")
+    print(f"bench_driving_detection: {len(scenes)} Monte-Carlo scenes at {args.speeds} km/h"
+          f"{''.join(f', {o}' for o in args.override)}; bound = AEB at the first frame of a "
+          "radar point of the child / of a 3-of-5 confirmable track; avoided rate (median true "
+          "TTC of the request, s)")
     for name in names:                               # a few variants
         s = settings(cfg, name)
         t0 = time.perf_counter()

@@ -67,13 +67,7 @@ def run(cfg, ctx):
         "visible_truth": (visible_truth_points(truth, w.oracle.meas_std_m, w.seed),
                           "visible truth points"),
     }
-    frames = truth[["scene", "frame", "time_s"]].drop_duplicates(["scene", "frame"])
-    ego = (truth.groupby(["scene", "frame"], as_index=False)[["ego_x_m", "ego_y_m"]].first()
-           .rename(columns={"scene": "group"}))
-    pts = (frames.merge(every[["scene", "frame", "x_m", "y_m", "velocity_over_ground_mps"]],
-                        on=["scene", "frame"], how="left").rename(columns={"scene": "group"})
-           .merge(ego.rename(columns={"ego_x_m": "sensor_x_m", "ego_y_m": "sensor_y_m"}),
-                  on=["group", "frame"], how="left"))
+    pts, ego = tracker_input(truth, every)
     tracks = track_points(pts, tcfg, jobs=int(cfg.jobs))
     kinematic = moving_tracks(tracks, w.moving_speed_mps, w.moving_probability)
     tracks["moving"] = moving_tracks(tracks, ego=ego, **moving_test_settings(w),
@@ -107,6 +101,33 @@ def run(cfg, ctx):
         print(f"driving_track: {name}, {metrics[name]['n_tracks']} tracks, {len(tracks)} rows")
     write_json(ctx.out("driving_track.json"), metrics)
     return StageResult(metrics=metrics)
+
+
+def tracker_input(truth, points):
+    """The tracker's input for the driving scenes, and the ego's track.
+
+    Args:
+        truth: data/driving/truth.parquet (one row per scene, frame and pedestrian: ``scene``,
+            ``frame``, ``time_s``, ``ego_x_m``, ``ego_y_m``).
+        points: data/driving/points.parquet (``scene``, ``frame``, ``x_m``, ``y_m``,
+            ``velocity_over_ground_mps``; world frame).
+
+    Returns:
+        ``(pts, ego)``: ``pts`` the :func:`blindspot.track.tracker.track_points` input, one row
+        per point with ``group`` (the scene), ``frame``, ``time_s``, ``x_m``, ``y_m``,
+        ``velocity_over_ground_mps``, ``sensor_x_m``, ``sensor_y_m`` (the ego's position, the
+        Doppler's line of sight), and one row with NaN coordinates for each frame without a
+        point (so every frame is stepped and tracks coast through it); ``ego`` one row per
+        (``group``, ``frame``) with ``ego_x_m``, ``ego_y_m``.
+    """
+    frames = truth[["scene", "frame", "time_s"]].drop_duplicates(["scene", "frame"])
+    ego = (truth.groupby(["scene", "frame"], as_index=False)[["ego_x_m", "ego_y_m"]].first()
+           .rename(columns={"scene": "group"}))
+    pts = (frames.merge(points[["scene", "frame", "x_m", "y_m", "velocity_over_ground_mps"]],
+                        on=["scene", "frame"], how="left").rename(columns={"scene": "group"})
+           .merge(ego.rename(columns={"ego_x_m": "sensor_x_m", "ego_y_m": "sensor_y_m"}),
+                  on=["group", "frame"], how="left"))
+    return pts, ego
 
 
 def doppler_spread_by_label(objects):
