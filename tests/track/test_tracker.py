@@ -456,3 +456,54 @@ def test_doppler_gate_needs_gnn():
     with pytest.raises(ConfigError, match="tracker.doppler_std_mps"):
         TrackerConfig.from_mapping({**dataclasses.asdict(config("jpda_cv")),
                                     "doppler_std_mps": 0.3})
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), n_det=st.integers(0, 12),
+       pos_std=st.floats(0.05, 3.0), vel_std=st.floats(0.05, 3.0), dt_s=st.floats(0.05, 0.5))
+def test_the_gated_hypothesiser_returns_stone_soups_mahalanobis_hypotheses(seed, n_det, pos_std,
+                                                                           vel_std, dt_s):
+    """The tracker's vectorised gate (closed-form 2 x 2 Mahalanobis distance of every detection
+    at once, the measurement prediction built only when a detection gates) against Stone Soup's
+    own DistanceHypothesiser with its Mahalanobis measure, detection by detection, on the same
+    predictor and updater: the same gated detections in the same order, the same distances,
+    the same missed-detection hypothesis first."""
+    import datetime
+
+    from stonesoup.hypothesiser.distance import DistanceHypothesiser
+    from stonesoup.measures import Mahalanobis
+    from stonesoup.types.detection import Detection
+    from stonesoup.types.state import GaussianState
+    from stonesoup.types.track import Track
+
+    from blindspot.track.tracker import _parts
+
+    rng = np.random.default_rng(seed)
+    parts = _parts(config())
+    ours = parts.associator.hypothesiser
+    stock = DistanceHypothesiser(parts.predictor, parts.updater, measure=Mahalanobis(),
+                                 missed_distance=ours.missed_distance)
+    t0 = datetime.datetime(2026, 1, 1)
+    a = rng.normal(size=(4, 4)) * [pos_std, vel_std, pos_std, vel_std]
+    state = rng.normal(0.0, [3.0, 1.0, 3.0, 1.0]).reshape(4, 1)
+    track = Track([GaussianState(state, a @ a.T + 1e-3 * np.eye(4), timestamp=t0)])
+    ts = t0 + datetime.timedelta(seconds=dt_s)
+    near = state[[0, 2], 0] + dt_s * state[[1, 3], 0]
+    dets = {Detection(np.reshape(near + rng.normal(0.0, 2.0 * pos_std + 0.2, 2), (2, 1)),
+                      timestamp=ts, measurement_model=parts.measurement_model)
+            for _ in range(n_det)}
+    got, want = ours.hypothesise(track, dets, ts), stock.hypothesise(track, dets, ts)
+    assert len(got) == len(want)
+    def order(hyps):
+        return [h.measurement if h else "missed" for h in hyps]
+
+    assert order(got) == order(want)                      # the same detections, same order
+    assert sum(not h for h in got) == 1                   # one missed-detection hypothesis
+    np.testing.assert_allclose([h.distance for h in got], [h.distance for h in want],
+                               rtol=1e-9, atol=1e-12)
+    for g, w in zip(got, want):
+        if g:
+            np.testing.assert_allclose(np.asarray(g.measurement_prediction.covar, float),
+                                       np.asarray(w.measurement_prediction.covar, float))
+            np.testing.assert_allclose(np.asarray(g.measurement_prediction.cross_covar, float),
+                                       np.asarray(w.measurement_prediction.cross_covar, float))

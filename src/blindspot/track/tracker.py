@@ -220,15 +220,27 @@ def _numpy_kalman(transition_model, measurement_model):
                                            transition_model=self.transition_model)
 
     class NumpyKalmanUpdater(KalmanUpdater):
-        def predict_measurement(self, predicted_state, measurement_model=None,
-                                measurement_noise=True, **kwargs):
+        @staticmethod
+        def measurement_moments(predicted_state, measurement_noise=True):
+            """(H x (2, 1), S = H P H^T + R (2, 2), P H^T (4, 2)) of a predicted state, plain
+            arrays: what a gate needs, without building the Stone Soup prediction object."""
             x = np.asarray(predicted_state.state_vector, float)
             P = np.asarray(predicted_state.covar, float)
             PHt = P @ H.T
-            S = H @ PHt + (R if measurement_noise else 0.0)
-            return GaussianMeasurementPrediction(StateVector(H @ x), CovarianceMatrix(S),
+            return H @ x, H @ PHt + (R if measurement_noise else 0.0), PHt
+
+        @staticmethod
+        def measurement_prediction(predicted_state, moments):
+            """The ``GaussianMeasurementPrediction`` of :meth:`measurement_moments`."""
+            zhat, S, PHt = moments
+            return GaussianMeasurementPrediction(StateVector(zhat), CovarianceMatrix(S),
                                                  timestamp=predicted_state.timestamp,
                                                  cross_covar=CovarianceMatrix(PHt))
+
+        def predict_measurement(self, predicted_state, measurement_model=None,
+                                measurement_noise=True, **kwargs):
+            return self.measurement_prediction(
+                predicted_state, self.measurement_moments(predicted_state, measurement_noise))
 
         def update(self, hypothesis, **kwargs):
             pred = hypothesis.prediction
@@ -330,12 +342,19 @@ def _gated_hypothesiser(predictor, updater, gate: float, doppler_std_mps: float 
                 prediction, MissedDetection(timestamp=timestamp), self.missed_distance)]
             if detections:
                 dets, z, terms = self._stacked(detections)
-                mp = self.updater.predict_measurement(prediction, dets[0].measurement_model)
-                v = z - np.asarray(mp.state_vector, float)
-                w = np.linalg.solve(np.asarray(mp.covar, float), v)
-                d2 = np.einsum("ij,ij->j", v, w)
+                moments = self.updater.measurement_moments(prediction)
+                v = z - moments[0]
+                # v^T S^-1 v in closed form for the 2 x 2 S (a LAPACK solve per track and frame
+                # was 7 % of the tracker's time on the driving clouds)
+                (a, b), (c, d) = moments[1]
+                d2 = (d * v[0] ** 2 - (b + c) * v[0] * v[1] + a * v[1] ** 2) / (a * d - b * c)
                 dist = np.sqrt(d2 if terms is None else self._with_doppler(prediction, d2, terms))
-                for j in np.flatnonzero(dist < self.missed_distance):
+                gated = np.flatnonzero(dist < self.missed_distance)
+                # the measurement prediction object only for a track that gates a detection
+                # (about half of the driving scenes' clutter tracks coast on a frame)
+                mp = (self.updater.measurement_prediction(prediction, moments) if len(gated)
+                      else None)
+                for j in gated:
                     hypotheses.append(SingleDistanceHypothesis(prediction, dets[j],
                                                                float(dist[j]), mp))
             return MultipleHypothesis(sorted(hypotheses, reverse=True))
