@@ -15,8 +15,9 @@ scenes.json from `dvc repro driving_scenes`); only the detection settings change
   smallest-of CFAR since 2026-12-02: ``--override 'cfar@driving_cfar=paper'`` composes the
   config with the paper's CA-CFAR instead, the baseline of every figure measured before then;
   each ``--override`` is a Hydra override of the composed config, applied to every variant);
-- ``so_cfar`` / ``os_cfar`` / ``ca_pfa``: the ``cfar`` options so / os / ca_pfa as the driving
-  CFAR (smallest-of, ordered-statistic, cell-averaging at a design Pfa);
+- ``ca_cfar`` / ``so_cfar`` / ``os_cfar`` / ``ca_pfa``: the ``cfar`` options paper / so / os /
+  ca_pfa as the driving CFAR (the paper's cell-averaging, smallest-of, ordered-statistic,
+  cell-averaging at a design Pfa);
 - ``budget96``: 96 instead of ``ego_motion.max_detections`` angle estimates per frame;
 - ``no_peak_only``: every CFAR cell, not only the 3 x 3 local maxima of the map;
 - ``no_peak_budget400``: the same with 400 angle estimates per frame (the budget no longer
@@ -42,23 +43,26 @@ import time
 from pathlib import Path
 
 import pandas as pd
+from omegaconf import OmegaConf
 
 REPO = Path(__file__).resolve().parents[1]
-VARIANTS = ("baseline", "so_cfar", "os_cfar", "ca_pfa", "budget96", "no_peak_only",
+VARIANTS = ("baseline", "ca_cfar", "so_cfar", "os_cfar", "ca_pfa", "budget96", "no_peak_only",
             "no_peak_budget400", "rda_peaks", "rda_peaks_budget96", "rda_peaks_cand96",
             "rda_peaks_cand512")
 
 
-def settings(cfg, name: str) -> dict:
-    """The detection settings of variant ``name`` (module docstring)."""
+def settings(cfg, name: str, overrides: list[str] = ()) -> dict:
+    """The detection settings of variant ``name`` (module docstring) on ``cfg``, the config
+    composed with ``overrides`` (which the CFAR variants compose with as well)."""
     from blindspot import experiment
     from blindspot.config import compose
 
     base = dict(cfar=experiment.driving_cfar(cfg), detect=experiment.detect(cfg),
                 ego=experiment.ego_motion(cfg))
-    options = {"so_cfar": "so", "os_cfar": "os", "ca_pfa": "ca_pfa"}
+    options = {"ca_cfar": "paper", "so_cfar": "so", "os_cfar": "os", "ca_pfa": "ca_pfa"}
     if name in options:
-        return {**base, "cfar": experiment.cfar(compose([f"cfar={options[name]}"]))}
+        return {**base, "cfar": experiment.cfar(compose([*overrides,
+                                                         f"cfar={options[name]}"]))}
     if name == "budget96":
         return {**base, "ego": dataclasses.replace(base["ego"], max_detections=96)}
     if name in ("no_peak_only", "no_peak_budget400"):
@@ -102,6 +106,12 @@ def main(argv: list[str]) -> None:
     from blindspot.synth.driving_measurement import measure_driving
 
     cfg = compose(args.override)
+    drawn = OmegaConf.load(REPO / "params.yaml")
+    for key in ("scenario", "driving_radar"):      # what data/driving/truth.parquet was drawn with
+        if OmegaConf.to_container(cfg[key]) != OmegaConf.to_container(drawn[key]):
+            ap.error(f"--override {' '.join(args.override)}: changes `{key}`, but the scenes'"
+                     f" truth under {args.data}/driving/ was drawn with params.yaml's; change "
+                     "the scenes with `dvc exp run -S ...` instead")
     group, named = experiment.scenarios(cfg)
     radar = experiment.driving_radar(cfg)
     scenes = [s for s in draw_scenarios(group, named[group.figure_scene])
@@ -119,7 +129,7 @@ def main(argv: list[str]) -> None:
           "radar point of the child / of a 3-of-5 confirmable track; avoided rate (median true "
           "TTC of the request, s)")
     for name in names:                               # a few variants
-        s = settings(cfg, name)
+        s = settings(cfg, name, args.override)
         t0 = time.perf_counter()
         pts = measure_driving(scenes, group, radar, s["cfar"], experiment.doa(cfg), s["detect"],
                               s["ego"], adc_headroom_db=experiment.sim(cfg).adc_headroom_db,

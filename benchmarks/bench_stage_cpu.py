@@ -184,9 +184,10 @@ def bench_track(data: Path, every: int, repeats: int) -> None:
     points = pd.read_parquet(data / "driving" / "points.parquet")
     scenes = sorted(truth.scene.unique())[::every]
     truth, points = truth[truth.scene.isin(scenes)], points[points.scene.isin(scenes)]
-    frames = truth[["scene", "frame", "time_s"]].drop_duplicates(["scene", "frame"])
-    pts = frames.merge(points[["scene", "frame", "x_m", "y_m", "velocity_over_ground_mps"]],
-                       on=["scene", "frame"], how="left").rename(columns={"scene": "group"})
+    sys.path[:0] = [str(ROOT / "stages")]
+    from driving_track import tracker_input        # the stage's own input, sensor columns too
+
+    pts, _ = tracker_input(truth, points)
     old_s, a = cpu(lambda: old.track_points(pts, cfg, jobs=1), repeats)
     new_s, b = cpu(lambda: tracker.track_points(pts, cfg, jobs=1), repeats)
     print(f"track: {len(scenes)} scenes, {len(pts)} points, {len(b)} track rows: CPU "

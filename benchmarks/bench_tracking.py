@@ -14,17 +14,18 @@ median of R runs, and the mean number of live tracks per frame. ``--profile`` pr
 costliest functions (cProfile) of one run (with ``--driving``: of the slowest scene, by own
 time).
 
-``--driving [DATA]`` (default ``data``) times the tracker on the driving scenes' own point clouds
-instead: ``DATA/driving/points.parquet`` (every radar point of every frame, parked cars and kerb
-clutter included) and ``DATA/driving/truth.parquet`` of a ``dvc repro driving_measure``, put
-together exactly as the driving_track stage does (``driving_track.tracker_input``: every frame
-stepped, the ego's position as the Doppler's line of sight), the configured tracker group of
-``params.yaml`` (its ``tracker`` key; ``--tracker`` loads ``conf/tracker/<name>.yaml`` instead),
-one scene after another in this process on one thread. ``--scenes N`` takes every k-th scene so
-that N are timed (default all 226, about 2 minutes). Prints points and live tracks per frame
-(mean and 95th percentile) and the CPU time per frame over all frames and per scene (median and
-the slowest scene): what the issue's 10 ms budget has to hold on a realistic cloud, where the
-synthetic scene above has 3 clutter points a frame.
+``--driving [DATA]`` (default the repository's ``data``) times the tracker on the driving scenes'
+own point clouds instead: ``DATA/driving/points.parquet`` (every radar point of every frame, parked
+cars and kerb clutter included) and ``DATA/driving/truth.parquet`` of a ``dvc repro
+driving_measure``, put together exactly as the driving_track stage does
+(``driving_track.tracker_input``: every frame stepped, the ego's position as the Doppler's line of
+sight), the configured tracker group of ``params.yaml`` (its ``tracker`` key; ``--tracker`` loads
+``conf/tracker/<name>.yaml`` instead), one scene after another in this process on one thread.
+``--scenes N`` times N scenes spread evenly over the sorted scene names (default all of them: 226
+scenes, about 2 minutes). Prints the tracker's name, points and live tracks per frame (mean and
+95th percentile) and the CPU time per frame over all frames and per scene (median and the slowest
+scene): what the issue's 10 ms budget has to hold on a realistic cloud, where the synthetic scene
+above has 3 clutter points a frame.
 """
 
 from __future__ import annotations
@@ -32,6 +33,7 @@ from __future__ import annotations
 import argparse
 import cProfile
 import pstats
+import sys
 import time
 from pathlib import Path
 
@@ -43,6 +45,7 @@ from threadpoolctl import threadpool_limits
 from blindspot.track import TrackerConfig, track_points
 
 REPO = Path(__file__).resolve().parents[1]
+sys.path[:0] = [str(REPO / "stages")]         # driving_track.tracker_input, for --driving
 DT = 0.1
 
 
@@ -66,8 +69,6 @@ def scene(n_frames: int, n_clutter: int, n_points: int, seed: int = 0) -> pd.Dat
 
 def driving_clouds(data: Path, n_scenes: int | None) -> pd.DataFrame:
     """The driving_track stage's tracker input (``group`` = scene) from DATA/driving/."""
-    import sys
-    sys.path.insert(0, str(REPO / "stages"))
     from driving_track import tracker_input
 
     paths = {n: data / "driving" / f"{n}.parquet" for n in ("truth", "points")}
@@ -75,8 +76,13 @@ def driving_clouds(data: Path, n_scenes: int | None) -> pd.DataFrame:
         if not path.is_file():
             raise SystemExit(f"bench_tracking --driving: {path} not found (the {name} of "
                              "`dvc repro driving_measure`, or `dvc checkout`)")
-    truth, points = (pd.read_parquet(paths["truth"]), pd.read_parquet(paths["points"]))
+    truth = pd.read_parquet(paths["truth"], columns=["scene", "frame", "time_s", "ego_x_m",
+                                                     "ego_y_m"])
+    points = pd.read_parquet(paths["points"], columns=["scene", "frame", "x_m", "y_m",
+                                                       "velocity_over_ground_mps"])
     scenes = np.array(sorted(truth.scene.unique()))
+    if not len(scenes):
+        raise SystemExit(f"bench_tracking --driving: {paths['truth']} holds no scene")
     if n_scenes is not None:
         if n_scenes < 1:
             raise SystemExit(f"bench_tracking --scenes: expected at least 1, got {n_scenes}")
@@ -86,7 +92,9 @@ def driving_clouds(data: Path, n_scenes: int | None) -> pd.DataFrame:
     return pts
 
 
-def bench_driving(args, cfg: TrackerConfig) -> None:
+def bench_driving(args, cfg: TrackerConfig, name: str) -> None:
+    """Time ``cfg`` scene by scene on the driving clouds of ``args.driving``; print the
+    figures (module docstring)."""
     pts = driving_clouds(Path(args.driving), args.scenes)
     groups = [g for _, g in pts.groupby("group", sort=True)]
     with threadpool_limits(1):
@@ -106,7 +114,7 @@ def bench_driving(args, cfg: TrackerConfig) -> None:
     per_frame_pts = pts.groupby(["group", "frame"]).x_m.count()
     live = pd.concat(live)
     per_scene = 1e3 * cpu / frames
-    print(f"tracker on the driving clouds ({args.driving}/driving/points.parquet): "
+    print(f"tracker {name} on the driving clouds ({args.driving}/driving/points.parquet): "
           f"{len(groups)} scenes, {frames.sum()} frames")
     print(f"  points per frame  mean {per_frame_pts.mean():.1f}, p95 "
           f"{np.percentile(per_frame_pts, 95):.0f}, max {per_frame_pts.max()}")
@@ -124,13 +132,21 @@ def main() -> None:
     ap.add_argument("--tracker", default=None)
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--profile", action="store_true")
-    ap.add_argument("--driving", nargs="?", const="data", default=None, metavar="DATA")
+    ap.add_argument("--driving", nargs="?", const=str(REPO / "data"), default=None,
+                    metavar="DATA")
     ap.add_argument("--scenes", type=int, default=None)
     args = ap.parse_args()
+    synthetic = {"--frames": args.frames != 300, "--clutter": args.clutter != 3,
+                 "--points": args.points != 3, "--repeat": args.repeat != 3}
+    if args.driving is None and args.scenes is not None:
+        ap.error("--scenes needs --driving")
+    if args.driving is not None and any(synthetic.values()):
+        ap.error(f"{', '.join(k for k, v in synthetic.items() if v)}: the synthetic scene's "
+                 "options, not used with --driving")
     if args.driving is not None:
         tracker = (OmegaConf.load(REPO / "params.yaml").tracker if args.tracker is None
                    else OmegaConf.load(REPO / "conf" / "tracker" / f"{args.tracker}.yaml"))
-        return bench_driving(args, TrackerConfig.from_mapping(tracker))
+        return bench_driving(args, TrackerConfig.from_mapping(tracker), str(tracker.name))
     cfg = TrackerConfig.from_mapping(OmegaConf.load(
         REPO / "conf" / "tracker" / f"{args.tracker or 'gnn_cv'}.yaml"))
     pts = scene(args.frames, args.clutter, args.points)

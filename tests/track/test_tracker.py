@@ -458,42 +458,26 @@ def test_doppler_gate_needs_gnn():
                                     "doppler_std_mps": 0.3})
 
 
-@settings(max_examples=40, deadline=None)
-@given(seed=st.integers(0, 2**31 - 1), n_det=st.integers(0, 12),
-       pos_std=st.floats(0.05, 3.0), vel_std=st.floats(0.05, 3.0), dt_s=st.floats(0.05, 0.5))
-def test_the_gated_hypothesiser_returns_stone_soups_mahalanobis_hypotheses(seed, n_det, pos_std,
-                                                                           vel_std, dt_s):
-    """The tracker's vectorised gate (closed-form 2 x 2 Mahalanobis distance of every detection
-    at once, the measurement prediction built only when a detection gates) against Stone Soup's
-    own DistanceHypothesiser with its Mahalanobis measure, detection by detection, on the same
-    predictor and updater: the same gated detections in the same order, the same distances,
-    the same missed-detection hypothesis first."""
-    import datetime
-
+def _stock_and_ours_hypotheses(track, dets, ts):
+    """Our gated hypothesiser's and Stone Soup's stock DistanceHypothesiser's hypotheses for
+    one track, the stock one on Stone Soup's own KalmanUpdater (our predictor on both: the
+    prediction itself is checked against the stock predictor elsewhere in tests/track)."""
     from stonesoup.hypothesiser.distance import DistanceHypothesiser
     from stonesoup.measures import Mahalanobis
-    from stonesoup.types.detection import Detection
-    from stonesoup.types.state import GaussianState
-    from stonesoup.types.track import Track
+    from stonesoup.updater.kalman import KalmanUpdater
 
     from blindspot.track.tracker import _parts
 
-    rng = np.random.default_rng(seed)
     parts = _parts(config())
     ours = parts.associator.hypothesiser
-    stock = DistanceHypothesiser(parts.predictor, parts.updater, measure=Mahalanobis(),
-                                 missed_distance=ours.missed_distance)
-    t0 = datetime.datetime(2026, 1, 1)
-    a = rng.normal(size=(4, 4)) * [pos_std, vel_std, pos_std, vel_std]
-    state = rng.normal(0.0, [3.0, 1.0, 3.0, 1.0]).reshape(4, 1)
-    track = Track([GaussianState(state, a @ a.T + 1e-3 * np.eye(4), timestamp=t0)])
-    ts = t0 + datetime.timedelta(seconds=dt_s)
-    near = state[[0, 2], 0] + dt_s * state[[1, 3], 0]
-    dets = {Detection(np.reshape(near + rng.normal(0.0, 2.0 * pos_std + 0.2, 2), (2, 1)),
-                      timestamp=ts, measurement_model=parts.measurement_model)
-            for _ in range(n_det)}
-    got, want = ours.hypothesise(track, dets, ts), stock.hypothesise(track, dets, ts)
-    assert len(got) == len(want)
+    stock = DistanceHypothesiser(parts.predictor,
+                                 KalmanUpdater(parts.measurement_model,
+                                               force_symmetric_covariance=True),
+                                 measure=Mahalanobis(), missed_distance=ours.missed_distance)
+    return ours.hypothesise(track, dets, ts), stock.hypothesise(track, dets, ts), parts
+
+
+def _assert_same_hypotheses(got, want):
     def order(hyps):
         return [h.measurement if h else "missed" for h in hyps]
 
@@ -503,7 +487,65 @@ def test_the_gated_hypothesiser_returns_stone_soups_mahalanobis_hypotheses(seed,
                                rtol=1e-9, atol=1e-12)
     for g, w in zip(got, want):
         if g:
-            np.testing.assert_allclose(np.asarray(g.measurement_prediction.covar, float),
-                                       np.asarray(w.measurement_prediction.covar, float))
-            np.testing.assert_allclose(np.asarray(g.measurement_prediction.cross_covar, float),
-                                       np.asarray(w.measurement_prediction.cross_covar, float))
+            for field in ("state_vector", "covar", "cross_covar"):
+                np.testing.assert_allclose(
+                    np.asarray(getattr(g.measurement_prediction, field), float),
+                    np.asarray(getattr(w.measurement_prediction, field), float),
+                    rtol=1e-9, atol=1e-12)
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), n_det=st.integers(0, 12),
+       pos_std=st.floats(0.05, 3.0), vel_std=st.floats(0.05, 3.0), dt_s=st.floats(0.05, 0.5))
+def test_the_gated_hypothesiser_returns_stone_soups_mahalanobis_hypotheses(seed, n_det, pos_std,
+                                                                           vel_std, dt_s):
+    """The tracker's vectorised gate (closed-form 2 x 2 Mahalanobis distance of every detection
+    at once, the measurement prediction built only when a detection gates) against Stone Soup's
+    own DistanceHypothesiser with its Mahalanobis measure and KalmanUpdater, detection by
+    detection: the same gated detections in the same order (nearest first, the missed-detection
+    hypothesis at the gate's distance last), the same distances and measurement predictions."""
+    import datetime
+
+    from stonesoup.types.detection import Detection
+    from stonesoup.types.state import GaussianState
+    from stonesoup.types.track import Track
+
+    from blindspot.track.tracker import _parts
+
+    rng = np.random.default_rng(seed)
+    model = _parts(config()).measurement_model
+    t0 = datetime.datetime(2026, 1, 1)
+    # rows scaled: position (x, y) and velocity (vx, vy) standard deviations of the prior
+    a = np.array([pos_std, vel_std, pos_std, vel_std])[:, None] * rng.normal(size=(4, 4))
+    state = rng.normal(0.0, [3.0, 1.0, 3.0, 1.0]).reshape(4, 1)
+    track = Track([GaussianState(state, a @ a.T + 1e-3 * np.eye(4), timestamp=t0)])
+    ts = t0 + datetime.timedelta(seconds=dt_s)
+    near = state[[0, 2], 0] + dt_s * state[[1, 3], 0]
+    dets = {Detection(np.reshape(near + rng.normal(0.0, 2.0 * pos_std + 0.2, 2), (2, 1)),
+                      timestamp=ts, measurement_model=model)
+            for _ in range(n_det)}
+    got, want, _ = _stock_and_ours_hypotheses(track, dets, ts)
+    _assert_same_hypotheses(got, want)
+
+
+def test_a_track_that_gates_no_detection_gets_only_the_missed_hypothesis():
+    """Detections present but all outside the gate: one missed-detection hypothesis, as Stone
+    Soup's own hypothesiser gives, and no measurement prediction is built for it."""
+    import datetime
+
+    from stonesoup.types.detection import Detection
+    from stonesoup.types.state import GaussianState
+    from stonesoup.types.track import Track
+
+    from blindspot.track.tracker import _parts
+
+    model = _parts(config()).measurement_model
+    t0 = datetime.datetime(2026, 1, 1)
+    ts = t0 + datetime.timedelta(seconds=0.1)
+    track = Track([GaussianState(np.array([[0.0], [1.0], [10.0], [0.0]]),
+                                 np.diag([0.01, 0.1, 0.01, 0.1]), timestamp=t0)])
+    dets = {Detection(np.array([[x], [10.0]]), timestamp=ts, measurement_model=model)
+            for x in (5.0, -7.0, 30.0)}                   # 25-150 sigma away
+    got, want, _ = _stock_and_ours_hypotheses(track, dets, ts)
+    _assert_same_hypotheses(got, want)
+    assert len(got) == 1 and not got[0] and got[0].measurement_prediction is None

@@ -280,7 +280,9 @@ def _gated_hypothesiser(predictor, updater, gate: float, doppler_std_mps: float 
     detection of a frame in one numpy expression: d^2 = v^T S^-1 v for the innovations v of all
     detections against the track's one measurement prediction (every detection shares the
     measurement model). Returns the same hypotheses as the parent class, which evaluates the
-    measure detection by detection.
+    measure detection by detection (tests/track/test_tracker.py). ``updater`` must be the one of
+    :func:`_numpy_kalman` (its ``measurement_moments`` give S without building the Stone Soup
+    measurement prediction, which only a track that gates a detection gets).
 
     With ``doppler_std_mps``, a detection whose metadata carries a finite ``doppler_mps`` (the
     median ego-motion-compensated radial speed of its n points) and ``sensor_xy`` adds the
