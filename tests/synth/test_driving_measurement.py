@@ -37,7 +37,7 @@ def both(request):
     group, named = ex.scenarios(cfg)
     radar = ex.driving_radar(cfg)
     ego = replace(ex.ego_motion(cfg), peak_search=request.param)
-    chain = (ex.cfar(cfg), ex.doa(cfg), ex.detect(cfg))
+    chain = (ex.driving_cfar(cfg), ex.doa(cfg), ex.detect(cfg))
     gap, tol = ex.detect(cfg).cluster_gap_m, ego.static_tolerance_mps
     full, fast, truth, egos, counts = [], [], [], [], []
     # the frames of benchmarks/bench_driving.py --scene cpfa (117 frames in view), and the two

@@ -29,7 +29,7 @@ def setup(request):
     """The configured chain under each peak rule (``ego_motion.peak_search``)."""
     cfg = compose(config_dir=REPO / "conf")
     group, named = ex.scenarios(cfg)
-    args = (group, ex.driving_radar(cfg), ex.cfar(cfg), ex.doa(cfg), ex.detect(cfg),
+    args = (group, ex.driving_radar(cfg), ex.driving_cfar(cfg), ex.doa(cfg), ex.detect(cfg),
             replace(ex.ego_motion(cfg), peak_search=request.param))
     return named, args, ex.sim(cfg).adc_headroom_db
 

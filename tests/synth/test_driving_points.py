@@ -28,7 +28,7 @@ def turning_frames():
     cfg = compose(config_dir=REPO / "conf")
     group, named = ex.scenarios(cfg)
     sc = replace(named["cpnco_turning"], speed_kmh=30.0)
-    res = measure_driving([sc], group, ex.driving_radar(cfg), ex.cfar(cfg), ex.doa(cfg),
+    res = measure_driving([sc], group, ex.driving_radar(cfg), ex.driving_cfar(cfg), ex.doa(cfg),
                           ex.detect(cfg), ex.ego_motion(cfg),
                           adc_headroom_db=ex.sim(cfg).adc_headroom_db,
                           frames={sc.name: np.array([20, 28, 33, 36])})
