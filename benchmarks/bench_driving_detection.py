@@ -109,9 +109,10 @@ def main(argv: list[str]) -> None:
     drawn = OmegaConf.load(REPO / "params.yaml")
     for key in ("scenario", "driving_radar"):      # what data/driving/truth.parquet was drawn with
         if OmegaConf.to_container(cfg[key]) != OmegaConf.to_container(drawn[key]):
-            ap.error(f"--override {' '.join(args.override)}: changes `{key}`, but the scenes'"
-                     f" truth under {args.data}/driving/ was drawn with params.yaml's; change "
-                     "the scenes with `dvc exp run -S ...` instead")
+            ap.error(f"the composed config (conf/ with --override {args.override}) differs "
+                     f"from params.yaml in `{key}`, but the scenes' truth under "
+                     f"{args.data}/driving/ was drawn with params.yaml's; change the scenes "
+                     "with `dvc exp run -S ...` instead")
     group, named = experiment.scenarios(cfg)
     radar = experiment.driving_radar(cfg)
     scenes = [s for s in draw_scenarios(group, named[group.figure_scene])

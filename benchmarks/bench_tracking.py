@@ -136,13 +136,13 @@ def main() -> None:
                     metavar="DATA")
     ap.add_argument("--scenes", type=int, default=None)
     args = ap.parse_args()
-    synthetic = {"--frames": args.frames != 300, "--clutter": args.clutter != 3,
-                 "--points": args.points != 3, "--repeat": args.repeat != 3}
+    synthetic = [f"--{k}" for k in ("frames", "clutter", "points", "repeat")
+                 if getattr(args, k) != ap.get_default(k)]
     if args.driving is None and args.scenes is not None:
         ap.error("--scenes needs --driving")
-    if args.driving is not None and any(synthetic.values()):
-        ap.error(f"{', '.join(k for k, v in synthetic.items() if v)}: the synthetic scene's "
-                 "options, not used with --driving")
+    if args.driving is not None and synthetic:
+        ap.error(f"{', '.join(synthetic)}: the synthetic scene's options, not used with "
+                 "--driving")
     if args.driving is not None:
         tracker = (OmegaConf.load(REPO / "params.yaml").tracker if args.tracker is None
                    else OmegaConf.load(REPO / "conf" / "tracker" / f"{args.tracker}.yaml"))
