@@ -48,8 +48,9 @@ from blindspot import experiment
 from blindspot.io import write_json
 from blindspot.safety.assess import frame_risks, outcome_table
 from blindspot.safety.braking import BrakingModel
-from blindspot.safety.evaluation import (SceneInfo, aeb_gate_s, operating_curve,
-                                         replicate_half, scene_info, scene_results, summarise)
+from blindspot.safety.evaluation import (SceneInfo, aeb_gate_s, avoided_at_false_activation,
+                                         operating_curve, replicate_half, scene_info,
+                                         scene_results, summarise)
 from blindspot.safety.outcome import body_boxes
 from blindspot.safety.risk import EgoShape
 
@@ -73,13 +74,6 @@ def _best(curve: pd.DataFrame, max_fa: float | None) -> pd.Series:
     row = c.sort_values(["j", "impact_speed_kmh_mean", "threshold"],
                         ascending=[False, True, False]).iloc[0]
     return pd.concat([row, pd.Series({"rule": "youden"})])
-
-
-def _at_fa(curve: pd.DataFrame, levels=(0.1, 0.2, 0.3)) -> dict:
-    """The most avoided collisions with at most each false-activation rate (None: never)."""
-    return {f"{f:g}": (float(curve.avoided_rate[curve.false_activation_rate <= f + 1e-12].max())
-                       if (curve.false_activation_rate <= f + 1e-12).any() else None)
-            for f in levels}
 
 
 def outcome_setup(truth: pd.DataFrame, meta: dict, bodies: dict, shape: EgoShape, w):
@@ -285,7 +279,8 @@ def main(argv: list[str]) -> None:
             c = operating_curve(variants[key][1][~tune], _subset(info, ~tune), impact[~tune],
                                 thresholds)
             out[f"tuned_{gate}"]["held_out_curve"] = c.round(4).to_dict(orient="list")
-            out[f"tuned_{gate}"]["held_out_avoided_at_fa"] = _at_fa(c)
+            out[f"tuned_{gate}"]["held_out_avoided_at_fa"] = avoided_at_false_activation(
+                c, (0.1, 0.2, 0.3))
             fig_curves.setdefault(name, {})[
                 "no gate" if gate == "none" else f"gate, margin {key[1]:g} s"] = c
         if tracks is not None:                     # why the false activations happen

@@ -77,7 +77,7 @@ def driving_clouds(data: Path, n_scenes: int | None) -> pd.DataFrame:
             raise SystemExit(f"bench_tracking --driving: {path} not found (the {name} of "
                              "`dvc repro driving_measure`, or `dvc checkout`)")
     truth = pd.read_parquet(paths["truth"], columns=["scene", "frame", "time_s", "ego_x_m",
-                                                     "ego_y_m"])
+                                                     "ego_y_m", "ego_yaw_deg"])
     points = pd.read_parquet(paths["points"], columns=["scene", "frame", "x_m", "y_m",
                                                        "velocity_over_ground_mps"])
     scenes = np.array(sorted(truth.scene.unique()))

@@ -108,7 +108,7 @@ def tracker_input(truth, points):
 
     Args:
         truth: data/driving/truth.parquet (one row per scene, frame and pedestrian: ``scene``,
-            ``frame``, ``time_s``, ``ego_x_m``, ``ego_y_m``).
+            ``frame``, ``time_s``, ``ego_x_m``, ``ego_y_m``, ``ego_yaw_deg``).
         points: data/driving/points.parquet (``scene``, ``frame``, ``x_m``, ``y_m``,
             ``velocity_over_ground_mps``; world frame).
 
@@ -116,18 +116,20 @@ def tracker_input(truth, points):
         ``(pts, ego)``: ``pts`` the :func:`blindspot.track.tracker.track_points` input, one row
         per point with ``group`` (the scene), ``frame``, ``time_s``, ``x_m``, ``y_m``,
         ``velocity_over_ground_mps``, ``sensor_x_m``, ``sensor_y_m`` (the ego's position, the
-        Doppler's line of sight), and one row with NaN coordinates for each frame without a
+        Doppler's line of sight), ``sensor_heading_deg`` (the ego's yaw: the radar looks ahead,
+        the axis of ``tracker.field_of_view_deg``), and one row with NaN coordinates for each frame without a
         point (so every frame is stepped and tracks coast through it); ``ego`` one row per
         (``group``, ``frame``) with ``ego_x_m``, ``ego_y_m``.
     """
     frames = truth[["scene", "frame", "time_s"]].drop_duplicates(["scene", "frame"])
-    ego = (truth.groupby(["scene", "frame"], as_index=False)[["ego_x_m", "ego_y_m"]].first()
-           .rename(columns={"scene": "group"}))
+    pose = (truth.groupby(["scene", "frame"], as_index=False)
+            [["ego_x_m", "ego_y_m", "ego_yaw_deg"]].first().rename(columns={"scene": "group"}))
     pts = (frames.merge(points[["scene", "frame", "x_m", "y_m", "velocity_over_ground_mps"]],
                         on=["scene", "frame"], how="left").rename(columns={"scene": "group"})
-           .merge(ego.rename(columns={"ego_x_m": "sensor_x_m", "ego_y_m": "sensor_y_m"}),
+           .merge(pose.rename(columns={"ego_x_m": "sensor_x_m", "ego_y_m": "sensor_y_m",
+                                       "ego_yaw_deg": "sensor_heading_deg"}),
                   on=["group", "frame"], how="left"))
-    return pts, ego
+    return pts, pose.drop(columns="ego_yaw_deg")
 
 
 def doppler_spread_by_label(objects):

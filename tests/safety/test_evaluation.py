@@ -7,7 +7,8 @@ import pandas as pd
 import pytest
 
 from blindspot.safety.config import OracleConfig, WarningConfig
-from blindspot.safety.evaluation import SceneInfo, operating_curve, scene_results, trigger_frames
+from blindspot.safety.evaluation import (SceneInfo, avoided_at_false_activation, operating_curve,
+                                         scene_results, trigger_frames)
 from blindspot.safety.oracle import TRACK_COLUMNS, oracle_tracks
 from blindspot.safety.predict import BackfilledHistory, track_histories, with_backfill
 from blindspot.typed_config import ConfigError
@@ -40,6 +41,21 @@ def test_operating_curve_ends_and_scene_results():
     assert res.impact_speed_kmh.tolist()[:2] == [0.0, 30.0]
     assert res.lead_time_s[0] == pytest.approx(2.0 - 0.2)           # warned at frame 1 + 0.1 s
     assert res.warn_frame.tolist() == [1, 2, -1, -1]
+
+
+def test_avoided_at_false_activation_reads_the_curve_at_each_level():
+    """The operating characteristic of the case above, read at false-activation levels: at
+    most 0 % gives the thresholds 0.3 and 0.95 (avoided 0.5 and 0.0), at most 50 % all three;
+    no level below the curve's lowest false-activation rate is met (None)."""
+    info = _info(2, 2)
+    p = np.array([[0, 0.9, 0.9], [0, 0, 0.4], [0.2, 0.2, 0.2], [0, 0, 0]], float)
+    impact = np.array([[np.nan, np.nan, 20.0, 30.0]] * 4)
+    curve = operating_curve(p, info, impact, np.array([0.1, 0.3, 0.95]))
+    assert avoided_at_false_activation(curve, (0.0, 0.01, 0.5)) == {"0": 0.5, "0.01": 0.5,
+                                                                     "0.5": 0.5}
+    noisy = curve.assign(false_activation_rate=[0.5, 0.25, 0.25], avoided_rate=[1.0, 0.5, 0.0])
+    assert avoided_at_false_activation(noisy, (0.1, 0.25, 1.0)) == {"0.1": None, "0.25": 0.5,
+                                                                     "1": 1.0}
 
 
 def test_oracle_tracks_schema_confirmation_coasting_and_restart():

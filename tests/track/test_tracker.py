@@ -549,3 +549,92 @@ def test_a_track_that_gates_no_detection_gets_only_the_missed_hypothesis():
     got, want = _stock_and_ours_hypotheses(track, dets, ts)
     _assert_same_hypotheses(got, want)
     assert len(got) == 1 and not got[0] and got[0].measurement_prediction is None
+
+
+def _walk_past_the_sensor(heading_deg: float, sensor=(10.0, -4.0)) -> tuple[pd.DataFrame, int]:
+    """A walker passing the sensor's side at 2 m lateral, 1 m/s toward and past it (sensor
+    frame: x = 2, y from 5 m down), in the world frame of a sensor at ``sensor`` looking along
+    ``heading_deg`` (the driving scenes' yaw: boresight (-sin h, cos h)). The radar sees the
+    walker only inside its +-80 deg field of view (local y > 2 / tan 80 deg = 0.35 m); every
+    frame carries the sensor's pose, a NaN-coordinate row once there is no point. Returns the
+    points and the last frame with a point."""
+    frames = np.arange(80)
+    local = np.column_stack([np.full(80, 2.0), 5.0 - 1.0 * frames * DT])
+    seen = np.degrees(np.arctan2(local[:, 0], local[:, 1])) <= 80.0
+    h = np.radians(heading_deg)
+    rot = np.array([[np.cos(h), -np.sin(h)], [np.sin(h), np.cos(h)]])
+    world = local @ rot.T + np.asarray(sensor)
+    pts = frame_table(frames, np.where(seen[:, None], world, np.nan)).assign(
+        sensor_x_m=sensor[0], sensor_y_m=sensor[1], sensor_heading_deg=heading_deg)
+    return pts, int(frames[seen].max())
+
+
+@pytest.mark.parametrize("name", ["gnn_cv", "jpda_cv"])
+@pytest.mark.parametrize("heading_deg", [0.0, 90.0, -135.0])
+def test_a_track_coasting_out_of_the_field_of_view_is_deleted(name, heading_deg):
+    """A walker leaving the radar's +-80 deg field of view beside it: with field_of_view_deg 160
+    its track ends at its last measured frame (the first coasting prediction lies outside);
+    without (null, or points without the sensor's heading) it coasts max_misses frames. The
+    same at every heading: the field of view turns with the sensor."""
+    pts, last_seen = _walk_past_the_sensor(heading_deg)
+    cut = track_points(pts, config(name, field_of_view_deg=160.0))
+    kept = track_points(pts, config(name, field_of_view_deg=None))
+    first_cut, first_kept = cut[cut.track_id == 0], kept[kept.track_id == 0]
+    assert first_cut.confirmed.any()
+    assert first_cut.frame.max() == last_seen and not first_cut.coasting.any()
+    assert first_kept.frame.max() == last_seen + config(name).max_misses
+    assert first_kept.coasting.sum() == config(name).max_misses
+    # until the walker leaves, the same track rows
+    pd.testing.assert_frame_equal(first_cut.reset_index(drop=True),
+                                  first_kept[first_kept.frame <= last_seen].reset_index(drop=True))
+    no_heading = track_points(pts.drop(columns="sensor_heading_deg"),
+                              config(name, field_of_view_deg=160.0))
+    pd.testing.assert_frame_equal(no_heading, kept)
+
+
+def test_a_track_occluded_inside_the_field_of_view_still_coasts():
+    """An occlusion ahead of the sensor (bearing < 25 deg) is no reason to delete: the same
+    tracks with and without the field of view, the gap coasted through."""
+    frames = np.arange(40)
+    xy = np.column_stack([0.05 * frames, np.full(40, 5.0)])          # ahead, walking at 0.5 m/s
+    seen = (frames < 10) | (frames >= 14)
+    pts = frame_table(frames, np.where(seen[:, None], xy, np.nan)).assign(
+        sensor_x_m=0.0, sensor_y_m=0.0, sensor_heading_deg=0.0)
+    cut = track_points(pts, config(field_of_view_deg=160.0))
+    pd.testing.assert_frame_equal(cut, track_points(pts, config(field_of_view_deg=None)))
+    assert cut[cut.track_id == 0].coasting.sum() == 4
+
+
+@settings(max_examples=200, deadline=None)
+@given(heading=st.floats(-720.0, 720.0), fov=st.floats(1.0, 359.0),
+       bearing=st.floats(-179.9, 179.9), distance=st.floats(0.1, 100.0),
+       sx=st.floats(-50.0, 50.0), sy=st.floats(-50.0, 50.0))
+def test_field_of_view_test_is_the_bearing_off_the_boresight(heading, fov, bearing, distance,
+                                                              sx, sy):
+    """_in_field_of_view (the dot product against |r| cos(fov / 2)) agrees with the bearing
+    itself: a point placed at ``bearing`` off the boresight of a sensor at (sx, sy) looking
+    along ``heading`` (yaw convention: boresight (-sin h, cos h), counter-clockwise positive)
+    is inside exactly when |bearing| <= fov / 2 (away from the edge by 1e-6 deg)."""
+    from blindspot.track.tracker import _frame_poses, _in_field_of_view
+
+    if abs(abs(bearing) - fov / 2.0) < 1e-6:
+        return
+    a = np.radians(heading + bearing)
+    xy = np.array([[sx - distance * np.sin(a), sy + distance * np.cos(a)]])
+    pose = _frame_poses(pd.DataFrame({"sensor_x_m": [sx], "sensor_y_m": [sy],
+                                      "sensor_heading_deg": [heading]}))[0]
+    assert bool(_in_field_of_view(xy, pose, np.cos(np.radians(fov / 2.0)))[0]) == (
+        abs(bearing) <= fov / 2.0)
+
+
+def test_field_of_view_needs_the_whole_sensor_pose():
+    pts, _ = _walk_past_the_sensor(0.0)
+    cfg = config(field_of_view_deg=160.0)
+    with pytest.raises(TrackingError, match=r"'sensor_heading_deg' but not \['sensor_x_m'"):
+        track_points(pts.drop(columns="sensor_x_m"), cfg)
+    broken = pts.astype({"sensor_heading_deg": float})
+    broken.loc[broken.x_m.isna().idxmax(), "sensor_heading_deg"] = np.nan   # a frame without points
+    with pytest.raises(TrackingError, match=r"'sensor_heading_deg' is NaN or infinite at 1 of 80"):
+        track_points(broken, cfg)
+    with pytest.raises(ConfigError, match="tracker.field_of_view_deg"):
+        TrackerConfig.from_mapping({**dataclasses.asdict(cfg), "field_of_view_deg": 400.0})

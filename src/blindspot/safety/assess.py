@@ -19,7 +19,8 @@ from blindspot.safety.bound import (BOUNDS, best_request_frame, bound_results,
                                     first_confirmed, first_frame, lead_observed)
 from blindspot.safety.braking import BrakingModel
 from blindspot.safety.config import WarningConfig
-from blindspot.safety.evaluation import (KMH, SceneInfo, aeb_gate_s, ncap_grid,
+from blindspot.safety.evaluation import (KMH, SceneInfo, aeb_gate_s,
+                                         avoided_at_false_activation, ncap_grid,
                                          operating_curve, scene_frame_risk, scene_info,
                                          scene_results, summarise)
 from blindspot.safety.outcome import NEVER_S, braked_impacts, pedestrian_boxes, scene_arrays
@@ -220,6 +221,7 @@ def assess(truth: pd.DataFrame, scenes_meta: dict, tracks: dict[str, pd.DataFram
                 **{k: summarise(weak_res, n_bootstrap=cfg.n_bootstrap, seed=cfg.seed)[k]
                    for k in ("avoided_rate", "goals")}}
             curve = operating_curve(p_aeb[ev], info, impact[ev], thresholds)
+            m["avoided_rate_at_false_activation_le"] = avoided_at_false_activation(curve)
             grid = ncap_grid(res)
             m["ncap_score_mean"] = float(grid.score.mean()) if len(grid) else None
             tag = dict(input=inp, predictor=name)

@@ -36,7 +36,8 @@ from blindspot.safety.ncap import ncap_band
 
 __all__ = ["SceneInfo", "scene_info", "replicate_half", "aeb_gate_s", "scene_frame_risk",
            "trigger_frames", "scene_results",
-           "summarise", "operating_curve", "ncap_grid", "wilson", "KMH"]
+           "summarise", "operating_curve", "avoided_at_false_activation", "ncap_grid", "wilson",
+           "KMH"]
 
 KMH = 3.6
 
@@ -262,6 +263,17 @@ def operating_curve(p: np.ndarray, info: SceneInfo, impact_kmh: np.ndarray,
         "impact_speed_kmh_mean": np.nan_to_num(imp[it], nan=0.0).mean(0) if it.any() else np.nan,
         "false_activation_rate": (trig[non] < p.shape[1]).mean(0) if non.any() else np.nan,
     })
+
+
+def avoided_at_false_activation(curve: pd.DataFrame, levels=(0.01, 0.05, 0.1)) -> dict:
+    """Points of an operating characteristic (:func:`operating_curve`): per false-activation
+    level, the largest avoided rate of a threshold whose false-activation rate is at most it,
+    keyed by the level (``"0.01"``: issue 12's goal, one scene in 108); None where no threshold
+    gets there."""
+    fa = curve.false_activation_rate.to_numpy(float)
+    av = curve.avoided_rate.to_numpy(float)
+    return {f"{f:g}": (float(av[fa <= f + 1e-12].max()) if (fa <= f + 1e-12).any() else None)
+            for f in levels}
 
 
 def ncap_grid(res: pd.DataFrame) -> pd.DataFrame:

@@ -53,6 +53,13 @@ class TrackerConfig(TypedConfig):
             third, Doppler dimension of the Mahalanobis distance, gated at the tail probability
             of ``gate_probability``), where the points carry ``velocity_over_ground_mps``; null
             gates on position alone.
+        field_of_view_deg: the sensor's azimuth field of view, full width (deg); a track that
+            coasts (no measurement this frame) to a bearing outside it, more than half of it
+            off the sensor's boresight, is deleted there, since no detection can update it
+            (:data:`blindspot.track.tracker.SENSOR_COLUMNS` and ``SENSOR_HEADING_COLUMN`` give
+            the sensor's pose per frame; points without the heading column are not tested:
+            recordings differ in the axis their sensor looks along); null keeps such tracks
+            until ``max_misses``.
     """
 
     GROUP = "tracker"
@@ -72,6 +79,7 @@ class TrackerConfig(TypedConfig):
     confirm_n: int = setting(ge=1, le=1000)
     max_misses: int = setting(ge=0, le=100_000)
     doppler_std_mps: float | None = setting(None, gt=0.0, le=100.0)
+    field_of_view_deg: float | None = setting(None, gt=0.0, le=360.0)
 
     def validate(self) -> None:
         if self.confirm_m > self.confirm_n:

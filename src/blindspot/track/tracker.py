@@ -56,6 +56,11 @@ DOPPLER_COLUMN = "velocity_over_ground_mps"
 #: point's frame (m; a moving radar's world position), the origin of the line of sight of the
 #: Doppler gate (``tracker.doppler_std_mps``). Without them the sensor is at the origin.
 SENSOR_COLUMNS = ("sensor_x_m", "sensor_y_m")
+#: Optional point column: the sensor's boresight heading at the point's frame (deg, the driving
+#: scenes' ego yaw convention: 0 looks along +y, counter-clockwise positive, so the boresight is
+#: (-sin h, cos h)), the axis of ``tracker.field_of_view_deg``. Without it the field of view
+#: deletes no track (recordings differ in the axis their sensor looks along).
+SENSOR_HEADING_COLUMN = "sensor_heading_deg"
 
 _EPOCH = dt.datetime(2000, 1, 1)
 
@@ -91,6 +96,28 @@ def _check_points(points: pd.DataFrame) -> bool:
         raise TrackingError("track_points: x_m and y_m must be NaN together (a frame without "
                             "points); found rows with only one of them NaN")
     return "group" in points.columns
+
+
+def _check_poses(frames: pd.DataFrame, pose_cols: list[str]) -> None:
+    """The sensor pose columns the field of view needs (the heading is among them): both
+    position columns, and finite numbers on every frame (a frame without points included: its
+    coasting tracks are tested too)."""
+    missing = [c for c in SENSOR_COLUMNS if c not in pose_cols]
+    if missing:
+        raise TrackingError(f"track_points: points hold {SENSOR_HEADING_COLUMN!r} but not "
+                            f"{missing}; tracker.field_of_view_deg needs the sensor's position "
+                            "with its heading")
+    for c in pose_cols:
+        v = frames[c]
+        if not pd.api.types.is_numeric_dtype(v) or pd.api.types.is_bool_dtype(v):
+            raise TrackingError(f"track_points: column {c!r} must be numeric; found dtype "
+                                f"{v.dtype}")
+        bad = ~np.isfinite(v.to_numpy(float))
+        if bad.any():
+            raise TrackingError(f"track_points: column {c!r} is NaN or infinite at "
+                                f"{int(bad.sum())} of {len(v)} frames (first: frame "
+                                f"{int(frames['frame'].iloc[np.flatnonzero(bad)[0]])}); "
+                                "tracker.field_of_view_deg needs the sensor's pose every frame")
 
 
 def cluster_points(points: pd.DataFrame, config: TrackerConfig) -> pd.DataFrame:
@@ -519,10 +546,16 @@ def _track_group(labelled: pd.DataFrame, frames: pd.DataFrame, config: TrackerCo
     dop_value = None if by_label is None else by_label["median"].to_numpy(float)
     dop_spread = None if by_label is None else by_label["std"].to_numpy(float)
     steps = config.max_misses + 1            # UpdateTimeStepsDeleter's time_steps_since_update
+    # the field of view's test per frame: the sensor's position, boresight and cos(half width)
+    fov_cos = (None if config.field_of_view_deg is None
+               else np.cos(np.radians(config.field_of_view_deg / 2.0)))
+    pose = (_frame_poses(frames) if fov_cos is not None and SENSOR_HEADING_COLUMN in frames
+            else None)
     live: dict[object, _Book] = {}
     next_id = 0
     m, n = config.confirm_m, config.confirm_n
-    for frame, t in zip(frames["frame"].to_numpy(), frames["time_s"].to_numpy(float)):
+    for i_frame, (frame, t) in enumerate(zip(frames["frame"].to_numpy(),
+                                             frames["time_s"].to_numpy(float))):
         ts = _EPOCH + dt.timedelta(seconds=float(t))
         pxy, plabels = by_frame.get(frame, no_points)
         xy, counts = _objects(pxy, plabels) if len(pxy) else (np.empty((0, 2)),
@@ -585,6 +618,15 @@ def _track_group(labelled: pd.DataFrame, frames: pd.DataFrame, config: TrackerCo
             # a longer track" is this (its walk over the track's states was 9 % of the stage)
             if book.confirmed and len(book.hits) > steps and not any(book.hits[-steps:]):
                 del live[track]
+        if pose is not None:
+            coasting = [tr for tr, hit in hit_now.items() if not hit and tr in live]
+            if coasting:
+                xy_c = np.array([[float(tr.state.state_vector[0, 0]),
+                                  float(tr.state.state_vector[2, 0])] for tr in coasting])
+                inside = _in_field_of_view(xy_c, pose[i_frame], fov_cos)
+                for tr, keep in zip(coasting, inside):
+                    if not keep:
+                        del live[tr]
         # Births in the objects' order (Stone Soup returns a set), so ids do not depend on hashes.
         born = parts.initiator.initiate(detections - used, ts)
         rank = {id(d): i for i, d in enumerate(order)}
@@ -622,6 +664,23 @@ def _track_group(labelled: pd.DataFrame, frames: pd.DataFrame, config: TrackerCo
     return out
 
 
+def _frame_poses(frames: pd.DataFrame) -> np.ndarray:
+    """(F, 4) per row of ``frames``: the sensor's x, y (m) and boresight (-sin h, cos h) from
+    :data:`SENSOR_COLUMNS` and :data:`SENSOR_HEADING_COLUMN`."""
+    h = np.radians(frames[SENSOR_HEADING_COLUMN].to_numpy(float))
+    return np.column_stack([frames[list(SENSOR_COLUMNS)].to_numpy(float), -np.sin(h),
+                            np.cos(h)])
+
+
+def _in_field_of_view(xy: np.ndarray, pose: np.ndarray, cos_half: float) -> np.ndarray:
+    """(N,) bool: positions ``xy`` (N, 2; m) within the azimuth field of view of the sensor at
+    ``pose`` (x, y, boresight unit vector; :func:`_frame_poses`) whose half width has cosine
+    ``cos_half``: the bearing's cosine r.b / |r| is at least it (the sensor's own position
+    counts as inside)."""
+    r = xy - pose[:2]
+    return r @ pose[2:] >= np.hypot(r[:, 0], r[:, 1]) * cos_half
+
+
 def _track_chunk(chunk: list, config: TrackerConfig) -> pd.DataFrame | None:
     """Track the groups of one chunk (a worker's share): [(group, objects, frames)]."""
     parts = _parts(config)
@@ -648,7 +707,12 @@ def track_points(points: pd.DataFrame, config: TrackerConfig, jobs: int = 1) -> 
             m/s): its per-object median is carried to the track rows (``doppler_mps``) and,
             with ``config.doppler_std_mps``, gates the association; optional ``sensor_x_m``,
             ``sensor_y_m``: the sensor's position at the point's frame (m, same frame of
-            reference; the origin without them), the Doppler's line of sight.
+            reference; the origin without them), the Doppler's line of sight; optional
+            ``sensor_heading_deg``: its boresight (:data:`SENSOR_HEADING_COLUMN`). With that
+            column and ``config.field_of_view_deg``, the pose is read on every frame (a
+            frame's NaN-coordinate row included) and a track that coasts outside the field of
+            view is deleted (no row from that frame on); without the column nothing is deleted
+            for it (recordings differ in which axis the sensor looks along).
         config: the tracker group (:class:`~blindspot.track.config.TrackerConfig`).
         jobs: worker processes over the groups (:func:`blindspot.parallel.parallel_map`; the
             result does not depend on it).
@@ -669,12 +733,20 @@ def track_points(points: pd.DataFrame, config: TrackerConfig, jobs: int = 1) -> 
 
     Raises:
         TrackingError: a missing column, a non-integer frame, a non-numeric coordinate, a NaN
-            time, or a time that does not increase with the frame within a group.
+            time, or a time that does not increase with the frame within a group; with
+            ``config.field_of_view_deg`` and ``sensor_heading_deg``, a missing sensor
+            position column or a non-finite pose on a frame.
     """
     has_group = _check_points(points)
     keys = (["group"] if has_group else []) + ["frame"]
-    frames = (points[keys + ["time_s"]].drop_duplicates(keys).sort_values(keys)
+    # the field of view needs to know where the sensor looks: only with its heading column
+    pose_cols = ([c for c in (*SENSOR_COLUMNS, SENSOR_HEADING_COLUMN) if c in points.columns]
+                 if config.field_of_view_deg is not None
+                 and SENSOR_HEADING_COLUMN in points.columns else [])
+    frames = (points[keys + ["time_s"] + pose_cols].drop_duplicates(keys).sort_values(keys)
               .reset_index(drop=True))
+    if pose_cols:
+        _check_poses(frames, pose_cols)
     gkey = frames["group"] if has_group else pd.Series(0, index=frames.index)
     dtime = frames["time_s"].diff().to_numpy()
     first = (gkey != gkey.shift()).to_numpy()
