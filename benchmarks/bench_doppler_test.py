@@ -84,6 +84,45 @@ def calibrated(cfg, name: str, data: Path):
                          experiment.warning(cfg).lstm_history)
 
 
+def moving_test_inputs(cfg, data: Path, truth_all: pd.DataFrame):
+    """What a moving-test sweep reads besides :func:`bench_aeb_gate.load_inputs`: (the
+    Monte-Carlo truth, the driving frame period in s, DATA/driving/tracks.parquet sorted by
+    group, track and frame, DATA/driving/points.parquet, the ego's pose per group and frame)."""
+    from blindspot import experiment
+
+    tracks = pd.read_parquet(data / "driving/tracks.parquet")
+    ego = (truth_all.groupby(["scene", "frame"], as_index=False)
+           [["ego_x_m", "ego_y_m", "ego_yaw_deg", "ego_speed_mps"]].first()
+           .rename(columns={"scene": "group"}))
+    return (truth_all[truth_all.set == "monte_carlo"],
+            float(experiment.driving_radar(cfg).frame_period_s),
+            tracks.sort_values(["group", "track_id", "frame"]).reset_index(drop=True),
+            pd.read_parquet(data / "driving/points.parquet"), ego)
+
+
+def score_candidates(cfg, w, data: Path, pname: str, sup: pd.DataFrame, ego: pd.DataFrame,
+                     dt: float, shape, flags: dict, setup) -> dict:
+    """Per candidate moving test (``flags``: name -> (N,) bool over the rows of ``sup``, each a
+    subset of ``sup.moving``), predictor ``pname``'s AEB outcome counts on each half
+    (:func:`bench_aeb_gate.half_counts` and Youden's J): the risk rows of ``sup``'s moving rows
+    are computed once and each candidate keeps those of its own rows."""
+    key = ["group", "frame", "track_id"]
+    risk = risk_table(sup, ego, {pname: calibrated(cfg, pname, data)},
+                      horizon=int(round(w.horizon_s / dt)), dt_s=dt, shape=shape,
+                      margin_m=w.pedestrian_radius_m, method=w.probability,
+                      max_len=int(round(w.max_history_s / dt)))
+    rows_key = pd.MultiIndex.from_frame(risk[key])
+    results = {}
+    for name, flag in flags.items():
+        kept = pd.MultiIndex.from_frame(sup.loc[flag, key])
+        out = results[name] = {}
+        for half, res in half_results(risk[rows_key.isin(kept)], setup, w).items():
+            o = out[half] = half_counts(res)
+            o["j"] = (o["n_avoided"] / max(o["n_intruding"], 1)
+                      - o["n_false"] / max(o["n_non_intruding"], 1))
+    return results
+
+
 def main(argv: list[str]) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--data", type=Path, default=REPO / "data")
@@ -106,14 +145,7 @@ def main(argv: list[str]) -> None:
     from blindspot import experiment
 
     cfg, w, _, bodies, shape, truth_all, meta, _ = load_inputs(args.data, "tracker")
-    truth = truth_all[truth_all.set == "monte_carlo"]
-    dt = float(experiment.driving_radar(cfg).frame_period_s)
-    tracks = pd.read_parquet(args.data / "driving/tracks.parquet")
-    tracks = tracks.sort_values(["group", "track_id", "frame"]).reset_index(drop=True)
-    points = pd.read_parquet(args.data / "driving/points.parquet")
-    ego = (truth_all.groupby(["scene", "frame"], as_index=False)
-           [["ego_x_m", "ego_y_m", "ego_yaw_deg", "ego_speed_mps"]].first()
-           .rename(columns={"scene": "group"}))
+    truth, dt, tracks, points, ego = moving_test_inputs(cfg, args.data, truth_all)
 
     # the configured floor's distance below the configured bound (None: no floor)
     configured_below = (None if w.moving_doppler_log_ratio_floor is None
@@ -146,7 +178,6 @@ def main(argv: list[str]) -> None:
         raise SystemExit(f"{args.data / 'driving/tracks.parquet'}: its moving flag is not the "
                          "configured moving test (params.yaml changed since driving_track ran?)")
     setup = outcome_setup(truth, meta, bodies, shape, w)
-    key = ["group", "frame", "track_id"]
 
     def label(f, s, b, pair, ref):
         return (f"{f} std {s:g} m/s, bound {b:.2f}"
@@ -171,20 +202,7 @@ def main(argv: list[str]) -> None:
                     "configured": name_conf, "predictors": {}}
     sup = tracks.assign(moving=superset)      # histories from every row, as the stage builds them
     for pname in args.predictors.split(","):
-        risk = risk_table(sup, ego, {pname: calibrated(cfg, pname, args.data)},
-                          horizon=int(round(w.horizon_s / dt)), dt_s=dt, shape=shape,
-                          margin_m=w.pedestrian_radius_m, method=w.probability,
-                          max_len=int(round(w.max_history_s / dt)))
-        rows_key = pd.MultiIndex.from_frame(risk[key])
-        results = {}
-        for name, flag in flags.items():
-            kept = pd.MultiIndex.from_frame(tracks.loc[flag, key])
-            out = {}
-            for half, res in half_results(risk[rows_key.isin(kept)], setup, w).items():
-                o = out[half] = half_counts(res)
-                o["j"] = (o["n_avoided"] / max(o["n_intruding"], 1)
-                          - o["n_false"] / max(o["n_non_intruding"], 1))
-            results[name] = out
+        results = score_candidates(cfg, w, args.data, pname, sup, ego, dt, shape, flags, setup)
         best = max((n for n in results if n != "off"), key=lambda n: results[n]["tune"]["j"])
         quiet = [n for n in results if n != "off" and results[n]["tune"]["n_false"] == 0]
         best_quiet = max(quiet, key=lambda n: (results[n]["tune"]["n_avoided"],

@@ -55,8 +55,9 @@ def main(argv: list[str]) -> None:
     risk = risk.join(born, on=["group", "track_id"])
     age = risk.frame - risk.born + 1
     known = sorted(risk.predictor.unique())
-    print(f"minimum track age before AEB (rows since its {args.since.replace('_', ' ')}): avoided / false activations of 54, tuning half "
-          "(even replicates) | held-out half (odd)")
+    since = args.since.replace("_", " ")
+    print(f"minimum track age before AEB (rows since its {since}): avoided / false activations "
+          "of 54, tuning half (even replicates) | held-out half (odd)")
     for pred in args.predictors.split(","):
         if pred not in known:
             ap.error(f"--predictors: {pred!r} has no tracker risk rows; expected some of {known}")

@@ -19,7 +19,7 @@ own point clouds instead: ``DATA/driving/points.parquet`` (every radar point of 
 cars and kerb clutter included) and ``DATA/driving/truth.parquet`` of a ``dvc repro
 driving_measure``, put together exactly as the driving_track stage does
 (``driving_track.tracker_input``: every frame stepped, the ego's position as the Doppler's line of
-sight), the configured tracker group of ``params.yaml`` (its ``tracker`` key; ``--tracker`` loads
+sight and its yaw as the field of view's boresight), the configured tracker group of ``params.yaml`` (its ``tracker`` key; ``--tracker`` loads
 ``conf/tracker/<name>.yaml`` instead), one scene after another in this process on one thread.
 ``--scenes N`` times N scenes spread evenly over the sorted scene names (default all of them: 226
 scenes, about 2 minutes). Prints the tracker's name, points and live tracks per frame (mean and

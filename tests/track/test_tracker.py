@@ -551,19 +551,25 @@ def test_a_track_that_gates_no_detection_gets_only_the_missed_hypothesis():
     assert len(got) == 1 and not got[0] and got[0].measurement_prediction is None
 
 
+def _sensor_frame(local: np.ndarray, pose: np.ndarray) -> np.ndarray:
+    """Positions in the radar's own frame (x right, y along the boresight; (N, 2) m) to the
+    world frame of a radar at ``pose`` ((N, 3) or (3,): x, y m, yaw rad), by the driving
+    simulation's own transform (blindspot.radar.driving.vehicle_to_world), not the tracker's."""
+    from blindspot.radar.driving import vehicle_to_world
+
+    return vehicle_to_world(local, np.broadcast_to(pose, (len(local), 3)))
+
+
 def _walk_past_the_sensor(heading_deg: float, sensor=(10.0, -4.0)) -> tuple[pd.DataFrame, int]:
     """A walker passing the sensor's side at 2 m lateral, 1 m/s toward and past it (sensor
-    frame: x = 2, y from 5 m down), in the world frame of a sensor at ``sensor`` looking along
-    ``heading_deg`` (the driving scenes' yaw: boresight (-sin h, cos h)). The radar sees the
-    walker only inside its +-80 deg field of view (local y > 2 / tan 80 deg = 0.35 m); every
-    frame carries the sensor's pose, a NaN-coordinate row once there is no point. Returns the
-    points and the last frame with a point."""
+    frame: x = 2, y from 5 m down), in the world frame of a sensor at ``sensor`` with yaw
+    ``heading_deg``. The radar sees the walker only inside its +-80 deg field of view (local
+    y > 2 / tan 80 deg = 0.35 m); every frame carries the sensor's pose, a NaN-coordinate row
+    once there is no point. Returns the points and the last frame with a point."""
     frames = np.arange(80)
     local = np.column_stack([np.full(80, 2.0), 5.0 - 1.0 * frames * DT])
     seen = np.degrees(np.arctan2(local[:, 0], local[:, 1])) <= 80.0
-    h = np.radians(heading_deg)
-    rot = np.array([[np.cos(h), -np.sin(h)], [np.sin(h), np.cos(h)]])
-    world = local @ rot.T + np.asarray(sensor)
+    world = _sensor_frame(local, np.array([*sensor, np.radians(heading_deg)]))
     pts = frame_table(frames, np.where(seen[:, None], world, np.nan)).assign(
         sensor_x_m=sensor[0], sensor_y_m=sensor[1], sensor_heading_deg=heading_deg)
     return pts, int(frames[seen].max())
@@ -574,7 +580,7 @@ def _walk_past_the_sensor(heading_deg: float, sensor=(10.0, -4.0)) -> tuple[pd.D
 def test_a_track_coasting_out_of_the_field_of_view_is_deleted(name, heading_deg):
     """A walker leaving the radar's +-80 deg field of view beside it: with field_of_view_deg 160
     its track ends at its last measured frame (the first coasting prediction lies outside);
-    without (null, or points without the sensor's heading) it coasts max_misses frames. The
+    without (null, 360, or points without the sensor's heading) it coasts max_misses frames. The
     same at every heading: the field of view turns with the sensor."""
     pts, last_seen = _walk_past_the_sensor(heading_deg)
     cut = track_points(pts, config(name, field_of_view_deg=160.0))
@@ -587,9 +593,10 @@ def test_a_track_coasting_out_of_the_field_of_view_is_deleted(name, heading_deg)
     # until the walker leaves, the same track rows
     pd.testing.assert_frame_equal(first_cut.reset_index(drop=True),
                                   first_kept[first_kept.frame <= last_seen].reset_index(drop=True))
-    no_heading = track_points(pts.drop(columns="sensor_heading_deg"),
-                              config(name, field_of_view_deg=160.0))
-    pd.testing.assert_frame_equal(no_heading, kept)
+    for same in (track_points(pts.drop(columns="sensor_heading_deg"),
+                              config(name, field_of_view_deg=160.0)),
+                 track_points(pts, config(name, field_of_view_deg=360.0))):
+        pd.testing.assert_frame_equal(same, kept)
 
 
 def test_a_track_occluded_inside_the_field_of_view_still_coasts():
@@ -605,6 +612,76 @@ def test_a_track_occluded_inside_the_field_of_view_still_coasts():
     assert cut[cut.track_id == 0].coasting.sum() == 4
 
 
+def test_a_measured_track_outside_the_field_of_view_is_kept():
+    """Only coasting tracks are tested: an object measured every frame at 85 deg off the
+    boresight (the field of view is the tracker's setting, not a filter of the points) keeps
+    its track, the same as without the field of view."""
+    frames = np.arange(30)
+    local = np.tile([5.0 * np.sin(np.radians(85.0)), 5.0 * np.cos(np.radians(85.0))], (30, 1))
+    pts = frame_table(frames, _sensor_frame(local, np.array([1.0, 2.0, 0.5]))).assign(
+        sensor_x_m=1.0, sensor_y_m=2.0, sensor_heading_deg=np.degrees(0.5))
+    cut = track_points(pts, config(field_of_view_deg=160.0))
+    pd.testing.assert_frame_equal(cut, track_points(pts, config(field_of_view_deg=None)))
+    assert set(cut.frame) == set(frames) and not cut.coasting.any()
+
+
+def _static_object_seen_by_a_moving_turning_radar(group: str, yaw0_deg: float) -> pd.DataFrame:
+    """A radar driving at 5 m/s while turning at 30 deg/s (the pose of every frame from
+    a constant-turn integration), past a static object; the object is detected only while
+    within +-80 deg of the radar's boresight at that frame."""
+    frames = np.arange(40)
+    t = frames * DT
+    yaw = np.radians(yaw0_deg) + np.radians(30.0) * t
+    heading = np.column_stack([-np.sin(yaw), np.cos(yaw)])
+    xy_r = np.cumsum(np.vstack([[0.0, 0.0], 5.0 * DT * heading[:-1]]), axis=0)
+    obj = _sensor_frame(np.array([[2.0, 4.0]]), np.array([0.0, 0.0, yaw[0]]))[0]
+    r = obj - xy_r
+    bearing = np.degrees(np.arccos(np.sum(r * heading, axis=1) / np.linalg.norm(r, axis=1)))
+    seen = bearing <= 80.0
+    return frame_table(frames, np.where(seen[:, None], obj, np.nan), group=group).assign(
+        sensor_x_m=xy_r[:, 0], sensor_y_m=xy_r[:, 1], sensor_heading_deg=np.degrees(yaw),
+        _seen=seen)
+
+
+def test_the_field_of_view_moves_and_turns_with_the_sensor_of_each_group_and_frame():
+    """Two scenes (groups) with differently headed radars that drive and turn past a static
+    object: each track ends at the object's last detection, where the radar of that scene and
+    that frame no longer sees it (a pose from another frame or scene would keep it coasting)."""
+    pts = pd.concat([_static_object_seen_by_a_moving_turning_radar("a", 0.0),
+                     _static_object_seen_by_a_moving_turning_radar("b", 120.0)],
+                    ignore_index=True)
+    tracks = track_points(pts.drop(columns="_seen"), config(field_of_view_deg=160.0))
+    for g, q in pts.groupby("group"):
+        last_seen = int(q.frame[q._seen].max())
+        assert last_seen < q.frame.max() - 5                 # leaves the view well before the end
+        t = tracks[(tracks.group == g) & (tracks.track_id == 0)]
+        assert t.confirmed.any()
+        assert t.frame.max() == last_seen and not t.coasting.any()
+
+
+def test_tracker_input_gives_the_ego_yaw_as_the_sensor_heading():
+    """stages/driving_track.tracker_input: every frame of the truth stepped with the ego's
+    position and yaw as the sensor's pose (a frame without points as one NaN row)."""
+    import sys
+
+    sys.path.insert(0, str(REPO_ROOT / "stages"))
+    try:
+        from driving_track import tracker_input
+    finally:
+        sys.path.remove(str(REPO_ROOT / "stages"))
+    truth = pd.DataFrame({"scene": "s", "frame": [0, 0, 1, 2], "time_s": [0.0, 0.0, 0.1, 0.2],
+                          "pedestrian": ["p0", "p1", "p0", "p0"],
+                          "ego_x_m": [0.0, 0.0, 0.1, 0.2], "ego_y_m": [1.0, 1.0, 2.0, 3.0],
+                          "ego_yaw_deg": [0.0, 0.0, 5.0, 10.0]})
+    points = pd.DataFrame({"scene": "s", "frame": [0, 0, 2], "x_m": [1.0, 2.0, 3.0],
+                           "y_m": [5.0, 6.0, 7.0], "velocity_over_ground_mps": 0.0})
+    pts, ego = tracker_input(truth, points)
+    assert pts.frame.tolist() == [0, 0, 1, 2] and np.isnan(pts.x_m[2])
+    assert pts.sensor_heading_deg.tolist() == [0.0, 0.0, 5.0, 10.0]
+    assert pts.sensor_y_m.tolist() == [1.0, 1.0, 2.0, 3.0]
+    assert list(ego.columns) == ["group", "frame", "ego_x_m", "ego_y_m"]
+
+
 @settings(max_examples=200, deadline=None)
 @given(heading=st.floats(-720.0, 720.0), fov=st.floats(1.0, 359.0),
        bearing=st.floats(-179.9, 179.9), distance=st.floats(0.1, 100.0),
@@ -612,29 +689,37 @@ def test_a_track_occluded_inside_the_field_of_view_still_coasts():
 def test_field_of_view_test_is_the_bearing_off_the_boresight(heading, fov, bearing, distance,
                                                               sx, sy):
     """_in_field_of_view (the dot product against |r| cos(fov / 2)) agrees with the bearing
-    itself: a point placed at ``bearing`` off the boresight of a sensor at (sx, sy) looking
-    along ``heading`` (yaw convention: boresight (-sin h, cos h), counter-clockwise positive)
-    is inside exactly when |bearing| <= fov / 2 (away from the edge by 1e-6 deg)."""
+    itself: a point placed ``bearing`` off the boresight in the radar's own frame, moved to the
+    world by the simulation's vehicle_to_world for a radar at (sx, sy) with yaw ``heading``, is
+    inside exactly when |bearing| <= fov / 2 (away from the edge by 1e-6 deg)."""
     from blindspot.track.tracker import _frame_poses, _in_field_of_view
 
     if abs(abs(bearing) - fov / 2.0) < 1e-6:
         return
-    a = np.radians(heading + bearing)
-    xy = np.array([[sx - distance * np.sin(a), sy + distance * np.cos(a)]])
+    b = np.radians(bearing)
+    xy = _sensor_frame(np.array([[distance * np.sin(b), distance * np.cos(b)]]),
+                       np.array([sx, sy, np.radians(heading)]))
     pose = _frame_poses(pd.DataFrame({"sensor_x_m": [sx], "sensor_y_m": [sy],
                                       "sensor_heading_deg": [heading]}))[0]
     assert bool(_in_field_of_view(xy, pose, np.cos(np.radians(fov / 2.0)))[0]) == (
         abs(bearing) <= fov / 2.0)
 
 
-def test_field_of_view_needs_the_whole_sensor_pose():
+def test_the_sensor_pose_is_checked_and_named():
     pts, _ = _walk_past_the_sensor(0.0)
     cfg = config(field_of_view_deg=160.0)
-    with pytest.raises(TrackingError, match=r"'sensor_heading_deg' but not \['sensor_x_m'"):
+    with pytest.raises(TrackingError, match=r"but not \['sensor_x_m'\]"):
         track_points(pts.drop(columns="sensor_x_m"), cfg)
+    with pytest.raises(TrackingError, match=r"but not \['sensor_x_m', 'sensor_y_m'\]"):
+        track_points(pts.drop(columns=["sensor_x_m", "sensor_y_m"]), cfg)
     broken = pts.astype({"sensor_heading_deg": float})
     broken.loc[broken.x_m.isna().idxmax(), "sensor_heading_deg"] = np.nan   # a frame without points
     with pytest.raises(TrackingError, match=r"'sensor_heading_deg' is NaN or infinite at 1 of 80"):
         track_points(broken, cfg)
+    two = pd.concat([pts, pts.iloc[[0]].assign(sensor_y_m=-3.0)], ignore_index=True)
+    with pytest.raises(TrackingError, match=r"'sensor_y_m' takes 2 values within one frame"):
+        track_points(two.sort_values("frame", kind="stable"), cfg)
+    with pytest.raises(TrackingError, match=r"'sensor_x_m' must be numeric"):
+        track_points(pts.assign(sensor_x_m="a"), cfg)
     with pytest.raises(ConfigError, match="tracker.field_of_view_deg"):
         TrackerConfig.from_mapping({**dataclasses.asdict(cfg), "field_of_view_deg": 400.0})

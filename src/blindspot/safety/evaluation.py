@@ -266,10 +266,11 @@ def operating_curve(p: np.ndarray, info: SceneInfo, impact_kmh: np.ndarray,
 
 
 def avoided_at_false_activation(curve: pd.DataFrame, levels=(0.01, 0.05, 0.1)) -> dict:
-    """Points of an operating characteristic (:func:`operating_curve`): per false-activation
+    """Points of an operating characteristic (``curve``: :func:`operating_curve`'s columns
+    ``avoided_rate`` and ``false_activation_rate``, one row per threshold): per false-activation
     level, the largest avoided rate of a threshold whose false-activation rate is at most it,
     keyed by the level (``"0.01"``: issue 12's goal, one scene in 108); None where no threshold
-    gets there."""
+    gets there. Raises KeyError naming a missing column."""
     fa = curve.false_activation_rate.to_numpy(float)
     av = curve.avoided_rate.to_numpy(float)
     return {f"{f:g}": (float(av[fa <= f + 1e-12].max()) if (fa <= f + 1e-12).any() else None)

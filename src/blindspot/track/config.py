@@ -54,8 +54,9 @@ class TrackerConfig(TypedConfig):
             of ``gate_probability``), where the points carry ``velocity_over_ground_mps``; null
             gates on position alone.
         field_of_view_deg: the sensor's azimuth field of view, full width (deg); a track that
-            coasts (no measurement this frame) to a bearing outside it, more than half of it
-            off the sensor's boresight, is deleted there, since no detection can update it
+            coasts (no detection updated it this frame: its row's ``coasting``) to a bearing
+            outside it, more than half of it off the sensor's boresight, is deleted there,
+            since no detection can update it; 360 deletes nothing
             (:data:`blindspot.track.tracker.SENSOR_COLUMNS` and ``SENSOR_HEADING_COLUMN`` give
             the sensor's pose per frame; points without the heading column are not tested:
             recordings differ in the axis their sensor looks along); null keeps such tracks

@@ -53,8 +53,10 @@ OUTPUT_COLUMNS = ("frame", "time_s", "track_id", "x_m", "y_m", "vx_mps", "vy_mps
 #: blindspot.synth.driving_measurement).
 DOPPLER_COLUMN = "velocity_over_ground_mps"
 #: Optional point columns: the sensor's position in the points' frame of reference at the
-#: point's frame (m; a moving radar's world position), the origin of the line of sight of the
-#: Doppler gate (``tracker.doppler_std_mps``). Without them the sensor is at the origin.
+#: point's frame (m; a moving radar's world position, the same on every row of a frame), the
+#: origin of the line of sight of the Doppler gate (``tracker.doppler_std_mps``) and of the
+#: field of view's bearings (``tracker.field_of_view_deg``). Without them the sensor is at the
+#: origin; the heading column needs them.
 SENSOR_COLUMNS = ("sensor_x_m", "sensor_y_m")
 #: Optional point column: the sensor's boresight heading at the point's frame (deg, the driving
 #: scenes' ego yaw convention: 0 looks along +y, counter-clockwise positive, so the boresight is
@@ -83,9 +85,7 @@ def _check_points(points: pd.DataFrame) -> bool:
         raise TrackingError(f"track_points: column 'frame' must hold integers; found dtype "
                             f"{points['frame'].dtype}")
     for c in ("time_s", "x_m", "y_m"):
-        if not pd.api.types.is_numeric_dtype(points[c]) or pd.api.types.is_bool_dtype(points[c]):
-            raise TrackingError(f"track_points: column {c!r} must be numeric; found dtype "
-                                f"{points[c].dtype}")
+        _check_numeric(points, c)
     if not np.isfinite(points["time_s"].to_numpy(float)).all():
         raise TrackingError("track_points: column 'time_s' holds NaN or infinite values")
     xy = points[["x_m", "y_m"]].to_numpy(float)
@@ -98,26 +98,36 @@ def _check_points(points: pd.DataFrame) -> bool:
     return "group" in points.columns
 
 
-def _check_poses(frames: pd.DataFrame, pose_cols: list[str]) -> None:
-    """The sensor pose columns the field of view needs (the heading is among them): both
-    position columns, and finite numbers on every frame (a frame without points included: its
-    coasting tracks are tested too)."""
+def _check_numeric(points: pd.DataFrame, column: str) -> None:
+    v = points[column]
+    if not pd.api.types.is_numeric_dtype(v) or pd.api.types.is_bool_dtype(v):
+        raise TrackingError(f"track_points: column {column!r} must be numeric; found dtype "
+                            f"{v.dtype}")
+
+
+def _check_poses(points: pd.DataFrame, keys: list[str], frames: pd.DataFrame,
+                 pose_cols: list[str]) -> None:
+    """The sensor pose columns present (:data:`SENSOR_COLUMNS`, :data:`SENSOR_HEADING_COLUMN`;
+    at least one): both position columns, numeric, finite on every frame (a frame without
+    points included: its coasting tracks are tested for the field of view) and one value per
+    frame (``frames``: one row per frame). Raises TrackingError naming the column."""
     missing = [c for c in SENSOR_COLUMNS if c not in pose_cols]
     if missing:
-        raise TrackingError(f"track_points: points hold {SENSOR_HEADING_COLUMN!r} but not "
-                            f"{missing}; tracker.field_of_view_deg needs the sensor's position "
-                            "with its heading")
+        raise TrackingError(f"track_points: points hold {pose_cols} but not {missing}; the "
+                            f"sensor's pose needs both of {list(SENSOR_COLUMNS)}")
     for c in pose_cols:
-        v = frames[c]
-        if not pd.api.types.is_numeric_dtype(v) or pd.api.types.is_bool_dtype(v):
-            raise TrackingError(f"track_points: column {c!r} must be numeric; found dtype "
-                                f"{v.dtype}")
-        bad = ~np.isfinite(v.to_numpy(float))
+        _check_numeric(points, c)
+        bad = ~np.isfinite(frames[c].to_numpy(float))
         if bad.any():
             raise TrackingError(f"track_points: column {c!r} is NaN or infinite at "
-                                f"{int(bad.sum())} of {len(v)} frames (first: frame "
-                                f"{int(frames['frame'].iloc[np.flatnonzero(bad)[0]])}); "
-                                "tracker.field_of_view_deg needs the sensor's pose every frame")
+                                f"{int(bad.sum())} of {len(frames)} frames (first: frame "
+                                f"{int(frames['frame'].iloc[np.flatnonzero(bad)[0]])}); the "
+                                "sensor's pose is needed on every frame")
+    varies = points.groupby(keys, sort=False)[pose_cols].nunique().max()
+    if (varies > 1).any():
+        c = varies.index[int(np.argmax(varies.to_numpy() > 1))]
+        raise TrackingError(f"track_points: column {c!r} takes {int(varies[c])} values within "
+                            "one frame; the sensor has one pose per frame")
 
 
 def cluster_points(points: pd.DataFrame, config: TrackerConfig) -> pd.DataFrame:
@@ -165,7 +175,6 @@ def _labelled(points: pd.DataFrame, keys: list[str], config: TrackerConfig) -> p
     cols = keys + ["time_s", "x_m", "y_m"]
     if DOPPLER_COLUMN in valid.columns:
         cols.append(DOPPLER_COLUMN)
-    cols += [c for c in SENSOR_COLUMNS if c in valid.columns]
     if valid.empty:
         return valid[cols].assign(_label=np.empty(0, np.int64))
     k = valid.groupby(keys, sort=False).ngroup().to_numpy(float)
@@ -532,9 +541,9 @@ def _track_group(labelled: pd.DataFrame, frames: pd.DataFrame, config: TrackerCo
     by_frame = dict(zip(starts, zip(np.split(labelled[["x_m", "y_m"]].to_numpy(float), cut),
                                     np.split(labelled["_label"].to_numpy(np.int64), cut))))
     # the sensor's position per frame (the Doppler gate's line of sight; origin without it)
-    has_sensor = all(c in labelled.columns for c in SENSOR_COLUMNS)
-    sensor_of = (dict(zip(starts, labelled[list(SENSOR_COLUMNS)].to_numpy(float)[np.r_[0, cut]]))
-                 if has_sensor and len(of) else {})
+    sensor_xy = (frames[list(SENSOR_COLUMNS)].to_numpy(float)
+                 if all(c in frames.columns for c in SENSOR_COLUMNS)
+                 else np.zeros((len(frames), 2)))
     no_points = (np.empty((0, 2)), np.empty(0, np.int64))
     # per object (label): the median ego-motion-compensated radial speed of its points and
     # their sample standard deviation (the micro-Doppler spread; NaN for one point)
@@ -546,8 +555,9 @@ def _track_group(labelled: pd.DataFrame, frames: pd.DataFrame, config: TrackerCo
     dop_value = None if by_label is None else by_label["median"].to_numpy(float)
     dop_spread = None if by_label is None else by_label["std"].to_numpy(float)
     steps = config.max_misses + 1            # UpdateTimeStepsDeleter's time_steps_since_update
-    # the field of view's test per frame: the sensor's position, boresight and cos(half width)
-    fov_cos = (None if config.field_of_view_deg is None
+    # the field of view's test per frame: the sensor's position, boresight and cos(half width);
+    # a full circle deletes nothing (its cos(180 deg) = -1 would, by rounding, right behind)
+    fov_cos = (None if config.field_of_view_deg is None or config.field_of_view_deg >= 360.0
                else np.cos(np.radians(config.field_of_view_deg / 2.0)))
     pose = (_frame_poses(frames) if fov_cos is not None and SENSOR_HEADING_COLUMN in frames
             else None)
@@ -564,7 +574,7 @@ def _track_group(labelled: pd.DataFrame, frames: pd.DataFrame, config: TrackerCo
         at = None if by_label is None else np.searchsorted(dop_label, ulab)
         dop = dop_value[at] if at is not None else np.full(len(ulab), np.nan)
         spread = dop_spread[at] if at is not None else np.full(len(ulab), np.nan)
-        sensor = tuple(float(c) for c in sensor_of.get(frame, (0.0, 0.0)))
+        sensor = (float(sensor_xy[i_frame, 0]), float(sensor_xy[i_frame, 1]))
         order = [Detection(p.reshape(2, 1), timestamp=ts,
                            measurement_model=parts.measurement_model,
                            metadata={"n_points": int(k), "doppler_mps": float(d),
@@ -707,12 +717,14 @@ def track_points(points: pd.DataFrame, config: TrackerConfig, jobs: int = 1) -> 
             m/s): its per-object median is carried to the track rows (``doppler_mps``) and,
             with ``config.doppler_std_mps``, gates the association; optional ``sensor_x_m``,
             ``sensor_y_m``: the sensor's position at the point's frame (m, same frame of
-            reference; the origin without them), the Doppler's line of sight; optional
-            ``sensor_heading_deg``: its boresight (:data:`SENSOR_HEADING_COLUMN`). With that
-            column and ``config.field_of_view_deg``, the pose is read on every frame (a
-            frame's NaN-coordinate row included) and a track that coasts outside the field of
-            view is deleted (no row from that frame on); without the column nothing is deleted
-            for it (recordings differ in which axis the sensor looks along).
+            reference, one value per frame, a frame's NaN-coordinate row included; the origin
+            without them), the Doppler's line of sight; optional ``sensor_heading_deg``: its
+            boresight (:data:`SENSOR_HEADING_COLUMN`). With that column and
+            ``config.field_of_view_deg``, a track whose row is coasting (no detection updated
+            it this frame; JPDA: its detections carry at most half the association
+            probability, as the ``coasting`` column) at a bearing outside the field of view is
+            deleted (no row from that frame on); without the column nothing is deleted for it
+            (recordings differ in which axis the sensor looks along).
         config: the tracker group (:class:`~blindspot.track.config.TrackerConfig`).
         jobs: worker processes over the groups (:func:`blindspot.parallel.parallel_map`; the
             result does not depend on it).
@@ -733,20 +745,20 @@ def track_points(points: pd.DataFrame, config: TrackerConfig, jobs: int = 1) -> 
 
     Raises:
         TrackingError: a missing column, a non-integer frame, a non-numeric coordinate, a NaN
-            time, or a time that does not increase with the frame within a group; with
-            ``config.field_of_view_deg`` and ``sensor_heading_deg``, a missing sensor
-            position column or a non-finite pose on a frame.
+            time, or a time that does not increase with the frame within a group; a sensor
+            pose column (``sensor_x_m``, ``sensor_y_m``, ``sensor_heading_deg``) without the
+            position's other column, non-numeric, non-finite on a frame or taking two values
+            within one frame.
     """
     has_group = _check_points(points)
     keys = (["group"] if has_group else []) + ["frame"]
-    # the field of view needs to know where the sensor looks: only with its heading column
-    pose_cols = ([c for c in (*SENSOR_COLUMNS, SENSOR_HEADING_COLUMN) if c in points.columns]
-                 if config.field_of_view_deg is not None
-                 and SENSOR_HEADING_COLUMN in points.columns else [])
+    # the sensor's pose per frame (the field of view needs to know where it looks: only with the
+    # heading column)
+    pose_cols = [c for c in (*SENSOR_COLUMNS, SENSOR_HEADING_COLUMN) if c in points.columns]
     frames = (points[keys + ["time_s"] + pose_cols].drop_duplicates(keys).sort_values(keys)
               .reset_index(drop=True))
     if pose_cols:
-        _check_poses(frames, pose_cols)
+        _check_poses(points, keys, frames, pose_cols)
     gkey = frames["group"] if has_group else pd.Series(0, index=frames.index)
     dtime = frames["time_s"].diff().to_numpy()
     first = (gkey != gkey.shift()).to_numpy()
