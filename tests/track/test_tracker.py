@@ -716,6 +716,14 @@ def test_the_sensor_pose_is_checked_and_named():
     broken.loc[broken.x_m.isna().idxmax(), "sensor_heading_deg"] = np.nan   # a frame without points
     with pytest.raises(TrackingError, match=r"'sensor_heading_deg' is NaN or infinite at 1 of 80"):
         track_points(broken, cfg)
+    # without the field of view a frame without points needs no pose (nothing is tested there),
+    # a frame with points does (the Doppler's line of sight)
+    track_points(broken, config(field_of_view_deg=None))
+    seen = broken.astype({"sensor_x_m": float})
+    seen.loc[0, "sensor_x_m"] = np.inf
+    with pytest.raises(TrackingError, match=r"'sensor_x_m' is NaN or infinite at 1 of 47 "
+                                            r"frames \(first: frame 0\).*with a point"):
+        track_points(seen, config(field_of_view_deg=None))
     two = pd.concat([pts, pts.iloc[[0]].assign(sensor_y_m=-3.0)], ignore_index=True)
     with pytest.raises(TrackingError, match=r"'sensor_y_m' takes 2 values within one frame"):
         track_points(two.sort_values("frame", kind="stable"), cfg)

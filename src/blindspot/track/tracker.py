@@ -106,23 +106,28 @@ def _check_numeric(points: pd.DataFrame, column: str) -> None:
 
 
 def _check_poses(points: pd.DataFrame, keys: list[str], frames: pd.DataFrame,
-                 pose_cols: list[str]) -> None:
+                 pose_cols: list[str], every_frame: bool) -> None:
     """The sensor pose columns present (:data:`SENSOR_COLUMNS`, :data:`SENSOR_HEADING_COLUMN`;
-    at least one): both position columns, numeric, finite on every frame (a frame without
-    points included: its coasting tracks are tested for the field of view) and one value per
-    frame (``frames``: one row per frame). Raises TrackingError naming the column."""
+    at least one): both position columns, numeric, one value per frame (``frames``: one row per
+    frame, sorted by ``keys``) and finite on every frame with a point (the Doppler's line of
+    sight) or, with ``every_frame`` (the field of view applied), on every frame, a frame
+    without points included (its coasting tracks are tested). Raises TrackingError naming the
+    column."""
     missing = [c for c in SENSOR_COLUMNS if c not in pose_cols]
     if missing:
         raise TrackingError(f"track_points: points hold {pose_cols} but not {missing}; the "
                             f"sensor's pose needs both of {list(SENSOR_COLUMNS)}")
+    need = (np.ones(len(frames), bool) if every_frame
+            else points.groupby(keys, sort=True).x_m.count().to_numpy() > 0)
     for c in pose_cols:
         _check_numeric(points, c)
-        bad = ~np.isfinite(frames[c].to_numpy(float))
+        bad = ~np.isfinite(frames[c].to_numpy(float)) & need
         if bad.any():
+            where = "every frame" if every_frame else "every frame with a point"
             raise TrackingError(f"track_points: column {c!r} is NaN or infinite at "
-                                f"{int(bad.sum())} of {len(frames)} frames (first: frame "
+                                f"{int(bad.sum())} of {int(need.sum())} frames (first: frame "
                                 f"{int(frames['frame'].iloc[np.flatnonzero(bad)[0]])}); the "
-                                "sensor's pose is needed on every frame")
+                                f"sensor's pose is needed on {where}")
     varies = points.groupby(keys, sort=False)[pose_cols].nunique().max()
     if (varies > 1).any():
         c = varies.index[int(np.argmax(varies.to_numpy() > 1))]
@@ -758,7 +763,8 @@ def track_points(points: pd.DataFrame, config: TrackerConfig, jobs: int = 1) -> 
     frames = (points[keys + ["time_s"] + pose_cols].drop_duplicates(keys).sort_values(keys)
               .reset_index(drop=True))
     if pose_cols:
-        _check_poses(points, keys, frames, pose_cols)
+        every = config.field_of_view_deg is not None and SENSOR_HEADING_COLUMN in pose_cols
+        _check_poses(points, keys, frames, pose_cols, every_frame=every)
     gkey = frames["group"] if has_group else pd.Series(0, index=frames.index)
     dtime = frames["time_s"].diff().to_numpy()
     first = (gkey != gkey.shift()).to_numpy()
