@@ -273,8 +273,11 @@ def avoided_at_false_activation(curve: pd.DataFrame, levels=(0.01, 0.05, 0.1)) -
     gets there. Raises KeyError naming a missing column."""
     fa = curve.false_activation_rate.to_numpy(float)
     av = curve.avoided_rate.to_numpy(float)
-    return {f"{f:g}": (float(av[fa <= f + 1e-12].max()) if (fa <= f + 1e-12).any() else None)
-            for f in levels}
+    out = {}
+    for f in levels:
+        ok = fa <= f + 1e-12
+        out[f"{f:g}"] = float(av[ok].max()) if ok.any() else None
+    return out
 
 
 def ncap_grid(res: pd.DataFrame) -> pd.DataFrame:
