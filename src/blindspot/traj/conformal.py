@@ -13,7 +13,7 @@ revealed outcomes, and only those, to keep each level's ellipse calibrated:
   shape and orientation stay the forecast's);
 * the radius of the ``level`` ellipse at step h for a prediction made at time t is the
   conformal quantile, at level ``1 - a_t``, of the scores of step h of the last ``window``
-  predictions whose whole future was revealed by t (split conformal prediction on a sliding
+  predictions whose step h was revealed by t (split conformal prediction on a sliding
   window: Vovk, Gammerman & Shafer 2005; the ``ceil((1 - a)(M + 1))``-th smallest of M);
 * ``a_t`` follows adaptive conformal inference (ACI; Gibbs & Candès 2021, "Adaptive conformal
   inference under distribution shift", NeurIPS): at each prediction time that has new revealed
@@ -29,7 +29,23 @@ revealed outcomes, and only those, to keep each level's ellipse calibrated:
 The window starts filled with validation scores (the prior: before the first revealed outcome
 the ellipses are the validation data's conformal ones): ``window`` of them evenly spaced
 through the validation set (all its scenes, not the tail of its last file), then it slides into
-the stream's own.
+the stream's own. Each step has its own window, so an outcome may be revealed step by step:
+the true position h steps ahead is known h steps after the prediction, not only once the whole
+future has passed (``t_revealed`` (N, H)).
+
+A new scene can differ from the validation data by a scale: the Kalman filter's median d^2 on
+one ETH/UCY val scene, against the same fold's other val scenes, ranges from 0.01x to 16x
+(``benchmarks/bench_online_calibration.py --split val-scenes``). A short recording (eth's test
+scene: 181 predictions) makes most of its predictions with the prior still in the window, and
+ACI's small steps cannot make up for it. With ``rescale_prior_after = k``, once a step's window
+holds k of the stream's own scores the prior scores still in it are multiplied by the ratio of
+the medians (own / prior; not where the prior's median is 0): the prior keeps its shape (its
+tail, which k scores cannot tell) and takes the scene's scale. This is our heuristic, not part
+of Gibbs & Candès' method; it uses revealed outcomes only, and it fades as the prior leaves the
+window (after ``window`` own outcomes the window and the guarantee are the plain method's).
+Which setting a scene needs is chosen on validation scenes met as new scenes
+(:func:`select_on_held_out_streams`).
+
 Causal by construction: a prediction's radii depend on scores revealed strictly by its own time
 (tested by changing every later score). One stream per scene recording (``stream``): outcomes
 are not shared between recordings.
@@ -40,13 +56,15 @@ radii (L levels, N, H) in d^2 units (compare with ``d^2`` of the same forecast).
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
 from blindspot.arrays import check_array
 
-__all__ = ["AdaptiveConformal", "ConformalError", "ellipse_hits"]
+__all__ = ["AdaptiveConformal", "ConformalError", "HeldOutStreamScore",
+           "cluster_bootstrap_coverage", "ellipse_hits", "select_on_held_out_streams"]
 
 #: prefix of the adaptive ellipses' coverage keys in the metrics files
 #: (``online_coverage_50`` beside the val calibration's ``coverage_50``)
@@ -68,11 +86,16 @@ class AdaptiveConformal:
             sliding-window conformal prediction).
         window: revealed predictions whose scores are kept (the most recent ones), >= 1; a
             step without truth (NaN) in some of them has fewer scores.
+        rescale_prior_after: 0 (off) or k >= 1: once a step's window holds k of the stream's
+            own scores, the prior scores still in it are multiplied by the ratio of the
+            medians of those own scores and of the prior (a prior of the new scene's scale;
+            module docstring).
     """
 
     levels: tuple[float, ...]
     gamma: float = 0.005
     window: int = 100
+    rescale_prior_after: int = 0
 
     def __post_init__(self) -> None:
         lv = np.asarray(self.levels, float)
@@ -85,6 +108,10 @@ class AdaptiveConformal:
         if isinstance(self.window, bool) or not (isinstance(self.window, (int, np.integer))
                                                  and self.window >= 1):
             raise ConformalError(f"window: expected an integer >= 1, found {self.window!r}")
+        k = self.rescale_prior_after
+        if isinstance(k, bool) or not (isinstance(k, (int, np.integer)) and k >= 0):
+            raise ConformalError(f"rescale_prior_after: expected an integer >= 0 (0 = off), "
+                                 f"found {k!r}")
 
     def radii(self, scores: np.ndarray, t_predicted: np.ndarray, t_revealed: np.ndarray,
               stream: np.ndarray, prior: np.ndarray) -> np.ndarray:
@@ -94,8 +121,10 @@ class AdaptiveConformal:
             scores: (N, H) d^2 of each prediction's true positions (NaN: a step without truth;
                 it neither counts nor moves a level).
             t_predicted: (N,) time each prediction is made (its last observation).
-            t_revealed: (N,) time its whole future is known (its last future point), after
-                ``t_predicted``; an outcome is used by the predictions made at or after it.
+            t_revealed: when each outcome is known, after ``t_predicted``: (N,) one time for
+                the whole future (its last future point), or (N, H) one per step (step h's
+                true position is known at step h's own time, so the near steps adapt a
+                horizon sooner). An outcome is used by the predictions made at or after it.
             stream: (N,) int, the recording each prediction belongs to; each stream starts
                 from ``prior`` and level ``1 - alpha``.
             prior: (M, H) validation scores (NaN allowed): ``window`` of them, evenly spaced
@@ -120,13 +149,18 @@ class AdaptiveConformal:
         prior = check_array(prior, "prior", ("M", h), error=ConformalError, who=who,
                             allow_nan=True)
         tp = check_array(t_predicted, "t_predicted", (n,), error=ConformalError, who=who)
-        tr = check_array(t_revealed, "t_revealed", (n,), error=ConformalError, who=who)
+        per_step = np.ndim(t_revealed) == 2
+        tr = check_array(t_revealed, "t_revealed", (n, h) if per_step else (n,),
+                         error=ConformalError, who=who)
         group = check_array(stream, "stream", (n,), error=ConformalError, who=who, dtype=int)
-        if np.any(tr <= tp):
-            i = int(np.argmax(tr <= tp))
+        tr = tr if per_step else np.broadcast_to(tr[:, None], (n, h))
+        early = tr <= tp[:, None]
+        if np.any(early):
+            i, k = np.unravel_index(int(np.argmax(early)), early.shape)
+            at = f"row {i} step {k}" if per_step else f"row {i}"
             raise ConformalError(f"{who}: t_revealed must be after t_predicted (an outcome is "
-                                 f"known only after its prediction is made); row {i} has "
-                                 f"t_predicted {tp[i]:g}, t_revealed {tr[i]:g}")
+                                 f"known only after its prediction is made); {at} has "
+                                 f"t_predicted {tp[i]:g}, t_revealed {tr[i, k]:g}")
         alpha = 1.0 - np.asarray(self.levels, float)                      # (L,)
         out = np.empty((alpha.size, n, h))
         if prior.shape[0] > self.window:   # evenly spaced through the validation set
@@ -137,17 +171,27 @@ class AdaptiveConformal:
         return out
 
     def coverage(self, scores: np.ndarray, t_predicted: np.ndarray, t_revealed: np.ndarray,
-                 stream: np.ndarray, prior: np.ndarray) -> dict[str, float]:
+                 stream: np.ndarray, prior: np.ndarray, clusters: np.ndarray | None = None,
+                 n_boot: int = 2000, seed: int = 0) -> dict[str, float | list[float]]:
         """Coverage and size of the :meth:`radii` (same arguments and errors), for the metrics
         files: ``online_coverage_<p>`` (p = the level in whole percent): the share of the
         finite ``scores`` inside their ellipse; ``online_unbounded_<p>``: the share of those
         points whose ellipse is unbounded (+inf: a coverage bought that way says nothing);
         ``online_radius_<p>``: the median finite radius, in standard deviations of the
-        forecast's own covariance (sqrt of d^2; a Gaussian's 90 % ellipse: 2.15)."""
+        forecast's own covariance (sqrt of d^2; a Gaussian's 90 % ellipse: 2.15).
+
+        With ``clusters`` (N,) (integer ids: the pedestrian of each prediction, the path), also
+        ``online_coverage_<p>_ci95``: [lo, hi] of a cluster bootstrap (``n_boot`` resamples of
+        the clusters with replacement, ``seed``; percentile interval) of the coverage of these
+        same ellipses. One pedestrian's overlapping windows are not independent draws, so
+        this, not a binomial interval over the points, says how far a fold's coverage can
+        stray by chance (ETH/UCY eth: 181 windows of a few dozen pedestrians). The radii are
+        held fixed (they depend on other pedestrians' outcomes too): an interval conditional
+        on them."""
         radii = self.radii(scores, t_predicted, t_revealed, stream, prior)
         hits = ellipse_hits(scores, radii)
         seen = ~np.isnan(np.asarray(scores, float))
-        out: dict[str, float] = {}
+        out: dict[str, float | list[float]] = {}
         for lv, c, r in zip(self.levels, hits, radii):
             p = round(100 * lv)
             finite = r[seen & np.isfinite(r)]
@@ -155,35 +199,81 @@ class AdaptiveConformal:
             out[f"online_unbounded_{p}"] = float(np.isinf(r[seen]).mean()) if seen.any() else 0.0
             out[f"online_radius_{p}"] = float(np.sqrt(np.median(finite))) if finite.size \
                 else float("inf")
+        if clusters is not None:
+            inside = (np.asarray(scores, float)[None] <= radii) & seen[None]     # (L, N, H)
+            ci = cluster_bootstrap_coverage(inside, seen, clusters, n_boot, seed)
+            for lv, (lo, hi) in zip(self.levels, ci):
+                out[f"{KEY_PREFIX}{round(100 * lv)}_ci95"] = [float(lo), float(hi)]
         return out
 
     def _stream(self, s: np.ndarray, tp: np.ndarray, tr: np.ndarray, prior: np.ndarray,
                 alpha: np.ndarray) -> np.ndarray:
-        """Radii (L, n, H) of one stream (module docstring)."""
+        """Radii (L, n, H) of one stream (module docstring); ``tr`` (n, H) per-step reveal
+        times. Each step keeps its own window: the scores of step k in the order they were
+        revealed, after the prior's."""
         n, h = s.shape
+        n_prior = prior.shape[0]
+        steps = np.arange(h)
         out = np.empty((alpha.size, n, h))
-        by_reveal = np.argsort(tr, kind="stable")
-        pool = np.concatenate([prior, s[by_reveal]])          # window content, in reveal order
-        a = np.broadcast_to(alpha[:, None], (alpha.size, h)).copy()   # (L, H) ACI levels
+        by_reveal = np.argsort(tr, axis=0, kind="stable")                 # (n, H) per step
+        pool = np.concatenate([prior, np.take_along_axis(s, by_reveal, 0)])  # (M + n, H)
+        tr_sorted = np.take_along_axis(tr, by_reveal, 0)
         times = np.unique(tp)
+        revealed = np.stack([np.searchsorted(tr_sorted[:, k], times, side="right")
+                             for k in steps], axis=1)                      # (T, H) counts
+        prior_median = _median_or_nan(prior)                               # (H,)
+        a = np.broadcast_to(alpha[:, None], (alpha.size, h)).copy()       # (L, H) ACI levels
         order = np.argsort(tp, kind="stable")
         bounds = np.r_[np.searchsorted(tp[order], times, side="left"), n]
-        n_seen = 0                                                       # outcomes revealed
-        for k, t in enumerate(times):
-            now = int(np.searchsorted(tr[by_reveal], t, side="right"))
-            if now > n_seen:   # outcomes revealed since the last prediction time: one ACI step
-                j = by_reveal[n_seen:now]
-                seen = ~np.isnan(s[j])                                    # (J, H)
-                err = (s[j][None] > out[:, j]) & seen[None]               # (L, J, H)
-                n_ok = seen.sum(0)                                        # (H,)
-                share = err.sum(1) / np.maximum(n_ok, 1)                  # (L, H)
+        n_seen = np.zeros(h, np.int64)                                     # revealed per step
+        slots = np.arange(min(self.window, len(pool)))[:, None]            # (W, 1)
+        for k, now in enumerate(revealed):
+            new = now - n_seen
+            if new.any():      # outcomes revealed since the last prediction time: one ACI step
+                pos = n_seen + np.arange(new.max())[:, None]               # (J, H) reveal ranks
+                rows = by_reveal[np.minimum(pos, n - 1), steps]            # (J, H) predictions
+                got = s[rows, steps]
+                seen = (pos < now) & ~np.isnan(got)
+                err = (got[None] > out[:, rows, steps]) & seen[None]       # (L, J, H)
+                n_ok = seen.sum(0)                                         # (H,)
+                share = err.sum(1) / np.maximum(n_ok, 1)                   # (L, H)
                 a += np.where(n_ok > 0, self.gamma * (alpha[:, None] - share), 0.0)
                 n_seen = now
-            hi = prior.shape[0] + n_seen
-            recent = pool[max(0, hi - self.window):hi]                    # (M, H)
+            hi = n_prior + now                                             # (H,) pool ends
+            at = np.maximum(hi - self.window, 0) + slots                   # (W, H) pool rows
+            inside = at < hi
+            recent = np.where(inside, pool[np.minimum(at, len(pool) - 1), steps], np.nan)
+            if self.rescale_prior_after:
+                recent = self._rescaled(recent, at < n_prior, prior_median)
             rows = order[bounds[k]:bounds[k + 1]]
             out[:, rows] = _conformal_quantile(recent, 1.0 - a)[:, None, :]
         return out
+
+    def _rescaled(self, recent: np.ndarray, from_prior: np.ndarray,
+                  prior_median: np.ndarray) -> np.ndarray:
+        """The window (W, H) with its prior scores of each step multiplied by the ratio of the
+        median of the stream's own scores in the window to the prior's median, for the steps
+        whose window holds at least ``rescale_prior_after`` own finite scores."""
+        own = np.where(from_prior, np.nan, recent)
+        n_own = np.sum(~np.isnan(own), axis=0)
+        ready = (n_own >= self.rescale_prior_after) & (prior_median > 0)
+        if not ready.any():
+            return recent
+        ratio = np.ones(recent.shape[1])
+        ratio[ready] = _median_or_nan(own[:, ready]) / prior_median[ready]
+        return np.where(from_prior, recent * ratio, recent)
+
+
+def _median_or_nan(x: np.ndarray) -> np.ndarray:
+    """(H,) median of each column's finite values of x (M, H); NaN for a column without any."""
+    if x.shape[0] == 0:
+        return np.full(x.shape[1], np.nan)
+    srt = np.sort(x, axis=0)                                   # NaN last
+    m = np.sum(~np.isnan(x), axis=0)
+    cols = np.arange(x.shape[1])
+    last = x.shape[0] - 1
+    mid = 0.5 * (srt[np.clip((m - 1) // 2, 0, last), cols] + srt[np.clip(m // 2, 0, last), cols])
+    return np.where(m > 0, mid, np.nan)
 
 
 def _conformal_quantile(scores: np.ndarray, q: np.ndarray) -> np.ndarray:
@@ -200,7 +290,111 @@ def _conformal_quantile(scores: np.ndarray, q: np.ndarray) -> np.ndarray:
     return np.where(q <= 0, 0.0, value)
 
 
+@dataclass(frozen=True)
+class HeldOutStreamScore:
+    """How one candidate's ellipses did on validation streams each met as a new scene
+    (:func:`select_on_held_out_streams`): the mean and the worst distance of a stream's
+    coverage from nominal (over streams and levels), and the largest share of unbounded
+    ellipses of any stream."""
+
+    distance_mean: float
+    distance_worst: float
+    unbounded: float
+
+
+def select_on_held_out_streams(candidates: Sequence[AdaptiveConformal], scores: np.ndarray,
+                               t_predicted: np.ndarray, t_revealed: np.ndarray,
+                               stream: np.ndarray) -> tuple[int, list[HeldOutStreamScore]]:
+    """Choose among settings of the adaptive conformal ellipses on validation data alone.
+
+    Each validation stream (a scene recording) is run as a new scene: its first window is
+    filled with the scores of the *other* streams (the prior a test scene meets), and its
+    ellipses are scored against its own outcomes. The choice is the candidate with the
+    smallest mean distance from nominal over streams and levels among those that never give an
+    unbounded ellipse (one that says nothing); if every candidate does, the smallest largest
+    unbounded share, then the distance. Ties go to the first candidate.
+
+    Args:
+        candidates: settings to choose from, all with the same ``levels``.
+        scores, t_predicted, t_revealed, stream: validation scores and their times, as
+            :meth:`AdaptiveConformal.radii` takes them; at least two streams.
+
+    Returns:
+        ``(index of the choice, one HeldOutStreamScore per candidate)``.
+
+    Raises:
+        ConformalError: no candidate, candidates with different levels, fewer than two
+            streams, or the errors of :meth:`AdaptiveConformal.radii`.
+    """
+    who = "select_on_held_out_streams"
+    if not candidates or len({c.levels for c in candidates}) != 1:
+        raise ConformalError(f"{who}: expected candidates with one set of levels, found "
+                             f"{[c.levels for c in candidates]!r}")
+    s = np.asarray(scores, float)
+    group = np.asarray(stream)
+    names = np.unique(group)
+    if names.size < 2:
+        raise ConformalError(f"{who}: expected at least two validation streams (each is held "
+                             f"out of the others' prior), found {names.size}")
+    levels = np.asarray(candidates[0].levels)
+    tp, tr = np.asarray(t_predicted), np.asarray(t_revealed)
+    table = []
+    for c in candidates:
+        dist, unb = [], 0.0
+        for g in names:
+            own = group == g
+            radii = c.radii(s[own], tp[own], tr[own], np.zeros(int(own.sum()), np.int64),
+                            s[~own])
+            seen = ~np.isnan(s[own])
+            dist.append(np.abs(ellipse_hits(s[own], radii) - levels))
+            if seen.any():
+                unb = max(unb, float(np.isinf(radii[:, seen]).mean(axis=1).max()))
+        d = np.asarray(dist)
+        table.append(HeldOutStreamScore(float(d.mean()), float(d.max()), unb))
+    best = min(range(len(candidates)),
+               key=lambda i: (table[i].unbounded > 0, table[i].unbounded, table[i].distance_mean))
+    return best, table
+
+
 def ellipse_hits(scores: np.ndarray, radii: np.ndarray) -> np.ndarray:
     """(L,) fraction of the finite scores (N, H) inside the radii (L, N, H)."""
     seen = ~np.isnan(scores)
     return ((scores[None] <= radii) & seen[None]).sum(axis=(1, 2)) / max(int(seen.sum()), 1)
+
+
+def cluster_bootstrap_coverage(inside: np.ndarray, seen: np.ndarray, clusters: np.ndarray,
+                               n_boot: int = 2000, seed: int = 0,
+                               level: float = 0.95) -> np.ndarray:
+    """(L, 2) percentile-bootstrap interval of each level's coverage, resampling clusters.
+
+    Args:
+        inside: (L, N, H) bool, a finite score inside its ellipse.
+        seen: (N, H) bool, a finite score (one that counts).
+        clusters: (N,) integer ids; each resample draws as many clusters as there are, with
+            replacement, and pools their points (a cluster's points stay together).
+        n_boot, seed: resamples and their seed; level: the interval's level.
+
+    Raises:
+        ConformalError: mismatched shapes, no cluster with a finite score, or n_boot < 1.
+    """
+    from blindspot.traj.benchmark import resample_weights   # lazy: keeps this module light
+
+    who = "cluster_bootstrap_coverage"
+    ok = check_array(seen, "seen", ("N", "H"), error=ConformalError, who=who, dtype=bool)
+    hit = check_array(inside, "inside", ("L", *ok.shape), error=ConformalError, who=who,
+                      dtype=bool)
+    ids = check_array(clusters, "clusters", ok.shape[:1], error=ConformalError, who=who,
+                      dtype=int)
+    if not (isinstance(n_boot, (int, np.integer)) and n_boot >= 1) or not ok.any():
+        raise ConformalError(f"{who}: expected n_boot >= 1 and at least one finite score, "
+                             f"found n_boot {n_boot!r}, {int(ok.sum())} finite scores")
+    _, member = np.unique(ids, return_inverse=True)
+    n_c = int(member.max()) + 1
+    per_hits = np.stack([np.bincount(member, weights=(h & ok).sum(1), minlength=n_c)
+                         for h in hit])                                    # (L, C)
+    per_seen = np.bincount(member, weights=ok.sum(1), minlength=n_c)       # (C,)
+    w = resample_weights(n_c, n_boot, seed)                                # (B, C)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        cov = (w @ per_hits.T) / (w @ per_seen)[:, None]                   # (B, L)
+    cov = cov[np.isfinite(cov).all(axis=1)]      # a resample that drew no finite score
+    return np.quantile(cov, [(1 - level) / 2, (1 + level) / 2], axis=0).T
