@@ -56,6 +56,9 @@ def test_stage_run_logs_params_metrics_artifacts(toy: Path) -> None:
             t.log_params({"train.lr": 0.2})
         with pytest.raises(ValueError, match="metric 'bad'"):
             t.log_metrics({"bad": "high"})
+        t.log_metrics({"cov": {"ci95": [0.8, 0.9]}})     # an interval: one metric per bound
+        with pytest.raises(ValueError, match=r"metric 'cov.ci95.1'"):
+            t.log_metrics({"cov": {"ci95": [0.8, "x"]}})
         with pytest.raises(FileNotFoundError, match="nope"):
             t.log_artifact(toy / "nope")
         run_id = t.run_id
@@ -71,6 +74,7 @@ def test_stage_run_logs_params_metrics_artifacts(toy: Path) -> None:
     assert len(p["train.note"]) <= 6000 and "truncated" in p["train.note"]
     assert run.data.tags["blindspot.stage"] == "train"
     assert "mlflow.source.git.commit" not in run.data.tags  # git repo without commits
+    assert run.data.metrics["cov.ci95.0"] == 0.8 and run.data.metrics["cov.ci95.1"] == 0.9
     history = client.get_metric_history(run_id, "loss")
     assert [(m.step, round(m.value, 6)) for m in history] == [(0, 1.0), (1, 0.5), (2, 0.333333)]
     assert run.data.metrics["val.rmse_m"] == pytest.approx(0.3)

@@ -61,10 +61,15 @@ def _param_value(value: Any, limit: int) -> str:
 
 
 def _metric_items(metrics: Mapping[str, Any], prefix: str = "") -> Iterator[tuple[str, float]]:
+    """(dotted name, number) of every metric: nested mappings under their keys, a list of
+    numbers (an interval ``[lo, hi]``) under its indices (``ci95.0``, ``ci95.1``)."""
     for key, value in metrics.items():
         name = f"{prefix}{key}"
         if isinstance(value, Mapping):
             yield from _metric_items(value, f"{name}.")
+            continue
+        if isinstance(value, (list, tuple)):
+            yield from _metric_items({str(i): v for i, v in enumerate(value)}, f"{name}.")
             continue
         try:
             number = float(value)
