@@ -81,7 +81,8 @@ def run(cfg, ctx):
     with np.load(ctx.dep("val_scores.npz")) as z:              # where the online ellipses start
         priors = {n: z[n] for n in distributions if n in z.files}
     c = experiment.calibration(cfg)
-    online = AdaptiveConformal(COVERAGE_LEVELS, c.online_gamma, c.online_window)
+    online = AdaptiveConformal(COVERAGE_LEVELS, c.online_gamma, c.online_window,
+                               c.online_rescale_after)
     # each network of the seed ensemble alone too (member i: seed train.seed + i), on the same
     # walks and the same filled histories: the spread a single training run would carry
     members = ({f"lstm_member{i}": lstm.member(i) for i in range(lstm.n_members)}

@@ -52,7 +52,8 @@ def run(cfg, ctx):
     calibrated = calibrate(predictors, *pairs["val"],
                            scale_method=c.scale_method, scale_level=c.scale_level,
                            cv_fit_points=experiment.evaluation(cfg).cv_fit_points)
-    online = AdaptiveConformal(LEVELS, c.online_gamma, c.online_window)
+    online = AdaptiveConformal(LEVELS, c.online_gamma, c.online_window,
+                               c.online_rescale_after)
     # each calibrated predictor's scores on the validation pairs: where the adaptive conformal
     # ellipses start, here and in the benchmark (val_scores.npz)
     prior = {n: forecast_scores(p, *pairs["val"]) for n, p in calibrated.items()}

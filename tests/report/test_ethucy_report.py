@@ -115,6 +115,9 @@ def test_online_coverage_gets_its_own_row():
     cal["kalman"]["eth"]["online_unbounded_95"] = 0.041
     assert table_row(format_calibration(cal, FOLDS), "kalman, online")[1] == \
         "0.384* / 0.894 / 0.951; unbounded 4.1 %"
+    cal["kalman"]["eth"]["online_coverage_90_ci95"] = [0.8512, 0.9349]
+    assert table_row(format_calibration(cal, FOLDS), "kalman, online")[1] == \
+        "0.384* / 0.894 / 0.951; 90 %: [0.85, 0.93]; unbounded 4.1 %"
     assert table_row(text, "kalman")[1] == "0.250* / 0.660* / 0.750*; NLL 1.70"
 
 
@@ -130,3 +133,13 @@ def test_reliability_figure_draws_one_panel_per_fold_and_one_line_per_method():
     assert "cvm" in labels and "lstm" in labels
     xs, ys = axes[1].get_lines()[1].get_data()       # [0] is the diagonal
     assert list(xs) == curve["levels"] and list(ys) == curve["coverage"]
+
+
+def test_the_online_choice_table_names_each_folds_setting():
+    from blindspot.report.ethucy_report import format_online_choice
+
+    cal = {"kalman": {"eth": {"online_gamma": 0.002, "online_window": 100,
+                              "online_rescale_after": 3, "online_val_distance": 0.0146}}}
+    text = format_online_choice(cal, FOLDS)
+    assert table_row(text, "kalman")[:3] == ["kalman", "0.002 / 100 / 3 (1.46 pp)", "-"]
+    assert format_online_choice({"kalman": {"eth": {"coverage_50": 0.5}}}, FOLDS) == ""

@@ -83,11 +83,13 @@ def test_online_scores_follow_a_scene_the_val_calibration_misjudges():
     assert static["coverage_90"] < 0.8
     online = online_scores(cal, AdaptiveConformal((0.5, 0.9, 0.95), 0.01, 100),
                            forecast_scores(cal, *val), test)
-    assert {k for k in online if "coverage" in k} == {"online_coverage_50",
-                                                      "online_coverage_90", "online_coverage_95"}
+    assert {k for k in online if "coverage" in k} == {
+        f"online_coverage_{p}{tail}" for p in (50, 90, 95) for tail in ("", "_ci95")}
     assert online["online_unbounded_95"] < 0.01
     for level in (50, 90, 95):
         assert online[f"online_coverage_{level}"] == pytest.approx(level / 100, abs=0.02), level
+        lo, hi = online[f"online_coverage_{level}_ci95"]       # a bootstrap over the 200 paths
+        assert lo < online[f"online_coverage_{level}"] < hi and hi - lo < 0.1, level
 
 
 class PointOnly:

@@ -11,7 +11,7 @@ from omegaconf import OmegaConf
 from blindspot.bench.ethucy import build_parser, settings_from_args
 from blindspot.bench.ethucy import main as bench_main
 from blindspot.report.paper_values import ETHUCY_PUBLISHED
-from blindspot.traj.baselines import ConstantVelocity
+from blindspot.traj.baselines import ConstantVelocity, KalmanCV
 from blindspot.traj.ethucy import (
     FOLDS,
     TEST_WINDOWS,
@@ -312,3 +312,34 @@ def test_learned_scores_do_not_depend_on_the_workers_or_on_the_models_run_togeth
                            calibration=s.calibration, speed_edges=s.speed_edges)
                for f in s.folds}
     assert _scores(two.per_fold) == _scores(grouped)
+
+
+@pytest.mark.real_data
+def test_the_online_setting_is_chosen_on_the_folds_val_scenes_alone(ethucy_dir):
+    """Fold eth, Kalman, two candidate settings: the one scored on the test scene is the one
+    :func:`select_on_held_out_streams` picks from the fold's val windows alone (each val scene
+    met as a new scene), and the metrics name it with its val distance and carry a bootstrap
+    interval over the test pedestrians around the coverage."""
+    from blindspot.traj.conformal import AdaptiveConformal, select_on_held_out_streams
+    from blindspot.traj.distribution import mahalanobis_sq
+    from blindspot.traj.ethucy_benchmark import (CALIBRATION_LEVELS, reveal_times, run_fold,
+                                                 val_windows)
+
+    candidates = (AdaptiveConformal(CALIBRATION_LEVELS, 0.005, 100),
+                  AdaptiveConformal(CALIBRATION_LEVELS, 0.005, 100, 3))
+    s = EthUcySettings(ethucy_dir, models=("kalman",), folds=("eth",), calibration="mle")
+    calib = run_fold(ethucy_dir, "eth", s.models, s.lstm, progress=False, seq2seq=s.seq2seq,
+                     calibration=s.calibration, online=candidates)["kalman"].calibration
+    val = val_windows(ethucy_dir, "eth", 0)
+    kalman = KalmanCV().fit(load_split(ethucy_dir, "eth", "train").xy, objective="forecast",
+                            obs_len=8)
+    d2 = mahalanobis_sq(kalman.predict_distribution(val.observed(), 12), val.future())
+    best, table = select_on_held_out_streams(candidates, d2, *reveal_times(val.start),
+                                             val.file_index)
+    chosen = candidates[best]
+    assert (calib["online_gamma"], calib["online_window"], calib["online_rescale_after"]) == \
+        (chosen.gamma, chosen.window, chosen.rescale_prior_after)
+    assert calib["online_val_distance"] == pytest.approx(table[best].distance_mean)
+    for p in (50, 90, 95):
+        lo, hi = calib[f"online_coverage_{p}_ci95"]
+        assert lo <= calib[f"online_coverage_{p}"] <= hi

@@ -31,8 +31,9 @@ def format_calibration(calibration: Mapping[str, Mapping[str, Mapping[str, Any]]
     ellipses and the NLL (nats per point), from ``calibration.json``-shaped values; a cell is
     marked ``*`` where a coverage is more than 2 percentage points from nominal. A method whose
     rows hold ``online_coverage_*`` (the adaptive conformal ellipses,
-    :mod:`blindspot.traj.conformal`) gets a second row, "<method>, online", with the largest
-    share of its unbounded ellipses where that is not 0."""
+    :mod:`blindspot.traj.conformal`) gets a second row, "<method>, online", with the 95 %
+    interval of its 90 % coverage (``online_coverage_90_ci95``) and the largest share of its
+    unbounded ellipses where those are there."""
     lines = ["| method | " + " | ".join(folds) + " |", "|---|" + "---|" * len(folds)]
     for m, rows in calibration.items():
         for prefix, label in (("", m), ("online_", f"{m}, online")):
@@ -47,13 +48,39 @@ def format_calibration(calibration: Mapping[str, Mapping[str, Mapping[str, Any]]
                 cov = [(r[f"{prefix}coverage_{k}"], k / 100) for k in (50, 90, 95)]
                 txt = " / ".join(f"{c:.3f}" + ("*" if abs(c - n) > 0.02 else "")
                                  for c, n in cov)
-                if prefix:  # the share of unbounded ellipses, where there are any
+                if prefix:  # the 90 % interval and the unbounded share, where there are any
+                    ci = r.get("online_coverage_90_ci95")
                     u = max(r.get(f"online_unbounded_{k}", 0.0) for k in (50, 90, 95))
-                    cells.append(txt + (f"; unbounded {100 * u:.1f} %" if u > 0 else ""))
+                    cells.append(txt + (f"; 90 %: [{ci[0]:.2f}, {ci[1]:.2f}]" if ci else "")
+                                 + (f"; unbounded {100 * u:.1f} %" if u > 0 else ""))
                 else:
                     cells.append(f"{txt}; NLL {r['nll']:.2f}")
             lines.append(f"| {label} | " + " | ".join(cells) + " |")
     return "\n".join(lines)
+
+
+def format_online_choice(calibration: Mapping[str, Mapping[str, Mapping[str, Any]]],
+                         folds: Sequence[str]) -> str:
+    """Markdown table of the adaptive conformal setting each method chose on each fold's val
+    scenes (``online_gamma`` / ``online_window`` / ``online_rescale_after``) and its mean
+    distance from nominal there (``online_val_distance``, percentage points); "" when no row
+    names one."""
+    lines = ["| method | " + " | ".join(folds) + " |", "|---|" + "---|" * len(folds)]
+    seen = False
+    for m, rows in calibration.items():
+        cells = []
+        for f in folds:
+            r = rows.get(f) or {}
+            if "online_gamma" not in r:
+                cells.append("-")
+                continue
+            seen = True
+            d = r.get("online_val_distance")
+            cells.append(f"{r['online_gamma']:g} / {r['online_window']} / "
+                         f"{r['online_rescale_after']}"
+                         + (f" ({100 * d:.2f} pp)" if d is not None else ""))
+        lines.append(f"| {m} | " + " | ".join(cells) + " |")
+    return "\n".join(lines) if seen else ""
 
 
 def _cell(d: Mapping[str, float] | None) -> str:
@@ -223,11 +250,19 @@ def format_report(results: Results, validation: Results,
                   "Rows \"online\": the same forecasts' adaptive conformal ellipses "
                   "(`blindspot.traj.conformal`, Gibbs & Candès 2021): each test scene a stream, "
                   "each prediction's ellipse radii the conformal quantiles of the last outcomes "
-                  "already revealed when it is made (the val scores before any), at levels moved "
-                  "by ACI; they use the scene's past outcomes, never the one being scored. "
+                  "already revealed when it is made (each future point at its own frame; the "
+                  "val scores before any, taking the scene's scale once a few of its own are "
+                  "known), at levels moved by ACI; they use the scene's past outcomes, never the "
+                  "one being scored. \"90 %: [lo, hi]\": the 95 % interval of the 90 % "
+                  "coverage, a bootstrap over the scene's pedestrians (one pedestrian's windows "
+                  "overlap and are not independent draws). "
                   "\"unbounded\": the share of points whose ellipse at some level is infinite "
                   "(ACI asked for more than the window can give).",
                   "", format_calibration(calibration, folds),
+                  *(["", "Online setting each method chose on each fold's own val scenes "
+                     "(ACI step / window / rescale after; in brackets its mean distance from "
+                     "nominal there, each val scene met as a new scene):", "", choice]
+                    if (choice := format_online_choice(calibration, folds)) else []),
                   "", "Reliability figure: `reports/figures/ethucy_reliability.png`."]
     if ablation:
         parts += ["", "## What helped (ablations)", "", ablation.strip()]

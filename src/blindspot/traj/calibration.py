@@ -240,14 +240,16 @@ def online_scores(predictor, online, prior: np.ndarray,
     :func:`path_pairs` with ``with_index``. The paths are one stream, met one after another
     as one radar meets walkers (path k's outcomes known before path k + 1 starts; a single walk
     of a few seconds is too short to learn from its own outcomes); within a path a window is
-    predicted at its last history frame and its outcome known at its last future frame."""
+    predicted at its last history frame and each future point known at its own frame.
+    ``online_coverage_<p>_ci95``: the interval of a bootstrap over the paths."""
     h, f, path, start = test
     d2 = forecast_scores(predictor, h, f)
     start = np.asarray(start, dtype=np.int64)
     span = int(start.max(initial=0)) + h.shape[1] + f.shape[1] + 1  # frames of a path, and more
     t_pred = np.asarray(path, dtype=np.int64) * span + start + h.shape[1] - 1
-    return online.coverage(d2, t_pred, t_pred + f.shape[1], np.zeros(len(d2), np.int64),
-                           prior)
+    t_seen = t_pred[:, None] + 1 + np.arange(f.shape[1])
+    return online.coverage(d2, t_pred, t_seen, np.zeros(len(d2), np.int64), prior,
+                           clusters=np.asarray(path))
 
 
 def to_record(p: ScaledPredictor) -> dict:

@@ -346,10 +346,13 @@ class EthUcyConfig(TypedConfig):
             :func:`blindspot.traj.distribution.fit_conditional_scale_mixture`).
         calibration_speed_edges: the observed-speed class edges of ``"conditional"``, m/s,
             increasing.
-        online_gamma: step size of the adaptive conformal ellipses' level updates (ACI;
-            :class:`blindspot.traj.conformal.AdaptiveConformal`; Gibbs & Candès 2021 use
-            0.005), in [0, 1).
-        online_window: revealed scores those ellipses keep per step (chosen on the val split).
+        online_gammas / online_windows / online_rescales: the candidate settings (every
+            combination) of the adaptive conformal ellipses
+            (:class:`blindspot.traj.conformal.AdaptiveConformal`): the ACI step size per
+            prediction time (Gibbs & Candès 2021 use 0.005), in [0, 1); the revealed scores
+            kept per step; the own outcomes after which the prior scores take the scene's
+            scale (``rescale_prior_after``; 0 off). Each fold and model chooses among them on
+            its own val scenes (:func:`blindspot.traj.conformal.select_on_held_out_streams`).
         seq2seq: the direct predictor's model and training settings
             (:class:`blindspot.traj.seq2seq.Seq2SeqConfig`; its ``cell`` is set by the model
             key, its ``threads`` by ``threads``, its first seed by the top-level ``seed``).
@@ -363,8 +366,9 @@ class EthUcyConfig(TypedConfig):
     threads: int = setting(ge=1)
     calibration: str = setting(choices=("mle", "quantile", "mixture", "conditional"))
     calibration_speed_edges: tuple[float, ...] = setting(gt=0.0, ordered=True, min_items=1)
-    online_gamma: float = setting(ge=0.0, lt=1.0)
-    online_window: int = setting(ge=1)
+    online_gammas: tuple[float, ...] = setting(ge=0.0, lt=1.0, min_items=1)
+    online_windows: tuple[int, ...] = setting(ge=1, min_items=1)
+    online_rescales: tuple[int, ...] = setting(ge=0, min_items=1)
     seq2seq: Seq2SeqConfig = setting()
 
 
@@ -464,8 +468,8 @@ class CalibrationConfig(TypedConfig):
     scale_method / scale_level: :func:`fit_step_scale`'s method and level, or ``"mixture"``:
         a per-step scale mixture (:func:`blindspot.traj.distribution.fit_scale_mixture`,
         heavy-tailed errors; ``scale_level`` unused).
-    online_gamma / online_window: the adaptive conformal ellipses scored beside
-        (:class:`blindspot.traj.conformal.AdaptiveConformal`; the ETH/UCY group's values).
+    online_gamma / online_window / online_rescale_after: the adaptive conformal ellipses
+        scored beside (:class:`blindspot.traj.conformal.AdaptiveConformal`).
     """
 
     GROUP = "calibration"
@@ -476,3 +480,4 @@ class CalibrationConfig(TypedConfig):
     scale_level: float = setting(gt=0.0, lt=1.0)
     online_gamma: float = setting(ge=0.0, lt=1.0)
     online_window: int = setting(ge=1)
+    online_rescale_after: int = setting(ge=0)

@@ -37,6 +37,7 @@ test scene: coverage of the 50/90/95 % ellipses and the NLL (:func:`calibration_
 
 from __future__ import annotations
 
+import itertools
 import time
 from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass, field, fields, replace
@@ -48,7 +49,7 @@ import numpy as np
 
 from blindspot.traj.baselines import ConstantVelocity, KalmanCV
 from blindspot.traj.config import ETHUCY_MODELS, EthUcyConfig, Seq2SeqConfig
-from blindspot.traj.conformal import AdaptiveConformal
+from blindspot.traj.conformal import AdaptiveConformal, select_on_held_out_streams
 from blindspot.traj.distribution import (
     ConditionalScaleMixture,
     GaussianForecast,
@@ -195,9 +196,11 @@ class EthUcySettings:
             per-step scale mixture, :func:`fit_scale_mixture`) or ``"conditional"`` (one
             mixture per class of observed speed, :func:`fit_conditional_scale_mixture`).
         speed_edges: the classes' observed-speed edges for ``"conditional"``, m/s.
-        online: the adaptive conformal ellipses scored beside the val calibration
-            (:class:`~blindspot.traj.conformal.AdaptiveConformal`: each test scene a stream
-            whose revealed outcomes keep the ellipses calibrated; ``online_coverage_*``).
+        online: candidate settings of the adaptive conformal ellipses scored beside the val
+            calibration (:class:`~blindspot.traj.conformal.AdaptiveConformal`: each test scene
+            a stream whose revealed outcomes keep the ellipses calibrated;
+            ``online_coverage_*``); each fold and model chooses one on its own val scenes
+            (:func:`online_coverage`).
 
     Raises:
         ValueError: an unknown model or fold, or none (naming ``models`` / ``folds``).
@@ -210,8 +213,8 @@ class EthUcySettings:
     seq2seq: Seq2SeqConfig = field(default_factory=Seq2SeqConfig)
     calibration: str = "mixture"
     speed_edges: tuple[float, ...] = SPEED_EDGES_M_S
-    online: AdaptiveConformal = field(
-        default_factory=lambda: AdaptiveConformal(CALIBRATION_LEVELS))
+    online: tuple[AdaptiveConformal, ...] = field(
+        default_factory=lambda: (AdaptiveConformal(CALIBRATION_LEVELS),))
 
     def __post_init__(self) -> None:
         if self.calibration not in CALIBRATIONS:
@@ -241,8 +244,10 @@ class EthUcySettings:
                    seq2seq=replace(config.seq2seq, seed=int(seed), threads=config.threads),
                    calibration=config.calibration,
                    speed_edges=tuple(config.calibration_speed_edges),
-                   online=AdaptiveConformal(CALIBRATION_LEVELS, config.online_gamma,
-                                            config.online_window))
+                   online=tuple(AdaptiveConformal(CALIBRATION_LEVELS, g, w, k)
+                                for g, w, k in itertools.product(
+                                    config.online_gammas, config.online_windows,
+                                    config.online_rescales)))
 
 
 @dataclass
@@ -342,21 +347,50 @@ def val_windows(data_dir: Path, fold: str, neighbours: int = 0) -> Windows:
     return load_split(data_dir, fold, "val", neighbours=neighbours)
 
 
-def online_coverage(online: AdaptiveConformal, val_forecast: GaussianForecast,
-                    val_truth: np.ndarray, test_forecast: GaussianForecast, test: Windows
-                    ) -> dict[str, float]:
+def reveal_times(start: np.ndarray, per_step: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """``(t_predicted (N,), t_revealed)`` of Social-GAN windows starting at frame rows ``start``
+    (N,), frame rows of 0.4 s: a window is predicted at its last observed frame, ``start +
+    OBS_LEN - 1``; step h (0-based) of its future is known at its own frame, ``t_predicted + 1
+    + h`` (``per_step``; (N, PRED_LEN)), or the whole future at its last frame (N,)."""
+    tp = np.asarray(start, dtype=np.int64) + OBS_LEN - 1
+    if per_step:
+        return tp, tp[:, None] + 1 + np.arange(PRED_LEN)
+    return tp, tp + PRED_LEN
+
+
+def online_coverage(online: Sequence[AdaptiveConformal], val_forecast: GaussianForecast,
+                    val: Windows, test_forecast: GaussianForecast, test: Windows
+                    ) -> dict[str, Any]:
     """``{"online_coverage_50", ...}``: coverage on the test windows of the adaptive conformal
-    ellipses (:class:`~blindspot.traj.conformal.AdaptiveConformal`) of a forecast whose
-    validation scores (d^2 of ``val_forecast`` against ``val_truth``) fill the first window.
-    Each test scene file is a stream; a window is predicted at its last observed frame and its
-    outcome known at its last future frame (``start + OBS_LEN - 1``, ``start + OBS_LEN +
-    PRED_LEN - 1``, frame rows of 0.4 s); the ellipse of each window uses only the outcomes
-    known when it is predicted."""
-    d2_val = mahalanobis_sq(val_forecast, val_truth)
+    ellipses (:class:`~blindspot.traj.conformal.AdaptiveConformal`) of a forecast, with the
+    setting chosen among ``online`` on the val windows alone
+    (:func:`~blindspot.traj.conformal.select_on_held_out_streams`: each val scene met as a new
+    scene, the fold's other val scenes its prior; with one val scene, the first candidate).
+    The val scores (d^2 of ``val_forecast``) then fill the test scenes' first window. Each
+    test scene file is a stream; each future point is known at its own frame
+    (:func:`reveal_times`); the ellipse of each window uses only the outcomes known when it
+    is predicted. Also ``online_coverage_<p>_ci95`` (a bootstrap over the test pedestrians,
+    ``track_id``), the setting chosen (``online_gamma``, ``online_window``,
+    ``online_rescale_after``) and its mean distance from nominal on the val scenes
+    (``online_val_distance``).
+
+    A fold's val scenes never include its own test recording (the tails of the *other*
+    folds' test recordings they do hold are not this fold's test scene), so the choice never
+    looks at the scene it is scored on."""
+    d2_val = mahalanobis_sq(val_forecast, val.future())
+    times_val = reveal_times(val.start)
+    best, table = 0, None
+    if len(online) > 1 and np.unique(val.file_index).size > 1:
+        best, table = select_on_held_out_streams(online, d2_val, *times_val, val.file_index)
+    chosen = online[best]
     d2 = mahalanobis_sq(test_forecast, test.future())
-    start = np.asarray(test.start, dtype=np.int64)
-    return online.coverage(d2, start + OBS_LEN - 1, start + OBS_LEN + PRED_LEN - 1,
-                           test.file_index, d2_val)
+    out: dict[str, Any] = chosen.coverage(d2, *reveal_times(test.start), test.file_index,
+                                          d2_val, clusters=test.track_id)
+    out.update(online_gamma=chosen.gamma, online_window=chosen.window,
+               online_rescale_after=chosen.rescale_prior_after)
+    if table is not None:
+        out["online_val_distance"] = table[best].distance_mean
+    return out
 
 
 def calibration_scores(forecast: GaussianForecast, truth: np.ndarray,
@@ -414,12 +448,12 @@ def run_fold(data_dir: Path, fold: str, models: Sequence[str], lstm: LSTMBenchSe
              progress: bool = True, seq2seq: Seq2SeqConfig | None = None,
              calibration: str = "mixture",
              speed_edges: Sequence[float] = SPEED_EDGES_M_S,
-             online: AdaptiveConformal | None = None) -> dict[str, FoldOutcome]:
+             online: Sequence[AdaptiveConformal] | None = None) -> dict[str, FoldOutcome]:
     """Evaluate the requested models on one fold: ADE/FDE on test and val, and (models with a
     distribution) calibration on test after a calibration fitted on val, and the coverage of
-    the ``online`` adaptive conformal ellipses (:func:`online_coverage`; default
-    :class:`AdaptiveConformal`'s settings)."""
-    online = online if online is not None else AdaptiveConformal(CALIBRATION_LEVELS)
+    the adaptive conformal ellipses of the setting chosen among ``online`` on val
+    (:func:`online_coverage`; default: :class:`AdaptiveConformal`'s settings alone)."""
+    online = tuple(online) if online else (AdaptiveConformal(CALIBRATION_LEVELS),)
     seq2seq = seq2seq if seq2seq is not None else Seq2SeqConfig()
     k = seq2seq.neighbours if any(m in SEQ2SEQ_CELL for m in models) else 0
     test = load_split(data_dir, fold, "test", neighbours=k)
@@ -469,7 +503,7 @@ def run_fold(data_dir: Path, fold: str, models: Sequence[str], lstm: LSTMBenchSe
                 calib = calibration_scores(raw_test.scaled(scale), test.future())
             calib["uncalibrated"] = {k: v for k, v in calibration_scores(
                 raw_test, test.future()).items() if k != "reliability"}
-            calib.update(online_coverage(online, raw_val, val.future(), raw_test, test))
+            calib.update(online_coverage(online, raw_val, val, raw_test, test))
         out[name] = FoldOutcome(a, f, len(test), time.perf_counter() - t0, fitted, calib)
     return out
 
@@ -558,7 +592,7 @@ def benchmark_items(models: Sequence[str], folds: Sequence[str]) -> list[tuple[s
 
 def _run_item(item: tuple[str, str], *, data_dir: Path, lstm: LSTMBenchSettings,
               progress: bool, seq2seq: Seq2SeqConfig, calibration: str,
-              speed_edges: Sequence[float], online: AdaptiveConformal) -> FoldOutcome:
+              speed_edges: Sequence[float], online: Sequence[AdaptiveConformal]) -> FoldOutcome:
     """One model on one fold (module level, so it pickles): :func:`run_fold` with that model."""
     fold, model = item
     return run_fold(data_dir, fold, (model,), lstm, progress=progress, seq2seq=seq2seq,
