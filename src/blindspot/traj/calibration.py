@@ -231,7 +231,7 @@ def forecast_scores(predictor, history: np.ndarray, future: np.ndarray) -> np.nd
 
 
 def online_scores(predictor, online, prior: np.ndarray,
-                  test: tuple[np.ndarray, ...]) -> dict[str, float]:
+                  test: tuple[np.ndarray, ...]) -> dict[str, float | list[float]]:
     """``{"online_coverage_50", ...}`` of a calibrated predictor's adaptive conformal ellipses
     ``online`` (a :class:`~blindspot.traj.conformal.AdaptiveConformal`, passed in so that the
     stages reading a calibration do not import it) on test pairs: ``prior`` (M, H) the

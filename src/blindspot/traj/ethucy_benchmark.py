@@ -376,7 +376,8 @@ def online_coverage(online: Sequence[AdaptiveConformal], val_forecast: GaussianF
 
     A fold's val scenes never include its own test recording (the tails of the *other*
     folds' test recordings they do hold are not this fold's test scene), so the choice never
-    looks at the scene it is scored on."""
+    looks at the scene it is scored on. Constant velocity's noise model is fitted on all the
+    val scenes, the held-out one included, so its val distances are somewhat optimistic."""
     d2_val = mahalanobis_sq(val_forecast, val.future())
     times_val = reveal_times(val.start)
     best, table = 0, None
