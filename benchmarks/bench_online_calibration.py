@@ -23,13 +23,13 @@ candidates give with constant velocity and the Kalman filter:
 * ``--split test``: the test scenes as streams (what the ethucy stage reports, there for every
   model), with the val-calibrated scale mixture's coverage beside: a check, not a choice.
 
-Settings: ``gamma`` (ACI step per prediction time), ``window`` (revealed scores kept),
-``rescale`` (:class:`~blindspot.traj.conformal.AdaptiveConformal`'s ``rescale_prior_after``; 0
-off) and ``reveal`` (``step``: each future point known at its own frame; ``whole``: the whole
-future at its last frame). Prints per setting the worst and mean distance from nominal and the
-largest share of unbounded ellipses (with ``--per-stream`` or a single setting, first each
-stream's 50 / 90 / 95 % coverage). Constant velocity and the Kalman filter only: they need no training, so the table
-takes a minute (the learned models' online coverage is in ``reports/metrics/calibration.json``).
+Settings: ``gamma`` (ACI step per prediction time), ``window`` (revealed scores kept), ``rescale``
+(:class:`~blindspot.traj.conformal.AdaptiveConformal`'s ``rescale_prior_after``; 0 off) and
+``reveal`` (``step``: each future point known at its own frame; ``whole``: the whole future at its
+last frame). Prints per setting the worst and mean distance from nominal and the largest share of
+unbounded ellipses (with ``--per-stream`` or a single setting, first each stream's 50 / 90 / 95 %
+coverage). Constant velocity and the Kalman filter only: they need no training, so the table takes
+about 1.5 min (the learned models' online coverage is in ``reports/metrics/calibration.json``).
 """
 
 from __future__ import annotations

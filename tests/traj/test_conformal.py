@@ -236,8 +236,9 @@ def test_the_cluster_bootstrap_widens_with_correlated_points():
 def test_the_choice_on_held_out_streams_prefers_what_a_new_scene_needs():
     """Three validation scenes, one with errors 8x the others' and short: met as a new scene
     with the others as its prior, the plain window under-covers it (and ACI, pushing the level
-    up, runs out of scores) while the rescaled prior does not, so the rescale is chosen; a window too small for the 95 % level (unbounded
-    ellipses) is never chosen, however close it comes; ties go to the first candidate."""
+    up, runs out of scores) while the rescaled prior does not, so the rescale is chosen; a
+    window too small for the 95 % level (unbounded ellipses) is never chosen, however close it
+    comes; ties go to the first candidate."""
     from blindspot.traj.conformal import select_on_held_out_streams
 
     parts = [stream(400, seed=31), stream(400, seed=32),
