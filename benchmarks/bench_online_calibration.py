@@ -42,7 +42,8 @@ from pathlib import Path
 import numpy as np
 
 from blindspot.traj.baselines import ConstantVelocity, KalmanCV
-from blindspot.traj.conformal import AdaptiveConformal, ellipse_hits
+from blindspot.traj.conformal import (AdaptiveConformal, HeldOutStreamScore, rank_held_out,
+                                      stream_coverage)
 from blindspot.traj.distribution import fit_scale_mixture, mahalanobis_sq
 from blindspot.traj.ethucy import FOLDS, OBS_LEN, PRED_LEN, load_split
 from blindspot.traj.ethucy_benchmark import (CALIBRATION_LEVELS, MIXTURE_COMPONENTS,
@@ -70,30 +71,27 @@ def main() -> None:
           f"{' / '.join(f'{round(100 * x)}' for x in levels)} % ellipses")
     for fold in FOLDS:
         dist: dict[tuple, list[np.ndarray]] = {k: [] for k in settings}  # |coverage - nominal|
-        unbounded = {k: 0.0 for k in settings}
+        unbounded: dict[tuple, list[float]] = {k: [] for k in settings}
         for name, d2, start, prior, scene, note in _streams(data, fold, args.split, levels):
             row = [f"{fold:6s} {name:6s} {scene[:16]:16s} n={len(d2):6d}{note}"]
             for key in settings:
                 reveal, gamma, window, rescale = key
-                online = AdaptiveConformal(tuple(levels), gamma, window, rescale)
-                radii = online.radii(d2, *reveal_times(start, reveal == "step"),
-                                     np.zeros(len(d2), np.int64), prior)
-                hits = ellipse_hits(d2, radii)
-                seen = ~np.isnan(d2)
-                unb = float(np.isinf(radii[:, seen]).mean(axis=1).max())
+                hits, unb = stream_coverage(AdaptiveConformal(tuple(levels), gamma, window,
+                                                              rescale),
+                                            d2, *reveal_times(start, reveal == "step"), prior)
                 dist[key].append(np.abs(hits - levels))
-                unbounded[key] = max(unbounded[key], unb)
+                unbounded[key].append(unb)
                 row.append(f"{_name(key)} {_fmt(hits)}" + (f" u {unb:.3f}" if unb else ""))
             if args.per_stream or len(settings) == 1:
                 print("  ".join(row))
-        ranked = sorted(settings, key=lambda k: (unbounded[k] > 0, float(np.mean(dist[k]))))
-        print(f"{fold}: {len(dist[ranked[0]])} streams; per setting the worst / mean level off "
+        table = [HeldOutStreamScore.of(dist[k], unbounded[k]) for k in settings]
+        ranked = rank_held_out(table)
+        print(f"{fold}: {len(dist[settings[0]])} streams; per setting the worst / mean level off "
               f"nominal (pp) and the largest unbounded share, best first:")
-        for k in ranked[:args.top] if args.top else ranked:
-            d = np.asarray(dist[k])
-            print(f"  {_name(k):28s} {100 * d.max():5.1f} / {100 * d.mean():5.2f} pp, "
-                  f"{100 * unbounded[k]:.1f} % unbounded")
-
+        for i in ranked[:args.top] if args.top else ranked:
+            t = table[i]
+            print(f"  {_name(settings[i]):28s} {100 * t.distance_worst:5.1f} / "
+                  f"{100 * t.distance_mean:5.2f} pp, {100 * t.unbounded:.1f} % unbounded")
 
 def _streams(data: Path, fold: str, split: str, levels: np.ndarray):
     """(model, d2 (N, H), start (N,), prior (M, H), scene, note) of each stream of a fold."""

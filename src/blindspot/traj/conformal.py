@@ -64,7 +64,8 @@ import numpy as np
 from blindspot.arrays import check_array
 
 __all__ = ["AdaptiveConformal", "ConformalError", "HeldOutStreamScore",
-           "cluster_bootstrap_coverage", "ellipse_hits", "select_on_held_out_streams"]
+           "cluster_bootstrap_coverage", "ellipse_hits", "rank_held_out",
+           "select_on_held_out_streams", "stream_coverage"]
 
 #: prefix of the adaptive ellipses' coverage keys in the metrics files
 #: (``online_coverage_50`` beside the val calibration's ``coverage_50``)
@@ -301,6 +302,35 @@ class HeldOutStreamScore:
     distance_worst: float
     unbounded: float
 
+    @classmethod
+    def of(cls, distances: Sequence[np.ndarray], unbounded: Sequence[float]
+           ) -> HeldOutStreamScore:
+        """From each stream's (L,) distances |coverage - nominal| and unbounded share."""
+        d = np.asarray(distances, float)
+        return cls(float(d.mean()), float(d.max()), float(max(unbounded, default=0.0)))
+
+
+def stream_coverage(candidate: AdaptiveConformal, scores: np.ndarray, t_predicted: np.ndarray,
+                    t_revealed: np.ndarray, prior: np.ndarray) -> tuple[np.ndarray, float]:
+    """One stream met with ``prior`` as its first window (the arguments of
+    :meth:`AdaptiveConformal.radii`, one stream): the (L,) coverage of its ellipses and the
+    largest share, over levels, of its finite scores whose ellipse is unbounded (0 without a
+    finite score)."""
+    s = np.asarray(scores, float)
+    radii = candidate.radii(s, t_predicted, t_revealed, np.zeros(len(s), np.int64), prior)
+    seen = ~np.isnan(s)
+    unbounded = float(np.isinf(radii[:, seen]).mean(axis=1).max()) if seen.any() else 0.0
+    return ellipse_hits(s, radii), unbounded
+
+
+def rank_held_out(table: Sequence[HeldOutStreamScore]) -> list[int]:
+    """Indices of ``table``, best first: the candidates that never give an unbounded ellipse by
+    their mean distance from nominal, then the others by their unbounded share and distance;
+    ties keep the table's order."""
+    return sorted(range(len(table)),
+                  key=lambda i: (table[i].unbounded > 0, table[i].unbounded,
+                                 table[i].distance_mean))
+
 
 def select_on_held_out_streams(candidates: Sequence[AdaptiveConformal], scores: np.ndarray,
                                t_predicted: np.ndarray, t_revealed: np.ndarray,
@@ -309,10 +339,11 @@ def select_on_held_out_streams(candidates: Sequence[AdaptiveConformal], scores: 
 
     Each validation stream (a scene recording) is run as a new scene: its first window is
     filled with the scores of the *other* streams (the prior a test scene meets), and its
-    ellipses are scored against its own outcomes. The choice is the candidate with the
-    smallest mean distance from nominal over streams and levels among those that never give an
-    unbounded ellipse (one that says nothing); if every candidate does, the smallest largest
-    unbounded share, then the distance. Ties go to the first candidate.
+    ellipses are scored against its own outcomes (:func:`stream_coverage`). The choice is the
+    first of :func:`rank_held_out`: the candidate with the smallest mean distance from nominal
+    over streams and levels among those that never give an unbounded ellipse (one that says
+    nothing); if every candidate does, the smallest largest unbounded share, then the
+    distance. Ties go to the first candidate.
 
     Args:
         candidates: settings to choose from, all with the same ``levels``.
@@ -340,20 +371,11 @@ def select_on_held_out_streams(candidates: Sequence[AdaptiveConformal], scores: 
     tp, tr = np.asarray(t_predicted), np.asarray(t_revealed)
     table = []
     for c in candidates:
-        dist, unb = [], 0.0
-        for g in names:
-            own = group == g
-            radii = c.radii(s[own], tp[own], tr[own], np.zeros(int(own.sum()), np.int64),
-                            s[~own])
-            seen = ~np.isnan(s[own])
-            dist.append(np.abs(ellipse_hits(s[own], radii) - levels))
-            if seen.any():
-                unb = max(unb, float(np.isinf(radii[:, seen]).mean(axis=1).max()))
-        d = np.asarray(dist)
-        table.append(HeldOutStreamScore(float(d.mean()), float(d.max()), unb))
-    best = min(range(len(candidates)),
-               key=lambda i: (table[i].unbounded > 0, table[i].unbounded, table[i].distance_mean))
-    return best, table
+        per_stream = [stream_coverage(c, s[own], tp[own], tr[own], s[~own])
+                      for own in (group == g for g in names)]
+        table.append(HeldOutStreamScore.of([np.abs(hits - levels) for hits, _ in per_stream],
+                                           [unb for _, unb in per_stream]))
+    return rank_held_out(table)[0], table
 
 
 def ellipse_hits(scores: np.ndarray, radii: np.ndarray) -> np.ndarray:
