@@ -1,14 +1,26 @@
 """Do the CPU kernel selectors change our bytes? Hashes of the radar chain and of LSTM training.
 
-    python benchmarks/bench_kernels.py [--only radar|train]
+    python benchmarks/bench_kernels.py [--only radar|paths|driving|train]
 
-Runs the detect stage's work on the tiny profile (2 scenes x 4 frames: simulated frames and
-detections) and 30 Adam steps of a 64-unit LSTM in fresh interpreters, once with blindspot's
-pinned kernels (blindspot.kernels.PINS) and once per selector set to another kernel family this
-machine can run, and prints a table of hashes. Rows that differ from the pinned row show that
-the selector reaches our bytes, i.e. that a CPU choosing another kernel family by itself would
-compute other bytes; the pins make every AVX2 x86-64 machine choose the same family.
-(The radar rows take about a minute each on the project's 2-core machine.)
+Runs in fresh interpreters, once with blindspot's pinned kernels (blindspot.kernels.PINS) and
+once per selector set to another kernel family this machine can run, and prints a table of
+hashes:
+
+* radar: the detect stage's work on the tiny profile (2 scenes x 4 frames: simulated frames and
+  detections);
+* paths: the paths stage's work on four of its walks (the reduced chain: synthesised patches,
+  CFAR, MUSIC on each frame's moving detections, the pedestrian's point);
+* driving: the driving_measure stage's work on eight frames of one named driving scene (the
+  synthesised range-Doppler map, CFAR, Doppler unwrapping, MUSIC, the static test);
+* train: 30 Adam steps of a 64-unit LSTM.
+
+A row that differs from the pinned row shows that the selector reaches those bytes, i.e. that a
+CPU choosing another kernel family by itself would compute other bytes; the pins make every AVX2
+x86-64 machine choose the same family. The radar chain's stages must not be reached by PyTorch's
+selectors (MKL, ATen, oneDNN): MKL's AVX2 branch computes other bytes on AMD than on Intel CPUs,
+which no pin fixes, so the radar code does not use torch (an import contract in .importlinter),
+and their rows must say "yes". (About a minute per radar row, 15 s per paths or driving row on
+the project's 2-core machine.)
 """
 
 from __future__ import annotations
@@ -49,6 +61,49 @@ print(json.dumps({
 }))
 """
 
+PATHS = r"""
+import blindspot, hashlib, json, sys
+import numpy as np, pandas as pd
+from blindspot import config, experiment
+from blindspot.synth.path_dataset import measure_path_set, path_table
+from blindspot.synth.path_measurement import PedestrianModel
+from blindspot.traj.paths import random_path_set
+
+cfg = config.compose(["profile=tiny", "dataset.n_paths=4"], config_dir=sys.argv[1])
+radar, dataset = experiment.radar(cfg), experiment.dataset(cfg)
+paths = random_path_set(dataset.n_paths, dataset.path_spec(), seed=dataset.seed)
+walker = PedestrianModel.from_scene(next(iter(experiment.scenes(cfg).values())))
+measured = measure_path_set(paths, radar, experiment.cfar(cfg), experiment.doa(cfg),
+                            experiment.detect(cfg), pedestrian=walker, seed=dataset.seed,
+                            jobs=int(sys.argv[2]))
+table = path_table(paths, measured, radar.frame_period_s)
+print(json.dumps({
+    "n_points": int(table.x_m.notna().sum()),
+    "paths": hashlib.sha256(pd.util.hash_pandas_object(table, index=True).to_numpy().tobytes()
+                            ).hexdigest(),
+}))
+"""
+
+DRIVING = r"""
+import blindspot, hashlib, json, sys
+import numpy as np, pandas as pd
+from blindspot import config, experiment as ex
+from blindspot.synth.driving_measurement import measure_driving
+
+cfg = config.compose([], config_dir=sys.argv[1])
+group, named = ex.scenarios(cfg)
+scene = named["cpnco"]
+frames = np.arange(16, 24)
+res = measure_driving([scene], group, ex.driving_radar(cfg), ex.driving_cfar(cfg), ex.doa(cfg),
+                      ex.detect(cfg), ex.ego_motion(cfg),
+                      adc_headroom_db=ex.sim(cfg).adc_headroom_db, frames={scene.name: frames},
+                      frames_per_batch=4, jobs=int(sys.argv[2]))
+h = lambda df: hashlib.sha256(pd.util.hash_pandas_object(df, index=True).to_numpy().tobytes()
+                              ).hexdigest()
+print(json.dumps({"n_points": len(res.points), "n_angles": int(res.points.angle_deg.notna().sum()),
+                  "points": h(res.points), "measured": h(res.measured)}))
+"""
+
 TRAIN = r"""
 import blindspot, hashlib, json, torch
 torch.manual_seed(0); torch.set_num_threads(1)
@@ -65,10 +120,14 @@ print(json.dumps({"weights": hashlib.sha256(b"".join(p.detach().numpy().tobytes(
 """
 
 # another kernel family per selector, each runnable on any x86-64 CPU with AVX2
+TORCH_SELECTORS = {"ATEN_CPU_CAPABILITY": "default", "MKL_CBWR": "COMPATIBLE",
+                   "ONEDNN_MAX_CPU_ISA": "SSE41"}
 VARIANTS = {
-    "radar": {"OPENBLAS_CORETYPE": "Sandybridge", "NPY_DISABLE_CPU_FEATURES": "X86_V3"},
-    "train": {"ATEN_CPU_CAPABILITY": "default", "MKL_CBWR": "COMPATIBLE",
-              "ONEDNN_MAX_CPU_ISA": "SSE41"},
+    "radar": {"OPENBLAS_CORETYPE": "Sandybridge", "NPY_DISABLE_CPU_FEATURES": "X86_V3",
+              **TORCH_SELECTORS},
+    "paths": {"OPENBLAS_CORETYPE": "Sandybridge", **TORCH_SELECTORS},
+    "driving": {"OPENBLAS_CORETYPE": "Sandybridge", **TORCH_SELECTORS},
+    "train": TORCH_SELECTORS,
 }
 THREAD_VARS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
 
@@ -91,13 +150,26 @@ def radar_hashes(override: dict[str, str], threads: int = 1, jobs: int = 1) -> d
     return run(RADAR, [str(REPO / "conf"), str(jobs)], override, threads)
 
 
+def paths_hashes(override: dict[str, str], threads: int = 1, jobs: int = 1) -> dict:
+    """Hashes of four of the paths stage's measured walks (see module docstring)."""
+    return run(PATHS, [str(REPO / "conf"), str(jobs)], override, threads)
+
+
+def driving_hashes(override: dict[str, str], threads: int = 1, jobs: int = 1) -> dict:
+    """Hashes of eight frames of the driving measurement of one scene (see module docstring)."""
+    return run(DRIVING, [str(REPO / "conf"), str(jobs)], override, threads)
+
+
+WORK = {"radar": RADAR, "paths": PATHS, "driving": DRIVING}
+
+
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--only", choices=sorted(VARIANTS))
     a = ap.parse_args(argv)
     print(f"{'work':6} {'selector':40} hashes (first 12 hex)   same as pinned")
     for work in [a.only] if a.only else sorted(VARIANTS):
-        code, args = (RADAR, [str(REPO / "conf"), "1"]) if work == "radar" else (TRAIN, [])
+        code, args = (WORK[work], [str(REPO / "conf"), "1"]) if work in WORK else (TRAIN, [])
         pinned = run(code, args, {})
         print(f"{work:6} {'pinned (blindspot.kernels.PINS)':40} "
               + " ".join(str(v)[:12] for v in pinned.values()), flush=True)

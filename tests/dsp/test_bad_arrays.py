@@ -155,7 +155,7 @@ def test_tdm_compensation_takes_finite_channels_and_bins(x, bins):
 @pytest.mark.parametrize("cropped", [False, True])
 def test_one_bad_sample_anywhere_in_a_frame_is_named(paper, bad, cropped):  # noqa: F811
     """The cheap finiteness check (one output bin per channel) sees a NaN/inf at any sample of
-    any chirp, TX, RX, at full range (torch MKL) and with a range window (scipy)."""
+    any chirp, TX, RX, at full range (FFTW) and with a range window (scipy)."""
     radar, _, chain = paper
     rng = np.random.default_rng(7)
     rd = RangeDoppler(radar.n_chirps, radar.n_samples, n_range=100 if cropped else None)

@@ -165,39 +165,11 @@ def test_real_valued_forward_backward_equals_the_complex_one(m, subarray):
         np.testing.assert_allclose(got, ref, rtol=1e-7)
 
 
-@pytest.mark.parametrize("n_snap,fb,sub", [(64, False, None), (9, False, None), (9, True, None),
-                                           (100, False, None), (9, True, 64), (9, False, 40),
-                                           (9, True, 41), (5, True, None)])
-def test_torch_backend_equals_numpy_backend(n_snap, fb, sub):
-    """One MUSIC, two back-ends for its subspace: the torch path (Gram-matrix shortcut, unitary
-    forward-backward) gives the numpy path's angles, spectra and peak values."""
-    rng = np.random.default_rng(2)
-    p = np.arange(86) * 0.5
-    d = 40
-    theta = rng.uniform(-60, 60, (d, 3))
-    amp = rng.normal(size=(d, 3, n_snap)) + 1j * rng.normal(size=(d, 3, n_snap))
-    amp[:, 0] *= 3
-    a = np.exp(2j * np.pi * p[None, :, None] * np.sin(np.radians(theta))[:, None, :])
-    x = a @ amp + 0.5 * (rng.normal(size=(d, 86, n_snap)) + 1j * rng.normal(size=(d, 86, n_snap)))
-    opts = dict(n_targets=2, n_signals=3, forward_backward=fb, subarray=sub,
-                return_power=True, return_spectrum=True)
-    ref = music_angles(x, p, **opts)
-    got = music_angles(x, p, backend="torch", **opts)
-    np.testing.assert_allclose(got[0], ref[0], atol=1e-9)           # angles, deg
-    np.testing.assert_allclose(got[1], ref[1], rtol=1e-7)           # peak pseudo-spectrum
-    np.testing.assert_allclose(got[2], ref[2], rtol=1e-7)           # spectrum on the grid
-
-
-def test_torch_backend_is_music_only_and_blocks_do_not_change_results(ula):
-    """backend='torch' refuses what it does not compute; many detections (several blocks of
-    BLOCK_DETECTIONS) give the same angles as one at a time."""
+def test_blocks_do_not_change_results(ula):
+    """Many detections (several blocks of BLOCK_DETECTIONS) give the same angles as one at a
+    time."""
     from blindspot.dsp import doa
 
-    with pytest.raises(DoaError, match="backend 'torch'"):
-        doa.doa_angles(np.ones((4, 3), complex), np.arange(4) * 0.5, method="capon",
-                       backend="torch")
-    with pytest.raises(DoaError, match="backend must be one of"):
-        doa.music_angles(np.ones((4, 3), complex), np.arange(4) * 0.5, backend="cupy")
     rng = np.random.default_rng(3)
     p = np.arange(8) * 0.5
     d = doa.BLOCK_DETECTIONS + 7
@@ -233,13 +205,11 @@ def doa_angles_fn(method):
 
 @pytest.mark.parametrize("k", [2, 8, 64])
 def test_real_fb_covariance_is_the_unitary_transform_of_r(k):
-    """The real forward-backward covariance from R's blocks (torch MUSIC and the numpy path's
-    smoothed covariance) is Re(Q^H R Q) with the explicit unitary centro-Hermitian
+    """The real forward-backward covariance from R's blocks (the smoothed covariance of unitary
+    MUSIC) is Re(Q^H R Q) with the explicit unitary centro-Hermitian
     Q = [[I, jI], [J, -jJ]] / sqrt(2) (Huarng & Yeh 1991), and, as that theory says, R and its
     forward-backward average (R + J R* J) / 2 share it."""
-    import torch
-
-    from blindspot.dsp.doa import _fb_real, _fb_real_torch
+    from blindspot.dsp.doa import _fb_real
 
     rng = np.random.default_rng(5)
     y = rng.normal(size=(6, k, 9)) + 1j * rng.normal(size=(6, k, 9))
@@ -247,8 +217,6 @@ def test_real_fb_covariance_is_the_unitary_transform_of_r(k):
     eye, j = np.eye(k // 2), np.eye(k // 2)[::-1]
     q = np.block([[eye, 1j * eye], [j, -1j * j]]) / np.sqrt(2.0)
     ref = np.real(q.conj().T @ r @ q)
-    got = _fb_real_torch(torch, torch.from_numpy(r)).numpy()
-    np.testing.assert_allclose(got, ref, atol=1e-12 * np.abs(ref).max())
     np.testing.assert_allclose(_fb_real(r), ref, atol=1e-12 * np.abs(ref).max())
     jk = np.eye(k)[::-1]
     fb = 0.5 * (r + jk @ r.conj() @ jk)

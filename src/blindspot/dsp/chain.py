@@ -291,7 +291,7 @@ class DetectionChain:
         return rank_in_frame(frame_sorted) < self.detect.max_detections
 
     def angles(self, snapshots: np.ndarray, doppler_bin: np.ndarray, *,
-               return_spectrum: bool = False, backend: str = "numpy"):
+               return_spectrum: bool = False):
         """Angles (deg) of detections from their snapshots.
 
         snapshots: (D, tx, rx, L) channels in firing order, or (D, n_ula, L) already on the ULA
@@ -306,7 +306,7 @@ class DetectionChain:
         o = self.doa
         ang, spec = doa_angles(ula, self.ula_pos, 1, o.n_signals, self.grid_deg, method=o.method,
                                forward_backward=o.forward_backward, subarray=o.subarray,
-                               loading=o.loading, return_spectrum=True, backend=backend)
+                               loading=o.loading, return_spectrum=True)
         return (ang[:, 0], spec) if return_spectrum else ang[:, 0]
 
     # -------------------------------------------------------------------------------- batches

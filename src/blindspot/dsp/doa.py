@@ -28,11 +28,15 @@ signal part; ``forward_backward=True`` (needs a centro-symmetric array) and spat
 array) restore the rank at the cost of aperture. ``loading`` adds ``loading * tr(R)/M`` to the
 diagonal (needed for Capon with fewer snapshots than elements).
 
-Two back-ends compute the subspace ``B``: numpy (every method) and, for MUSIC without loading,
-torch (``backend="torch"``: batched small-matrix products and ``eigh`` on one thread, several
-times faster than numpy's for tens of thousands of detections; with fewer snapshots than
-elements the principal eigenvectors come from the small L x L Gram matrix). The grid search and
-the Newton refinement are shared, so both back-ends give the same angles (tested to 1e-9 deg).
+The subspace ``B`` is computed with numpy and scipy (LAPACK through OpenBLAS, whose kernels
+:mod:`blindspot.kernels` pins), never with PyTorch: torch's complex products and ``eigh`` run in
+MKL, whose AVX2 branch gives other last bits on an AMD CPU than on an Intel one (Intel documents
+its conditional numerical reproducibility for Intel processors only), so an MKL-computed
+subspace made the committed ``dvc.lock`` fail on a fresh AMD machine (issue 10). A torch
+back-end that lived here until 2026-12-03 was also slower on the project's AMD EPYC machines
+(735-902 against 585-631 us per detection for 86-element unitary MUSIC with 64-element
+smoothing).
+
 Large batches are processed in blocks of :data:`BLOCK_DETECTIONS` detections to bound memory.
 """
 
@@ -46,7 +50,6 @@ from blindspot.arrays import checked_array
 from blindspot.dsp.config import DOA_METHODS as METHODS
 
 DEFAULT_GRID_DEG = np.arange(-90.0, 90.0 + 0.125, 0.25)  # -90 .. 90 deg, 721 points
-BACKENDS = ("numpy", "torch")
 BLOCK_DETECTIONS = 512  # detections per block: (block, rank, grid) products stay in cache
 
 
@@ -459,14 +462,12 @@ def doa_angles(snapshots: np.ndarray, positions: np.ndarray, n_targets: int = 1,
                n_signals: int = 3, grid_deg: np.ndarray = DEFAULT_GRID_DEG, *,
                method: str = "music", forward_backward: bool = False,
                subarray: int | None = None, loading: float = 0.0,
-               return_power: bool = False, return_spectrum: bool = False,
-               backend: str = "numpy"):
+               return_power: bool = False, return_spectrum: bool = False):
     """The ``n_targets`` strongest peaks of the pseudo-spectrum, refined between grid points.
 
     snapshots : complex (elements M, snapshots L) or batched (detections D, M, L), array data in
                 any consistent unit; positions : (M,) element positions along the array, in
                 wavelengths
-    backend : "numpy" (every method) or "torch" (MUSIC without loading; same angles)
     returns angles in degrees, (n_targets,) for (M, L) snapshots or (D, n_targets) for batched,
     strongest first, NaN where the spectrum has fewer peaks (a flat spectrum, e.g. from all-zero
     snapshots, has none); with ``return_power`` also the pseudo-spectrum values at the refined
@@ -476,19 +477,13 @@ def doa_angles(snapshots: np.ndarray, positions: np.ndarray, n_targets: int = 1,
     """
     if not (isinstance(n_targets, (int, np.integer)) and n_targets >= 1):
         raise DoaError(f"n_targets must be a positive integer, got {n_targets!r}")
-    if backend not in BACKENDS:
-        raise DoaError(f"backend must be one of {BACKENDS}, got {backend!r}")
-    if backend == "torch" and (method != "music" or loading):
-        raise DoaError(f"backend 'torch' computes the MUSIC subspace without loading; got "
-                       f"method={method!r}, loading={loading!r} (use backend 'numpy')")
     x, p, single = _as_batch(snapshots, positions)
     grid = np.asarray(grid_deg, dtype=np.float64)
     if grid.ndim != 1 or grid.size < 3 or np.any(np.diff(grid) <= 0) or grid[0] < -90 \
             or grid[-1] > 90:
         raise DoaError("grid_deg must be an increasing 1-D grid of >= 3 angles within [-90, 90]")
     opts = dict(n_targets=n_targets, n_signals=n_signals, grid=grid, method=method,
-                forward_backward=forward_backward, subarray=subarray, loading=loading,
-                backend=backend)
+                forward_backward=forward_backward, subarray=subarray, loading=loading)
     if x.shape[0] == 0:
         angles, peak = np.zeros((0, n_targets)), np.zeros((0, n_targets))
         spec = np.zeros((0, grid.size))
@@ -504,21 +499,17 @@ def doa_angles(snapshots: np.ndarray, positions: np.ndarray, n_targets: int = 1,
 
 def _angles_block(x: np.ndarray, p: np.ndarray, *, n_targets: int, n_signals: int,
                   grid: np.ndarray, method: str, forward_backward: bool, subarray: int | None,
-                  loading: float, backend: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                  loading: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """doa_angles' work on one block x (D, M, L): (angles (D, T), peak values (D, T),
     spectrum (D, G))."""
-    real_fb = backend == "numpy" and forward_backward
-    if backend == "torch":
-        b, p = _music_subspace_torch(x, p, n_signals, forward_backward, subarray)
-        sense = 1
-    elif real_fb:  # unitary MUSIC / beamformers: E real, on the grid g = |E^T r(u)|^2
+    if forward_backward:  # unitary MUSIC / beamformers: E real, on the grid g = |E^T r(u)|^2
         rr, p = _real_fb_covariance(x, p, subarray, loading)
         e, sense = _factor(rr, method, n_signals)
         b = _q(e)
     else:
         b, sense, p = _subspace(x, p, method, n_signals, forward_backward, subarray, loading)
     grid = np.ascontiguousarray(grid, dtype=np.float64)
-    if real_fb:
+    if forward_backward:
         z = e.transpose(0, 2, 1) @ _fb_grid_cached(np.ascontiguousarray(p).tobytes(),
                                                    grid.tobytes())  # (D, rank, G)
         g = (z * z).sum(axis=1)
@@ -540,90 +531,6 @@ def _angles_block(x: np.ndarray, p: np.ndarray, *, n_targets: int, n_signals: in
     angles = np.take_along_axis(angles, order, axis=1)
     peak = np.take_along_axis(np.where(idx >= 0, peak, np.nan), order, axis=1)
     return angles, peak, spec
-
-
-# ---------------------------------------------------------------------------------------------
-# the torch back-end of the MUSIC subspace
-
-
-def _music_subspace_torch(x: np.ndarray, p: np.ndarray, n_signals: int, forward_backward: bool,
-                          subarray: int | None) -> tuple[np.ndarray, np.ndarray]:
-    """(E_s (D, K, n_signals) complex128, positions of the K-element subarray): the principal
-    eigenvectors of the (spatially smoothed, forward-backward averaged) covariance of x (D, M, L),
-    computed in torch on one thread (its batched small-matrix kernels beat numpy's here, and
-    its own multi-threaded ones thrash on two cores); the thread count is restored after."""
-    import torch
-
-    k = _subarray_size(p, subarray)
-    if forward_backward:
-        _check_centro(p[:k])
-    _check_n_signals(n_signals, k)
-    threads = torch.get_num_threads()
-    torch.set_num_threads(1)
-    try:
-        y = torch.from_numpy(np.ascontiguousarray(x, dtype=np.complex128))
-        return _signal_subspace_torch(torch, y, int(k), int(n_signals), forward_backward), p[:k]
-    finally:
-        torch.set_num_threads(threads)
-
-
-def _signal_subspace_torch(torch, y, k: int, n_signals: int, forward_backward: bool
-                           ) -> np.ndarray:
-    """(D, K, n_signals) principal eigenvectors of the covariance of snapshots y (D, M, L)
-    (torch complex128); scale-free, so the 1/L factors are omitted."""
-    d, m, lp = y.shape
-    if k == m and not forward_backward and lp < m:
-        gram = y.conj().transpose(1, 2) @ y                       # (D, L, L): same subspace
-        w, v = torch.linalg.eigh(gram)
-        w, v = w[:, lp - n_signals:], v[:, :, lp - n_signals:]
-        return ((y @ v) / torch.sqrt(torch.clamp(w, min=1e-300))[:, None, :]).numpy()
-    r = y @ y.conj().transpose(1, 2)                                # (D, M, M)
-    if k < m:  # spatial smoothing: sum of the diagonal K x K blocks (a strided view)
-        s0, s1, s2 = r.stride()
-        r = torch.as_strided(r, (d, m - k + 1, k, k), (s0, s1 + s2, s1, s2)).sum(dim=1)
-    if not forward_backward:
-        _, v = torch.linalg.eigh(r)
-        return v[:, :, k - n_signals:].numpy()
-    # forward-backward = real symmetric Q^H R Q for the unitary centro-Hermitian Q (Huarng &
-    # Yeh): a real eigh, and the eigenvectors of (R + J R* J) / 2 are Q e
-    rr = _fb_real_torch(torch, r) if k % 2 == 0 else \
-        _q_h_torch(torch, _q_h_torch(torch, r).conj().transpose(1, 2)).real
-    rr = 0.5 * (rr + rr.transpose(1, 2))
-    _, v = torch.linalg.eigh(rr)
-    return _q(v[:, :, k - n_signals:].numpy())
-
-
-def _fb_real_torch(torch, r):
-    """``Re(Q^H R Q)`` (D, K, K) float64 of Hermitian R (D, K, K) complex128, K even, from the
-    four h x h blocks of R (h = K / 2, J the exchange matrix), in real arithmetic on a quarter
-    of the data: with ``A = R11 + J R22 J``, ``B = J R21 + R12 J``, ``C = R11 - J R22 J``,
-    ``E = J R21 - R12 J`` it is ``[[Re(A + B), -Im(C + E)], [Im(C - E), Re(A - B)]] / 2``
-    (expanding Q of :func:`_q_h`; Huarng & Yeh 1991). Equal to the two :func:`_q_h_torch`
-    products to float64 rounding, without their flips and concatenations of complex K x K
-    arrays (the costliest step of the driving measurement's MUSIC after the eigh)."""
-    h = r.shape[1] // 2
-    re, im = r.real, r.imag
-    r22r, r22i = torch.flip(re[:, h:, h:], dims=(1, 2)), torch.flip(im[:, h:, h:], dims=(1, 2))
-    j21r, j21i = torch.flip(re[:, h:, :h], dims=(1,)), torch.flip(im[:, h:, :h], dims=(1,))
-    r12jr, r12ji = torch.flip(re[:, :h, h:], dims=(2,)), torch.flip(im[:, :h, h:], dims=(2,))
-    a = re[:, :h, :h] + r22r
-    b = j21r + r12jr
-    c = im[:, :h, :h] - r22i
-    e = j21i - r12ji
-    top = torch.cat([a + b, -(c + e)], dim=2)
-    bottom = torch.cat([c - e, a - b], dim=2)
-    return 0.5 * torch.cat([top, bottom], dim=1)
-
-
-def _q_h_torch(torch, x):
-    """Q^H x along axis 1 (torch), as :func:`_q_h`."""
-    h = x.shape[1] // 2
-    top, bot = x[:, :h], torch.flip(x, dims=(1,))[:, :h]
-    parts = [(top + bot) / np.sqrt(2.0)]
-    if x.shape[1] % 2:
-        parts.append(x[:, h:h + 1])
-    parts.append(-1j * (top - bot) / np.sqrt(2.0))
-    return torch.cat(parts, dim=1)
 
 
 def music_angles(snapshots: np.ndarray, positions: np.ndarray, n_targets: int = 1,

@@ -202,8 +202,6 @@ def _near_snapshots(setup, sc, bi, ki, di, tables, rng, dtft=None
     :func:`_dtft_table`, to interpolate the windowed DTFTs (one exponential per bin instead of
     one per sample: the range-Doppler-angle rule's snapshots of every CFAR cell) instead of
     summing them exactly."""
-    import torch
-
     from blindspot.radar.rd_patch import (
         beat_frequency_hz, channel_phasors, doppler_frequency_hz, tone_dft,
     )
@@ -243,8 +241,7 @@ def _near_snapshots(setup, sc, bi, ki, di, tables, rng, dtft=None
     rows = np.clip(ki[:, None] + dr, 0, n_rows - 1)                                 # as the chain
     coef = (np.take_along_axis(r3, (rows - ki[:, None] + hr)[:, None, :], axis=2)
             * d3[:, :, dd + hd])                                                    # (D, N, L)
-    x = (torch.from_numpy(np.ascontiguousarray(c_ula.transpose(0, 2, 1)))
-         @ torch.from_numpy(np.ascontiguousarray(coef))).numpy()                    # (D, E, L)
+    x = c_ula.transpose(0, 2, 1) @ coef                                             # (D, E, L)
     n_el, n_l = x.shape[1], dr.size
     z = rng.standard_normal((len(bi), n_el, n_l, 2)).view(np.complex128)[..., 0]
     z *= np.sqrt(setup.sample_noise_power / 2.0)
@@ -265,23 +262,7 @@ _BATCH_STATE: dict | None = None    # measure_driving's inputs, read by _measure
 
 def _measure_batch(span: tuple[int, int, int]) -> dict[str, np.ndarray] | None:
     """Steps 2-5 of the module docstring for the frames ``lo:hi`` (batch ``b``) of the flat
-    scatterer table in ``_BATCH_STATE``: every detection's columns (None without detections).
-
-    torch runs on one thread here (restored after): a forked worker whose parent had used
-    torch's OpenMP pool hangs in its first parallel region (seen in separable_channel_energy's
-    complex bmm after an in-process measurement), and on two cores the pool only contends."""
-    import torch
-
-    threads = torch.get_num_threads()
-    torch.set_num_threads(1)
-    try:
-        return _measure_batch_1(span)
-    finally:
-        torch.set_num_threads(threads)
-
-
-def _measure_batch_1(span: tuple[int, int, int]) -> dict[str, np.ndarray] | None:
-    """:func:`_measure_batch` on torch's current threads."""
+    scatterer table in ``_BATCH_STATE``: every detection's columns (None without detections)."""
     from blindspot.radar.rd_patch import (
         PointScatterers, beat_frequency_hz, doppler_frequency_hz, patch_terms,
         separable_channel_energy,

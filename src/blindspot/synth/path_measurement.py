@@ -17,10 +17,9 @@ Two ways to get there
   pedestrian computed analytically (:mod:`blindspot.radar.rd_patch`: windowed DTFT at the bin
   frequencies, identical to the FFT of the simulated cube), with noise drawn with the FFT's exact
   statistics, and the chain's own batch-native steps (``run_cfar``, ``local_maxima``,
-  ``order_detections`` and ``doa_budget``, ``angles``: TDM compensation and MUSIC on the torch
-  back-end of :mod:`blindspot.dsp.doa`, and ``group_points``) run on the patches of thousands of
-  frames at once. See
-  :func:`measure_paths` for what is exact and what is approximated; the test
+  ``order_detections`` and ``doa_budget``, ``angles``: TDM compensation and MUSIC of
+  :mod:`blindspot.dsp.doa`, and ``group_points``) run on the patches of thousands of frames at
+  once. See :func:`measure_paths` for what is exact and what is approximated; the test
   ``tests/synth/test_path_measurement.py`` shows the point-error statistics of both agree within
   10 % (measured: within 1 % for the paper's CFAR, 5 % for CA-CFAR at Pfa 1e-6), at 300-600
   frames/s on this 2-core machine (``benchmarks/bench_paths.py``).
@@ -370,8 +369,6 @@ def _reduced_snapshots(setup: _ReducedSetup, red: _ReducedDetections, sel: np.nd
     """(len(sel), n_ula, L) cell snapshots of the detections ``sel`` on the ULA elements:
     the exact signal of every scatterer in the 3 x 3 neighbourhood plus noise correlated across
     cells as the windowed FFTs correlate it."""
-    import torch
-
     chain = setup.chain
     det = chain.detect
     n_rows = chain.range_axis_m.size
@@ -387,8 +384,7 @@ def _reduced_snapshots(setup: _ReducedSetup, red: _ReducedDetections, sel: np.nd
     coef = (np.take_along_axis(red.r_t[b_s], kk[:, None, :], axis=2)
             * np.take_along_axis(red.d_t[b_s], dop[:, None, :], axis=2))  # (D, S, L)
     c_ula = red.c_all[b_s][:, :, setup.ula_flat]                          # (D, S, E)
-    x = (torch.from_numpy(np.ascontiguousarray(c_ula.transpose(0, 2, 1)))
-         @ torch.from_numpy(coef)).numpy()                                # (D, E, L)
+    x = c_ula.transpose(0, 2, 1) @ coef                                   # (D, E, L)
     n_el, n_l = x.shape[1], dr.size
     z = rng.standard_normal((sel.size, n_el, n_l, 2)).view(np.complex128)[..., 0]
     z *= np.sqrt(setup.sample_noise_power / 2.0)
@@ -415,8 +411,7 @@ def _measure_batch_reduced(setup: _ReducedSetup, sc: PointScatterers,
     angle = np.full(bi.size, np.nan)
     if sel.size:
         x = _reduced_snapshots(setup, red, sel, rng)
-        backend = "torch" if chain.doa.method == "music" and chain.doa.loading == 0.0 else "numpy"
-        angle[sel] = chain.angles(x, di[sel], backend=backend)
+        angle[sel] = chain.angles(x, di[sel])
     # 4. the pedestrian's point per frame (the chain's grouping)
     # the chain's range of each detection (sub-bin with range_interpolation: ipdft), from the
     # full map's bin numbers; the pedestrian's candidates (``sel``) read their range neighbours
