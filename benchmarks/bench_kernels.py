@@ -8,19 +8,23 @@ hashes:
 
 * radar: the detect stage's work on the tiny profile (2 scenes x 4 frames: simulated frames and
   detections);
-* paths: the paths stage's work on four of its walks (the reduced chain: synthesised patches,
-  CFAR, MUSIC on each frame's moving detections, the pedestrian's point);
-* driving: the driving_measure stage's work on eight frames of one named driving scene (the
-  synthesised range-Doppler map, CFAR, Doppler unwrapping, MUSIC, the static test);
+* paths: the paths stage's work on 17 of its walks, two of its 16-walk chunks (the reduced
+  chain: synthesised patches, CFAR, MUSIC on each frame's moving detections, the pedestrian's
+  point);
+* driving: the driving_measure stage's work on eight frames of one named driving scene, two
+  batches of four (the synthesised range-Doppler map, CFAR, Doppler unwrapping, MUSIC, the
+  static test);
 * train: 30 Adam steps of a 64-unit LSTM.
 
 A row that differs from the pinned row shows that the selector reaches those bytes, i.e. that a
 CPU choosing another kernel family by itself would compute other bytes; the pins make every AVX2
 x86-64 machine choose the same family. The radar chain's stages must not be reached by PyTorch's
 selectors (MKL, ATen, oneDNN): MKL's AVX2 branch computes other bytes on AMD than on Intel CPUs,
-which no pin fixes, so the radar code does not use torch (an import contract in .importlinter),
-and their rows must say "yes". (About a minute per radar row, 15 s per paths or driving row on
-the project's 2-core machine.)
+which no pin fixes, so the radar code does not use torch (an import contract in .importlinter;
+the paths and driving scripts also report whether torch was loaded), and the PyTorch-selector
+rows of paths and driving must say "yes" (their OPENBLAS_CORETYPE row says "NO": BLAS does
+reach those bytes). (About a minute per radar row, 10-15 s per paths or driving row on the
+project's 2-core machines.)
 """
 
 from __future__ import annotations
@@ -69,7 +73,7 @@ from blindspot.synth.path_dataset import measure_path_set, path_table
 from blindspot.synth.path_measurement import PedestrianModel
 from blindspot.traj.paths import random_path_set
 
-cfg = config.compose(["profile=tiny", "dataset.n_paths=4"], config_dir=sys.argv[1])
+cfg = config.compose(["profile=tiny", "dataset.n_paths=17"], config_dir=sys.argv[1])
 radar, dataset = experiment.radar(cfg), experiment.dataset(cfg)
 paths = random_path_set(dataset.n_paths, dataset.path_spec(), seed=dataset.seed)
 walker = PedestrianModel.from_scene(next(iter(experiment.scenes(cfg).values())))
@@ -79,6 +83,7 @@ measured = measure_path_set(paths, radar, experiment.cfar(cfg), experiment.doa(c
 table = path_table(paths, measured, radar.frame_period_s)
 print(json.dumps({
     "n_points": int(table.x_m.notna().sum()),
+    "torch_loaded": "torch" in sys.modules,
     "paths": hashlib.sha256(pd.util.hash_pandas_object(table, index=True).to_numpy().tobytes()
                             ).hexdigest(),
 }))
@@ -100,7 +105,7 @@ res = measure_driving([scene], group, ex.driving_radar(cfg), ex.driving_cfar(cfg
                       frames_per_batch=4, jobs=int(sys.argv[2]))
 h = lambda df: hashlib.sha256(pd.util.hash_pandas_object(df, index=True).to_numpy().tobytes()
                               ).hexdigest()
-print(json.dumps({"n_points": len(res.points), "n_angles": int(res.points.angle_deg.notna().sum()),
+print(json.dumps({"n_points": len(res.points), "torch_loaded": "torch" in sys.modules,
                   "points": h(res.points), "measured": h(res.measured)}))
 """
 

@@ -35,7 +35,7 @@ def turning_frames():
     return sc, group, ex.ego_motion(cfg), res, ex.driving_radar(cfg).max_velocity_mps
 
 
-@pytest.mark.slow   # the first measured batch pays torch's and MUSIC's warm-up (33 s at load 9)
+@pytest.mark.slow   # the first measured batch pays MUSIC's warm-up (33 s at load 9)
 def test_every_point_has_the_tracker_columns(turning_frames):
     sc, _, ego, res, vmax = turning_frames
     p = res.points
@@ -52,7 +52,7 @@ def test_every_point_has_the_tracker_columns(turning_frames):
     np.testing.assert_allclose(k, np.rint(k), atol=2e-3)
 
 
-@pytest.mark.slow   # the first measured batch pays torch's and MUSIC's warm-up (33 s at load 9)
+@pytest.mark.slow   # the first measured batch pays MUSIC's warm-up (33 s at load 9)
 def test_static_world_points_sit_on_the_static_world_and_on_its_doppler_curve(turning_frames):
     sc, group, _, res, _ = turning_frames
     p = res.points[res.points.source == "static"]
@@ -71,7 +71,7 @@ def test_static_world_points_sit_on_the_static_world_and_on_its_doppler_curve(tu
     np.testing.assert_allclose(xv, p.x_vehicle_m, atol=1e-9)
 
 
-@pytest.mark.slow   # the first measured batch pays torch's and MUSIC's warm-up (33 s at load 9)
+@pytest.mark.slow   # the first measured batch pays MUSIC's warm-up (33 s at load 9)
 def test_the_pedestrians_points_are_near_its_truth(turning_frames):
     sc, group, _, res, _ = turning_frames
     tr = scene_truth(sc, group, 0.1)

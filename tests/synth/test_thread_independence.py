@@ -6,7 +6,8 @@ interpreters under two thread settings: BLAS/OpenMP/MKL pools of 1 thread in one
 pools of 2 threads with two worker processes. The simulated frames and the detections must be
 identical to the last bit, so the committed dvc.lock holds whatever OMP_NUM_THREADS a user has.
 The same holds for the paths stage's and the driving measurement's work (the reduced chains with
-their own MUSIC), which must also give the same bytes with every PyTorch selector switched to
+their own MUSIC: 17 walks in two chunks, 8 frames in two batches, so two jobs do use worker
+processes), which must also give the same bytes with every PyTorch selector switched to
 another kernel family (MKL_CBWR=COMPATIBLE, ATEN_CPU_CAPABILITY=default, ONEDNN_MAX_CPU_ISA=
 SSE41): MKL's AVX2 branch computes other last bits on an AMD CPU than on an Intel one (a fresh
 AMD clone reran paths and driving_measure when they used torch's MUSIC), so the radar code does
@@ -48,5 +49,6 @@ def test_measured_paths_and_driving_points_do_not_depend_on_threads_or_torch_ker
     hashes = {"paths": bench_kernels.paths_hashes, "driving": bench_kernels.driving_hashes}[work]
     pinned = hashes({}, threads=1, jobs=1)
     assert pinned["n_points"] > 0, pinned
+    assert not pinned["torch_loaded"], "the radar chain imported torch (MKL: vendor-dependent bytes)"
     assert hashes({}, threads=2, jobs=2) == pinned
     assert hashes(bench_kernels.TORCH_SELECTORS, threads=1, jobs=1) == pinned
