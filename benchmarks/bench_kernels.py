@@ -150,22 +150,14 @@ def run(code: str, args: list[str], override: dict[str, str], threads: int = 1) 
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
-def radar_hashes(override: dict[str, str], threads: int = 1, jobs: int = 1) -> dict:
-    """Hashes of the tiny profile's simulated frames and detections (see module docstring)."""
-    return run(RADAR, [str(REPO / "conf"), str(jobs)], override, threads)
+WORK = {"radar": RADAR, "paths": PATHS, "driving": DRIVING}   # the radar chain's workloads
 
 
-def paths_hashes(override: dict[str, str], threads: int = 1, jobs: int = 1) -> dict:
-    """Hashes of four of the paths stage's measured walks (see module docstring)."""
-    return run(PATHS, [str(REPO / "conf"), str(jobs)], override, threads)
-
-
-def driving_hashes(override: dict[str, str], threads: int = 1, jobs: int = 1) -> dict:
-    """Hashes of eight frames of the driving measurement of one scene (see module docstring)."""
-    return run(DRIVING, [str(REPO / "conf"), str(jobs)], override, threads)
-
-
-WORK = {"radar": RADAR, "paths": PATHS, "driving": DRIVING}
+def chain_hashes(work: str, override: dict[str, str], threads: int = 1, jobs: int = 1) -> dict:
+    """Hashes of one radar-chain workload of :data:`WORK` (see module docstring) in a fresh
+    interpreter with the pins plus ``override``, ``threads`` BLAS/OpenMP threads and ``jobs``
+    worker processes."""
+    return run(WORK[work], [str(REPO / "conf"), str(jobs)], override, threads)
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -174,12 +166,13 @@ def main(argv: list[str] | None = None) -> None:
     a = ap.parse_args(argv)
     print(f"{'work':6} {'selector':40} hashes (first 12 hex)   same as pinned")
     for work in [a.only] if a.only else sorted(VARIANTS):
-        code, args = (WORK[work], [str(REPO / "conf"), "1"]) if work in WORK else (TRAIN, [])
-        pinned = run(code, args, {})
+        hashes = (lambda o, w=work: chain_hashes(w, o)) if work in WORK else \
+            (lambda o: run(TRAIN, [], o))
+        pinned = hashes({})
         print(f"{work:6} {'pinned (blindspot.kernels.PINS)':40} "
               + " ".join(str(v)[:12] for v in pinned.values()), flush=True)
         for name, value in VARIANTS[work].items():
-            got = run(code, args, {name: value})
+            got = hashes({name: value})
             print(f"{work:6} {name + '=' + value:40} "
                   + " ".join(str(v)[:12] for v in got.values())
                   + f"   {'yes' if got == pinned else 'NO'}", flush=True)

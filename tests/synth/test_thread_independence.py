@@ -32,7 +32,7 @@ _spec.loader.exec_module(bench_kernels)
 
 
 def run_detect(threads: int, jobs: int) -> dict:
-    return bench_kernels.radar_hashes({}, threads=threads, jobs=jobs)
+    return bench_kernels.chain_hashes("radar", {}, threads=threads, jobs=jobs)
 
 
 @pytest.mark.slow  # two fresh interpreters simulating and detecting: about 1 min
@@ -46,9 +46,9 @@ def test_detections_and_frames_do_not_depend_on_thread_settings():
 
 @pytest.mark.parametrize("work", ["paths", "driving"])
 def test_measured_paths_and_driving_points_do_not_depend_on_threads_or_torch_kernels(work):
-    hashes = {"paths": bench_kernels.paths_hashes, "driving": bench_kernels.driving_hashes}[work]
-    pinned = hashes({}, threads=1, jobs=1)
+    hashes = bench_kernels.chain_hashes
+    pinned = hashes(work, {}, threads=1, jobs=1)
     assert pinned["n_points"] > 0, pinned
     assert not pinned["torch_loaded"], "the radar chain imported torch (MKL: vendor-dependent bytes)"
-    assert hashes({}, threads=2, jobs=2) == pinned
-    assert hashes(bench_kernels.TORCH_SELECTORS, threads=1, jobs=1) == pinned
+    assert hashes(work, {}, threads=2, jobs=2) == pinned
+    assert hashes(work, bench_kernels.TORCH_SELECTORS, threads=1, jobs=1) == pinned
