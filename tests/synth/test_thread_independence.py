@@ -49,6 +49,7 @@ def test_measured_paths_and_driving_points_do_not_depend_on_threads_or_torch_ker
     hashes = bench_kernels.chain_hashes
     pinned = hashes(work, {}, threads=1, jobs=1)
     assert pinned["n_points"] > 0, pinned
-    assert not pinned["torch_loaded"], "the radar chain imported torch (MKL: vendor-dependent bytes)"
+    assert not pinned["torch_loaded"], \
+        "the radar chain imported torch (MKL: vendor-dependent bytes)"
     assert hashes(work, {}, threads=2, jobs=2) == pinned
     assert hashes(work, bench_kernels.TORCH_SELECTORS, threads=1, jobs=1) == pinned
