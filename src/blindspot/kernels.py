@@ -23,7 +23,12 @@ runner re-executes a stage whose process imported numpy first (:func:`needs_reex
 
 Not covered: CPUs without AVX2 and other architectures (ARM, e.g. Apple silicon) run their own
 kernels (nothing is pinned there, and their bytes may differ); a value the user set is kept (and
-reported). ``BLINDSPOT_NATIVE_KERNELS=1`` turns the pinning off (fastest kernels, machine-
+reported). Nor does ``MKL_CBWR=AVX2`` make MKL agree across CPU vendors: Intel documents its
+conditional numerical reproducibility for Intel processors only, and the same training inputs
+gave other network weights on an AMD EPYC (Zen 4) than on an Intel Xeon (2026-12-03). The radar
+stages therefore never reach MKL (numpy/scipy only; the import contract ``radar-bytes-without-
+mkl`` in ``.importlinter``), and their bytes hold on both; the stages that train a network do
+not yet. ``BLINDSPOT_NATIVE_KERNELS=1`` turns the pinning off (fastest kernels, machine-
 dependent bytes).
 
 Sources for the variables: OpenBLAS README ("Runtime CPU detection ... OPENBLAS_CORETYPE"),

@@ -229,6 +229,39 @@ def test_bench_cli_trains_and_scores_the_lstm(ethucy_dir, tmp_path):
     assert 0.5 < lstm["eth"]["ade"] < 2.0     # CVM: 1.00; a broken predictor lands far outside
 
 
+@pytest.mark.real_data
+def test_each_direct_model_key_trains_its_own_encoder(ethucy_dir):
+    """The model keys lstm / gru / mlp train the direct predictor with an LSTM / GRU / dense
+    encoder (one member, one epoch on fold eth) and score it like any other model."""
+    from dataclasses import replace as _replace
+
+    import torch
+
+    from blindspot.traj import ethucy_benchmark
+    from blindspot.traj.config import Seq2SeqConfig
+
+    trained = {}
+    real = ethucy_benchmark.train_fold_seq2seq
+
+    def spy(data_dir, fold, cfg, name, progress=False):
+        ens, fitted = real(data_dir, fold, cfg, name, progress)
+        trained[name] = ens.members[0].net.encoder
+        return ens, fitted
+
+    cfg = _replace(Seq2SeqConfig(), epochs=1, neighbours=0)
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(ethucy_benchmark, "train_fold_seq2seq", spy)
+        out = ethucy_benchmark.run_fold(ethucy_dir, "eth", ("lstm", "gru", "mlp"),
+                                        LSTMBenchSettings(), progress=False, seq2seq=cfg,
+                                        calibration="mle")
+    assert isinstance(trained["lstm"], torch.nn.LSTM)
+    assert isinstance(trained["gru"], torch.nn.GRU)
+    assert isinstance(trained["mlp"], torch.nn.Sequential)
+    for name in ("lstm", "gru", "mlp"):
+        assert 0.5 < out[name].ade < 2.0                        # CVM: 1.00 on eth
+        assert 0.0 < out[name].calibration["coverage_90"] <= 1.0
+
+
 def test_neighbours_are_the_nearest_others_over_the_observed_frames_only(tmp_path):
     """Five pedestrians on parallel lines y = 0, 1, 3, -0.5, 10 (x = frame), one absent after
     frame 5: each window's neighbours are the others sorted by distance at its last observed
@@ -305,7 +338,7 @@ def test_learned_scores_do_not_depend_on_the_workers_or_on_the_models_run_togeth
     from blindspot.traj.config import Seq2SeqConfig
     from blindspot.traj.ethucy_benchmark import run_fold
 
-    s = EthUcySettings(ethucy_dir, models=("cvm", "kalman", "lstm", "mlp"), folds=("eth",),
+    s = EthUcySettings(ethucy_dir, models=("cvm", "kalman", "lstm", "gru", "mlp"), folds=("eth",),
                        seq2seq=_replace(Seq2SeqConfig(), epochs=1), calibration="conditional")
     two = run_benchmark(s, progress=False, jobs=2)
     grouped = {f: run_fold(ethucy_dir, f, s.models, s.lstm, progress=False, seq2seq=s.seq2seq,

@@ -145,7 +145,7 @@ def format_report(results: Results, validation: Results,
         details: ``{fold: {model: {"n_windows", "seconds", "fitted": {...}}}}``; ``fitted``
             holds ``process_psd_m2_s3`` for the Kalman filter; ``val_rmse_m`` for the
             next-point LSTM (``lstm_rollout``); ``best_epochs`` for the direct predictors
-            (``lstm``, ``mlp``); ``step_scale`` for every model with a distribution.
+            (``lstm``, ``gru``, ``mlp``); ``step_scale`` for every model with a distribution.
         folds: the folds run, in column order.
         lstm: the next-point LSTM's settings as a dict, or None when it was not run.
         command: how the run was started, quoted on the page.
@@ -186,9 +186,10 @@ def format_report(results: Results, validation: Results,
         fitted = ", ".join(f"{f} {details[f]['kalman']['fitted']['process_psd_m2_s3']:.3g}"
                            for f in folds)
         parts.append(f"  Fitted process noise q (m^2/s^3), meas_std 0.05 m: {fitted}.")
-    direct = [m for m in ("lstm", "mlp") if m in models]
+    direct = [m for m in ("lstm", "gru", "mlp") if m in models]
     if seq2seq is not None and direct:
-        enc = {"lstm": "an LSTM encoder", "mlp": "a dense (MLP) encoder over the flattened inputs"}
+        enc = {"lstm": "an LSTM encoder", "gru": "a GRU encoder",
+               "mlp": "a dense (MLP) encoder over the flattened inputs"}
         for m in direct:
             parts.append(
                 f"- **{m}**: direct multi-step predictor (`blindspot.traj.seq2seq`) with "
@@ -246,7 +247,7 @@ def format_report(results: Results, validation: Results,
                   + ". `*`: more than 2 percentage points from nominal. cvm: a heteroscedastic "
                   "noise model of its errors (along/cross-track covariance per step, scaled "
                   "by the history's speed and acceleration) fitted on val; kalman: the filter's "
-                  "own F P F^T + Q + R; lstm / mlp: the Gaussian head plus the ensemble spread. "
+                  "own F P F^T + Q + R; lstm / gru / mlp: the Gaussian head plus the ensemble spread. "
                   "Rows \"online\": the same forecasts' adaptive conformal ellipses "
                   "(`blindspot.traj.conformal`, Gibbs & Candès 2021): each test scene a stream, "
                   "each prediction's ellipse radii the conformal quantiles of the last outcomes "

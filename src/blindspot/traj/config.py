@@ -34,7 +34,8 @@ TARGETS: tuple[str, ...] = ("displacement", "absolute")
 OPTIMIZERS: tuple[str, ...] = ("adam", "adamw")
 SCHEDULES: tuple[str, ...] = ("constant", "cosine")
 PREDICTION_METHODS: tuple[str, ...] = ("lstm", "constant_velocity", "kalman")
-ETHUCY_MODELS: tuple[str, ...] = ("cvm", "kalman", "lstm", "mlp", "lstm_rollout")
+ETHUCY_MODELS: tuple[str, ...] = ("cvm", "kalman", "lstm", "gru", "mlp",
+                                  "lstm_rollout")
 SEED_MAX = 2**63 - 1     # the largest seed numpy and torch both take
 
 
@@ -332,9 +333,9 @@ class EthUcyConfig(TypedConfig):
 
     Attributes:
         data: folder of the ETH/UCY files, relative to ``paths.shared_dir`` (or absolute).
-        models: predictors to score, from :data:`ETHUCY_MODELS` (``lstm`` / ``mlp``: the direct
-            multi-step predictor with an LSTM / MLP encoder; ``lstm_rollout``: the next-point
-            LSTM rolled out step by step).
+        models: predictors to score, from :data:`ETHUCY_MODELS` (``lstm`` / ``gru`` / ``mlp``:
+            the direct multi-step predictor with an LSTM / GRU / MLP encoder; ``lstm_rollout``:
+            the next-point LSTM rolled out step by step).
         folds: leave-one-scene-out folds, from :data:`blindspot.traj.ethucy.FOLDS`.
         threads: torch threads.
         calibration: how forecasts are calibrated on each fold's val split: a per-step

@@ -17,6 +17,7 @@ anything learns it from its fold's ``train`` split (and ``val`` for the LSTM's v
   encoder: 8 observed positions in, all 12 future positions out with a Gaussian per step,
   trained on the fold's train split (every fully observed 20-frame stretch of every pedestrian)
   on the 8 -> 12 ADE, the epoch kept by the val split's ADE; an ensemble of seeds.
+* ``gru``: the same predictor with a GRU encoder (Cho et al. 2014) instead of the LSTM.
 * ``mlp``: the same predictor with a dense (MLP) encoder instead of the LSTM.
 * ``lstm_rollout``: the project's next-point LSTM with a window of 8, trained on every fully
   observed 9-frame stretch (8 in, 1 out) of the fold's train split, validated on the val split,
@@ -29,8 +30,8 @@ scene).
 
 Predictive distributions (issue 10, section 2): every model but ``lstm_rollout`` gives a
 :class:`~blindspot.traj.distribution.GaussianForecast` (cvm: :class:`CVNoise` fitted on the
-fold's val split; kalman: its own propagated covariance; lstm/mlp: the Gaussian head and the
-ensemble spread). Each is calibrated by a per-step covariance scale fitted on the fold's val
+fold's val split; kalman: its own propagated covariance; lstm/gru/mlp: the Gaussian head and
+the ensemble spread). Each is calibrated by a per-step covariance scale fitted on the fold's val
 split (:func:`~blindspot.traj.distribution.fit_step_scale`, never on test) and scored on the
 test scene: coverage of the 50/90/95 % ellipses and the NLL (:func:`calibration_scores`).
 """
@@ -102,7 +103,7 @@ __all__ = [
 
 MODELS: tuple[str, ...] = ETHUCY_MODELS
 #: models that give a predictive distribution (scored for calibration)
-PROBABILISTIC: tuple[str, ...] = ("cvm", "kalman", "lstm", "mlp")
+PROBABILISTIC: tuple[str, ...] = ("cvm", "kalman", "lstm", "gru", "mlp")
 #: ellipse levels of ``calibration.json``
 CALIBRATION_LEVELS: tuple[float, ...] = (0.5, 0.9, 0.95)
 #: nominal levels of the reliability curve (figure)
@@ -117,7 +118,7 @@ MIXTURE_COMPONENTS = 3
 #: 1.3-1.4 m/s, Bohannon 1997, "Comfortable and maximum walking speed of adults aged 20-79")
 SPEED_EDGES_M_S: tuple[float, ...] = (0.2, 0.6, 1.0, 1.4)
 #: encoder of each direct-predictor model key
-SEQ2SEQ_CELL: dict[str, str] = {"lstm": "lstm", "mlp": "mlp"}
+SEQ2SEQ_CELL: dict[str, str] = {"lstm": "lstm", "gru": "gru", "mlp": "mlp"}
 
 
 @dataclass(frozen=True)
@@ -189,8 +190,8 @@ class EthUcySettings:
         models: models to score, a subset of :data:`MODELS` (in this order in the results).
         folds: test folds, a subset of :data:`~blindspot.traj.ethucy.FOLDS`.
         lstm: the next-point LSTM's settings (``"lstm_rollout"``).
-        seq2seq: the direct predictor's settings (``"lstm"``, ``"mlp"``; the cell is set by
-            the model key).
+        seq2seq: the direct predictor's settings (``"lstm"``, ``"gru"``, ``"mlp"``; the cell is
+            set by the model key).
         calibration: how forecasts are calibrated on the val split: ``"mle"`` or
             ``"quantile"`` (a per-step scale, :func:`fit_step_scale`), ``"mixture"`` (a
             per-step scale mixture, :func:`fit_scale_mixture`) or ``"conditional"`` (one
@@ -580,7 +581,8 @@ def calibration_table(per_fold: dict[str, dict[str, FoldOutcome]], *, reliabilit
 
 #: relative training cost of each model on a fold (the learned ones dominate): the order in which
 #: run_benchmark hands (fold, model) items to the workers, costliest first
-_COST_RANK: dict[str, int] = {"lstm_rollout": 0, "lstm": 1, "mlp": 2, "kalman": 3, "cvm": 4}
+_COST_RANK: dict[str, int] = {"lstm_rollout": 0, "lstm": 1, "gru": 2, "mlp": 3, "kalman": 4,
+                               "cvm": 5}
 
 
 def benchmark_items(models: Sequence[str], folds: Sequence[str]) -> list[tuple[str, str]]:
