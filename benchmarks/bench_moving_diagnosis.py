@@ -1,6 +1,6 @@
 """Why the warning braked, or did not: the moving-object test read track by track from a run's
-stored outputs. Prints figures, asserts nothing (README, "Coasting clutter tracks and captured
-children").
+stored outputs. Prints figures, asserts nothing (reports/safety.md, "Coasting clutter tracks and
+captured children").
 
     BLINDSPOT_SHARED=../shared PYTHONPATH=src .venv/bin/python \
         benchmarks/bench_moving_diagnosis.py [--data data] [--predictor constant_velocity] \
