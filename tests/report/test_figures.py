@@ -316,8 +316,13 @@ def test_page_with_ethucy_reports_averages_and_verdict():
     eth["best"] = "lstm"                     # the model chosen on val (ethucy.json's "best")
     page = build_page(page_metrics(ethucy=eth), {})
     row = table_row(page, "ETH/UCY average ADE / FDE (observe 8, predict 12)")
-    assert row[2] == "LSTM 0.50 / 1.20 m" and "CVM 0.52 / 1.14 m" in row[3]
+    assert row[2] == "direct LSTM 0.50 / 1.20 m (best on val)" and "CVM 0.52 / 1.14 m" in row[3]
     assert "best" not in row[3]
+    eth["best"] = "kalman"                   # whichever val chose leads; the others beside it
+    row = table_row(build_page(page_metrics(ethucy=eth), {}),
+                    "ETH/UCY average ADE / FDE (observe 8, predict 12)")
+    assert row[2] == "Kalman (CV) 0.54 / 1.17 m (best on val)"
+    assert row[3] == "CVM 0.52 / 1.14 m; direct LSTM 0.50 / 1.20 m"
     assert "does not beat CVM on FDE (it does on ADE)" in page
 
 
@@ -349,6 +354,11 @@ def test_benchmark_and_calibration_rows_carry_their_intervals():
     assert row[2] == "LSTM (paper) 0.300 [0.280, 0.320] m"
     row = table_row(page, "Coverage of the 50/90/95 % ellipses and NLL (nats), sim_paths")
     assert row[2] == "LSTM (paper) 0.600 / 0.850 / 0.870, NLL 0.70"
+    # on an ETH/UCY fold the key "lstm" is the direct predictor with an LSTM encoder
+    cal["lstm"]["eth"] = cal["lstm"]["sim_paths"]
+    row = table_row(build_page(page_metrics(calibration=cal), {}),
+                    "Coverage of the 50/90/95 % ellipses and NLL (nats), eth")
+    assert row[2] == "direct LSTM 0.600 / 0.850 / 0.870, NLL 0.70"
     assert "](figures/benchmark.png)" in page and "| LSTM | 1 |" in page
 
 

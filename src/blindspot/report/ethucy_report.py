@@ -173,8 +173,11 @@ def format_report(results: Results, validation: Results,
         *compare_to_cvm(results),
     ]
     if isinstance(results.get("best"), str):
+        val_avg = "; ".join(f"{m} {rows['avg']['ade']:.4f} / {rows['avg']['fde']:.4f}"
+                            for m, rows in _models(validation).items() if "avg" in rows)
         parts += [f"Best model (lowest mean ADE on the folds' val splits, chosen without the "
-                  f"test scenes): **{results['best']}**.", ""]
+                  f"test scenes): **{results['best']}**"
+                  + (f" (val ADE / FDE averages, m: {val_avg})." if val_avg else "."), ""]
     parts += ["## Models", ""]
     if "cvm" in models:
         parts.append("- **cvm**: constant velocity from the last two observed positions, "

@@ -213,10 +213,14 @@ def summary_rows(metrics: Mapping[str, Metrics]) -> list[tuple[str, str, str, st
             a = _get(eth, model, "avg")
             return "n/a" if not a else f"{a['ade']:.2f} / {a['fde']:.2f} m"
 
-        base = "; ".join(f"{m.upper() if m == 'cvm' else method_label(m)} {avg(m)}" for m in eth
-                         if m != "lstm" and isinstance(eth[m], dict))
-        rows.append(("ETH/UCY average ADE / FDE (observe 8, predict 12)", published,
-                     f"LSTM {avg('lstm')}" if "lstm" in eth else "n/a", base, command("ethucy")))
+        models = [m for m in eth if isinstance(eth[m], dict)]
+        best = eth.get("best") if eth.get("best") in models else ("lstm" if "lstm" in models
+                                                                   else None)
+        base = "; ".join(f"{ethucy_label(m)} {avg(m)}" for m in models if m != best)
+        ours = (f"{ethucy_label(best)} {avg(best)}"
+                + (" (best on val)" if best == eth.get("best") else "")) if best else "n/a"
+        rows.append(("ETH/UCY average ADE / FDE (observe 8, predict 12)", published, ours, base,
+                     command("ethucy")))
     else:
         rows.append(("ETH/UCY average ADE / FDE (observe 8, predict 12)", published,
                      "not run yet (reports/metrics/ethucy.json absent)", "", command("ethucy")))
@@ -283,6 +287,20 @@ def direct_rows(direct: Metrics) -> list[tuple[str, str, str, str, str]]:
     return rows
 
 
+#: the data set of calibration.json that is the simulated radar paths; the others are ETH/UCY folds
+SIM_PATHS = "sim_paths"
+#: ETH/UCY's model keys (reports/metrics/ethucy.json, merged into calibration.json): there "lstm"
+#: is the direct multi-step predictor with an LSTM encoder, not the paper's next-point LSTM
+_ETHUCY_LABELS = {"cvm": "CVM", "constant_velocity": "constant velocity", "kalman": "Kalman (CV)",
+                  "lstm": "direct LSTM", "gru": "direct GRU", "mlp": "direct MLP",
+                  "lstm_rollout": "next-point LSTM"}
+
+
+def ethucy_label(model: str) -> str:
+    """The page's name of an ETH/UCY model key ("lstm" -> "direct LSTM"; unknown: the key)."""
+    return _ETHUCY_LABELS.get(model, model)
+
+
 def calibration_rows(cal: Metrics) -> list[tuple[str, str, str, str, str]]:
     """Summary rows of reports/metrics/calibration.json: coverage of the 50/90/95 % ellipses and
     NLL of each method's calibrated distribution on every data set there (test paths: sim_paths;
@@ -294,7 +312,8 @@ def calibration_rows(cal: Metrics) -> list[tuple[str, str, str, str, str]]:
     datasets = list(dict.fromkeys(d for per in cal.values() for d in per))
     order = sorted(cal, key=lambda m: m != "lstm")          # the LSTM first, as in the rows above
     for d in datasets:
-        cells = [f"{method_label(m)} {cal[m][d]['coverage_50']:.3f} / "
+        label = method_label if d == SIM_PATHS else ethucy_label
+        cells = [f"{label(m)} {cal[m][d]['coverage_50']:.3f} / "
                  f"{cal[m][d]['coverage_90']:.3f} / {cal[m][d]['coverage_95']:.3f}, "
                  f"NLL {cal[m][d]['nll']:.2f}" for m in order if d in cal[m]]
         rows.append((f"Coverage of the 50/90/95 % ellipses and NLL (nats), {d}",
@@ -356,15 +375,18 @@ def differences(metrics: Mapping[str, Metrics]) -> list[str]:
                        f"point and errs {fwd:.2f} m on average on the hidden frames; "
                        + ", ".join(f"{method_label(m)} {v:.2f} m" for m, v in better.items()) + " do better.")
     eth = metrics.get("ethucy")
-    if eth and "lstm" in eth and "cvm" in eth:
-        la, ca = _get(eth, "lstm", "avg"), _get(eth, "cvm", "avg")
+    # the model val chose (ethucy.json's "best"), else the LSTM-encoder one
+    ours = eth.get("best") if eth and isinstance(eth.get(eth.get("best")), dict) else "lstm"
+    if eth and ours in eth and "cvm" in eth:
+        la, ca = _get(eth, ours, "avg"), _get(eth, "cvm", "avg")
         if la and ca:
+            name = ethucy_label(ours) + (" (best on val)" if ours == eth.get("best") else "")
             wins = [k.upper() for k in ("ade", "fde") if la[k] < ca[k]]
             losses = [k.upper() for k in ("ade", "fde") if la[k] >= ca[k]]
-            msg = (f"ETH/UCY: LSTM {la['ade']:.2f} / {la['fde']:.2f} m vs CVM {ca['ade']:.2f} / "
+            msg = (f"ETH/UCY: {name} {la['ade']:.2f} / {la['fde']:.2f} m vs CVM {ca['ade']:.2f} / "
                    f"{ca['fde']:.2f} m (published CVM {ETHUCY_CVM['ade']} / {ETHUCY_CVM['fde']} m); ")
-            msg += ("the LSTM beats CVM on both." if not losses else
-                    f"the LSTM does not beat CVM on {' and '.join(losses)}"
+            msg += (f"the {name} beats CVM on both." if not losses else
+                    f"the {name} does not beat CVM on {' and '.join(losses)}"
                     + (f" (it does on {' and '.join(wins)})." if wins else "."))
             out.append(msg)
     elif not eth:
