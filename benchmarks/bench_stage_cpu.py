@@ -111,7 +111,7 @@ def bench_ethucy(repeats: int) -> None:
         total_old, total_new = total_old + old_s, total_new + new_s
         print(f"ethucy {fold}: conditional scale mixture on {len(val)} val windows, CPU "
               f"{old_s:.2f} s plain EM, {new_s:.2f} s per-component EM")
-    print(f"ethucy, the five folds (one of the 20 fold x model items each): CPU {total_old:.2f} s "
+    print(f"ethucy, the five folds (one of the fold x model items each): CPU {total_old:.2f} s "
           f"-> {total_new:.2f} s ({total_old / total_new:.1f}x); same mixtures: {same}")
 
 

@@ -316,13 +316,15 @@ def test_page_with_ethucy_reports_averages_and_verdict():
     eth["best"] = "lstm"                     # the model chosen on val (ethucy.json's "best")
     page = build_page(page_metrics(ethucy=eth), {})
     row = table_row(page, "ETH/UCY average ADE / FDE (observe 8, predict 12)")
-    assert row[2] == "direct LSTM 0.50 / 1.20 m (best on val)" and "CVM 0.52 / 1.14 m" in row[3]
+    assert row[2] == "LSTM encoder 0.50 / 1.20 m (best on val)" and "CVM 0.52 / 1.14 m" in row[3]
     assert "best" not in row[3]
     eth["best"] = "kalman"                   # whichever val chose leads; the others beside it
-    row = table_row(build_page(page_metrics(ethucy=eth), {}),
-                    "ETH/UCY average ADE / FDE (observe 8, predict 12)")
+    kalman_page = build_page(page_metrics(ethucy=eth), {})
+    row = table_row(kalman_page, "ETH/UCY average ADE / FDE (observe 8, predict 12)")
     assert row[2] == "Kalman (CV) 0.54 / 1.17 m (best on val)"
-    assert row[3] == "CVM 0.52 / 1.14 m; direct LSTM 0.50 / 1.20 m"
+    assert row[3] == "CVM 0.52 / 1.14 m; LSTM encoder 0.50 / 1.20 m"
+    assert "ETH/UCY: Kalman (CV) (best on val) 0.54 / 1.17 m vs CVM" in kalman_page
+    assert "does not beat CVM on ADE and FDE." in kalman_page
     assert "does not beat CVM on FDE (it does on ADE)" in page
 
 
@@ -358,7 +360,16 @@ def test_benchmark_and_calibration_rows_carry_their_intervals():
     cal["lstm"]["eth"] = cal["lstm"]["sim_paths"]
     row = table_row(build_page(page_metrics(calibration=cal), {}),
                     "Coverage of the 50/90/95 % ellipses and NLL (nats), eth")
-    assert row[2] == "direct LSTM 0.600 / 0.850 / 0.870, NLL 0.70"
+    assert row[2] == "LSTM encoder 0.600 / 0.850 / 0.870, NLL 0.70"
+    # ... and the "ours" cell of a fold is the model val chose there
+    cal["mlp"] = {"eth": {"coverage_50": 0.5, "coverage_90": 0.9, "coverage_95": 0.95, "nll": 0.1}}
+    eth = {m: {"eth": {"ade": 1.0, "fde": 2.0, "n_windows": 10}, "avg": {"ade": 0.5, "fde": 1.0}}
+           for m in ("cvm", "lstm", "mlp")}
+    eth["best"] = "mlp"
+    row = table_row(build_page(page_metrics(calibration=cal, ethucy=eth), {}),
+                    "Coverage of the 50/90/95 % ellipses and NLL (nats), eth")
+    assert row[2] == "MLP encoder 0.500 / 0.900 / 0.950, NLL 0.10"
+    assert row[3] == "LSTM encoder 0.600 / 0.850 / 0.870, NLL 0.70"
     assert "](figures/benchmark.png)" in page and "| LSTM | 1 |" in page
 
 

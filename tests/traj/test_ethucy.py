@@ -248,7 +248,7 @@ def test_each_direct_model_key_trains_its_own_encoder(ethucy_dir):
         trained[name] = ens.members[0].net.encoder
         return ens, fitted
 
-    cfg = _replace(Seq2SeqConfig(), epochs=1, neighbours=0)
+    cfg = _replace(Seq2SeqConfig(), epochs=1, ensemble=1, neighbours=0)
     with pytest.MonkeyPatch.context() as mp:
         mp.setattr(ethucy_benchmark, "train_fold_seq2seq", spy)
         out = ethucy_benchmark.run_fold(ethucy_dir, "eth", ("lstm", "gru", "mlp"),
@@ -308,8 +308,9 @@ def _scores(per_fold):
 def test_benchmark_items_put_the_learned_models_first():
     from blindspot.traj.ethucy_benchmark import benchmark_items
 
-    items = benchmark_items(("cvm", "kalman", "lstm", "mlp"), ("eth", "hotel"))
-    assert items == [("eth", "lstm"), ("hotel", "lstm"), ("eth", "mlp"), ("hotel", "mlp"),
+    items = benchmark_items(("cvm", "kalman", "lstm", "mlp", "gru"), ("eth", "hotel"))
+    assert items == [("eth", "lstm"), ("hotel", "lstm"), ("eth", "gru"), ("hotel", "gru"),
+                     ("eth", "mlp"), ("hotel", "mlp"),
                      ("eth", "kalman"), ("hotel", "kalman"), ("eth", "cvm"), ("hotel", "cvm")]
 
 

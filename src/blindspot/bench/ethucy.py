@@ -2,11 +2,11 @@
 standard protocol.
 
     python -m blindspot.bench.ethucy --data DIR --out FILE.json [--report FILE.md]
-        [--models cvm,kalman,lstm,mlp] [--folds eth,hotel,...] [--epochs N] [--ensemble K]
+        [--models cvm,kalman,lstm,gru,mlp] [--folds eth,hotel,...] [--epochs N] [--ensemble K]
         [--calibration mle|quantile|mixture|conditional] [--quiet]
 
 ``--epochs``, ``--ensemble``, ``--seed``, ``--threads`` apply to every learned model (the direct
-predictors ``lstm``/``mlp``, whose other settings are ``Seq2SeqConfig``'s defaults, and the
+predictors ``lstm``/``gru``/``mlp``, whose other settings are ``Seq2SeqConfig``'s defaults, and the
 next-point ``lstm_rollout``, configured by the remaining flags).
 
 The protocol is :mod:`blindspot.traj.ethucy_benchmark` (the pipeline's ``ethucy`` stage calls it

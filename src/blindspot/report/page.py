@@ -204,7 +204,7 @@ def summary_rows(metrics: Mapping[str, Metrics]) -> list[tuple[str, str, str, st
 
     rows += benchmark_rows(metrics.get("benchmark"))
     rows += direct_rows(metrics.get("train_direct"))
-    rows += calibration_rows(metrics.get("calibration"))
+    rows += calibration_rows(metrics.get("calibration"), (metrics.get("ethucy") or {}).get("best"))
 
     eth = metrics.get("ethucy")
     published = f"CVM {ETHUCY_CVM['ade']} / {ETHUCY_CVM['fde']} m (published)"
@@ -290,28 +290,34 @@ def direct_rows(direct: Metrics) -> list[tuple[str, str, str, str, str]]:
 #: the data set of calibration.json that is the simulated radar paths; the others are ETH/UCY folds
 SIM_PATHS = "sim_paths"
 #: ETH/UCY's model keys (reports/metrics/ethucy.json, merged into calibration.json): there "lstm"
-#: is the direct multi-step predictor with an LSTM encoder, not the paper's next-point LSTM
+#: is the direct multi-step predictor with an LSTM encoder, not the paper's next-point LSTM, and
+#: not the radar paths' direct LSTM (lstm_direct) either
 _ETHUCY_LABELS = {"cvm": "CVM", "constant_velocity": "constant velocity", "kalman": "Kalman (CV)",
-                  "lstm": "direct LSTM", "gru": "direct GRU", "mlp": "direct MLP",
+                  "lstm": "LSTM encoder", "gru": "GRU encoder", "mlp": "MLP encoder",
                   "lstm_rollout": "next-point LSTM"}
 
 
 def ethucy_label(model: str) -> str:
-    """The page's name of an ETH/UCY model key ("lstm" -> "direct LSTM"; unknown: the key)."""
+    """The page's name of an ETH/UCY model key: the direct predictor's keys by their encoder
+    ("lstm" -> "LSTM encoder"; unknown: the key)."""
     return _ETHUCY_LABELS.get(model, model)
 
 
-def calibration_rows(cal: Metrics) -> list[tuple[str, str, str, str, str]]:
+def calibration_rows(cal: Metrics, ethucy_best: str | None = None
+                     ) -> list[tuple[str, str, str, str, str]]:
     """Summary rows of reports/metrics/calibration.json: coverage of the 50/90/95 % ellipses and
     NLL of each method's calibrated distribution on every data set there (test paths: sim_paths;
-    ETH/UCY folds where merged)."""
+    ETH/UCY folds where merged). The "ours" cell is the LSTM's on sim_paths and, on an ETH/UCY
+    fold, the model val chose there (``ethucy_best``, ethucy.json's "best"; else the LSTM
+    encoder's)."""
     if not cal:
         return [("Coverage of the 50/90/95 % prediction ellipses", "not in the paper", "not run yet",
                  "", command("calibration"))]
     rows = []
     datasets = list(dict.fromkeys(d for per in cal.values() for d in per))
-    order = sorted(cal, key=lambda m: m != "lstm")          # the LSTM first, as in the rows above
     for d in datasets:
+        lead = "lstm" if d == SIM_PATHS or ethucy_best not in cal else ethucy_best
+        order = sorted(cal, key=lambda m: m != lead)        # "ours" first, as in the rows above
         label = method_label if d == SIM_PATHS else ethucy_label
         cells = [f"{label(m)} {cal[m][d]['coverage_50']:.3f} / "
                  f"{cal[m][d]['coverage_90']:.3f} / {cal[m][d]['coverage_95']:.3f}, "
@@ -385,7 +391,7 @@ def differences(metrics: Mapping[str, Metrics]) -> list[str]:
             losses = [k.upper() for k in ("ade", "fde") if la[k] >= ca[k]]
             msg = (f"ETH/UCY: {name} {la['ade']:.2f} / {la['fde']:.2f} m vs CVM {ca['ade']:.2f} / "
                    f"{ca['fde']:.2f} m (published CVM {ETHUCY_CVM['ade']} / {ETHUCY_CVM['fde']} m); ")
-            msg += (f"the {name} beats CVM on both." if not losses else
+            msg += ("it beats CVM on both." if not losses else
                     f"the {name} does not beat CVM on {' and '.join(losses)}"
                     + (f" (it does on {' and '.join(wins)})." if wins else "."))
             out.append(msg)
