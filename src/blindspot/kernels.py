@@ -5,8 +5,9 @@ CPU's instruction sets (SSE4, AVX2, AVX-512). Different kernels sum in a differe
 differently, so the same code and seed give outputs that differ in their last bits from one CPU to
 the next, and DVC then sees changed outputs and reruns everything after them (issue 10: a fresh
 clone on an AVX-512 machine reran simulate, detect, recordings and paths, and the scene LSTM's
-weights moved enough to swing its path error by 40 %). Measured on the project's AMD EPYC (AVX2)
-machine, each selector alone changes the bytes (``benchmarks/bench_kernels.py`` reruns this):
+weights moved enough to swing its path error by 40 %). Measured on the project's AMD EPYC machine
+(AVX2 kernels pinned), each selector alone changes the bytes (``benchmarks/bench_kernels.py``
+reruns this):
 
 * the simulated frames and detections of the tiny profile: ``OPENBLAS_CORETYPE=Sandybridge``
   and ``NPY_DISABLE_CPU_FEATURES=X86_V3`` (numpy's SSE4 instead of AVX2 loops) each give other
@@ -23,12 +24,16 @@ runner re-executes a stage whose process imported numpy first (:func:`needs_reex
 
 Not covered: CPUs without AVX2 and other architectures (ARM, e.g. Apple silicon) run their own
 kernels (nothing is pinned there, and their bytes may differ); a value the user set is kept (and
-reported). Nor does ``MKL_CBWR=AVX2`` make MKL agree across CPU vendors: Intel documents its
-conditional numerical reproducibility for Intel processors only, and the same training inputs
-gave other network weights on an AMD EPYC (Zen 4) than on an Intel Xeon (2026-12-03). The radar
-stages therefore never reach MKL (numpy/scipy only; the import contract ``radar-bytes-without-
-mkl`` in ``.importlinter``), and their bytes hold on both; the stages that train a network do
-not yet. ``BLINDSPOT_NATIVE_KERNELS=1`` turns the pinning off (fastest kernels, machine-
+reported). Nor does ``MKL_CBWR=AVX2`` make MKL agree across CPU vendors: Intel's oneMKL
+developer guide ("Getting Started with Conditional Numerical Reproducibility") states that on
+non-Intel CPUs this setting uses the AUTO branch (the CPU's own dispatch) instead, and the same
+training inputs gave other network weights on an AMD EPYC (Zen 4) than on an Intel Xeon
+(2026-12-03). ``MKL_CBWR=COMPATIBLE`` (SSE2 without rcpps/rsqrtps) is the branch documented for
+both; it is not pinned yet, as it is untested on an Intel machine. The radar stages never reach
+MKL (numpy/scipy only; import contract ``radar-bytes-without-mkl`` in ``.importlinter``): the
+stages that were numpy-only before gave the same bytes on both vendors; paths, driving_detect and
+driving_measure, torch-free since 2026-12-03, have run on the AMD EPYC only. The stages that train
+a network are not yet portable. ``BLINDSPOT_NATIVE_KERNELS=1`` turns the pinning off (fastest kernels, machine-
 dependent bytes).
 
 Sources for the variables: OpenBLAS README ("Runtime CPU detection ... OPENBLAS_CORETYPE"),
