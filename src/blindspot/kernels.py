@@ -33,8 +33,8 @@ both; it is not pinned yet, as it is untested on an Intel machine. The radar sta
 MKL (numpy/scipy only; import contract ``radar-bytes-without-mkl`` in ``.importlinter``): the
 stages that were numpy-only before gave the same bytes on both vendors; paths, driving_detect and
 driving_measure, torch-free since 2026-12-03, have run on the AMD EPYC only. The stages that train
-a network are not yet portable. ``BLINDSPOT_NATIVE_KERNELS=1`` turns the pinning off (fastest kernels, machine-
-dependent bytes).
+a network are not yet portable. ``BLINDSPOT_NATIVE_KERNELS=1`` turns the pinning off (fastest
+kernels, machine-dependent bytes).
 
 Sources for the variables: OpenBLAS README ("Runtime CPU detection ... OPENBLAS_CORETYPE"),
 numpy "CPU build options / runtime dispatch" (``NPY_DISABLE_CPU_FEATURES``), PyTorch
