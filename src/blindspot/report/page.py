@@ -214,8 +214,7 @@ def summary_rows(metrics: Mapping[str, Metrics]) -> list[tuple[str, str, str, st
             return "n/a" if not a else f"{a['ade']:.2f} / {a['fde']:.2f} m"
 
         models = [m for m in eth if isinstance(eth[m], dict)]
-        best = eth.get("best") if eth.get("best") in models else ("lstm" if "lstm" in models
-                                                                   else None)
+        best = ethucy_lead(eth)
         base = "; ".join(f"{ethucy_label(m)} {avg(m)}" for m in models if m != best)
         ours = (f"{ethucy_label(best)} {avg(best)}"
                 + (" (best on val)" if best == eth.get("best") else "")) if best else "n/a"
@@ -303,6 +302,14 @@ def ethucy_label(model: str) -> str:
     return _ETHUCY_LABELS.get(model, model)
 
 
+def ethucy_lead(eth: Metrics) -> str | None:
+    """The ETH/UCY model the page puts first: the one val chose (ethucy.json's "best") when it
+    has a row, else the LSTM encoder's, else None."""
+    rows = [m for m in eth if isinstance(eth[m], Mapping)]
+    best = eth.get("best")
+    return best if best in rows else ("lstm" if "lstm" in rows else None)
+
+
 def calibration_rows(cal: Metrics, ethucy_best: str | None = None
                      ) -> list[tuple[str, str, str, str, str]]:
     """Summary rows of reports/metrics/calibration.json: coverage of the 50/90/95 % ellipses and
@@ -381,9 +388,8 @@ def differences(metrics: Mapping[str, Metrics]) -> list[str]:
                        f"point and errs {fwd:.2f} m on average on the hidden frames; "
                        + ", ".join(f"{method_label(m)} {v:.2f} m" for m, v in better.items()) + " do better.")
     eth = metrics.get("ethucy")
-    # the model val chose (ethucy.json's "best"), else the LSTM-encoder one
-    ours = eth.get("best") if eth and isinstance(eth.get(eth.get("best")), dict) else "lstm"
-    if eth and ours in eth and "cvm" in eth:
+    ours = ethucy_lead(eth) if eth else None
+    if ours and "cvm" in eth:
         la, ca = _get(eth, ours, "avg"), _get(eth, "cvm", "avg")
         if la and ca:
             name = ethucy_label(ours) + (" (best on val)" if ours == eth.get("best") else "")
