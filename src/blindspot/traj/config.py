@@ -275,7 +275,8 @@ class Seq2SeqConfig(TypedConfig):
     ``ethucy.seq2seq``; every field is measured in ``benchmarks/bench_ethucy_models.py``).
 
     Attributes:
-        cell: recurrent encoder, ``"gru"`` or ``"lstm"``.
+        cell: the encoder of the observed history: ``"gru"`` or ``"lstm"`` (recurrent) or
+            ``"mlp"`` (dense, over the flattened history).
         hidden_size: encoder state size.
         num_layers: encoder layers.
         head_hidden: width of the dense head's hidden layer.

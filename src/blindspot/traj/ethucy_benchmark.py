@@ -1,4 +1,4 @@
-"""The ETH/UCY benchmark protocol: CVM, Kalman and the LSTM scored by ADE / FDE.
+"""The ETH/UCY benchmark protocol: CVM, Kalman and the learned predictors scored by ADE / FDE.
 
 :func:`run_benchmark` takes typed :class:`EthUcySettings` (built from the ``ethucy`` config
 group, typed, by :meth:`EthUcySettings.from_config`, or by the command line
@@ -31,9 +31,13 @@ scene).
 Predictive distributions (issue 10, section 2): every model but ``lstm_rollout`` gives a
 :class:`~blindspot.traj.distribution.GaussianForecast` (cvm: :class:`CVNoise` fitted on the
 fold's val split; kalman: its own propagated covariance; lstm/gru/mlp: the Gaussian head and
-the ensemble spread). Each is calibrated by a per-step covariance scale fitted on the fold's val
-split (:func:`~blindspot.traj.distribution.fit_step_scale`, never on test) and scored on the
-test scene: coverage of the 50/90/95 % ellipses and the NLL (:func:`calibration_scores`).
+the ensemble spread). Each is calibrated on the fold's val split, never on test (``calibration``
+of :func:`run_fold`: a per-step covariance scale,
+:func:`~blindspot.traj.distribution.fit_step_scale`; a per-step scale mixture; or, the stage's
+setting, one such mixture per class of observed speed,
+:func:`~blindspot.traj.distribution.fit_conditional_scale_mixture`) and scored on the test scene:
+coverage of the 50/90/95 % ellipses and the NLL (:func:`calibration_scores`), beside the
+adaptive conformal ellipses of :func:`online_coverage`.
 """
 
 from __future__ import annotations
