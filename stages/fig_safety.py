@@ -62,7 +62,9 @@ def run(cfg, ctx):
     outs.append(save_figure(fig_lead_times(ev, predictors), ctx.out("safety_lead_times.png"),
                             dpi=110))
     md = [f"Euro NCAP-shaped grid of the Monte-Carlo intruding scenes ({headline} input; "
-          "cells: scenes avoided / scenes, mean impact speed, 2026 band of that mean).\n"]
+          "cells: scenes avoided / scenes, mean impact speed, 2026 band of that mean; and how "
+          "many of them braked from a frame before the lead pedestrian was in line of sight, "
+          "for another pedestrian or clutter).\n"]
     for inp in settings["inputs"]:
         for p in predictors:
             if inp not in metrics[p]["by_input"]:

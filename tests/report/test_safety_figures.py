@@ -1,5 +1,6 @@
 """The operating characteristic draws every input x predictor curve, its configured point and
-the perception bounds at 0 % false activations, where a perfect decider sits."""
+the perception bounds at 0 % false activations, where a perfect decider sits; the Euro NCAP
+grid's Markdown says how many scenes braked before the lead pedestrian was visible."""
 
 import matplotlib
 
@@ -32,3 +33,19 @@ def test_operating_characteristic_draws_curves_points_and_bounds():
     without = fig_operating_characteristic(curves, operating)
     assert not [line for line in without.axes[0].get_lines()
                 if line.get_label().startswith("bound:")]
+
+
+def test_ncap_grid_markdown_says_where_the_aeb_fired_before_the_lead_was_visible():
+    """A cell whose scenes braked before the lead pedestrian was visible says how many; one
+    without such scenes (and a grid without the column, as before it existed) says nothing."""
+    from blindspot.report.safety_figures import ncap_grid_markdown
+
+    grid = pd.DataFrame({"predictor": "kalman", "speed_kmh": [60.0, 60.0],
+                         "impact_pct": [25.0, 50.0], "n": 6, "n_avoided": [3, 1],
+                         "n_aeb_before_visible": [2, 0], "impact_speed_kmh_mean": [20.0, 40.0],
+                         "band": ["brown", "red"]})
+    row = ncap_grid_markdown(grid, "kalman").splitlines()[2]
+    assert row == ("| 60 km/h | 3/6 avoided, 20.0 km/h (brown); 2 braked before the lead "
+                   "pedestrian was visible | 1/6 avoided, 40.0 km/h (red) |")
+    old = ncap_grid_markdown(grid.drop(columns="n_aeb_before_visible"), "kalman")
+    assert "braked" not in old

@@ -8,7 +8,7 @@ import pytest
 
 from blindspot.safety.config import OracleConfig, WarningConfig
 from blindspot.safety.evaluation import (SceneInfo, avoided_at_false_activation, operating_curve,
-                                         scene_results, trigger_frames)
+                                         scene_results, summarise, trigger_frames)
 from blindspot.safety.oracle import TRACK_COLUMNS, oracle_tracks
 from blindspot.safety.predict import BackfilledHistory, track_histories, with_backfill
 from blindspot.typed_config import ConfigError
@@ -41,6 +41,38 @@ def test_operating_curve_ends_and_scene_results():
     assert res.impact_speed_kmh.tolist()[:2] == [0.0, 30.0]
     assert res.lead_time_s[0] == pytest.approx(2.0 - 0.2)           # warned at frame 1 + 0.1 s
     assert res.warn_frame.tolist() == [1, 2, -1, -1]
+
+
+def test_a_request_before_the_lead_pedestrian_is_visible_is_counted_apart():
+    """Two intruding scenes, both avoided: in the first the AEB fires from frame 0, while the
+    lead pedestrian is still hidden (visible from 0.15 s: frame 2 is the first frame that
+    starts after it), so it braked for someone else; in the second from frame 2, after it.
+    Only the second counts for the avoided rate after visibility; the warning of the first
+    (frame 0) came before visibility too, and visible_to_warning_s is negative there."""
+    info = _info(2, 1)
+    info = SceneInfo(info.scenes, info.speed_kmh, info.intruding, info.impact_pct,
+                     info.collision_s, np.array([0.15, 0.15, 0.0]))
+    p = np.array([[0.9, 0.9, 0.9], [0, 0, 0.9], [0, 0, 0]], float)
+    impact = np.array([[np.nan, np.nan, np.nan, 30.0]] * 2 + [[np.nan] * 4])   # last: no hit
+    res = scene_results(p, info, impact, np.array([0.0, 0.1, 0.2]), warning_threshold=0.3,
+                        aeb_threshold=0.5, decision_delay_s=0.1)
+    assert res.avoided.tolist() == [True, True, True]
+    assert res.aeb_before_visible.tolist() == [True, False, False]
+    assert res.warned_before_visible.tolist() == [True, False, False]
+    assert res.visible_to_warning_s[0] == pytest.approx(0.1 - 0.15)
+    m = summarise(res, n_bootstrap=50, seed=0)
+    speed = m["by_speed_kmh"]["30"]
+    assert speed["avoided_rate"] == m["avoided_rate"] == 1.0
+    assert speed["aeb_before_visible_rate"] == m["aeb_before_visible_rate"] == 0.5
+    assert speed["avoided_after_visible_rate"] == m["avoided_after_visible_rate"] == 0.5
+    lo, hi = m["avoided_after_visible_rate_ci95"]
+    assert lo < 0.5 < hi
+    # a lead pedestrian never visible: any request is before it
+    never = SceneInfo(info.scenes, info.speed_kmh, info.intruding, info.impact_pct,
+                      info.collision_s, np.array([np.nan, np.nan, 0.0]))
+    res = scene_results(p, never, impact, np.array([0.0, 0.1, 0.2]), warning_threshold=0.3,
+                        aeb_threshold=0.5, decision_delay_s=0.1)
+    assert res.aeb_before_visible.tolist() == [True, True, False]
 
 
 def test_avoided_at_false_activation_reads_the_curve_at_each_level():

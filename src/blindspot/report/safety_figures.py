@@ -235,15 +235,23 @@ def fig_lead_times(scenes: pd.DataFrame, predictors: Sequence[str]) -> Figure:
 
 def ncap_grid_markdown(grid: pd.DataFrame, predictor: str) -> str:
     """The grid of one predictor as Markdown: rows ego speed, columns impact point, cells
-    'avoided/scenes, mean impact km/h (band)'."""
+    'avoided/scenes, mean impact km/h (band)', and '; k braked before the lead pedestrian was
+    visible' where k scenes' AEB request came before its first line of sight (grids without
+    ``n_aeb_before_visible`` show none)."""
     g = grid[grid.predictor == predictor]
     pcts = np.sort(g.impact_pct.unique())
     lines = ["| ego speed | " + " | ".join(f"{p:g} %" for p in pcts) + " |",
              "|---|" + "---|" * len(pcts)]
+
+    def cell(c: pd.Series) -> str:
+        text = (f"{int(c['n_avoided'])}/{int(c['n'])} avoided, "
+                f"{c['impact_speed_kmh_mean']:.1f} km/h ({c['band']})")
+        early = int(c.get("n_aeb_before_visible", 0))
+        return text + (f"; {early} braked before the lead pedestrian was visible"
+                       if early else "")
+
     for v, r in g.groupby("speed_kmh"):
         cells = r.set_index("impact_pct")
         lines.append(f"| {v:g} km/h | " + " | ".join(
-            f"{int(cells.loc[p, 'n_avoided'])}/{int(cells.loc[p, 'n'])} avoided, "
-            f"{cells.loc[p, 'impact_speed_kmh_mean']:.1f} km/h ({cells.loc[p, 'band']})"
-            if p in cells.index else "-" for p in pcts) + " |")
+            cell(cells.loc[p]) if p in cells.index else "-" for p in pcts) + " |")
     return "\n".join(lines) + "\n"

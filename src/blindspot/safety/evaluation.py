@@ -22,6 +22,20 @@ speed (km/h, 0 when avoided; mean with a percentile-bootstrap 95 % interval), th
 time (the true TTC when the warning is issued: collision time without braking minus the warning
 time; median over warned scenes), the time from the pedestrian's first visibility (first frame
 not occluded) to the warning; on non-intruding scenes the false-activation rate (Wilson).
+
+The decisions are the scene's, not the lead pedestrian's: the intruding scenes hold other
+pedestrians too (one stops at the kerb, one crosses after the car; ``scenes.json``), who are
+in line of sight before the lead steps out, and a track of one of them (or of clutter) can
+request the AEB before the lead pedestrian is seen at all. Such a scene then ends avoided by
+braking for someone else, the same braking that counts as a false activation in a
+non-intruding scene. So each intruding scene also says whether its AEB request (and its
+warning) came from a frame before the lead pedestrian's first line of sight
+(``aeb_before_visible``, ``warned_before_visible``), and the metrics give the share of such
+requests and the avoided rate without them (``avoided_after_visible_rate``: avoided, the AEB
+requested from a frame at or after the lead's first line of sight), the part of the avoided
+rate that a response to the lead pedestrian earned. The perfect deciders of
+:mod:`blindspot.safety.bound` respond to the lead pedestrian alone, so it is this rate, not
+``avoided_rate``, that they bound.
 """
 
 from __future__ import annotations
@@ -170,7 +184,10 @@ def scene_results(p: np.ndarray, info: SceneInfo, impact_kmh: np.ndarray,
                   decision_delay_s: float, p_aeb: np.ndarray | None = None) -> pd.DataFrame:
     """One row per scene: warn_frame / aeb_frame (-1 none), warning_s, aeb_s (NaN none),
     impact_speed_kmh (0 avoided), avoided, lead_time_s (true TTC at the warning; NaN without a
-    warning before the collision), aeb_lead_time_s, visible_to_warning_s.
+    warning before the collision), aeb_lead_time_s, visible_to_warning_s (negative: warned
+    before the lead pedestrian was visible), warned_before_visible / aeb_before_visible (the
+    warning / the AEB request made from a frame that starts before the lead pedestrian's first
+    line of sight, or in a scene where it never has one; False without a request).
 
     p (S, F) scene-frame risk (the warning's, and the AEB's unless ``p_aeb`` (S, F), the gated
     AEB risk, is given); impact_kmh (S, F + 1) the outcome table (column F = no AEB; NaN =
@@ -184,6 +201,11 @@ def scene_results(p: np.ndarray, info: SceneInfo, impact_kmh: np.ndarray,
     with np.errstate(invalid="ignore"):
         lead = np.where(warn_s < info.collision_s, info.collision_s - warn_s, np.nan)
         aeb_lead = np.where(aeb_s < info.collision_s, info.collision_s - aeb_s, np.nan)
+    # the frame each decision was made from starts decision_delay_s before the decision
+    seen = np.where(np.isnan(info.first_visible_s), np.inf, info.first_visible_s) - 1e-9
+    with np.errstate(invalid="ignore"):
+        warned_early = np.isfinite(warn_s) & (warn_s - decision_delay_s < seen)
+        aeb_early = np.isfinite(aeb_s) & (aeb_s - decision_delay_s < seen)
     return pd.DataFrame({
         "scene": info.scenes, "speed_kmh": info.speed_kmh, "impact_pct": info.impact_pct,
         "intruding": info.intruding, "warn_frame": np.where(warn < F, warn, -1),
@@ -191,6 +213,7 @@ def scene_results(p: np.ndarray, info: SceneInfo, impact_kmh: np.ndarray,
         "impact_speed_kmh": np.nan_to_num(imp, nan=0.0), "avoided": np.isnan(imp),
         "lead_time_s": lead, "aeb_lead_time_s": aeb_lead,
         "visible_to_warning_s": warn_s - info.first_visible_s,
+        "warned_before_visible": warned_early, "aeb_before_visible": aeb_early,
     })
 
 
@@ -198,6 +221,21 @@ def _median(x) -> float | None:
     x = np.asarray(x, float)
     x = x[np.isfinite(x)]
     return float(np.median(x)) if len(x) else None
+
+
+def _before_visible(it: pd.DataFrame) -> dict:
+    """Of intruding scenes (:func:`scene_results` rows): the shares warned and AEB-requested
+    from a frame before the lead pedestrian's first line of sight, and the avoided rate
+    without the latter (with its Wilson 95 % interval); None for no scene."""
+    if not len(it):
+        return {"warned_before_visible_rate": None, "aeb_before_visible_rate": None,
+                "avoided_after_visible_rate": None, "avoided_after_visible_rate_ci95": None}
+    early, warned = it.aeb_before_visible.astype(bool), it.warned_before_visible.astype(bool)
+    later = it.avoided.astype(bool) & ~early
+    return {"warned_before_visible_rate": float(warned.mean()),
+            "aeb_before_visible_rate": float(early.mean()),
+            "avoided_after_visible_rate": float(later.mean()),
+            "avoided_after_visible_rate_ci95": wilson(int(later.sum()), len(it))}
 
 
 def summarise(res: pd.DataFrame, *, n_bootstrap: int, seed: int) -> dict:
@@ -222,6 +260,7 @@ def summarise(res: pd.DataFrame, *, n_bootstrap: int, seed: int) -> dict:
             "lead_time_s_median": _median(it.lead_time_s),
             "aeb_lead_time_s_median": _median(it.aeb_lead_time_s),
             "visible_to_warning_s_median": _median(it.visible_to_warning_s),
+            **_before_visible(it),
             "false_activation_rate": n_fa / len(non) if len(non) else None,
         }
     it, non = res[res.intruding], res[~res.intruding]
@@ -235,6 +274,7 @@ def summarise(res: pd.DataFrame, *, n_bootstrap: int, seed: int) -> dict:
         "n_intruding": int(len(it)), "n_non_intruding": int(len(non)),
         "avoided_rate": float(it.avoided.mean()) if len(it) else None,
         "avoided_rate_ci95": wilson(int(it.avoided.sum()), len(it)),
+        **_before_visible(it),
         "false_activation_rate": far,
         "false_activation_rate_ci95": wilson(n_fa, len(non)),
         "false_warning_rate": n_fw / len(non) if len(non) else None,
@@ -282,13 +322,16 @@ def avoided_at_false_activation(curve: pd.DataFrame, levels=(0.01, 0.05, 0.1)) -
 
 def ncap_grid(res: pd.DataFrame) -> pd.DataFrame:
     """Euro NCAP-shaped grid of the intruding scenes: per (speed, impact point) the scenes,
-    those avoided, the mean impact speed, its colour band and the mean cell score of the
-    scenes (:func:`blindspot.safety.ncap.ncap_band`)."""
+    those avoided, those whose AEB request came before the lead pedestrian was visible
+    (``n_aeb_before_visible``: braking for another pedestrian or clutter), the mean impact
+    speed, its colour band and the mean cell score of the scenes
+    (:func:`blindspot.safety.ncap.ncap_band`)."""
     it = res[res.intruding].copy()
     names, score = ncap_band(it.speed_kmh.to_numpy(), it.impact_speed_kmh.to_numpy())
     it["score"] = score
     g = it.groupby(["speed_kmh", "impact_pct"])
     out = g.agg(n=("scene", "size"), n_avoided=("avoided", "sum"),
+                n_aeb_before_visible=("aeb_before_visible", "sum"),
                 impact_speed_kmh_mean=("impact_speed_kmh", "mean"),
                 score=("score", "mean")).reset_index()
     out["band"] = ncap_band(out.speed_kmh.to_numpy(), out.impact_speed_kmh_mean.to_numpy())[0]
