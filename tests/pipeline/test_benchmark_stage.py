@@ -103,6 +103,10 @@ def test_calibration_then_benchmark_on_a_tiny_setting(tiny):
     ctx.check_outs()
     m = json.loads((root / "reports/metrics/benchmark.json").read_text())
     assert m["n_walks"] == 3
+    # issue 10's shape: every key but n_walks a method of {metric: {mean, ci95}}
+    assert all(set(e) >= {"mean", "ci95"} for k, v in m.items() if k != "n_walks"
+               for e in v.values())
+    m.update(json.loads((root / "reports/metrics/benchmark_paired.json").read_text()))
     for method in ("lstm", "constant_velocity", "kalman", "fill_bidirectional"):
         for entry in m[method].values():
             assert set(entry) >= {"mean", "ci95"} and len(entry["ci95"]) == 2

@@ -1,8 +1,9 @@
-"""The many-walk benchmark's figure and table, from ``reports/metrics/benchmark.json``.
+"""The many-walk benchmark's figure and table, from ``reports/metrics/benchmark.json`` and
+``reports/metrics/benchmark_paired.json``.
 
-Pure: the JSON written by the ``benchmark`` stage in (``{"n_walks": N, method: {metric: {"mean",
-"ci95": [lo, hi], "n"}}, "paired": {"a - b": {metric: {...}}}}``), a figure / Markdown out;
-nothing is computed here but the layout.
+Pure: the two JSON files written by the ``benchmark`` stage, merged, in (``{"n_walks": N,
+method: {metric: {"mean", "ci95": [lo, hi], "n"}}, "paired": {"a - b": {metric: {...}}},
+"lstm_members": {...}}``), a figure / Markdown out; nothing is computed here but the layout.
 """
 
 from __future__ import annotations
