@@ -75,8 +75,10 @@ def run(cfg, ctx):
     tracks = {"tracker": pd.read_parquet(ctx.dep("tracks.parquet")),
               **{name: pd.read_parquet(ctx.dep(f"tracks_{name}.parquet"))
                  for name in ("oracle", "visible_truth")}}
+    # the points' truth labels say only when the lead pedestrian was first seen (scene_info)
+    points = pd.read_parquet(ctx.dep("points.parquet"), columns=["scene", "frame", "source"])
     bodies = body_boxes(group)
-    res = assess(truth, meta, tracks, _predictors(cfg, ctx, w), w, bodies=bodies,
+    res = assess(truth, meta, tracks, _predictors(cfg, ctx, w), w, bodies=bodies, points=points,
                  shape=EgoShape(group.ego.width_m, group.ego.length_m), frame_period_s=dt,
                  figure_scene=group.figure_scene,
                  only={"visible_truth": w.reference_predictors,

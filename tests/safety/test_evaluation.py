@@ -8,7 +8,8 @@ import pytest
 
 from blindspot.safety.config import OracleConfig, WarningConfig
 from blindspot.safety.evaluation import (SceneInfo, avoided_at_false_activation, operating_curve,
-                                         scene_results, summarise, trigger_frames)
+                                         scene_info, scene_results, summarise,
+                                         trigger_frames)
 from blindspot.safety.oracle import TRACK_COLUMNS, oracle_tracks
 from blindspot.safety.predict import BackfilledHistory, track_histories, with_backfill
 from blindspot.typed_config import ConfigError
@@ -73,6 +74,34 @@ def test_a_request_before_the_lead_pedestrian_is_visible_is_counted_apart():
     res = scene_results(p, never, impact, np.array([0.0, 0.1, 0.2]), warning_threshold=0.3,
                         aeb_threshold=0.5, decision_delay_s=0.1)
     assert res.aeb_before_visible.tolist() == [True, True, False]
+
+
+def test_scene_info_counts_the_lead_pedestrians_first_radar_point_as_seen():
+    """The lead's first radar point (frame 1) comes before its line of sight (frame 2, its
+    centre clearing the car): first_visible_s keeps the line of sight, first_seen_s the point;
+    another pedestrian's earlier point does not count; without points both are the line of
+    sight; a request from frame 1 is then not before the lead was seen."""
+    frames = np.arange(4)
+    rows = [dict(scene="a", frame=f, time_s=0.1 * f, pedestrian=p, occluded=occ,
+                 ego_speed_mps=30 / 3.6, behaviour=beh, collision=p == "p0",
+                 collision_time_s=2.0 if p == "p0" else np.nan)
+            for f in frames
+            for p, beh, occ in (("p0", "cross", f < 2), ("p1", "stop_at_kerb", False))]
+    truth = pd.DataFrame(rows)
+    meta = {"a": {"pedestrians": [{"name": "p0", "impact_pct": 50.0},
+                                  {"name": "p1", "impact_pct": 50.0}]}}
+    points = pd.DataFrame({"scene": "a", "frame": [0, 1, 3], "source": ["p1", "p0", "p0"]})
+    info = scene_info(truth, meta, np.array(["a"]), points=points)
+    assert info.first_visible_s[0] == pytest.approx(0.2)
+    assert info.first_seen_s[0] == pytest.approx(0.1)
+    assert scene_info(truth, meta, np.array(["a"])).first_seen_s[0] == pytest.approx(0.2)
+    p = np.array([[0.0, 0.9, 0.9, 0.9]])
+    impact = np.array([[np.nan] * 4 + [30.0]])
+    res = scene_results(p, info, impact, 0.1 * frames, warning_threshold=0.3,
+                        aeb_threshold=0.5, decision_delay_s=0.1)
+    assert not res.aeb_before_visible[0] and res.visible_to_warning_s[0] == pytest.approx(0.0)
+    with pytest.raises(KeyError, match="source"):
+        scene_info(truth, meta, np.array(["a"]), points=points.drop(columns="source"))
 
 
 def test_avoided_at_false_activation_reads_the_curve_at_each_level():

@@ -115,7 +115,7 @@ def perception_bounds(truth: pd.DataFrame, scenes_meta: dict, points: pd.DataFra
     truth, turning = _straight(truth, evaluated_set)
     braking = BrakingModel.from_config(cfg.aeb)
     sa, _, impact = outcome_table(truth, bodies, shape, braking, cfg)
-    info = scene_info(truth, scenes_meta, sa.scenes, lead)
+    info = scene_info(truth, scenes_meta, sa.scenes, lead, points)
     ev = _evaluated(truth, sa.scenes, evaluated_set)
     F = len(sa.time_s)
     frames = np.sort(truth.frame.unique())
@@ -158,7 +158,8 @@ def assess(truth: pd.DataFrame, scenes_meta: dict, tracks: dict[str, pd.DataFram
            predictors: dict[str, Any], cfg: WarningConfig, *, bodies: dict,
            shape: EgoShape, frame_period_s: float, figure_scene: str,
            evaluated_set: str = "monte_carlo", headline: str | None = None,
-           only: dict[str, tuple[str, ...]] | None = None) -> SafetyResult:
+           only: dict[str, tuple[str, ...]] | None = None,
+           points: pd.DataFrame | None = None) -> SafetyResult:
     """Run the evaluation (module docstring).
 
     truth: every scene's truth (column ``set`` selects the evaluated scenes; the figure scene
@@ -167,7 +168,9 @@ def assess(truth: pd.DataFrame, scenes_meta: dict, tracks: dict[str, pd.DataFram
     name -> (length_m, width_m, ref_from_front_m). ``headline``: the input whose numbers fill
     the top level of the metrics (default: the first of ``tracks``); every input's numbers are
     under ``metrics[predictor]["by_input"]``. ``only``: input -> the predictors run on it
-    (default: all).
+    (default: all). ``points``: the radar points with their truth label (columns scene, frame,
+    source), read only to know when a radar point first showed the lead pedestrian
+    (:func:`~blindspot.safety.evaluation.scene_info`; without them, its line of sight).
 
     Track rows after the collision without braking of their scene are not scored (a request
     then comes too late to change the outcome, and the warning lead time counts warnings before
@@ -185,7 +188,7 @@ def assess(truth: pd.DataFrame, scenes_meta: dict, tracks: dict[str, pd.DataFram
     weak = BrakingModel.from_config(cfg.aeb, cfg.sensitivity_decel_mps2)
     sa, trig, impact = outcome_table(truth, bodies, shape, main, cfg)
     _, _, impact_weak = outcome_table(truth, bodies, shape, weak, cfg)
-    info_all = scene_info(truth, scenes_meta, sa.scenes)
+    info_all = scene_info(truth, scenes_meta, sa.scenes, points=points)
     ev = _evaluated(truth, sa.scenes, evaluated_set)
     info = SceneInfo(*(np.asarray(getattr(info_all, f))[ev] for f in SceneInfo.__dataclass_fields__))
     thresholds = np.linspace(0, 1, cfg.n_thresholds + 2)[1:-1]

@@ -23,17 +23,19 @@ time (the true TTC when the warning is issued: collision time without braking mi
 time; median over warned scenes), the time from the pedestrian's first visibility (first frame
 not occluded) to the warning; on non-intruding scenes the false-activation rate (Wilson).
 
-The decisions are the scene's, not the lead pedestrian's: the intruding scenes hold other
-pedestrians too (one stops at the kerb, one crosses after the car; ``scenes.json``), who are
-in line of sight before the lead steps out, and a track of one of them (or of clutter) can
-request the AEB before the lead pedestrian is seen at all. Such a scene then ends avoided by
+The decisions are the scene's, not the lead pedestrian's: most intruding scenes hold one or
+two other pedestrians too (78 of the 108 of the Monte-Carlo set; they stop at the kerb, walk
+along it, turn back or cross after the car; ``scenes.json``), often in line of sight before the
+lead steps out, and a track of one of them (or of clutter) can request the AEB before the lead
+pedestrian is seen at all. Such a scene then ends avoided by
 braking for someone else, the same braking that counts as a false activation in a
 non-intruding scene. So each intruding scene also says whether its AEB request (and its
-warning) came from a frame before the lead pedestrian's first line of sight
-(``aeb_before_visible``, ``warned_before_visible``), and the metrics give the share of such
-requests and the avoided rate without them (``avoided_after_visible_rate``: avoided, the AEB
-requested from a frame at or after the lead's first line of sight), the part of the avoided
-rate that a response to the lead pedestrian earned. The perfect deciders of
+warning) came from a frame before anything showed the lead pedestrian, line of sight or a
+radar point of it (``aeb_before_visible``, ``warned_before_visible``), and the metrics give
+the share of such requests and the avoided rate without them (``avoided_after_visible_rate``:
+avoided, the AEB requested from a frame at or after the first that showed the lead): at most
+the part of the avoided rate that a response to the lead pedestrian earned (a later request
+may still have come from someone else's track). The perfect deciders of
 :mod:`blindspot.safety.bound` respond to the lead pedestrian alone, so it is this rate, not
 ``avoided_rate``, that they bound.
 """
@@ -60,7 +62,10 @@ KMH = 3.6
 class SceneInfo:
     """Per scene (S,): names, ego speed (km/h), intruding flag, nominal impact point (%),
     collision time without braking (s, NaN none), first time the lead pedestrian is visible
-    (s, NaN never)."""
+    (in line of sight; s, NaN never) and first time anything showed it (line of sight or a
+    radar point of it, whichever came first; the line of sight where no points were given).
+    A radar point can come first: the body's near edge clears the car a frame or two before
+    its centre (40 of the 108 intruding Monte-Carlo scenes)."""
 
     scenes: np.ndarray
     speed_kmh: np.ndarray
@@ -68,12 +73,20 @@ class SceneInfo:
     impact_pct: np.ndarray
     collision_s: np.ndarray
     first_visible_s: np.ndarray
+    first_seen_s: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        if self.first_seen_s is None:
+            object.__setattr__(self, "first_seen_s", np.asarray(self.first_visible_s, float))
 
 
 def scene_info(truth: pd.DataFrame, scenes_meta: dict, scenes: np.ndarray,
-               lead: str = "p0") -> SceneInfo:
+               lead: str = "p0", points: pd.DataFrame | None = None) -> SceneInfo:
     """From the truth table and ``scenes.json`` (name -> {"pedestrians": [{"name",
-    "impact_pct", ...}]}), in the order of ``scenes``. Raises KeyError naming a missing scene."""
+    "impact_pct", ...}]}), in the order of ``scenes``; with ``points`` (the radar points,
+    columns scene, frame, source: their truth label) the first radar point of the lead
+    pedestrian counts for ``first_seen_s``. Raises KeyError naming a missing scene or
+    column."""
     p0 = truth[truth.pedestrian == lead]
     g = p0.groupby("scene")
     first = g.first().reindex(scenes)
@@ -87,9 +100,19 @@ def scene_info(truth: pd.DataFrame, scenes_meta: dict, scenes: np.ndarray,
             raise KeyError(f"scenes.json: no scene {s!r}")
         peds = {p["name"]: p for p in scenes_meta[s]["pedestrians"]}
         pct.append(float(peds[lead]["impact_pct"]))
+    seen = vis.to_numpy(float)
+    if points is not None:
+        missing = sorted({"scene", "frame", "source"} - set(points.columns))
+        if missing:
+            raise KeyError(f"points: expected columns scene, frame, source; missing {missing}")
+        frame_time = truth.groupby("frame").time_s.first()
+        own = points[points.source.to_numpy() == lead]
+        first_point = own.groupby("scene").frame.min().map(frame_time).reindex(scenes)
+        seen = np.fmin(seen, first_point.to_numpy(float))
     return SceneInfo(np.asarray(scenes), (first.ego_speed_mps * KMH).round(6).to_numpy(),
                      ((first.behaviour == "cross") & first.collision.astype(bool)).to_numpy(),
-                     np.array(pct), first.collision_time_s.to_numpy(float), vis.to_numpy(float))
+                     np.array(pct), first.collision_time_s.to_numpy(float), vis.to_numpy(float),
+                     seen)
 
 
 def replicate_half(scenes: np.ndarray) -> np.ndarray:
@@ -185,9 +208,10 @@ def scene_results(p: np.ndarray, info: SceneInfo, impact_kmh: np.ndarray,
     """One row per scene: warn_frame / aeb_frame (-1 none), warning_s, aeb_s (NaN none),
     impact_speed_kmh (0 avoided), avoided, lead_time_s (true TTC at the warning; NaN without a
     warning before the collision), aeb_lead_time_s, visible_to_warning_s (negative: warned
-    before the lead pedestrian was visible), warned_before_visible / aeb_before_visible (the
-    warning / the AEB request made from a frame that starts before the lead pedestrian's first
-    line of sight, or in a scene where it never has one; False without a request).
+    before the lead pedestrian was in line of sight), warned_before_visible /
+    aeb_before_visible (the warning / the AEB request made from a frame that starts before
+    anything showed the lead pedestrian, ``info.first_seen_s``, or in a scene where nothing
+    ever does; False without a request).
 
     p (S, F) scene-frame risk (the warning's, and the AEB's unless ``p_aeb`` (S, F), the gated
     AEB risk, is given); impact_kmh (S, F + 1) the outcome table (column F = no AEB; NaN =
@@ -202,7 +226,7 @@ def scene_results(p: np.ndarray, info: SceneInfo, impact_kmh: np.ndarray,
         lead = np.where(warn_s < info.collision_s, info.collision_s - warn_s, np.nan)
         aeb_lead = np.where(aeb_s < info.collision_s, info.collision_s - aeb_s, np.nan)
     # the frame each decision was made from starts decision_delay_s before the decision
-    seen = np.where(np.isnan(info.first_visible_s), np.inf, info.first_visible_s) - 1e-9
+    seen = np.where(np.isnan(info.first_seen_s), np.inf, info.first_seen_s) - 1e-9
     with np.errstate(invalid="ignore"):
         warned_early = np.isfinite(warn_s) & (warn_s - decision_delay_s < seen)
         aeb_early = np.isfinite(aeb_s) & (aeb_s - decision_delay_s < seen)
@@ -225,8 +249,8 @@ def _median(x) -> float | None:
 
 def _before_visible(it: pd.DataFrame) -> dict:
     """Of intruding scenes (:func:`scene_results` rows): the shares warned and AEB-requested
-    from a frame before the lead pedestrian's first line of sight, and the avoided rate
-    without the latter (with its Wilson 95 % interval); None for no scene."""
+    from a frame before anything showed the lead pedestrian, and the avoided rate without the
+    latter (with its Wilson 95 % interval); None for no scene."""
     if not len(it):
         return {"warned_before_visible_rate": None, "aeb_before_visible_rate": None,
                 "avoided_after_visible_rate": None, "avoided_after_visible_rate_ci95": None}
