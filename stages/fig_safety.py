@@ -63,8 +63,8 @@ def run(cfg, ctx):
                             dpi=110))
     md = [f"Euro NCAP-shaped grid of the Monte-Carlo intruding scenes ({headline} input; "
           "cells: scenes avoided / scenes, mean impact speed, 2026 band of that mean; and how "
-          "many of them braked from a frame before the lead pedestrian was in line of sight, "
-          "for another pedestrian or clutter).\n"]
+          "many of them braked from a frame before anything, line of sight or a radar point, "
+          "showed the lead pedestrian: for another pedestrian or clutter).\n"]
     for inp in settings["inputs"]:
         for p in predictors:
             if inp not in metrics[p]["by_input"]:

@@ -115,6 +115,8 @@ def test_a_request_above_the_last_point_to_brake_avoids_and_one_below_does_not(c
            for s in want.index}
     assert got == pytest.approx(want.to_dict(), abs=1e-9)
     assert out["settings"]["confirm_m"] == m
+    # a perfect decider responds to the lead pedestrian: never before it was seen
+    assert all(out[k]["aeb_before_visible_rate"] == 0.0 for k in BOUNDS)
 
 
 def test_bound_results_checks_its_shapes(crossings):

@@ -68,6 +68,12 @@ def test_a_request_before_the_lead_pedestrian_is_visible_is_counted_apart():
     assert speed["avoided_after_visible_rate"] == m["avoided_after_visible_rate"] == 0.5
     lo, hi = m["avoided_after_visible_rate_ci95"]
     assert lo < 0.5 < hi
+    # the decision delay counts: fired from frame 1 (starts 0.1 s, decided at 0.2 s), before
+    # the lead was seen at 0.15 s, is early, although its decision comes after 0.15 s
+    late = np.array([[0, 0.9, 0.9], [0, 0, 0.9], [0, 0, 0]], float)
+    res = scene_results(late, info, impact, np.array([0.0, 0.1, 0.2]), warning_threshold=0.3,
+                        aeb_threshold=0.5, decision_delay_s=0.1)
+    assert res.aeb_before_visible.tolist() == [True, False, False]
     # a lead pedestrian never visible: any request is before it
     never = SceneInfo(info.scenes, info.speed_kmh, info.intruding, info.impact_pct,
                       info.collision_s, np.array([np.nan, np.nan, 0.0]))

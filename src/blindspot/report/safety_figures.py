@@ -236,8 +236,8 @@ def fig_lead_times(scenes: pd.DataFrame, predictors: Sequence[str]) -> Figure:
 def ncap_grid_markdown(grid: pd.DataFrame, predictor: str) -> str:
     """The grid of one predictor as Markdown: rows ego speed, columns impact point, cells
     'avoided/scenes, mean impact km/h (band)', and '; k braked before the lead pedestrian was
-    visible' where k scenes' AEB request came before its first line of sight (grids without
-    ``n_aeb_before_visible`` show none)."""
+    visible' where k scenes' AEB request came from a frame before anything (line of sight or a
+    radar point of it) showed it (grids without ``n_aeb_before_visible`` show none)."""
     g = grid[grid.predictor == predictor]
     pcts = np.sort(g.impact_pct.unique())
     lines = ["| ego speed | " + " | ".join(f"{p:g} %" for p in pcts) + " |",

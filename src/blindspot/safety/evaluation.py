@@ -27,17 +27,17 @@ The decisions are the scene's, not the lead pedestrian's: most intruding scenes 
 two other pedestrians too (78 of the 108 of the Monte-Carlo set; they stop at the kerb, walk
 along it, turn back or cross after the car; ``scenes.json``), often in line of sight before the
 lead steps out, and a track of one of them (or of clutter) can request the AEB before the lead
-pedestrian is seen at all. Such a scene then ends avoided by
-braking for someone else, the same braking that counts as a false activation in a
-non-intruding scene. So each intruding scene also says whether its AEB request (and its
+pedestrian is seen at all. Such a scene then ends avoided by braking for someone or something
+else, the same braking that counts as a false activation in a non-intruding scene. So each intruding scene also says whether its AEB request (and its
 warning) came from a frame before anything showed the lead pedestrian, line of sight or a
 radar point of it (``aeb_before_visible``, ``warned_before_visible``), and the metrics give
 the share of such requests and the avoided rate without them (``avoided_after_visible_rate``:
-avoided, the AEB requested from a frame at or after the first that showed the lead): at most
-the part of the avoided rate that a response to the lead pedestrian earned (a later request
-may still have come from someone else's track). The perfect deciders of
-:mod:`blindspot.safety.bound` respond to the lead pedestrian alone, so it is this rate, not
-``avoided_rate``, that they bound.
+avoided, the AEB requested from a frame at or after the first that showed the lead). It is a
+count of this run, not a bound: a later request may still have come from someone else's track,
+and an early-braked scene might have been avoided by a later response to the lead too. The
+perfect deciders of :mod:`blindspot.safety.bound` respond to the lead pedestrian alone, so it is
+this rate, rather than ``avoided_rate``, that compares with them. The flags are written for the
+non-intruding scenes too, where they mean nothing (every request there is a false activation).
 """
 
 from __future__ import annotations
