@@ -79,6 +79,7 @@ def run(cfg, ctx):
     points = pd.read_parquet(ctx.dep("points.parquet"), columns=["scene", "frame", "source"])
     bodies = body_boxes(group)
     res = assess(truth, meta, tracks, _predictors(cfg, ctx, w), w, bodies=bodies, points=points,
+                 points_name=str(ctx.dep("points.parquet")),
                  shape=EgoShape(group.ego.width_m, group.ego.length_m), frame_period_s=dt,
                  figure_scene=group.figure_scene,
                  only={"visible_truth": w.reference_predictors,

@@ -83,10 +83,11 @@ def test_a_request_before_the_lead_pedestrian_is_visible_is_counted_apart():
 
 
 def test_scene_info_counts_the_lead_pedestrians_first_radar_point_as_seen():
-    """The lead's first radar point (frame 1) comes before its line of sight (frame 2, its
-    centre clearing the car): first_visible_s keeps the line of sight, first_seen_s the point;
-    another pedestrian's earlier point does not count; without points both are the line of
-    sight; a request from frame 1 is then not before the lead was seen."""
+    """The lead's first radar point (0.1 s; which points are the lead's is
+    blindspot.safety.bound.lead_observed's, tested there) comes before its line of sight (frame
+    2, its centre clearing the car): first_visible_s keeps the line of sight, first_seen_s the
+    point; without a point time both are the line of sight; a request from frame 1 is then not
+    before the lead was seen; a point time per scene of another shape is refused."""
     frames = np.arange(4)
     rows = [dict(scene="a", frame=f, time_s=0.1 * f, pedestrian=p, occluded=occ,
                  ego_speed_mps=30 / 3.6, behaviour=beh, collision=p == "p0",
@@ -96,18 +97,19 @@ def test_scene_info_counts_the_lead_pedestrians_first_radar_point_as_seen():
     truth = pd.DataFrame(rows)
     meta = {"a": {"pedestrians": [{"name": "p0", "impact_pct": 50.0},
                                   {"name": "p1", "impact_pct": 50.0}]}}
-    points = pd.DataFrame({"scene": "a", "frame": [0, 1, 3], "source": ["p1", "p0", "p0"]})
-    info = scene_info(truth, meta, np.array(["a"]), points=points)
+    info = scene_info(truth, meta, np.array(["a"]), first_point_s=np.array([0.1]))
     assert info.first_visible_s[0] == pytest.approx(0.2)
     assert info.first_seen_s[0] == pytest.approx(0.1)
     assert scene_info(truth, meta, np.array(["a"])).first_seen_s[0] == pytest.approx(0.2)
+    never = scene_info(truth, meta, np.array(["a"]), first_point_s=np.array([np.nan]))
+    assert never.first_seen_s[0] == pytest.approx(0.2)           # no point: the line of sight
     p = np.array([[0.0, 0.9, 0.9, 0.9]])
     impact = np.array([[np.nan] * 4 + [30.0]])
     res = scene_results(p, info, impact, 0.1 * frames, warning_threshold=0.3,
                         aeb_threshold=0.5, decision_delay_s=0.1)
     assert not res.aeb_before_visible[0] and res.visible_to_warning_s[0] == pytest.approx(0.0)
-    with pytest.raises(KeyError, match="source"):
-        scene_info(truth, meta, np.array(["a"]), points=points.drop(columns="source"))
+    with pytest.raises(ValueError, match="first_point_s"):
+        scene_info(truth, meta, np.array(["a"]), first_point_s=np.array([0.1, 0.2]))
 
 
 def test_avoided_at_false_activation_reads_the_curve_at_each_level():

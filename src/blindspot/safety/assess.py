@@ -97,6 +97,22 @@ def _straight(truth: pd.DataFrame, evaluated_set: str) -> tuple[pd.DataFrame, se
     return truth, turning
 
 
+def _lead_observed(truth: pd.DataFrame, sa, points: pd.DataFrame, lead: str,
+                   points_name: str) -> np.ndarray:
+    """(S, F) bool: the frames of the outcome table's scenes (``sa.scenes``, the truth's sorted
+    frames) holding a radar point of ``lead`` (:func:`~blindspot.safety.bound.lead_observed`)."""
+    return lead_observed(points, sa.scenes, np.sort(truth.frame.unique()), lead,
+                         where=points_name)
+
+
+def _first_time(observed: np.ndarray, time_s: np.ndarray) -> np.ndarray:
+    """(S,) s: the start time of each scene's first True frame of ``observed`` (S, F); NaN
+    where none."""
+    f = first_frame(observed)
+    return np.where(f < len(time_s), np.asarray(time_s, float)[np.minimum(f, len(time_s) - 1)],
+                    np.nan)
+
+
 def perception_bounds(truth: pd.DataFrame, scenes_meta: dict, points: pd.DataFrame,
                       cfg: WarningConfig, *, bodies: dict, shape: EgoShape,
                       confirm: tuple[int, int], evaluated_set: str = "monte_carlo",
@@ -115,11 +131,10 @@ def perception_bounds(truth: pd.DataFrame, scenes_meta: dict, points: pd.DataFra
     truth, turning = _straight(truth, evaluated_set)
     braking = BrakingModel.from_config(cfg.aeb)
     sa, _, impact = outcome_table(truth, bodies, shape, braking, cfg)
-    info = scene_info(truth, scenes_meta, sa.scenes, lead, points)
+    observed = _lead_observed(truth, sa, points, lead, points_name)
+    info = scene_info(truth, scenes_meta, sa.scenes, lead, _first_time(observed, sa.time_s))
     ev = _evaluated(truth, sa.scenes, evaluated_set)
     F = len(sa.time_s)
-    frames = np.sort(truth.frame.unique())
-    observed = lead_observed(points, sa.scenes, frames, lead, where=points_name)
     visible = np.isfinite(info.first_visible_s)
     requests = {
         "line_of_sight": np.where(visible, np.searchsorted(
@@ -159,7 +174,7 @@ def assess(truth: pd.DataFrame, scenes_meta: dict, tracks: dict[str, pd.DataFram
            shape: EgoShape, frame_period_s: float, figure_scene: str,
            evaluated_set: str = "monte_carlo", headline: str | None = None,
            only: dict[str, tuple[str, ...]] | None = None,
-           points: pd.DataFrame | None = None) -> SafetyResult:
+           points: pd.DataFrame | None = None, points_name: str = "points") -> SafetyResult:
     """Run the evaluation (module docstring).
 
     truth: every scene's truth (column ``set`` selects the evaluated scenes; the figure scene
@@ -169,8 +184,9 @@ def assess(truth: pd.DataFrame, scenes_meta: dict, tracks: dict[str, pd.DataFram
     the top level of the metrics (default: the first of ``tracks``); every input's numbers are
     under ``metrics[predictor]["by_input"]``. ``only``: input -> the predictors run on it
     (default: all). ``points``: the radar points with their truth label (columns scene, frame,
-    source), read only to know when a radar point first showed the lead pedestrian
-    (:func:`~blindspot.safety.evaluation.scene_info`; without them, its line of sight).
+    source), named ``points_name`` in errors, read only to know when a radar point first showed
+    the lead pedestrian (:func:`~blindspot.safety.evaluation.scene_info`; without them, its line
+    of sight).
 
     Track rows after the collision without braking of their scene are not scored (a request
     then comes too late to change the outcome, and the warning lead time counts warnings before
@@ -188,7 +204,9 @@ def assess(truth: pd.DataFrame, scenes_meta: dict, tracks: dict[str, pd.DataFram
     weak = BrakingModel.from_config(cfg.aeb, cfg.sensitivity_decel_mps2)
     sa, trig, impact = outcome_table(truth, bodies, shape, main, cfg)
     _, _, impact_weak = outcome_table(truth, bodies, shape, weak, cfg)
-    info_all = scene_info(truth, scenes_meta, sa.scenes, points=points)
+    first_point_s = (None if points is None else
+                     _first_time(_lead_observed(truth, sa, points, "p0", points_name), sa.time_s))
+    info_all = scene_info(truth, scenes_meta, sa.scenes, first_point_s=first_point_s)
     ev = _evaluated(truth, sa.scenes, evaluated_set)
     info = SceneInfo(*(np.asarray(getattr(info_all, f))[ev] for f in SceneInfo.__dataclass_fields__))
     thresholds = np.linspace(0, 1, cfg.n_thresholds + 2)[1:-1]

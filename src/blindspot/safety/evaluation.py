@@ -28,9 +28,9 @@ two other pedestrians too (78 of the 108 of the Monte-Carlo set; they stop at th
 along it, turn back or cross after the car; ``scenes.json``), often in line of sight before the
 lead steps out, and a track of one of them (or of clutter) can request the AEB before the lead
 pedestrian is seen at all. Such a scene then ends avoided by braking for someone or something
-else, the same braking that counts as a false activation in a non-intruding scene. So each intruding scene also says whether its AEB request (and its
-warning) came from a frame before anything showed the lead pedestrian, line of sight or a
-radar point of it (``aeb_before_visible``, ``warned_before_visible``), and the metrics give
+else, the same braking that counts as a false activation in a non-intruding scene. So each
+intruding scene also says whether its AEB request (and its warning) came from a frame before
+anything showed the lead pedestrian, line of sight or a radar point of it (``aeb_before_visible``, ``warned_before_visible``), and the metrics give
 the share of such requests and the avoided rate without them (``avoided_after_visible_rate``:
 avoided, the AEB requested from a frame at or after the first that showed the lead). It is a
 count of this run, not a bound: a later request may still have come from someone else's track,
@@ -81,12 +81,12 @@ class SceneInfo:
 
 
 def scene_info(truth: pd.DataFrame, scenes_meta: dict, scenes: np.ndarray,
-               lead: str = "p0", points: pd.DataFrame | None = None) -> SceneInfo:
+               lead: str = "p0", first_point_s: np.ndarray | None = None) -> SceneInfo:
     """From the truth table and ``scenes.json`` (name -> {"pedestrians": [{"name",
-    "impact_pct", ...}]}), in the order of ``scenes``; with ``points`` (the radar points,
-    columns scene, frame, source: their truth label) the first radar point of the lead
-    pedestrian counts for ``first_seen_s``. Raises KeyError naming a missing scene or
-    column."""
+    "impact_pct", ...}]}), in the order of ``scenes``; ``first_point_s`` (S,) s, the time of
+    the lead pedestrian's first radar point per scene (NaN none; from
+    :func:`blindspot.safety.bound.lead_observed`), counts for ``first_seen_s``. Raises KeyError
+    naming a missing scene, ValueError for a ``first_point_s`` of another shape."""
     p0 = truth[truth.pedestrian == lead]
     g = p0.groupby("scene")
     first = g.first().reindex(scenes)
@@ -101,14 +101,12 @@ def scene_info(truth: pd.DataFrame, scenes_meta: dict, scenes: np.ndarray,
         peds = {p["name"]: p for p in scenes_meta[s]["pedestrians"]}
         pct.append(float(peds[lead]["impact_pct"]))
     seen = vis.to_numpy(float)
-    if points is not None:
-        missing = sorted({"scene", "frame", "source"} - set(points.columns))
-        if missing:
-            raise KeyError(f"points: expected columns scene, frame, source; missing {missing}")
-        frame_time = truth.groupby("frame").time_s.first()
-        own = points[points.source.to_numpy() == lead]
-        first_point = own.groupby("scene").frame.min().map(frame_time).reindex(scenes)
-        seen = np.fmin(seen, first_point.to_numpy(float))
+    if first_point_s is not None:
+        first_point_s = np.asarray(first_point_s, float)
+        if first_point_s.shape != seen.shape:
+            raise ValueError(f"scene_info: first_point_s must be one time per scene, shape "
+                             f"{seen.shape}; found {first_point_s.shape}")
+        seen = np.fmin(seen, first_point_s)
     return SceneInfo(np.asarray(scenes), (first.ego_speed_mps * KMH).round(6).to_numpy(),
                      ((first.behaviour == "cross") & first.collision.astype(bool)).to_numpy(),
                      np.array(pct), first.collision_time_s.to_numpy(float), vis.to_numpy(float),
