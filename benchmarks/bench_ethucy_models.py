@@ -7,7 +7,7 @@ Every variant is the direct multi-step predictor (:mod:`blindspot.traj.seq2seq`)
 benchmark's settings (conf/ethucy/standard.yaml, ``seq2seq``) and one change, trained per fold on
 the fold's train split with the epoch kept by the fold's val ADE, ONE member (seed 0) unless the
 variant says otherwise; ``next_point`` is the project's next-point LSTM rolled out 12 steps
-(:func:`blindspot.traj.ethucy_benchmark.train_fold_lstm`, one member). The table gives the
+(:func:`blindspot.traj.ethucy_protocol.train_fold_lstm`, one member). The table gives the
 average over the folds of val ADE/FDE (what settings are chosen on) and test ADE/FDE (reported,
 never chosen on), CVM beside them. ``ensemble_k`` rows are prefixes of one 5-member ensemble.
 Prints the table (Markdown) and, with ``--json``, the per-fold numbers.
@@ -67,7 +67,7 @@ def run_variant(fold: str, name: str, cfg: Seq2SeqConfig, data_dir) -> dict:
     nb = {"val": val_w.neighbours, "test": test_w.neighbours}
     out = {}
     if name == "next_point":
-        from blindspot.traj.ethucy_benchmark import LSTMBenchSettings, train_fold_lstm
+        from blindspot.traj.ethucy_protocol import LSTMBenchSettings, train_fold_lstm
         pred, *_ = train_fold_lstm(data_dir, fold, LSTMBenchSettings(ensemble=1, num_threads=1),
                                    progress=False)
         preds = {name: pred}

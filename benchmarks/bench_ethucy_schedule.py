@@ -1,6 +1,6 @@
 """How the ethucy stage's work spreads over worker processes: per-fold items (one worker trains
 and scores every model of a fold) against (fold, model) items in longest-first order
-(:func:`blindspot.traj.ethucy_benchmark.benchmark_items`, what ``run_benchmark`` now hands out).
+(:func:`blindspot.traj.ethucy_protocol.benchmark_items`, what ``run_benchmark`` now hands out).
 
     PYTHONPATH=src BLINDSPOT_SHARED=/work/shared python benchmarks/bench_ethucy_schedule.py \
         [--folds eth,hotel,...] [--models cvm,kalman,lstm,mlp] [--workers 2] [--json]
@@ -27,7 +27,7 @@ from omegaconf import OmegaConf
 
 from blindspot import experiment
 from blindspot.config import shared_dir
-from blindspot.traj.ethucy_benchmark import EthUcySettings, benchmark_items, run_fold
+from blindspot.traj.ethucy_protocol import EthUcySettings, benchmark_items, run_fold
 
 
 def makespan(costs: list[float], workers: int) -> float:

@@ -46,7 +46,7 @@ from blindspot.traj.conformal import (AdaptiveConformal, HeldOutStreamScore, ran
                                       stream_coverage)
 from blindspot.traj.distribution import fit_scale_mixture, mahalanobis_sq
 from blindspot.traj.ethucy import FOLDS, OBS_LEN, PRED_LEN, load_split
-from blindspot.traj.ethucy_benchmark import (CALIBRATION_LEVELS, MIXTURE_COMPONENTS,
+from blindspot.traj.ethucy_protocol import (CALIBRATION_LEVELS, MIXTURE_COMPONENTS,
                                              reveal_times, val_windows)
 
 

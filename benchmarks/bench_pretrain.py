@@ -157,8 +157,8 @@ def _walk_benchmark(cfg, ensembles: dict, n_walks: int) -> dict:
     """The benchmark stage's walks and scoring with these ensembles as the predictors."""
     from blindspot import experiment
     from benchmark import measured_walks      # the benchmark stage's walks
-    from blindspot.synth.scene_benchmark import score_scene_walks
-    from blindspot.traj.benchmark import bootstrap_means, paired_differences
+    from blindspot.synth.walk_scores import score_scene_walks
+    from blindspot.traj.bootstrap import bootstrap_means, paired_differences
 
     bench = replace(experiment.benchmark(cfg), n_walks=n_walks)
     ev = experiment.evaluation(cfg)

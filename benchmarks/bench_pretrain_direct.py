@@ -36,7 +36,7 @@ scores, whose histories are 50 points long for the next-point LSTM): ADE / FDE o
 3 s (printed: 1 and 3 s; ``--json``: all), each held-out path's mean a sample, 95 % bootstrap
 intervals over the held-out paths, and the paired differences of ``finetuned`` and of
 ``ethucy`` against ``scratch`` at the same fraction
-(:func:`blindspot.traj.benchmark.bootstrap_means`, ``paired_differences``). The intervals
+(:func:`blindspot.traj.bootstrap.bootstrap_means`, ``paired_differences``). The intervals
 cover the sampling of held-out paths only: one draw of the training subset, fixed seeds.
 Constant velocity on the same pairs for reference.
 
@@ -46,7 +46,7 @@ the same radar chain, :mod:`blindspot.synth.scene_walks`), each predicting 2.5 s
 filled up to the prediction time, once with the configured fill (``eval.prediction_input``, the
 benchmark stage's input; its next-point LSTM is ``data/train/model.pt``) and once with the
 Kalman smoother's fill; the paper's metric and ADE / FDE at 0.5, 1 and 2 s per walk, intervals
-and paired differences over walks (:func:`blindspot.synth.scene_benchmark.score_scene_walks`;
+and paired differences over walks (:func:`blindspot.synth.walk_scores.score_scene_walks`;
 a forecast asked past the 40 steps, from a walk last seen long before, continues at its last
 step's velocity: :class:`blindspot.traj.predictor.ConstantVelocityTail`, as in the stage).
 ``--walk-seed`` draws other walks than the stage's (default: the config's ``seed``, the stage's
@@ -115,7 +115,7 @@ def main() -> None:
 
     from blindspot import config, experiment
     from blindspot.traj.baselines import ConstantVelocity
-    from blindspot.traj.benchmark import bootstrap_means, paired_differences
+    from blindspot.traj.bootstrap import bootstrap_means, paired_differences
     from blindspot.traj.calibration import path_pairs
     from blindspot.traj.direct import NAME, direct_pairs, path_splits, pretraining_walks
     from blindspot.traj.ethucy import default_data_dir
@@ -235,8 +235,8 @@ def scene_walk_scores(cfg, models: dict, data: Path, n_walks: int | None,
 
     from blindspot import experiment
     from benchmark import measured_walks      # the benchmark stage's walks
-    from blindspot.synth.scene_benchmark import score_scene_walks
-    from blindspot.traj.benchmark import bootstrap_means, paired_differences
+    from blindspot.synth.walk_scores import score_scene_walks
+    from blindspot.traj.bootstrap import bootstrap_means, paired_differences
     from blindspot.traj.lstm import LSTMPredictor
     from blindspot.traj.predictor import ConstantVelocityTail
     from blindspot.traj.seq2seq import Seq2SeqEnsemble

@@ -147,7 +147,7 @@ def bench_seq2seq(repeats: int, n_train: int = 3000, epochs: int = 3) -> None:
 
     from blindspot import experiment
     from blindspot.traj import seq2seq
-    from blindspot.traj.ethucy_benchmark import EthUcySettings
+    from blindspot.traj.ethucy_protocol import EthUcySettings
 
     old = module_at_base("src/blindspot/traj/seq2seq.py", "seq2seq_base")
     settings = EthUcySettings.from_config(experiment.ethucy(OmegaConf.load(ROOT / "params.yaml")),

@@ -18,7 +18,7 @@ store, the run and its logging) as CPU seconds.
 
 ``--gc`` also times, in 2 R fresh processes that have imported numpy and pandas (as the stages
 have), the import of MLflow's client and SQLAlchemy store with Python's cyclic garbage collector
-on and paused (:func:`blindspot.tracking.store._gc_paused`, what ``get_client`` does), alternated,
+on and paused (:func:`blindspot.runs.store._gc_paused`, what ``get_client`` does), alternated,
 as CPU seconds of the import alone.
 
 Compare two revisions by running it twice, e.g. ``--rev 47eca47`` (before the stamped params
@@ -64,9 +64,9 @@ cfg = bconfig.load_params(root)
 mark("read params.yaml")
 import mlflow
 mark("import mlflow")
-from blindspot import tracking
-settings = tracking.settings_from_cfg(cfg, root)
-tracking.get_client(settings); tracking.ensure_experiment(settings)
+from blindspot import runs
+settings = runs.settings_from_cfg(cfg, root)
+runs.get_client(settings); runs.ensure_experiment(settings)
 mark("open the SQLite store (store modules, schema check)")
 cli.run_stage(module.run, stage, cfg, root, check_outs=True)
 mark("run: the stage, its MLflow run and logging")

@@ -1,7 +1,7 @@
 """ethucy: the standard ETH/UCY benchmark (observe 8, predict 12): CVM, Kalman and our learned
 predictors, their ADE/FDE and the calibration of their predictive distributions.
 
-The protocol of blindspot.traj.ethucy_benchmark with the settings of cfg.ethucy (conf/ethucy/);
+The protocol of blindspot.traj.ethucy_protocol with the settings of cfg.ethucy (conf/ethucy/);
 the same as `python -m blindspot.bench.ethucy` with the matching flags. Writes
 reports/metrics/ethucy.json (ADE/FDE per model and fold, "best"),
 reports/metrics/calibration_ethucy.json ({method: {fold: {coverage_50, coverage_90,
@@ -20,7 +20,7 @@ from blindspot.io import save_figure, write_json, write_text
 from blindspot.report.calibration_figures import reliability_figure
 from blindspot.report.ethucy_report import format_report
 from blindspot.stage import StageResult
-from blindspot.traj.ethucy_benchmark import EthUcySettings, calibration_table, run_benchmark
+from blindspot.traj.ethucy_protocol import EthUcySettings, calibration_table, run_benchmark
 
 
 def run(cfg, ctx):

@@ -34,7 +34,7 @@ REPO = Path(__file__).resolve().parents[1]
 # Groups of the composed config that no typed builder reads, with the reason.
 UNTYPED = {
     "recordings": "paths of real captures, read by stages/recordings.py (the capture room)",
-    "tracking": "MLflow glue settings, read by blindspot.tracking (the runner, not the library)",
+    "runs": "MLflow glue settings, read by blindspot.runs (the runner, not the library)",
     "paths": "folders, resolved by blindspot.config.shared_dir / the stage runner",
     "simulate": "one stage switch (write_captures) read by stages/simulate.py",
 }

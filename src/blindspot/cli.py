@@ -35,7 +35,7 @@ Under DVC (``python stages/<name>.py``) the config is ``params.yaml`` (what DVC 
 checked against ``conf/`` unless DVC composed it itself (``dvc exp run``), and the stage must
 write every out ``dvc.yaml`` declares for it. With ``python -m blindspot <name> ...`` it is
 ``conf/`` + the overrides, composed by Hydra. Both call the same ``run(cfg, ctx)`` inside
-:func:`blindspot.tracking.stage_run`, with the working directory set to the repo root, and log
+:func:`blindspot.runs.stage_run`, with the working directory set to the repo root, and log
 the :class:`~blindspot.stage.StageResult` it returns: this runner is the one door to MLflow.
 """
 
@@ -57,7 +57,7 @@ from typing import ClassVar
 from omegaconf import DictConfig, OmegaConf
 
 from blindspot import config as bconfig
-from blindspot import io, kernels, tracking
+from blindspot import io, kernels, runs
 from blindspot.stage import StageContext, StageResult, declared_files, read_dvc_stages
 from blindspot.typed_config import TypedConfig, setting
 
@@ -263,7 +263,7 @@ def run_stage(
     check_outs: bool = False,
     out_root: str | os.PathLike[str] | None = None,
 ) -> StageResult:
-    """Call ``run(cfg, ctx)`` inside ``tracking.stage_run(name, cfg)`` from the repo root and log
+    """Call ``run(cfg, ctx)`` inside ``runs.stage_run(name, cfg)`` from the repo root and log
     the :class:`StageResult` it returns (metrics, artifacts, model files, tags) to that run.
 
     Temporary files a SIGKILLed earlier run left next to the stage's outs are removed first
@@ -279,13 +279,13 @@ def run_stage(
     cfg = OmegaConf.create(OmegaConf.to_container(cfg, resolve=True))
     OmegaConf.set_struct(cfg, True)
     files = declared_files(root, name)
-    tracking.children_die_with_this_process()  # a SIGKILLed stage's pool workers die with it
+    runs.children_die_with_this_process()  # a SIGKILLed stage's pool workers die with it
     out_dir = None if out_root is None else Path(out_root).resolve()
     outs = files.outs if out_dir is None else [out_dir / o for o in files.outs]
     for debris in io.remove_stale_temps(outs):  # left by a SIGKILLed run of the stage
         print(f"[blindspot] stage {name}: removed {debris}, a killed writer's temporary file",
               file=sys.stderr)
-    with tracking.stage_run(name, cfg, repo_root=root) as tracker:
+    with runs.stage_run(name, cfg, repo_root=root) as tracker:
         if out_dir is not None:
             tracker.set_tags({"blindspot.out_root": str(out_dir)})
         ctx = StageContext(files, log_step=lambda metrics, step: tracker.log_metrics(metrics, step),
@@ -300,7 +300,7 @@ def run_stage(
     return result
 
 
-def log_result(tracker: tracking.NullTracker, result: StageResult) -> None:
+def log_result(tracker: runs.NullTracker, result: StageResult) -> None:
     """Log a stage's result into its run: metrics, artifacts (run root), model files
     (``model/``), tags."""
     if result.metrics:
@@ -437,9 +437,10 @@ def _hydra_argv(args: Sequence[str], name: str) -> list[str]:
         else:
             overrides.append(arg)
         i += 1
+    bconfig.check_renamed_keys(overrides, f"python -m blindspot {name}")
     ours = [
         f"hydra.job.name={name}",
-        "++hydra.callbacks.blindspot_tracking._target_=blindspot.tracking.SweepCallback",
+        "++hydra.callbacks.blindspot_tracking._target_=blindspot.runs.SweepCallback",
     ]
     return [*flags, *overrides, *ours]
 
@@ -459,15 +460,15 @@ def _run_with_hydra(root: Path, name: str, args: Sequence[str]) -> None:
     sys.argv = [f"python -m blindspot {name}", *_hydra_argv(args, name)]
     status = "FAILED"
     try:
-        with tracking.sigterm_as_exit():
+        with runs.sigterm_as_exit():
             entry()
         status = "FINISHED"
-    except (tracking.Terminated, KeyboardInterrupt):
+    except (runs.Terminated, KeyboardInterrupt):
         status = "KILLED"
         raise
     finally:
         sys.argv = saved
-        tracking.end_open_sweep(status)  # no-op unless a sweep died before on_multirun_end
+        runs.end_open_sweep(status)  # no-op unless a sweep died before on_multirun_end
 
 
 def _cleanup(root: Path) -> None:
@@ -475,7 +476,7 @@ def _cleanup(root: Path) -> None:
     outputs from the run cache, say): end its MLflow run KILLED and remove its temporaries next
     to every out of dvc.yaml. The next stage run does the same, for its own outs."""
     params = root / bconfig.PARAMS_FILE
-    closed = tracking.close_stale_runs_of(bconfig.load_params(root) if params.is_file() else None,
+    closed = runs.close_stale_runs_of(bconfig.load_params(root) if params.is_file() else None,
                                           root)
     outs = [out for files in read_dvc_stages(root).values() for out in files.outs]
     removed = io.remove_stale_temps(root / out for out in outs)
@@ -543,7 +544,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 0
     try:
         _run_with_hydra(root, command, rest)
-    except UnknownStage as exc:
+    except (UnknownStage, bconfig.RenamedKey) as exc:
         print(f"[blindspot] {exc}", file=sys.stderr)
         return 2
     return 0

@@ -26,6 +26,7 @@ Public API::
 from __future__ import annotations
 
 import os
+import re
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -187,6 +188,27 @@ def shared_dir(cfg: DictConfig | Mapping[str, Any] | None = None) -> Path:
 
 # --------------------------------------------------------------------------- composition
 
+# Config groups renamed, old top-level key -> new: an override or a params.yaml that names the old
+# key fails naming the new one, instead of Hydra's "Key 'tracking' is not in struct".
+RENAMED_KEYS = {"tracking": "runs", "benchmark": "walks"}
+
+
+class RenamedKey(ValueError):
+    """A config key that was renamed (:data:`RENAMED_KEYS`), with the new name."""
+
+
+def check_renamed_keys(keys: Iterable[str], where: str) -> None:
+    """Raise :class:`RenamedKey` naming ``where``, the old key and its new name when one of ``keys``
+    (overrides such as ``+tracking.uri=x`` or ``benchmark=scene_walks``, or top-level keys) starts
+    with a renamed config group."""
+    for key in keys:
+        head = re.split(r"[.=@]", str(key).lstrip("+~"), maxsplit=1)[0]
+        if head in RENAMED_KEYS:
+            new = RENAMED_KEYS[head]
+            raise RenamedKey(f"{where}: config key {head!r} was renamed {new!r}; found {key!r}, "
+                             f"write {new}{str(key).lstrip('+~')[len(head):]} instead")
+
+
 
 def compose(
     overrides: Iterable[str] = (),
@@ -208,6 +230,8 @@ def compose(
     if config_dir is None:
         config_dir = find_repo_root() / CONFIG_DIR
     config_dir = Path(config_dir).resolve()
+    overrides = list(overrides)
+    check_renamed_keys(overrides, "override")
     if not (config_dir / f"{config_name}.yaml").is_file():
         raise ConfigNotFound(f"{config_dir / (config_name + '.yaml')} does not exist")
 
@@ -256,6 +280,7 @@ def load_params(repo_root: str | os.PathLike[str] | None = None) -> DictConfig:
     cfg = OmegaConf.load(path)
     if not isinstance(cfg, DictConfig):
         raise ValueError(f"{path}: expected a YAML mapping at top level, found {type(cfg).__name__}")
+    check_renamed_keys(cfg.keys(), str(path))
     return cfg
 
 

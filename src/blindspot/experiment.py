@@ -20,7 +20,7 @@ from blindspot.radar.scene import (
     DrivingScene, ScenarioGroup, SceneConfig, load_scenarios, load_scenes,
 )
 from blindspot.typed_config import ConfigError
-from blindspot.traj.config import (BenchmarkConfig, CalibrationConfig, DatasetConfig,
+from blindspot.traj.config import (WalksConfig, CalibrationConfig, DatasetConfig,
                                    DirectConfig, EthUcyConfig, EvalConfig, LSTMConfig, TrainConfig)
 
 
@@ -96,9 +96,9 @@ def evaluation(cfg: DictConfig) -> EvalConfig:
     return EvalConfig.from_mapping(cfg.eval)
 
 
-def benchmark(cfg: DictConfig):
-    """The many-walk benchmark settings of ``cfg.benchmark``."""
-    return BenchmarkConfig.from_mapping(cfg.benchmark)
+def walks(cfg: DictConfig):
+    """The many-walk benchmark settings of ``cfg.walks``."""
+    return WalksConfig.from_mapping(cfg.walks)
 
 
 def direct(cfg: DictConfig) -> DirectConfig:

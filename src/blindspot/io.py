@@ -4,7 +4,7 @@ Every writer writes into a hidden temporary folder in the *same directory* as th
 final ``os.replace`` is a rename on one file system, atomic on POSIX), under the target's own
 name, flushes and ``fsync``s the data, renames it into place and ``fsync``s the directory. On any
 exception (including the ``SystemExit`` raised by the SIGTERM handler of
-:mod:`blindspot.tracking`) the temporary folder is removed and the previous target, if any, is
+:mod:`blindspot.runs`) the temporary folder is removed and the previous target, if any, is
 left untouched.
 
 The temporary file keeps the target's very name (``.fig04.tmp-<pid>-<token>/fig04.png``): libraries

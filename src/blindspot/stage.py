@@ -10,7 +10,7 @@ A stage (``stages/<name>.py``) is one function::
 
 The runner (:func:`blindspot.cli.run_stage`) is the one door to MLflow: it opens the stage's run,
 calls ``run(cfg, ctx)`` and logs the returned :class:`StageResult` (metrics, artifacts, model
-files, tags). Stages and the library never import :mod:`blindspot.tracking`.
+files, tags). Stages and the library never import :mod:`blindspot.runs`.
 
 Live metrics (per training epoch) are the one thing that cannot wait for the result: the runner
 hands the stage ``ctx.log_step(metrics, step)``, a plain callable bound to the run's tracker

@@ -13,8 +13,8 @@ from pathlib import Path
 
 from mlflow.tracking import MlflowClient
 
-from blindspot import io, tracking
-from tests.pipeline.toy_repo import blindspot, clean_env, make_toy_repo, runs
+from blindspot import io, runs
+from tests.pipeline.toy_repo import blindspot, clean_env, make_toy_repo, logged_runs
 
 WRITER = """
 import sys
@@ -25,8 +25,8 @@ for name in ("a.txt", "b.txt", "c.txt"):
 
 KILLED_RUN = """
 import sys
-from blindspot import io, tracking
-with tracking.stage_run("victim", {"x": 1}, repo_root=sys.argv[1]) as t:
+from blindspot import io, runs
+with runs.stage_run("victim", {"x": 1}, repo_root=sys.argv[1]) as t:
     t.log_metrics({"m": 1.0})
     io.write_text("out.txt", "never")
 """
@@ -57,7 +57,7 @@ def test_kill_at_the_kth_write_leaves_earlier_files_whole(tmp_path: Path) -> Non
 
 
 def test_term_at_a_write_removes_the_temporary_file(tmp_path: Path) -> None:
-    code = "from blindspot.tracking import sigterm_as_exit\nwith sigterm_as_exit():\n" + "".join(
+    code = "from blindspot.runs import sigterm_as_exit\nwith sigterm_as_exit():\n" + "".join(
         "    " + line + "\n" for line in WRITER.strip().splitlines())
     proc = _run(code, tmp_path, BLINDSPOT_FAULT="TERM@3")
     assert proc.returncode == 143, proc.stderr
@@ -80,21 +80,21 @@ def test_run_of_a_sigkilled_process_is_closed_killed_on_the_next_start(tmp_path:
              if line.split()[2] == "write")
     proc = _run(KILLED_RUN, toy, BLINDSPOT_FAULT=f"KILL@{k}")
     assert proc.returncode == -signal.SIGKILL, proc.stderr
-    victim = runs(toy)[-1]
+    victim = logged_runs(toy)[-1]
     pid = victim.data.tags["blindspot.pid"]
     assert victim.info.status == "RUNNING" and victim.data.tags["blindspot.stage"] == "victim"
     # A RUNNING run of a live process (this one) is left alone; a recycled pid is recognised.
     client = MlflowClient(tracking_uri=f"sqlite:///{toy / 'mlflow.db'}")
     exp = victim.info.experiment_id
-    live = client.create_run(exp, tags=tracking.stale.owner_tags())
-    recycled = client.create_run(exp, tags={**tracking.stale.owner_tags(),
-                                            tracking.stale.PID_START_TAG: "1"})
+    live = client.create_run(exp, tags=runs.stale.owner_tags())
+    recycled = client.create_run(exp, tags={**runs.stale.owner_tags(),
+                                            runs.stale.PID_START_TAG: "1"})
     out = blindspot(["cleanup"], toy).stdout
     assert out.startswith("closed 2 stale run(s) KILLED"), out
-    status = {r.info.run_id: r.info.status for r in runs(toy)}
+    status = {r.info.run_id: r.info.status for r in logged_runs(toy)}
     assert status[victim.info.run_id] == "KILLED" and status[recycled.info.run_id] == "KILLED"
     assert status[live.info.run_id] == "RUNNING"
-    note = client.get_run(victim.info.run_id).data.tags[tracking.stale.CLOSED_TAG]
+    note = client.get_run(victim.info.run_id).data.tags[runs.stale.CLOSED_TAG]
     assert f"process {pid} " in note and "closed KILLED" in note
     client.set_terminated(live.info.run_id)
 
@@ -103,8 +103,8 @@ POOL = """
 import os, sys, time
 from concurrent.futures import ProcessPoolExecutor
 import multiprocessing as mp
-from blindspot import tracking
-tracking.children_die_with_this_process()
+from blindspot import runs
+runs.children_die_with_this_process()
 def work(i):
     time.sleep(60)
 with ProcessPoolExecutor(2, mp_context=mp.get_context("fork")) as pool:

@@ -12,7 +12,7 @@ afterwards
 (b) `dvc status` shows the stage changed, unless every output was already complete;
 (c) after the next start (the rerun, or `python -m blindspot cleanup` when DVC reruns nothing),
     the killed stage's MLflow run is KILLED or FAILED, never RUNNING (a SIGKILLed run is closed
-    by blindspot.tracking.stale);
+    by blindspot.runs.stale);
 (d) `dvc repro -s --no-run-cache <stage>` computes the undisturbed bytes again and, with that
     next start, no temporary file is left.
 
@@ -49,7 +49,7 @@ from tests.faults.harness import (
     unreadable,
 )
 from tests.pipeline.test_repro import DVC, make_tiny_repo
-from tests.pipeline.toy_repo import clean_env, run, runs
+from tests.pipeline.toy_repo import clean_env, run, logged_runs
 
 pytestmark = pytest.mark.pipeline
 
@@ -59,7 +59,7 @@ SPECS = stage_specs(REPO_ROOT)
 # model file, a checkpoint folder, outputs holding a wall time; SIGTERM) took 78 s and moved to
 # -m slow with every other stage to keep the default suite near 15 minutes; SIGTERM ending a run
 # KILLED and a SIGKILLed run closed on the next start stay in the default suite
-# (tests/pipeline/test_tracking.py, tests/faults/test_fault_points.py). All of -m slow
+# (tests/pipeline/test_runs.py, tests/faults/test_fault_points.py). All of -m slow
 # tests/faults: 29 min.
 DEFAULT = ("recordings",)
 SIGNALS = (signal.SIGKILL, signal.SIGTERM)
@@ -110,7 +110,7 @@ def check_killed_stage(prepared: Prepared, stage: str, kill: Kill) -> None:
     """Kill ``stage`` as ``kill`` says and check (a)-(d) of the module docstring."""
     root, spec = prepared.root, SPECS[stage]
     outs = declared_outs(spec)
-    before = {r.info.run_id for r in runs(root)}
+    before = {r.info.run_id for r in logged_runs(root)}
     killed = run_killed(root, spec, kill, prepared.env)
     why = f"{stage} killed by {kill}; exit {killed.returncode}\n{killed.stderr[-3000:]}"
     if kill.k is not None:  # a point kill always fires: the stage may not have finished
@@ -152,9 +152,9 @@ def check_killed_stage(prepared: Prepared, stage: str, kill: Kill) -> None:
 
     # (c) the killed run ended KILLED or FAILED (a SIGKILLed one closed by the next start); a
     # delay that outlived the stage may find it FINISHED, with every output complete
-    assert [r.info.run_id for r in runs(root) if r.info.status == "RUNNING"] == [], why
+    assert [r.info.run_id for r in logged_runs(root) if r.info.status == "RUNNING"] == [], why
     statuses = []
-    for r in runs(root):
+    for r in logged_runs(root):
         if r.info.run_id in before or r.data.tags.get("blindspot.pid") != str(killed.pid):
             continue
         if kill.k is not None or r.info.status != "FINISHED":

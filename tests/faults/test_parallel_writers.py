@@ -14,7 +14,7 @@ import pytest
 from mlflow.tracking import MlflowClient
 
 from tests.pipeline.test_dvc_tooling import DVC, _wait_for_queue
-from tests.pipeline.toy_repo import blindspot, clean_env, make_toy_repo, run, runs
+from tests.pipeline.toy_repo import blindspot, clean_env, make_toy_repo, run, logged_runs
 
 pytestmark = pytest.mark.pipeline
 
@@ -44,7 +44,7 @@ def test_joblib_sweep_of_four_jobs_at_once_loses_no_run(tmp_path: Path) -> None:
                       f"train.epochs={EPOCHS}", f"model.hidden_size={','.join(map(str, sizes))}"],
                      toy, timeout=300)
     assert "database is locked" not in proc.stderr.lower(), proc.stderr[-3000:]
-    found = runs(toy)
+    found = logged_runs(toy)
     (parent,) = [r for r in found if r.data.tags.get("blindspot.sweep") == "true"]
     children = [r for r in found if r is not parent]
     assert parent.info.status == "FINISHED"
@@ -81,8 +81,8 @@ def test_dvc_queue_of_four_experiments_two_at_a_time_loses_no_run(tmp_path: Path
         assert re.search(rf"{re.escape(name)}\s+.*Success", status), status
     logs = run([str(DVC), "queue", "logs", queued[0]], root, check=False).stdout
     assert "database is locked" not in logs.lower()
-    found = runs(root)
-    # each experiment is one pipeline run: a parent run (blindspot.tracking.pipeline) and its
+    found = logged_runs(root)
+    # each experiment is one pipeline run: a parent run (blindspot.runs.pipeline) and its
     # stage's run nested under it
     stages = [r for r in found if r.data.tags.get("blindspot.stage")]
     parents = {r.info.run_id: r for r in found if not r.data.tags.get("blindspot.stage")}

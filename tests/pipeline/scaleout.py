@@ -2,7 +2,7 @@
 only: a Ray head and a PostgreSQL-backed MLflow tracking server, each bound to 127.0.0.1 on a
 free port, each in its own process group so that stopping it ends exactly what it started.
 
-The same code is what ``python -m blindspot.tracking.server`` runs (see README, "Scale out").
+The same code is what ``python -m blindspot.runs.server`` runs (see README, "Scale out").
 """
 
 from __future__ import annotations

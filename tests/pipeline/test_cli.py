@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 from blindspot import config
-from tests.pipeline.toy_repo import blindspot, clean_env, make_toy_repo, run, runs
+from tests.pipeline.toy_repo import blindspot, clean_env, make_toy_repo, run, logged_runs
 
 
 @pytest.fixture()
@@ -23,7 +23,7 @@ def test_stage_with_overrides_from_a_subdirectory(toy: Path) -> None:
     blindspot(["toy", "train.lr=0.5", "model.hidden_size=4"], toy / "stages")
     result = json.loads((toy / "out" / "toy.json").read_text())  # written at the repo root
     assert result == {"hidden_size": 4, "lr": 0.5, "score": 2.0}
-    (r,) = runs(toy)
+    (r,) = logged_runs(toy)
     assert r.info.status == "FINISHED" and r.info.run_name == "toy"
     assert r.data.params["train.lr"] == "0.5" and r.data.params["model.hidden_size"] == "4"
     assert r.data.tags["toy.cwd"] == str(toy.resolve())
@@ -42,7 +42,7 @@ def test_unknown_stage_lists_the_stages(toy: Path) -> None:
 def test_cfg_job_prints_config_and_logs_nothing(toy: Path) -> None:
     proc = blindspot(["toy", "--cfg", "job", "train.lr=0.25"], toy)
     assert "lr: 0.25" in proc.stdout
-    assert runs(toy) == []
+    assert logged_runs(toy) == []
 
 
 def test_params_and_check_params_commands(toy: Path) -> None:
@@ -72,19 +72,19 @@ def test_main_stage_reads_params_yaml_and_refuses_arguments(toy: Path) -> None:
     (toy / "conf" / "train" / "base.yaml").write_text("lr: 0.3\nepochs: 2\n")
     proc = run([py, "stages/toy.py"], toy, check=False)
     assert proc.returncode == 1 and "python -m blindspot params" in proc.stderr
-    assert runs(toy) == []
+    assert logged_runs(toy) == []
     # Inside `dvc exp run` DVC composed params.yaml itself: it is used as is.
     text = (toy / "params.yaml").read_text().replace("lr: 0.1", "lr: 0.05")
     (toy / "params.yaml").write_text(text)
     run([py, str(toy / "stages" / "toy.py")], toy / "conf", env=clean_env(DVC_EXP_NAME="e1"))
-    (r,) = runs(toy)
+    (r,) = logged_runs(toy)
     assert r.data.params["train.lr"] == "0.05" and r.data.tags["dvc.exp_name"] == "e1"
     assert r.info.run_name == "toy@e1"
     assert json.loads((toy / "out" / "toy.json").read_text())["lr"] == 0.05
 
 
 def _sweep_runs(toy: Path) -> tuple[object, list]:
-    found = runs(toy)
+    found = logged_runs(toy)
     parents = [r for r in found if r.data.tags.get("blindspot.sweep") == "true"]
     assert len(parents) == 1, [r.info.run_name for r in found]
     children = [r for r in found if r is not parents[0]]
@@ -122,3 +122,22 @@ def test_failed_sweep_job_fails_parent_not_running(toy: Path) -> None:
     parent, children = _sweep_runs(toy)
     assert [c.info.status for c in children] == ["FINISHED", "FAILED"]
     assert parent.info.status == "FAILED"
+
+
+@pytest.mark.parametrize("override, new", [("tracking.enabled=false", "runs.enabled=false"),
+                                           ("+benchmark.n_walks=3", "walks.n_walks=3"),
+                                           ("benchmark=scene_walks", "walks=scene_walks")])
+def test_a_renamed_config_key_names_its_new_name(override, new, capsys) -> None:
+    from blindspot.cli import main
+
+    assert main(["walks", override]) == 2
+    err = capsys.readouterr().err
+    assert f"write {new} instead" in err and "Traceback" not in err
+
+
+def test_a_params_file_with_a_renamed_key_names_it(tmp_path) -> None:
+    from blindspot import config as bconfig
+
+    (tmp_path / "params.yaml").write_text("tracking:\n  enabled: true\n")
+    with pytest.raises(bconfig.RenamedKey, match="'tracking' was renamed 'runs'"):
+        bconfig.load_params(tmp_path)

@@ -263,7 +263,7 @@ def test_real_conf_composes_without_hydra_interpolations() -> None:
     if not _real_groups_present():
         pytest.skip("conf/ groups named in conf/config.yaml are not all written yet")
     cfg = config.compose(config_dir=REPO / "conf")
-    assert cfg.seed == 0 and cfg.tracking.experiment == "blindspot"
+    assert cfg.seed == 0 and cfg.runs.experiment == "blindspot"
     for path in (REPO / "conf").rglob("*.yaml"):
         if "hydra" not in path.relative_to(REPO / "conf").parts:
             assert "${hydra:" not in path.read_text(), f"{path} uses ${{hydra:...}}"
@@ -298,7 +298,7 @@ def _builders():
         "bridge": experiment.bridge,
         "dataset": experiment.dataset, "model": experiment.model, "train": experiment.training,
         "eval": experiment.evaluation, "ethucy": experiment.ethucy,
-        "benchmark": experiment.benchmark, "calibration": experiment.calibration, "recordings": _build_recordings,
+        "walks": experiment.walks, "calibration": experiment.calibration, "recordings": _build_recordings,
         "scenario": experiment.scenarios, "ego_motion": experiment.ego_motion,
         "tracker": experiment.tracker, "real_tracking": experiment.real_tracking,
         "direct": experiment.direct,
@@ -313,10 +313,10 @@ def _build_warning(cfg):
 
 
 # Groups that are not library settings: profile only overlays the groups above (both of its
-# options are composed below); tracking is read by the MLflow runner glue (blindspot.tracking);
+# options are composed below); tracking is read by the MLflow runner glue (blindspot.runs);
 # search (a hyper-parameter search, +search=<name>) by the stage runner (blindspot.cli.SearchConfig,
 # tests/pipeline/test_launchers.py).
-NOT_LIBRARY_GROUPS = {"profile", "tracking", "hydra", "search"}
+NOT_LIBRARY_GROUPS = {"profile", "runs", "hydra", "search"}
 
 
 def _options():

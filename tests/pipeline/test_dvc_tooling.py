@@ -17,7 +17,7 @@ from pathlib import Path
 import pytest
 
 from blindspot import config
-from tests.pipeline.toy_repo import VENV_BIN, blindspot, clean_env, make_toy_repo, run, runs
+from tests.pipeline.toy_repo import VENV_BIN, blindspot, clean_env, make_toy_repo, run, logged_runs
 
 pytestmark = pytest.mark.pipeline
 
@@ -33,7 +33,7 @@ def dvc(*args: str, repo: Path, **kw: object):  # noqa: ANN201 - CompletedProces
 @pytest.fixture(scope="module")
 def repo(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Path]:
     root = make_toy_repo(tmp_path_factory.mktemp("dvc") / "repo")
-    with open(root / "conf" / "tracking" / "local.yaml", "a") as fh:  # below `headline:`
+    with open(root / "conf" / "runs" / "local.yaml", "a") as fh:  # below `headline:`
         fh.write("  toy: [score]\n")
     env = clean_env()
     for cmd in (["git", "init", "-q", "-b", "main"],
@@ -61,9 +61,9 @@ def pipeline_and_stages(new: list) -> tuple[list, list]:
 
 
 def test_dvc_repro_runs_the_stage_and_logs_it(repo: Path) -> None:
-    before = len(runs(repo))
+    before = len(logged_runs(repo))
     dvc("repro", repo=repo)
-    parents, new = pipeline_and_stages(runs(repo)[before:])
+    parents, new = pipeline_and_stages(logged_runs(repo)[before:])
     assert len(new) == 1 and len(parents) == 1
     r, parent = new[0], parents[0]
     assert r.info.status == "FINISHED"
@@ -71,7 +71,7 @@ def test_dvc_repro_runs_the_stage_and_logs_it(repo: Path) -> None:
     assert r.data.tags["mlflow.parentRunId"] == parent.info.run_id
     assert parent.info.status == "FINISHED" and parent.info.run_name == "dvc repro"
     assert parent.data.tags["mlflow.source.git.commit"] == r.data.tags["mlflow.source.git.commit"]
-    # tracking.headline has toy: [score]; the child's last value (epoch 2: 2 x 0.1 x 16)
+    # runs.headline has toy: [score]; the child's last value (epoch 2: 2 x 0.1 x 16)
     assert parent.data.metrics == {"toy.score": pytest.approx(r.data.metrics["score"])}
     assert r.data.metrics["score"] == pytest.approx(3.2)
     assert r.data.tags["dvc.stage"] == "toy" and "dvc.exp_name" not in r.data.tags
@@ -80,7 +80,7 @@ def test_dvc_repro_runs_the_stage_and_logs_it(repo: Path) -> None:
     assert "score" in dvc("metrics", "show", repo=repo).stdout
     _commit(repo, "repro")
     dvc("repro", repo=repo)  # nothing changed: nothing runs, nothing logged
-    assert len(runs(repo)) == before + 2
+    assert len(logged_runs(repo)) == before + 2
 
 
 def test_dvc_repro_refuses_params_stale_against_conf(repo: Path) -> None:
@@ -100,12 +100,12 @@ def test_dvc_repro_refuses_params_stale_against_conf(repo: Path) -> None:
 
 
 def test_dvc_exp_run_set_param_composes_conf_into_params(repo: Path) -> None:
-    before = len(runs(repo))
+    before = len(logged_runs(repo))
     proc = dvc("exp", "run", "-S", "train.lr=0.01", repo=repo)
     name = re.search(r"Ran experiment\(s\): (\S+)", proc.stdout + proc.stderr).group(1)
     params = config.load_params(repo)
     assert params.train.lr == 0.01 and params.model.hidden_size == 16
-    parents, new = pipeline_and_stages(runs(repo)[before:])
+    parents, new = pipeline_and_stages(logged_runs(repo)[before:])
     assert len(new) == 1 and len(parents) == 1
     r = new[0]
     assert r.data.params["train.lr"] == "0.01" and r.data.tags["dvc.exp_name"] == name
@@ -121,8 +121,8 @@ def _wait_for_queue(repo: Path, n_runs: int, timeout_s: float = 300) -> str:
     """Wait until ``n_runs`` runs ended in the store (cheap to poll), then until DVC's queue
     has collected every experiment (each `dvc queue status` costs a DVC start-up)."""
     deadline = time.time() + timeout_s
-    while sum(r.info.status != "RUNNING" for r in runs(repo)) < n_runs:
-        assert time.time() < deadline, f"only {len(runs(repo))} runs after {timeout_s} s"
+    while sum(r.info.status != "RUNNING" for r in logged_runs(repo)) < n_runs:
+        assert time.time() < deadline, f"only {len(logged_runs(repo))} runs after {timeout_s} s"
         time.sleep(0.5)
     while True:
         status = dvc("queue", "status", repo=repo).stdout
@@ -133,7 +133,7 @@ def _wait_for_queue(repo: Path, n_runs: int, timeout_s: float = 300) -> str:
 
 
 def test_dvc_queue_runs_land_in_the_original_store(repo: Path) -> None:
-    before = len(runs(repo))
+    before = len(logged_runs(repo))
     proc = dvc("exp", "run", "--queue", "-S", "model.hidden_size=32,64", repo=repo)
     queued = re.findall(r"Queued experiment '([^']+)'", proc.stdout + proc.stderr)
     assert len(queued) == 2
@@ -142,7 +142,7 @@ def test_dvc_queue_runs_land_in_the_original_store(repo: Path) -> None:
     for name in queued:
         assert re.search(rf"{re.escape(name)}\s+.*Success", status), status
 
-    parents, new = pipeline_and_stages(runs(repo)[before:])
+    parents, new = pipeline_and_stages(logged_runs(repo)[before:])
     by_name = {r.data.tags["dvc.exp_name"]: r for r in new}
     parent_of = {r.data.tags["dvc.exp_name"]: r.info.run_id for r in parents}
     assert sorted(parent_of) == sorted(queued)

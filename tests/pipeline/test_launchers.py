@@ -16,7 +16,7 @@ import pytest
 
 from tests.conftest import REPO_ROOT
 from tests.pipeline.test_sweep_outputs import copy_code, synthetic_windows
-from tests.pipeline.toy_repo import blindspot, make_toy_repo, runs
+from tests.pipeline.toy_repo import blindspot, make_toy_repo, logged_runs
 
 
 
@@ -26,7 +26,7 @@ def needs(plugin: str) -> None:
 
 def sweep_runs(root: Path) -> tuple[object, list]:
     """The one sweep parent of ``root``'s store and its children by job number."""
-    found = runs(root)
+    found = logged_runs(root)
     parents = [r for r in found if r.data.tags.get("blindspot.sweep") == "true"]
     assert len(parents) == 1, [r.info.run_name for r in found]
     children = [r for r in found if r.data.tags.get("mlflow.parentRunId") == parents[0].info.run_id]

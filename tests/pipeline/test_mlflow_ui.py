@@ -1,7 +1,7 @@
 """The MLflow UI a person opens, loaded in headless Chromium (Debian's `chromium` package) from a
 server this test starts on 127.0.0.1 and stops (issue 13).
 
-The store holds two runs written by blindspot.tracking (params, a metric, a figure). The checks
+The store holds two runs written by blindspot.runs (params, a metric, a figure). The checks
 read the DOM Chromium renders: the experiment opens on its runs (not the GenAI overview); the
 runs table lists both runs and orders them by the metric; a run's page shows the metric and its
 value; the artifact page shows the figure as an image. With ``BLINDSPOT_UI_SCREENSHOT=<png>`` the
@@ -19,7 +19,7 @@ from pathlib import Path
 
 import pytest
 
-from blindspot import tracking
+from blindspot import runs
 from tests.pipeline.scaleout import free_port, stop_group, wait_for_port
 from tests.pipeline.toy_repo import VENV_BIN, clean_env
 
@@ -62,15 +62,15 @@ def ui(tmp_path_factory: pytest.TempPathFactory) -> tuple[str, str, dict[str, st
     root = tmp_path_factory.mktemp("ui")
     run_ids = {}
     for hidden, ade in ((16, 0.31), (32, 0.27)):
-        cfg = {"model": {"hidden_size": hidden}, "tracking": {"enabled": True, "uri": None}}
-        with tracking.stage_run("evaluate", cfg, repo_root=root, run_name=f"evaluate-h{hidden}") as t:
+        cfg = {"model": {"hidden_size": hidden}, "runs": {"enabled": True, "uri": None}}
+        with runs.stage_run("evaluate", cfg, repo_root=root, run_name=f"evaluate-h{hidden}") as t:
             t.log_metrics({"lstm": {"ade_m": ade}})
             fig, ax = plt.subplots()
             ax.plot([0, 1, 2], [0, ade, 2 * ade])
             t.log_figure(fig, "figures/fig08.png")
             plt.close(fig)
             run_ids[f"evaluate-h{hidden}"] = t.run_id
-    experiment_id = tracking.get_client(tracking.settings_from_cfg(cfg, root)).get_experiment_by_name(
+    experiment_id = runs.get_client(runs.settings_from_cfg(cfg, root)).get_experiment_by_name(
         "blindspot").experiment_id
     port = free_port()
     proc = subprocess.Popen(

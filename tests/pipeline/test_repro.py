@@ -18,7 +18,7 @@ import pytest
 
 from blindspot.stage import read_dvc_stages
 from tests.conftest import REPO_ROOT, SHARED
-from tests.pipeline.toy_repo import VENV_BIN, clean_env, run, runs
+from tests.pipeline.toy_repo import VENV_BIN, clean_env, run, logged_runs
 
 pytestmark = pytest.mark.pipeline
 
@@ -92,10 +92,10 @@ def test_dvc_repro_tiny_profile_end_to_end(tiny_repo: Path) -> None:
     undeclared = [w for w in written if not any(w == o or w.startswith(o + "/") for o in declared)]
     assert not undeclared, f"files no dvc.yaml stage declares: {undeclared}"
     assert [o for o in declared if not (tiny_repo / o).exists()] == []
-    finished = [r for r in runs(tiny_repo) if r.info.status == "FINISHED"]
+    finished = [r for r in logged_runs(tiny_repo) if r.info.status == "FINISHED"]
     stages = {r.data.tags.get("blindspot.stage") for r in finished}
     assert {"simulate", "detect", "localise", "paths", "train", "evaluate"} <= stages, stages
-    assert all(r.info.status != "RUNNING" for r in runs(tiny_repo))
+    assert all(r.info.status != "RUNNING" for r in logged_runs(tiny_repo))
 
     t0 = time.monotonic()
     again = run([str(DVC), "repro"], tiny_repo, env=env, timeout=300)
@@ -126,5 +126,5 @@ def test_dvc_exp_run_override_reruns_only_what_depends_on_it(tiny_repo: Path) ->
     ran = {line.split("'")[1] for line in proc.stdout.splitlines() if line.startswith("Running stage")}
     assert ran == EXP_RERUNS, proc.stdout
     assert not ran & {"simulate", "detect", "localise", "paths", "windows", "recordings"}, ran
-    train_runs = [r for r in runs(tiny_repo) if r.data.tags.get("blindspot.stage") == "train"]
+    train_runs = [r for r in logged_runs(tiny_repo) if r.data.tags.get("blindspot.stage") == "train"]
     assert train_runs[-1].data.params["train.lr"] == "0.003"

@@ -105,7 +105,7 @@ def _make_stage(fail_to_write: bool = False):
     return run
 
 
-CFG = {"tracking": {"enabled": True, "uri": None, "experiment": "blindspot"}, "x": 1}
+CFG = {"runs": {"enabled": True, "uri": None, "experiment": "blindspot"}, "x": 1}
 
 
 def test_run_stage_logs_the_result_and_live_steps(repo: Path) -> None:
@@ -131,6 +131,6 @@ def test_run_stage_fails_the_run_when_an_out_is_not_written(repo: Path) -> None:
 
 
 def test_run_stage_wants_a_stage_result(repo: Path) -> None:
-    cfg = OmegaConf.create({**CFG, "tracking": {"enabled": False}})
+    cfg = OmegaConf.create({**CFG, "runs": {"enabled": False}})
     with pytest.raises(TypeError, match=r"stage 'other'.*returned NoneType"):
         cli.run_stage(lambda cfg, ctx: None, "other", cfg, repo)

@@ -28,7 +28,7 @@ STAGES = REPO / "stages"
 SRC = Path(blindspot.__file__).resolve().parents[1]
 # The runner and its glue: how a stage is called and logged, not what it computes. A stage's
 # outputs do not depend on them, so its deps need not list them (nor what they import).
-RUNNER = ("blindspot.cli", "blindspot.stage", "blindspot.tracking")
+RUNNER = ("blindspot.cli", "blindspot.stage", "blindspot.runs")
 # Suffixes of the pipeline's files: a string ending so in a stage is a hand-built path.
 FILE_SUFFIXES = (".parquet", ".json", ".npz", ".csv", ".png", ".svg", ".md", ".pt", ".yaml")
 PATH_IN_TEXT = re.compile(r"(^|[\s(`'\"])(data|reports)/")  # also inside messages

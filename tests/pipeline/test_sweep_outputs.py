@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 
 from tests.conftest import REPO_ROOT
-from tests.pipeline.toy_repo import _template_db, blindspot, runs
+from tests.pipeline.toy_repo import _template_db, blindspot, logged_runs
 
 PIPELINE_OUTS = ("data/train/model.pt", "data/train/history.csv", "reports/metrics/train.json")
 
@@ -86,7 +86,7 @@ def test_parallel_sweep_leaves_pipeline_outputs_byte_identical(repo: Path) -> No
         assert metrics["n_windows"] == {"train": 256, "val": 64, "test": 32}
         assert 0 < metrics["lstm"]["val"]["rmse_m"] < 1.0
         assert (sweep / str(job) / "data/train/model.pt").stat().st_size > 1000
-    found = runs(repo)
+    found = logged_runs(repo)
     parents = [r for r in found if r.data.tags.get("blindspot.sweep") == "true"]
     assert len(parents) == 1 and parents[0].info.status == "FINISHED"
     children = sorted((r for r in found if r.data.tags.get("mlflow.parentRunId")

@@ -55,7 +55,7 @@ CONFIG = """
 defaults:
   - model: small
   - train: base
-  - tracking: local
+  - runs: local
   - _self_
 
 seed: 0
@@ -89,7 +89,7 @@ def _template_db() -> Path:
 
     Creating MLflow's schema (alembic migrations) costs seconds; copying the file costs
     nothing. Only the schema and MLflow's "Default" experiment are in it: the "blindspot"
-    experiment is still created by blindspot.tracking in each repo.
+    experiment is still created by blindspot.runs in each repo.
     """
     global _TEMPLATE_DB
     if _TEMPLATE_DB is None:
@@ -111,13 +111,13 @@ def make_toy_repo(root: Path, *, dvc_yaml: bool = True, store: bool = True) -> P
     """
     (root / "conf" / "model").mkdir(parents=True)
     (root / "conf" / "train").mkdir()
-    (root / "conf" / "tracking").mkdir()
+    (root / "conf" / "runs").mkdir()
     (root / "conf" / "hydra" / "launcher").mkdir(parents=True)
     (root / "stages").mkdir()
     (root / "conf" / "config.yaml").write_text(textwrap.dedent(CONFIG).lstrip())
     (root / "conf" / "model" / "small.yaml").write_text("hidden_size: 16\nlayers: [1, 2]\n")
     (root / "conf" / "train" / "base.yaml").write_text("lr: 0.1\nepochs: 2\n")
-    shutil.copy(REPO / "conf" / "tracking" / "local.yaml", root / "conf" / "tracking")
+    shutil.copy(REPO / "conf" / "runs" / "local.yaml", root / "conf" / "runs")
     shutil.copy(REPO / "conf" / "hydra" / "launcher" / "parallel.yaml",
                 root / "conf" / "hydra" / "launcher")
     (root / "stages" / "toy.py").write_text(TOY_STAGE.lstrip())
@@ -159,7 +159,7 @@ def blindspot(args: list[str], cwd: Path, **kw: object) -> subprocess.CompletedP
     return run([sys.executable, "-m", "blindspot", *args], cwd, **kw)  # type: ignore[arg-type]
 
 
-def runs(root: Path, experiment: str = "blindspot") -> list:
+def logged_runs(root: Path, experiment: str = "blindspot") -> list:
     """All MLflow runs of ``experiment`` in ``root``'s SQLite store, oldest first."""
     from mlflow.tracking import MlflowClient
 

@@ -14,7 +14,7 @@ from blindspot.radar.config import RadarConfig
 from blindspot.radar.occlusion import segment_crosses_polygon, segment_crosses_polygons
 from blindspot.radar.scene import load_scenes, walk, walks
 from blindspot.synth.path_measurement import PedestrianModel
-from blindspot.synth.scene_walks import (BENCHMARK_STREAM, BenchmarkConfig, draw_scene_walks,
+from blindspot.synth.scene_walks import (BENCHMARK_STREAM, WalksConfig, draw_scene_walks,
                                          measure_scene_walks)
 from blindspot.typed_config import ConfigError
 
@@ -22,8 +22,8 @@ REPO = Path(__file__).resolve().parents[2]
 
 
 @pytest.fixture(scope="module")
-def bench() -> BenchmarkConfig:
-    return BenchmarkConfig.from_mapping(OmegaConf.load(REPO / "conf/benchmark/scene_walks.yaml"))
+def bench() -> WalksConfig:
+    return WalksConfig.from_mapping(OmegaConf.load(REPO / "conf/walks/scene_walks.yaml"))
 
 
 @pytest.fixture(scope="module")
@@ -96,8 +96,8 @@ def test_benchmark_streams_are_apart_from_the_training_paths():
 
 def test_a_bad_benchmark_setting_names_its_key(bench):
     with pytest.raises(ConfigError, match="speed_mps"):
-        BenchmarkConfig.from_mapping({**OmegaConf.to_container(
-            OmegaConf.load(REPO / "conf/benchmark/scene_walks.yaml")), "speed_mps": [1.5, 1.0]})
+        WalksConfig.from_mapping({**OmegaConf.to_container(
+            OmegaConf.load(REPO / "conf/walks/scene_walks.yaml")), "speed_mps": [1.5, 1.0]})
     with pytest.raises(ConfigError, match="car_center_x_m"):
         replace(bench, car_center_x_m=(0.6, 1.0))
 

@@ -22,7 +22,7 @@ from blindspot.traj.ethucy import (
     scene_tracks,
     sliding_windows,
 )
-from blindspot.traj.ethucy_benchmark import (
+from blindspot.traj.ethucy_protocol import (
     MODELS,
     EthUcySettings,
     LSTMBenchSettings,
@@ -237,11 +237,11 @@ def test_each_direct_model_key_trains_its_own_encoder(ethucy_dir):
 
     import torch
 
-    from blindspot.traj import ethucy_benchmark
+    from blindspot.traj import ethucy_protocol
     from blindspot.traj.config import Seq2SeqConfig
 
     trained = {}
-    real = ethucy_benchmark.train_fold_seq2seq
+    real = ethucy_protocol.train_fold_seq2seq
 
     def spy(data_dir, fold, cfg, name, progress=False):
         ens, fitted = real(data_dir, fold, cfg, name, progress)
@@ -250,8 +250,8 @@ def test_each_direct_model_key_trains_its_own_encoder(ethucy_dir):
 
     cfg = _replace(Seq2SeqConfig(), epochs=1, ensemble=1, neighbours=0)
     with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(ethucy_benchmark, "train_fold_seq2seq", spy)
-        out = ethucy_benchmark.run_fold(ethucy_dir, "eth", ("lstm", "gru", "mlp"),
+        mp.setattr(ethucy_protocol, "train_fold_seq2seq", spy)
+        out = ethucy_protocol.run_fold(ethucy_dir, "eth", ("lstm", "gru", "mlp"),
                                         LSTMBenchSettings(), progress=False, seq2seq=cfg,
                                         calibration="mle")
     assert isinstance(trained["lstm"], torch.nn.LSTM)
@@ -306,7 +306,7 @@ def _scores(per_fold):
 
 
 def test_benchmark_items_put_the_learned_models_first():
-    from blindspot.traj.ethucy_benchmark import benchmark_items
+    from blindspot.traj.ethucy_protocol import benchmark_items
 
     items = benchmark_items(("cvm", "kalman", "lstm", "mlp", "gru"), ("eth", "hotel"))
     assert items == [("eth", "lstm"), ("hotel", "lstm"), ("eth", "gru"), ("hotel", "gru"),
@@ -317,7 +317,7 @@ def test_benchmark_items_put_the_learned_models_first():
 @pytest.mark.real_data
 def test_scores_do_not_depend_on_the_workers_or_on_the_models_run_together(ethucy_dir):
     """(fold, model) items in 2 processes = 1 process = each fold's models in one run_fold."""
-    from blindspot.traj.ethucy_benchmark import run_fold
+    from blindspot.traj.ethucy_protocol import run_fold
 
     s = EthUcySettings(ethucy_dir, models=("cvm",), folds=("eth", "hotel"), calibration="mle")
     one, two = (run_benchmark(s, progress=False, jobs=j) for j in (1, 2))
@@ -337,7 +337,7 @@ def test_learned_scores_do_not_depend_on_the_workers_or_on_the_models_run_togeth
     from dataclasses import replace as _replace
 
     from blindspot.traj.config import Seq2SeqConfig
-    from blindspot.traj.ethucy_benchmark import run_fold
+    from blindspot.traj.ethucy_protocol import run_fold
 
     s = EthUcySettings(ethucy_dir, models=("cvm", "kalman", "lstm", "gru", "mlp"), folds=("eth",),
                        seq2seq=_replace(Seq2SeqConfig(), epochs=1), calibration="conditional")
@@ -356,7 +356,7 @@ def test_the_online_setting_is_chosen_on_the_folds_val_scenes_alone(ethucy_dir):
     interval over the test pedestrians around the coverage."""
     from blindspot.traj.conformal import AdaptiveConformal, select_on_held_out_streams
     from blindspot.traj.distribution import mahalanobis_sq
-    from blindspot.traj.ethucy_benchmark import (CALIBRATION_LEVELS, reveal_times, run_fold,
+    from blindspot.traj.ethucy_protocol import (CALIBRATION_LEVELS, reveal_times, run_fold,
                                                  val_windows)
 
     candidates = (AdaptiveConformal(CALIBRATION_LEVELS, 0.005, 100),

@@ -9,9 +9,9 @@ standard protocol.
 predictors ``lstm``/``gru``/``mlp``, whose other settings are ``Seq2SeqConfig``'s defaults, and the
 next-point ``lstm_rollout``, configured by the remaining flags).
 
-The protocol is :mod:`blindspot.traj.ethucy_benchmark` (the pipeline's ``ethucy`` stage calls it
+The protocol is :mod:`blindspot.traj.ethucy_protocol` (the pipeline's ``ethucy`` stage calls it
 with the settings of ``conf/ethucy/``); the page is :mod:`blindspot.report.ethucy_report`. This
-command parses the flags into :class:`~blindspot.traj.ethucy_benchmark.EthUcySettings`, runs the
+command parses the flags into :class:`~blindspot.traj.ethucy_protocol.EthUcySettings`, runs the
 benchmark, writes the JSON ``{model: {fold: {"ade", "fde", "n_windows"}, ..., "avg": {"ade",
 "fde"}}}`` and, with ``--report``, the Markdown page (both atomically), and prints the table.
 Exit status 2 for a bad flag value or a missing or malformed data folder.
@@ -29,7 +29,7 @@ from blindspot.io import write_json, write_text
 from blindspot.report.ethucy_report import format_report, format_table
 from blindspot.traj.ethucy import FOLDS, EthUcyDataError, default_data_dir
 from blindspot.traj.config import Seq2SeqConfig
-from blindspot.traj.ethucy_benchmark import MODELS, EthUcySettings, LSTMBenchSettings, run_benchmark
+from blindspot.traj.ethucy_protocol import MODELS, EthUcySettings, LSTMBenchSettings, run_benchmark
 
 
 def parse_list(value: str, allowed: Sequence[str], option: str) -> list[str]:
@@ -124,7 +124,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.report is not None:
         command = "python -m blindspot.bench.ethucy " + " ".join(
             str(a) for a in (argv if argv is not None else sys.argv[1:]))
-        from blindspot.traj.ethucy_benchmark import calibration_table
+        from blindspot.traj.ethucy_protocol import calibration_table
 
         lstm = asdict(settings.lstm) if "lstm_rollout" in settings.models else None
         write_text(args.report, format_report(

@@ -3,7 +3,7 @@ published numbers, the models, the validation splits and the run.
 
 Pure text building from plain values: the results dict of ``reports/metrics/ethucy.json``
 (``{model: {fold: {"ade", "fde", "n_windows"}, "avg": {"ade", "fde"}}}``) and the run's details
-(what each model fitted per fold, as :class:`blindspot.traj.ethucy_benchmark.BenchmarkRun`
+(what each model fitted per fold, as :class:`blindspot.traj.ethucy_protocol.BenchmarkRun`
 gives them). Nothing is computed here. The published numbers come from :mod:`blindspot.report.paper_values`.
 """
 

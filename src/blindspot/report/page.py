@@ -14,7 +14,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from blindspot.report.benchmark_report import benchmark_methods
+from blindspot.report.walks_report import benchmark_methods
 from blindspot.report.paper_values import (
     ETHUCY_CVM,
     FIG6E_ACCUMULATED_FRAMES,
@@ -240,7 +240,7 @@ def benchmark_rows(bench: Metrics) -> list[tuple[str, str, str, str, str]]:
     interpolation error on hidden frames."""
     if not bench:
         return [("Many-walk benchmark of the paper's scene", "not in the paper", "not run yet", "",
-                 command("benchmark"))]
+                 command("walks"))]
     n = bench.get("n_walks")
     tag = f", {n}-walk benchmark (95 % interval)"
     preds, fills = benchmark_methods(bench)       # the seed-ensemble members have their own table
@@ -256,11 +256,11 @@ def benchmark_rows(bench: Metrics) -> list[tuple[str, str, str, str, str]]:
         for quantity, paper, key in keys:
             rows.append((quantity + tag, paper, f"{method_label(ours)} {_ci(bench[ours].get(key))}",
                          "; ".join(f"{method_label(m)} {_ci(bench[m].get(key))}"
-                                   for m in preds if m != ours), command("benchmark")))
+                                   for m in preds if m != ours), command("walks")))
     if fills:
         rows.append(("Interpolation error on hidden frames" + tag, "no number (Fig. 8 only)",
                      "; ".join(f"{m[len('fill_'):]} {_ci(bench[m].get('hidden_mean_m'))}"
-                               for m in fills), "", command("benchmark")))
+                               for m in fills), "", command("walks")))
     return rows
 
 
@@ -446,7 +446,7 @@ def build_page(metrics: Mapping[str, Metrics], tables: Mapping[str, str | None],
         lines += ["## Many-walk benchmark of the paper's scene", "",
                   "Randomised occluded walks (car pose and size, speed 1.0-1.5 m/s, turn -60..60 "
                   "deg, where the walk turns and when the prediction starts; "
-                  "conf/benchmark/scene_walks.yaml) through the paths stage's radar chain, "
+                  "conf/walks/scene_walks.yaml) through the paths stage's radar chain, "
                   "then the interpolate and predict stages' code. Mean over walks with the 95 % "
                   "percentile-bootstrap interval; paired differences are the bootstrap of "
                   "per-walk differences. The three paper walks (Figs. 8-10) are one draw of this "

@@ -4,7 +4,7 @@ The paper's scene (``conf/scene/paper.yaml``, :mod:`blindspot.radar.scene`): a c
 its long axis along the radar's boresight to the right of it, a pedestrian who starts beyond the
 car's far end on the kerb side, walks across (in -x) hidden behind the car, steps out past its
 far-left corner and turns. A benchmark walk draws every free quantity of that scene at random
-(:class:`BenchmarkConfig`, ``conf/benchmark/``):
+(:class:`WalksConfig`, ``conf/walks/``):
 
 * the car: centre, length, width, yaw;
 * the walk: start beyond the car's far end and to its right, initial heading around -x,
@@ -31,9 +31,9 @@ import numpy as np
 
 from blindspot.radar.occlusion import segment_crosses_polygons
 from blindspot.radar.scene import walks
-from blindspot.traj.config import BenchmarkConfig
+from blindspot.traj.config import WalksConfig
 
-__all__ = ["BENCHMARK_STREAM", "BenchmarkConfig", "SceneWalks", "draw_scene_walks",
+__all__ = ["BENCHMARK_STREAM", "WalksConfig", "SceneWalks", "draw_scene_walks",
            "measure_scene_walks"]
 
 # Spawn key of the benchmark's random stream ("bnch"); the training paths use the bare seed.
@@ -70,7 +70,7 @@ def _uniform(rng: np.random.Generator, bounds: tuple[float, float], n: int) -> n
     return rng.uniform(bounds[0], bounds[1], size=n)
 
 
-def draw_scene_walks(cfg: BenchmarkConfig, frame_period_s: float, seed: int) -> SceneWalks:
+def draw_scene_walks(cfg: WalksConfig, frame_period_s: float, seed: int) -> SceneWalks:
     """Draw ``cfg.n_walks`` walks of the paper's scene kind (vectorised over walks).
 
     The pedestrian starts ``start_beyond_far_end_m`` beyond the car's far end and

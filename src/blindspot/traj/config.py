@@ -375,8 +375,8 @@ class EthUcyConfig(TypedConfig):
 
 
 @dataclass(frozen=True)
-class BenchmarkConfig(TypedConfig):
-    """The Hydra group ``benchmark`` (``conf/benchmark/scene_walks.yaml``).
+class WalksConfig(TypedConfig):
+    """The Hydra group ``benchmark`` (``conf/walks/scene_walks.yaml``).
 
     Ranges are [low, high], drawn uniformly per walk; m, s, deg. Car: ``car_center_x_m``,
     ``car_center_y_m``, ``car_length_m``, ``car_width_m``, ``car_yaw_deg`` (the other car
@@ -391,7 +391,7 @@ class BenchmarkConfig(TypedConfig):
     thread, and on a busy 2-core machine two threads spin-wait: 0.64 s a step against 0.05 s).
     """
 
-    GROUP = "benchmark"
+    GROUP = "walks"
 
     n_walks: int = setting(ge=2, le=100_000)
     car_center_x_m: tuple[float, float] = setting(ge=0.5, le=10.0, ordered=True)

@@ -399,7 +399,7 @@ def cluster_bootstrap_coverage(inside: np.ndarray, seen: np.ndarray, clusters: n
     Raises:
         ConformalError: mismatched shapes, no cluster with a finite score, or n_boot < 1.
     """
-    from blindspot.traj.benchmark import resample_weights   # lazy: keeps this module light
+    from blindspot.traj.bootstrap import resample_weights   # lazy: keeps this module light
 
     who = "cluster_bootstrap_coverage"
     ok = check_array(seen, "seen", ("N", "H"), error=ConformalError, who=who, dtype=bool)

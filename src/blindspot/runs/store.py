@@ -1,6 +1,6 @@
 """The MLflow store: its URI, one client per URI, the experiment, and retries.
 
-Store: ``MLFLOW_TRACKING_URI`` if set, else ``cfg.tracking.uri``, else
+Store: ``MLFLOW_TRACKING_URI`` if set, else ``cfg.runs.uri``, else
 ``sqlite:///<ABSOLUTE original repo root>/mlflow.db`` with artifacts in ``<repo>/mlartifacts``.
 "Original" matters for ``dvc exp run --queue``: DVC runs those in temporary copies under
 ``<repo>/.dvc/tmp/exps/``; :func:`blindspot.config.original_repo_root` maps them back so every
@@ -61,7 +61,7 @@ class TrackingSettings:
     experiment: str
     artifact_location: str | None
     lock_file: Path | None  # serialises store/experiment creation for local SQLite stores
-    # stage -> metric-name patterns copied onto a pipeline's parent run (tracking.headline)
+    # stage -> metric-name patterns copied onto a pipeline's parent run (runs.headline)
     headline: Mapping[str, tuple[str, ...]] = field(default_factory=dict)
 
 
@@ -87,13 +87,13 @@ def tracking_uri(
     cfg: DictConfig | Mapping[str, Any] | None = None,
     repo_root: str | os.PathLike[str] | None = None,
 ) -> str:
-    """The tracking URI: env ``MLFLOW_TRACKING_URI`` > ``cfg.tracking.uri`` > repo SQLite file.
+    """The tracking URI: env ``MLFLOW_TRACKING_URI`` > ``cfg.runs.uri`` > repo SQLite file.
 
     A relative SQLite path or a bare ``*.db`` path is made absolute against the ORIGINAL repo
     root (never the cwd: a queued DVC experiment's cwd is a temporary copy).
     """
     _, original = _repo_roots(repo_root)
-    section = _plain(cfg).get("tracking") if cfg is not None else None
+    section = _plain(cfg).get("runs") if cfg is not None else None
     uri = os.environ.get("MLFLOW_TRACKING_URI") or (
         section.get("uri") if isinstance(section, Mapping) else None)
     if not uri:
@@ -116,19 +116,19 @@ def settings_from_cfg(
     cfg: DictConfig | Mapping[str, Any] | None,
     repo_root: str | os.PathLike[str] | None = None,
 ) -> TrackingSettings:
-    """Read ``cfg.tracking`` (enabled, uri, experiment; all optional) into settings."""
-    section = _plain(cfg).get("tracking") or {}
+    """Read ``cfg.runs`` (enabled, uri, experiment; all optional) into settings."""
+    section = _plain(cfg).get("runs") or {}
     if not isinstance(section, Mapping):
-        raise ValueError(f"config key 'tracking' must be a mapping, found {section!r}")
+        raise ValueError(f"config key 'runs' must be a mapping, found {section!r}")
     enabled = section.get("enabled", True)
     if not isinstance(enabled, bool):
-        raise ValueError(f"config key 'tracking.enabled' must be true/false, found {enabled!r}")
+        raise ValueError(f"config key 'runs.enabled' must be true/false, found {enabled!r}")
     experiment = str(section.get("experiment") or DEFAULT_EXPERIMENT)
     headline_cfg = section.get("headline") or {}
     if not isinstance(headline_cfg, Mapping) or not all(
             isinstance(v, list | tuple) and all(isinstance(x, str) for x in v)
             for v in headline_cfg.values()):
-        raise ValueError("config key 'tracking.headline' must map stage names to lists of metric "
+        raise ValueError("config key 'runs.headline' must map stage names to lists of metric "
                          f"name patterns (e.g. train: ['*.val.rmse_m']), found {headline_cfg!r}")
     headline = {str(k): tuple(v) for k, v in headline_cfg.items()}
     uri = tracking_uri(cfg, repo_root)

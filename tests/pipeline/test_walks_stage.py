@@ -32,7 +32,7 @@ def tiny(tmp_path_factory):
     """Composed config (tiny profile, 4 walks) and a work dir holding an untrained LSTM and direct
     LSTM, their calibration records and the three-walk metrics the benchmark's figure shows."""
     root = tmp_path_factory.mktemp("bench")
-    cfg = config.compose(["profile=tiny", "benchmark.n_walks=3", "benchmark.n_bootstrap=200",
+    cfg = config.compose(["profile=tiny", "walks.n_walks=3", "walks.n_bootstrap=200",
                           "calibration.stride=2",   # enough val pairs for the scale mixture
                           "jobs=1", "progress=false"], config_dir=REPO / "conf")
     torch.manual_seed(0)
@@ -98,8 +98,8 @@ def test_calibration_then_benchmark_on_a_tiny_setting(tiny):
     assert cal["kalman"]["sim_paths"]["n_paths"] == 2          # test path 4 and spare path 5
     assert cal["constant_velocity"]["zara1"]["coverage_90"] == 0.9  # ETH/UCY folds merged in
 
-    ctx = _context("benchmark", root)
-    _load_stage("benchmark").run(cfg, ctx)
+    ctx = _context("walks", root)
+    _load_stage("walks").run(cfg, ctx)
     ctx.check_outs()
     m = json.loads((root / "reports/metrics/benchmark.json").read_text())
     assert m["n_walks"] == 3

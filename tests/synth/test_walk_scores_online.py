@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from blindspot.synth.scene_benchmark import _online_shares
+from blindspot.synth.walk_scores import _online_shares
 from blindspot.traj.conformal import AdaptiveConformal
 
 LEVELS = (0.5, 0.9, 0.95)

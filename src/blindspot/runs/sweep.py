@@ -6,7 +6,7 @@ the end of the sweep, in ``<sweep dir>/sweep_summary.csv`` (one row per job: job
 status, overrides, params swept and every metric; also logged as an artifact of the parent run).
 
 :class:`SweepCallback` opens the parent run and exports its id in
-``BLINDSPOT_MLFLOW_PARENT_RUN_ID``; each job's :func:`blindspot.tracking.stage_run` becomes a
+``BLINDSPOT_MLFLOW_PARENT_RUN_ID``; each job's :func:`blindspot.runs.stage_run` becomes a
 nested child of it. Since joblib/loky reuses worker processes, the callback ends any leftover
 active run at the start and end of every job.
 """
@@ -22,11 +22,11 @@ from typing import TYPE_CHECKING, Any
 from hydra.experimental.callback import Callback
 from omegaconf import DictConfig, OmegaConf
 
-from blindspot.tracking import runs
-from blindspot.tracking.runs import PARENT_RUN_ENV
-from blindspot.tracking.stale import close_stale_runs, owner_tags
-from blindspot.tracking.store import _repo_roots, _retry, ensure_experiment, get_client, settings_from_cfg
-from blindspot.tracking.tags import run_tags
+from blindspot.runs import stage_runs as runs
+from blindspot.runs.stage_runs import PARENT_RUN_ENV
+from blindspot.runs.stale import close_stale_runs, owner_tags
+from blindspot.runs.store import _repo_roots, _retry, ensure_experiment, get_client, settings_from_cfg
+from blindspot.runs.tags import run_tags
 
 if TYPE_CHECKING:  # pragma: no cover
     from mlflow.tracking import MlflowClient

@@ -4,7 +4,7 @@ Every stage run is wrapped in :func:`stage_run`, which opens an MLflow run, logs
 config as params and a few tags, hands out a :class:`Tracker`, and always closes the run:
 FINISHED on success, FAILED on an exception, KILLED on SIGTERM (exit code 143) or Ctrl-C.
 A run whose process was SIGKILLed (no handler can run) is closed KILLED when the next run starts
-(:mod:`~blindspot.tracking.stale`).
+(:mod:`~blindspot.runs.stale`).
 The stage runner (:func:`blindspot.cli.run_stage`) is the one caller: it logs what the stage
 returns. :func:`current` gives the tracker of the innermost active run (a no-op tracker when none
 is active or tracking is disabled).
@@ -26,11 +26,11 @@ from omegaconf import DictConfig, OmegaConf
 
 from blindspot.config import flatten
 from blindspot.io import fault_point
-from blindspot.tracking import pipeline
-from blindspot.tracking.pipeline import dvc_process, pipeline_parent
-from blindspot.tracking.signals import Terminated, sigterm_as_exit, sigterm_deferred
-from blindspot.tracking.stale import close_stale_runs, owner_tags
-from blindspot.tracking.store import (
+from blindspot.runs import pipeline
+from blindspot.runs.pipeline import dvc_process, pipeline_parent
+from blindspot.runs.signals import Terminated, sigterm_as_exit, sigterm_deferred
+from blindspot.runs.stale import close_stale_runs, owner_tags
+from blindspot.runs.store import (
     _plain,
     _repo_roots,
     _retry,
@@ -38,7 +38,7 @@ from blindspot.tracking.store import (
     get_client,
     settings_from_cfg,
 )
-from blindspot.tracking.tags import run_tags
+from blindspot.runs.tags import run_tags
 
 if TYPE_CHECKING:  # pragma: no cover
     from mlflow.tracking import MlflowClient
@@ -240,11 +240,11 @@ def stage_run(
     DVC's baseline rev inside an experiment), ``dvc.exp_name``, ``hydra.job_num``... The run is
     nested under ``parent_run_id``, else under an enclosing stage_run, else under the sweep
     parent named by ``$BLINDSPOT_MLFLOW_PARENT_RUN_ID``, else, for a stage DVC runs, under the
-    pipeline run's parent (:mod:`~blindspot.tracking.pipeline`), which gets the stage's headline
-    metrics (``cfg.tracking.headline``) when it ends. Ends FINISHED / FAILED / KILLED
+    pipeline run's parent (:mod:`~blindspot.runs.pipeline`), which gets the stage's headline
+    metrics (``cfg.runs.headline``) when it ends. Ends FINISHED / FAILED / KILLED
     (SIGTERM -> KILLED and exit status 143); tagged with its owner process, so that a run left
     RUNNING by a SIGKILL is closed KILLED by the next stage_run (:func:`close_stale_runs`).
-    With ``cfg.tracking.enabled: false`` yields a :class:`NullTracker` and touches no store.
+    With ``cfg.runs.enabled: false`` yields a :class:`NullTracker` and touches no store.
     """
     values = None if cfg is None else _plain(cfg)  # converted once: ~1,300 keys in the pipeline
     settings = settings_from_cfg(values, repo_root)

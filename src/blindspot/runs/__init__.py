@@ -6,26 +6,26 @@ this package (``.importlinter``, contract ``one-door-to-mlflow``).
 
 By concern:
 
-- :mod:`~blindspot.tracking.store`: the tracking URI (env ``MLFLOW_TRACKING_URI`` >
-  ``cfg.tracking.uri`` > ``sqlite:///<original repo root>/mlflow.db``), one client per URI, the
+- :mod:`~blindspot.runs.store`: the tracking URI (env ``MLFLOW_TRACKING_URI`` >
+  ``cfg.runs.uri`` > ``sqlite:///<original repo root>/mlflow.db``), one client per URI, the
   experiment created once under a file lock, retries while SQLite is locked.
-- :mod:`~blindspot.tracking.runs`: :func:`stage_run` (one run per stage run, always closed
+- :mod:`~blindspot.runs.stage_runs`: :func:`stage_run` (one run per stage run, always closed
   FINISHED / FAILED / KILLED), :class:`Tracker` and :class:`NullTracker`, :func:`current`.
-- :mod:`~blindspot.tracking.tags`: git commit, DVC experiment and Hydra job tags of a run.
-- :mod:`~blindspot.tracking.stale`: runs left RUNNING by a SIGKILLed process, closed KILLED when
+- :mod:`~blindspot.runs.tags`: git commit, DVC experiment and Hydra job tags of a run.
+- :mod:`~blindspot.runs.stale`: runs left RUNNING by a SIGKILLed process, closed KILLED when
   the next run starts (:func:`close_stale_runs`) or by ``python -m blindspot cleanup``.
-- :mod:`~blindspot.tracking.signals`: SIGTERM -> :class:`Terminated` (exit status 143); forked
+- :mod:`~blindspot.runs.signals`: SIGTERM -> :class:`Terminated` (exit status 143); forked
   workers die with their stage (:func:`children_die_with_this_process`).
-- :mod:`~blindspot.tracking.sweep`: :class:`SweepCallback`, Hydra's callback for a multirun (one
+- :mod:`~blindspot.runs.sweep`: :class:`SweepCallback`, Hydra's callback for a multirun (one
   parent run, a nested child per job); ``python -m blindspot`` registers it by the name
-  ``blindspot.tracking.SweepCallback``. Imported on first use (it imports Hydra, which a DVC
+  ``blindspot.runs.SweepCallback``. Imported on first use (it imports Hydra, which a DVC
   stage reading params.yaml does not need).
 """
 
-from blindspot.tracking.runs import PARENT_RUN_ENV, NullTracker, Tracker, current, stage_run
-from blindspot.tracking.signals import Terminated, children_die_with_this_process, sigterm_as_exit
-from blindspot.tracking.stale import close_stale_runs, close_stale_runs_of
-from blindspot.tracking.store import (
+from blindspot.runs.stage_runs import PARENT_RUN_ENV, NullTracker, Tracker, current, stage_run
+from blindspot.runs.signals import Terminated, children_die_with_this_process, sigterm_as_exit
+from blindspot.runs.stale import close_stale_runs, close_stale_runs_of
+from blindspot.runs.store import (
     DEFAULT_EXPERIMENT,
     TrackingSettings,
     ensure_experiment,
@@ -36,7 +36,7 @@ from blindspot.tracking.store import (
 
 def __getattr__(name: str):  # PEP 562: Hydra (0.3 s of imports) only for sweeps, not per stage
     if name in ("SweepCallback", "end_open_sweep"):
-        from blindspot.tracking import sweep
+        from blindspot.runs import sweep
 
         return getattr(sweep, name)
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -3,10 +3,10 @@
 The same library calls as the ``interpolate`` and ``predict`` stages, batched over walks:
 :func:`blindspot.traj.interpolation.fill_gaps` fills each walk's track (measured up to its
 prediction start) with every interpolation method, scored on the hidden frames
-(:func:`blindspot.traj.benchmark.hidden_gap_error`, as ``score_interpolation``);
+(:func:`blindspot.traj.bootstrap.hidden_gap_error`, as ``score_interpolation``);
 :func:`blindspot.traj.forecast.forecast_tracks` predicts from the track filled by
 ``prediction_input`` (what ``forecast_track`` with that fill computes), scored against the
-truth (:func:`blindspot.traj.benchmark.prediction_scores`, as ``score_prediction``).
+truth (:func:`blindspot.traj.bootstrap.prediction_scores`, as ``score_prediction``).
 Predictors that give a distribution (``predict_distribution``) are also scored on ellipse
 coverage and NLL (:mod:`blindspot.traj.distribution`).
 """
@@ -18,7 +18,7 @@ from collections.abc import Callable, Mapping
 import numpy as np
 
 from blindspot.synth.scene_walks import SceneWalks
-from blindspot.traj.benchmark import hidden_gap_error, prediction_scores
+from blindspot.traj.bootstrap import hidden_gap_error, prediction_scores
 from blindspot.traj.forecast import forecast_distributions, forecast_tracks
 from blindspot.traj.interpolation import fill_gaps
 

@@ -1,4 +1,4 @@
-"""blindspot.tracking against a real SQLite MLflow store, read back with MlflowClient."""
+"""blindspot.runs against a real SQLite MLflow store, read back with MlflowClient."""
 
 from __future__ import annotations
 
@@ -12,13 +12,13 @@ from pathlib import Path
 import pytest
 from mlflow.tracking import MlflowClient
 
-from blindspot import tracking
-from tests.pipeline.toy_repo import clean_env, make_toy_repo, runs
+from blindspot import runs
+from tests.pipeline.toy_repo import clean_env, make_toy_repo, logged_runs
 
 
 @pytest.fixture(autouse=True)
 def _no_outer_tracking_env(monkeypatch: pytest.MonkeyPatch) -> None:
-    for key in ("MLFLOW_TRACKING_URI", tracking.PARENT_RUN_ENV, "DVC_ROOT", "DVC_EXP_NAME",
+    for key in ("MLFLOW_TRACKING_URI", runs.PARENT_RUN_ENV, "DVC_ROOT", "DVC_EXP_NAME",
                 "DVC_EXP_BASELINE_REV", "DVC_STAGE"):
         monkeypatch.delenv(key, raising=False)
 
@@ -31,7 +31,7 @@ def toy(tmp_path: Path) -> Path:
 CFG = {
     "model": {"hidden_size": 16, "layers": [1, 2]},
     "train": {"lr": 0.1, "note": "x" * 7000},
-    "tracking": {"enabled": True, "uri": None, "experiment": "blindspot"},
+    "runs": {"enabled": True, "uri": None, "experiment": "blindspot"},
     "seed": 0,
 }
 
@@ -45,8 +45,8 @@ def test_stage_run_logs_params_metrics_artifacts(toy: Path) -> None:
     (toy / "model.pt").write_bytes(b"\x00weights")
     (toy / "figs").mkdir()
     (toy / "figs" / "a.txt").write_text("a")
-    with tracking.stage_run("train", CFG, repo_root=toy) as t:
-        assert tracking.current() is t
+    with runs.stage_run("train", CFG, repo_root=toy) as t:
+        assert runs.current() is t
         for step in range(3):
             t.log_metrics({"loss": 1.0 / (step + 1), "val": {"rmse_m": 0.5 - 0.1 * step}}, step=step)
         t.log_model_file(toy / "model.pt")
@@ -62,7 +62,7 @@ def test_stage_run_logs_params_metrics_artifacts(toy: Path) -> None:
         with pytest.raises(FileNotFoundError, match="nope"):
             t.log_artifact(toy / "nope")
         run_id = t.run_id
-    assert isinstance(tracking.current(), tracking.NullTracker) and tracking.current().run_id is None
+    assert isinstance(runs.current(), runs.NullTracker) and runs.current().run_id is None
 
     client = _client(toy)
     run = client.get_run(run_id)
@@ -94,7 +94,7 @@ def test_git_commit_tag(toy: Path) -> None:
         subprocess.run(cmd, cwd=toy, check=True, env=env)
     head = subprocess.run(["git", "rev-parse", "HEAD"], cwd=toy, capture_output=True, text=True,
                           check=True).stdout.strip()
-    with tracking.stage_run("x", {"a": 1}, repo_root=toy) as t:
+    with runs.stage_run("x", {"a": 1}, repo_root=toy) as t:
         pass
     tags = _client(toy).get_run(t.run_id).data.tags
     assert tags["mlflow.source.git.commit"] == head and tags["git.dirty"] == "false"
@@ -102,44 +102,44 @@ def test_git_commit_tag(toy: Path) -> None:
 
 def test_exception_ends_run_failed_and_propagates(toy: Path) -> None:
     with pytest.raises(RuntimeError, match="boom"):
-        with tracking.stage_run("train", CFG, repo_root=toy) as t:
+        with runs.stage_run("train", CFG, repo_root=toy) as t:
             raise RuntimeError("boom")
     assert _client(toy).get_run(t.run_id).info.status == "FAILED"
 
 
 def test_nested_stage_runs_get_parent_tag(toy: Path) -> None:
-    with tracking.stage_run("outer", {"a": 1}, repo_root=toy) as outer:
-        with tracking.stage_run("inner", {"b": 2}, repo_root=toy) as inner:
-            assert tracking.current() is inner
-        assert tracking.current() is outer
+    with runs.stage_run("outer", {"a": 1}, repo_root=toy) as outer:
+        with runs.stage_run("inner", {"b": 2}, repo_root=toy) as inner:
+            assert runs.current() is inner
+        assert runs.current() is outer
     run = _client(toy).get_run(inner.run_id)
     assert run.data.tags["mlflow.parentRunId"] == outer.run_id
 
 
 def test_disabled_tracking_is_a_no_op(toy: Path) -> None:
-    cfg = {"tracking": {"enabled": False}, "x": 1}
+    cfg = {"runs": {"enabled": False}, "x": 1}
     (toy / "mlflow.db").unlink()
-    with tracking.stage_run("train", cfg, repo_root=toy) as t:
-        assert t.run_id is None and tracking.current() is t
+    with runs.stage_run("train", cfg, repo_root=toy) as t:
+        assert t.run_id is None and runs.current() is t
         t.log_metrics({"loss": 1.0})
         t.log_artifact("does-not-matter")
     assert not (toy / "mlflow.db").exists()
-    with pytest.raises(ValueError, match="tracking.enabled"):
-        tracking.settings_from_cfg({"tracking": {"enabled": "no"}}, toy)
+    with pytest.raises(ValueError, match="runs.enabled"):
+        runs.settings_from_cfg({"runs": {"enabled": "no"}}, toy)
 
 
 def test_tracking_uri_precedence(toy: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    assert tracking.tracking_uri(None, toy) == f"sqlite:///{toy.resolve() / 'mlflow.db'}"
-    rel = {"tracking": {"uri": "sqlite:///stores/m.db"}}
-    assert tracking.tracking_uri(rel, toy) == f"sqlite:///{toy.resolve() / 'stores' / 'm.db'}"
-    assert tracking.tracking_uri({"tracking": {"uri": "x.db"}}, toy).endswith(f"{toy.name}/x.db")
+    assert runs.tracking_uri(None, toy) == f"sqlite:///{toy.resolve() / 'mlflow.db'}"
+    rel = {"runs": {"uri": "sqlite:///stores/m.db"}}
+    assert runs.tracking_uri(rel, toy) == f"sqlite:///{toy.resolve() / 'stores' / 'm.db'}"
+    assert runs.tracking_uri({"runs": {"uri": "x.db"}}, toy).endswith(f"{toy.name}/x.db")
     # A `dvc exp run --queue` temp copy logs into the ORIGINAL repo's store.
     copy = make_toy_repo(toy / ".dvc" / "tmp" / "exps" / "tmp1234abcd")
-    s = tracking.settings_from_cfg(None, copy)
+    s = runs.settings_from_cfg(None, copy)
     assert s.uri == f"sqlite:///{toy.resolve() / 'mlflow.db'}"
     assert s.artifact_location == (toy.resolve() / "mlartifacts").as_uri()
     monkeypatch.setenv("MLFLOW_TRACKING_URI", "sqlite:////elsewhere/m.db")
-    assert tracking.tracking_uri(rel, toy) == "sqlite:////elsewhere/m.db"
+    assert runs.tracking_uri(rel, toy) == "sqlite:////elsewhere/m.db"
 
 
 def test_job_start_ends_leaked_fluent_run(toy: Path) -> None:
@@ -149,7 +149,7 @@ def test_job_start_ends_leaked_fluent_run(toy: Path) -> None:
     try:
         leaked = mlflow.start_run()
         assert mlflow.active_run() is not None
-        tracking.SweepCallback().on_job_start(config=None)
+        runs.SweepCallback().on_job_start(config=None)
         assert mlflow.active_run() is None
         assert _client(toy).get_run(leaked.info.run_id).info.status == "FINISHED"
     finally:
@@ -161,13 +161,13 @@ def test_job_start_ends_leaked_fluent_run(toy: Path) -> None:
 RACE = """
 import sys, time
 from pathlib import Path
-from blindspot import tracking
+from blindspot import runs
 import mlflow.tracking  # the slow imports happen before the barrier
 i, n, root = int(sys.argv[1]), int(sys.argv[2]), Path(sys.argv[3])
 (root / f"ready-{i}").touch()
 while len(list(root.glob("ready-*"))) < n:  # barrier: everybody imported, then go at once
     time.sleep(0.005)
-with tracking.stage_run("race", {"i": i}, repo_root=root) as t:
+with runs.stage_run("race", {"i": i}, repo_root=root) as t:
     t.log_metrics({"i": i})
 """
 
@@ -180,7 +180,7 @@ def test_parallel_first_runs_on_a_fresh_store_do_not_race(tmp_path: Path) -> Non
              for i in range(n)]
     errors = [p.communicate(timeout=240)[1] for p in procs]
     assert [p.returncode for p in procs] == [0] * n, errors
-    found = runs(toy)
+    found = logged_runs(toy)
     assert sorted(int(r.data.params["i"]) for r in found) == list(range(n))
     assert {r.info.status for r in found} == {"FINISHED"}
     assert len(_client(toy).search_experiments()) == 2  # Default + blindspot, created once
@@ -198,7 +198,7 @@ def test_sigterm_ends_run_killed_and_leaves_no_partial_file(toy: Path) -> None:
     proc.send_signal(signal.SIGTERM)
     _, err = proc.communicate(timeout=30)
     assert proc.returncode == 143, err
-    (run,) = runs(toy)
+    (run,) = logged_runs(toy)
     assert run.info.status == "KILLED"
     assert run.info.end_time is not None
     assert "ended KILLED" in err
@@ -206,34 +206,34 @@ def test_sigterm_ends_run_killed_and_leaves_no_partial_file(toy: Path) -> None:
     assert not (toy / "out" / "partial.txt").exists()
     assert [p.name for p in (toy / "out").iterdir() if ".tmp-" in p.name] == []
     assert (toy / "out" / "toy.json").exists()  # finished before the signal
-    assert os.environ.get(tracking.PARENT_RUN_ENV) is None
+    assert os.environ.get(runs.PARENT_RUN_ENV) is None
 
 
 def test_experiment_opens_on_its_runs_not_the_genai_overview(toy: Path) -> None:
     """MLflow 3.x shows an experiment of no declared kind on its GenAI "Overview" (traces) page;
     the experiment is created, and an older one tagged, as a model-development experiment."""
-    with tracking.stage_run("train", CFG, repo_root=toy):
+    with runs.stage_run("train", CFG, repo_root=toy):
         pass
     client = _client(toy)
     exp = client.get_experiment_by_name("blindspot")
     assert exp.tags["mlflow.experimentKind"] == "custom_model_development"
     client.delete_experiment_tag(exp.experiment_id, "mlflow.experimentKind")  # a store from before
-    with tracking.stage_run("train", CFG, repo_root=toy):
+    with runs.stage_run("train", CFG, repo_root=toy):
         pass
     assert client.get_experiment(exp.experiment_id).tags["mlflow.experimentKind"] == (
         "custom_model_development")
 
 
 def test_headline_patterns_match_one_dotted_part_per_star(tmp_path: Path) -> None:
-    from blindspot.tracking.pipeline import headline_metrics
+    from blindspot.runs.pipeline import headline_metrics
 
     metrics = {"lstm.val.rmse_m": 0.1, "kalman.val.rmse_m": 0.2, "lstm.per_scene.a.val.rmse_m": 9,
                "lstm.test.rmse_m": 0.3}
     assert headline_metrics("train", metrics, {"train": ["*.val.rmse_m"]}) == {
         "train.lstm.val.rmse_m": 0.1, "train.kalman.val.rmse_m": 0.2}
     assert headline_metrics("evaluate", metrics, {"train": ["*.val.rmse_m"]}) == {}
-    with pytest.raises(ValueError, match="tracking.headline"):
-        tracking.settings_from_cfg({"tracking": {"headline": {"train": "*.val.rmse_m"}}}, tmp_path)
+    with pytest.raises(ValueError, match="runs.headline"):
+        runs.settings_from_cfg({"runs": {"headline": {"train": "*.val.rmse_m"}}}, tmp_path)
 
 
 @pytest.mark.parametrize("enabled", [True, False])
@@ -243,11 +243,11 @@ def test_opening_a_store_leaves_the_garbage_collector_as_it_was(tmp_path: Path,
     import time), then restores it; the store it opened is usable."""
     import gc
 
-    settings = tracking.settings_from_cfg({"tracking": {"uri": str(tmp_path / "gc.db")}}, tmp_path)
+    settings = runs.settings_from_cfg({"runs": {"uri": str(tmp_path / "gc.db")}}, tmp_path)
     was = gc.isenabled()
     (gc.enable if enabled else gc.disable)()
     try:
-        client = tracking.get_client(settings)
+        client = runs.get_client(settings)
         assert gc.isenabled() is enabled
     finally:
         (gc.enable if was else gc.disable)()
@@ -261,7 +261,7 @@ def test_the_collector_pause_restores_the_collector_even_on_an_error(was_enabled
     for the rest of the stage)."""
     import gc
 
-    from blindspot.tracking.store import _gc_paused
+    from blindspot.runs.store import _gc_paused
 
     before = gc.isenabled()
     try:

@@ -1,14 +1,14 @@
-"""benchmark: many randomised occluded walks of the paper's scene (issue 10, section 3).
+"""walks: many randomised occluded walks of the paper's scene (issue 10, section 3).
 
 ``benchmark.n_walks`` walks (car pose and size, speed, turn angle, where the walk turns and when
 the prediction starts drawn per walk; blindspot.synth.scene_walks) go through the paths stage's
 validated reduced radar chain with the car as occluder, then through the interpolate and predict
-stages' own library calls batched over walks (blindspot.synth.scene_benchmark); predicted by the
+stages' own library calls batched over walks (blindspot.synth.walk_scores); predicted by the
 paper's methods (eval.prediction_methods) and by the scenes' direct multi-step LSTM (lstm_direct,
 the train_direct stage's: pre-trained on ETH/UCY, then fine-tuned on the radar paths unless
 direct.finetune is false). Every metric's
 mean over walks gets a 95 % percentile-bootstrap interval, and the differences between methods a
-paired bootstrap of per-walk differences (blindspot.traj.benchmark). The predictive distributions
+paired bootstrap of per-walk differences (blindspot.traj.bootstrap). The predictive distributions
 calibrated on validation paths by the calibration stage are scored on the walks too (coverage
 of the 50/90/95 % ellipses, NLL): the walks are never used to fit them; beside them the
 adaptive conformal ellipses (blindspot.traj.conformal), the walks met one after another, each
@@ -25,12 +25,12 @@ import pandas as pd
 from blindspot import experiment
 from blindspot.cli import main_stage
 from blindspot.io import save_figure, write_json, write_parquet, write_text
-from blindspot.report.benchmark_report import benchmark_figure, benchmark_table
+from blindspot.report.walks_report import benchmark_figure, benchmark_table
 from blindspot.stage import StageResult
 from blindspot.synth.path_measurement import PedestrianModel
-from blindspot.synth.scene_benchmark import COVERAGE_LEVELS, score_scene_walks
+from blindspot.synth.walk_scores import COVERAGE_LEVELS, score_scene_walks
 from blindspot.synth.scene_walks import draw_scene_walks, measure_scene_walks
-from blindspot.traj.benchmark import bootstrap_means, paired_differences
+from blindspot.traj.bootstrap import bootstrap_means, paired_differences
 from blindspot.traj.calibration import from_record
 from blindspot.traj.conformal import AdaptiveConformal
 from blindspot.traj.direct import NAME as DIRECT
@@ -46,7 +46,7 @@ def measured_walks(cfg, bench, *, seed: int, jobs: int, progress: bool = False):
     ``seed`` and measured through the paper's chain with the first scene that has the car (its
     pedestrian model and occlusion loss), on ``jobs`` worker processes; what this stage and the
     benchmarks that score other models on its walks (bench_pretrain, bench_pretrain_direct,
-    bench_scene_benchmark) draw."""
+    bench_walk_scores) draw."""
     radar = experiment.radar(cfg)
     car = next(s for s in experiment.scenes(cfg).values() if s.with_car)
     walks = draw_scene_walks(bench, radar.frame_period_s, seed=seed)
@@ -59,7 +59,7 @@ def measured_walks(cfg, bench, *, seed: int, jobs: int, progress: bool = False):
 
 def run(cfg, ctx):
     t0 = time.perf_counter()
-    bench = experiment.benchmark(cfg)
+    bench = experiment.walks(cfg)
     ev = experiment.evaluation(cfg)
     radar = experiment.radar(cfg)
     dt = radar.frame_period_s
@@ -123,11 +123,11 @@ def run(cfg, ctx):
         print(f"benchmark {name}: paper's metric {m['path_error_mean_m']['mean']:.3f} m "
               f"{m['path_error_mean_m']['ci95']}, ADE 1 s {m['ade_1s']['mean']:.3f} m, "
               f"FDE 2 s {m['fde_2s']['mean']:.3f} m")
-    print(f"benchmark: {len(walks)} walks in {seconds:.0f} s ({t_radar:.0f} s radar)")
+    print(f"walks: {len(walks)} walks in {seconds:.0f} s ({t_radar:.0f} s radar)")
     return StageResult(metrics={"n_walks": len(walks), "seconds": seconds,
                                 **{n: {k: v["mean"] for k, v in metrics[n].items()}
                                    for n in (*names, *fills)}})
 
 
 if __name__ == "__main__":
-    main_stage(run, "benchmark")
+    main_stage(run, "walks")

@@ -1,5 +1,5 @@
 """A shared tracking store: PostgreSQL 15 + an MLflow server with proxied artifacts, started on
-127.0.0.1 by the project's own `blindspot.tracking.server` and stopped after (issue 13).
+127.0.0.1 by the project's own `blindspot.runs.server` and stopped after (issue 13).
 
 A three-job parallel sweep logs to it over HTTP; MLflow's REST API then shows every run, param,
 metric and artifact; a sweep job SIGKILLed mid-run (no handler can run) ends KILLED once
@@ -31,7 +31,7 @@ pytestmark = pytest.mark.slow  # PostgreSQL + MLflow's migrations: ~30 s idle, m
 @pytest.fixture(scope="module")
 def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
     pytest.importorskip("psycopg2", reason="make setup-cluster")
-    from blindspot.tracking import server as srv
+    from blindspot.runs import server as srv
 
     try:
         srv.pg_bin_dir()

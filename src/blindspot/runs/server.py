@@ -3,10 +3,10 @@
 SQLite (``<repo>/mlflow.db``) stays the store of one machine. When sweep jobs run on other
 machines (Ray, SLURM), or several people share runs, they log to one server instead::
 
-    python -m blindspot.tracking.server start [--dir .mlflow-server] [--host 127.0.0.1]
+    python -m blindspot.runs.server start [--dir .mlflow-server] [--host 127.0.0.1]
     export MLFLOW_TRACKING_URI=http://127.0.0.1:<port>   # printed by `start`
     python -m blindspot train -m hydra/launcher=ray_cluster model.hidden_size=32,64
-    python -m blindspot.tracking.server stop [--dir .mlflow-server]
+    python -m blindspot.runs.server stop [--dir .mlflow-server]
 
 ``start`` creates a PostgreSQL 15 cluster in ``<dir>/pg`` (``initdb``; trust authentication,
 listening on ``--host`` only, on a free port) and a database ``mlflow``, then runs
@@ -14,7 +14,7 @@ listening on ``--host`` only, on a free port) and a database ``mlflow``, then ru
 store (proxied: clients upload through the server, ``mlflow-artifacts:/`` URIs), so jobs need no
 access to the server's disk. The ports and pids are in ``<dir>/server.json``; ``stop`` ends what
 ``start`` started, by pid. A team's existing server needs none of this: set
-``MLFLOW_TRACKING_URI`` (or ``tracking.uri`` in conf/tracking/) to its address.
+``MLFLOW_TRACKING_URI`` (or ``runs.uri`` in conf/runs/) to its address.
 
 PostgreSQL refuses to run as root; under root the database runs as the ``postgres`` system user
 (Debian's package creates it) and ``<dir>/pg`` belongs to it. Binaries: ``$BLINDSPOT_PG_BIN``,
@@ -209,8 +209,8 @@ def stop(folder: str | os.PathLike[str], timeout_s: float = 60) -> bool:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """``python -m blindspot.tracking.server {start,stop}``."""
-    parser = argparse.ArgumentParser(prog="python -m blindspot.tracking.server",
+    """``python -m blindspot.runs.server {start,stop}``."""
+    parser = argparse.ArgumentParser(prog="python -m blindspot.runs.server",
                                      description=__doc__.split("\n\n")[0])
     parser.add_argument("command", choices=["start", "stop"])
     parser.add_argument("--dir", default=".mlflow-server",

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from blindspot.traj.benchmark import (BenchmarkError, bootstrap_means, hidden_gap_error,
+from blindspot.traj.bootstrap import (BenchmarkError, bootstrap_means, hidden_gap_error,
                                       paired_differences, prediction_scores, resample_weights)
 from blindspot.traj.evaluation import score_interpolation, score_prediction
 

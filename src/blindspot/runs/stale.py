@@ -1,6 +1,6 @@
 """Runs left RUNNING by a process that died without closing them (SIGKILL, OOM killer, power cut).
 
-SIGKILL cannot be caught, so no ``finally`` of :func:`blindspot.tracking.stage_run` ends the run.
+SIGKILL cannot be caught, so no ``finally`` of :func:`blindspot.runs.stage_run` ends the run.
 Every run therefore records who owns it (:func:`owner_tags`: host, pid and the pid's start time,
 so a recycled pid is not taken for the owner), and :func:`close_stale_runs` ends KILLED each
 RUNNING run whose owner on this host is gone. The stage runner and the sweep callback call it
@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from blindspot.io import _pid_alive
-from blindspot.tracking.store import _retry, get_client, settings_from_cfg
+from blindspot.runs.store import _retry, get_client, settings_from_cfg
 
 if TYPE_CHECKING:  # pragma: no cover
     from collections.abc import Mapping
@@ -84,7 +84,7 @@ def close_stale_runs(client: MlflowClient, experiment_ids: list[str]) -> list[st
 
 def close_stale_runs_of(cfg: DictConfig | Mapping[str, Any] | None,
                         repo_root: str | os.PathLike[str] | None = None) -> list[str]:
-    """:func:`close_stale_runs` in the store and experiment ``cfg.tracking`` names (what
+    """:func:`close_stale_runs` in the store and experiment ``cfg.runs`` names (what
     ``python -m blindspot cleanup`` does); [] when tracking is off or nothing was run."""
     settings = settings_from_cfg(cfg, repo_root)
     if not settings.enabled:

@@ -4,12 +4,12 @@ DVC runs each stage as its own process (``python stages/<name>.py``), so no proc
 whole pipeline but DVC's own. That process is found from inside a stage: the nearest ancestor
 whose environment lacks ``DVC_STAGE`` (DVC sets it for every stage command, and the shell DVC
 starts inherits it). Its host, pid and start time name the pipeline run: the first stage that
-runs creates the parent run with those as owner tags (so :mod:`~blindspot.tracking.stale`
+runs creates the parent run with those as owner tags (so :mod:`~blindspot.runs.stale`
 closes it KILLED if DVC is SIGKILLed), later stages of the same DVC process find it by them.
 
 The parent carries the DVC experiment name (``dvc.exp_name``), the git commit
 (``mlflow.source.git.commit``: the experiment's baseline inside an experiment) and, as each stage
-ends, that stage's headline metrics (``tracking.headline``) as ``<stage>.<metric>``, so two
+ends, that stage's headline metrics (``runs.headline``) as ``<stage>.<metric>``, so two
 pipeline runs compare in one view of the runs page. Its status follows its stages: RUNNING while
 one runs, then the status the last one ended with.
 """
@@ -22,13 +22,13 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from blindspot.tracking.stale import HOST_TAG, PID_START_TAG, PID_TAG, owner_tags
-from blindspot.tracking.store import _file_lock, _retry
+from blindspot.runs.stale import HOST_TAG, PID_START_TAG, PID_TAG, owner_tags
+from blindspot.runs.store import _file_lock, _retry
 
 if TYPE_CHECKING:  # pragma: no cover
     from mlflow.tracking import MlflowClient
 
-    from blindspot.tracking.store import TrackingSettings
+    from blindspot.runs.store import TrackingSettings
 
 __all__ = ["PIPELINE_TAG", "dvc_process", "pipeline_parent", "headline_metrics",
            "stage_started", "stage_ended"]

@@ -1,8 +1,8 @@
 """Speed of the many-walk benchmark stage: prints figures, asserts nothing.
 
-    .venv/bin/python benchmarks/bench_scene_benchmark.py [--walks N] [--jobs J] [--model FILE]
+    .venv/bin/python benchmarks/bench_walk_scores.py [--walks N] [--jobs J] [--model FILE]
 
-Draws N walks of ``conf/benchmark/scene_walks.yaml``, measures them through the reduced radar
+Draws N walks of ``conf/walks/scene_walks.yaml``, measures them through the reduced radar
 chain in J processes (the stage's ``jobs``), then fills and predicts them with the stage's
 methods (the LSTM of ``data/train/model.pt``, constant velocity, Kalman) on the stage's torch
 threads, and prints the seconds of each part, walks/s and the time projected for the stage's
@@ -33,7 +33,7 @@ def main() -> None:
 
     from blindspot import config, experiment
     from benchmark import measured_walks      # the benchmark stage's walks
-    from blindspot.synth.scene_benchmark import score_scene_walks
+    from blindspot.synth.walk_scores import score_scene_walks
     from blindspot.traj.lstm import LSTMPredictor
 
     cfg = config.compose([], config_dir=REPO / "conf")
