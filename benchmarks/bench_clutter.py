@@ -23,7 +23,7 @@ Candidates, each a per-row score from what the car has at that frame (no truth):
   static (points.parquet ``static``) is accumulated in the world frame in cells of
   ``--cell`` m; a track row's score is the number of static points of frames f - ``lag`` and
   earlier within the 3 x 3 cells around its position, a coasting row taking its track's last
-  measured row's score (:func:`blindspot.safety.predict.last_hit_rows`, as the stage). A row
+  measured row's score (:func:`blindspot.track.moving.last_hit_rows`, as the stage). A row
   whose score reaches k is clutter.
 - ``displacement``: the track's net displacement over its last ``--window`` rows over the path
   its filtered velocity integrates over them (a cluster sliding on a car face moves much less
@@ -60,8 +60,8 @@ from blindspot.io import write_json  # noqa: E402
 from blindspot.safety.assess import frame_risks  # noqa: E402
 from blindspot.safety.evaluation import (aeb_gate_s, replicate_half,  # noqa: E402
                                          scene_results, summarise)
-from blindspot.safety.predict import (moving_frames, moving_test_settings,  # noqa: E402
-                                      moving_tracks, track_static_evidence)
+from blindspot.track.moving import (moving_frames, moving_test_settings,  # noqa: E402
+                                    moving_tracks, track_static_evidence)
 
 
 def displacement_ratio(tracks: pd.DataFrame, window: int) -> np.ndarray:
@@ -112,7 +112,7 @@ def main(argv: list[str]) -> None:
     tracks = tracks.sort_values(["group", "track_id", "frame"]).reset_index(drop=True)
     points = pd.read_parquet(args.data / "driving/points.parquet")
 
-    from driving_track import confusion, track_labels
+    from blindspot.synth.driving_tracks import confusion, track_labels
     labels = track_labels(tracks, points, experiment.tracker(cfg).cluster_eps_m)
 
     ego = (truth_all.groupby(["scene", "frame"], as_index=False)[["ego_x_m", "ego_y_m"]]

@@ -5,12 +5,12 @@ reported on the other. Prints figures, asserts nothing.
         [--data data] [--predictors constant_velocity,lstm_direct] [--json OUT] \
         [--floors 0,0.1,...] [--spread 0.27,0.79]
 
-The moving test (:func:`blindspot.safety.predict.moving_tracks`, settings ``warning.moving_*``)
+The moving test (:func:`blindspot.track.moving.moving_tracks`, settings ``warning.moving_*``)
 has three Doppler settings, chosen on the same simulated set README reports (the "doubtful"
 note of reports/safety.md): a point's radial-speed spread ``moving_doppler_std_mps`` (0.3 m/s),
 the bound on the summed log-likelihood ratio "moves as tracked" vs "static", ``moving_doppler_log_ratio_min``
 (-ln 10), and the ratio's form ``moving_doppler_llr`` (common_variance or marginal,
-:func:`blindspot.safety.predict.doppler_log_ratio`). Here every candidate is scored the way
+:func:`blindspot.track.moving.doppler_log_ratio`). Here every candidate is scored the way
 bench_clutter scores the evidence grid:
 
 1. the tracker's tracks of the last ``dvc repro`` (DATA/driving/tracks.parquet), classed moving
@@ -54,8 +54,8 @@ sys.path[:0] = [str(REPO / "benchmarks")]
 
 from bench_aeb_gate import half_counts, half_results, load_inputs, outcome_setup  # noqa: E402
 from blindspot.io import write_json  # noqa: E402
-from blindspot.safety.predict import (moving_test_settings, moving_tracks,  # noqa: E402
-                                      risk_table, with_backfill)
+from blindspot.safety.predict import risk_table, with_backfill  # noqa: E402
+from blindspot.track.moving import moving_test_settings, moving_tracks  # noqa: E402
 from blindspot.traj.calibration import from_record  # noqa: E402
 
 STDS = (0.15, 0.3, 0.6)

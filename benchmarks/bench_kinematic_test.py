@@ -7,7 +7,7 @@ reported on the other. Prints figures, asserts nothing.
 
 A confirmed track is a moving object from its first frame whose filtered velocity is faster
 than ``warning.moving_speed_mps`` and non-zero by the chi-square test at
-``warning.moving_probability`` (:func:`blindspot.safety.predict.moving_tracks`), with its
+``warning.moving_probability`` (:func:`blindspot.track.moving.moving_tracks`), with its
 Doppler and static-evidence tests on top. Both kinematic settings were chosen on the paper's
 CA-CFAR cloud; on a child stepping out the test is what holds the track back
 (``bench_moving_diagnosis.py --track``: a 40 km/h child's track at 1.0-1.4 m/s for three frames
@@ -47,7 +47,7 @@ sys.path[:0] = [str(REPO / "benchmarks")]
 from bench_aeb_gate import load_inputs, outcome_setup  # noqa: E402
 from bench_doppler_test import moving_test_inputs, score_candidates  # noqa: E402
 from blindspot.io import write_json  # noqa: E402
-from blindspot.safety.predict import moving_test_settings, moving_tracks  # noqa: E402
+from blindspot.track.moving import moving_test_settings, moving_tracks  # noqa: E402
 
 
 def _floats(text: str, flag: str, lo: float, hi: float) -> list[float]:

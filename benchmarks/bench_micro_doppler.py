@@ -44,7 +44,7 @@ sys.path[:0] = [str(REPO / "stages")]
 
 from blindspot import experiment  # noqa: E402
 from blindspot.config import shared_dir  # noqa: E402
-from blindspot.safety.predict import doppler_spread_log_ratio  # noqa: E402
+from blindspot.track.moving import doppler_spread_log_ratio  # noqa: E402
 from blindspot.track.recordings import load_points  # noqa: E402
 
 
@@ -52,7 +52,7 @@ def main(argv: list[str]) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--data", type=Path, default=REPO / "data")
     args = ap.parse_args(argv)
-    from driving_track import (doppler_spread_by_label, monte_carlo_objects,
+    from blindspot.synth.driving_tracks import (doppler_spread_by_label, monte_carlo_objects,
                                object_doppler_spreads, pooled_std)
 
     cfg = OmegaConf.load(REPO / "params.yaml")

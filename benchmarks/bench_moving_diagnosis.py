@@ -42,9 +42,9 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(REPO / "stages")]
 
 from blindspot import experiment  # noqa: E402
-from blindspot.safety.predict import (doppler_evidence, doppler_log_ratio,  # noqa: E402
-                                      doppler_spread_log_ratio, last_hit_rows, static_evidence,
-                                      velocity_chi2)
+from blindspot.track.moving import (doppler_evidence, doppler_log_ratio,  # noqa: E402
+                                    doppler_spread_log_ratio, last_hit_rows, static_evidence,
+                                    velocity_chi2)
 
 
 def false_activations(tracks, labels, risk, outcomes, truth, predictor: str) -> pd.DataFrame:
@@ -116,7 +116,7 @@ def main(argv: list[str]) -> None:
     ap.add_argument("--track", action="append", default=[],
                     help="SCENE:TRACK_ID whose rows to print (repeatable)")
     args = ap.parse_args(argv)
-    from driving_track import track_labels
+    from blindspot.synth.driving_tracks import track_labels
 
     cfg = OmegaConf.load(REPO / "params.yaml")
     w = experiment.warning(cfg)

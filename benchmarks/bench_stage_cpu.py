@@ -187,7 +187,7 @@ def bench_track(data: Path, every: int, repeats: int) -> None:
     scenes = sorted(truth.scene.unique())[::every]
     truth, points = truth[truth.scene.isin(scenes)], points[points.scene.isin(scenes)]
     sys.path[:0] = [str(ROOT / "stages")]
-    from driving_track import tracker_input        # the stage's own input, sensor columns too
+    from blindspot.synth.driving_tracks import tracker_input        # the stage's own input, sensor columns too
 
     pts, _ = tracker_input(truth, points)
     # the same work on both sides: the base has no field of view (its tracks coast until

@@ -69,7 +69,7 @@ def scene(n_frames: int, n_clutter: int, n_points: int, seed: int = 0) -> pd.Dat
 
 def driving_clouds(data: Path, n_scenes: int | None) -> pd.DataFrame:
     """The driving_track stage's tracker input (``group`` = scene) from DATA/driving/."""
-    from driving_track import tracker_input
+    from blindspot.synth.driving_tracks import tracker_input
 
     paths = {n: data / "driving" / f"{n}.parquet" for n in ("truth", "points")}
     for name, path in paths.items():

@@ -660,15 +660,10 @@ def test_the_field_of_view_moves_and_turns_with_the_sensor_of_each_group_and_fra
 
 
 def test_tracker_input_gives_the_ego_yaw_as_the_sensor_heading():
-    """stages/driving_track.tracker_input: every frame of the truth stepped with the ego's
-    position and yaw as the sensor's pose (a frame without points as one NaN row)."""
-    import sys
+    """blindspot.synth.driving_tracks.tracker_input: every frame of the truth stepped with the
+    ego's position and yaw as the sensor's pose (a frame without points as one NaN row)."""
+    from blindspot.synth.driving_tracks import tracker_input
 
-    sys.path.insert(0, str(REPO_ROOT / "stages"))
-    try:
-        from driving_track import tracker_input
-    finally:
-        sys.path.remove(str(REPO_ROOT / "stages"))
     truth = pd.DataFrame({"scene": "s", "frame": [0, 0, 1, 2], "time_s": [0.0, 0.0, 0.1, 0.2],
                           "pedestrian": ["p0", "p1", "p0", "p0"],
                           "ego_x_m": [0.0, 0.0, 0.1, 0.2], "ego_y_m": [1.0, 1.0, 2.0, 3.0],

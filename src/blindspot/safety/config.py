@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from blindspot.track.moving import DOPPLER_LLR_FORMS, DOPPLER_REFERENCES
 from blindspot.typed_config import ConfigError, TypedConfig, setting
 
 __all__ = ["PREDICTORS", "PROBABILITY_METHODS", "LSTM_HISTORY", "AEB_GATES", "DOPPLER_LLR_FORMS",
@@ -18,10 +19,6 @@ PREDICTORS: tuple[str, ...] = ("none", "constant_velocity", "kalman", "lstm", "l
 PROBABILITY_METHODS: tuple[str, ...] = ("max_step", "union")
 LSTM_HISTORY: tuple[str, ...] = ("cv_backfill", "hold_first")
 AEB_GATES: tuple[str, ...] = ("none", "stopping_time")
-DOPPLER_LLR_FORMS: tuple[str, ...] = ("common_variance", "marginal")
-#: Which velocity the Doppler evidence judges each Doppler against (blindspot.safety.predict
-#: .doppler_evidence): the track's velocity at that frame, or the one it has now.
-DOPPLER_REFERENCES: tuple[str, ...] = ("frame", "current")
 
 
 @dataclass(frozen=True)

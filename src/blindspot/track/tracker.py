@@ -742,7 +742,7 @@ def track_points(points: pd.DataFrame, config: TrackerConfig, jobs: int = 1) -> 
         passed), ``coasting`` (predicted without a measurement this frame), ``n_points`` (points
         of the object that updated the track this frame, 0 when coasting), ``doppler_mps`` (the
         median ``velocity_over_ground_mps`` of those points, m/s; NaN when coasting or when the
-        points lack that column: the evidence of :func:`blindspot.safety.predict.moving_tracks`),
+        points lack that column: the evidence of :func:`blindspot.track.moving.moving_tracks`),
         ``doppler_spread_mps`` (their sample standard deviation, ddof 1, m/s, over the points
         with a finite radial speed, while ``n_points`` counts them all: the object's Doppler
         spread; NaN as ``doppler_mps`` and for a one-point object). Tentative

@@ -7,7 +7,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from blindspot.safety.predict import moving_tracks
+from blindspot.track.moving import moving_tracks
 
 
 def _tracks():
@@ -102,7 +102,7 @@ def test_boresight_crossing_is_not_refuted_by_its_zero_doppler():
 
 
 def test_doppler_log_ratio_is_the_gaussian_mean_test():
-    from blindspot.safety.predict import doppler_log_ratio
+    from blindspot.track.moving import doppler_log_ratio
 
     t = _doppler_track(0.0, 1.0, 0.4, x=0.0)          # u = +y, u.v = 1, s^2 = 0.09 / 5 + 0.01
     llr = doppler_log_ratio(t, np.zeros((8, 2)), 0.3)
@@ -172,7 +172,7 @@ def test_static_evidence_is_read_at_the_last_hit_of_a_coasting_track():
 
 
 def test_last_hit_rows():
-    from blindspot.safety.predict import last_hit_rows
+    from blindspot.track.moving import last_hit_rows
 
     t = pd.DataFrame({"group": ["a"] * 7 + ["b"] * 3, "track_id": [1] * 5 + [2] * 2 + [1] * 3,
                       "frame": [0, 1, 2, 3, 4, 0, 1, 0, 1, 2],
@@ -191,7 +191,7 @@ def test_last_hit_rows():
 def test_marginal_doppler_ratio_is_the_bayes_factor_and_refutes_an_uncertain_young_track():
     from scipy.stats import norm
 
-    from blindspot.safety.predict import doppler_log_ratio
+    from blindspot.track.moving import doppler_log_ratio
 
     # u = +y; a young track of 10 points on a parked car: filtered velocity (1.9, 0.6) m/s,
     # fast and significant for the kinematic test (d2 = 9.9 > 9.21), 0.6 m/s of it radial, with
@@ -241,7 +241,7 @@ def test_floored_sum_is_the_reflected_recursion(llr, floor, shuffle):
     # the closed form against max(floor, S + llr) frame by frame, S_0 = 0, for several tracks
     # of two groups with their rows shuffled, through the bound test of fast, sure tracks whose
     # per-frame ratio is set by their Doppler
-    from blindspot.safety.predict import doppler_log_ratio, moving_frames
+    from blindspot.track.moving import doppler_log_ratio, moving_frames
 
     # u = +y, v = (0, 1): llr = (d^2 - (d - 1)^2) / (2 s^2) = (2d - 1) / (2 s^2)
     s2 = 0.09 / 5 + 1e-4
@@ -276,7 +276,7 @@ def test_floored_sum_is_the_reflected_recursion(llr, floor, shuffle):
 def test_spread_ratio_is_the_ratio_of_two_scaled_chi_square_densities():
     from scipy.stats import chi2 as chi2_dist
 
-    from blindspot.safety.predict import doppler_spread_log_ratio
+    from blindspot.track.moving import doppler_spread_log_ratio
 
     # Q = (n - 1) s^2 ~ sigma^2 chi2(n - 1): the ratio of the densities of Q under the walker's
     # and the static object's sigma; one point or a coasting row carries no spread
@@ -303,7 +303,7 @@ def test_spread_refutes_a_tangential_slide_that_the_mean_doppler_cannot():
     # 2 ln(0.27 / 0.79) + 0.25^2 (1 / 0.27^2 - 1 / 0.79^2) = -1.39: the per-frame test fails
     # from the second frame on (sum -2.78 < ln 0.1). A child crossing there, 3 points spread
     # 0.8 m/s (limbs), stays moving.
-    from blindspot.safety.predict import moving_frames
+    from blindspot.track.moving import moving_frames
 
     kw = dict(ego=_ego(), doppler_std_mps=0.3, doppler_log_ratio_min=np.log(0.1))
     slide = _doppler_track(1.4, 0.0, 0.0, x=0.0, n=3).assign(doppler_spread_mps=0.25)
@@ -346,7 +346,7 @@ def _random_tracks(seed: int, n_tracks: int = 4) -> tuple[pd.DataFrame, pd.DataF
 @pytest.mark.parametrize("form", ["common_variance", "marginal"])
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_doppler_terms_are_the_ratio_as_a_quadratic_in_the_velocity(form, seed):
-    from blindspot.safety.predict import doppler_evidence, doppler_log_ratio, doppler_log_ratio_terms
+    from blindspot.track.moving import doppler_evidence, doppler_log_ratio, doppler_log_ratio_terms
 
     t, ego = _random_tracks(seed)
     xy = t[["group", "frame"]].merge(ego, on=["group", "frame"], how="left")[

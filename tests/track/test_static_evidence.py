@@ -1,4 +1,4 @@
-"""The static-environment evidence grid (blindspot.safety.predict.static_evidence) on the
+"""The static-environment evidence grid (blindspot.track.moving.static_evidence) on the
 geometry of a parked car passed by the ego car: a cluster sliding along the car's face stays on
 the car's past static hits, a child stepping out of a gap and walking into the lane leaves them,
 and the count is causal (later points never change it)."""
@@ -9,7 +9,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from blindspot.safety.predict import static_evidence
+from blindspot.track.moving import static_evidence
 
 FRAMES = np.arange(40)
 
