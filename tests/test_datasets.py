@@ -163,3 +163,10 @@ def test_help_lists_stages_with_one_line_and_a_stage_its_keys(capsys):
     out = capsys.readouterr().out
     assert "  tracker   (group conf/tracker/:" in out and "radhar-walk" in out
     assert len(out.splitlines()) < 200  # not Hydra's 946 lines
+
+
+def test_a_bare_info_flag_does_not_swallow_the_overrides():
+    """`python -m blindspot train --info` stays available: Hydra's default value is given."""
+    assert cli._hydra_argv(["--info", "train.lr=0.1"], "train")[:3] == ["--info", "all",
+                                                                        "train.lr=0.1"]
+    assert cli._hydra_argv(["--info", "config"], "train")[:2] == ["--info", "config"]

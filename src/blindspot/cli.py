@@ -445,6 +445,9 @@ def _hydra_argv(args: Sequence[str], name: str) -> list[str]:
             if takes_value and i + 1 < len(args):
                 flags.append(args[i + 1])
                 i += 1
+            elif arg in _INFO_FLAGS:
+                flags.append("all")  # bare --info: Hydra's default, said so argparse does not
+                # take the overrides that follow as its value
         else:
             overrides.append(arg)
         i += 1
