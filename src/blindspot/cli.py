@@ -12,11 +12,18 @@ How to run things (from anywhere inside the repository)::
     python -m blindspot train -m +search=lstm   # Optuna search (conf/search/lstm.yaml)
     python -m blindspot train -m hydra/launcher=submitit|slurm|ray_cluster ...   # [cluster] extra
     python -m blindspot <stage> --cfg job       # print the composed config, run nothing
+    python -m blindspot <stage> --help          # the config keys the stage reads, its data sets
+    python -m blindspot --help                  # every stage in one line, and the commands
 
     python -m blindspot params                  # regenerate params.yaml from conf/
     python -m blindspot check-params            # fail (exit 1) if params.yaml != conf/
     python -m blindspot stages                  # list the stages
     python -m blindspot cleanup                 # after a SIGKILL: close its run, remove its temps
+    python -m blindspot data list|fetch|check   # the outside data sets (blindspot.datasets)
+
+``blindspot`` (the console script) is the same as ``python -m blindspot``. A stage whose config
+names files of an outside data set (:data:`blindspot.datasets.STAGE_INPUTS`) checks that they
+are there before its run starts, and stops with exit 2 naming the set and the command if not.
 
 Every stage run is one MLflow run (params = the flattened config, metrics, artifacts); a sweep
 is a parent run with one nested child run per job. The store is ``<repo>/mlflow.db`` (SQLite,
