@@ -3,7 +3,11 @@ PYTHON ?= python3.11
 VENV := .venv
 STAMP := $(VENV)/.installed
 
-.PHONY: setup setup-cluster test test-slow test-cluster repro bench lock clean-venv
+.PHONY: help setup setup-cluster test test-slow test-cluster repro data bench lock clean-venv
+
+help:  ## list the targets and what each does (also what a bare `make` does)
+	@grep -hE '^[a-zA-Z_-]+:.*## ' $(MAKEFILE_LIST) \
+	  | sed -E 's/^([a-zA-Z_-]+):.*## (.*)/  \1\t\2/' | expand -t 16
 
 # The exact versions of requirements.lock first, then the project itself without resolving again:
 # a fresh clone gets the environment the committed dvc.lock was made with.
@@ -42,10 +46,15 @@ test: $(STAMP)  ## the default test suite (what CI runs), one worker per core
 test-slow: $(STAMP)  ## the long tests, on purpose
 	$(VENV)/bin/python -m pytest -q -m slow
 
+# The outside data sets into ../shared (or BLINDSPOT_SHARED), at their pinned commits, sha256
+# checked; `python -m blindspot data fetch --from DIR` copies from a local mirror instead.
+data: $(STAMP)  ## fetch the outside data sets (ETH/UCY, real radar recordings); see `blindspot data list`
+	$(VENV)/bin/python -m blindspot data fetch
+
 repro: $(STAMP)  ## the full paper reproduction
 	PATH=$(CURDIR)/$(VENV)/bin:$$PATH $(VENV)/bin/dvc repro
 
-bench: $(STAMP)
+bench: $(STAMP)  ## speed of the detection chain on one frame, one thread
 	$(VENV)/bin/python -m blindspot.bench.dsp --threads 1
 
 LOCK_VENV := .lock-venv
@@ -57,5 +66,5 @@ lock:  ## re-resolve requirements.lock from pyproject.toml in a throwaway venv
 	  | sed 's/^torch==\(.*\)+cpu$$/torch==\1/'; } > requirements.lock.new
 	mv requirements.lock.new requirements.lock && rm -rf $(LOCK_VENV)
 
-clean-venv:
+clean-venv:  ## remove .venv
 	rm -rf $(VENV)

@@ -7,7 +7,7 @@ reported on the other. Prints figures, asserts nothing.
 
 The moving test (:func:`blindspot.track.moving.moving_tracks`, settings ``warning.moving_*``)
 has three Doppler settings, chosen on the same simulated set README reports (the "doubtful"
-note of reports/safety.md): a point's radial-speed spread ``moving_doppler_std_mps`` (0.3 m/s),
+note of docs/studies/safety.md): a point's radial-speed spread ``moving_doppler_std_mps`` (0.3 m/s),
 the bound on the summed log-likelihood ratio "moves as tracked" vs "static", ``moving_doppler_log_ratio_min``
 (-ln 10), and the ratio's form ``moving_doppler_llr`` (common_variance or marginal,
 :func:`blindspot.track.moving.doppler_log_ratio`). Here every candidate is scored the way

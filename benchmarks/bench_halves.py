@@ -2,7 +2,7 @@
 (:func:`blindspot.safety.evaluation.replicate_half`: even replicates tune, odd ones are held out):
 per predictor of the tracker input, avoided rate (all speeds and <= 40 km/h), false-activation
 rate (count / non-intruding scenes) and avoided minus false activations. Prints figures, asserts
-nothing (reports/safety.md, the smallest-of CFAR bullet).
+nothing (docs/studies/safety.md, the smallest-of CFAR bullet).
 
     python benchmarks/bench_halves.py BEFORE.parquet AFTER.parquet [--input tracker]
 

@@ -1,5 +1,5 @@
 """Why the warning braked, or did not: the moving-object test read track by track from a run's
-stored outputs. Prints figures, asserts nothing (reports/safety.md, "Coasting clutter tracks and
+stored outputs. Prints figures, asserts nothing (docs/studies/safety.md, "Coasting clutter tracks and
 captured children").
 
     BLINDSPOT_SHARED=../shared PYTHONPATH=src .venv/bin/python \

@@ -1,7 +1,7 @@
 """Two predictors of one safety run, or one predictor of two runs, compared on the same scenes:
 paired differences of the avoided rate (intruding scenes) and of the false-activation rate
 (non-intruding scenes), with the discordant scene counts and a paired bootstrap interval. Prints
-figures, asserts nothing (reports/safety.md, the LSTM and fresh-draw bullets).
+figures, asserts nothing (docs/studies/safety.md, the LSTM and fresh-draw bullets).
 
     python benchmarks/bench_paired.py [--outcomes data/safety/scene_outcomes.parquet ...]
         [--pairs lstm_direct:constant_velocity,lstm_direct:kalman,lstm:constant_velocity]
@@ -22,7 +22,7 @@ nearly every scene where they differ. The interval resamples scenes (with replac
 "A only / B only" count the scenes where just one of the two avoided the collision (or activated
 falsely): the exact two-sided McNemar test on those is printed as p. One generator serves all
 pairs in order, so an interval depends on the pairs printed before it (the figures of README and
-reports/safety.md are for the commands they quote).
+docs/studies/safety.md are for the commands they quote).
 """
 
 from __future__ import annotations

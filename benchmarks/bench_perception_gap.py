@@ -3,7 +3,7 @@ pedestrian's first line of sight, first radar point (strongest scatterer of its 
 child), first point off the ego-motion Doppler curve, first confirmed tracker track within 1 m
 of the child, first such track classed moving; and, for the frames between line of sight and the
 first radar point, whether any detection lies within 1 m of the child at all. Prints figures,
-asserts nothing (issue 12; the perception-bound bullet of reports/safety.md).
+asserts nothing (issue 12; the perception-bound bullet of docs/studies/safety.md).
 
     python benchmarks/bench_perception_gap.py [--data data]
 

@@ -69,7 +69,8 @@ def process_recording(cfg, name, rec):
     per_frame = det.groupby("frame").size().reindex(range(source.n_frames), fill_value=0)
     strongest = det.sort_values("power", ascending=False).drop_duplicates("frame")
     summary = {
-        "file": str(path), "kind": rec.kind, "n_frames": int(source.n_frames),
+        # where the data lay, relative to the shared folder: no output holds an absolute path
+        "file": rec.path if not Path(rec.path).is_absolute() else path.name, "kind": rec.kind, "n_frames": int(source.n_frames),
         "detections_per_frame": float(per_frame.mean()),
         "strongest_range_m": [float(r) for r in strongest.sort_values("frame").range_m],
         "noise_floor_db": float(10 * np.log10(np.median(first.power))),

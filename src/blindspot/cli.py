@@ -12,11 +12,18 @@ How to run things (from anywhere inside the repository)::
     python -m blindspot train -m +search=lstm   # Optuna search (conf/search/lstm.yaml)
     python -m blindspot train -m hydra/launcher=submitit|slurm|ray_cluster ...   # [cluster] extra
     python -m blindspot <stage> --cfg job       # print the composed config, run nothing
+    python -m blindspot <stage> --help          # the config keys the stage reads, its data sets
+    python -m blindspot --help                  # every stage in one line, and the commands
 
     python -m blindspot params                  # regenerate params.yaml from conf/
     python -m blindspot check-params            # fail (exit 1) if params.yaml != conf/
     python -m blindspot stages                  # list the stages
     python -m blindspot cleanup                 # after a SIGKILL: close its run, remove its temps
+    python -m blindspot data list|fetch|check   # the outside data sets (blindspot.datasets)
+
+``blindspot`` (the console script) is the same as ``python -m blindspot``. A stage whose config
+names files of an outside data set (:data:`blindspot.datasets.STAGE_INPUTS`) checks that they
+are there before its run starts, and stops with exit 2 naming the set and the command if not.
 
 Every stage run is one MLflow run (params = the flattened config, metrics, artifacts); a sweep
 is a parent run with one nested child run per job. The store is ``<repo>/mlflow.db`` (SQLite,
@@ -57,7 +64,7 @@ from typing import ClassVar
 from omegaconf import DictConfig, OmegaConf
 
 from blindspot import config as bconfig
-from blindspot import io, kernels, runs
+from blindspot import datasets, io, kernels, runs
 from blindspot.stage import StageContext, StageResult, declared_files, read_dvc_stages
 from blindspot.typed_config import TypedConfig, setting
 
@@ -85,6 +92,7 @@ COMMANDS = {
     "check-params": "fail if params.yaml is not what conf/ composes to",
     "stages": "list the stages",
     "cleanup": "end KILLED the runs of processes gone (SIGKILL); remove their temporary files",
+    "data": "the outside data sets: list, fetch (pinned commits, sha256 checked), check",
 }
 
 # Hydra flags that take a value (moved in front of the overrides together with their value).
@@ -278,6 +286,8 @@ def run_stage(
     os.chdir(root)
     cfg = OmegaConf.create(OmegaConf.to_container(cfg, resolve=True))
     OmegaConf.set_struct(cfg, True)
+    # outside data first: a missing set is a message (DataMissing), not a failed run
+    datasets.require_paths(datasets.stage_inputs(name, cfg), bconfig.shared_dir(cfg), stage=name)
     files = declared_files(root, name)
     runs.children_die_with_this_process()  # a SIGKILLed stage's pool workers die with it
     out_dir = None if out_root is None else Path(out_root).resolve()
@@ -355,7 +365,11 @@ def main_stage(run: StageFunction, name: str, argv: Sequence[str] | None = None)
             raise
         print(f"[blindspot] stage {name}: {exc}", file=sys.stderr)
         raise SystemExit(1) from None
-    run_stage(run, name, cfg, root, check_outs=True)
+    try:
+        run_stage(run, name, cfg, root, check_outs=True)
+    except datasets.DataMissing as exc:
+        print(f"[blindspot] {exc}", file=sys.stderr)
+        raise SystemExit(2) from None
 
 
 class _StageTask:
@@ -367,8 +381,12 @@ class _StageTask:
 
     def __call__(self, cfg: DictConfig) -> float | None:
         search = SearchConfig.from_mapping(cfg.search) if cfg.get("search") is not None else None
-        result = run_stage(load_stage(self.repo_root, self.name), self.name, cfg, self.repo_root,
-                           out_root=sweep_job_dir())
+        try:
+            result = run_stage(load_stage(self.repo_root, self.name), self.name, cfg,
+                               self.repo_root, out_root=sweep_job_dir())
+        except datasets.DataMissing as exc:  # SystemExit passes Hydra's traceback printer
+            print(f"[blindspot] {exc}", file=sys.stderr)
+            raise SystemExit(2) from None
         return None if search is None else objective_value(result, search.objective, self.name)
 
 
@@ -434,6 +452,9 @@ def _hydra_argv(args: Sequence[str], name: str) -> list[str]:
             if takes_value and i + 1 < len(args):
                 flags.append(args[i + 1])
                 i += 1
+            elif arg in _INFO_FLAGS:
+                flags.append("all")  # bare --info: Hydra's default, said so argparse does not
+                # take the overrides that follow as its value
         else:
             overrides.append(arg)
         i += 1
@@ -485,15 +506,96 @@ def _cleanup(root: Path) -> None:
           + "".join(f"\n  {p}" for p in removed))
 
 
+def stage_summary(repo_root: str | os.PathLike[str], name: str, width: int = 92) -> str:
+    """One line about stage ``name``: the first sentence of its module docstring, without the
+    leading ``name:``, cut to ``width`` characters. Read with :mod:`ast`, nothing imported."""
+    import ast
+
+    path = Path(repo_root) / "stages" / f"{name}.py"
+    try:
+        doc = ast.get_docstring(ast.parse(path.read_text(encoding="utf-8"))) or ""
+    except (OSError, SyntaxError):
+        return ""
+    text = " ".join(doc.strip().split("\n\n")[0].split())
+    if text.startswith(f"{name}:"):
+        text = text[len(name) + 1:].strip()
+    # the first sentence: ends at '.' before a blank, not after an abbreviation
+    m = re.search(r"(?<!\bFig)(?<!\beq)(?<!\bsec)(?<!\bvs)(?<!e\.g)(?<!i\.e)[.](\s|$)", text)
+    text = text[: m.start()] if m else text
+    return text if len(text) <= width else text[: width - 3].rstrip(" ,;:(") + "..."
+
+
 def _usage(root: Path | None) -> str:
-    stages = ", ".join(available_stages(root)) if root else "(not inside a blindspot repo)"
-    cmds = "\n".join(f"  {k:<13} {v}" for k, v in COMMANDS.items())
+    cmds = "\n".join(f"  {k:<15} {v}" for k, v in COMMANDS.items())
+    if root:
+        names = available_stages(root)
+        stages = "\n".join(f"  {n:<15} {stage_summary(root, n)}" for n in names)
+    else:
+        stages = "  (not inside a blindspot repository)"
     return (
-        "usage: python -m blindspot <stage> [hydra overrides, -m for a sweep]\n"
-        "       python -m blindspot {params,check-params,stages}\n"
-        f"stages: {stages}\ncommands:\n{cmds}\n"
+        "usage: python -m blindspot <stage> [key=value ...] [-m for a sweep]   (or: blindspot ...)\n"
+        "       python -m blindspot <stage> --help      the stage's config groups and keys\n"
+        "       python -m blindspot <command> [...]\n"
+        f"\nstages (dvc.yaml runs them in order: `make repro`):\n{stages}\n"
+        f"\ncommands:\n{cmds}\n"
+        "\nA stage's --cfg job prints its composed config, --info Hydra's information.\n"
         "MLflow UI: mlflow ui --backend-store-uri sqlite:///$PWD/mlflow.db"
     )
+
+
+def _flat_lines(node: object, prefix: str) -> list[str]:
+    from omegaconf import DictConfig as _DC
+
+    if isinstance(node, _DC):
+        if not node:
+            return [f"    {prefix} = {{}}"]
+        out = []
+        for k in node.keys():
+            out.extend(_flat_lines(node.get(k), f"{prefix}.{k}"))
+        return out
+    if isinstance(node, str):
+        text = repr(node)
+    elif node is None or isinstance(node, int | float | bool):
+        text = str(node)
+    else:  # a list
+        text = " ".join(OmegaConf.to_yaml(node).split()) if OmegaConf.is_config(node) else str(node)
+    return [f"    {prefix} = {text if len(text) <= 70 else text[:67] + '...'}"]
+
+
+def stage_help(root: Path, name: str) -> str:
+    """``python -m blindspot <stage> --help``: what the stage does, the config keys it reads
+    (its ``params:`` in dvc.yaml) with their values in params.yaml, the choices of each config
+    group under conf/, the outside data it needs and how to override. No Hydra composition."""
+    import yaml
+
+    load_stage(root, name)  # UnknownStage with the list of stages
+    spec = (yaml.safe_load((root / "dvc.yaml").read_text()) or {}).get("stages", {}).get(name, {})
+    keys: list[str] = []
+    for item in spec.get("params") or ():
+        keys.extend([str(item)] if not isinstance(item, dict)
+                    else [str(k) for v in item.values() for k in (v or [])])
+    params = OmegaConf.load(root / bconfig.PARAMS_FILE) if (root / bconfig.PARAMS_FILE).is_file() \
+        else OmegaConf.create()
+    lines = [f"python -m blindspot {name} [key=value ...] [-m for a sweep]",
+             "", stage_summary(root, name, width=200), "",
+             "config it reads (dvc.yaml params; values as in params.yaml, composed from conf/):"]
+    for key in keys or ["(none)"]:
+        group = key.split(".")[0]
+        options = sorted(p.stem for p in (root / bconfig.CONFIG_DIR / group).glob("*.yaml"))
+        head = f"  {key}" + (f"   (group conf/{group}/: {', '.join(options)}; choose with "
+                             f"{group}=<name>)" if options and "." not in key else "")
+        lines.append(head)
+        value = OmegaConf.select(params, key) if keys else None
+        if value is not None:
+            lines.extend(_flat_lines(value, key)[:40])
+    sets = [ds.name for ds in datasets.load_manifest().values() if name in ds.used_by]
+    lines += ["", "outside data: " + (", ".join(sets) + " (`python -m blindspot data list`)"
+                                      if sets else "none"),
+              "", f"override: python -m blindspot {name} <key>=<value> ... | under DVC: "
+              f"dvc exp run -S '<key>=<value>'",
+              f"also: --cfg job (the composed config), --info (Hydra's information), "
+              f"--hydra-help (Hydra's own help)"]
+    return "\n".join(lines)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -513,6 +615,15 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 2
     if command == "stages":
         print("\n".join(available_stages(root)))
+        return 0
+    if command == "data":
+        return datasets.main(rest)
+    if {"-h", "--help"} & set(rest) and command not in COMMANDS:
+        try:
+            print(stage_help(root, command))
+        except UnknownStage as exc:
+            print(f"[blindspot] {exc}", file=sys.stderr)
+            return 2
         return 0
     if command in {"params", "check-params", "cleanup"} and rest:
         print(f"[blindspot] `{command}` takes no arguments (got {' '.join(rest)}); "

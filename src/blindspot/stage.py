@@ -130,8 +130,11 @@ def declared_files(repo_root: PathLike, stage: str) -> DeclaredFiles:
 
 
 def _match(key: str, paths: Sequence[str]) -> list[str]:
+    """The declared paths that are ``key`` or end with ``/key``; a path equal to ``key`` wins
+    (``README.md`` is the repository's README even when ``reports/README.md`` is declared too)."""
     key = key.strip("/")
-    return [p for p in paths if p == key or p.endswith("/" + key)]
+    exact = [p for p in paths if p == key]
+    return exact or [p for p in paths if p.endswith("/" + key)]
 
 
 class StageContext:

@@ -83,6 +83,8 @@ def declared_file_problems(source: str, files: DeclaredFiles) -> list[str]:
             continue
         declared = files.deps if kind == "dep" else files.outs
         found = [p for p in declared if _matches(pattern, p)]
+        if isinstance(arg, ast.Constant) and arg.value in found:
+            found = [arg.value]  # the exact path wins, as in blindspot.stage
         if not found:
             problems.append(f"ctx.{kind}({ast.unparse(arg)}) matches no declared {kind}")
         if isinstance(arg, ast.Constant) and len(found) > 1:

@@ -1,0 +1,62 @@
+"""README.md's results block is what reports/metrics/*.json give (blindspot.report.readme), and
+README stays a front door: short, no dates or clock times, the commands and results up front."""
+
+import json
+import re
+
+import pytest
+
+from blindspot.report import readme
+from blindspot.stage import StageContext, declared_files
+
+from ..conftest import REPO_ROOT
+
+README = REPO_ROOT / "README.md"
+
+
+def committed_metrics() -> dict:
+    folder = REPO_ROOT / "reports" / "metrics"
+    return {n: json.loads((folder / f"{n}.json").read_text())
+            for n in readme.METRICS_FILES if (folder / f"{n}.json").is_file()}
+
+
+def test_readme_results_are_what_the_metrics_give():
+    text = README.read_text()
+    want = readme.replace_block(text, readme.results_block(committed_metrics()))
+    assert text == want, ("README.md's results block differs from reports/metrics/*.json: run "
+                          "`dvc repro report` (or `python -m blindspot report`)")
+
+
+def test_missing_files_and_keys_print_na_and_new_keys_are_ignored():
+    assert "n/a" in readme.results_block({})
+    m = committed_metrics()
+    safety = {k: v for k, v in m.get("safety", {}).items() if k != "lstm_direct"}
+    safety["held_out"] = {"seed": 1, "lstm_direct": {"avoided_after_visible_rate": 0.5}}
+    block = readme.results_block({**m, "safety": safety, "headline": {"x": 1}})
+    assert "**Does it protect the child?** n/a (the safety stage has not run)." in block
+    assert len(block.splitlines()) == len(readme.ROWS) + 2 + 1 + 3
+
+
+def test_replace_block_keeps_the_rest_and_needs_the_markers():
+    text = f"intro\n{readme.BEGIN}\nold\n{readme.END}\noutro\n"
+    assert readme.replace_block(text, "new") == f"intro\n{readme.BEGIN}\nnew\n{readme.END}\noutro\n"
+    with pytest.raises(readme.MissingMarkers):
+        readme.replace_block("no markers", "new")
+
+
+def test_readme_is_a_front_door():
+    lines = README.read_text().splitlines()
+    assert len(lines) <= 250
+    dated = [l for l in lines if re.search(r"\b20\d\d-\d\d-\d\d\b|\b\d{1,2}:\d\d( UTC)?\b", l)]
+    assert not dated, dated
+    first = "\n".join(lines[:100])
+    for must in ("make repro", "make test", readme.BEGIN, readme.END):
+        assert must in first, must
+
+
+def test_the_report_stage_declares_both_readmes():
+    ctx = StageContext(declared_files(REPO_ROOT, "report"))
+    assert ctx.out("README.md").as_posix() == "README.md"          # the exact path wins
+    assert ctx.out("reports/README.md").as_posix() == "reports/README.md"
+    deps = declared_files(REPO_ROOT, "report").deps
+    assert all(f"reports/metrics/{n}.json" in deps for n in readme.METRICS_FILES)
