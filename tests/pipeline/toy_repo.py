@@ -39,7 +39,7 @@ def run(cfg, ctx):
     )
     if any(o.endswith("headline.json") for o in ctx.files.outs):  # the DVC metrics file
         io.write_json(ctx.out("headline.json"),
-                      {"score": score, "final_score": score * int(cfg.train.epochs)})
+                      {"score": score, "final": score * int(cfg.train.epochs)})
     if cfg.toy.sleep_s:
         with io.atomic_open("out/partial.txt") as fh:
             fh.write("half")
