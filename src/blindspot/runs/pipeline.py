@@ -18,6 +18,7 @@ one runs, then the status the last one ended with.
 
 from __future__ import annotations
 
+import contextlib
 import fnmatch
 import os
 import sys
@@ -29,6 +30,7 @@ from blindspot.runs.changes import OVERRIDES_TAG, overrides_against_conf, overri
 
 from blindspot.runs.stale import HOST_TAG, PID_START_TAG, PID_TAG, owner_tags
 from blindspot.runs.store import _file_lock, _retry
+from blindspot.runs.view import add_to_view
 
 if TYPE_CHECKING:  # pragma: no cover
     from mlflow.tracking import MlflowClient
@@ -174,12 +176,13 @@ def stage_started(client: MlflowClient, parent_run_id: str) -> None:
 
 def stage_ended(client: MlflowClient, parent_run_id: str, stage: str, child_run_id: str,
                 status: str, headline: Mapping[str, Sequence[str]]) -> None:
-    """Copy the stage's headline metrics onto the parent and end the parent with the stage's
-    status (the next stage reopens it)."""
+    """Copy the stage's headline metrics onto the parent, add their columns and the parent's
+    params (its overrides) to the runs page's view (:mod:`~blindspot.runs.view`), and end the
+    parent with the stage's status (the next stage reopens it)."""
     from mlflow.entities import Metric
 
-    metrics = client.get_run(child_run_id).data.metrics
-    picked = headline_metrics(stage, metrics, headline)
+    child = client.get_run(child_run_id)
+    picked = headline_metrics(stage, child.data.metrics, headline)
     if picked:
         import time
 
@@ -187,5 +190,10 @@ def stage_ended(client: MlflowClient, parent_run_id: str, stage: str, child_run_
         items = [Metric(k, v, now, 0) for k, v in picked.items()]
         _retry(lambda: client.log_batch(parent_run_id, metrics=items), "logging headline metrics",
                counted=False)
+        # the runs page's first view: these metric columns and the parent's changed params
+        parent = client.get_run(parent_run_id)
+        with contextlib.suppress(Exception):
+            add_to_view(client, child.info.experiment_id, metrics=picked,
+                        params=sorted(parent.data.params))
     _retry(lambda: client.set_terminated(parent_run_id, status), "ending the pipeline run",
            counted=False)

@@ -31,6 +31,7 @@ from blindspot.runs.stage_runs import PARENT_RUN_ENV
 from blindspot.runs.stale import close_stale_runs, owner_tags
 from blindspot.runs.store import _repo_roots, _retry, ensure_experiment, get_client, settings_from_cfg
 from blindspot.runs.tags import run_tags
+from blindspot.runs.view import add_to_view
 
 if TYPE_CHECKING:  # pragma: no cover
     from mlflow.tracking import MlflowClient
@@ -157,6 +158,8 @@ class SweepCallback(Callback):
             params = [Param(k, v[:6000]) for k, v in sorted(swept.items())]
             _retry(lambda: client.log_batch(run.info.run_id, params=params),
                    "logging the sweep's overrides")
+            with contextlib.suppress(Exception):  # their columns in the runs page's view
+                add_to_view(client, experiment_id, params=sorted(swept))
         _SWEEP = _OpenSweep(client, run.info.run_id, os.environ.get(PARENT_RUN_ENV),
                             str(sweep_dir) if sweep_dir else None)
         os.environ[PARENT_RUN_ENV] = run.info.run_id
