@@ -20,12 +20,14 @@ How to run things (from anywhere inside the repository)::
     python -m blindspot stages                  # list the stages
     python -m blindspot cleanup                 # after a SIGKILL: close its run, remove its temps
 
-Every stage run is one MLflow run (params = the flattened config, metrics, artifacts); a sweep
-is a parent run with one nested child run per job. The store is ``<repo>/mlflow.db`` (SQLite,
-absolute path; also for ``dvc queue`` runs, which execute in temporary copies). Open the UI
-from the repo root and compare runs there::
+Every stage run is one MLflow run (params = the keys its dvc.yaml stage lists, metrics,
+artifacts); a sweep is a parent run (``train-optuna-<study>``, ``train-submitit-<time>``) with
+one nested child run per job. The store is ``<repo>/mlflow.db`` (SQLite, absolute path; also for
+``dvc queue`` runs, which execute in temporary copies). Open the UI from the repo root and
+compare runs there; the view opens on the headline metrics and the changed params::
 
     mlflow ui --backend-store-uri sqlite:///$PWD/mlflow.db
+    # http://127.0.0.1:5000/#/experiments/1/runs?viewStateShareKey=headline&workflowType=machine_learning
 
 Stage convention (:mod:`blindspot.stage`): ``stages/<name>.py`` defines
 ``run(cfg: DictConfig, ctx: StageContext) -> StageResult`` and ends with::
