@@ -459,6 +459,11 @@ def single_run_dir(cfg: DictConfig, repo_root: str | os.PathLike[str], name: str
     out = Path(hc.runtime.output_dir).resolve()
     flat = bconfig.flatten(task)
     sets = " ".join(f"-S '{k}={_override_text(flat[k])}'" for k in changed if k in flat)
+    if out == Path(repo_root).resolve():  # hydra.run.dir=. : the run folder is the pipeline's
+        raise SystemExit(f"[blindspot] {name}: this config differs from params.yaml in "
+                         f"{', '.join(changed[:8])}, and hydra.run.dir is the repository root, "
+                         "so its outputs would overwrite the pipeline's. Run it in the pipeline "
+                         f"with `dvc exp run {sets}`, or leave hydra.run.dir alone")
     print(f"[blindspot] {name}: this config differs from params.yaml in "
           f"{', '.join(changed[:8])}{' ...' if len(changed) > 8 else ''}; its outputs go to "
           f"{out}, not over the pipeline's (DVC-tracked) ones. To run it in the pipeline: "

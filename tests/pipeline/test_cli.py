@@ -151,3 +151,14 @@ def test_a_params_file_with_a_renamed_key_names_it(tmp_path) -> None:
     (tmp_path / "params.yaml").write_text("tracking:\n  enabled: true\n")
     with pytest.raises(bconfig.RenamedKey, match="'tracking' was renamed 'runs'"):
         bconfig.load_params(tmp_path)
+
+
+def test_a_single_run_never_writes_over_the_pipeline(toy: Path) -> None:
+    # only output-neutral keys changed (tracking, progress bars): the pipeline's own outs
+    blindspot(["toy", "runs.enabled=false", "progress=true"], toy)
+    assert json.loads((toy / "out" / "toy.json").read_text())["lr"] == 0.1
+    # an override with the run folder pointed at the repository root: refused, with the fix
+    proc = blindspot(["toy", "train.lr=0.3", "hydra.run.dir=.", "runs.enabled=false"], toy,
+                     check=False)
+    assert proc.returncode == 1 and "dvc exp run -S 'train.lr=0.3'" in proc.stderr
+    assert json.loads((toy / "out" / "toy.json").read_text())["lr"] == 0.1
