@@ -13,6 +13,7 @@ import os
 import re
 import shutil
 import subprocess
+import sys
 import tempfile
 from pathlib import Path
 
@@ -26,7 +27,7 @@ from blindspot.io import save_figure
 from blindspot.report.series_plots import SVG_RC, error_by_step_wide, history_wide, series_figure
 
 REPO = Path(__file__).resolve().parents[2]
-DVC = Path(os.sys.executable).parent / "dvc"
+DVC = Path(sys.executable).parent / "dvc"
 
 
 def _history(n_members: int = 5, n_epochs: int = 15) -> pd.DataFrame:

@@ -27,7 +27,6 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from blindspot.runs.changes import OVERRIDES_TAG, overrides_against_conf, overrides_tag
-
 from blindspot.runs.stale import HOST_TAG, PID_START_TAG, PID_TAG, owner_tags
 from blindspot.runs.store import _file_lock, _retry
 from blindspot.runs.view import add_to_view
