@@ -4,8 +4,11 @@ server this test starts on 127.0.0.1 and stops (issue 13).
 The store holds two runs written by blindspot.runs (params, a metric, a figure). The checks
 read the DOM Chromium renders: the experiment opens on its runs (not the GenAI overview); the
 runs table lists both runs and orders them by the metric; a run's page shows the metric and its
-value; the artifact page shows the figure as an image. With ``BLINDSPOT_UI_SCREENSHOT=<png>`` the
-runs page is also saved there (reports/mlflow_runs_page.png was made so).
+value; the artifact page shows the figure as an image. And (issue 46) after a toy `dvc repro` and
+`dvc exp run -S train.lr=0.01`, README's link opens the runs page with the parents' headline
+metric column and the changed param in view. With ``BLINDSPOT_UI_SCREENSHOT=<png>`` the runs
+pages are also saved there (reports/mlflow_runs_page.png is the last one's:
+``-k headline_metric``).
 """
 
 from __future__ import annotations
