@@ -23,8 +23,8 @@ setup: $(STAMP)  ## create or reuse .venv and install the project
 # The cluster pieces (Ray, submitit/SLURM and Optuna sweeps, the PostgreSQL MLflow server), never
 # part of `make setup` or `make test`. --no-deps: requirements-cluster.lock is complete, and
 # hydra-ray-launcher's cloudpickle<3 pin would otherwise downgrade requirements.lock's cloudpickle.
-# PostgreSQL 15 and Chromium (for the UI test) come from the system: apt-get install postgresql
-# chromium.
+# PostgreSQL 15 and Chromium (for the MLflow UI and DVC plots tests, -m slow; they skip without
+# it) come from the system: apt-get install postgresql chromium.
 CLUSTER_STAMP := $(VENV)/.installed-cluster
 $(CLUSTER_STAMP): $(STAMP) requirements-cluster.lock
 	$(VENV)/bin/python -m pip install --quiet --no-deps -r requirements-cluster.lock

@@ -6,7 +6,9 @@ How to run things (from anywhere inside the repository)::
     dvc exp run -S 'train.lr=0.01'              # DVC composes conf/ + override into params.yaml
     dvc exp run --queue -S 'model.hidden_size=32,64' && dvc queue start -j 2
 
-    python -m blindspot <stage> key=value ...   # one stage outside DVC: conf/ + overrides
+    python -m blindspot <stage> key=value ...   # one stage outside DVC: conf/ + overrides;
+                                                # differing from params.yaml, its outputs go to
+                                                # its own outputs/<date>/<time>/ (not over DVC's)
     python -m blindspot train -m model.hidden_size=32,64,128           # Hydra multirun sweep
     python -m blindspot train -m hydra/launcher=parallel model.hidden_size=32,64   # 2 processes
     python -m blindspot train -m +search=lstm   # Optuna search (conf/search/lstm.yaml)
@@ -25,12 +27,14 @@ How to run things (from anywhere inside the repository)::
 names files of an outside data set (:data:`blindspot.datasets.STAGE_INPUTS`) checks that they
 are there before its run starts, and stops with exit 2 naming the set and the command if not.
 
-Every stage run is one MLflow run (params = the flattened config, metrics, artifacts); a sweep
-is a parent run with one nested child run per job. The store is ``<repo>/mlflow.db`` (SQLite,
-absolute path; also for ``dvc queue`` runs, which execute in temporary copies). Open the UI
-from the repo root and compare runs there::
+Every stage run is one MLflow run (params = the keys its dvc.yaml stage lists, metrics,
+artifacts); a sweep is a parent run (``train-optuna-<study>``, ``train-submitit-<time>``) with
+one nested child run per job. The store is ``<repo>/mlflow.db`` (SQLite, absolute path; also for
+``dvc queue`` runs, which execute in temporary copies). Open the UI from the repo root and
+compare runs there; the view opens on the headline metrics and the changed params::
 
     mlflow ui --backend-store-uri sqlite:///$PWD/mlflow.db
+    # http://127.0.0.1:5000/#/experiments/1/runs?viewStateShareKey=headline&workflowType=machine_learning
 
 Stage convention (:mod:`blindspot.stage`): ``stages/<name>.py`` defines
 ``run(cfg: DictConfig, ctx: StageContext) -> StageResult`` and ends with::
@@ -75,6 +79,7 @@ __all__ = [
     "load_stage",
     "run_stage",
     "sweep_job_dir",
+    "single_run_dir",
     "SearchConfig",
     "objective_value",
     "log_result",
@@ -381,9 +386,12 @@ class _StageTask:
 
     def __call__(self, cfg: DictConfig) -> float | None:
         search = SearchConfig.from_mapping(cfg.search) if cfg.get("search") is not None else None
+        out_root = sweep_job_dir()
+        if out_root is None:
+            out_root = single_run_dir(cfg, self.repo_root, self.name)
         try:
             result = run_stage(load_stage(self.repo_root, self.name), self.name, cfg,
-                               self.repo_root, out_root=sweep_job_dir())
+                               self.repo_root, out_root=out_root)
         except datasets.DataMissing as exc:  # SystemExit passes Hydra's traceback printer
             print(f"[blindspot] {exc}", file=sys.stderr)
             raise SystemExit(2) from None
@@ -435,6 +443,58 @@ def sweep_job_dir() -> Path | None:
     # A relative hydra.sweep.dir is taken from the cwd of the process that launched the sweep
     # (hydra.runtime.cwd), not from the job's: a Ray worker runs in a folder of Ray's own.
     return Path(hc.runtime.cwd, hc.sweep.dir, hc.sweep.subdir).resolve()
+
+
+# Keys whose values never change what a stage writes: a run that differs only in them still
+# writes the pipeline's outputs.
+_OUTPUT_NEUTRAL = ("runs", "progress")
+
+
+def single_run_dir(cfg: DictConfig, repo_root: str | os.PathLike[str], name: str) -> Path | None:
+    """Where a single run (``python -m blindspot <stage> key=value``, not a sweep) writes its
+    outs: None (the pipeline's own, DVC-tracked paths) when its config equals params.yaml but
+    for :data:`_OUTPUT_NEUTRAL` keys; otherwise the run's own Hydra output directory
+    (``outputs/<date>/<time>``, git-ignored), like a sweep job's, so that a run with overrides
+    never writes over what DVC tracks. Without params.yaml, any override counts as a change.
+    Says which keys differ and the ``dvc exp run -S`` command that runs them in the pipeline."""
+    from hydra.core.hydra_config import HydraConfig
+
+    if not HydraConfig.initialized():
+        return None
+    hc = HydraConfig.get()
+    task = {k: v for k, v in OmegaConf.to_container(cfg, resolve=True).items()
+            if k not in ("hydra", *_OUTPUT_NEUTRAL)}
+    params_file = Path(repo_root) / bconfig.PARAMS_FILE
+    if params_file.is_file():
+        params = {k: v for k, v in OmegaConf.to_container(
+            bconfig.load_params(repo_root), resolve=True).items() if k not in _OUTPUT_NEUTRAL}
+        changed = [d.key for d in bconfig.params_diff(task, params)]
+    else:
+        changed = [o.partition("=")[0].lstrip("+~") for o in hc.overrides.task
+                   if o.partition("=")[0].lstrip("+~").split(".")[0] not in _OUTPUT_NEUTRAL]
+    if not changed or not hc.runtime.output_dir:
+        return None
+    out = Path(hc.runtime.output_dir).resolve()
+    flat = bconfig.flatten(task)
+    sets = " ".join(f"-S '{k}={_override_text(flat[k])}'" for k in changed if k in flat)
+    if out == Path(repo_root).resolve():  # hydra.run.dir=. : the run folder is the pipeline's
+        raise SystemExit(f"[blindspot] {name}: this config differs from params.yaml in "
+                         f"{', '.join(changed[:8])}, and hydra.run.dir is the repository root, "
+                         "so its outputs would overwrite the pipeline's. Run it in the pipeline "
+                         f"with `dvc exp run {sets}`, or leave hydra.run.dir alone")
+    print(f"[blindspot] {name}: this config differs from params.yaml in "
+          f"{', '.join(changed[:8])}{' ...' if len(changed) > 8 else ''}; its outputs go to "
+          f"{out}, not over the pipeline's (DVC-tracked) ones. To run it in the pipeline: "
+          f"dvc exp run {sets}", file=sys.stderr)
+    return out
+
+
+def _override_text(value: object) -> str:
+    import json
+
+    if isinstance(value, bool) or value is None or isinstance(value, list | dict):
+        return json.dumps(value)
+    return str(value)
 
 
 def _hydra_argv(args: Sequence[str], name: str) -> list[str]:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 import sys
 from pathlib import Path
 
@@ -20,10 +21,15 @@ def toy(tmp_path: Path) -> Path:
 
 
 def test_stage_with_overrides_from_a_subdirectory(toy: Path) -> None:
-    blindspot(["toy", "train.lr=0.5", "model.hidden_size=4"], toy / "stages")
-    result = json.loads((toy / "out" / "toy.json").read_text())  # written at the repo root
-    assert result == {"hidden_size": 4, "lr": 0.5, "score": 2.0}
+    proc = blindspot(["toy", "train.lr=0.5", "model.hidden_size=4"], toy / "stages")
+    # the overrides differ from params.yaml: the outs go to the run's own folder (under the
+    # repo root), never over the pipeline's
+    assert not (toy / "out" / "toy.json").exists()
+    (written,) = toy.glob("outputs/*/*/out/toy.json")
+    assert json.loads(written.read_text()) == {"hidden_size": 4, "lr": 0.5, "score": 2.0}
+    assert "dvc exp run -S 'model.hidden_size=4' -S 'train.lr=0.5'" in proc.stderr
     (r,) = logged_runs(toy)
+    assert r.data.tags["blindspot.out_root"] == str(written.parents[1])
     assert r.info.status == "FINISHED" and r.info.run_name == "toy"
     assert r.data.params["train.lr"] == "0.5" and r.data.params["model.hidden_size"] == "4"
     assert r.data.tags["toy.cwd"] == str(toy.resolve())
@@ -95,8 +101,12 @@ def _sweep_runs(toy: Path) -> tuple[object, list]:
 def test_multirun_parent_with_one_child_per_job(toy: Path) -> None:
     blindspot(["toy", "-m", "model.hidden_size=8,16"], toy)
     parent, children = _sweep_runs(toy)
-    assert parent.info.status == "FINISHED" and parent.info.run_name == "toy-sweep"
+    assert parent.info.status == "FINISHED"
+    assert re.fullmatch(r"toy-sweep-\d{8}-\d{6}", parent.info.run_name), parent.info.run_name
     assert parent.data.tags["hydra.overrides"] == "model.hidden_size=8,16"
+    # what the sweep varies is a param (and a tag) of its parent
+    assert parent.data.params == {"model.hidden_size": "8,16"}
+    assert parent.data.tags["blindspot.overrides"] == "model.hidden_size=8,16"
     assert [c.data.params["model.hidden_size"] for c in children] == ["8", "16"]
     assert [c.info.run_name for c in children] == ["toy#0", "toy#1"]
     assert {c.info.status for c in children} == {"FINISHED"}
@@ -141,3 +151,14 @@ def test_a_params_file_with_a_renamed_key_names_it(tmp_path) -> None:
     (tmp_path / "params.yaml").write_text("tracking:\n  enabled: true\n")
     with pytest.raises(bconfig.RenamedKey, match="'tracking' was renamed 'runs'"):
         bconfig.load_params(tmp_path)
+
+
+def test_a_single_run_never_writes_over_the_pipeline(toy: Path) -> None:
+    # only output-neutral keys changed (tracking, progress bars): the pipeline's own outs
+    blindspot(["toy", "runs.enabled=false", "progress=true"], toy)
+    assert json.loads((toy / "out" / "toy.json").read_text())["lr"] == 0.1
+    # an override with the run folder pointed at the repository root: refused, with the fix
+    proc = blindspot(["toy", "train.lr=0.3", "hydra.run.dir=.", "runs.enabled=false"], toy,
+                     check=False)
+    assert proc.returncode == 1 and "dvc exp run -S 'train.lr=0.3'" in proc.stderr
+    assert json.loads((toy / "out" / "toy.json").read_text())["lr"] == 0.1

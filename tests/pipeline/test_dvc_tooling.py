@@ -76,6 +76,10 @@ def test_dvc_repro_runs_the_stage_and_logs_it(repo: Path) -> None:
     assert r.data.metrics["score"] == pytest.approx(3.2)
     assert r.data.tags["dvc.stage"] == "toy" and "dvc.exp_name" not in r.data.tags
     assert r.data.params["train.lr"] == "0.1" and r.data.params["model.hidden_size"] == "16"
+    # a stage logs the keys its dvc.yaml entry lists, not the whole config; the parent of a
+    # `dvc repro` of the defaults changed nothing
+    assert set(r.data.params) == {"model.hidden_size", "train.lr", "train.epochs"}
+    assert parent.data.params == {} and parent.data.tags["blindspot.overrides"] == ""
     assert json.loads((repo / "out" / "toy.json").read_text())["score"] == pytest.approx(1.6)
     assert "score" in dvc("metrics", "show", repo=repo).stdout
     _commit(repo, "repro")
@@ -112,6 +116,9 @@ def test_dvc_exp_run_set_param_composes_conf_into_params(repo: Path) -> None:
     assert parents[0].data.tags["dvc.exp_name"] == name and parents[0].info.run_name == f"exp {name}"
     assert parents[0].data.tags["mlflow.source.git.commit"] == r.data.tags["dvc.baseline_rev"]
     assert parents[0].data.metrics == {"toy.score": pytest.approx(0.32)}
+    # what the experiment changed (its -S value) is a param and a tag of its parent
+    assert parents[0].data.params == {"train.lr": "0.01"}
+    assert parents[0].data.tags["blindspot.overrides"] == "train.lr=0.01"
     assert r.data.tags["mlflow.source.git.commit"] == r.data.tags["dvc.baseline_rev"]
     assert json.loads((repo / "out" / "toy.json").read_text())["lr"] == 0.01
     run(["git", "checkout", "--", "."], repo)  # back to the committed baseline (tmp repo)

@@ -4,8 +4,11 @@ server this test starts on 127.0.0.1 and stops (issue 13).
 The store holds two runs written by blindspot.runs (params, a metric, a figure). The checks
 read the DOM Chromium renders: the experiment opens on its runs (not the GenAI overview); the
 runs table lists both runs and orders them by the metric; a run's page shows the metric and its
-value; the artifact page shows the figure as an image. With ``BLINDSPOT_UI_SCREENSHOT=<png>`` the
-runs page is also saved there (reports/mlflow_runs_page.png was made so).
+value; the artifact page shows the figure as an image. And (issue 46) after a toy `dvc repro` and
+`dvc exp run -S train.lr=0.01`, README's link opens the runs page with the parents' headline
+metric column and the changed param in view. With ``BLINDSPOT_UI_SCREENSHOT=<png>`` the runs
+pages are also saved there (reports/mlflow_runs_page.png is the last one's:
+``-k headline_metric``).
 """
 
 from __future__ import annotations
@@ -112,3 +115,57 @@ def test_run_page_shows_metric_and_figure(ui: tuple[str, str, dict[str, str]]) -
     assert shown[i + 1] == "0.27" and "model.hidden_size" in shown
     dom = render(f"{base}/#/experiments/{exp}/runs/{run}/artifacts/figures/fig08.png")
     assert re.search(r'<img[^>]*alt="figures/fig08.png"[^>]*src="blob:', dom), dom[-3000:]
+
+
+# ------------------------------------------------ issue 46: what changed, in the first view
+
+
+@pytest.fixture(scope="module")
+def pipeline_ui(tmp_path_factory: pytest.TempPathFactory) -> tuple[str, str, str]:
+    """A toy DVC repository after `dvc repro` and `dvc exp run -S train.lr=0.01`, its store
+    served on 127.0.0.1; yields (base URL, experiment id, the experiment's name)."""
+    from tests.pipeline.toy_repo import make_toy_repo, run
+
+    root = make_toy_repo(tmp_path_factory.mktemp("ui-pipeline") / "repo")
+    with open(root / "conf" / "runs" / "local.yaml", "a") as fh:  # below `headline:`
+        fh.write("  toy: [score]\n")
+    dvc = str(VENV_BIN / "dvc")
+    for cmd in (["git", "init", "-q", "-b", "main"], ["git", "config", "user.email", "t@e.com"],
+                ["git", "config", "user.name", "t"], [dvc, "init", "-q"],
+                [dvc, "config", "hydra.enabled", "true"],
+                [str(VENV_BIN / "python"), "-m", "blindspot", "params"], [dvc, "repro"],
+                ["git", "add", "-A"], ["git", "commit", "-qm", "toy"]):
+        run(cmd, root)
+    proc = run([dvc, "exp", "run", "-S", "train.lr=0.01"], root)
+    name = re.search(r"Ran experiment\(s\): (\S+)", proc.stdout + proc.stderr).group(1)
+    experiment_id = runs.get_client(runs.settings_from_cfg(
+        {"runs": {"enabled": True, "uri": None}}, root)).get_experiment_by_name(
+        "blindspot").experiment_id
+    port = free_port()
+    server = subprocess.Popen(
+        [str(VENV_BIN / "mlflow"), "server", "--backend-store-uri",
+         f"sqlite:///{root / 'mlflow.db'}", "--host", "127.0.0.1", "--port", str(port),
+         "--workers", "1"], env=clean_env(), stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL, start_new_session=True)
+    try:
+        wait_for_port(port, server, "mlflow server", timeout_s=180)
+        yield f"http://127.0.0.1:{port}", experiment_id, name
+    finally:
+        stop_group(server)
+
+
+def test_runs_page_opens_on_the_headline_metric_and_the_changed_param(
+        pipeline_ui: tuple[str, str, str]) -> None:
+    """README's link (blindspot.runs.view.runs_page_url): the runs table's first view shows the
+    parent runs with their headline metric column and the overridden param, no clicking."""
+    from blindspot.runs.view import runs_page_url
+
+    base, exp, name = pipeline_ui
+    shot = os.environ.get("BLINDSPOT_UI_SCREENSHOT")
+    dom = render(runs_page_url(base, exp), screenshot=Path(shot) if shot else None)
+    shown = texts(dom)
+    assert "Run Name" in shown and f"exp {name}" in shown and "dvc repro" in shown, shown
+    assert "toy.score" in shown, shown      # the headline metric's column ...
+    assert "train.lr" in shown, shown       # ... and the param the experiment changed
+    # their values: the experiment's lr and score (0.01 x 16 x 2 epochs), the baseline's score
+    assert {"0.01", "0.32", "3.2"} <= set(shown), shown

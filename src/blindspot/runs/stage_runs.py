@@ -27,6 +27,7 @@ from omegaconf import DictConfig, OmegaConf
 from blindspot.config import flatten
 from blindspot.io import fault_point
 from blindspot.runs import pipeline
+from blindspot.runs.changes import parse_overrides, stage_param_keys, stage_params
 from blindspot.runs.pipeline import dvc_process, pipeline_parent
 from blindspot.runs.signals import Terminated, sigterm_as_exit, sigterm_deferred
 from blindspot.runs.stale import close_stale_runs, owner_tags
@@ -235,8 +236,9 @@ def stage_run(
 ) -> Iterator[NullTracker]:
     """Run the body inside one MLflow run for ``stage`` and yield its :class:`Tracker`.
 
-    Logs ``cfg`` flattened as params (dotted keys) and the resolved config as the artifact
-    ``config/params.yaml``; tags: ``blindspot.stage``, git commit (``mlflow.source.git.commit``;
+    Logs as params (dotted keys) the keys of ``cfg`` the stage reads (its ``params:`` in
+    ``dvc.yaml``; all of ``cfg`` for a stage dvc.yaml does not know) and the whole resolved config
+    as the artifact ``config/params.yaml``; tags: ``blindspot.stage``, git commit (``mlflow.source.git.commit``;
     DVC's baseline rev inside an experiment), ``dvc.exp_name``, ``hydra.job_num``... The run is
     nested under ``parent_run_id``, else under an enclosing stage_run, else under the sweep
     parent named by ``$BLINDSPOT_MLFLOW_PARENT_RUN_ID``, else, for a stage DVC runs, under the
@@ -274,7 +276,7 @@ def stage_run(
             dvc_pid = dvc_process()
             if dvc_pid is not None:  # a stage of `dvc repro` / `dvc exp run`: one parent run
                 pipeline_run_id = parent_run_id = pipeline_parent(
-                    client, experiment_id, settings, tags, dvc_pid)
+                    client, experiment_id, settings, tags, dvc_pid, values, work)
                 pipeline.stage_started(client, pipeline_run_id)
         if parent_run_id:
             tags["mlflow.parentRunId"] = parent_run_id
@@ -294,7 +296,12 @@ def stage_run(
         error: BaseException | None = None
         try:
             if values is not None:
-                tracker.log_params(values)
+                # the keys the stage reads (its dvc.yaml params:), not all of the config
+                keys = stage_param_keys(work, stage)
+                if keys is not None:  # and what a search or an override set on the command line
+                    keys = (*keys, "search", *parse_overrides(
+                        tags.get("hydra.overrides", "").split()))
+                tracker.log_params(stage_params(values, keys))
                 tracker.log_text(
                     OmegaConf.to_yaml(cfg, resolve=True) if isinstance(cfg, DictConfig)
                     else OmegaConf.to_yaml(OmegaConf.create(values)), "config/params.yaml")

@@ -5,7 +5,10 @@ never over the pipeline's DVC-tracked outputs; the comparison of the jobs lives 
 the end of the sweep, in ``<sweep dir>/sweep_summary.csv`` (one row per job: job number, run id,
 status, overrides, params swept and every metric; also logged as an artifact of the parent run).
 
-:class:`SweepCallback` opens the parent run and exports its id in
+:class:`SweepCallback` opens the parent run, named by the kind of sweep
+(``train-optuna-<study>``, ``train-submitit-<time>``, ``train-sweep-<time>``:
+:func:`~blindspot.runs.changes.sweep_run_name`), with the sweep's overrides as its params and
+tag ``blindspot.overrides``, and exports its id in
 ``BLINDSPOT_MLFLOW_PARENT_RUN_ID``; each job's :func:`blindspot.runs.stage_run` becomes a
 nested child of it. Since joblib/loky reuses worker processes, the callback ends any leftover
 active run at the start and end of every job.
@@ -23,10 +26,12 @@ from hydra.experimental.callback import Callback
 from omegaconf import DictConfig, OmegaConf
 
 from blindspot.runs import stage_runs as runs
+from blindspot.runs.changes import OVERRIDES_TAG, overrides_tag, parse_overrides, sweep_run_name
 from blindspot.runs.stage_runs import PARENT_RUN_ENV
 from blindspot.runs.stale import close_stale_runs, owner_tags
 from blindspot.runs.store import _repo_roots, _retry, ensure_experiment, get_client, settings_from_cfg
 from blindspot.runs.tags import run_tags
+from blindspot.runs.view import add_to_view
 
 if TYPE_CHECKING:  # pragma: no cover
     from mlflow.tracking import MlflowClient
@@ -137,10 +142,24 @@ class SweepCallback(Callback):
         sweep_dir = OmegaConf.select(config, "hydra.sweep.dir", default=None)
         if sweep_dir:
             tags["hydra.sweep_dir"] = str(sweep_dir)
+        swept = parse_overrides(overrides)
+        tags[OVERRIDES_TAG] = overrides_tag(swept)
+        name = sweep_run_name(stage, OmegaConf.select(config, "hydra.sweeper._target_"),
+                              OmegaConf.select(config, "hydra.launcher._target_"),
+                              OmegaConf.select(config, "hydra.sweeper.study_name"))
+        tags["blindspot.sweep_kind"] = name.split("-")[1]
         run = _retry(
-            lambda: client.create_run(experiment_id, tags=tags, run_name=f"{stage}-sweep"),
+            lambda: client.create_run(experiment_id, tags=tags, run_name=name),
             "creating the sweep run",
         )
+        if swept:  # what the sweep varies, as params of its parent (write-once: logged here)
+            from mlflow.entities import Param
+
+            params = [Param(k, v[:6000]) for k, v in sorted(swept.items())]
+            _retry(lambda: client.log_batch(run.info.run_id, params=params),
+                   "logging the sweep's overrides")
+            with contextlib.suppress(Exception):  # their columns in the runs page's view
+                add_to_view(client, experiment_id, params=sorted(swept))
         _SWEEP = _OpenSweep(client, run.info.run_id, os.environ.get(PARENT_RUN_ENV),
                             str(sweep_dir) if sweep_dir else None)
         os.environ[PARENT_RUN_ENV] = run.info.run_id
