@@ -58,7 +58,8 @@ from omegaconf import DictConfig, OmegaConf
 
 from blindspot import config as bconfig
 from blindspot import io, kernels, tracking
-from blindspot.stage import StageContext, StageResult, declared_files, read_dvc_stages
+from blindspot.stage import (MissingInput, StageContext, StageResult, declared_files,
+                             missing_inputs, read_dvc_stages)
 from blindspot.typed_config import TypedConfig, setting
 
 __all__ = [
@@ -92,6 +93,9 @@ _VALUE_FLAGS = {"--cfg", "-c", "--package", "-p", "--config-path", "-cp", "--con
                 "-cn", "--config-dir", "-cd", "--experimental-rerun", "--shell-completion", "-sc"}
 _INFO_FLAGS = {"--info", "-i"}
 _INFO_VALUES = {"all", "config", "defaults", "defaults-tree", "plugins", "searchpath"}
+# Hydra flags with which no stage runs (print the config, help, completion): inputs not needed
+_NO_RUN_FLAGS = {"--cfg", "-c", "--info", "-i", "--help", "-h", "--hydra-help",
+                 "--shell-completion", "-sc", "--resolve"}
 
 
 # Where a passing params check leaves its stamp: DVC's own scratch folder (git-ignored by
@@ -347,13 +351,15 @@ def main_stage(run: StageFunction, name: str, argv: Sequence[str] | None = None)
         if not os.environ.get("DVC_EXP_NAME"):
             check_params_stamped(root)  # composes conf/ only after an edit
         cfg = bconfig.load_params(root)
+        missing_inputs(root, name)      # MissingInput (a FileNotFoundError): what makes them
     except Exception as exc:  # noqa: BLE001 - the config errors below; anything else re-raised
         # Hydra is imported only when conf/ is composed, so only then can its errors occur
         hydra_errors = sys.modules.get("hydra.errors")
         if not isinstance(exc, (bconfig.ParamsOutOfDate, FileNotFoundError)) and not (
                 hydra_errors is not None and isinstance(exc, hydra_errors.HydraException)):
             raise
-        print(f"[blindspot] stage {name}: {exc}", file=sys.stderr)
+        print(f"[blindspot] {exc}" if isinstance(exc, MissingInput)
+              else f"[blindspot] stage {name}: {exc}", file=sys.stderr)
         raise SystemExit(1) from None
     run_stage(run, name, cfg, root, check_outs=True)
 
@@ -448,6 +454,8 @@ def _run_with_hydra(root: Path, name: str, args: Sequence[str]) -> None:
     import hydra
 
     load_stage(root, name)  # fail early, before Hydra, with the list of stages
+    if not any(a.split("=")[0] in _NO_RUN_FLAGS for a in args):
+        missing_inputs(root, name)  # MissingInput naming the files and the stages making them
     os.chdir(root)
     task = _StageTask(str(root), name)
     entry = hydra.main(
@@ -546,4 +554,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     except UnknownStage as exc:
         print(f"[blindspot] {exc}", file=sys.stderr)
         return 2
+    except MissingInput as exc:
+        print(f"[blindspot] {exc}", file=sys.stderr)
+        return 1
     return 0
