@@ -379,9 +379,11 @@ def _train(
         rows = [dict(r) for r in ck["history"]]
         first_epoch = int(ck["epoch"])
 
-    x = torch.from_numpy(train.x)
-    u_all = stats.encode(x)
-    t_all = stats.encode_target(x, torch.from_numpy(train.y))
+    # translate in float64, then float32 for the network (a float32 UTM position is only good
+    # to 0.5 m): training sees what inference feeds it (LSTMPredictor.step)
+    x = torch.from_numpy(train.x.astype(np.float64))
+    u_all = stats.encode(x).float()
+    t_all = stats.encode_target(x, torch.from_numpy(train.y.astype(np.float64))).float()
     n = len(train)
     n_batches = math.ceil(n / cfg.batch_size)
     loss_fn = nn.MSELoss()
