@@ -271,7 +271,9 @@ def run_stage(
     the :class:`StageResult` it returns (metrics, artifacts, model files, tags) to that run.
 
     Temporary files a SIGKILLed earlier run left next to the stage's outs are removed first
-    (:func:`blindspot.io.remove_stale_temps`). ``cfg`` is resolved and put in struct mode (a misspelt key raises instead of reading None).
+    (:func:`blindspot.io.remove_stale_temps`). The stage runs inside
+    :func:`blindspot.io.all_or_none`: its outputs appear together when it returns, and none
+    of them changes when it raises. ``cfg`` is resolved and put in struct mode (a misspelt key raises instead of reading None).
     ``ctx`` carries the stage's files declared in ``dvc.yaml`` and ``ctx.log_step``, bound to the
     run. ``check_outs``: afterwards, require that the stage wrote every declared out
     (:meth:`StageContext.check_outs`). Raises ``TypeError`` if ``run`` returns something else
@@ -294,7 +296,11 @@ def run_stage(
             tracker.set_tags({"blindspot.out_root": str(out_dir)})
         ctx = StageContext(files, log_step=lambda metrics, step: tracker.log_metrics(metrics, step),
                            out_root=out_dir)
-        result = run(cfg, ctx)
+        # all of the stage's outputs land together when it returns, or none does when it fails
+        # (several recordings, scenes or figures: never the first ones' new files beside the
+        # others' old ones); a resume checkpoint is written at once (io.write_now)
+        with io.all_or_none():
+            result = run(cfg, ctx)
         if not isinstance(result, StageResult):
             raise TypeError(f"stage {name!r}: run(cfg, ctx) returned {type(result).__name__}; "
                             "expected a blindspot.stage.StageResult")
