@@ -23,6 +23,7 @@ import numpy as np
 import pandas as pd
 from scipy.stats import chi2
 
+from blindspot.arrays import check_count, check_number
 from blindspot.safety.config import DOPPLER_LLR_FORMS, DOPPLER_REFERENCES
 from blindspot.safety.risk import EgoShape, collision_risk
 from blindspot.traj.baselines import ConstantVelocity, KalmanCV
@@ -96,7 +97,9 @@ def track_histories(tracks: pd.DataFrame, max_len: int) -> np.ndarray:
     group, track_id, frame, x_m, y_m; sorted by group, track_id, frame, as the trackers return
     them): row b's last entry is its own position, earlier entries the same track's positions
     at the frames before (NaN where the track did not exist or skipped a frame).
-    Raises ValueError when ``tracks`` is not sorted that way."""
+    Raises ValueError when ``tracks`` is not sorted that way or ``max_len`` is not an integer
+    >= 1."""
+    check_count(max_len, "max_len", ge=1, who="track_histories")
     key = tracks.group.astype(str) + "\x00" + tracks.track_id.astype(str)
     frame = tracks.frame.to_numpy()
     same = (key.to_numpy()[1:] == key.to_numpy()[:-1])
@@ -153,8 +156,11 @@ def doppler_log_ratio(tracks: pd.DataFrame, ego_xy: np.ndarray, doppler_std_mps:
     velocity, so their Dopplers are correlated under "moving" and the sequential predictive
     would pay the Occam term about once; the sum pays it every frame (a stricter test, which is
     what refutes the young clutter tracks). Rows without a measurement (coasting, no
-    ``doppler_mps``) give 0 in both forms. Raises ValueError for another ``form``.
+    ``doppler_mps``) give 0 in both forms. Raises ValueError for another ``form`` or a
+    ``doppler_std_mps`` that is not finite and > 0.
     """
+    check_number(doppler_std_mps, "doppler_std_mps", gt=0.0, unit="m/s",
+                 who="doppler_log_ratio")
     d, u, var0, var1, ok = _doppler_geometry(tracks, ego_xy, doppler_std_mps, form)
     uv = u[:, 0] * tracks.vx_mps.to_numpy(float) + u[:, 1] * tracks.vy_mps.to_numpy(float)
     with np.errstate(invalid="ignore", divide="ignore"):
@@ -321,6 +327,12 @@ def moving_frames(tracks: pd.DataFrame, speed_mps: float, probability: float = 0
     kinematic and Doppler tests (confirmed, fast, significantly non-zero, the Doppler sum so
     far above its bound), before the latch and the static-evidence grid; same arguments and
     errors as :func:`moving_tracks`."""
+    check_number(speed_mps, "speed_mps", ge=0.0, unit="m/s", who="moving_tracks")
+    check_number(probability, "probability", gt=0.0, who="moving_tracks")
+    if not probability < 1:
+        raise ValueError(f"moving_tracks: probability: expected a number in (0, 1), found "
+                         f"{probability!r}")
+    check_number(doppler_std_mps, "doppler_std_mps", gt=0.0, unit="m/s", who="moving_tracks")
     need = {"group", "track_id", "frame", "vx_mps", "vy_mps", "cov_vxvx", "cov_vxvy",
             "cov_vyvy", "confirmed"}
     use_doppler = ego is not None and doppler_log_ratio_min is not None

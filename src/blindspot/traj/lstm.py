@@ -297,21 +297,21 @@ class LSTMPredictor:
 
         Args:
             history: (B, T, 2) observed points in metres, T >= W.
-            horizon: number of future points, >= 0.
+            horizon: number of future points, >= 1 (as every predictor's).
 
         Returns:
             (B, horizon, 2) float64 predicted points.
 
         Raises:
             HistoryError: ``history`` not real (B, T >= W, 2) (NaN rows allowed, inf not),
-                ``horizon`` not an integer >= 0; ValueError from :func:`fill_history`.
+                ``horizon`` not an integer >= 1; ValueError from :func:`fill_history`.
         """
         history = check_array(history, "history", ("B", "T", 2), error=HistoryError,
                               who="lstm.predict", allow_nan=True)
         if history.shape[1] < self.window:
             raise HistoryError(f"lstm.predict: history needs at least window={self.window} "
                                f"points, found T={history.shape[1]}")
-        horizon = check_count(horizon, "horizon", error=HistoryError, who="lstm.predict")
+        horizon = check_count(horizon, "horizon", ge=1, error=HistoryError, who="lstm.predict")
         x = torch.from_numpy(np.ascontiguousarray(fill_history(history)[:, -self.window:],
                                                   dtype=np.float64))
         out = torch.empty((x.shape[0], int(horizon), 2), dtype=torch.float64)
