@@ -829,3 +829,9 @@ def test_track_points_checks_its_own_config_and_jobs():
             track_points(pts, config(), jobs=jobs)
     with pytest.raises(TrackingError, match="cluster_points: config"):
         cluster_points(pts, None)
+
+
+@pytest.mark.parametrize("gate", [0.0, -1.0, np.nan, np.inf])
+def test_compare_tracks_checks_its_own_gate(gate):
+    with pytest.raises(ValueError, match=r"compare_tracks: gate_m: expected a finite number > 0"):
+        compare_tracks(pd.DataFrame(), pd.DataFrame(), gate)
