@@ -70,7 +70,8 @@ def run(cfg, ctx):
                           "visible truth points"),
     }
     pts, ego = tracker_input(truth, every)
-    tracks = track_points(pts, tcfg, jobs=int(cfg.jobs))
+    tracks = track_points(pts, tcfg, jobs=int(cfg.jobs),
+                          source=str(ctx.dep("points.parquet")))
     kinematic = moving_tracks(tracks, w.moving_speed_mps, w.moving_probability)
     tracks["moving"] = moving_tracks(tracks, ego=ego, **moving_test_settings(w),
                                      points=every[["scene", "frame", "x_m", "y_m", "static"]])

@@ -135,3 +135,31 @@ def test_write_yaml_round_trip(tmp_path: Path) -> None:
     assert path.read_text() == "b:\n  x: 1.5\na:\n- 1\n- 2\n"
     io.write_yaml(tmp_path / "d.yaml", OmegaConf.create({"b": {"x": 1.5}, "a": [1, 2]}))
     assert (tmp_path / "d.yaml").read_bytes() == path.read_bytes()
+
+
+def test_all_or_none_lands_every_write_together_or_none(tmp_path: Path) -> None:
+    a, b, d = tmp_path / "a.txt", tmp_path / "sub" / "b.json", tmp_path / "dir"
+    io.write_text(a, "old")
+    with pytest.raises(RuntimeError):
+        with io.all_or_none():
+            io.write_text(a, "new")
+            io.write_json(b, {"k": 1})
+            with io.atomic_dir(d) as folder:
+                io.write_text(folder / "f.txt", "inside")      # inside the folder: at once
+            assert a.read_text() == "old" and not b.exists() and not d.exists()  # waiting
+            raise RuntimeError("second recording failed")
+    assert a.read_text() == "old" and not b.exists() and not d.exists()
+    assert sorted(p.name for p in tmp_path.rglob("*")) == ["a.txt", "sub"]      # no temporary
+    with io.all_or_none():
+        io.write_text(a, "new")
+        with io.write_now():
+            io.write_text(tmp_path / "ckpt", "epoch 1")
+            assert (tmp_path / "ckpt").read_text() == "epoch 1"   # a checkpoint lands at once
+        with io.all_or_none():                                     # nested: joins the outer
+            io.write_json(b, {"k": 2})
+        with io.atomic_dir(d) as folder:
+            io.write_text(folder / "f.txt", "inside")
+        assert a.read_text() == "old"
+    assert a.read_text() == "new" and json.loads(b.read_text()) == {"k": 2}
+    assert (d / "f.txt").read_text() == "inside"
+    assert not [p for p in tmp_path.rglob("*") if io.TEMP_MARK in p.name]

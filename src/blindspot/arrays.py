@@ -17,7 +17,8 @@ Two entry points over the same kind and finiteness rules:
 * :func:`check_array` for coordinates, ids and masks (the trajectory room): a shape pattern with
   axis names (``("B", "T", 2)``; one name used twice means equal sizes; a leading ``"..."`` any
   batch axes), returned as float64 / int64 / bool, NaN allowed where it means "no point";
-  :func:`check_count` for an integer argument.
+  :func:`check_count` for an integer argument, :func:`check_number` for a real one (a speed,
+  a margin, a period) with its bounds.
 
 Non-finite values are counted only when the cheap test fails: the sum of a finite float array is
 finite unless it overflows, so a finite array costs one reduction (about 3 ms for one MMWCAS
@@ -32,8 +33,8 @@ from typing import Any, Literal
 
 import numpy as np
 
-__all__ = ["ArrayKind", "check_array", "check_count", "check_same_shape", "checked_array",
-           "count_nonfinite", "describe_shape"]
+__all__ = ["ArrayKind", "check_array", "check_count", "check_number", "check_same_shape",
+           "checked_array", "count_nonfinite", "describe_shape"]
 
 ArrayKind = Literal["real", "numeric", "integer", "bool", "index"]
 
@@ -214,3 +215,25 @@ def check_count(value: Any, name: str, *, ge: int = 0, error: type[ValueError] =
         prefix = f"{who}: " if who else ""
         raise error(f"{prefix}{name}: expected an integer >= {ge}, found {value!r}")
     return int(value)
+
+
+def check_number(value: Any, name: str, *, gt: float | None = None, ge: float | None = None,
+                 unit: str = "", error: type[ValueError] = ValueError, who: str = "") -> float:
+    """``value`` as a finite Python float (not a bool, a string or an array), checked against
+    the bounds ``gt`` (strictly greater) and ``ge`` (at least): a function's own scalar argument,
+    such as a margin, a speed or a frame period.
+
+    Raises:
+        error: naming ``name``, what was expected (bounds and ``unit``) and the value found.
+    """
+    bounds = [f"> {gt:g}" if gt is not None else "", f">= {ge:g}" if ge is not None else ""]
+    expected = " and ".join(b for b in bounds if b)
+    expected = f"a finite number{' ' + expected if expected else ''}{' ' + unit if unit else ''}"
+    ok = (not isinstance(value, (bool, np.bool_))
+          and isinstance(value, (int, float, np.integer, np.floating))
+          and bool(np.isfinite(value))
+          and (gt is None or value > gt) and (ge is None or value >= ge))
+    if not ok:
+        prefix = f"{who}: " if who else ""
+        raise error(f"{prefix}{name}: expected {expected}, found {value!r}")
+    return float(value)

@@ -69,7 +69,8 @@ from omegaconf import DictConfig, OmegaConf
 
 from blindspot import config as bconfig
 from blindspot import datasets, io, kernels, runs
-from blindspot.stage import StageContext, StageResult, declared_files, read_dvc_stages
+from blindspot.stage import (MissingInput, StageContext, StageResult, declared_files,
+                             missing_inputs, read_dvc_stages)
 from blindspot.typed_config import TypedConfig, setting
 
 __all__ = [
@@ -105,6 +106,9 @@ _VALUE_FLAGS = {"--cfg", "-c", "--package", "-p", "--config-path", "-cp", "--con
                 "-cn", "--config-dir", "-cd", "--experimental-rerun", "--shell-completion", "-sc"}
 _INFO_FLAGS = {"--info", "-i"}
 _INFO_VALUES = {"all", "config", "defaults", "defaults-tree", "plugins", "searchpath"}
+# Hydra flags with which no stage runs (print the config, help, completion): inputs not needed
+_NO_RUN_FLAGS = {"--cfg", "-c", "--info", "-i", "--help", "-h", "--hydra-help",
+                 "--shell-completion", "-sc", "--resolve"}
 
 
 # Where a passing params check leaves its stamp: DVC's own scratch folder (git-ignored by
@@ -280,7 +284,9 @@ def run_stage(
     the :class:`StageResult` it returns (metrics, artifacts, model files, tags) to that run.
 
     Temporary files a SIGKILLed earlier run left next to the stage's outs are removed first
-    (:func:`blindspot.io.remove_stale_temps`). ``cfg`` is resolved and put in struct mode (a misspelt key raises instead of reading None).
+    (:func:`blindspot.io.remove_stale_temps`). The stage runs inside
+    :func:`blindspot.io.all_or_none`: its outputs appear together when it returns, and none
+    of them changes when it raises. ``cfg`` is resolved and put in struct mode (a misspelt key raises instead of reading None).
     ``ctx`` carries the stage's files declared in ``dvc.yaml`` and ``ctx.log_step``, bound to the
     run. ``check_outs``: afterwards, require that the stage wrote every declared out
     (:meth:`StageContext.check_outs`). Raises ``TypeError`` if ``run`` returns something else
@@ -305,7 +311,11 @@ def run_stage(
             tracker.set_tags({"blindspot.out_root": str(out_dir)})
         ctx = StageContext(files, log_step=lambda metrics, step: tracker.log_metrics(metrics, step),
                            out_root=out_dir)
-        result = run(cfg, ctx)
+        # all of the stage's outputs land together when it returns, or none does when it fails
+        # (several recordings, scenes or figures: never the first ones' new files beside the
+        # others' old ones); a resume checkpoint is written at once (io.write_now)
+        with io.all_or_none():
+            result = run(cfg, ctx)
         if not isinstance(result, StageResult):
             raise TypeError(f"stage {name!r}: run(cfg, ctx) returned {type(result).__name__}; "
                             "expected a blindspot.stage.StageResult")
@@ -362,13 +372,15 @@ def main_stage(run: StageFunction, name: str, argv: Sequence[str] | None = None)
         if not os.environ.get("DVC_EXP_NAME"):
             check_params_stamped(root)  # composes conf/ only after an edit
         cfg = bconfig.load_params(root)
+        missing_inputs(root, name)      # MissingInput (a FileNotFoundError): what makes them
     except Exception as exc:  # noqa: BLE001 - the config errors below; anything else re-raised
         # Hydra is imported only when conf/ is composed, so only then can its errors occur
         hydra_errors = sys.modules.get("hydra.errors")
         if not isinstance(exc, (bconfig.ParamsOutOfDate, FileNotFoundError)) and not (
                 hydra_errors is not None and isinstance(exc, hydra_errors.HydraException)):
             raise
-        print(f"[blindspot] stage {name}: {exc}", file=sys.stderr)
+        print(f"[blindspot] {exc}" if isinstance(exc, MissingInput)
+              else f"[blindspot] stage {name}: {exc}", file=sys.stderr)
         raise SystemExit(1) from None
     try:
         run_stage(run, name, cfg, root, check_outs=True)
@@ -530,6 +542,10 @@ def _run_with_hydra(root: Path, name: str, args: Sequence[str]) -> None:
     import hydra
 
     load_stage(root, name)  # fail early, before Hydra, with the list of stages
+    bconfig.check_renamed_keys((a for a in args if not a.startswith("-")),
+                               f"python -m blindspot {name}")
+    if not any(a.split("=")[0] in _NO_RUN_FLAGS for a in args):
+        missing_inputs(root, name)  # MissingInput naming the files and the stages making them
     os.chdir(root)
     task = _StageTask(str(root), name)
     entry = hydra.main(
@@ -718,4 +734,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     except (UnknownStage, bconfig.RenamedKey) as exc:
         print(f"[blindspot] {exc}", file=sys.stderr)
         return 2
+    except MissingInput as exc:
+        print(f"[blindspot] {exc}", file=sys.stderr)
+        return 1
     return 0

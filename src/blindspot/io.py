@@ -23,8 +23,19 @@ Public API::
     write_yaml(path, obj) -> Path
     write_parquet(path, df, *, index=False, **kw) -> Path
     save_figure(fig, path, **savefig_kw) -> Path
+    all_or_none() -> ContextManager[None]            # every write inside lands together, or none
+    write_now() -> ContextManager[None]              # writes inside land at once (checkpoints)
     remove_stale_temps(paths) -> list[Path]         # temp files of writers that died (SIGKILL)
     fault_point(event, detail)                       # where a test may kill the process
+
+Inside :func:`all_or_none` (the stage runner wraps every stage in it) each writer stops short of
+its rename: the complete temporary file (or folder) waits, under its hidden name, until the whole
+block succeeds, and then every one is renamed into place, in the order written; if the block
+raises (or is stopped by SIGTERM), every waiting temporary is removed and no target changes. A
+stage that handles several recordings or scenes, or writes several figures, so leaves all of its
+outputs or none, never the first recordings' new files beside the others' old ones. Files that
+must land at once, such as a training run's resume checkpoint, are written inside
+:func:`write_now`.
 
 A SIGKILL cannot be caught, so its temporary file stays behind. Such debris can never be taken
 for an output: its folder's name is hidden and marked (``.<stem>.tmp-<pid>-<token>``, matched by
@@ -68,6 +79,8 @@ __all__ = [
     "write_yaml",
     "write_parquet",
     "save_figure",
+    "all_or_none",
+    "write_now",
     "to_jsonable",
     "remove_stale_temps",
     "fault_point",
@@ -221,6 +234,111 @@ def _remove(path: Path) -> None:
             path.unlink()
 
 
+class _Group:
+    """The writes of an :func:`all_or_none` block: (temporary, target, its hidden folder or
+    None for a directory) in the order completed, renamed into place when the block ends."""
+
+    def __init__(self) -> None:
+        self.pid = os.getpid()
+        self.pending: list[tuple[Path, Path, Path | None]] = []
+        self.paused = 0
+
+
+_GROUPS: list[_Group] = []
+_FILLING: list[Path] = []     # temporary folders of atomic_dir blocks being filled
+
+
+def _open_group(target: Path | None = None) -> _Group | None:
+    """The innermost :func:`all_or_none` block of this process that is not paused by
+    :func:`write_now`, else None (a forked worker inherits its parent's block but never ends
+    it, so it writes at once). A ``target`` inside a folder :func:`atomic_dir` is filling is
+    written at once: that folder is what waits."""
+    if not (_GROUPS and _GROUPS[-1].pid == os.getpid() and not _GROUPS[-1].paused):
+        return None
+    if target is not None and any(f == target or f in target.parents for f in _FILLING):
+        return None
+    return _GROUPS[-1]
+
+
+@contextlib.contextmanager
+def all_or_none() -> Iterator[None]:
+    """Every atomic write inside the block lands together when the block succeeds, or none does.
+
+    Writers (:func:`atomic_path` and all built on it, :func:`atomic_dir`) leave their complete
+    temporaries in place; at the end of a successful block they are renamed onto their targets
+    in the order written (each rename a fault point). On an exception (SIGTERM's SystemExit,
+    KeyboardInterrupt included) the temporaries are removed and every target keeps its previous
+    content. Nested blocks join the outermost one.
+    """
+    if _GROUPS and _GROUPS[-1].pid == os.getpid():
+        yield                                 # joins the enclosing block
+        return
+    group = _Group()
+    _GROUPS.append(group)
+    try:
+        yield
+    except BaseException:
+        _GROUPS.remove(group)
+        for tmp, _target, folder in group.pending:
+            _remove(folder if folder is not None else tmp)
+        raise
+    _GROUPS.remove(group)
+    try:
+        while group.pending:
+            tmp, target, folder = group.pending[0]
+            if folder is None:
+                _commit_dir(tmp, target)
+            else:
+                _commit_file(tmp, target)
+                _remove(folder)
+            group.pending.pop(0)
+    finally:
+        for tmp, _target, folder in group.pending:  # a rename failed: the rest is not written
+            _remove(folder if folder is not None else tmp)
+
+
+@contextlib.contextmanager
+def write_now() -> Iterator[None]:
+    """Writes inside the block land at once even within :func:`all_or_none` (a training run's
+    resume checkpoint must survive the run being killed)."""
+    group = _GROUPS[-1] if _GROUPS and _GROUPS[-1].pid == os.getpid() else None
+    if group is not None:
+        group.paused += 1
+    try:
+        yield
+    finally:
+        if group is not None:
+            group.paused -= 1
+
+
+def _commit_file(tmp: Path, target: Path) -> None:
+    fault_point("write", str(target))
+    os.replace(tmp, target)
+    _fsync_dir(target.parent)
+
+
+def _commit_dir(tmp: Path, target: Path) -> None:
+    """Rename the complete directory ``tmp`` onto ``target``, the old one moved aside first and
+    removed after (put back if the second rename fails)."""
+    fault_point("write", str(target))
+    old: Path | None = None
+    try:
+        if target.exists() or target.is_symlink():
+            old = _temp_sibling(target)
+            os.replace(target, old)
+        os.replace(tmp, target)
+        _fsync_dir(target.parent)
+    except BaseException:
+        _remove(tmp)
+        if old is not None and not target.exists():
+            os.replace(old, target)  # put the previous version back
+            old = None
+        raise
+    finally:
+        if old is not None:
+            _remove(old)
+
+
 @contextlib.contextmanager
 def atomic_path(path: PathLike) -> Iterator[Path]:
     """Yield a temporary path with the name of ``path``, in a hidden folder next to it; on
@@ -235,6 +353,7 @@ def atomic_path(path: PathLike) -> Iterator[Path]:
     folder = _temp_sibling(target)
     folder.mkdir()
     tmp = folder / target.name
+    waiting = False
     try:
         yield tmp
         if not tmp.exists():
@@ -246,11 +365,15 @@ def atomic_path(path: PathLike) -> Iterator[Path]:
                 f"atomic write of {target}: a directory was written; use atomic_dir() for that"
             )
         _fsync_file(tmp)
-        fault_point("write", str(target))
-        os.replace(tmp, target)
-        _fsync_dir(target.parent)
+        group = _open_group(target)
+        if group is not None:        # renamed when the all_or_none block succeeds
+            group.pending.append((tmp, target, folder))
+            waiting = True
+        else:
+            _commit_file(tmp, target)
     finally:
-        _remove(folder)
+        if not waiting:
+            _remove(folder)
 
 
 @contextlib.contextmanager
@@ -282,28 +405,23 @@ def atomic_dir(path: PathLike) -> Iterator[Path]:
     target.parent.mkdir(parents=True, exist_ok=True)
     tmp = _temp_sibling(target)
     tmp.mkdir()
-    old: Path | None = None
+    _FILLING.append(tmp)
     try:
         yield tmp
         for root, _dirs, files in os.walk(tmp):
             for name in files:
                 _fsync_file(Path(root, name))
             _fsync_dir(Path(root))
-        fault_point("write", str(target))
-        if target.exists() or target.is_symlink():
-            old = _temp_sibling(target)
-            os.replace(target, old)
-        os.replace(tmp, target)
-        _fsync_dir(target.parent)
     except BaseException:
         _remove(tmp)
-        if old is not None and not target.exists():
-            os.replace(old, target)  # put the previous version back
-            old = None
         raise
     finally:
-        if old is not None:
-            _remove(old)
+        _FILLING.remove(tmp)
+    group = _open_group(target)
+    if group is not None:            # renamed when the all_or_none block succeeds
+        group.pending.append((tmp, target, None))
+    else:
+        _commit_dir(tmp, target)
 
 
 def write_bytes(path: PathLike, data: bytes) -> Path:

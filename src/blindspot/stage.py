@@ -43,7 +43,9 @@ __all__ = [
     "StepLogger",
     "DeclaredFiles",
     "UndeclaredPath",
+    "MissingInput",
     "declared_files",
+    "missing_inputs",
 ]
 
 DVC_FILE = "dvc.yaml"
@@ -79,6 +81,11 @@ class StageResult:
 
 class UndeclaredPath(LookupError):
     """A stage asked for a file its ``dvc.yaml`` entry does not declare (or declares twice)."""
+
+
+class MissingInput(FileNotFoundError):
+    """A stage was run before the files it reads exist: the message names each missing file,
+    the stage of ``dvc.yaml`` that makes it and the command to run (:func:`missing_inputs`)."""
 
 
 @dataclass(frozen=True)
@@ -127,6 +134,48 @@ def read_dvc_stages(repo_root: PathLike) -> dict[str, DeclaredFiles]:
 def declared_files(repo_root: PathLike, stage: str) -> DeclaredFiles:
     """The declared deps and outs of ``stage``; none when ``dvc.yaml`` has no such stage."""
     return read_dvc_stages(repo_root).get(stage) or DeclaredFiles(stage, (), ())
+
+
+def _producer(dep: str, stages: Mapping[str, DeclaredFiles]) -> str | None:
+    """The stage whose declared out is ``dep``, holds it (a folder out) or lies in it."""
+    dep = dep.strip("/")
+    for name, files in stages.items():
+        for out in files.outs:
+            out = out.strip("/")
+            if dep == out or dep.startswith(out + "/") or out.startswith(dep + "/"):
+                return name
+    return None
+
+
+def missing_inputs(repo_root: PathLike, stage: str) -> None:
+    """Raise :class:`MissingInput` unless every dep ``dvc.yaml`` declares for ``stage`` exists
+    under ``repo_root``; the message names each missing file, the stage that makes it (from
+    the outs of ``dvc.yaml``) and the commands that make it: ``dvc repro <stage>`` (the
+    upstream stages, then this one) or ``python -m blindspot <producer>``. A stage ``dvc.yaml``
+    does not know passes."""
+    stages = read_dvc_stages(repo_root)
+    files = stages.get(stage)
+    if files is None:
+        return
+    root = Path(repo_root)
+    missing = [d for d in files.deps if not (root / d).exists()]
+    if not missing:
+        return
+    lines = []
+    producers: list[str] = []
+    for dep in missing:
+        maker = _producer(dep, stages)
+        if maker is None:
+            lines.append(f"  {dep}: no stage of {DVC_FILE} makes it (an input of the project: "
+                         "check the path)")
+        else:
+            lines.append(f"  {dep}: made by stage {maker!r} (python -m blindspot {maker})")
+            if maker not in producers:
+                producers.append(maker)
+    fix = (f"Run `dvc repro {stage}` (it makes the missing inputs first, then runs this "
+           "stage)" + (", or run the stages named above first" if producers else "") + ".")
+    raise MissingInput(f"stage {stage!r} cannot run: {len(missing)} of its inputs declared in "
+                       f"{DVC_FILE} do not exist:\n" + "\n".join(lines) + "\n" + fix)
 
 
 def _match(key: str, paths: Sequence[str]) -> list[str]:

@@ -162,3 +162,44 @@ def test_a_single_run_never_writes_over_the_pipeline(toy: Path) -> None:
                      check=False)
     assert proc.returncode == 1 and "dvc exp run -S 'train.lr=0.3'" in proc.stderr
     assert json.loads((toy / "out" / "toy.json").read_text())["lr"] == 0.1
+
+
+def _with_upstream(root: Path) -> Path:
+    """The toy repo with a stage 'make' whose out data/made.json is a dep of 'toy' (not made)."""
+    dvc = (root / "dvc.yaml").read_text().replace(
+        "      - stages/toy.py\n", "      - stages/toy.py\n      - data/made.json\n", 1)
+    dvc += ("  make:\n    cmd: python stages/make.py\n    outs:\n      - data/made.json\n")
+    (root / "dvc.yaml").write_text(dvc)
+    return root
+
+
+def test_missing_inputs_names_the_file_the_stage_making_it_and_the_command(tmp_path: Path
+                                                                            ) -> None:
+    from blindspot.stage import MissingInput, missing_inputs
+
+    root = _with_upstream(make_toy_repo(tmp_path / "repo", store=False))
+    with pytest.raises(MissingInput, match=r"(?s)stage 'toy' cannot run: 1 of its inputs .*"
+                       r"data/made.json: made by stage 'make' \(python -m blindspot make\).*"
+                       r"`dvc repro toy`"):
+        missing_inputs(root, "toy")
+    (root / "data").mkdir()
+    (root / "data" / "made.json").write_text("{}")
+    missing_inputs(root, "toy")                       # all there: passes
+    missing_inputs(root, "not_in_dvc_yaml")           # a stage dvc.yaml does not know: passes
+
+
+def test_a_stage_run_before_its_inputs_exist_says_what_makes_them_without_traceback(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture) -> None:
+    # t3_c24: `python -m blindspot driving_track` in a fresh clone ended in a traceback
+    from blindspot.cli import main
+
+    root = _with_upstream(make_toy_repo(tmp_path / "repo", store=False))
+    config.write_params(root)
+    monkeypatch.chdir(root)
+    assert main(["toy", "train.lr=0.5"]) == 1
+    err = capsys.readouterr().err
+    assert "data/made.json: made by stage 'make'" in err and "dvc repro toy" in err
+    assert "Traceback" not in err and not (root / "out").exists()
+    proc = run([sys.executable, "stages/toy.py"], root, check=False)     # the DVC entry point
+    assert proc.returncode == 1 and "Traceback" not in proc.stderr
+    assert "data/made.json: made by stage 'make'" in proc.stderr

@@ -9,6 +9,7 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 from mlflow.tracking import MlflowClient
 
@@ -205,8 +206,9 @@ def test_sigterm_ends_run_killed_and_leaves_no_partial_file(toy: Path) -> None:
     # The stage was inside io.atomic_open("out/partial.txt"): nothing half-written remains.
     assert not (toy / "out" / "partial.txt").exists()
     assert [p.name for p in (toy / "out").iterdir() if ".tmp-" in p.name] == []
-    # finished before the signal (in the run's own folder: toy.sleep_s is an override)
-    assert list(toy.glob("outputs/*/*/out/toy.json"))
+    # toy.json was written before the signal, in the run's own folder (toy.sleep_s is an
+    # override), but a killed stage lands none of its writes (io.all_or_none)
+    assert list(toy.glob("outputs/*/*/out")) and not list(toy.glob("outputs/*/*/out/toy.json"))
     assert os.environ.get(runs.PARENT_RUN_ENV) is None
 
 
@@ -277,3 +279,29 @@ def test_the_collector_pause_restores_the_collector_even_on_an_error(was_enabled
         assert gc.isenabled() is was_enabled
     finally:
         (gc.enable if before else gc.disable)()
+
+
+def test_metric_names_from_data_are_cleaned_as_param_names_are(toy: Path) -> None:
+    # t3_c18: a recording key "walk (2)" made MLflow refuse the metric and the run end FAILED
+    with runs.stage_run("real_tracking", CFG, repo_root=toy) as t:
+        t.log_metrics({"walk (2)": {"mota": 0.5, "id switches": 3}})
+        t.log_params({"recordings": {"walk (2)": {"path": "x"}}})
+        rid = t.run_id
+    run = _client(toy).get_run(rid)
+    assert run.info.status == "FINISHED"
+    assert run.data.metrics == {"walk _2_.mota": 0.5, "walk _2_.id switches": 3.0}
+    assert "recordings.walk _2_.path" in run.data.params
+
+
+def test_infinite_metrics_are_refused_with_a_warning_never_read_back_as_finite(toy: Path) -> None:
+    # t3_c17: MLflow's SQL store keeps inf as 1.7976931348623157e308, a finite number
+    with runs.stage_run("evaluate", CFG, repo_root=toy) as t:
+        with pytest.warns(RuntimeWarning, match=r"'ratio' = inf, 'low' = -inf.*logged as NaN"):
+            t.log_metrics({"ratio": float("inf"), "low": -float("inf"), "nan": float("nan"),
+                           "ok": 1.0})
+        rid = t.run_id
+    run = _client(toy).get_run(rid)
+    m = run.data.metrics
+    assert all(np.isnan(m[k]) for k in ("ratio", "low", "nan")) and m["ok"] == 1.0
+    assert run.data.tags["blindspot.metric_inf.ratio"] == "inf"
+    assert run.data.tags["blindspot.metric_inf.low"] == "-inf"

@@ -134,3 +134,46 @@ def test_run_stage_wants_a_stage_result(repo: Path) -> None:
     cfg = OmegaConf.create({**CFG, "runs": {"enabled": False}})
     with pytest.raises(TypeError, match=r"stage 'other'.*returned NoneType"):
         cli.run_stage(lambda cfg, ctx: None, "other", cfg, repo)
+
+
+def _per_recording_stage(fail_at: str | None):
+    """Writes one parquet and one figure per recording, then a summary, like real_tracking;
+    raises at recording ``fail_at``."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import pandas as pd
+
+    from blindspot import io
+
+    def run(cfg, ctx):
+        for name in ("a", "b"):
+            if name == fail_at:
+                raise ValueError(f"recording {name}: unreadable")
+            io.write_parquet(ctx.out("points.parquet").with_name(f"{name}.parquet"),
+                             pd.DataFrame({"x": [1.0]}))
+            fig = plt.figure()
+            io.save_figure(fig, ctx.out("fig.png"))
+            plt.close(fig)
+        with io.atomic_dir(ctx.out("dir")) as folder:
+            io.write_text(folder / "inner.txt", "whole")
+        io.write_json(ctx.out("make.json"), {"ok": True})
+        return StageResult()
+    return run
+
+
+def test_a_stage_that_fails_at_its_second_recording_leaves_nothing(repo: Path) -> None:
+    """issue 45: all of a stage's outputs appear or none do; before, the first recording's new
+    files (and figure) stayed beside the others' old ones."""
+    cfg = OmegaConf.create({**CFG, "tracking": {"enabled": False}})
+    with pytest.raises(ValueError, match="recording b"):
+        cli.run_stage(_per_recording_stage("b"), "make", cfg, repo)
+    made = [p for p in (repo / "data").rglob("*")] + list((repo / "reports").rglob("*"))
+    assert [p for p in made if p.is_file()] == []              # no output, no temporary
+    cli.run_stage(_per_recording_stage(None), "make", cfg, repo)
+    before = {p: p.read_bytes() for p in (repo / "data").rglob("*") if p.is_file()}
+    assert (repo / "data/make/a.parquet") in before and (repo / "data/make/dir/inner.txt") in before
+    assert (repo / "reports/metrics/make.json").is_file()
+    with pytest.raises(ValueError, match="recording a"):        # a later failed run: unchanged
+        cli.run_stage(_per_recording_stage("a"), "make", cfg, repo)
+    assert {p: p.read_bytes() for p in (repo / "data").rglob("*") if p.is_file()} == before

@@ -45,3 +45,30 @@ def test_stop_within_the_ramp():
 def test_bad_parameters_are_refused():
     with pytest.raises(ValueError, match="decel_mps2"):
         BrakingModel(0.1, 10.0, 0.0)
+
+
+# --- every argument checked by the model itself (issue 45) ----------------------------------
+@pytest.mark.parametrize("field, args", [("latency_s", (np.inf, 10.0, 8.0)),
+                                         ("latency_s", (-0.1, 10.0, 8.0)),
+                                         ("jerk_mps3", (0.1, np.nan, 8.0)),
+                                         ("decel_mps2", (0.1, 10.0, np.inf))])
+def test_non_finite_parameters_are_named(field, args):
+    with pytest.raises(ValueError, match=f"BrakingModel: {field}: expected a finite number"):
+        BrakingModel(*args)
+
+
+@settings(max_examples=30, deadline=None)
+@given(v=st.one_of(st.floats(max_value=-1e-9), st.sampled_from([np.nan, np.inf, -np.inf])))
+def test_every_bad_speed_is_named_by_each_method(v):
+    b = BrakingModel(0.2, 10.0, 8.0)
+    for method, call in (("stop_time", lambda: b.stop_time(v)),
+                         ("motion", lambda: b.motion(v, 1.0)),
+                         ("stop_ttc", lambda: b.stop_ttc(v)),
+                         ("stopping_distance", lambda: b.stopping_distance(v))):
+        with pytest.raises(ValueError, match=f"BrakingModel.{method}: v0"):
+            call()
+
+
+def test_motion_refuses_a_nan_time():
+    with pytest.raises(ValueError, match="BrakingModel.motion: t"):
+        BrakingModel(0.2, 10.0, 8.0).motion(5.0, np.array([0.0, np.nan]))

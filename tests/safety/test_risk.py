@@ -8,7 +8,8 @@ from hypothesis import given, settings, strategies as st
 from scipy.special import ndtr
 from scipy.stats import multivariate_normal
 
-from blindspot.safety.risk import EgoShape, RiskError, collision_risk, rectangle_mass
+from blindspot.safety.risk import (EgoShape, RiskError, collision_risk, footprints,
+                                  rectangle_mass)
 from blindspot.traj.distribution import GaussianForecast
 
 EGO = EgoShape(1.815, 4.358)
@@ -78,3 +79,59 @@ def test_bad_method_and_dt_are_refused():
                        method="mean")
     with pytest.raises(RiskError, match="dt_s"):
         collision_risk(fc, np.zeros((1, 2)), np.zeros(1), np.ones(1), 0.0, EGO, margin_m=0.3)
+
+
+# --- every argument checked by the function itself (issue 45; case t3_c15) -------------------
+_ARGS = (np.zeros((1, 2)), np.zeros(1))
+
+
+def test_negative_margin_is_refused_by_collision_risk_itself():
+    # t3_c15: margin_m=-0.5 shrank the footprint to 0.8 m and gave p = 0 for a pedestrian
+    # standing in the ego's path (p = 0.977 with +0.3); the function's own error names it
+    fc = _forecast([[1.0, 3.0]], 0.1, H=30)
+    with pytest.raises(RiskError, match=r"collision_risk: margin_m: .*>= 0.*found -0\.5"):
+        collision_risk(fc, *_ARGS, np.array([5.0]), 0.1, EgoShape(1.8, 4.5), margin_m=-0.5)
+
+
+@settings(max_examples=30, deadline=None)
+@given(margin=st.one_of(st.floats(max_value=-1e-9), st.just(float("nan")),
+                        st.just(float("inf"))))
+def test_every_bad_margin_is_named(margin):
+    fc = _forecast([[1.0, 3.0]], 0.1)
+    with pytest.raises(RiskError, match="margin_m"):
+        collision_risk(fc, *_ARGS, np.array([5.0]), 0.1, EGO, margin_m=margin)
+    with pytest.raises(RiskError, match="footprints: margin_m"):
+        footprints(np.array([5.0]), 10, 0.1, EGO, margin)
+
+
+@settings(max_examples=30, deadline=None)
+@given(speed=st.one_of(st.floats(max_value=-1e-9), st.sampled_from([np.nan, np.inf, -np.inf])))
+def test_every_bad_speed_is_named(speed):
+    fc = _forecast([[1.0, 3.0]], 0.1)
+    with pytest.raises(RiskError, match="collision_risk: speed_mps"):
+        collision_risk(fc, *_ARGS, np.array([speed]), 0.1, EGO, margin_m=0.3)
+    with pytest.raises(RiskError, match="footprints: speed_mps"):
+        footprints(np.array([speed]), 10, 0.1, EGO, 0.3)
+
+
+@pytest.mark.parametrize("dt", [0.0, -0.1, float("nan"), float("inf")])
+def test_bad_period_and_horizon_are_named(dt):
+    with pytest.raises(RiskError, match="footprints: dt_s"):
+        footprints(np.ones(1), 10, dt, EGO, 0.3)
+    with pytest.raises(RiskError, match="collision_risk: dt_s"):
+        collision_risk(_forecast([[0.0, 1.0]], 0.1), *_ARGS, np.ones(1), dt, EGO, margin_m=0.3)
+    for horizon in (0, -3, 2.5):
+        with pytest.raises(RiskError, match=f"footprints: horizon: .*found {horizon}"):
+            footprints(np.ones(1), horizon, 0.1, EGO, 0.3)
+
+
+@pytest.mark.parametrize("w, l", [(0.0, 4.0), (1.8, -1.0), (float("nan"), 4.0), (1.8, np.inf)])
+def test_ego_shape_is_finite_and_positive(w, l):
+    with pytest.raises(RiskError, match="EgoShape: (width_m|length_m)"):
+        EgoShape(w, l)
+
+
+def test_zero_margin_and_zero_speed_are_valid():
+    lo, hi = footprints(np.zeros(1), 3, 0.1, EGO, 0.0)
+    assert lo.shape == hi.shape == (1, 3, 2)
+    assert np.allclose(hi[0, :, 0], EGO.width_m / 2)

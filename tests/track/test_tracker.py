@@ -726,3 +726,107 @@ def test_the_sensor_pose_is_checked_and_named():
         track_points(pts.assign(sensor_x_m="a"), cfg)
     with pytest.raises(ConfigError, match="tracker.field_of_view_deg"):
         TrackerConfig.from_mapping({**dataclasses.asdict(cfg), "field_of_view_deg": 400.0})
+
+
+# --- time is elapsed time (issue 45) ---------------------------------------------------------
+def _walker_then_silence(silence_s: float, as_empty_frames: bool, newcomer_dx: float):
+    """A walker seen for 2 s (0.5 m/s along x at y = 5), then ``silence_s`` without points
+    (frames without points every DT, or no frames at all), then one point ``newcomer_dx`` m
+    beyond where the walker was last seen, for 5 frames."""
+    seen = np.arange(20)
+    xy = np.column_stack([0.05 * seen, np.full(20, 5.0)])
+    t_new = 19 * DT + silence_s
+    n_gap = int(round(silence_s / DT)) - 1
+    rows = [pd.DataFrame({"frame": seen, "time_s": seen * DT, "x_m": xy[:, 0], "y_m": xy[:, 1]})]
+    if as_empty_frames and n_gap > 0:
+        f = np.arange(20, 20 + n_gap)
+        rows.append(pd.DataFrame({"frame": f, "time_s": 19 * DT + (f - 19) * DT,
+                                  "x_m": np.nan, "y_m": np.nan}))
+    f = 20 + max(n_gap, 0) + np.arange(5)
+    rows.append(pd.DataFrame({"frame": f, "time_s": t_new + (f - f[0]) * DT,
+                              "x_m": xy[-1, 0] + newcomer_dx, "y_m": 5.0}))
+    return pd.concat(rows, ignore_index=True)
+
+
+@settings(max_examples=10, deadline=None)
+@given(silence_s=st.floats(3.0, 30.0), empty=st.booleans(), name=st.sampled_from(["gnn_cv",
+                                                                                 "jpda_cv"]))
+def test_a_track_silent_longer_than_max_misses_frames_take_never_takes_a_newcomer(silence_s,
+                                                                                   empty, name):
+    """max_misses = 20 frames of 0.1 s = 2 s: a track silent for 3 to 30 s is gone, whether
+    the silence came as frames without points or as no frames at all (before: with no frames,
+    the coasting track's grown covariance took a newcomer 11 m away at its next frame)."""
+    tracks = track_points(_walker_then_silence(silence_s, empty, 11.0), config(name))
+    later = tracks[tracks.time_s >= 19 * DT + silence_s - 1e-9]    # the newcomer's frames
+    assert len(later) and 0 not in set(later.track_id)
+
+
+@pytest.mark.parametrize("empty", [True, False])
+def test_a_short_silence_keeps_the_track_as_frames_or_as_no_frames(empty):
+    """1 s of silence (10 frame periods, within max_misses = 20): the walker, back where the
+    track predicts, keeps its id whether the frames were empty or absent."""
+    tracks = track_points(_walker_then_silence(1.0, empty, 0.5), config())
+    assert set(tracks.track_id) == {0}
+    assert tracks.time_s.max() == pytest.approx(19 * DT + 1.0 + 4 * DT)
+
+
+@settings(max_examples=10, deadline=None)
+@given(offset=st.sampled_from([0.0, 1.7e9, -5e6, 3.3e8]), name=st.sampled_from(["gnn_cv",
+                                                                                "jpda_cv"]))
+def test_epoch_seconds_give_the_tracks_of_seconds_from_zero(offset, name):
+    rng = np.random.default_rng(4)
+    frames, xy = extended(np.column_stack([0.1 * np.arange(30), np.full(30, 6.0)]), rng)
+    pts = frame_table(frames, xy)
+    ref = track_points(pts, config(name))
+    out = track_points(pts.assign(time_s=pts.time_s + offset), config(name))
+    np.testing.assert_array_equal(out.track_id, ref.track_id)
+    np.testing.assert_allclose(out[["x_m", "y_m", "vx_mps"]], ref[["x_m", "y_m", "vx_mps"]],
+                               atol=1e-6)
+
+
+@pytest.mark.parametrize("scale, unit", [(1e3, "milliseconds"), (1e9, "nanoseconds")])
+def test_times_in_another_unit_are_refused_naming_time_s_and_seconds(scale, unit):
+    # t3_c05: epoch milliseconds raised a raw OverflowError from datetime arithmetic
+    f = np.arange(10)
+    pts = pd.DataFrame({"frame": f, "time_s": (1.7e9 + f * 0.1) * scale, "x_m": 0.125 * f,
+                        "y_m": 5.0})
+    with pytest.raises(TrackingError, match=rf"'time_s' must be in seconds.*{unit}"):
+        track_points(pts, config())
+
+
+@pytest.mark.parametrize("column", ["frame", "time_s"])
+@pytest.mark.parametrize("backend", ["numpy", "numpy_nullable", "pyarrow"])
+def test_a_null_frame_id_or_time_is_named_with_the_file(tmp_path, column, backend):
+    # t3_c06: a null frame id (nullable or pyarrow dtypes) was reported as time running backwards
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    cols = {"frame": pa.array([0, 1, 2, 3, 4], pa.int64()), "time_s": [0.0, 0.1, 0.2, 0.3, 0.4],
+            "x_m": [0.0, 0.1, 0.2, 0.3, 0.4], "y_m": [5.0] * 5}
+    cols[column] = pa.array([0, 1, 2, None, 4], cols["frame"].type if column == "frame"
+                            else pa.float64())
+    path = tmp_path / "points.parquet"
+    pq.write_table(pa.table(cols), path)
+    df = (pd.read_parquet(path) if backend == "numpy"
+          else pd.read_parquet(path, dtype_backend=backend))
+    with pytest.raises(TrackingError, match=rf"track_points \({path}\): column '{column}' "
+                                            r"holds 1 null \(missing\) value\(s\) of 5, first "
+                                            r"at row 3"):
+        track_points(df, config(), source=str(path))
+
+
+def test_track_points_checks_its_own_config_and_jobs():
+    pts = frame_table(np.arange(3), np.zeros((3, 2)))
+    with pytest.raises(TrackingError, match="config: expected a TrackerConfig.*found dict"):
+        track_points(pts, {"cluster_eps_m": 0.5})
+    for jobs in (0, -1, 1.5):
+        with pytest.raises(TrackingError, match=f"jobs: expected an integer >= 1, found {jobs}"):
+            track_points(pts, config(), jobs=jobs)
+    with pytest.raises(TrackingError, match="cluster_points: config"):
+        cluster_points(pts, None)
+
+
+@pytest.mark.parametrize("gate", [0.0, -1.0, np.nan, np.inf])
+def test_compare_tracks_checks_its_own_gate(gate):
+    with pytest.raises(ValueError, match=r"compare_tracks: gate_m: expected a finite number > 0"):
+        compare_tracks(pd.DataFrame(), pd.DataFrame(), gate)

@@ -138,3 +138,38 @@ def test_every_real_benchmark_file_loads_unchanged_without_a_warning(shared_dir)
                     assert r.nan_rows == r.duplicate_rows == r.off_grid_rows == 0
         for path in split_files(data, "eth", "train") + split_files(data, "eth", "test"):
             assert infer_frame_step(read_scene(path))[0] == FRAME_STEP
+
+
+# --- absurd values refused before any allocation (issue 45; case t3_c11) ---------------------
+from hypothesis import given, settings, strategies as st  # noqa: E402
+
+from blindspot.traj.ethucy import MAX_GRID_CELLS, MAX_ID  # noqa: E402
+
+
+@settings(max_examples=20, deadline=None)
+@given(bad=st.one_of(st.floats(MAX_ID + 1, 1e300), st.floats(-1e300, -1.0),
+                     st.floats(0.01, 0.99).map(lambda f: 130 + f)),
+       row=st.integers(0, 119), column=st.sampled_from([0, 1]))
+def test_a_corrupted_id_is_the_loaders_error_naming_the_file_and_row(tmp_path_factory, bad, row,
+                                                                      column):
+    # t3_c11: frame id 1e15 made scene_tracks allocate a (3, 1e14, 2) grid (4.26 PiB)
+    rows = [list(r) for r in walk(range(40), [1, 2, 3])]
+    rows[row][column] = bad
+    path = tmp_path_factory.mktemp("c11") / "scene.txt"
+    path.write_text("".join("%r\t%r\t%r\t%r\n" % tuple(r) for r in rows))
+    with pytest.raises(EthUcyDataError, match=rf"{path}: data row {row + 1}: .*whole numbers"):
+        read_scene(path)
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always")
+        kept = read_scene(path, bad_rows="skip")
+    assert len(kept) == 119 and "frame or pedestrian id" in str(seen[0].message)
+
+
+def test_a_stray_frame_id_within_the_id_range_is_refused_before_the_grid():
+    rows = np.array(walk(range(40), [1, 2, 3]), float)
+    rows[5, 0] = 10.0 * (MAX_GRID_CELLS // 3 + 10)      # on the grid, in range, absurdly far
+    with pytest.raises(EthUcyDataError, match=r"scene.txt: frame ids span .* farthest .* row 5 "):
+        scene_tracks(rows, source="scene.txt")
+    rows[5, 0] = 1e15                                    # arrays from elsewhere: the id rule
+    with pytest.raises(EthUcyDataError, match=r"scene.txt: row 5: frame 1e\+15"):
+        scene_tracks(rows, source="scene.txt")

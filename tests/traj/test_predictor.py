@@ -195,7 +195,7 @@ def test_constant_velocity_tail_keeps_the_model_and_continues_its_last_step():
 def test_constant_velocity_tail_needs_a_last_step():
     from blindspot.traj.predictor import ConstantVelocityTail
 
-    with pytest.raises(ValueError, match="max_horizon must be >= 2"):
+    with pytest.raises(ValueError, match="max_horizon: expected an integer >= 2"):
         ConstantVelocityTail(_FixedHorizon(), 1)
 
 

@@ -14,10 +14,12 @@ from __future__ import annotations
 
 import contextlib
 import json
+import math
 import os
 import re
 import sys
 import time
+import warnings
 from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -50,6 +52,13 @@ PARENT_RUN_ENV = "BLINDSPOT_MLFLOW_PARENT_RUN_ID"
 _PARAM_KEY_OK = re.compile(r"[^0-9A-Za-z_\-. /]")
 
 
+def _clean_key(key: Any) -> str:
+    """A param or metric name MLflow accepts: every character outside letters, digits,
+    ``_ - . /`` and blanks replaced by ``_`` (a recording key ``walk (2)`` -> ``walk _2_``), at
+    most 250 characters. Names built from data (recording keys, scene names) pass through it."""
+    return _PARAM_KEY_OK.sub("_", str(key))[:250]
+
+
 def _param_value(value: Any, limit: int) -> str:
     if isinstance(value, list | tuple | dict):
         text = json.dumps(value, sort_keys=True, default=str)
@@ -63,7 +72,8 @@ def _param_value(value: Any, limit: int) -> str:
 
 def _metric_items(metrics: Mapping[str, Any], prefix: str = "") -> Iterator[tuple[str, float]]:
     """(dotted name, number) of every metric: nested mappings under their keys, a list of
-    numbers (an interval ``[lo, hi]``) under its indices (``ci95.0``, ``ci95.1``)."""
+    numbers (an interval ``[lo, hi]``) under its indices (``ci95.0``, ``ci95.1``). Names are
+    as given; :func:`_loggable` cleans them for MLflow."""
     for key, value in metrics.items():
         name = f"{prefix}{key}"
         if isinstance(value, Mapping):
@@ -79,6 +89,28 @@ def _metric_items(metrics: Mapping[str, Any], prefix: str = "") -> Iterator[tupl
                 f"metric {name!r}: expected a number, found {type(value).__name__} {value!r}"
             ) from None
         yield name, number
+
+
+def _loggable(metrics: Mapping[str, Any]) -> tuple[dict[str, float], dict[str, float]]:
+    """(the metrics to log, under cleaned names (:func:`_clean_key`); the +-inf ones, by
+    cleaned name). MLflow's SQL store writes an infinite value as +-1.8e308 (the largest
+    float), which reads back as a finite number; such a value is refused with a warning and
+    logged as NaN (no number; the tag of :meth:`Tracker.log_metrics` keeps its sign). NaN is
+    stored and read back as NaN."""
+    values: dict[str, float] = {}
+    infinite: dict[str, float] = {}
+    for name, number in _metric_items(metrics):
+        clean = _clean_key(name)
+        if math.isinf(number):
+            infinite[clean] = number
+            number = math.nan
+        values[clean] = number
+    if infinite:
+        warnings.warn(
+            "metric(s) " + ", ".join(f"{k!r} = {v}" for k, v in infinite.items())
+            + ": MLflow would store +-inf as +-1.8e308, a finite number; logged as NaN instead "
+            "and tagged blindspot.metric_inf.<name> = inf / -inf", RuntimeWarning, stacklevel=3)
+    return values, infinite
 
 
 class NullTracker:
@@ -140,7 +172,7 @@ class Tracker(NullTracker):
 
         new: dict[str, str] = {}
         for key, value in flatten(params).items():
-            name = _PARAM_KEY_OK.sub("_", str(key))[:250]
+            name = _clean_key(key)
             text = _param_value(value, self._max_len)
             old = self._params.get(name, new.get(name))
             if old is None:
@@ -157,11 +189,20 @@ class Tracker(NullTracker):
         self._params.update(new)
 
     def log_metrics(self, metrics: Mapping[str, Any], step: int | None = None) -> None:
-        """Log numeric metrics (nested mappings flattened to dotted keys) at ``step``."""
+        """Log numeric metrics (nested mappings flattened to dotted keys) at ``step``.
+
+        Names are cleaned as param names are (:func:`_clean_key`: a key built from data, with
+        blanks or brackets, must not fail the run). A +-inf value is refused (MLflow would
+        read it back as +-1.8e308): a ``RuntimeWarning`` names it, it is logged as NaN and the
+        run gets the tag ``blindspot.metric_inf.<name>`` = ``inf`` / ``-inf``. NaN is logged as
+        NaN."""
         from mlflow.entities import Metric
 
         now = int(time.time() * 1000)
-        items = [Metric(k, v, now, step or 0) for k, v in _metric_items(metrics)]
+        values, infinite = _loggable(metrics)
+        if infinite:
+            self.set_tags({f"blindspot.metric_inf.{k}": str(v) for k, v in infinite.items()})
+        items = [Metric(k, v, now, step or 0) for k, v in values.items()]
         for i in range(0, len(items), 1000):
             chunk = items[i : i + 1000]
             _retry(lambda c=chunk: self.client.log_batch(self.run_id, metrics=c), "logging metrics")

@@ -31,23 +31,35 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from blindspot.arrays import check_array, check_number
+
 __all__ = ["BrakingModel"]
 
 
 @dataclass(frozen=True)
 class BrakingModel:
     """latency_s (s), jerk_mps3 (m/s^3), decel_mps2 (m/s^2): see the module docstring.
-    Raises ValueError for a negative latency or a non-positive jerk or deceleration."""
+    Raises ValueError naming the field for a latency that is not finite and >= 0, or a jerk or
+    deceleration that is not finite and > 0; each method raises ValueError naming its argument
+    for a negative, NaN or infinite speed (or a NaN time)."""
 
     latency_s: float
     jerk_mps3: float
     decel_mps2: float
 
     def __post_init__(self) -> None:
-        if not (self.latency_s >= 0 and self.jerk_mps3 > 0 and self.decel_mps2 > 0):
-            raise ValueError(f"BrakingModel: expected latency_s >= 0, jerk_mps3 > 0, "
-                             f"decel_mps2 > 0, found {self.latency_s!r}, {self.jerk_mps3!r}, "
-                             f"{self.decel_mps2!r}")
+        check_number(self.latency_s, "latency_s", ge=0.0, unit="s", who="BrakingModel")
+        check_number(self.jerk_mps3, "jerk_mps3", gt=0.0, unit="m/s^3", who="BrakingModel")
+        check_number(self.decel_mps2, "decel_mps2", gt=0.0, unit="m/s^2", who="BrakingModel")
+
+    @staticmethod
+    def _speeds(v0, who: str) -> np.ndarray:
+        """v0 (...) m/s as float64: finite and >= 0 (a car's speed along its heading)."""
+        v = check_array(v0, "v0", ("...",), who=f"BrakingModel.{who}")
+        if v.size and v.min() < 0:
+            raise ValueError(f"BrakingModel.{who}: v0: expected speeds >= 0 m/s, found "
+                             f"{v.min()!r}")
+        return v
 
     @classmethod
     def from_config(cls, cfg, decel_mps2: float | None = None) -> BrakingModel:
@@ -60,8 +72,8 @@ class BrakingModel:
         return self.decel_mps2 / self.jerk_mps3
 
     def stop_time(self, v0: np.ndarray) -> np.ndarray:
-        """Time from the request to standstill, s, for speeds v0 (...) m/s."""
-        v0 = np.asarray(v0, float)
+        """Time from the request to standstill, s, for speeds v0 (...) m/s (finite, >= 0)."""
+        v0 = self._speeds(v0, "stop_time")
         a, j, tr = self.decel_mps2, self.jerk_mps3, self.ramp_s
         in_ramp = v0 <= a * tr / 2
         return self.latency_s + np.where(in_ramp, np.sqrt(2 * np.maximum(v0, 0) / j),
@@ -70,7 +82,9 @@ class BrakingModel:
     def motion(self, v0: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Distance travelled (m) and speed (m/s) at times t (...) s after the request
         (t < 0: not yet requested, constant speed), speeds v0 broadcast against t."""
-        v0, t = np.broadcast_arrays(np.asarray(v0, float), np.asarray(t, float))
+        v0 = self._speeds(v0, "motion")
+        t = check_array(t, "t", ("...",), who="BrakingModel.motion")
+        v0, t = np.broadcast_arrays(v0, t)
         a, j, tr, T = self.decel_mps2, self.jerk_mps3, self.ramp_s, self.latency_s
         t_stop = self.stop_time(v0)
         tc = np.minimum(t, t_stop)
@@ -89,7 +103,7 @@ class BrakingModel:
         stationary obstacle at which a request still stops the car at it, for speeds v0 (...)
         m/s > 0 (closed form; equals ``stopping_distance(v0) / v0``). Raises ValueError for a
         non-positive speed (no collision, no TTC)."""
-        v0 = np.asarray(v0, float)
+        v0 = self._speeds(v0, "stop_ttc")
         if not np.all(v0 > 0):
             raise ValueError(f"BrakingModel.stop_ttc: speeds must be > 0 m/s, found "
                              f"min {np.min(v0)!r}")
@@ -100,6 +114,8 @@ class BrakingModel:
         return np.where(in_ramp, ramp, full)
 
     def stopping_distance(self, v0: np.ndarray) -> np.ndarray:
-        """Distance from the request to standstill, m (module docstring), for v0 (...) m/s."""
+        """Distance from the request to standstill, m (module docstring), for v0 (...) m/s
+        (finite, >= 0)."""
+        v0 = self._speeds(v0, "stopping_distance")
         s, _ = self.motion(v0, self.stop_time(v0))
         return s

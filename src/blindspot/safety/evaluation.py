@@ -48,6 +48,7 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
+from blindspot.arrays import check_array, check_number
 from blindspot.safety.ncap import ncap_band
 
 __all__ = ["SceneInfo", "scene_info", "replicate_half", "aeb_gate_s", "scene_frame_risk",
@@ -142,8 +143,11 @@ def aeb_gate_s(speed_mps: np.ndarray, braking, *, gate: str, margin_s: float,
     scenes, ``conf/warning/default.yaml``). A standing ego (v <= 0) takes the limit of the
     last point to brake as v -> 0, the braking latency (a pedestrian walking into a standing
     car: only rows about to touch it may request, as for a creeping ego). Raises ValueError
-    for an unknown gate."""
-    v = np.asarray(speed_mps, float)
+    for an unknown gate, a non-finite speed, a ``decision_delay_s`` not finite and >= 0 or a
+    non-finite ``margin_s``."""
+    v = check_array(speed_mps, "speed_mps", ("...",), who="aeb_gate_s")
+    check_number(decision_delay_s, "decision_delay_s", ge=0.0, unit="s", who="aeb_gate_s")
+    check_number(margin_s, "margin_s", unit="s", who="aeb_gate_s")
     if gate == "none":
         return np.full(v.shape, np.inf)
     if gate != "stopping_time":

@@ -20,6 +20,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
+from blindspot.arrays import check_number
 from blindspot.safety.config import OracleConfig
 from blindspot.traj.baselines import cv_model, kalman_filter
 
@@ -40,6 +41,7 @@ def oracle_tracks(points: pd.DataFrame, cfg: OracleConfig, frame_period_s: float
     group, track_id, frame. Raises ValueError naming ``where`` for missing columns or duplicate
     (scene, pedestrian, frame) rows.
     """
+    check_number(frame_period_s, "frame_period_s", gt=0.0, unit="s", who="oracle_tracks")
     need = {"scene", "pedestrian", "frame", "x_m", "y_m"}
     missing = sorted(need - set(points.columns))
     if missing:
@@ -99,6 +101,7 @@ def visible_truth_points(truth: pd.DataFrame, meas_std_m: float, seed: int) -> p
     frame, time_s, x_m, y_m: the input of :func:`oracle_tracks` for the "visible truth"
     reference (perception removed as a cause: what the warning logic does when the pedestrian
     is seen whenever visible)."""
+    check_number(meas_std_m, "meas_std_m", ge=0.0, unit="m", who="visible_truth_points")
     v = truth.loc[~truth.occluded.astype(bool), ["scene", "pedestrian", "frame", "time_s",
                                                 "x_m", "y_m"]].reset_index(drop=True)
     noise = np.random.default_rng(seed).normal(0.0, meas_std_m, (len(v), 2))

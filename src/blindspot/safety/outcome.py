@@ -24,6 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
+from blindspot.arrays import check_number
 from blindspot.safety.braking import BrakingModel
 from blindspot.safety.risk import EgoShape
 
@@ -137,9 +138,10 @@ def pedestrian_boxes(sa: SceneArrays, dt_s: float, extend_s: float
                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Time grid t (T,) s and the boxes' axis-aligned bounds lo, hi (S, P, T, 2) m (NaN for
     absent pedestrians); see the module docstring."""
-    if not dt_s > 0 or extend_s < 0:
-        raise OutcomeError(f"pedestrian_boxes: dt_s > 0 and extend_s >= 0 expected, found "
-                           f"{dt_s!r}, {extend_s!r}")
+    dt_s = check_number(dt_s, "dt_s", gt=0.0, unit="s", error=OutcomeError,
+                        who="pedestrian_boxes")
+    extend_s = check_number(extend_s, "extend_s", ge=0.0, unit="s", error=OutcomeError,
+                            who="pedestrian_boxes")
     tf = sa.time_s
     t = np.arange(tf[0], tf[-1] + extend_s + dt_s / 2, dt_s)
     k = np.clip(np.searchsorted(tf, t, side="right") - 1, 0, len(tf) - 1)

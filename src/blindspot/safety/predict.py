@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from blindspot.arrays import check_count
 from blindspot.safety.risk import EgoShape, collision_risk
 from blindspot.traj.baselines import ConstantVelocity, KalmanCV
 from blindspot.traj.distribution import DistributionError
@@ -92,7 +93,9 @@ def track_histories(tracks: pd.DataFrame, max_len: int) -> np.ndarray:
     group, track_id, frame, x_m, y_m; sorted by group, track_id, frame, as the trackers return
     them): row b's last entry is its own position, earlier entries the same track's positions
     at the frames before (NaN where the track did not exist or skipped a frame).
-    Raises ValueError when ``tracks`` is not sorted that way."""
+    Raises ValueError when ``tracks`` is not sorted that way or ``max_len`` is not an integer
+    >= 1."""
+    check_count(max_len, "max_len", ge=1, who="track_histories")
     key = tracks.group.astype(str) + "\x00" + tracks.track_id.astype(str)
     frame = tracks.frame.to_numpy()
     same = (key.to_numpy()[1:] == key.to_numpy()[:-1])

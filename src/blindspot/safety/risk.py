@@ -33,7 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.special import ndtr
 
-from blindspot.arrays import check_array
+from blindspot.arrays import check_array, check_count, check_number
 from blindspot.traj.distribution import GaussianForecast
 
 __all__ = ["RiskError", "EgoShape", "RiskResult", "rectangle_mass", "to_vehicle_frame",
@@ -55,9 +55,9 @@ class EgoShape:
     length_m: float
 
     def __post_init__(self) -> None:
-        if not (self.width_m > 0 and self.length_m > 0):
-            raise RiskError(f"EgoShape: width_m and length_m must be > 0, found "
-                            f"{self.width_m!r}, {self.length_m!r}")
+        for name in ("width_m", "length_m"):
+            check_number(getattr(self, name), name, gt=0.0, unit="m", error=RiskError,
+                         who="EgoShape")
 
 
 @dataclass(frozen=True)
@@ -133,11 +133,29 @@ def to_vehicle_frame(forecast: GaussianForecast, ego_xy: np.ndarray, yaw_rad: np
     return mean, cov
 
 
+def _check_speeds(speed_mps, shape: tuple, who: str) -> np.ndarray:
+    """The ego speeds (B,) m/s: finite and >= 0 (the footprint runs ahead along the heading)."""
+    v = check_array(speed_mps, "speed_mps", shape, error=RiskError, who=who)
+    if v.size and v.min() < 0:
+        raise RiskError(f"{who}: speed_mps: expected speeds >= 0 m/s (the ego drives forward "
+                        f"along its heading), found {v.min()!r} at index "
+                        f"{int(np.argmin(v))}")
+    return v
+
+
 def footprints(speed_mps: np.ndarray, horizon: int, dt_s: float, ego: EgoShape,
                margin_m: float) -> tuple[np.ndarray, np.ndarray]:
     """Vehicle-frame footprint rectangles of the ego driving straight at ``speed_mps`` (B,) at
-    steps h = 1..horizon (times h dt_s). Returns lo, hi (B, H, 2) m (module docstring)."""
-    v = np.asarray(speed_mps, float)
+    steps h = 1..horizon (times h dt_s). Returns lo, hi (B, H, 2) m (module docstring).
+    Raises RiskError naming the argument for speeds that are not finite and >= 0, a horizon
+    that is not an integer >= 1, a ``dt_s`` not > 0 or a ``margin_m`` not >= 0."""
+    v = _check_speeds(speed_mps, ("B",), "footprints")
+    check_count(horizon, "horizon", ge=1, error=RiskError, who="footprints")
+    dt_s = check_number(dt_s, "dt_s", gt=0.0, unit="s", error=RiskError, who="footprints")
+    margin_m = check_number(margin_m, "margin_m", ge=0.0, unit="m (the pedestrian radius)",
+                            error=RiskError, who="footprints")
+    if not isinstance(ego, EgoShape):
+        raise RiskError(f"footprints: ego: expected an EgoShape, found {type(ego).__name__}")
     yb = v[:, None] * dt_s * np.arange(1, horizon + 1)[None, :]            # (B, H)
     half = ego.width_m / 2 + margin_m
     lo = np.stack([np.full_like(yb, -half), yb - ego.length_m - margin_m], -1)
@@ -152,15 +170,22 @@ def collision_risk(forecast: GaussianForecast, ego_xy: np.ndarray, yaw_rad: np.n
 
     forecast: GaussianForecast (B, H) in the world frame, step h at time h dt_s after now;
     ego_xy (B, 2) m, yaw_rad (B,), speed_mps (B,) the ego state now (front-bumper centre).
-    margin_m: the pedestrian radius the footprint grows by. method: ``max_step`` | ``union``.
-    Returns :class:`RiskResult`. Raises RiskError for malformed input or an unknown method.
+    margin_m: the pedestrian radius the footprint grows by (>= 0). method: ``max_step`` |
+    ``union``. Returns :class:`RiskResult`. Raises RiskError for malformed input (naming the
+    argument and its value: a negative or non-finite ``margin_m``, a ``dt_s`` not > 0, a
+    negative or non-finite speed, a forecast without steps) or an unknown method.
     """
+    who = "collision_risk"
     if method not in ("max_step", "union"):
         raise RiskError(f"collision_risk: method must be 'max_step' or 'union', found {method!r}")
-    if not dt_s > 0:
-        raise RiskError(f"collision_risk: dt_s must be > 0, found {dt_s!r}")
+    dt_s = check_number(dt_s, "dt_s", gt=0.0, unit="s", error=RiskError, who=who)
+    margin_m = check_number(margin_m, "margin_m", ge=0.0, unit="m (the pedestrian radius)",
+                            error=RiskError, who=who)
     B, H = forecast.mean.shape[:2]
-    speed = check_array(speed_mps, "speed_mps", (B,), error=RiskError, who="collision_risk")
+    if H < 1:
+        raise RiskError(f"collision_risk: forecast: expected at least one step (a horizon "
+                        f">= 1), found {H} steps")
+    speed = _check_speeds(speed_mps, (B,), who)
     mean, cov = to_vehicle_frame(forecast, ego_xy, yaw_rad)
     lo, hi = footprints(speed, H, dt_s, ego, margin_m)
     p_step = rectangle_mass(mean, cov, lo, hi)                               # (B, H)

@@ -45,8 +45,10 @@ class TrackerConfig(TypedConfig):
             measurement in ``confirm_m`` of its last ``confirm_n`` frames, and deleted when its
             first ``confirm_n`` frames cannot give that (M-of-N logic; Blackman & Popoli 1999,
             sec. 6.3).
-        max_misses: a confirmed track is deleted after this many consecutive frames without a
-            measurement; until then it coasts (predicted only).
+        max_misses: a confirmed track is deleted once silent (no measurement) for longer than
+            this many frames take, the time they span at the recording's median frame period,
+            whether the silence comes as frames without points or as no frames at all; until
+            then it coasts (predicted only).
         doppler_std_mps: the spread of one point's ego-motion-compensated radial speed (m/s);
             set, the GNN gate and assignment cost take each object's median radial speed
             against the one the track's predicted velocity gives along the line of sight (a

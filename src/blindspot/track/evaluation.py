@@ -13,6 +13,8 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
+from blindspot.arrays import check_number
+
 __all__ = ["MOT_METRICS", "compare_tracks", "matched_distances"]
 
 #: motmetrics' names of what :func:`compare_tracks` returns, and ours.
@@ -45,12 +47,11 @@ def compare_tracks(tracks: pd.DataFrame, reference: pd.DataFrame, gate_m: float)
         pairs), ``matches`` (DataFrame frame, ref_id, track_id, distance_m of every match).
 
     Raises:
-        ValueError: ``gate_m`` not positive, or a column missing.
+        ValueError: ``gate_m`` not a finite number > 0, or a column missing.
     """
     import motmetrics as mm
 
-    if not gate_m > 0:
-        raise ValueError(f"compare_tracks: gate_m must be positive; found {gate_m}")
+    check_number(gate_m, "gate_m", gt=0.0, unit="m", who="compare_tracks")  # inf gated all
     for name, df in (("tracks", tracks), ("reference", reference)):
         missing = {"frame", "track_id", "x_m", "y_m"} - set(df.columns)
         if missing:

@@ -17,6 +17,8 @@ import numpy as np
 import pandas as pd
 from scipy.stats import chi2
 
+from blindspot.arrays import check_number
+
 __all__ = ["DOPPLER_LLR_FORMS", "DOPPLER_REFERENCES", "doppler_log_ratio",
            "doppler_log_ratio_terms", "doppler_spread_log_ratio", "moving_tracks",
            "moving_frames", "velocity_chi2", "doppler_evidence", "moving_test_settings",
@@ -65,8 +67,11 @@ def doppler_log_ratio(tracks: pd.DataFrame, ego_xy: np.ndarray, doppler_std_mps:
     velocity, so their Dopplers are correlated under "moving" and the sequential predictive
     would pay the Occam term about once; the sum pays it every frame (a stricter test, which is
     what refutes the young clutter tracks). Rows without a measurement (coasting, no
-    ``doppler_mps``) give 0 in both forms. Raises ValueError for another ``form``.
+    ``doppler_mps``) give 0 in both forms. Raises ValueError for another ``form`` or a
+    ``doppler_std_mps`` that is not finite and > 0.
     """
+    check_number(doppler_std_mps, "doppler_std_mps", gt=0.0, unit="m/s",
+                 who="doppler_log_ratio")
     d, u, var0, var1, ok = _doppler_geometry(tracks, ego_xy, doppler_std_mps, form)
     uv = u[:, 0] * tracks.vx_mps.to_numpy(float) + u[:, 1] * tracks.vy_mps.to_numpy(float)
     with np.errstate(invalid="ignore", divide="ignore"):
@@ -233,6 +238,12 @@ def moving_frames(tracks: pd.DataFrame, speed_mps: float, probability: float = 0
     kinematic and Doppler tests (confirmed, fast, significantly non-zero, the Doppler sum so
     far above its bound), before the latch and the static-evidence grid; same arguments and
     errors as :func:`moving_tracks`."""
+    check_number(speed_mps, "speed_mps", ge=0.0, unit="m/s", who="moving_tracks")
+    check_number(probability, "probability", gt=0.0, who="moving_tracks")
+    if not probability < 1:
+        raise ValueError(f"moving_tracks: probability: expected a number in (0, 1), found "
+                         f"{probability!r}")
+    check_number(doppler_std_mps, "doppler_std_mps", gt=0.0, unit="m/s", who="moving_tracks")
     need = {"group", "track_id", "frame", "vx_mps", "vy_mps", "cov_vxvx", "cov_vxvy",
             "cov_vyvy", "confirmed"}
     use_doppler = ego is not None and doppler_log_ratio_min is not None

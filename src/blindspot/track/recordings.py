@@ -104,7 +104,7 @@ def track_recording(rec: TrackedRecording, tracker: TrackerConfig,
     bare = frames[~frames.frame.isin(moving.frame)].assign(x_m=np.nan, y_m=np.nan)
     moving = pd.concat([moving[["frame", "time_s", "x_m", "y_m"]], bare]).sort_values(
         "frame", kind="stable")
-    tracks = track_points(moving, tracker)
+    tracks = track_points(moving, tracker, source=str(_resolve(rec.path, shared_dir)))
     conf = tracks[tracks.confirmed]
     seen = moving.dropna(subset=["x_m"])
     span = (seen.frame.min(), seen.frame.max()) if len(seen) else (0, -1)

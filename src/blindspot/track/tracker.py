@@ -14,11 +14,14 @@ the way its tutorials read:
   a Gaussian-mixture reduction of the weighted hypotheses, ``gm_reduce_single``);
 * initiation: ``SimpleMeasurementInitiator`` from every object no live track took, velocity
   prior zero with ``init_velocity_std_mps``;
-* management: M-of-N confirmation of tentative tracks, deletion of confirmed tracks after
-  ``max_misses`` consecutive frames without a measurement (the rule of Stone Soup's
-  ``UpdateTimeStepsDeleter``, read off each track's hit history instead of walking its states:
-  the same deletions, tested);
-  until then a track coasts (prediction only), so a person who reappears keeps their track.
+* management: M-of-N confirmation of tentative tracks, deletion of confirmed tracks silent
+  longer than ``max_misses`` frames take: the rule of Stone Soup's ``UpdateTimeDeleter`` with
+  ``time_since_update`` = (``max_misses`` + 1/2) frame periods (the group's median frame
+  interval), so "missed frames" means the time they span whether the silence comes as frames
+  without points or as no frames at all (on regular frames: the deletions of
+  ``UpdateTimeStepsDeleter(max_misses + 1)``, tested); until then a track coasts (prediction
+  only), so a person who reappears keeps their track. A tentative track is likewise deleted
+  once its ``confirm_n`` frames' time has passed.
 
 The Kalman recursion is sequential in time, so frames are stepped one after another per group;
 clustering runs once over every frame of every group (one DBSCAN call).
@@ -35,6 +38,7 @@ import pandas as pd
 from scipy.stats import chi2
 from sklearn.cluster import DBSCAN
 
+from blindspot.arrays import check_count
 from blindspot.parallel import parallel_map
 from blindspot.track.config import TrackerConfig
 
@@ -65,6 +69,9 @@ SENSOR_COLUMNS = ("sensor_x_m", "sensor_y_m")
 SENSOR_HEADING_COLUMN = "sensor_heading_deg"
 
 _EPOCH = dt.datetime(2000, 1, 1)
+#: The largest |time_s| taken for seconds: 1e10 s is the year 2286 as a Unix time; larger stamps
+#: are epoch milliseconds (1.7e12 today) or nanoseconds (1.7e18), refused with that hint.
+MAX_TIME_S = 1e10
 
 
 class TrackingError(ValueError):
@@ -72,22 +79,41 @@ class TrackingError(ValueError):
     running backwards)."""
 
 
-def _check_points(points: pd.DataFrame) -> bool:
+def _who(source: str) -> str:
+    """The start of a TrackingError: ``track_points`` and, when given, the points' file."""
+    return f"track_points ({source})" if source else "track_points"
+
+
+def _check_points(points: pd.DataFrame, source: str = "") -> bool:
+    who = _who(source)
     if not isinstance(points, pd.DataFrame):
-        raise TrackingError(f"track_points: points must be a pandas DataFrame; found "
+        raise TrackingError(f"{who}: points must be a pandas DataFrame; found "
                             f"{type(points).__name__}")
     missing = [c for c in INPUT_COLUMNS if c not in points.columns]
     if missing:
-        raise TrackingError(f"track_points: points lack column(s) {missing}; expected "
+        raise TrackingError(f"{who}: points lack column(s) {missing}; expected "
                             f"{list(INPUT_COLUMNS)} (+ optional group, velocity_mps); found "
                             f"{list(points.columns)}")
+    for c in ("frame", "time_s"):   # null (NA, None, NaN) before any dtype or order test
+        null = points[c].isna().to_numpy(bool)
+        if null.any():
+            first = points.index[int(np.argmax(null))]
+            raise TrackingError(f"{who}: column {c!r} holds {int(null.sum())} null (missing) "
+                                f"value(s) of {len(null)}, first at row {first!r}; every point "
+                                f"needs its frame id and time")
     if not pd.api.types.is_integer_dtype(points["frame"]):
-        raise TrackingError(f"track_points: column 'frame' must hold integers; found dtype "
+        raise TrackingError(f"{who}: column 'frame' must hold integers; found dtype "
                             f"{points['frame'].dtype}")
     for c in ("time_s", "x_m", "y_m"):
-        _check_numeric(points, c)
-    if not np.isfinite(points["time_s"].to_numpy(float)).all():
-        raise TrackingError("track_points: column 'time_s' holds NaN or infinite values")
+        _check_numeric(points, c, who)
+    t = points["time_s"].to_numpy(float)
+    if not np.isfinite(t).all():
+        raise TrackingError(f"{who}: column 'time_s' holds infinite values")
+    if len(t) and np.abs(t).max() > MAX_TIME_S:
+        big = float(t[int(np.argmax(np.abs(t)))])
+        raise TrackingError(f"{who}: column 'time_s' must be in seconds; found {big!r}, beyond "
+                            f"{MAX_TIME_S:g} s (the year 2286 as a Unix time): epoch "
+                            f"milliseconds (divide by 1e3) or nanoseconds (by 1e9)?")
     xy = points[["x_m", "y_m"]].to_numpy(float)
     if np.isinf(xy).any():
         raise TrackingError("track_points: columns x_m/y_m hold infinite values (NaN marks a "
@@ -98,10 +124,10 @@ def _check_points(points: pd.DataFrame) -> bool:
     return "group" in points.columns
 
 
-def _check_numeric(points: pd.DataFrame, column: str) -> None:
+def _check_numeric(points: pd.DataFrame, column: str, who: str = "track_points") -> None:
     v = points[column]
     if not pd.api.types.is_numeric_dtype(v) or pd.api.types.is_bool_dtype(v):
-        raise TrackingError(f"track_points: column {column!r} must be numeric; found dtype "
+        raise TrackingError(f"{who}: column {column!r} must be numeric; found dtype "
                             f"{v.dtype}")
 
 
@@ -135,6 +161,12 @@ def _check_poses(points: pd.DataFrame, keys: list[str], frames: pd.DataFrame,
                             "one frame; the sensor has one pose per frame")
 
 
+def _check_config(config: TrackerConfig, who: str) -> None:
+    if not isinstance(config, TrackerConfig):
+        raise TrackingError(f"{who}: config: expected a TrackerConfig (the tracker group), "
+                            f"found {type(config).__name__}")
+
+
 def cluster_points(points: pd.DataFrame, config: TrackerConfig) -> pd.DataFrame:
     """Objects of each frame: DBSCAN clusters of its points, as centroids.
 
@@ -155,6 +187,7 @@ def cluster_points(points: pd.DataFrame, config: TrackerConfig) -> pd.DataFrame:
         TrackingError: as :func:`track_points`.
     """
     has_group = _check_points(points)
+    _check_config(config, "cluster_points")
     keys = (["group"] if has_group else []) + ["frame"]
     return _centroids(_labelled(points, keys, config), keys)
 
@@ -166,6 +199,7 @@ def label_objects(points: pd.DataFrame, config: TrackerConfig) -> pd.Series:
     object are what one track row's ``n_points``, ``doppler_mps`` and ``doppler_spread_mps``
     summarise. Raises TrackingError as :func:`track_points`."""
     has_group = _check_points(points)
+    _check_config(config, "label_objects")
     keys = (["group"] if has_group else []) + ["frame"]
     kept = _labelled(points.reset_index(drop=True), keys, config)["_label"]
     out = np.full(len(points), -1, np.int64)
@@ -496,6 +530,8 @@ class _Book:
     track_id: int
     hits: list[bool] = field(default_factory=list)
     confirmed: bool = False
+    born_s: float = 0.0          # time of its first detection (s, the group's clock)
+    last_hit_s: float = 0.0      # time of its last detection
 
 
 def _jpda_posterior(track, multihypothesis, updater):
@@ -559,7 +595,18 @@ def _track_group(labelled: pd.DataFrame, frames: pd.DataFrame, config: TrackerCo
     dop_label = None if by_label is None else by_label.index.to_numpy()
     dop_value = None if by_label is None else by_label["median"].to_numpy(float)
     dop_spread = None if by_label is None else by_label["std"].to_numpy(float)
-    steps = config.max_misses + 1            # UpdateTimeStepsDeleter's time_steps_since_update
+    # Deletion by elapsed time (Stone Soup's UpdateTimeDeleter): a confirmed track silent
+    # longer than max_misses frame periods (plus half a period of timing jitter) is deleted
+    # after a miss, and one silent longer than max_misses + 1 periods (the last frame at which
+    # a frame-count rule could still update it) before it may take a detection; a tentative one
+    # once its confirm_n frames' time has passed. The frame period is the group's median frame
+    # interval, so frames absent from the points count as the empty frames they replace.
+    times = frames["time_s"].to_numpy(float)
+    t0 = float(times[0]) if len(times) else 0.0
+    period = float(np.median(np.diff(times))) if len(times) > 1 else np.inf
+    silent_after_miss_s = (config.max_misses + 0.5) * period
+    silent_before_s = (config.max_misses + 1.5) * period
+    tentative_s = (config.confirm_n - 0.5) * period
     # the field of view's test per frame: the sensor's position, boresight and cos(half width);
     # a full circle deletes nothing (its cos(180 deg) = -1 would, by rounding, right behind)
     fov_cos = (None if config.field_of_view_deg is None or config.field_of_view_deg >= 360.0
@@ -571,7 +618,13 @@ def _track_group(labelled: pd.DataFrame, frames: pd.DataFrame, config: TrackerCo
     m, n = config.confirm_m, config.confirm_n
     for i_frame, (frame, t) in enumerate(zip(frames["frame"].to_numpy(),
                                              frames["time_s"].to_numpy(float))):
-        ts = _EPOCH + dt.timedelta(seconds=float(t))
+        # Stone Soup's timestamps on the group's own clock (from its first frame): any epoch
+        # in seconds stays in datetime's range and keeps its microseconds
+        ts = _EPOCH + dt.timedelta(seconds=float(t) - t0)
+        for track in [tr for tr, book in live.items()
+                      if (t - book.last_hit_s > silent_before_s if book.confirmed
+                          else t - book.born_s > tentative_s)]:
+            del live[track]      # silent too long (no frames at all): never takes a newcomer
         pxy, plabels = by_frame.get(frame, no_points)
         xy, counts = _objects(pxy, plabels) if len(pxy) else (np.empty((0, 2)),
                                                               np.empty(0, np.int64))
@@ -617,21 +670,22 @@ def _track_group(labelled: pd.DataFrame, frames: pd.DataFrame, config: TrackerCo
                 track.append(state)
                 hit_now[track] = hit
         # Track management: M-of-N confirmation, deletion of failed tentatives and of confirmed
-        # tracks that missed more than max_misses frames in a row.
+        # tracks silent for longer than max_misses frame periods.
         for track, hit in hit_now.items():
             book = live[track]
             book.hits.append(hit)
+            if hit:
+                book.last_hit_s = float(t)
             if not book.confirmed:
                 if sum(book.hits[-n:]) >= m:
                     book.confirmed = True
                 elif sum(book.hits) + max(n - len(book.hits), 0) < m or len(book.hits) >= n:
                     del live[track]
                     continue
-            # Stone Soup's UpdateTimeStepsDeleter.check_for_deletion(track), read off the
-            # hit history: a track holds one state per frame (distinct times), an Update with
-            # a detection exactly when hit, so "no such update in the last `steps` states of
-            # a longer track" is this (its walk over the track's states was 9 % of the stage)
-            if book.confirmed and len(book.hits) > steps and not any(book.hits[-steps:]):
+            # Stone Soup's UpdateTimeDeleter.check_for_deletion(track) read off the time of
+            # the last hit (a walk over the track's states was 9 % of the stage); on regular
+            # frames the deletions of UpdateTimeStepsDeleter(max_misses + 1)
+            if book.confirmed and not hit and t - book.last_hit_s > silent_after_miss_s:
                 del live[track]
         if pose is not None:
             coasting = [tr for tr, hit in hit_now.items() if not hit and tr in live]
@@ -646,7 +700,7 @@ def _track_group(labelled: pd.DataFrame, frames: pd.DataFrame, config: TrackerCo
         born = parts.initiator.initiate(detections - used, ts)
         rank = {id(d): i for i, d in enumerate(order)}
         for track in sorted(born, key=lambda tr: rank[id(tr[0].hypothesis.measurement)]):
-            live[track] = _Book(next_id, [True])
+            live[track] = _Book(next_id, [True], born_s=float(t), last_hit_s=float(t))
             next_id += 1
             hit_now[track] = True
             meas_of[track] = track[0].hypothesis.measurement
@@ -707,7 +761,8 @@ def _track_chunk(chunk: list, config: TrackerConfig) -> pd.DataFrame | None:
     return pd.concat(pieces, ignore_index=True) if pieces else None
 
 
-def track_points(points: pd.DataFrame, config: TrackerConfig, jobs: int = 1) -> pd.DataFrame:
+def track_points(points: pd.DataFrame, config: TrackerConfig, jobs: int = 1, *,
+                 source: str = "") -> pd.DataFrame:
     """Tracks of the points of many frames: one row per live track per frame.
 
     Args:
@@ -733,6 +788,7 @@ def track_points(points: pd.DataFrame, config: TrackerConfig, jobs: int = 1) -> 
         config: the tracker group (:class:`~blindspot.track.config.TrackerConfig`).
         jobs: worker processes over the groups (:func:`blindspot.parallel.parallel_map`; the
             result does not depend on it).
+        source: where the points come from (their file), named in every TrackingError.
 
     Returns:
         DataFrame with (``group``), ``frame``, ``time_s``, ``track_id`` (int, unique within a
@@ -749,13 +805,19 @@ def track_points(points: pd.DataFrame, config: TrackerConfig, jobs: int = 1) -> 
         tracks are included (``confirmed`` False): filter on ``confirmed`` for reported tracks.
 
     Raises:
-        TrackingError: a missing column, a non-integer frame, a non-numeric coordinate, a NaN
-            time, or a time that does not increase with the frame within a group; a sensor
+        TrackingError: a missing column, a null frame id or time, a non-integer frame, a
+            non-numeric coordinate, an infinite time or one beyond :data:`MAX_TIME_S` (not
+            seconds: epoch milliseconds or nanoseconds), or a time that does not increase
+            with the frame within a group; a ``config`` that is not a TrackerConfig or
+            ``jobs`` not an integer >= 1; a sensor
             pose column (``sensor_x_m``, ``sensor_y_m``, ``sensor_heading_deg``) without the
             position's other column, non-numeric, non-finite on a frame or taking two values
             within one frame.
     """
-    has_group = _check_points(points)
+    has_group = _check_points(points, source)
+    who = _who(source)
+    _check_config(config, who)
+    check_count(jobs, "jobs", ge=1, error=TrackingError, who=who)
     keys = (["group"] if has_group else []) + ["frame"]
     # the sensor's pose per frame (the field of view needs to know where it looks: only with the
     # heading column)
@@ -770,7 +832,7 @@ def track_points(points: pd.DataFrame, config: TrackerConfig, jobs: int = 1) -> 
     first = (gkey != gkey.shift()).to_numpy()
     if (dtime[~first] <= 0).any():
         bad = frames.loc[np.flatnonzero((dtime <= 0) & ~first)[0]]
-        raise TrackingError(f"track_points: time_s must increase with frame within a group; "
+        raise TrackingError(f"{who}: time_s must increase with frame within a group; "
                             f"found time_s = {bad['time_s']} at frame {bad['frame']}, not after "
                             f"the previous frame's")
     labelled = _labelled(points, keys, config)

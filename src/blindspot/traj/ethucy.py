@@ -86,6 +86,13 @@ TEST_WINDOWS: dict[str, int] = {"eth": 181, "hotel": 1053, "univ": 24334, "zara1
 
 
 BAD_ROWS: tuple[str, ...] = ("raise", "skip")   # what a loader does with a defective row
+#: The largest frame or pedestrian id read as one: 1e8 video frames are 46 days at 25 fps (the
+#: real scenes' ids stay below 2e4). A larger id is a corrupted row, refused before any grid.
+MAX_ID = 10**8
+#: The largest (pedestrian x frame) grid a scene is put on (2e7 cells, 320 MB of positions; the
+#: largest real scene needs 7e5): the frame span comes from the file, so a stray frame id far
+#: from the others is refused naming its row instead of allocating the span.
+MAX_GRID_CELLS = 2 * 10**7
 
 
 class EthUcyDataError(ValueError):
@@ -104,6 +111,8 @@ class SkipReport:
         source: the file.
         rows: data rows read.
         nan_rows: rows with a non-finite value (dropped with ``bad_rows="skip"``).
+        bad_id_rows: rows whose frame or pedestrian id is not a whole number in [0,
+            :data:`MAX_ID`] (dropped with ``bad_rows="skip"``).
         duplicate_rows: repeated (frame, pedestrian) rows dropped (the first in file order kept).
         off_grid_rows: rows whose frame id is off the ``frame_step`` grid (dropped).
         pedestrians: pedestrians left after the row checks.
@@ -120,6 +129,7 @@ class SkipReport:
     source: str
     rows: int = 0
     nan_rows: int = 0
+    bad_id_rows: int = 0
     duplicate_rows: int = 0
     off_grid_rows: int = 0
     pedestrians: int = 0
@@ -134,6 +144,8 @@ class SkipReport:
         """The dropped defective rows in words ('' when none)."""
         parts = [f"{n} {what}" for n, what in (
             (self.nan_rows, "rows with a non-finite value"),
+            (self.bad_id_rows, f"rows with a frame or pedestrian id not a whole number in [0, "
+                               f"{MAX_ID:g}]"),
             (self.duplicate_rows, "repeated (frame, pedestrian) rows"),
             (self.off_grid_rows, "rows with a frame id off the grid")) if n]
         return ", ".join(parts)
@@ -174,7 +186,9 @@ def read_scene(path: str | Path, *, bad_rows: str = "raise") -> np.ndarray:
 
     Raises:
         EthUcyDataError: missing file, wrong column count, non-numeric values, no row, or (with
-            ``bad_rows="raise"``) a non-finite value or a repeated (frame, pedestrian) pair.
+            ``bad_rows="raise"``) a non-finite value, a frame or pedestrian id that is not a
+            whole number in [0, :data:`MAX_ID`] (a corrupted id: named with its data row), or a
+            repeated (frame, pedestrian) pair.
     """
     rows, report = _read_rows(path, bad_rows)
     _warn_defects(report)
@@ -202,7 +216,16 @@ def _read_rows(path: str | Path, bad_rows: str) -> tuple[np.ndarray, SkipReport]
         bad = np.flatnonzero(~finite)
         raise EthUcyDataError(f"{p}: {bad.size} of {n_rows} data rows hold a non-finite value "
                               f"(first: data row {bad[0] + 1}); pass bad_rows='skip' to drop them")
-    rows = rows[finite]
+    ids = rows[:, :2]
+    with np.errstate(invalid="ignore"):
+        bad_id = finite & ~((ids >= 0) & (ids <= MAX_ID) & (ids == np.round(ids))).all(axis=1)
+    if bad_id.any() and bad_rows == "raise":
+        i = int(np.flatnonzero(bad_id)[0])
+        raise EthUcyDataError(f"{p}: data row {i + 1}: frame {rows[i, 0]:g}, pedestrian "
+                              f"{rows[i, 1]:g}: expected ids that are whole numbers in [0, "
+                              f"{MAX_ID:g}] (a corrupted id?); {int(bad_id.sum())} such row(s) "
+                              "in all; pass bad_rows='skip' to drop them")
+    rows = rows[finite & ~bad_id]
     order = np.lexsort((np.arange(rows.shape[0]), rows[:, 1], rows[:, 0]))   # stable: file order
     rows = rows[order]
     dup = np.concatenate([[False], (np.diff(rows[:, 0]) == 0) & (np.diff(rows[:, 1]) == 0)])
@@ -213,9 +236,10 @@ def _read_rows(path: str | Path, bad_rows: str) -> tuple[np.ndarray, SkipReport]
                               "pass bad_rows='skip' to keep the first of each")
     if not rows[~dup].size:
         raise EthUcyDataError(f"{p}: no valid row left of {n_rows} "
-                              f"({int((~finite).sum())} with a non-finite value)")
+                              f"({int((~finite).sum())} with a non-finite value, "
+                              f"{int(bad_id.sum())} with a bad id)")
     report = SkipReport(source=str(p), rows=n_rows, nan_rows=int((~finite).sum()),
-                        duplicate_rows=int(dup.sum()))
+                        bad_id_rows=int(bad_id.sum()), duplicate_rows=int(dup.sum()))
     return rows[~dup], report
 
 
@@ -284,7 +308,8 @@ def scene_tracks(rows: np.ndarray, *, frame_step: int = FRAME_STEP,
 
     Raises:
         EthUcyDataError: rows not shaped (R, 4) or not finite; a frame step inferred from the
-            data (:func:`infer_frame_step`) that is not ``frame_step``; a frame id off the grid.
+            data (:func:`infer_frame_step`) that is not ``frame_step``; a frame id off the grid;
+            frame ids spanning a grid beyond :data:`MAX_GRID_CELLS` (names the farthest row).
     """
     tracks, report = _scene_tracks(rows, frame_step, source, bad_rows)
     _warn_defects(report)
@@ -301,6 +326,12 @@ def _scene_tracks(rows: np.ndarray, frame_step: int, source: str, bad_rows: str,
     report = report if report is not None else SkipReport(source=source, rows=rows.shape[0])
     if rows.shape[0] == 0:
         raise EthUcyDataError(f"{source}: no rows")
+    bad_id = ~((rows[:, :2] >= 0) & (rows[:, :2] <= MAX_ID)).all(axis=1)
+    if bad_id.any():
+        i = int(np.flatnonzero(bad_id)[0])
+        raise EthUcyDataError(f"{source}: row {i}: frame {rows[i, 0]:g}, pedestrian "
+                              f"{rows[i, 1]:g}: expected ids in [0, {MAX_ID:g}] (a corrupted "
+                              f"id?); {int(bad_id.sum())} such row(s) in all")
     step, n_peds, n_pairs, n_all = infer_frame_step(rows)
     # the grid's phase is the most common frame id modulo the step, so one stray first row
     # cannot push every other row off the grid
@@ -328,6 +359,14 @@ def _scene_tracks(rows: np.ndarray, frame_step: int, source: str, bad_rows: str,
         rows, fidx = rows[~off_grid], fidx[~off_grid]
     ped_ids, pidx = np.unique(rows[:, 1], return_inverse=True)
     n_frames = int(fidx.max()) + 1
+    if ped_ids.size * n_frames > MAX_GRID_CELLS:
+        # the row farthest from the scene's median frame: a corrupted id, far off the others
+        far = int(np.argmax(np.abs(fidx - np.median(fidx))))
+        raise EthUcyDataError(
+            f"{source}: frame ids span {n_frames} frames of step {frame_step} for "
+            f"{ped_ids.size} pedestrians, a grid of {ped_ids.size * n_frames:.3g} cells beyond "
+            f"{MAX_GRID_CELLS:.3g}; the farthest row from the others is row {far} (frame "
+            f"{rows[far, 0]:g}, pedestrian {rows[far, 1]:g}): a corrupted frame id?")
     xy = np.full((ped_ids.size, n_frames, 2), np.nan)
     xy[pidx, fidx] = rows[:, 2:4]
     frames = f0 + frame_step * np.arange(n_frames)

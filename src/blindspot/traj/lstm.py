@@ -144,9 +144,11 @@ class LSTMRegressor(nn.Module):
 
 
 def _as_windows(arr: Any, window: int, what: str) -> torch.Tensor:
-    """(B, window, 2) finite real windows as float32; HistoryError naming ``what`` otherwise."""
+    """(B, window, 2) finite real windows as float64 (positions far from the origin keep their
+    centimetres: :class:`NormStats` translates before the network's float32); HistoryError
+    naming ``what`` otherwise."""
     arr = check_array(arr, what, ("B", window, 2), error=HistoryError, who="lstm")
-    return torch.as_tensor(arr.astype(np.float32))
+    return torch.from_numpy(np.ascontiguousarray(arr, dtype=np.float64))
 
 
 def fill_history(history: np.ndarray) -> np.ndarray:
@@ -240,14 +242,20 @@ class LSTMPredictor:
         return out
 
     def _rows(self, x: torch.Tensor) -> torch.Tensor:
+        # translate (encode) and put back (decode) in float64, the network alone in float32:
+        # a float32 position 5e6 m from the origin (UTM) is only good to 0.5 m
+        x = x.double()
         with torch.inference_mode():
-            out = [st.decode(x, m(st.encode(x))) for m, st in self.members]
+            out = [st.decode(x, m(st.encode(x).float()).double()) for m, st in self.members]
             return out[0] if len(out) == 1 else torch.stack(out).mean(dim=0)
 
     def step(self, x: torch.Tensor) -> torch.Tensor:
-        """(B, W, 2) float32 windows in metres -> (B, 2) next points in metres (torch, no grad);
-        the mean over the members. The rows run as blocks of :data:`BLOCK_ROWS` (a Python loop
-        over blocks, not rows), on ``workers`` threads when there are several blocks."""
+        """(B, W, 2) windows in metres -> (B, 2) float64 next points in metres (torch, no
+        grad); the mean over the members. Windows are translated in float64 before the
+        network's float32 (:class:`NormStats`), so a walk far from the origin (UTM coordinates)
+        is predicted as the same walk near it. The rows run as blocks of :data:`BLOCK_ROWS` (a
+        Python loop over blocks, not rows), on ``workers`` threads when there are several
+        blocks."""
         blocks = torch.split(x, BLOCK_ROWS)
         if len(blocks) <= 1:
             return self._rows(x)
@@ -279,7 +287,7 @@ class LSTMPredictor:
         Raises HistoryError when ``windows`` is not a finite real (B, W, 2) array (fill gaps
         first: :func:`blindspot.traj.windows.interpolate_gaps`)."""
         x = _as_windows(windows, self.window, "windows")   # no NaN: fill gaps first
-        return self.step(x).double().numpy()
+        return self.step(x).numpy()
 
     def predict(self, history: np.ndarray, horizon: int) -> np.ndarray:
         """Autoregressive rollout for a batch: predict, append, slide, ``horizon`` times.
@@ -289,23 +297,24 @@ class LSTMPredictor:
 
         Args:
             history: (B, T, 2) observed points in metres, T >= W.
-            horizon: number of future points, >= 0.
+            horizon: number of future points, >= 1 (as every predictor's).
 
         Returns:
             (B, horizon, 2) float64 predicted points.
 
         Raises:
             HistoryError: ``history`` not real (B, T >= W, 2) (NaN rows allowed, inf not),
-                ``horizon`` not an integer >= 0; ValueError from :func:`fill_history`.
+                ``horizon`` not an integer >= 1; ValueError from :func:`fill_history`.
         """
         history = check_array(history, "history", ("B", "T", 2), error=HistoryError,
                               who="lstm.predict", allow_nan=True)
         if history.shape[1] < self.window:
             raise HistoryError(f"lstm.predict: history needs at least window={self.window} "
                                f"points, found T={history.shape[1]}")
-        horizon = check_count(horizon, "horizon", error=HistoryError, who="lstm.predict")
-        x = torch.from_numpy(fill_history(history)[:, -self.window :].astype(np.float32))
-        out = torch.empty((x.shape[0], int(horizon), 2), dtype=torch.float32)
+        horizon = check_count(horizon, "horizon", ge=1, error=HistoryError, who="lstm.predict")
+        x = torch.from_numpy(np.ascontiguousarray(fill_history(history)[:, -self.window:],
+                                                  dtype=np.float64))
+        out = torch.empty((x.shape[0], int(horizon), 2), dtype=torch.float64)
         with self._single_threaded(x.shape[0]):
             for k in range(int(horizon)):  # one batched network call per future step
                 nxt = self.step(x)

@@ -12,7 +12,7 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
-from blindspot.arrays import check_array, check_count
+from blindspot.arrays import check_array, check_count, check_number
 
 __all__ = [
     "PathPredictor",
@@ -119,8 +119,8 @@ def heading_frame(windows: np.ndarray, speed_floor: float | None = None
     c, s = np.cos(theta), np.sin(theta)
     rot = np.stack([np.stack([c, s], axis=-1), np.stack([-s, c], axis=-1)], axis=-2)
     if speed_floor is not None:
-        if not speed_floor > 0:
-            raise ValueError(f"speed_floor: expected a positive length in m, found {speed_floor!r}")
+        check_number(speed_floor, "speed_floor", gt=0.0, unit="m (per frame)",
+                     who="heading_frame")
         scale = np.maximum(np.hypot(step[:, 0], step[:, 1]), speed_floor)
         rot = rot / scale[:, None, None]
     return origin, rot
@@ -317,11 +317,10 @@ class ConstantVelocityTail:
     """
 
     def __init__(self, base, max_horizon: int) -> None:
-        if int(max_horizon) < 2:
-            raise ValueError(f"ConstantVelocityTail: max_horizon must be >= 2 frames (a last "
-                             f"step to carry on), found {max_horizon}")
+        # >= 2 frames: a last step to carry on
+        self.max_horizon = check_count(max_horizon, "max_horizon", ge=2,
+                                       who="ConstantVelocityTail")
         self.base = base
-        self.max_horizon = int(max_horizon)
         self.name = getattr(base, "name", type(base).__name__)
 
     @property
@@ -331,8 +330,11 @@ class ConstantVelocityTail:
 
     def predict(self, history: np.ndarray, horizon: int) -> np.ndarray:
         """(B, T, 2) history -> (B, horizon, 2) metres; any ``horizon`` >= 1. Raises what the
-        base model raises for a malformed history (e.g. HistoryError)."""
-        n = min(int(horizon), self.max_horizon)
+        base model raises for a malformed history (e.g. HistoryError); HistoryError naming
+        ``horizon`` when it is not an integer >= 1."""
+        horizon = check_count(horizon, "horizon", ge=1, error=HistoryError,
+                              who=f"{self.name}.predict")
+        n = min(horizon, self.max_horizon)
         pred = np.asarray(self.base.predict(history, n), float)
         if horizon <= n:
             return pred

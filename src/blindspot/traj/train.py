@@ -38,7 +38,7 @@ from torch import nn
 from tqdm.auto import tqdm
 
 from blindspot.arrays import check_array
-from blindspot.io import atomic_path
+from blindspot.io import atomic_path, write_now
 from blindspot.traj.config import LSTMConfig, TrainConfig
 from blindspot.traj.lstm import LSTMPredictor, LSTMRegressor, NormStats
 from blindspot.traj.metrics import MetricShapeError, ade, fde
@@ -191,8 +191,9 @@ def _resume_key(model_cfg: LSTMConfig, train_cfg: TrainConfig, fingerprint: str,
 def _atomic_torch_save(obj: Any, path: Path) -> None:
     # io.atomic_path's temporary file has the target's own name (in a hidden folder): torch
     # names the archive's records after the file, so a random temporary name would change the
-    # checkpoint's bytes on every save
-    with atomic_path(path) as tmp:
+    # checkpoint's bytes on every save. Written at once even inside the stage runner's
+    # io.all_or_none: the resume checkpoint must outlive a killed run
+    with write_now(), atomic_path(path) as tmp:
         torch.save(obj, tmp)
 
 
@@ -379,9 +380,11 @@ def _train(
         rows = [dict(r) for r in ck["history"]]
         first_epoch = int(ck["epoch"])
 
-    x = torch.from_numpy(train.x)
-    u_all = stats.encode(x)
-    t_all = stats.encode_target(x, torch.from_numpy(train.y))
+    # translate in float64, then float32 for the network (a float32 UTM position is only good
+    # to 0.5 m): training sees what inference feeds it (LSTMPredictor.step)
+    x = torch.from_numpy(train.x.astype(np.float64))
+    u_all = stats.encode(x).float()
+    t_all = stats.encode_target(x, torch.from_numpy(train.y.astype(np.float64))).float()
     n = len(train)
     n_batches = math.ceil(n / cfg.batch_size)
     loss_fn = nn.MSELoss()

@@ -2,7 +2,8 @@
 
 A path of T points gives ``T - W`` window/response pairs at stride 1 (200 points, W = 50: 150
 pairs), ``ceil((T - W) / stride)`` at a larger stride. Windows are views built with
-``numpy.lib.stride_tricks.sliding_window_view`` and copied once into float32 arrays.
+``numpy.lib.stride_tricks.sliding_window_view`` and copied once into float32 arrays (float64
+far from the origin: :data:`FLOAT32_EXACT_M`).
 
 Missing points (NaN rows: no detection in that frame) are never invented here: a window whose
 W inputs or target contain a NaN is dropped (``nan_policy="drop"``, the default) or refused
@@ -39,13 +40,27 @@ class WindowError(ValueError):
     the expected and the found shape, dtype or value)."""
 
 
+#: The largest |coordinate| (m) windows are stored as float32 for: float32's spacing there is
+#: 1 mm; farther from the origin (UTM: 5e5, 5e6 m) they stay float64.
+FLOAT32_EXACT_M = 1e4
+
+
+def _storage_dtype(*arrays: np.ndarray) -> type:
+    """float32 for coordinates within :data:`FLOAT32_EXACT_M` of the origin, else float64."""
+    far = any(a.size and float(np.abs(a).max()) > FLOAT32_EXACT_M for a in arrays)
+    return np.float64 if far else np.float32
+
+
 @dataclass(frozen=True)
 class WindowSet:
     """Window/response pairs.
 
     Attributes:
-        x: (N, W, 2) float32 input windows of (x, y) points in metres, oldest first.
-        y: (N, 2) float32 response: the point right after each window.
+        x: (N, W, 2) float32 input windows of (x, y) points in metres, oldest first; float64
+            when a coordinate lies beyond :data:`FLOAT32_EXACT_M` of the origin (projected
+            coordinates such as UTM, where float32 would round positions to decimetres before
+            any model translates them).
+        y: (N, 2) response of the same dtype: the point right after each window.
         path_id: (N,) int64 id of the path each window came from.
         start: (N,) int64 index (within its path) of each window's first point, or None.
 
@@ -65,8 +80,9 @@ class WindowSet:
         y = check_array(self.y, "WindowSet.y", (n, 2), error=WindowError, who=who)
         pid = check_array(self.path_id, "WindowSet.path_id", (n,), error=WindowError, who=who,
                           dtype=int)
-        object.__setattr__(self, "x", x.astype(np.float32, copy=False))
-        object.__setattr__(self, "y", y.astype(np.float32, copy=False))
+        dtype = _storage_dtype(x, y)
+        object.__setattr__(self, "x", x.astype(dtype, copy=False))
+        object.__setattr__(self, "y", y.astype(dtype, copy=False))
         object.__setattr__(self, "path_id", pid)
         if self.start is not None:
             st = check_array(self.start, "WindowSet.start", (n,), error=WindowError, who=who,
@@ -113,15 +129,15 @@ class WindowSet:
                               " so their futures cannot be located in their paths")
         n, w = len(self), self.window
         if n == 0:
-            return np.zeros(0, dtype=np.int64), np.zeros((0, horizon, 2), dtype=np.float32)
+            return np.zeros(0, dtype=np.int64), np.zeros((0, horizon, 2), dtype=self.x.dtype)
         paths, row = np.unique(self.path_id, return_inverse=True)
         length = int(self.start.max()) + w + 1
-        known = np.full((len(paths), length, 2), np.nan, dtype=np.float32)
+        known = np.full((len(paths), length, 2), np.nan, dtype=self.x.dtype)
         idx = self.start[:, None] + np.arange(w + 1)                        # (N, W+1)
         known[row[:, None], idx] = np.concatenate([self.x, self.y[:, None]], axis=1)
         ahead = self.start[:, None] + w + np.arange(horizon)                # (N, H)
         inside = (ahead < length).all(axis=1)
-        future = np.full((n, horizon, 2), np.nan, dtype=np.float32)
+        future = np.full((n, horizon, 2), np.nan, dtype=self.x.dtype)
         future[inside] = known[row[inside, None], ahead[inside]]
         keep = np.flatnonzero(np.isfinite(future).all(axis=(1, 2)))
         return keep, future[keep]
@@ -130,8 +146,9 @@ class WindowSet:
         """Write to Parquet (temporary name in the same folder, then renamed into place).
 
         Columns: ``path_id`` int64, ``start`` int64 (-1 when unknown), ``x`` list<float32> of the
-        window flattened as x0, y0, x1, y1, ..., ``y`` list<float32> [x, y]; the window length is
-        stored in the schema metadata.
+        window flattened as x0, y0, x1, y1, ..., ``y`` list<float32> [x, y] (list<double> for
+        windows far from the origin, as ``x``'s dtype); the window length is stored in the
+        schema metadata.
         """
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
@@ -162,7 +179,7 @@ class WindowSet:
 
         def flat(name: str, width: int) -> np.ndarray:
             col = table.column(name).combine_chunks()
-            values = np.asarray(col.flatten(), dtype=np.float32)
+            values = np.asarray(col.flatten())      # float32, or float64 far from the origin
             if values.size != n * width:
                 raise ValueError(f"{path}: column {name!r} holds {values.size} values, expected {n} x {width}")
             return values
@@ -236,7 +253,8 @@ def make_windows(
     # (P, T-W, 2, W+1) view -> every stride-th start -> (P, K, W+1, 2)
     view = np.lib.stride_tricks.sliding_window_view(paths, window + 1, axis=1)[:, ::stride]
     k = view.shape[1]
-    pairs = np.ascontiguousarray(view.transpose(0, 1, 3, 2), dtype=np.float32).reshape(n_paths * k, window + 1, 2)
+    pairs = np.ascontiguousarray(view.transpose(0, 1, 3, 2), dtype=_storage_dtype(paths)).reshape(
+        n_paths * k, window + 1, 2)
     pid = np.repeat(ids, k)
     start = np.tile(np.arange(0, n_points - window, stride), n_paths)
     finite = np.isfinite(pairs).all(axis=(1, 2))
