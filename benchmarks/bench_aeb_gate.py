@@ -44,7 +44,8 @@ import numpy as np
 import pandas as pd
 from omegaconf import OmegaConf
 
-from blindspot import experiment
+from blindspot.radar.scene import load_scenarios
+from blindspot.safety.config import WarningConfig
 from blindspot.io import write_json
 from blindspot.safety.assess import frame_risks, outcome_table
 from blindspot.safety.braking import BrakingModel
@@ -117,8 +118,8 @@ def load_inputs(data: Path, input_name: str):
     DATA/driving/truth.parquet (every set), DATA/driving/scenes.json, the safety stage's risk
     rows of ``input_name``)."""
     cfg = OmegaConf.load(REPO / "params.yaml")
-    w = experiment.warning(cfg)
-    group, _ = experiment.scenarios(cfg)
+    w = WarningConfig.from_cfg(cfg)
+    group, _ = load_scenarios(cfg.scenario)
     bodies = body_boxes(group)
     shape = EgoShape(group.ego.width_m, group.ego.length_m)
     truth = pd.read_parquet(data / "driving/truth.parquet")

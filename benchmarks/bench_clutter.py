@@ -55,7 +55,7 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(REPO / "benchmarks"), str(REPO / "stages")]
 
 from bench_aeb_gate import half_results, load_inputs, outcome_setup, trigger_causes  # noqa: E402
-from blindspot import experiment  # noqa: E402
+from blindspot.track.config import TrackerConfig  # noqa: E402
 from blindspot.io import write_json  # noqa: E402
 from blindspot.safety.assess import frame_risks  # noqa: E402
 from blindspot.safety.evaluation import (aeb_gate_s, replicate_half,  # noqa: E402
@@ -113,7 +113,7 @@ def main(argv: list[str]) -> None:
     points = pd.read_parquet(args.data / "driving/points.parquet")
 
     from blindspot.synth.driving_tracks import confusion, track_labels
-    labels = track_labels(tracks, points, experiment.tracker(cfg).cluster_eps_m)
+    labels = track_labels(tracks, points, TrackerConfig.from_cfg(cfg).cluster_eps_m)
 
     ego = (truth_all.groupby(["scene", "frame"], as_index=False)[["ego_x_m", "ego_y_m"]]
            .first().rename(columns={"scene": "group"}))

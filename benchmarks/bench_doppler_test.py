@@ -67,35 +67,41 @@ REFERENCES = ("frame", "current")
 def calibrated(cfg, name: str, data: Path):
     """The safety stage's calibrated predictor ``name`` (constant_velocity, kalman or
     lstm_direct), its history backfilled as the stage does."""
-    from blindspot import experiment
+    from blindspot.radar.config import RadarConfig
+    from blindspot.safety.config import WarningConfig
+    from blindspot.traj.baselines import kalman_baseline
+    from blindspot.traj.config import EvalConfig
     from blindspot.traj.baselines import ConstantVelocity
     from blindspot.traj.seq2seq import Seq2SeqEnsemble
 
-    ev = experiment.evaluation(cfg)
+    ev = EvalConfig.from_cfg(cfg)
     made = {"constant_velocity": lambda: ConstantVelocity(k=ev.cv_fit_points,
                                                           name="constant_velocity"),
-            "kalman": lambda: experiment.kalman(cfg),
+            "kalman": lambda: kalman_baseline(EvalConfig.from_cfg(cfg), RadarConfig.from_cfg(cfg).frame_period_s),
             "lstm_direct": lambda: Seq2SeqEnsemble.load(data / "train_direct/model.pt")}
     if name not in made:
         raise SystemExit(f"--predictors: {name!r} is not one of {sorted(made)}")
     point = made[name]()
     record = json.loads((data / "calibration/models.json").read_text())[name]
     return with_backfill(from_record(record, point, name), point,
-                         experiment.warning(cfg).lstm_history)
+                         WarningConfig.from_cfg(cfg).lstm_history)
 
 
 def moving_test_inputs(cfg, data: Path, truth_all: pd.DataFrame):
     """What a moving-test sweep reads besides :func:`bench_aeb_gate.load_inputs`: (the
     Monte-Carlo truth, the driving frame period in s, DATA/driving/tracks.parquet sorted by
     group, track and frame, DATA/driving/points.parquet, the ego's pose per group and frame)."""
-    from blindspot import experiment
+    from blindspot.radar.config import RadarConfig
+    from blindspot.safety.config import WarningConfig
+    from blindspot.traj.baselines import kalman_baseline
+    from blindspot.traj.config import EvalConfig
 
     tracks = pd.read_parquet(data / "driving/tracks.parquet")
     ego = (truth_all.groupby(["scene", "frame"], as_index=False)
            [["ego_x_m", "ego_y_m", "ego_yaw_deg", "ego_speed_mps"]].first()
            .rename(columns={"scene": "group"}))
     return (truth_all[truth_all.set == "monte_carlo"],
-            float(experiment.driving_radar(cfg).frame_period_s),
+            float(RadarConfig.from_cfg(cfg, "driving_radar").frame_period_s),
             tracks.sort_values(["group", "track_id", "frame"]).reset_index(drop=True),
             pd.read_parquet(data / "driving/points.parquet"), ego)
 
@@ -142,7 +148,10 @@ def main(argv: list[str]) -> None:
     if len(spread) != 2 or not 0 < spread[0] < spread[1]:
         ap.error(f"--spread: expected static,walker with 0 < static < walker, found "
                  f"{args.spread!r}")
-    from blindspot import experiment
+    from blindspot.radar.config import RadarConfig
+    from blindspot.safety.config import WarningConfig
+    from blindspot.traj.baselines import kalman_baseline
+    from blindspot.traj.config import EvalConfig
 
     cfg, w, _, bodies, shape, truth_all, meta, _ = load_inputs(args.data, "tracker")
     truth, dt, tracks, points, ego = moving_test_inputs(cfg, args.data, truth_all)

@@ -41,7 +41,8 @@ from omegaconf import OmegaConf
 REPO = Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(REPO / "stages")]
 
-from blindspot import experiment  # noqa: E402
+from blindspot.safety.config import WarningConfig  # noqa: E402
+from blindspot.track.config import TrackerConfig  # noqa: E402
 from blindspot.track.moving import (doppler_evidence, doppler_log_ratio,  # noqa: E402
                                     doppler_spread_log_ratio, last_hit_rows, static_evidence,
                                     velocity_chi2)
@@ -119,12 +120,12 @@ def main(argv: list[str]) -> None:
     from blindspot.synth.driving_tracks import track_labels
 
     cfg = OmegaConf.load(REPO / "params.yaml")
-    w = experiment.warning(cfg)
+    w = WarningConfig.from_cfg(cfg)
     d = args.data
     tracks = pd.read_parquet(d / "driving/tracks.parquet")
     points = pd.read_parquet(d / "driving/points.parquet")
     truth = pd.read_parquet(d / "driving/truth.parquet")
-    labels = track_labels(tracks, points, experiment.tracker(cfg).cluster_eps_m)
+    labels = track_labels(tracks, points, TrackerConfig.from_cfg(cfg).cluster_eps_m)
     ego = (truth.groupby(["scene", "frame"], as_index=False)[["ego_x_m", "ego_y_m"]].first()
            .rename(columns={"scene": "group"}))
     pd.set_option("display.width", 250)

@@ -90,8 +90,8 @@ def main() -> None:
     from blindspot.traj.windows import WindowSet
 
     cfg = config.compose([], config_dir=REPO / "conf")
-    model_cfg, train_cfg = experiment.model(cfg), experiment.training(cfg)
-    dt = experiment.radar(cfg).frame_period_s
+    model_cfg, train_cfg = LSTMConfig.from_cfg(cfg), TrainConfig.from_cfg(cfg)
+    dt = RadarConfig.from_cfg(cfg).frame_period_s
     horizon = train_cfg.val_horizon_frames
     split = {s: WindowSet.load(Path(args.windows) / f"{s}.parquet")
              for s in ("train", "val", "test")}
@@ -155,20 +155,22 @@ def main() -> None:
 
 def _walk_benchmark(cfg, ensembles: dict, n_walks: int) -> dict:
     """The benchmark stage's walks and scoring with these ensembles as the predictors."""
-    from blindspot import experiment
+    from blindspot.radar.config import RadarConfig
+    from blindspot.traj.baselines import kalman_baseline
+    from blindspot.traj.config import EvalConfig, LSTMConfig, TrainConfig
     from benchmark import measured_walks      # the benchmark stage's walks
     from blindspot.synth.walk_scores import score_scene_walks
     from blindspot.traj.bootstrap import bootstrap_means, paired_differences
 
     bench = replace(experiment.benchmark(cfg), n_walks=n_walks)
-    ev = experiment.evaluation(cfg)
-    radar = experiment.radar(cfg)
+    ev = EvalConfig.from_cfg(cfg)
+    radar = RadarConfig.from_cfg(cfg)
     walks, measured = measured_walks(cfg, bench, seed=int(cfg.seed), jobs=int(cfg.jobs))
     gap = ensembles.get("scratch@1", next(iter(ensembles.values())))   # the train stage's kind
     scores, _ = score_scene_walks(
         walks, measured, predictors=ensembles, interpolation_methods=ev.interpolation_methods,
         prediction_input=ev.prediction_input, gap_predictor=gap,
-        smoother=experiment.kalman(cfg).smooth_batch, horizon=bench.horizon_frames,
+        smoother=kalman_baseline(EvalConfig.from_cfg(cfg), RadarConfig.from_cfg(cfg).frame_period_s).smooth_batch, horizon=bench.horizon_frames,
         dt_s=radar.frame_period_s, horizons_s=ev.horizons_s, threads=bench.threads)
     boot = dict(n_boot=bench.n_bootstrap, level=bench.ci_level, seed=int(cfg.seed))
     fractions = sorted({n.split("@")[1] for n in ensembles})

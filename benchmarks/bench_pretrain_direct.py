@@ -126,9 +126,9 @@ def main() -> None:
     from blindspot.traj.windows import WindowSet
 
     cfg = config.compose([], config_dir=REPO / "conf")
-    d = experiment.direct(cfg)
+    d = DirectConfig.from_cfg(cfg)
     m = d.model
-    dt = experiment.dataset(cfg).frame_period_s
+    dt = DatasetConfig.from_cfg(cfg).frame_period_s
     seed = int(cfg.seed)
     data = Path(args.data)
     truth, measured, _ = table_to_arrays(pd.read_parquet(data / "paths" / "paths.parquet"))
@@ -152,7 +152,7 @@ def main() -> None:
           f"epochs {[r.best_epoch for r in pre_rep]}")
 
     models: dict = {"constant_velocity": ConstantVelocity(
-        k=experiment.evaluation(cfg).cv_fit_points, name="constant_velocity"), "ethucy": pre}
+        k=EvalConfig.from_cfg(cfg).cv_fit_points, name="constant_velocity"), "ethucy": pre}
     n_pairs = {}
     for fraction in args.fractions:
         train_ids = _path_subset(ids["train"], fraction, seed)
@@ -175,7 +175,7 @@ def main() -> None:
 
     steps = {f"{s:g}s": min(int(round(s / dt)), m.horizon) for s in STEPS_S}
     hist, fut, path, _ = path_pairs(measured[ids["test"]], truth[ids["test"]], m.obs_len,
-                                    max(steps.values()), experiment.calibration(cfg).stride,
+                                    max(steps.values()), CalibrationConfig.from_cfg(cfg).stride,
                                     with_index=True)
     with torch_threads(1):
         scores = {name: per_path_scores(model, hist, fut, path, steps)
@@ -233,7 +233,10 @@ def scene_walk_scores(cfg, models: dict, data: Path, n_walks: int | None,
     """
     from dataclasses import replace
 
-    from blindspot import experiment
+    from blindspot.radar.config import RadarConfig
+    from blindspot.traj.baselines import kalman_baseline
+    from blindspot.traj.config import CalibrationConfig, DatasetConfig, DirectConfig, EvalConfig
+    from blindspot.typed_config import jobs
     from benchmark import measured_walks      # the benchmark stage's walks
     from blindspot.synth.walk_scores import score_scene_walks
     from blindspot.traj.bootstrap import bootstrap_means, paired_differences
@@ -246,21 +249,21 @@ def scene_walk_scores(cfg, models: dict, data: Path, n_walks: int | None,
     bench = experiment.benchmark(cfg)
     if n_walks is not None:
         bench = replace(bench, n_walks=int(n_walks))
-    ev = experiment.evaluation(cfg)
-    radar = experiment.radar(cfg)
+    ev = EvalConfig.from_cfg(cfg)
+    radar = RadarConfig.from_cfg(cfg)
     seed = int(cfg.seed) if walk_seed is None else int(walk_seed)
-    walks, measured = measured_walks(cfg, bench, seed=seed, jobs=experiment.jobs(cfg))
+    walks, measured = measured_walks(cfg, bench, seed=seed, jobs=jobs(cfg))
     lstm = LSTMPredictor.load(data / "train" / "model.pt")
     tailed = {n: (ConstantVelocityTail(m, m.cfg.horizon) if isinstance(m, Seq2SeqEnsemble)
                   else m) for n, m in models.items()}
-    tailed["kalman"] = experiment.kalman(cfg)
+    tailed["kalman"] = kalman_baseline(EvalConfig.from_cfg(cfg), RadarConfig.from_cfg(cfg).frame_period_s)
     pairs = list(dict.fromkeys([*pairs, *((n, b) for n in models if n != "constant_velocity"
                                           for b in ("constant_velocity", "kalman"))]))
     out = {}
     for fill in dict.fromkeys((ev.prediction_input, "kalman")):
         scores, _ = score_scene_walks(
             walks, measured, predictors=tailed, interpolation_methods=(), prediction_input=fill,
-            gap_predictor=lstm, smoother=experiment.kalman(cfg).smooth_batch,
+            gap_predictor=lstm, smoother=kalman_baseline(EvalConfig.from_cfg(cfg), RadarConfig.from_cfg(cfg).frame_period_s).smooth_batch,
             horizon=bench.horizon_frames, dt_s=radar.frame_period_s, horizons_s=ev.horizons_s,
             threads=1)
         means = bootstrap_means(scores, **boot)

@@ -145,12 +145,12 @@ def bench_seq2seq(repeats: int, n_train: int = 3000, epochs: int = 3) -> None:
 
     from omegaconf import OmegaConf
 
-    from blindspot import experiment
     from blindspot.traj import seq2seq
+    from blindspot.traj.config import EthUcyConfig
     from blindspot.traj.ethucy_protocol import EthUcySettings
 
     old = module_at_base("src/blindspot/traj/seq2seq.py", "seq2seq_base")
-    settings = EthUcySettings.from_config(experiment.ethucy(OmegaConf.load(ROOT / "params.yaml")),
+    settings = EthUcySettings.from_config(EthUcyConfig.from_cfg(OmegaConf.load(ROOT / "params.yaml")),
                                           shared_dir=default_data_dir().parents[1], seed=0)
     data = default_data_dir()
     for cell in ("mlp", "lstm"):
@@ -177,11 +177,11 @@ def bench_track(data: Path, every: int, repeats: int) -> None:
     import pandas as pd
     from omegaconf import OmegaConf
 
-    from blindspot import experiment
     from blindspot.track import tracker
+    from blindspot.track.config import TrackerConfig
 
     old = module_at_base("src/blindspot/track/tracker.py", "tracker_base")
-    cfg = experiment.tracker(OmegaConf.load(ROOT / "params.yaml"))
+    cfg = TrackerConfig.from_cfg(OmegaConf.load(ROOT / "params.yaml"))
     truth = pd.read_parquet(data / "driving" / "truth.parquet")
     points = pd.read_parquet(data / "driving" / "points.parquet")
     scenes = sorted(truth.scene.unique())[::every]

@@ -31,7 +31,10 @@ def main() -> None:
                     help="LSTM checkpoint (default data/train/model.pt)")
     args = ap.parse_args()
 
-    from blindspot import config, experiment
+    from blindspot import config
+    from blindspot.radar.config import RadarConfig
+    from blindspot.traj.baselines import kalman_baseline, prediction_methods
+    from blindspot.traj.config import EvalConfig
     from benchmark import measured_walks      # the benchmark stage's walks
     from blindspot.synth.walk_scores import score_scene_walks
     from blindspot.traj.lstm import LSTMPredictor
@@ -39,16 +42,16 @@ def main() -> None:
     cfg = config.compose([], config_dir=REPO / "conf")
     full = experiment.benchmark(cfg)
     bench = replace(full, n_walks=args.walks)
-    ev = experiment.evaluation(cfg)
-    radar = experiment.radar(cfg)
+    ev = EvalConfig.from_cfg(cfg)
+    radar = RadarConfig.from_cfg(cfg)
     t0 = time.perf_counter()
     walks, measured = measured_walks(cfg, bench, seed=0, jobs=args.jobs)
     t1 = time.perf_counter()
     lstm = LSTMPredictor.load(args.model)
-    score_scene_walks(walks, measured, predictors=experiment.predictors(cfg, lstm),
+    score_scene_walks(walks, measured, predictors=prediction_methods(EvalConfig.from_cfg(cfg), RadarConfig.from_cfg(cfg).frame_period_s, lstm),
                       interpolation_methods=ev.interpolation_methods,
                       prediction_input=ev.prediction_input, gap_predictor=lstm,
-                      smoother=experiment.kalman(cfg).smooth_batch,
+                      smoother=kalman_baseline(EvalConfig.from_cfg(cfg), RadarConfig.from_cfg(cfg).frame_period_s).smooth_batch,
                       horizon=bench.horizon_frames, dt_s=radar.frame_period_s,
                       horizons_s=ev.horizons_s, threads=bench.threads)
     t2 = time.perf_counter()

@@ -19,7 +19,10 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from blindspot import experiment
+from blindspot.radar.config import RadarConfig
+from blindspot.traj.baselines import prediction_methods
+from blindspot.traj.config import CalibrationConfig, DatasetConfig, EvalConfig
+from blindspot.typed_config import jobs
 from blindspot.cli import main_stage
 from blindspot.io import atomic_open, write_json
 from blindspot.stage import StageResult
@@ -38,20 +41,20 @@ def run(cfg, ctx):
     import torch
 
     torch.set_num_threads(1)      # a 64-unit LSTM on a few hundred windows: one thread is fastest
-    c = experiment.calibration(cfg)
-    window = experiment.dataset(cfg).window
+    c = CalibrationConfig.from_cfg(cfg)
+    window = DatasetConfig.from_cfg(cfg).window
     truth, measured, _ = table_to_arrays(pd.read_parquet(ctx.dep("paths.parquet")))
     # held out ("test"): every path neither trained nor validated on
     ids = path_splits(len(truth), *(WindowSet.load(ctx.dep(f"{split}.parquet"))
                                     for split in ("train", "val")))
     pairs = {split: path_pairs(measured[ids[split]], truth[ids[split]], window, c.horizon_frames,
                                c.stride, with_index=split == "test") for split in ("val", "test")}
-    lstm = LSTMPredictor.load(ctx.dep("train/model.pt")).with_workers(experiment.jobs(cfg))
-    predictors = {**experiment.predictors(cfg, lstm),
+    lstm = LSTMPredictor.load(ctx.dep("train/model.pt")).with_workers(jobs(cfg))
+    predictors = {**prediction_methods(EvalConfig.from_cfg(cfg), RadarConfig.from_cfg(cfg).frame_period_s, lstm),
                   DIRECT: Seq2SeqEnsemble.load(ctx.dep("train_direct/model.pt"))}
     calibrated = calibrate(predictors, *pairs["val"],
                            scale_method=c.scale_method, scale_level=c.scale_level,
-                           cv_fit_points=experiment.evaluation(cfg).cv_fit_points)
+                           cv_fit_points=EvalConfig.from_cfg(cfg).cv_fit_points)
     online = AdaptiveConformal(LEVELS, c.online_gamma, c.online_window,
                                c.online_rescale_after)
     # each calibrated predictor's scores on the validation pairs: where the adaptive conformal

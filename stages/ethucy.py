@@ -13,7 +13,7 @@ and the page reports/ethucy.md.
 import blindspot  # noqa: F401  first: pins the CPU kernels before numpy loads (blindspot.kernels)
 from dataclasses import asdict
 
-from blindspot import experiment
+from blindspot.traj.config import EthUcyConfig
 from blindspot.cli import main_stage
 from blindspot.config import shared_dir
 from blindspot.io import save_figure, write_json, write_text
@@ -24,7 +24,7 @@ from blindspot.traj.ethucy_protocol import EthUcySettings, calibration_table, ru
 
 
 def run(cfg, ctx):
-    settings = EthUcySettings.from_config(experiment.ethucy(cfg), shared_dir=shared_dir(cfg),
+    settings = EthUcySettings.from_config(EthUcyConfig.from_cfg(cfg), shared_dir=shared_dir(cfg),
                                           seed=int(cfg.seed))
     bench = run_benchmark(settings, progress=bool(cfg.progress), jobs=int(cfg.jobs))
     write_json(ctx.out("ethucy.json"), bench.results)

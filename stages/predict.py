@@ -15,7 +15,12 @@ from functools import partial
 import numpy as np
 import pandas as pd
 
-from blindspot import experiment
+from blindspot.radar.config import RadarConfig
+from blindspot.radar.scene import load_scenes
+from blindspot.traj.baselines import kalman_baseline, prediction_methods
+from blindspot.traj.config import EvalConfig
+from blindspot.traj.interpolation import scene_track
+from blindspot.typed_config import jobs
 from blindspot.cli import main_stage
 from blindspot.io import write_parquet
 from blindspot.stage import StageResult
@@ -45,17 +50,17 @@ def _once_per_history(fill):
 
 def run(cfg, ctx):
     points = pd.read_parquet(ctx.dep("points.parquet"))
-    lstm = LSTMPredictor.load(ctx.dep("model.pt")).with_workers(experiment.jobs(cfg))
+    lstm = LSTMPredictor.load(ctx.dep("model.pt")).with_workers(jobs(cfg))
     dt = float(cfg.radar.frame_period_s)
     fill = _once_per_history(partial(interpolate, method=str(cfg.eval.prediction_input),
-                                     predictor=lstm, smoother=experiment.kalman(cfg).smooth))
-    methods = experiment.predictors(cfg, lstm)
+                                     predictor=lstm, smoother=kalman_baseline(EvalConfig.from_cfg(cfg), RadarConfig.from_cfg(cfg).frame_period_s).smooth))
+    methods = prediction_methods(EvalConfig.from_cfg(cfg), RadarConfig.from_cfg(cfg).frame_period_s, lstm)
     records = json.loads(ctx.dep("models.json").read_text())   # the calibration stage's fits
     rows = []
-    for name, sc in experiment.scenes(cfg).items():
+    for name, sc in load_scenes(cfg.scene).items():
         if not sc.with_car:
             continue
-        track = experiment.scene_track(points, name, sc.n_frames)
+        track = scene_track(points, name, sc.n_frames)
         start = int(round(float(cfg.eval.prediction_start_s) / dt))
         horizon = cfg.eval.horizon_frames
         end = sc.n_frames if horizon is None else min(sc.n_frames, start + int(horizon))

@@ -14,7 +14,9 @@ RMSE are reported beside the constant-velocity and Kalman one-step errors on the
 """
 
 import blindspot  # noqa: F401  first: pins the CPU kernels before numpy loads (blindspot.kernels)
-from blindspot import experiment
+from blindspot.radar.config import RadarConfig
+from blindspot.traj.baselines import kalman_baseline
+from blindspot.traj.config import EvalConfig, LSTMConfig, TrainConfig
 from blindspot.cli import main_stage
 from blindspot.io import write_json, write_text
 from blindspot.report.paper_values import VAL_RMSE
@@ -56,8 +58,8 @@ def scores(result, split: dict, baselines: dict, horizon: int, workers: int = 1)
 
 def run(cfg, ctx):
     split = {s: WindowSet.load(ctx.dep(f"{s}.parquet")) for s in ("train", "val", "test")}
-    model_cfg = experiment.model(cfg)
-    train_cfg = experiment.training(cfg)
+    model_cfg = LSTMConfig.from_cfg(cfg)
+    train_cfg = TrainConfig.from_cfg(cfg)
     result = train_ensemble(
         split["train"], split["val"], model_cfg, train_cfg,
         on_epoch=lambda epoch, m: ctx.log_step(m, epoch),
@@ -75,7 +77,7 @@ def run(cfg, ctx):
     # no wall times in the files (MLflow has them): a rerun reproduces their bytes
     history_path = write_text(ctx.out("history.csv"),
                               result.history.drop(columns="seconds").to_csv(index=False))
-    baselines = {"constant_velocity": ConstantVelocity(), "kalman": experiment.kalman(cfg)}
+    baselines = {"constant_velocity": ConstantVelocity(), "kalman": kalman_baseline(EvalConfig.from_cfg(cfg), RadarConfig.from_cfg(cfg).frame_period_s)}
     horizon = train_cfg.val_horizon_frames
     with torch_threads(train_cfg.num_threads):   # the scoring as single-threaded as the training
         metrics = scores(result, split, baselines, horizon, workers=train_cfg.jobs)

@@ -14,7 +14,7 @@ reproduces.
 import blindspot  # noqa: F401  first: pins the CPU kernels before numpy loads (blindspot.kernels)
 import pandas as pd
 
-from blindspot import experiment
+from blindspot.traj.config import CalibrationConfig, DatasetConfig, DirectConfig, EvalConfig
 from blindspot.cli import main_stage
 from blindspot.config import shared_dir
 from blindspot.io import write_json
@@ -31,9 +31,9 @@ STEPS_S = (1.0, 2.0, 3.0)
 
 
 def run(cfg, ctx):
-    d = experiment.direct(cfg)
-    check_fits(d, experiment.dataset(cfg).window, experiment.calibration(cfg).horizon_frames)
-    dt = experiment.dataset(cfg).frame_period_s
+    d = DirectConfig.from_cfg(cfg)
+    check_fits(d, DatasetConfig.from_cfg(cfg).window, CalibrationConfig.from_cfg(cfg).horizon_frames)
+    dt = DatasetConfig.from_cfg(cfg).frame_period_s
     truth, measured, _ = table_to_arrays(pd.read_parquet(ctx.dep("paths.parquet")))
     ids = path_splits(len(truth), *(WindowSet.load(ctx.dep(f"{s}.parquet"))
                                     for s in ("train", "val")))
@@ -45,12 +45,12 @@ def run(cfg, ctx):
                          | {d.model.horizon}))
     predictors = {NAME: model,
                   "lstm": LSTMPredictor.load(ctx.dep("train/model.pt")),
-                  "constant_velocity": ConstantVelocity(k=experiment.evaluation(cfg).cv_fit_points,
+                  "constant_velocity": ConstantVelocity(k=EvalConfig.from_cfg(cfg).cv_fit_points,
                                                         name="constant_velocity")}
     with torch_threads(1):
         # scored on the calibration stage's pairs (one every calibration.stride points), so the
         # scoring set does not change with the training pairs' stride
-        stride = experiment.calibration(cfg).stride
+        stride = CalibrationConfig.from_cfg(cfg).stride
         scores = {s: direct_scores(predictors, measured[ids[s]], truth[ids[s]],
                                    d.model.obs_len, steps, stride) for s in ("val", "test")}
     metrics = {**{name: {s: scores[s][name] for s in scores} for name in predictors},

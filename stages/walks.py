@@ -22,7 +22,12 @@ import time
 import numpy as np
 import pandas as pd
 
-from blindspot import experiment
+from blindspot.dsp.config import CfarConfig, DetectConfig, DoaConfig
+from blindspot.radar.config import RadarConfig
+from blindspot.radar.scene import load_scenes
+from blindspot.traj.baselines import kalman_baseline, prediction_methods
+from blindspot.traj.config import CalibrationConfig, EvalConfig, WalksConfig
+from blindspot.typed_config import jobs
 from blindspot.cli import main_stage
 from blindspot.io import save_figure, write_json, write_parquet, write_text
 from blindspot.report.walks_report import benchmark_figure, benchmark_table
@@ -47,11 +52,11 @@ def measured_walks(cfg, bench, *, seed: int, jobs: int, progress: bool = False):
     pedestrian model and occlusion loss), on ``jobs`` worker processes; what this stage and the
     benchmarks that score other models on its walks (bench_pretrain, bench_pretrain_direct,
     bench_walk_scores) draw."""
-    radar = experiment.radar(cfg)
-    car = next(s for s in experiment.scenes(cfg).values() if s.with_car)
+    radar = RadarConfig.from_cfg(cfg)
+    car = next(s for s in load_scenes(cfg.scene).values() if s.with_car)
     walks = draw_scene_walks(bench, radar.frame_period_s, seed=seed)
     measured = measure_scene_walks(
-        walks, radar, experiment.cfar(cfg), experiment.doa(cfg), experiment.detect(cfg),
+        walks, radar, CfarConfig.from_cfg(cfg), DoaConfig.from_cfg(cfg), DetectConfig.from_cfg(cfg),
         pedestrian=PedestrianModel.from_scene(car), occlusion_db=car.occlusion_db, seed=seed,
         jobs=jobs, progress=progress)
     return walks, measured
@@ -59,28 +64,28 @@ def measured_walks(cfg, bench, *, seed: int, jobs: int, progress: bool = False):
 
 def run(cfg, ctx):
     t0 = time.perf_counter()
-    bench = experiment.walks(cfg)
-    ev = experiment.evaluation(cfg)
-    radar = experiment.radar(cfg)
+    bench = WalksConfig.from_cfg(cfg)
+    ev = EvalConfig.from_cfg(cfg)
+    radar = RadarConfig.from_cfg(cfg)
     dt = radar.frame_period_s
-    walks, measured = measured_walks(cfg, bench, seed=int(cfg.seed), jobs=experiment.jobs(cfg),
+    walks, measured = measured_walks(cfg, bench, seed=int(cfg.seed), jobs=jobs(cfg),
                                      progress=bool(cfg.progress))
     t_radar = time.perf_counter() - t0
-    lstm = LSTMPredictor.load(ctx.dep("train/model.pt")).with_workers(experiment.jobs(cfg))
-    kalman = experiment.kalman(cfg)
+    lstm = LSTMPredictor.load(ctx.dep("train/model.pt")).with_workers(jobs(cfg))
+    kalman = kalman_baseline(EvalConfig.from_cfg(cfg), RadarConfig.from_cfg(cfg).frame_period_s)
     # the paper's methods and the scenes' direct multi-step LSTM (the train_direct stage's; one
     # network call per prediction). Its forecast counts from the last point seen, and a few
     # walks were last seen long before the prediction time (3 of the 300 need more than its 40
     # steps): those steps continue at its last step's velocity.
     direct = Seq2SeqEnsemble.load(ctx.dep("train_direct/model.pt"))
-    predictors = {**experiment.predictors(cfg, lstm),
+    predictors = {**prediction_methods(EvalConfig.from_cfg(cfg), RadarConfig.from_cfg(cfg).frame_period_s, lstm),
                   DIRECT: ConstantVelocityTail(direct, direct.cfg.horizon)}
     records = json.loads(ctx.dep("models.json").read_text())   # fitted by the calibration stage
     distributions = {n: from_record(records[n], p, n) for n, p in predictors.items()
                      if n in records}
     with np.load(ctx.dep("val_scores.npz")) as z:              # where the online ellipses start
         priors = {n: z[n] for n in distributions if n in z.files}
-    c = experiment.calibration(cfg)
+    c = CalibrationConfig.from_cfg(cfg)
     online = AdaptiveConformal(COVERAGE_LEVELS, c.online_gamma, c.online_window,
                                c.online_rescale_after)
     # each network of the seed ensemble alone too (member i: seed train.seed + i), on the same

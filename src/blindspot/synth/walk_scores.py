@@ -46,7 +46,7 @@ def score_scene_walks(walks: SceneWalks, measured: np.ndarray, *,
     Args:
         walks: the drawn walks (truth, hidden frames, prediction starts).
         measured: (N, T, 2) radar points, NaN where none and from each walk's start on.
-        predictors: {name: PathPredictor} (``experiment.predictors``).
+        predictors: {name: PathPredictor} (``blindspot.traj.baselines.prediction_methods``).
         interpolation_methods: ``eval.interpolation_methods``; ``prediction_input`` the one the
             predictions start from (``eval.prediction_input``).
         gap_predictor: the predictor the forward/bidirectional fills roll out (the LSTM).

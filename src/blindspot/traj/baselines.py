@@ -718,3 +718,28 @@ class KalmanCV:
         res = minimize(loss, x0, method="Nelder-Mead",
                        options={"maxiter": max_iter, "xatol": 1e-3, "fatol": 1e-7})
         return model_at(res.x)
+
+
+def kalman_baseline(ev, dt: float) -> KalmanCV:
+    """The constant-velocity Kalman baseline of ``eval.kalman`` (``ev``: an
+    :class:`~blindspot.traj.config.EvalConfig`) at the frame period ``dt`` (s)."""
+    k = ev.kalman
+    return KalmanCV(dt=dt, process_psd=k.process_psd, meas_std=k.meas_std)
+
+
+def prediction_methods(ev, dt: float, lstm=None) -> dict:
+    """The prediction methods of ``eval.prediction_methods`` by name (``ev``: an
+    :class:`~blindspot.traj.config.EvalConfig`, ``dt`` the frame period in s, ``lstm`` the scene
+    LSTM or None). Raises ValueError naming the key for a method that is not available."""
+    made = {
+        "lstm": lstm,
+        "constant_velocity": ConstantVelocity(k=ev.cv_fit_points, name="constant_velocity"),
+        "kalman": kalman_baseline(ev, dt),
+    }
+    out = {}
+    for name in ev.prediction_methods:
+        if name not in made or made[name] is None:
+            raise ValueError(f"config key 'eval.prediction_methods' lists {name!r}: expected names "
+                             f"from {sorted(k for k, v in made.items() if v is not None)}")
+        out[name] = made[name]
+    return out
