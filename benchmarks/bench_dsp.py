@@ -80,7 +80,6 @@ _BASELINE_RUN = r"""
 import os, sys, time
 import numpy as np
 from threadpoolctl import threadpool_limits
-sys.path.insert(0, sys.argv[1])
 threadpool_limits(1)
 import torch
 torch.set_num_threads(1)
@@ -152,7 +151,8 @@ def _baseline(rev: str, repeats: int, overrides: list[str]) -> int:
         for f in pkg.rglob("*.py"):
             f.write_text(pattern.sub("blindspot_baseline", f.read_text()))
         env = {**os.environ, "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1",
-               "MKL_NUM_THREADS": "1"}
+               "MKL_NUM_THREADS": "1",   # the copy importable as blindspot_baseline
+               "PYTHONPATH": os.pathsep.join(filter(None, [tmp, os.environ.get("PYTHONPATH")]))}
         return subprocess.run([sys.executable, "-c", _BASELINE_RUN, tmp, str(repeats),
                                *overrides], env=env, check=False).returncode
 

@@ -1,10 +1,10 @@
 """CPU time of the parts of the heavy stages that were cut (train, ethucy, driving_track), old
 way against new way in one process, with a check that both give the same bits.
 
-    PYTHONPATH=src BLINDSPOT_SHARED=/work/shared python benchmarks/bench_stage_cpu.py \
+    BLINDSPOT_SHARED=/work/shared python -m benchmarks.bench_stage_cpu \
         [train] [ethucy] [seq2seq] [track] [--data DATA] [--repeats N] [--every K]
 
-* ``train``: the train stage's scoring after the training (stages/train.py ``scores``: the
+* ``train``: the train stage's scoring after the training (:func:`blindspot.traj.train.ensemble_scores`: the
   ensemble's and each member's one-step errors, the ensemble's 20-frame rollouts, on the val
   and test windows) with torch's default thread pool (the old way: every core of the machine)
   and at ``train.num_threads`` (1, the new way, :func:`blindspot.traj.train.torch_threads`).
@@ -48,8 +48,7 @@ from blindspot.traj.lstm import LSTMPredictor
 from blindspot.traj.train import evaluate, rollout_errors, torch_threads
 from blindspot.traj.windows import WindowSet
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from tests.traj.test_distribution import _em_reference  # noqa: E402
+from tests.traj.test_distribution import _em_reference   # run from the root with -m
 
 
 def cpu(fn, repeats: int):
@@ -186,7 +185,6 @@ def bench_track(data: Path, every: int, repeats: int) -> None:
     points = pd.read_parquet(data / "driving" / "points.parquet")
     scenes = sorted(truth.scene.unique())[::every]
     truth, points = truth[truth.scene.isin(scenes)], points[points.scene.isin(scenes)]
-    sys.path[:0] = [str(ROOT / "stages")]
     from blindspot.synth.driving_tracks import tracker_input        # the stage's own input, sensor columns too
 
     pts, _ = tracker_input(truth, points)

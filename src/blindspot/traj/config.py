@@ -272,7 +272,7 @@ SEQ2SEQ_LOSSES: tuple[str, ...] = ("ade", "mse")
 @dataclass(frozen=True)
 class Seq2SeqConfig(TypedConfig):
     """The direct multi-step predictor and its training (nested in the ``ethucy`` group as
-    ``ethucy.seq2seq``; every field is measured in ``benchmarks/bench_ethucy_models.py``).
+    ``ethucy.seq2seq``; every field is measured in ``studies/ethucy_models.py``).
 
     Attributes:
         cell: the encoder of the observed history: ``"gru"`` or ``"lstm"`` (recurrent) or
@@ -437,7 +437,7 @@ class DirectConfig(TypedConfig):
     finetune: True: after pre-training, train on the radar pairs (the epochs of ``model``);
         False: the pre-trained members are the model, never trained on a radar pair (needs
         ``pretrain_epochs`` > 0). On occluded walks of the paper's scene the ETH/UCY-only
-        network forecasts better (benchmarks/bench_pretrain_direct.py);
+        network forecasts better (studies/pretrain_direct.py);
     pretrain_walks: at most this many ETH/UCY walks (a seeded random subset; 0 = all of them);
     pretrain_data: the ETH/UCY folder, relative to ``paths.shared_dir``.
     """

@@ -2,8 +2,8 @@
 stored outputs. Prints figures, asserts nothing (reports/safety.md, "Coasting clutter tracks and
 captured children").
 
-    BLINDSPOT_SHARED=../shared PYTHONPATH=src .venv/bin/python \
-        benchmarks/bench_moving_diagnosis.py [--data data] [--predictor constant_velocity] \
+    BLINDSPOT_SHARED=../shared .venv/bin/python \
+        studies/moving_diagnosis.py [--data data] [--predictor constant_velocity] \
         [--track SCENE:TRACK_ID ...]
 
 From DIR (default ``data``: ``driving/tracks.parquet``, ``driving/points.parquet``,
@@ -25,6 +25,12 @@ From DIR (default ``data``: ``driving/tracks.parquet``, ``driving/points.parquet
    last hit, and the moving flag (the run's).
 
 Time: about 20 s.
+
+Conclusion: a diagnostic, not a tuning: it reads the moving-object test track by track; it
+showed that a child's track is held back by its own velocity uncertainty (v' P_v^-1 v 2.4-3.7
+under the 0.99 quantile 9.21 for three frames), and that most false AEB requests come from
+clutter tracks 3-7 rows old (reports/safety.md, 'Coasting clutter tracks and captured
+children').
 """
 
 from __future__ import annotations
@@ -39,7 +45,6 @@ import pandas as pd
 from omegaconf import OmegaConf
 
 REPO = Path(__file__).resolve().parents[1]
-sys.path[:0] = [str(REPO / "stages")]
 
 from blindspot.safety.config import WarningConfig  # noqa: E402
 from blindspot.track.config import TrackerConfig  # noqa: E402

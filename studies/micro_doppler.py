@@ -3,8 +3,8 @@
 .doppler_spread_log_ratio`), measured on the simulated driving scenes and on a real recording.
 Prints figures, asserts nothing.
 
-    BLINDSPOT_SHARED=../shared PYTHONPATH=src .venv/bin/python \
-        benchmarks/bench_micro_doppler.py [--data data]
+    BLINDSPOT_SHARED=../shared .venv/bin/python \
+        studies/micro_doppler.py [--data data]
 
 1. Simulated (DATA/driving/points.parquet of a ``dvc repro``; truth labels score only): the
    pooled within-object standard deviation of the points' ego-motion-compensated radial speed
@@ -26,6 +26,11 @@ Prints figures, asserts nothing.
    all sit in one Doppler bin.
 
 Time: about 7 s.
+
+Conclusion: real walkers' points spread 0.14 m/s (TI people counting) and 0.08 m/s (RadHAR)
+against the simulated 0.27 / 0.79-0.81 m/s: on TI's log the spread ratio would class 99.6 % of
+walkers' objects static, so warning.moving_doppler_spread_std_mps is null (not used)
+(conf/warning/default.yaml).
 """
 
 from __future__ import annotations
@@ -40,7 +45,6 @@ import pandas as pd
 from omegaconf import OmegaConf
 
 REPO = Path(__file__).resolve().parents[1]
-sys.path[:0] = [str(REPO / "stages")]
 
 from blindspot.safety.config import WarningConfig  # noqa: E402
 from blindspot.track.config import TrackerConfig, tracked_recordings  # noqa: E402

@@ -2,7 +2,7 @@
 (blindspot.safety.bound) of the Monte-Carlo scenes of chosen ego speeds, measured anew by the fast
 driving measurement under variants of the detection settings. Prints figures, asserts nothing.
 
-    BLINDSPOT_SHARED=../shared PYTHONPATH=src python benchmarks/bench_driving_detection.py \
+    BLINDSPOT_SHARED=../shared python studies/driving_detection.py \
         [--speeds 40] [--variants baseline,so_cfar,...] [--jobs 2] [--override OVERRIDE ...]
 
 Per variant: radar points per frame, the lead child's points, and per speed the bound's avoided
@@ -31,6 +31,11 @@ scenes.json from `dvc repro driving_scenes`); only the detection settings change
 
 Time: about 20-40 s per variant and speed on 2 cores (``rda_peaks`` twice the baseline,
 ``no_peak_budget400`` about 5 min).
+
+Conclusion: what hides the child from the cell-averaging CFAR chain is mostly the peak rule; at
+40 km/h range-Doppler-angle peaks raise the radar-point bound 0.61 -> 0.78 and the confirmed-
+track bound 0.33 -> 0.39 at 2.2x the time, the 48-estimate budget does not bind
+(reports/safety.md).
 """
 
 from __future__ import annotations
@@ -133,7 +138,7 @@ def main(argv: list[str]) -> None:
     warning, tracker = WarningConfig.from_cfg(cfg), TrackerConfig.from_cfg(cfg)
     bodies = body_boxes(group)
     shape = EgoShape(group.ego.width_m, group.ego.length_m)
-    print(f"bench_driving_detection: {len(scenes)} Monte-Carlo scenes at {args.speeds} km/h"
+    print(f"driving_detection: {len(scenes)} Monte-Carlo scenes at {args.speeds} km/h"
           f"{''.join(f', {o}' for o in args.override)}; bound = AEB at the first frame of a "
           "radar point of the child / of a 3-of-5 confirmable track; avoided rate (median true "
           "TTC of the request, s)")
