@@ -1,8 +1,9 @@
 """ethucy: the standard ETH/UCY benchmark (observe 8, predict 12): CVM, Kalman and our learned
 predictors, their ADE/FDE and the calibration of their predictive distributions.
 
-The protocol of blindspot.traj.ethucy_protocol with the settings of cfg.ethucy (conf/ethucy/);
-the same as `python -m blindspot.bench.ethucy` with the matching flags. Writes
+The protocol of blindspot.traj.ethucy_protocol with the settings of cfg.ethucy (conf/ethucy/;
+a subset with Hydra overrides: `python -m blindspot ethucy ethucy.models=[cvm] ethucy.folds=[eth]`).
+Writes
 reports/metrics/ethucy.json (ADE/FDE per model and fold, "best"),
 reports/metrics/calibration_ethucy.json ({method: {fold: {coverage_50, coverage_90,
 coverage_95, nll}}}, the ETH/UCY part of calibration.json), the reliability curves behind the

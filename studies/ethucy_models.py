@@ -72,8 +72,9 @@ def run_variant(fold: str, name: str, cfg: Seq2SeqConfig, data_dir) -> dict:
     nb = {"val": val_w.neighbours, "test": test_w.neighbours}
     out = {}
     if name == "next_point":
-        from blindspot.traj.ethucy_protocol import LSTMBenchSettings, train_fold_lstm
-        pred, *_ = train_fold_lstm(data_dir, fold, LSTMBenchSettings(ensemble=1, num_threads=1),
+        from blindspot.traj.config import RolloutLSTMConfig
+        from blindspot.traj.ethucy_protocol import train_fold_lstm
+        pred, *_ = train_fold_lstm(data_dir, fold, RolloutLSTMConfig(ensemble=1, num_threads=1),
                                    progress=False)
         preds = {name: pred}
     else:

@@ -329,6 +329,56 @@ class Seq2SeqConfig(TypedConfig):
 
 
 @dataclass(frozen=True)
+class RolloutLSTMConfig(TypedConfig):
+    """The next-point LSTM of the ETH/UCY protocol (``lstm_rollout``), nested in the ``ethucy``
+    group as ``ethucy.lstm_rollout`` (:class:`LSTMConfig` / :class:`TrainConfig` settings; its
+    window is fixed to 8; ``seed`` and ``num_threads`` are set from the top-level ``seed`` and
+    ``ethucy.threads``).
+
+    Attributes:
+        hidden_size, num_layers, head_hidden, target: model.
+        epochs, batch_size, lr, seed: training.
+        frame: ``"heading"`` - every window is expressed in its own heading frame (origin at the
+            last point, +x along the last step) for training and for each rollout step
+            (:class:`~blindspot.traj.predictor.HeadingFrameRollout`); ``"world"`` - the LSTM
+            sees world coordinates (its own translation to the last point still applies).
+        residual: (heading frame) the LSTM predicts the correction to constant velocity.
+        mirror: (heading frame) train on mirrored copies too and average the prediction with
+            the mirrored window's (left/right symmetry).
+        speed_floor: (heading frame) also scale each window by its last step length, floored
+            at this many metres (None = no scaling).
+        rotations: (world frame) random-rotation copies added per training window.
+        ensemble: train this many LSTMs with seeds ``seed, seed + 1, ...`` and average their
+            next-point predictions at every rollout step.
+        num_threads: torch threads (None = leave torch's default).
+    """
+
+    GROUP = "ethucy.lstm_rollout"
+
+    hidden_size: int = setting(64, ge=1)
+    num_layers: int = setting(1, ge=1)
+    head_hidden: int = setting(32, ge=0)
+    target: str = setting("displacement", choices=TARGETS)
+    epochs: int = setting(8, ge=1)
+    batch_size: int = setting(256, ge=1)
+    lr: float = setting(1e-3, gt=0.0)
+    seed: int = setting(0, ge=0)
+    frame: str = setting("heading", choices=("heading", "world"))
+    residual: bool = setting(True)
+    mirror: bool = setting(True)
+    speed_floor: float | None = setting(None, gt=0.0)
+    rotations: int = setting(0, ge=0)
+    ensemble: int = setting(5, ge=1)
+    num_threads: int | None = setting(None, ge=1)
+
+    def validate(self) -> None:
+        if self.frame == "heading" and self.rotations:
+            raise ConfigError("rotations", self.rotations,
+                              "0 in the heading frame (it is rotation invariant; random "
+                              "rotations need frame: world)")
+
+
+@dataclass(frozen=True)
 class EthUcyConfig(TypedConfig):
     """The Hydra group ``ethucy`` (conf/ethucy/standard.yaml): the ETH/UCY benchmark.
 
@@ -358,6 +408,7 @@ class EthUcyConfig(TypedConfig):
         seq2seq: the direct predictor's model and training settings
             (:class:`blindspot.traj.seq2seq.Seq2SeqConfig`; its ``cell`` is set by the model
             key, its ``threads`` by ``threads``, its first seed by the top-level ``seed``).
+        lstm_rollout: the next-point LSTM's (:class:`RolloutLSTMConfig`), the same way.
     """
 
     GROUP = "ethucy"
@@ -372,6 +423,7 @@ class EthUcyConfig(TypedConfig):
     online_windows: tuple[int, ...] = setting(ge=1, min_items=1)
     online_rescales: tuple[int, ...] = setting(ge=0, min_items=1)
     seq2seq: Seq2SeqConfig = setting()
+    lstm_rollout: RolloutLSTMConfig = setting()
 
 
 @dataclass(frozen=True)

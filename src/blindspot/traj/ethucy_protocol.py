@@ -1,8 +1,8 @@
 """The ETH/UCY benchmark protocol: CVM, Kalman and the learned predictors scored by ADE / FDE.
 
-:func:`run_benchmark` takes typed :class:`EthUcySettings` (built from the ``ethucy`` config
-group, typed, by :meth:`EthUcySettings.from_config`, or by the command line
-``python -m blindspot.bench.ethucy``) and returns a :class:`BenchmarkRun`: the results dict of
+:func:`run_benchmark` takes :class:`EthUcySettings` (the ``ethucy`` config group, typed, resolved
+by :meth:`EthUcySettings.from_config`: change it with Hydra overrides, e.g. ``python -m blindspot
+ethucy ethucy.models=[cvm] ethucy.folds=[eth]``) and returns a :class:`BenchmarkRun`: the results dict of
 ``reports/metrics/ethucy.json`` and what each model fitted per fold. Nothing is written here; the
 Markdown page is :mod:`blindspot.report.ethucy_report`'s.
 
@@ -53,7 +53,7 @@ from typing import Any
 import numpy as np
 
 from blindspot.traj.baselines import ConstantVelocity, KalmanCV
-from blindspot.traj.config import ETHUCY_MODELS, EthUcyConfig, Seq2SeqConfig
+from blindspot.traj.config import ETHUCY_MODELS, EthUcyConfig, RolloutLSTMConfig, Seq2SeqConfig
 from blindspot.traj.conformal import AdaptiveConformal, select_on_held_out_streams
 from blindspot.traj.distribution import (
     ConditionalScaleMixture,
@@ -87,7 +87,6 @@ from blindspot.traj.predictor import (
 
 __all__ = [
     "MODELS",
-    "LSTMBenchSettings",
     "EthUcySettings",
     "FoldOutcome",
     "BenchmarkRun",
@@ -123,55 +122,6 @@ MIXTURE_COMPONENTS = 3
 SPEED_EDGES_M_S: tuple[float, ...] = (0.2, 0.6, 1.0, 1.4)
 #: encoder of each direct-predictor model key
 SEQ2SEQ_CELL: dict[str, str] = {"lstm": "lstm", "gru": "gru", "mlp": "mlp"}
-
-
-@dataclass(frozen=True)
-class LSTMBenchSettings:
-    """LSTM settings for the benchmark (passed to ``LSTMConfig`` / ``TrainConfig``).
-
-    Attributes:
-        hidden_size, num_layers, head_hidden, target: model (window is fixed to 8).
-        epochs, batch_size, lr, seed: training.
-        frame: ``"heading"`` - every window is expressed in its own heading frame (origin at the
-            last point, +x along the last step) for training and for each rollout step
-            (:class:`~blindspot.traj.predictor.HeadingFrameRollout`); ``"world"`` - the LSTM
-            sees world coordinates (its own translation to the last point still applies).
-        residual: (heading frame) the LSTM predicts the correction to constant velocity.
-        mirror: (heading frame) train on mirrored copies too and average the prediction with
-            the mirrored window's (left/right symmetry).
-        speed_floor: (heading frame) also scale each window by its last step length, floored
-            at this many metres (None = no scaling): the LSTM then sees the shape of the motion
-            independent of walking speed.
-        rotations: (world frame) random-rotation copies added per training window.
-        ensemble: train this many LSTMs with seeds ``seed, seed + 1, ...`` and
-            average their next-point predictions at every rollout step.
-        num_threads: torch threads (None = leave torch's default).
-    """
-
-    hidden_size: int = 64
-    num_layers: int = 1
-    head_hidden: int = 32
-    target: str = "displacement"
-    epochs: int = 8
-    batch_size: int = 256
-    lr: float = 1e-3
-    seed: int = 0
-    frame: str = "heading"
-    residual: bool = True
-    mirror: bool = True
-    speed_floor: float | None = None
-    rotations: int = 0
-    ensemble: int = 5
-    num_threads: int | None = None
-
-    def __post_init__(self) -> None:
-        if self.frame not in ("heading", "world"):
-            raise ValueError(f"frame: expected 'heading' or 'world', found {self.frame!r}")
-        if self.frame == "heading" and self.rotations:
-            raise ValueError("rotations: random rotations do nothing in the heading frame "
-                             "(it is rotation invariant); use frame='world' or rotations=0")
-        if int(self.ensemble) != self.ensemble or self.ensemble < 1:
-            raise ValueError(f"ensemble: expected an integer >= 1, found {self.ensemble!r}")
 
 
 def _choices(value: str | Sequence[str], allowed: Sequence[str], key: str) -> tuple[str, ...]:
@@ -214,7 +164,7 @@ class EthUcySettings:
     data_dir: Path
     models: tuple[str, ...] = MODELS
     folds: tuple[str, ...] = FOLDS
-    lstm: LSTMBenchSettings = field(default_factory=LSTMBenchSettings)
+    lstm: RolloutLSTMConfig = field(default_factory=RolloutLSTMConfig)
     seq2seq: Seq2SeqConfig = field(default_factory=Seq2SeqConfig)
     calibration: str = "mixture"
     speed_edges: tuple[float, ...] = SPEED_EDGES_M_S
@@ -239,13 +189,12 @@ class EthUcySettings:
                     seed: int) -> EthUcySettings:
         """From the typed ``ethucy`` config group (:class:`~blindspot.traj.config.EthUcyConfig`,
         validated there): ``data`` relative to ``shared_dir`` (or absolute), the models, the
-        folds, the calibration method, the direct predictor's settings (``seq2seq``) and the
-        torch threads; ``seed`` (the config's top-level seed) is every learned model's first
-        seed. The next-point LSTM (``lstm_rollout``) keeps :class:`LSTMBenchSettings`'
-        defaults."""
+        folds, the calibration method, the direct predictor's and the next-point LSTM's settings
+        (``seq2seq``, ``lstm_rollout``) and the torch threads; ``seed`` (the config's top-level
+        seed) is every learned model's first seed."""
         return cls(data_dir=Path(shared_dir) / config.data, models=tuple(config.models),
                    folds=tuple(config.folds),
-                   lstm=LSTMBenchSettings(seed=int(seed), num_threads=config.threads),
+                   lstm=replace(config.lstm_rollout, seed=int(seed), num_threads=config.threads),
                    seq2seq=replace(config.seq2seq, seed=int(seed), threads=config.threads),
                    calibration=config.calibration,
                    speed_edges=tuple(config.calibration_speed_edges),
@@ -286,7 +235,7 @@ def score(predictor: PathPredictor, test: Windows, obs_len: int = OBS_LEN,
     return ade(pred, truth), fde(pred, truth)
 
 
-def lstm_window_set(data_dir: Path, fold: str, split: str, s: LSTMBenchSettings, *,
+def lstm_window_set(data_dir: Path, fold: str, split: str, s: RolloutLSTMConfig, *,
                     augment: bool = True):
     """Next-point windows (8 in -> 1 out) of a fold's split as a ``WindowSet``.
 
@@ -311,7 +260,7 @@ def lstm_window_set(data_dir: Path, fold: str, split: str, s: LSTMBenchSettings,
     return WindowSet(x=xy[:, :OBS_LEN], y=xy[:, OBS_LEN], path_id=pid)
 
 
-def train_fold_lstm(data_dir: Path, fold: str, s: LSTMBenchSettings, progress: bool
+def train_fold_lstm(data_dir: Path, fold: str, s: RolloutLSTMConfig, progress: bool
                     ) -> tuple[PathPredictor, float, int, int]:
     """Train the LSTM on a fold's train split (validated on its val split).
 
@@ -450,7 +399,7 @@ def train_fold_seq2seq(data_dir: Path, fold: str, cfg: Seq2SeqConfig, name: str,
     return ens, fitted
 
 
-def run_fold(data_dir: Path, fold: str, models: Sequence[str], lstm: LSTMBenchSettings,
+def run_fold(data_dir: Path, fold: str, models: Sequence[str], lstm: RolloutLSTMConfig,
              progress: bool = True, seq2seq: Seq2SeqConfig | None = None,
              calibration: str = "mixture",
              speed_edges: Sequence[float] = SPEED_EDGES_M_S,
@@ -597,7 +546,7 @@ def benchmark_items(models: Sequence[str], folds: Sequence[str]) -> list[tuple[s
     return [(fold, m) for m in ranked for fold in folds]
 
 
-def _run_item(item: tuple[str, str], *, data_dir: Path, lstm: LSTMBenchSettings,
+def _run_item(item: tuple[str, str], *, data_dir: Path, lstm: RolloutLSTMConfig,
               progress: bool, seq2seq: Seq2SeqConfig, calibration: str,
               speed_edges: Sequence[float], online: Sequence[AdaptiveConformal]) -> FoldOutcome:
     """One model on one fold (module level, so it pickles): :func:`run_fold` with that model."""
