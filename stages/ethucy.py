@@ -14,13 +14,13 @@ and the page reports/ethucy.md.
 import blindspot  # noqa: F401  first: pins the CPU kernels before numpy loads (blindspot.kernels)
 from dataclasses import asdict
 
-from blindspot.traj.config import EthUcyConfig
 from blindspot.cli import main_stage
 from blindspot.config import shared_dir
 from blindspot.io import save_figure, write_json, write_text
 from blindspot.report.calibration_figures import reliability_figure
 from blindspot.report.ethucy_report import format_report
 from blindspot.stage import StageResult
+from blindspot.traj.config import EthUcyConfig
 from blindspot.traj.ethucy_protocol import EthUcySettings, calibration_table, run_benchmark
 
 

@@ -10,9 +10,9 @@ blindspot.traj.evaluation.
 import blindspot  # noqa: F401  first: pins the CPU kernels before numpy loads (blindspot.kernels)
 import pandas as pd
 
-from blindspot.radar.scene import car_twin, load_scenes
 from blindspot.cli import main_stage
 from blindspot.io import write_json, write_text
+from blindspot.radar.scene import car_twin, load_scenes
 from blindspot.report.paper_values import PATH_ERROR_MEAN_M
 from blindspot.stage import StageResult
 from blindspot.traj.evaluation import evaluate_predictions, mean_error_by_step

@@ -6,9 +6,9 @@ import json
 
 import pandas as pd
 
-from blindspot.radar.scene import car_twin, load_scenes
 from blindspot.cli import main_stage
 from blindspot.io import save_figure
+from blindspot.radar.scene import car_twin, load_scenes
 from blindspot.report.path_figures import fig07_scenes
 from blindspot.stage import StageResult
 

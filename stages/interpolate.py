@@ -10,18 +10,18 @@ import blindspot  # noqa: F401  first: pins the CPU kernels before numpy loads (
 import numpy as np
 import pandas as pd
 
-from blindspot.radar.config import RadarConfig
-from blindspot.radar.scene import load_scenes
-from blindspot.traj.baselines import kalman_baseline
-from blindspot.traj.config import EvalConfig
-from blindspot.traj.interpolation import scene_track
-from blindspot.typed_config import jobs
 from blindspot.cli import main_stage
 from blindspot.io import write_json, write_parquet
+from blindspot.radar.config import RadarConfig
+from blindspot.radar.scene import load_scenes
 from blindspot.stage import StageResult
+from blindspot.traj.baselines import kalman_baseline
+from blindspot.traj.config import EvalConfig
 from blindspot.traj.evaluation import gap_mask, mean_over_scenes, score_interpolation
 from blindspot.traj.interpolation import interpolate
+from blindspot.traj.interpolation import scene_track
 from blindspot.traj.lstm import LSTMPredictor
+from blindspot.typed_config import jobs
 
 
 def run(cfg, ctx):

@@ -8,13 +8,13 @@ no bridge (``paper_chain`` in each scene's metrics)."""
 import blindspot  # noqa: F401  first: pins the CPU kernels before numpy loads (blindspot.kernels)
 import pandas as pd
 
-from blindspot.dsp.config import BridgeConfig, DetectConfig
-from blindspot.radar.config import RadarConfig
 from blindspot.cli import main_stage
+from blindspot.dsp.config import BridgeConfig, DetectConfig
 from blindspot.dsp.localisation import localisation_errors
 from blindspot.dsp.points import frame_points
 from blindspot.dsp.zero_doppler import bridge_zero_doppler
 from blindspot.io import write_json, write_parquet
+from blindspot.radar.config import RadarConfig
 from blindspot.stage import StageResult
 
 

@@ -8,17 +8,17 @@ reduced-cube chain of blindspot.synth.path_measurement), so the data carry the r
 import blindspot  # noqa: F401  first: pins the CPU kernels before numpy loads (blindspot.kernels)
 import numpy as np
 
+from blindspot.cli import main_stage
 from blindspot.dsp.config import CfarConfig, DetectConfig, DoaConfig
+from blindspot.io import write_parquet
 from blindspot.radar.config import RadarConfig
 from blindspot.radar.scene import load_scenes
-from blindspot.traj.config import DatasetConfig
-from blindspot.typed_config import jobs
-from blindspot.cli import main_stage
-from blindspot.io import write_parquet
 from blindspot.stage import StageResult
 from blindspot.synth.path_dataset import measure_path_set, path_table
 from blindspot.synth.path_measurement import PedestrianModel
+from blindspot.traj.config import DatasetConfig
 from blindspot.traj.paths import random_path_set
+from blindspot.typed_config import jobs
 
 
 def run(cfg, ctx):

@@ -10,12 +10,12 @@ one figure per recording.
 
 import blindspot  # noqa: F401  first: pins the CPU kernels before numpy loads (blindspot.kernels)
 
-from blindspot.track.config import tracked_recordings
 from blindspot.cli import main_stage
 from blindspot.config import shared_dir
 from blindspot.io import save_figure, write_json, write_parquet
 from blindspot.report.tracking_figures import fig_track_over_points, fig_tracks_against_reference
 from blindspot.stage import StageResult
+from blindspot.track.config import tracked_recordings
 from blindspot.track.recordings import track_recording
 
 # the keys of reports/metrics/real_tracking.json other checks read (issue 12), then the others

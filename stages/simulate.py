@@ -12,11 +12,11 @@ from pathlib import Path
 import pandas as pd
 from tqdm import tqdm
 
-from blindspot.radar.config import RadarConfig, SimConfig
-from blindspot.radar.scene import load_scenes
 from blindspot.cli import main_stage
 from blindspot.io import write_json, write_parquet
+from blindspot.radar.config import RadarConfig, SimConfig
 from blindspot.radar.scene import Scene, scene_truth
+from blindspot.radar.scene import load_scenes
 from blindspot.radar.simulator import SimulatedSource
 from blindspot.stage import StageResult
 

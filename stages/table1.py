@@ -5,12 +5,12 @@ import blindspot  # noqa: F401  first: pins the CPU kernels before numpy loads (
 import json
 from dataclasses import asdict
 
-from blindspot.traj.config import LSTMConfig, TrainConfig
 from blindspot.cli import main_stage
 from blindspot.io import write_text
 from blindspot.report.paper_values import VAL_RMSE
 from blindspot.report.tables import table1_lstm
 from blindspot.stage import StageResult
+from blindspot.traj.config import LSTMConfig, TrainConfig
 
 BASELINES = {"constant_velocity": "constant velocity", "kalman": "Kalman (CV)"}
 

@@ -2,9 +2,9 @@
 values the paper does not state and the derived resolutions."""
 
 import blindspot  # noqa: F401  first: pins the CPU kernels before numpy loads (blindspot.kernels)
-from blindspot.radar.config import RadarConfig
 from blindspot.cli import main_stage
 from blindspot.io import write_text
+from blindspot.radar.config import RadarConfig
 from blindspot.report.tables import table2_radar
 from blindspot.stage import StageResult
 

@@ -5,9 +5,9 @@ import blindspot  # noqa: F401  first: pins the CPU kernels before numpy loads (
 import numpy as np
 import pandas as pd
 
-from blindspot.traj.config import DatasetConfig
 from blindspot.cli import main_stage
 from blindspot.stage import StageResult
+from blindspot.traj.config import DatasetConfig
 from blindspot.traj.paths import table_to_arrays
 from blindspot.traj.windows import WindowSet, interpolate_gaps, last_point_measured, make_windows, \
     split_by_path
