@@ -1,23 +1,13 @@
-"""The Kalman filter of blindspot: one module serving the path baselines
-(:class:`blindspot.traj.baselines.KalmanCV`), the oracle tracks of the safety room
-(:mod:`blindspot.safety.oracle`) and the multi-target tracker's hot path
-(``_numpy_kalman`` in :mod:`blindspot.track.tracker`, which wraps these steps in Stone Soup's
-predictor and updater types).
+"""The one Kalman filter of blindspot, below every room (``.importlinter``): the path
+baselines (traj.baselines.KalmanCV), the oracle tracks (safety.oracle) and the tracker's hot path
+(track.tracker._numpy_kalman, these steps in Stone Soup's types) all use it.
 
-* :func:`cv_model` - matrices of the 2-D constant-velocity model (white-noise acceleration).
-* :func:`kalman_filter` - the batched filter over time with missing rows (covariances once per
-  missing-frame pattern); the baselines and the oracle.
-* :func:`predict`, :func:`measurement_moments`, :func:`update` - one step on one state; the
-  tracker (a track at a time, at irregular intervals, each update chosen by association).
-
-The prediction step is shared (:func:`predict_covariance`). The two corrections are the same
-equations (K = P H^T S^-1) in two arithmetic orders, kept as they were so every output keeps its
-bytes: the batched filter inverts S once per pattern and takes ``(I - K H) P``; the step
-update solves for K and takes ``P - K S K^T``, symmetrised (Bar-Shalom, Li & Kirubarajan 2001,
-sec. 5.2.3). pykalman's RTS smoother stays for gap filling (``KalmanCV.smooth``).
-
-This module sits below every room (it imports numpy and :mod:`blindspot.arrays` only;
-``.importlinter``), so track, traj and safety may all import it.
+:func:`kalman_filter` runs batches over time with missing rows; :func:`predict`,
+:func:`measurement_moments` and :func:`update` step one state. Both share the prediction
+(:func:`predict_covariance`); their corrections are the same equations (K = P H^T S^-1) in the
+two arithmetic orders the outputs' bytes were made with: the batch inverts S and takes
+``(I - K H) P``, the step solves for K and takes ``P - K S K^T``, symmetrised. pykalman's RTS
+smoother stays for gap filling (``KalmanCV.smooth``).
 """
 
 from __future__ import annotations

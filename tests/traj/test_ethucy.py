@@ -108,11 +108,6 @@ def test_the_rollout_lstm_settings_name_the_bad_key():
         RolloutLSTMConfig.from_mapping({"ensemble": 0})
 
 
-def test_settings_name_the_bad_value(tmp_path):
-    assert EthUcySettings(tmp_path, models="lstm,cvm,lstm").models == ("lstm", "cvm")
-    assert EthUcySettings(tmp_path).models == MODELS
-
-
 def test_random_rotations_keep_shape_of_motion():
     rng = np.random.default_rng(0)
     xy = np.cumsum(rng.normal(size=(50, 9, 2)), axis=1)

@@ -230,17 +230,11 @@ def walk_lines(metrics: dict, names: list[str]) -> list[str]:
 
 def score_walks(walks: SceneWalks, measured: np.ndarray, *, ev, bench, calibration, dt: float,
                 lstm, direct, records: dict, val_scores, seed: int, train_seed: int):
-    """The walks stage's scoring: ``(metrics, extra, scores, names, fills)``.
-
-    The paper's methods (``ev``: an EvalConfig, its ``prediction_methods``), the direct
-    multi-step LSTM ``direct`` (its forecast counts from the last point seen; the few walks last
-    seen long before the prediction time continue at its last step's velocity) and each network
-    of the LSTM's seed ensemble alone (the spread a single training run would carry) score the
-    walks (:func:`score_scene_walks`, ``bench``: a WalksConfig); the calibration stage's
-    distributions (``records``, models.json; ``val_scores``, val_scores.npz) and the adaptive
-    conformal ellipses (``calibration``: a CalibrationConfig) beside them; then
-    :func:`walk_statistics`. ``names``: the methods (not the members), ``fills``: the fills.
-    """
+    """The walks stage's scoring, ``(metrics, extra, scores, names, fills)``: the paper's
+    methods (``ev.prediction_methods``), the direct LSTM ``direct`` (continued at its last
+    step's velocity past its horizon) and each member of the LSTM's ensemble score the walks
+    (:func:`score_scene_walks`) with the calibration stage's distributions (``records``,
+    ``val_scores``) and the adaptive conformal ellipses; then :func:`walk_statistics`."""
     from blindspot.traj.baselines import kalman_baseline, prediction_methods
     from blindspot.traj.calibration import calibrated_distributions
     from blindspot.traj.conformal import AdaptiveConformal

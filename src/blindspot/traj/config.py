@@ -335,22 +335,12 @@ class RolloutLSTMConfig(TypedConfig):
     window is fixed to 8; ``seed`` and ``num_threads`` are set from the top-level ``seed`` and
     ``ethucy.threads``).
 
-    Attributes:
-        hidden_size, num_layers, head_hidden, target: model.
-        epochs, batch_size, lr, seed: training.
-        frame: ``"heading"`` - every window is expressed in its own heading frame (origin at the
-            last point, +x along the last step) for training and for each rollout step
-            (:class:`~blindspot.traj.predictor.HeadingFrameRollout`); ``"world"`` - the LSTM
-            sees world coordinates (its own translation to the last point still applies).
-        residual: (heading frame) the LSTM predicts the correction to constant velocity.
-        mirror: (heading frame) train on mirrored copies too and average the prediction with
-            the mirrored window's (left/right symmetry).
-        speed_floor: (heading frame) also scale each window by its last step length, floored
-            at this many metres (None = no scaling).
-        rotations: (world frame) random-rotation copies added per training window.
-        ensemble: train this many LSTMs with seeds ``seed, seed + 1, ...`` and average their
-            next-point predictions at every rollout step.
-        num_threads: torch threads (None = leave torch's default).
+    frame ``heading``: each window in its own heading frame (origin at the last point, +x along
+    the last step; :class:`~blindspot.traj.predictor.HeadingFrameRollout`), where ``residual``
+    (predict the correction to constant velocity), ``mirror`` (mirrored copies, predictions
+    averaged) and ``speed_floor`` (scale by the last step length, floored; None: no scaling)
+    apply; ``world``: world coordinates, ``rotations`` random-rotation copies per window.
+    ``ensemble`` LSTMs with seeds ``seed, seed + 1, ...`` average their next points.
     """
 
     GROUP = "ethucy.lstm_rollout"
