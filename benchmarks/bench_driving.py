@@ -28,7 +28,9 @@ from dataclasses import replace
 import numpy as np
 import pandas as pd
 
-from blindspot import experiment as ex
+from blindspot.dsp.config import CfarConfig, DetectConfig, DoaConfig, EgoMotionConfig
+from blindspot.radar.config import RadarConfig, SimConfig
+from blindspot.radar.scene import load_scenarios
 from blindspot.config import compose
 from blindspot.radar.driving import draw_scenarios, scene_truth
 from blindspot.synth.driving_detection import (
@@ -59,9 +61,9 @@ def main() -> None:
         stage_subset_time(args.every, args.jobs)
         return
     cfg = compose(config_dir="conf")
-    group, named = ex.scenarios(cfg)
-    radar, ego = ex.driving_radar(cfg), ex.ego_motion(cfg)
-    chain = (ex.driving_cfar(cfg), ex.doa(cfg), ex.detect(cfg))
+    group, named = load_scenarios(cfg.scenario)
+    radar, ego = RadarConfig.from_cfg(cfg, "driving_radar"), EgoMotionConfig.from_cfg(cfg)
+    chain = (CfarConfig.from_cfg(cfg, "driving_cfar"), DoaConfig.from_cfg(cfg), DetectConfig.from_cfg(cfg))
     full_pts, fast_pts, patch_pts, truths, counts = [], [], [], [], []
     for base, kmh in ((named[n], v) for n in (args.scene or [group.figure_scene])
                       for v in args.speeds):
@@ -71,21 +73,21 @@ def main() -> None:
                 & (tr.y_vehicle_m > 0.2) & (tr.angle_deg.abs() < 75) & ~tr.occluded]
         frames = tr.frame.to_numpy()
         t0 = time.perf_counter()
-        res = detect_driving_scene(sc, group, radar, *chain, ego, ex.sim(cfg), frames=frames)
+        res = detect_driving_scene(sc, group, radar, *chain, ego, SimConfig.from_cfg(cfg), frames=frames)
         t_full = time.perf_counter() - t0
         full_pts.append(points_from_detections(res.detections, res.ego, scene=sc.name,
-                                               cluster_gap_m=ex.detect(cfg).cluster_gap_m,
+                                               cluster_gap_m=DetectConfig.from_cfg(cfg).cluster_gap_m,
                                                static_tolerance_mps=ego.static_tolerance_mps))
         t0 = time.perf_counter()
         res_fast = measure_driving([sc], group, radar, *chain, ego,
-                                   adc_headroom_db=ex.sim(cfg).adc_headroom_db,
+                                   adc_headroom_db=SimConfig.from_cfg(cfg).adc_headroom_db,
                                    frames={sc.name: frames})
         t_fast = time.perf_counter() - t0
         # both chains' detections grouped the same way (points_from_detections: the largest
         # off-curve cluster of the frame), so the comparison is of the chains, not of grouping
         ego_fast = pd.DataFrame({"frame": frames, "true_speed_mps": sc.speed_mps})
         fast = points_from_detections(res_fast.points, ego_fast, scene=sc.name,
-                                      cluster_gap_m=ex.detect(cfg).cluster_gap_m,
+                                      cluster_gap_m=DetectConfig.from_cfg(cfg).cluster_gap_m,
                                       static_tolerance_mps=ego.static_tolerance_mps)
         fast_pts.append(fast)
         patch_pts.append(res_fast.measured[res_fast.measured.pedestrian == sc.pedestrians[0].name])
@@ -132,7 +134,7 @@ def main() -> None:
         mc = draw_scenarios(group, named[(args.scene or [group.figure_scene])[0]])
         t0 = time.perf_counter()
         m = measure_driving(mc, group, radar, *chain, ego,
-                            adc_headroom_db=ex.sim(cfg).adc_headroom_db).points
+                            adc_headroom_db=SimConfig.from_cfg(cfg).adc_headroom_db).points
         out["monte_carlo"] = {"n_scenes": len(mc), "n_points": len(m),
                               "wall_s": time.perf_counter() - t0}
         print(f"Monte-Carlo set: {len(mc)} scenes, {len(m)} points, "
@@ -147,14 +149,14 @@ def stage_subset_time(every: int, jobs: int) -> None:
     import resource
 
     cfg = compose(config_dir="conf")
-    group, named = ex.scenarios(cfg)
-    radar = ex.driving_radar(cfg)
+    group, named = load_scenarios(cfg.scenario)
+    radar = RadarConfig.from_cfg(cfg, "driving_radar")
     scenes = (list(named.values()) + draw_scenarios(group, named[group.figure_scene]))[::every]
     load0 = os.getloadavg()
     t0, c0 = time.perf_counter(), time.process_time()
     k0 = resource.getrusage(resource.RUSAGE_CHILDREN)
-    res = measure_driving(scenes, group, radar, ex.driving_cfar(cfg), ex.doa(cfg), ex.detect(cfg),
-                          ex.ego_motion(cfg), adc_headroom_db=ex.sim(cfg).adc_headroom_db,
+    res = measure_driving(scenes, group, radar, CfarConfig.from_cfg(cfg, "driving_cfar"), DoaConfig.from_cfg(cfg), DetectConfig.from_cfg(cfg),
+                          EgoMotionConfig.from_cfg(cfg), adc_headroom_db=SimConfig.from_cfg(cfg).adc_headroom_db,
                           jobs=jobs)
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     k1 = resource.getrusage(resource.RUSAGE_CHILDREN)

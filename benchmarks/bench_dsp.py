@@ -80,20 +80,21 @@ _BASELINE_RUN = r"""
 import os, sys, time
 import numpy as np
 from threadpoolctl import threadpool_limits
-sys.path.insert(0, sys.argv[1])
 threadpool_limits(1)
 import torch
 torch.set_num_threads(1)
-from blindspot import experiment
+from blindspot.dsp.config import CfarConfig, DetectConfig, DoaConfig
+from blindspot.radar.array import array_for
+from blindspot.radar.config import RadarConfig
 from blindspot.config import compose
 import blindspot.dsp.chain as new_chain
 import blindspot_baseline.dsp.chain as old_chain
 from blindspot.bench.dsp import simulated_frame
 repeats, overrides = int(sys.argv[2]), sys.argv[3:]
 cfg = compose(["radar.adc_bits=16", "detect.workers=1"] + overrides)
-radar, array = experiment.radar(cfg), experiment.array(cfg)
+radar, array = RadarConfig.from_cfg(cfg), array_for(RadarConfig.from_cfg(cfg))
 cube, label = simulated_frame(cfg, radar)
-groups = (radar, array, experiment.cfar(cfg), experiment.doa(cfg), experiment.detect(cfg))
+groups = (radar, array, CfarConfig.from_cfg(cfg), DoaConfig.from_cfg(cfg), DetectConfig.from_cfg(cfg))
 chains = {"baseline": old_chain.DetectionChain(*groups), "ours": new_chain.DetectionChain(*groups)}
 # each chain times its steps with its module's time.perf_counter: CPU time instead
 cpu_clock = type(sys)("cpu_clock")
@@ -150,7 +151,8 @@ def _baseline(rev: str, repeats: int, overrides: list[str]) -> int:
         for f in pkg.rglob("*.py"):
             f.write_text(pattern.sub("blindspot_baseline", f.read_text()))
         env = {**os.environ, "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1",
-               "MKL_NUM_THREADS": "1"}
+               "MKL_NUM_THREADS": "1",   # the copy importable as blindspot_baseline
+               "PYTHONPATH": os.pathsep.join(filter(None, [tmp, os.environ.get("PYTHONPATH")]))}
         return subprocess.run([sys.executable, "-c", _BASELINE_RUN, tmp, str(repeats),
                                *overrides], env=env, check=False).returncode
 

@@ -25,7 +25,7 @@ import time
 import blindspot  # noqa: F401  first: pins the CPU kernels
 from omegaconf import OmegaConf
 
-from blindspot import experiment
+from blindspot.traj.config import EthUcyConfig
 from blindspot.config import shared_dir
 from blindspot.traj.ethucy_protocol import EthUcySettings, benchmark_items, run_fold
 
@@ -50,7 +50,7 @@ def main() -> None:
     from threadpoolctl import threadpool_limits
 
     cfg = OmegaConf.load(args.params)
-    s = EthUcySettings.from_config(experiment.ethucy(cfg), shared_dir=shared_dir(cfg),
+    s = EthUcySettings.from_config(EthUcyConfig.from_cfg(cfg), shared_dir=shared_dir(cfg),
                                    seed=int(cfg.seed))
     folds = tuple(args.folds.split(",")) if args.folds else s.folds
     models = tuple(args.models.split(",")) if args.models else s.models

@@ -37,21 +37,23 @@ import sys
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO / "src"))
-
-from blindspot import kernels  # noqa: E402  (after the path set-up)
+from blindspot import kernels
 
 RADAR = r"""
 import blindspot, hashlib, json, sys
 import numpy as np, pandas as pd
-from blindspot import config, experiment
+from blindspot import config
+from blindspot.dsp.config import CfarConfig, DetectConfig, DoaConfig, EgoMotionConfig
+from blindspot.radar.config import RadarConfig, SimConfig
+from blindspot.radar.scene import load_scenarios, load_scenes
+from blindspot.traj.config import DatasetConfig
 from blindspot.radar.simulator import SimulatedSource
 from blindspot.synth.scene_detection import detect_scenes
 
 cfg = config.compose(["profile=tiny", "scene.shared.n_frames=4"], config_dir=sys.argv[1])
-scenes = dict(list(experiment.scenes(cfg).items())[:2])
-radar, sim = experiment.radar(cfg), experiment.sim(cfg)
-res = detect_scenes(scenes, radar, experiment.cfar(cfg), experiment.doa(cfg), experiment.detect(cfg),
+scenes = dict(list(load_scenes(cfg.scene).items())[:2])
+radar, sim = RadarConfig.from_cfg(cfg), SimConfig.from_cfg(cfg)
+res = detect_scenes(scenes, radar, CfarConfig.from_cfg(cfg), DoaConfig.from_cfg(cfg), DetectConfig.from_cfg(cfg),
                     sim, jobs=int(sys.argv[2]))
 det = pd.concat([r.detections for r in res], ignore_index=True)
 frames = SimulatedSource.from_config(next(iter(scenes.values())), radar, sim)
@@ -68,17 +70,21 @@ print(json.dumps({
 PATHS = r"""
 import blindspot, hashlib, json, sys
 import numpy as np, pandas as pd
-from blindspot import config, experiment
+from blindspot import config
+from blindspot.dsp.config import CfarConfig, DetectConfig, DoaConfig, EgoMotionConfig
+from blindspot.radar.config import RadarConfig, SimConfig
+from blindspot.radar.scene import load_scenarios, load_scenes
+from blindspot.traj.config import DatasetConfig
 from blindspot.synth.path_dataset import measure_path_set, path_table
 from blindspot.synth.path_measurement import PedestrianModel
 from blindspot.traj.paths import random_path_set
 
 cfg = config.compose(["profile=tiny", "dataset.n_paths=17"], config_dir=sys.argv[1])
-radar, dataset = experiment.radar(cfg), experiment.dataset(cfg)
+radar, dataset = RadarConfig.from_cfg(cfg), DatasetConfig.from_cfg(cfg)
 paths = random_path_set(dataset.n_paths, dataset.path_spec(), seed=dataset.seed)
-walker = PedestrianModel.from_scene(next(iter(experiment.scenes(cfg).values())))
-measured = measure_path_set(paths, radar, experiment.cfar(cfg), experiment.doa(cfg),
-                            experiment.detect(cfg), pedestrian=walker, seed=dataset.seed,
+walker = PedestrianModel.from_scene(next(iter(load_scenes(cfg.scene).values())))
+measured = measure_path_set(paths, radar, CfarConfig.from_cfg(cfg), DoaConfig.from_cfg(cfg),
+                            DetectConfig.from_cfg(cfg), pedestrian=walker, seed=dataset.seed,
                             jobs=int(sys.argv[2]))
 table = path_table(paths, measured, radar.frame_period_s)
 print(json.dumps({
@@ -92,16 +98,20 @@ print(json.dumps({
 DRIVING = r"""
 import blindspot, hashlib, json, sys
 import numpy as np, pandas as pd
-from blindspot import config, experiment as ex
+from blindspot import config
+from blindspot.dsp.config import CfarConfig, DetectConfig, DoaConfig, EgoMotionConfig
+from blindspot.radar.config import RadarConfig, SimConfig
+from blindspot.radar.scene import load_scenarios, load_scenes
+from blindspot.traj.config import DatasetConfig
 from blindspot.synth.driving_measurement import measure_driving
 
 cfg = config.compose([], config_dir=sys.argv[1])
-group, named = ex.scenarios(cfg)
+group, named = load_scenarios(cfg.scenario)
 scene = named["cpnco"]
 frames = np.arange(16, 24)
-res = measure_driving([scene], group, ex.driving_radar(cfg), ex.driving_cfar(cfg), ex.doa(cfg),
-                      ex.detect(cfg), ex.ego_motion(cfg),
-                      adc_headroom_db=ex.sim(cfg).adc_headroom_db, frames={scene.name: frames},
+res = measure_driving([scene], group, RadarConfig.from_cfg(cfg, "driving_radar"), CfarConfig.from_cfg(cfg, "driving_cfar"), DoaConfig.from_cfg(cfg),
+                      DetectConfig.from_cfg(cfg), EgoMotionConfig.from_cfg(cfg),
+                      adc_headroom_db=SimConfig.from_cfg(cfg).adc_headroom_db, frames={scene.name: frames},
                       frames_per_batch=4, jobs=int(sys.argv[2]))
 h = lambda df: hashlib.sha256(pd.util.hash_pandas_object(df, index=True).to_numpy().tobytes()
                               ).hexdigest()

@@ -1,10 +1,10 @@
 """CPU time of the parts of the heavy stages that were cut (train, ethucy, driving_track), old
 way against new way in one process, with a check that both give the same bits.
 
-    PYTHONPATH=src BLINDSPOT_SHARED=/work/shared python benchmarks/bench_stage_cpu.py \
+    BLINDSPOT_SHARED=/work/shared python -m benchmarks.bench_stage_cpu \
         [train] [ethucy] [seq2seq] [track] [--data DATA] [--repeats N] [--every K]
 
-* ``train``: the train stage's scoring after the training (stages/train.py ``scores``: the
+* ``train``: the train stage's scoring after the training (:func:`blindspot.traj.train.ensemble_scores`: the
   ensemble's and each member's one-step errors, the ensemble's 20-frame rollouts, on the val
   and test windows) with torch's default thread pool (the old way: every core of the machine)
   and at ``train.num_threads`` (1, the new way, :func:`blindspot.traj.train.torch_threads`).
@@ -48,8 +48,7 @@ from blindspot.traj.lstm import LSTMPredictor
 from blindspot.traj.train import evaluate, rollout_errors, torch_threads
 from blindspot.traj.windows import WindowSet
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from tests.traj.test_distribution import _em_reference  # noqa: E402
+from tests.traj.test_distribution import _em_reference   # run from the root with -m
 
 
 def cpu(fn, repeats: int):
@@ -145,12 +144,12 @@ def bench_seq2seq(repeats: int, n_train: int = 3000, epochs: int = 3) -> None:
 
     from omegaconf import OmegaConf
 
-    from blindspot import experiment
     from blindspot.traj import seq2seq
+    from blindspot.traj.config import EthUcyConfig
     from blindspot.traj.ethucy_protocol import EthUcySettings
 
     old = module_at_base("src/blindspot/traj/seq2seq.py", "seq2seq_base")
-    settings = EthUcySettings.from_config(experiment.ethucy(OmegaConf.load(ROOT / "params.yaml")),
+    settings = EthUcySettings.from_config(EthUcyConfig.from_cfg(OmegaConf.load(ROOT / "params.yaml")),
                                           shared_dir=default_data_dir().parents[1], seed=0)
     data = default_data_dir()
     for cell in ("mlp", "lstm"):
@@ -177,16 +176,15 @@ def bench_track(data: Path, every: int, repeats: int) -> None:
     import pandas as pd
     from omegaconf import OmegaConf
 
-    from blindspot import experiment
     from blindspot.track import tracker
+    from blindspot.track.config import TrackerConfig
 
     old = module_at_base("src/blindspot/track/tracker.py", "tracker_base")
-    cfg = experiment.tracker(OmegaConf.load(ROOT / "params.yaml"))
+    cfg = TrackerConfig.from_cfg(OmegaConf.load(ROOT / "params.yaml"))
     truth = pd.read_parquet(data / "driving" / "truth.parquet")
     points = pd.read_parquet(data / "driving" / "points.parquet")
     scenes = sorted(truth.scene.unique())[::every]
     truth, points = truth[truth.scene.isin(scenes)], points[points.scene.isin(scenes)]
-    sys.path[:0] = [str(ROOT / "stages")]
     from blindspot.synth.driving_tracks import tracker_input        # the stage's own input, sensor columns too
 
     pts, _ = tracker_input(truth, points)

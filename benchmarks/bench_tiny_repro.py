@@ -1,6 +1,8 @@
 """Where the pipeline test's time goes: the tiny-profile `dvc repro` and `dvc exp run`, per stage.
 
-    .venv/bin/python benchmarks/bench_tiny_repro.py [--rev REV] [--no-exp] [--keep DIR]
+    .venv/bin/python -m benchmarks.bench_tiny_repro [--rev REV] [--no-exp] [--keep DIR]
+
+(from the repository root: run as a module, it imports the pipeline test's helpers from tests/)
 
 Builds the repository the pipeline test builds (tests/pipeline/test_repro.py: this working tree,
 or git revision REV via ``git archive``, on the tiny profile, params.yaml composed, committed),
@@ -23,14 +25,12 @@ import sys
 import tempfile
 from pathlib import Path
 
-REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO))
+from benchmarks.bench_stage_overhead import timed
+from tests.conftest import SHARED
+from tests.pipeline.test_repro import EXP_RUN, make_tiny_repo
+from tests.pipeline.toy_repo import VENV_BIN, clean_env
 
-sys.path.insert(0, str(REPO / "benchmarks"))
-from bench_stage_overhead import timed  # noqa: E402
-from tests.conftest import SHARED  # noqa: E402
-from tests.pipeline.test_repro import EXP_RUN, make_tiny_repo  # noqa: E402
-from tests.pipeline.toy_repo import VENV_BIN, clean_env  # noqa: E402
+REPO = Path(__file__).resolve().parents[1]
 
 SHIM = """#!/bin/sh
 exec /usr/bin/time -a -o "$BENCH_TIMES" -f "%U %S %e $DVC_STAGE" "{python}" "$@"

@@ -45,7 +45,6 @@ from threadpoolctl import threadpool_limits
 from blindspot.track import TrackerConfig, track_points
 
 REPO = Path(__file__).resolve().parents[1]
-sys.path[:0] = [str(REPO / "stages")]         # driving_track.tracker_input, for --driving
 DT = 0.1
 
 

@@ -16,11 +16,9 @@ import argparse
 import os
 import time
 from dataclasses import replace
-import sys
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
-sys.path[:0] = [str(REPO / "stages")]
 
 
 def main() -> None:
@@ -31,24 +29,32 @@ def main() -> None:
                     help="LSTM checkpoint (default data/train/model.pt)")
     args = ap.parse_args()
 
-    from blindspot import config, experiment
-    from benchmark import measured_walks      # the benchmark stage's walks
+    from blindspot import config
+    from blindspot.radar.config import RadarConfig
+    from blindspot.traj.baselines import kalman_baseline, prediction_methods
+    from blindspot.dsp.config import CfarConfig, DetectConfig, DoaConfig
+    from blindspot.radar.scene import load_scenes
+    from blindspot.synth.scene_walks import car_scene_walks   # the walks stage's walks
+    from blindspot.traj.config import EvalConfig, WalksConfig
     from blindspot.synth.walk_scores import score_scene_walks
     from blindspot.traj.lstm import LSTMPredictor
 
     cfg = config.compose([], config_dir=REPO / "conf")
-    full = experiment.benchmark(cfg)
+    full = WalksConfig.from_cfg(cfg)
     bench = replace(full, n_walks=args.walks)
-    ev = experiment.evaluation(cfg)
-    radar = experiment.radar(cfg)
+    ev = EvalConfig.from_cfg(cfg)
+    radar = RadarConfig.from_cfg(cfg)
     t0 = time.perf_counter()
-    walks, measured = measured_walks(cfg, bench, seed=0, jobs=args.jobs)
+    car = next(s for s in load_scenes(cfg.scene).values() if s.with_car)
+    walks, measured = car_scene_walks(bench, radar, car, CfarConfig.from_cfg(cfg),
+                                      DoaConfig.from_cfg(cfg), DetectConfig.from_cfg(cfg),
+                                      seed=0, jobs=args.jobs)
     t1 = time.perf_counter()
     lstm = LSTMPredictor.load(args.model)
-    score_scene_walks(walks, measured, predictors=experiment.predictors(cfg, lstm),
+    score_scene_walks(walks, measured, predictors=prediction_methods(ev, radar.frame_period_s, lstm),
                       interpolation_methods=ev.interpolation_methods,
                       prediction_input=ev.prediction_input, gap_predictor=lstm,
-                      smoother=experiment.kalman(cfg).smooth_batch,
+                      smoother=kalman_baseline(ev, radar.frame_period_s).smooth_batch,
                       horizon=bench.horizon_frames, dt_s=radar.frame_period_s,
                       horizons_s=ev.horizons_s, threads=bench.threads)
     t2 = time.perf_counter()

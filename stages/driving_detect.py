@@ -9,7 +9,9 @@ import blindspot  # noqa: F401  first: pins the CPU kernels before numpy loads (
 import numpy as np
 import pandas as pd
 
-from blindspot import experiment
+from blindspot.dsp.config import CfarConfig, DetectConfig, DoaConfig, EgoMotionConfig
+from blindspot.radar.config import RadarConfig, SimConfig
+from blindspot.radar.scene import load_scenarios
 from blindspot.cli import main_stage
 from blindspot.io import atomic_path, write_json, write_parquet
 from blindspot.radar.driving import scene_truth
@@ -21,11 +23,11 @@ from blindspot.synth.driving_detection import (
 
 
 def run(cfg, ctx):
-    group, named = experiment.scenarios(cfg)
-    radar = experiment.driving_radar(cfg)
-    ego = experiment.ego_motion(cfg)
-    chain = (experiment.driving_cfar(cfg), experiment.doa(cfg), experiment.detect(cfg))
-    sim = experiment.sim(cfg)
+    group, named = load_scenarios(cfg.scenario)
+    radar = RadarConfig.from_cfg(cfg, "driving_radar")
+    ego = EgoMotionConfig.from_cfg(cfg)
+    chain = (CfarConfig.from_cfg(cfg, "driving_cfar"), DoaConfig.from_cfg(cfg), DetectConfig.from_cfg(cfg))
+    sim = SimConfig.from_cfg(cfg)
     scene = named[group.figure_scene]
     truth = scene_truth(scene, group, radar.frame_period_s)
     lead = truth[truth.pedestrian == scene.pedestrians[0].name]

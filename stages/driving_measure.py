@@ -13,7 +13,10 @@ import blindspot  # noqa: F401  first: pins the CPU kernels before numpy loads (
 import numpy as np
 import pandas as pd
 
-from blindspot import experiment
+from blindspot.dsp.config import CfarConfig, DetectConfig, DoaConfig, EgoMotionConfig
+from blindspot.radar.config import RadarConfig, SimConfig
+from blindspot.radar.scene import load_scenarios
+from blindspot.typed_config import jobs
 from blindspot.cli import main_stage
 from blindspot.io import write_json, write_parquet
 from blindspot.radar.driving import draw_scenarios
@@ -23,13 +26,13 @@ from blindspot.synth.driving_measurement import measure_driving
 
 
 def run(cfg, ctx):
-    group, named = experiment.scenarios(cfg)
-    radar = experiment.driving_radar(cfg)
+    group, named = load_scenarios(cfg.scenario)
+    radar = RadarConfig.from_cfg(cfg, "driving_radar")
     scenes = list(named.values()) + draw_scenarios(group, named[group.figure_scene])
-    res = measure_driving(scenes, group, radar, experiment.driving_cfar(cfg),
-                          experiment.doa(cfg), experiment.detect(cfg), experiment.ego_motion(cfg),
-                          adc_headroom_db=experiment.sim(cfg).adc_headroom_db,
-                          jobs=experiment.jobs(cfg), progress=cfg.progress)
+    res = measure_driving(scenes, group, radar, CfarConfig.from_cfg(cfg, "driving_cfar"),
+                          DoaConfig.from_cfg(cfg), DetectConfig.from_cfg(cfg), EgoMotionConfig.from_cfg(cfg),
+                          adc_headroom_db=SimConfig.from_cfg(cfg).adc_headroom_db,
+                          jobs=jobs(cfg), progress=cfg.progress)
     measured, points = res.measured, res.points
     write_parquet(ctx.out("measured.parquet"), measured)
     write_parquet(ctx.out("points.parquet"), points)

@@ -7,7 +7,8 @@ import blindspot  # noqa: F401  first: pins the CPU kernels before numpy loads (
 import numpy as np
 import pandas as pd
 
-from blindspot import experiment
+from blindspot.radar.config import RadarConfig
+from blindspot.radar.scene import load_scenarios
 from blindspot.cli import main_stage
 from blindspot.io import write_json, write_parquet
 from blindspot.radar.driving import car_polygons, draw_scenarios, scene_truth
@@ -20,8 +21,8 @@ def _finite(x):
 
 
 def run(cfg, ctx):
-    group, named = experiment.scenarios(cfg)
-    radar = experiment.driving_radar(cfg)
+    group, named = load_scenarios(cfg.scenario)
+    radar = RadarConfig.from_cfg(cfg, "driving_radar")
     mc = draw_scenarios(group, named[group.figure_scene])
     sets = [("named", s) for s in named.values()] + [("monte_carlo", s) for s in mc]
     truth = pd.concat([scene_truth(s, group, radar.frame_period_s).assign(set=k) for k, s in sets],

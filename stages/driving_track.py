@@ -41,7 +41,9 @@ import blindspot  # noqa: F401  first: pins the CPU kernels before numpy loads (
 import numpy as np
 import pandas as pd
 
-from blindspot import experiment
+from blindspot.radar.config import RadarConfig
+from blindspot.safety.config import WarningConfig
+from blindspot.track.config import TrackerConfig
 from blindspot.cli import main_stage
 from blindspot.io import write_json, write_parquet
 from blindspot.safety.oracle import oracle_tracks, visible_truth_points
@@ -54,9 +56,9 @@ from blindspot.stage import StageResult
 
 
 def run(cfg, ctx):
-    w = experiment.warning(cfg)
-    tcfg = experiment.tracker(cfg)
-    dt = float(experiment.driving_radar(cfg).frame_period_s)
+    w = WarningConfig.from_cfg(cfg)
+    tcfg = TrackerConfig.from_cfg(cfg)
+    dt = float(RadarConfig.from_cfg(cfg, "driving_radar").frame_period_s)
     truth = pd.read_parquet(ctx.dep("truth.parquet"))
     last = truth.groupby("scene").frame.max().to_dict()
     every = pd.read_parquet(ctx.dep("points.parquet"))

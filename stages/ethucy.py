@@ -1,8 +1,9 @@
 """ethucy: the standard ETH/UCY benchmark (observe 8, predict 12): CVM, Kalman and our learned
 predictors, their ADE/FDE and the calibration of their predictive distributions.
 
-The protocol of blindspot.traj.ethucy_protocol with the settings of cfg.ethucy (conf/ethucy/);
-the same as `python -m blindspot.bench.ethucy` with the matching flags. Writes
+The protocol of blindspot.traj.ethucy_protocol with the settings of cfg.ethucy (conf/ethucy/;
+a subset with Hydra overrides: `python -m blindspot ethucy ethucy.models=[cvm] ethucy.folds=[eth]`).
+Writes
 reports/metrics/ethucy.json (ADE/FDE per model and fold, "best"),
 reports/metrics/calibration_ethucy.json ({method: {fold: {coverage_50, coverage_90,
 coverage_95, nll}}}, the ETH/UCY part of calibration.json), the reliability curves behind the
@@ -13,18 +14,18 @@ and the page reports/ethucy.md.
 import blindspot  # noqa: F401  first: pins the CPU kernels before numpy loads (blindspot.kernels)
 from dataclasses import asdict
 
-from blindspot import experiment
 from blindspot.cli import main_stage
 from blindspot.config import shared_dir
 from blindspot.io import save_figure, write_json, write_text
 from blindspot.report.calibration_figures import reliability_figure
 from blindspot.report.ethucy_report import format_report
 from blindspot.stage import StageResult
+from blindspot.traj.config import EthUcyConfig
 from blindspot.traj.ethucy_protocol import EthUcySettings, calibration_table, run_benchmark
 
 
 def run(cfg, ctx):
-    settings = EthUcySettings.from_config(experiment.ethucy(cfg), shared_dir=shared_dir(cfg),
+    settings = EthUcySettings.from_config(EthUcyConfig.from_cfg(cfg), shared_dir=shared_dir(cfg),
                                           seed=int(cfg.seed))
     bench = run_benchmark(settings, progress=bool(cfg.progress), jobs=int(cfg.jobs))
     write_json(ctx.out("ethucy.json"), bench.results)

@@ -10,9 +10,9 @@ blindspot.traj.evaluation.
 import blindspot  # noqa: F401  first: pins the CPU kernels before numpy loads (blindspot.kernels)
 import pandas as pd
 
-from blindspot import experiment
 from blindspot.cli import main_stage
 from blindspot.io import write_json, write_text
+from blindspot.radar.scene import car_twin, load_scenes
 from blindspot.report.paper_values import PATH_ERROR_MEAN_M
 from blindspot.stage import StageResult
 from blindspot.traj.evaluation import evaluate_predictions, mean_error_by_step
@@ -22,12 +22,12 @@ def run(cfg, ctx):
     predictions = pd.read_parquet(ctx.dep("predictions.parquet"))
     truth = pd.read_parquet(ctx.dep("truth.parquet"))
     points = pd.read_parquet(ctx.dep("points.parquet"))
-    scenes = experiment.scenes(cfg)
+    scenes = load_scenes(cfg.scene)
     dt = float(cfg.radar.frame_period_s)
     horizons = tuple(float(h) for h in cfg.eval.horizons_s)
     radar_tracks = {}  # the radar's points of the same walk without the car, from the start on
     for scene, pred in predictions.groupby("scene", sort=False):
-        twin = experiment.car_twin(scene, scenes)
+        twin = car_twin(scene, scenes)
         if twin is not None:
             seen = points[(points.scene == twin) & (points.frame >= pred.frame.min())]
             radar_tracks[scene] = seen[["x_m", "y_m"]].to_numpy()

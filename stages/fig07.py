@@ -6,17 +6,17 @@ import json
 
 import pandas as pd
 
-from blindspot import experiment
 from blindspot.cli import main_stage
 from blindspot.io import save_figure
+from blindspot.radar.scene import car_twin, load_scenes
 from blindspot.report.path_figures import fig07_scenes
 from blindspot.stage import StageResult
 
 
 def scene_pairs(cfg) -> list[tuple[str, str]]:
     """(no-car scene, car scene) per direction, in the order of conf/scene."""
-    scenes = experiment.scenes(cfg)
-    pairs = [(twin, name) for name in scenes if (twin := experiment.car_twin(name, scenes))]
+    scenes = load_scenes(cfg.scene)
+    pairs = [(twin, name) for name in scenes if (twin := car_twin(name, scenes))]
     if not pairs:
         raise ValueError(f"fig07: config key 'scene.scenes' has no '<walk>_car' / '<walk>_nocar' pair "
                          f"(found {list(scenes)})")

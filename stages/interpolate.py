@@ -10,24 +10,29 @@ import blindspot  # noqa: F401  first: pins the CPU kernels before numpy loads (
 import numpy as np
 import pandas as pd
 
-from blindspot import experiment
 from blindspot.cli import main_stage
 from blindspot.io import write_json, write_parquet
+from blindspot.radar.config import RadarConfig
+from blindspot.radar.scene import load_scenes
 from blindspot.stage import StageResult
+from blindspot.traj.baselines import kalman_baseline
+from blindspot.traj.config import EvalConfig
 from blindspot.traj.evaluation import gap_mask, mean_over_scenes, score_interpolation
 from blindspot.traj.interpolation import interpolate
+from blindspot.traj.interpolation import scene_track
 from blindspot.traj.lstm import LSTMPredictor
+from blindspot.typed_config import jobs
 
 
 def run(cfg, ctx):
     points = pd.read_parquet(ctx.dep("points.parquet"))
     truth = pd.read_parquet(ctx.dep("truth.parquet"))
-    lstm = LSTMPredictor.load(ctx.dep("model.pt")).with_workers(experiment.jobs(cfg))
-    kalman = experiment.kalman(cfg)
-    scenes = {n: s for n, s in experiment.scenes(cfg).items() if s.with_car}
+    lstm = LSTMPredictor.load(ctx.dep("model.pt")).with_workers(jobs(cfg))
+    kalman = kalman_baseline(EvalConfig.from_cfg(cfg), RadarConfig.from_cfg(cfg).frame_period_s)
+    scenes = {n: s for n, s in load_scenes(cfg.scene).items() if s.with_car}
     rows, metrics = [], {}
     for name, sc in scenes.items():
-        track = experiment.scene_track(points, name, sc.n_frames)
+        track = scene_track(points, name, sc.n_frames)
         tr = truth[truth.scene == name].sort_values("frame")
         xy_true = tr[["x_m", "y_m"]].to_numpy()
         observed = ~np.isnan(track).any(axis=1)

@@ -8,18 +8,19 @@ no bridge (``paper_chain`` in each scene's metrics)."""
 import blindspot  # noqa: F401  first: pins the CPU kernels before numpy loads (blindspot.kernels)
 import pandas as pd
 
-from blindspot import experiment
 from blindspot.cli import main_stage
+from blindspot.dsp.config import BridgeConfig, DetectConfig
 from blindspot.dsp.localisation import localisation_errors
 from blindspot.dsp.points import frame_points
 from blindspot.dsp.zero_doppler import bridge_zero_doppler
 from blindspot.io import write_json, write_parquet
+from blindspot.radar.config import RadarConfig
 from blindspot.stage import StageResult
 
 
 def run(cfg, ctx):
-    detect, bridge = experiment.detect(cfg), experiment.bridge(cfg)
-    bin_m = experiment.radar(cfg).range_bin_m
+    detect, bridge = DetectConfig.from_cfg(cfg), BridgeConfig.from_cfg(cfg)
+    bin_m = RadarConfig.from_cfg(cfg).range_bin_m
     detections = pd.read_parquet(ctx.dep("detections.parquet"))
     truth = pd.read_parquet(ctx.dep("truth.parquet"))
     tables, paper = [], []

@@ -8,23 +8,27 @@ reduced-cube chain of blindspot.synth.path_measurement), so the data carry the r
 import blindspot  # noqa: F401  first: pins the CPU kernels before numpy loads (blindspot.kernels)
 import numpy as np
 
-from blindspot import experiment
 from blindspot.cli import main_stage
+from blindspot.dsp.config import CfarConfig, DetectConfig, DoaConfig
 from blindspot.io import write_parquet
+from blindspot.radar.config import RadarConfig
+from blindspot.radar.scene import load_scenes
 from blindspot.stage import StageResult
 from blindspot.synth.path_dataset import measure_path_set, path_table
 from blindspot.synth.path_measurement import PedestrianModel
+from blindspot.traj.config import DatasetConfig
 from blindspot.traj.paths import random_path_set
+from blindspot.typed_config import jobs
 
 
 def run(cfg, ctx):
-    radar = experiment.radar(cfg)
-    dataset = experiment.dataset(cfg)
+    radar = RadarConfig.from_cfg(cfg)
+    dataset = DatasetConfig.from_cfg(cfg)
     paths = random_path_set(dataset.n_paths, dataset.path_spec(), seed=dataset.seed)
-    walker = PedestrianModel.from_scene(next(iter(experiment.scenes(cfg).values())))
-    measured = measure_path_set(paths, radar, experiment.cfar(cfg), experiment.doa(cfg),
-                                experiment.detect(cfg), pedestrian=walker,
-                                seed=dataset.seed, jobs=experiment.jobs(cfg),
+    walker = PedestrianModel.from_scene(next(iter(load_scenes(cfg.scene).values())))
+    measured = measure_path_set(paths, radar, CfarConfig.from_cfg(cfg), DoaConfig.from_cfg(cfg),
+                                DetectConfig.from_cfg(cfg), pedestrian=walker,
+                                seed=dataset.seed, jobs=jobs(cfg),
                                 progress=bool(cfg.progress))
     table = path_table(paths, measured, radar.frame_period_s)
     write_parquet(ctx.out("paths.parquet"), table)

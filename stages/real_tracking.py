@@ -10,12 +10,12 @@ one figure per recording.
 
 import blindspot  # noqa: F401  first: pins the CPU kernels before numpy loads (blindspot.kernels)
 
-from blindspot import experiment
 from blindspot.cli import main_stage
 from blindspot.config import shared_dir
 from blindspot.io import save_figure, write_json, write_parquet
 from blindspot.report.tracking_figures import fig_track_over_points, fig_tracks_against_reference
 from blindspot.stage import StageResult
+from blindspot.track.config import tracked_recordings
 from blindspot.track.recordings import track_recording
 
 # the keys of reports/metrics/real_tracking.json other checks read (issue 12), then the others
@@ -24,7 +24,7 @@ HEADLINE = ("n_tracks", "id_switches", "mota", "median_distance_m")
 
 def run(cfg, ctx):
     metrics, figures = {}, []
-    for name, (rec, tracker) in experiment.real_tracking(cfg).items():
+    for name, (rec, tracker) in tracked_recordings(cfg).items():
         res = track_recording(rec, tracker, shared_dir(cfg))
         write_parquet(ctx.out(f"{name}.parquet"), res.tracks)
         metrics[name] = {k: res.metrics[k] for k in HEADLINE} | {

@@ -15,7 +15,12 @@ import json
 import numpy as np
 import pandas as pd
 
-from blindspot import experiment
+from blindspot.radar.config import RadarConfig
+from blindspot.radar.scene import load_scenarios
+from blindspot.safety.config import WarningConfig
+from blindspot.traj.baselines import prediction_methods
+from blindspot.traj.config import CalibrationConfig, DatasetConfig, EvalConfig
+from blindspot.typed_config import jobs
 from blindspot.cli import main_stage
 from blindspot.io import write_json, write_parquet
 from blindspot.safety.assess import assess
@@ -37,10 +42,10 @@ def _predictors(cfg, ctx, w):
     import torch
 
     torch.set_num_threads(1)
-    c = experiment.calibration(cfg)
-    lstm = LSTMPredictor.load(ctx.dep("train/model.pt")).with_workers(experiment.jobs(cfg))
+    c = CalibrationConfig.from_cfg(cfg)
+    lstm = LSTMPredictor.load(ctx.dep("train/model.pt")).with_workers(jobs(cfg))
     records = json.loads(ctx.dep("models.json").read_text())
-    base = experiment.predictors(cfg, lstm)          # a new dict: the direct model joins it
+    base = prediction_methods(EvalConfig.from_cfg(cfg), RadarConfig.from_cfg(cfg).frame_period_s, lstm)          # a new dict: the direct model joins it
     if DIRECT in w.predictors:
         base[DIRECT] = Seq2SeqEnsemble.load(ctx.dep("train_direct/model.pt"))
     out = {}
@@ -48,11 +53,11 @@ def _predictors(cfg, ctx, w):
         if name == "none":
             truth, measured, _ = table_to_arrays(pd.read_parquet(ctx.dep("paths.parquet")))
             val = np.unique(WindowSet.load(ctx.dep("val.parquet")).path_id)
-            hist, fut = path_pairs(measured[val], truth[val], experiment.dataset(cfg).window,
+            hist, fut = path_pairs(measured[val], truth[val], DatasetConfig.from_cfg(cfg).window,
                                    c.horizon_frames, c.stride)
             out[name] = calibrate({"none": Stationary()}, hist, fut, scale_method=c.scale_method,
                                   scale_level=c.scale_level,
-                                  cv_fit_points=experiment.evaluation(cfg).cv_fit_points)["none"]
+                                  cv_fit_points=EvalConfig.from_cfg(cfg).cv_fit_points)["none"]
             continue
         if name not in records or name not in base:
             raise ValueError(f"config key 'warning.predictors' lists {name!r}: no calibrated "
@@ -63,10 +68,10 @@ def _predictors(cfg, ctx, w):
 
 
 def run(cfg, ctx):
-    w = experiment.warning(cfg)
-    group, _ = experiment.scenarios(cfg)
-    dt = float(experiment.driving_radar(cfg).frame_period_s)
-    if abs(dt - float(experiment.radar(cfg).frame_period_s)) > 1e-9:
+    w = WarningConfig.from_cfg(cfg)
+    group, _ = load_scenarios(cfg.scenario)
+    dt = float(RadarConfig.from_cfg(cfg, "driving_radar").frame_period_s)
+    if abs(dt - float(RadarConfig.from_cfg(cfg).frame_period_s)) > 1e-9:
         raise ValueError(f"config keys 'driving_radar.frame_period_s' = {dt} and "
                          f"'radar.frame_period_s' = {cfg.radar.frame_period_s}: the predictors "
                          "were calibrated at the paper radar's frame period; expected equal")

@@ -9,7 +9,9 @@ import json
 
 import pandas as pd
 
-from blindspot import experiment
+from blindspot.radar.scene import load_scenarios
+from blindspot.safety.config import WarningConfig
+from blindspot.track.config import TrackerConfig
 from blindspot.cli import main_stage
 from blindspot.io import write_json
 from blindspot.safety.assess import perception_bounds
@@ -19,9 +21,9 @@ from blindspot.stage import StageResult
 
 
 def run(cfg, ctx):
-    w = experiment.warning(cfg)
-    group, _ = experiment.scenarios(cfg)
-    tracker = experiment.tracker(cfg)
+    w = WarningConfig.from_cfg(cfg)
+    group, _ = load_scenarios(cfg.scenario)
+    tracker = TrackerConfig.from_cfg(cfg)
     truth = pd.read_parquet(ctx.dep("truth.parquet"))
     meta = json.loads(ctx.dep("scenes.json").read_text())
     points = pd.read_parquet(ctx.dep("points.parquet"), columns=["scene", "frame", "source"])

@@ -12,17 +12,18 @@ from pathlib import Path
 import pandas as pd
 from tqdm import tqdm
 
-from blindspot import experiment
 from blindspot.cli import main_stage
 from blindspot.io import write_json, write_parquet
+from blindspot.radar.config import RadarConfig, SimConfig
 from blindspot.radar.scene import Scene, scene_truth
+from blindspot.radar.scene import load_scenes
 from blindspot.radar.simulator import SimulatedSource
 from blindspot.stage import StageResult
 
 
 def run(cfg, ctx):
-    radar = experiment.radar(cfg)
-    scenes = experiment.scenes(cfg)
+    radar = RadarConfig.from_cfg(cfg)
+    scenes = load_scenes(cfg.scene)
     truth = pd.concat(
         [scene_truth(sc, radar).assign(scene=name) for name, sc in scenes.items()],
         ignore_index=True,
@@ -42,7 +43,7 @@ def run(cfg, ctx):
     hidden = truth.groupby("scene")["occluded"].mean()
     if cfg.simulate.write_captures:
         for name, sc in tqdm(scenes.items(), desc="captures", disable=not cfg.progress):
-            SimulatedSource.from_config(sc, radar, experiment.sim(cfg)).write_ti_cascade(
+            SimulatedSource.from_config(sc, radar, SimConfig.from_cfg(cfg)).write_ti_cascade(
                 Path(cfg.paths.data_dir, "captures", name))
     print(f"simulate: {len(scenes)} scenes, {len(truth)} frames; hidden fraction "
           + ", ".join(f"{k} {v:.2f}" for k, v in hidden.items()))

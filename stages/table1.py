@@ -5,19 +5,19 @@ import blindspot  # noqa: F401  first: pins the CPU kernels before numpy loads (
 import json
 from dataclasses import asdict
 
-from blindspot import experiment
 from blindspot.cli import main_stage
 from blindspot.io import write_text
 from blindspot.report.paper_values import VAL_RMSE
 from blindspot.report.tables import table1_lstm
 from blindspot.stage import StageResult
+from blindspot.traj.config import LSTMConfig, TrainConfig
 
 BASELINES = {"constant_velocity": "constant velocity", "kalman": "Kalman (CV)"}
 
 
 def run(cfg, ctx):
     train = json.loads(ctx.dep("train.json").read_text())
-    model, training = experiment.model(cfg), experiment.training(cfg)
+    model, training = LSTMConfig.from_cfg(cfg), TrainConfig.from_cfg(cfg)
     counts = {**train["n_windows"], "window": model.window}
     text = table1_lstm(
         asdict(model), asdict(training),

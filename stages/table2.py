@@ -2,15 +2,15 @@
 values the paper does not state and the derived resolutions."""
 
 import blindspot  # noqa: F401  first: pins the CPU kernels before numpy loads (blindspot.kernels)
-from blindspot import experiment
 from blindspot.cli import main_stage
 from blindspot.io import write_text
+from blindspot.radar.config import RadarConfig
 from blindspot.report.tables import table2_radar
 from blindspot.stage import StageResult
 
 
 def run(cfg, ctx):
-    out = write_text(ctx.out("table2.md"), table2_radar(experiment.radar(cfg)))
+    out = write_text(ctx.out("table2.md"), table2_radar(RadarConfig.from_cfg(cfg)))
     print(f"table2: {out}")
     return StageResult(artifacts=[out])
 

@@ -5,9 +5,9 @@ import blindspot  # noqa: F401  first: pins the CPU kernels before numpy loads (
 import numpy as np
 import pandas as pd
 
-from blindspot import experiment
 from blindspot.cli import main_stage
 from blindspot.stage import StageResult
+from blindspot.traj.config import DatasetConfig
 from blindspot.traj.paths import table_to_arrays
 from blindspot.traj.windows import WindowSet, interpolate_gaps, last_point_measured, make_windows, \
     split_by_path
@@ -16,7 +16,7 @@ SPLITS = ("train", "val", "test")
 
 
 def run(cfg, ctx):
-    d = experiment.dataset(cfg)
+    d = DatasetConfig.from_cfg(cfg)
     table = pd.read_parquet(ctx.dep("paths.parquet"))
     truth, measured, _ = table_to_arrays(table)
     filled = interpolate_gaps(measured) if d.fill_gaps == "linear" else measured  # or "none"

@@ -3,11 +3,12 @@ Hydra group, fed out-of-range and wrong-type values key by key, raises only Conf
 the key path (``cfar.guard``), never a bare TypeError / ValueError / numpy error; a value it
 accepts is used as given (no "3.5" -> 3); an unknown key is refused with its name.
 
-The groups are enumerated from the code, not listed by hand: every function of
-:mod:`blindspot.experiment` that takes only ``cfg`` is a builder, the groups it reads are
-recorded by calling it once on the composed config (``profile=tiny``), and every group of the
-composed config must be read by a builder or be in :data:`UNTYPED` with the reason; so a new
-group or a new builder is fuzzed without editing this file.
+The groups are enumerated from the code, not listed by hand: every typed config class whose
+``GROUP`` is a top-level group is a builder (``cls.from_cfg``), beside the loaders that merge a
+group's entries (:data:`LOADERS`); the groups each reads are recorded by calling it once on the
+composed config (``profile=tiny``), and every group of the composed config must be read by a
+builder or be in :data:`UNTYPED` with the reason; so a new group or a new typed config is fuzzed
+without editing this file.
 """
 
 from __future__ import annotations
@@ -25,9 +26,13 @@ from hypothesis import given
 from hypothesis import strategies as st
 from omegaconf import OmegaConf
 
-from blindspot import experiment
+import blindspot.safety.config  # noqa: F401  (registers its typed configs)
+from blindspot.dsp.config import CfarConfig
+from blindspot.radar.config import RadarConfig
+from blindspot.radar.scene import load_scenarios, load_scenes
+from blindspot.track.config import tracked_recordings
 from blindspot.traj.config import DatasetConfig, PathSpec
-from blindspot.typed_config import ConfigError, TypedConfig
+from blindspot.typed_config import ConfigError, TypedConfig, jobs
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -63,16 +68,30 @@ class Recorder:
         return self.__getattr__(key)
 
 
+# Builders that are not one class's ``from_cfg``: loaders merging a group's entries, and a
+# class placed under a second key (the driving chain's radar and CFAR).
+LOADERS = {
+    "scenes": lambda cfg: load_scenes(cfg.scene),
+    "scenarios": lambda cfg: load_scenarios(cfg.scenario),
+    "real_tracking": tracked_recordings,
+    "driving_radar": lambda cfg: RadarConfig.from_cfg(cfg, "driving_radar"),
+    "driving_cfar": lambda cfg: CfarConfig.from_cfg(cfg, "driving_cfar"),
+    "jobs": jobs,
+}
+
+
+def _subclasses(cls: type) -> list[type]:
+    return [c for s in cls.__subclasses__() for c in [s, *_subclasses(s)]]
+
+
 def _builders() -> dict[str, Any]:
-    """Every function of blindspot.experiment whose only parameter is ``cfg``."""
-    out = {}
-    for name, fn in inspect.getmembers(experiment, inspect.isfunction):
-        if fn.__module__ != experiment.__name__:
-            continue
-        params = list(inspect.signature(fn).parameters)
-        if params == ["cfg"]:
-            out[name] = fn
-    return out
+    """``from_cfg`` of every typed config class of a top-level group (by group), and
+    :data:`LOADERS`."""
+    out = {c.GROUP: c.from_cfg for c in _subclasses(TypedConfig)
+           if c.GROUP and "." not in c.GROUP and c.__module__.startswith("blindspot.")
+           and c.__module__.split(".")[1] not in ("cli", "runs")  # the runner's, not the library's
+           and c.GROUP not in ("scene", "scenario")}   # loaded by LOADERS, entries merged
+    return {**out, **LOADERS}
 
 
 BUILDERS = _builders()
@@ -105,13 +124,13 @@ def groups_read() -> dict[str, frozenset]:
 
 
 def test_every_group_is_built_by_a_typed_builder_or_listed(base, groups_read):
-    assert {"radar", "sim", "cfar", "doa", "detect", "dataset", "model", "training", "ethucy",
-            "evaluation", "scenes"} <= set(BUILDERS)
+    assert {"radar", "sim", "cfar", "doa", "detect", "dataset", "model", "train", "ethucy",
+            "eval", "scenes"} <= set(BUILDERS)
     covered = set().union(*groups_read.values())
     mappings = {k for k, v in base.items() if isinstance(v, Mapping)}
     assert mappings - covered == set(UNTYPED), (
-        "a config group is read by no builder of blindspot.experiment: add a typed builder "
-        "(a TypedConfig class + experiment.<group>(cfg)) or list it in UNTYPED with the reason")
+        "a config group is read by no typed builder: add a TypedConfig class with that GROUP "
+        "(or a loader in LOADERS) or list it in UNTYPED with the reason")
 
 
 def _leaves(node: Any, path: tuple = ()) -> list[tuple]:

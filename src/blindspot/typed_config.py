@@ -32,7 +32,7 @@ from collections.abc import Mapping
 from dataclasses import MISSING, dataclass, field
 from typing import Any, ClassVar, TypeVar
 
-__all__ = ["ConfigError", "Rule", "TypedConfig", "build", "setting", "plain"]
+__all__ = ["ConfigError", "Rule", "TypedConfig", "build", "jobs", "setting", "plain"]
 
 T = TypeVar("T", bound="TypedConfig")
 
@@ -146,6 +146,29 @@ class TypedConfig:
             ConfigError: unknown key, missing required key, or a value outside its range.
         """
         return build(cls, mapping, cls.GROUP if where is None else where)
+
+    @classmethod
+    def from_cfg(cls: type[T], cfg: Any, key: str | None = None) -> T:
+        """Build from the composed config ``cfg``: the group at ``key`` (dotted; default
+        :attr:`GROUP`), errors naming ``key.<field>``. ``RadarConfig.from_cfg(cfg)`` reads
+        ``cfg.radar``; ``RadarConfig.from_cfg(cfg, "driving_radar")`` the same class placed under
+        another key. A stage imports the classes it builds, so its import closure (and its
+        ``dvc.yaml`` deps) holds only the rooms it reads."""
+        key = cls.GROUP if key is None else key
+        node = cfg
+        for part in key.split("."):
+            node = node[part] if isinstance(node, dict) else getattr(node, part)
+        return cls.from_mapping(node, key)
+
+
+def jobs(cfg: Any) -> int:
+    """The top-level ``jobs``: worker processes (detect, paths, the driving set, the tracker,
+    ETH/UCY) or LSTM inference threads (the stages that roll the scene LSTM out); 1 = in this
+    process. Raises ConfigError naming the key for anything but an integer >= 1."""
+    value = cfg.jobs
+    if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+        raise ConfigError("jobs", value, "an integer >= 1 (worker processes or threads)")
+    return value
 
 
 def build(cls: type[T], mapping: Any, where: str = "") -> T:

@@ -15,7 +15,8 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from blindspot import experiment
+from blindspot.dsp.config import CfarConfig, DetectConfig, DoaConfig, EgoMotionConfig
+from blindspot.radar.config import RadarConfig
 from blindspot.config import compose
 from blindspot.dsp.detections import DetectionError, angle_peaks
 from blindspot.dsp.driving import DrivingChain
@@ -92,13 +93,13 @@ def test_bad_input_names_what_was_expected():
 @pytest.fixture(scope="module")
 def chains():
     cfg = compose([])
-    radar = experiment.driving_radar(cfg)
+    radar = RadarConfig.from_cfg(cfg, "driving_radar")
     array = array_for(radar)
-    ego = experiment.ego_motion(cfg)
+    ego = EgoMotionConfig.from_cfg(cfg)
 
     def chain(rule: str) -> DrivingChain:
-        return DrivingChain(radar, array, experiment.driving_cfar(cfg), experiment.doa(cfg),
-                            experiment.detect(cfg), replace(ego, peak_search=rule))
+        return DrivingChain(radar, array, CfarConfig.from_cfg(cfg, "driving_cfar"), DoaConfig.from_cfg(cfg),
+                            DetectConfig.from_cfg(cfg), replace(ego, peak_search=rule))
     return radar, array, chain("range_doppler"), chain("range_doppler_angle")
 
 

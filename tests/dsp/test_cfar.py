@@ -126,7 +126,7 @@ def test_bad_arguments_are_named():
         ca_cfar_2d(p, 1, 2)
     with pytest.raises(CfarError, match="exactly one of pfa"):
         ca_cfar_2d(p, 1, 2, pfa=1e-3, scale=2.0)
-    with pytest.raises(CfarError, match="domain='db' only works with scale"):
+    with pytest.raises(CfarError, match="'power' when pfa is given"):
         ca_cfar_2d(p, 1, 2, pfa=1e-3, domain="db")
     with pytest.raises(CfarError, match="wider than the map"):
         ca_cfar_2d(p, (1, 5), (1, 5), pfa=1e-3)

@@ -290,18 +290,23 @@ def _build_recordings(cfg):
 
 
 def _builders():
-    from blindspot import experiment
+    from blindspot.dsp.config import (BridgeConfig, CfarConfig, DetectConfig, DoaConfig,
+                                      EgoMotionConfig)
+    from blindspot.radar.config import RadarConfig, SimConfig
+    from blindspot.radar.scene import load_scenarios, load_scenes
+    from blindspot.track.config import TrackerConfig, tracked_recordings
+    from blindspot.traj.config import (CalibrationConfig, DatasetConfig, DirectConfig,
+                                       EthUcyConfig, EvalConfig, LSTMConfig, TrainConfig,
+                                       WalksConfig)
 
+    typed = (RadarConfig, SimConfig, CfarConfig, DoaConfig, DetectConfig, BridgeConfig,
+             DatasetConfig, LSTMConfig, TrainConfig, EvalConfig, EthUcyConfig, WalksConfig,
+             CalibrationConfig, EgoMotionConfig, TrackerConfig, DirectConfig)
     return {
-        "radar": experiment.radar, "scene": experiment.scenes, "sim": experiment.sim,
-        "cfar": experiment.cfar, "doa": experiment.doa, "detect": experiment.detect,
-        "bridge": experiment.bridge,
-        "dataset": experiment.dataset, "model": experiment.model, "train": experiment.training,
-        "eval": experiment.evaluation, "ethucy": experiment.ethucy,
-        "walks": experiment.walks, "calibration": experiment.calibration, "recordings": _build_recordings,
-        "scenario": experiment.scenarios, "ego_motion": experiment.ego_motion,
-        "tracker": experiment.tracker, "real_tracking": experiment.real_tracking,
-        "direct": experiment.direct,
+        **{c.GROUP: c.from_cfg for c in typed},
+        "scene": lambda cfg: load_scenes(cfg.scene), "recordings": _build_recordings,
+        "scenario": lambda cfg: load_scenarios(cfg.scenario),
+        "real_tracking": tracked_recordings,
         "warning": _build_warning,
     }
 
@@ -344,33 +349,34 @@ def test_every_option_of_every_group_builds_its_typed_object(group, option):
 
 def test_the_default_options_build_every_group(composed_config):
     """composed_config: the real conf/ (default option of every group) with the tiny profile."""
-    from blindspot import experiment
+    from blindspot.traj.config import TrainConfig
 
     built = {g: build(composed_config) for g, build in _builders().items()}
     assert all(b is not None for b in built.values())
     assert built["dataset"].n_paths == 16 and built["dataset"].split.train == 1000
-    assert experiment.training(composed_config).epochs == 2
+    assert TrainConfig.from_cfg(composed_config).epochs == 2
 
 
 def test_interpolation_keeps_equal_values_equal(composed_config):
     """The equalities that stages once checked by hand now hold by construction in conf/."""
-    from blindspot import experiment
+    from blindspot.radar.config import RadarConfig
+    from blindspot.traj.config import DatasetConfig, LSTMConfig, TrainConfig
 
     cfg = config.compose(["radar=dca1000_awr1843", "dataset.window=20"], config_dir=REPO / "conf")
-    assert experiment.dataset(cfg).frame_period_s == experiment.radar(cfg).frame_period_s
-    assert experiment.model(cfg).window == experiment.dataset(cfg).window == 20
-    assert experiment.training(composed_config).seed == experiment.dataset(composed_config).seed == 0
+    assert DatasetConfig.from_cfg(cfg).frame_period_s == RadarConfig.from_cfg(cfg).frame_period_s
+    assert LSTMConfig.from_cfg(cfg).window == DatasetConfig.from_cfg(cfg).window == 20
+    assert TrainConfig.from_cfg(composed_config).seed == DatasetConfig.from_cfg(composed_config).seed == 0
 
 
 def test_a_bad_override_names_the_dotted_key(composed_config):
-    from blindspot import experiment
+    from blindspot.dsp.config import CfarConfig
     from blindspot.typed_config import ConfigError
 
     cfg = config.compose(["cfar.guard=[2,-1]"], config_dir=REPO / "conf")
     with pytest.raises(ConfigError) as err:
-        experiment.cfar(cfg)
+        CfarConfig.from_cfg(cfg)
     assert err.value.key == "cfar.guard" and err.value.value == [2, -1]
     assert "[0, 64]" in str(err.value)
     cfg = config.compose(["+cfar.gaurd=1"], config_dir=REPO / "conf")
     with pytest.raises(ConfigError, match="'cfar.gaurd'"):
-        experiment.cfar(cfg)
+        CfarConfig.from_cfg(cfg)

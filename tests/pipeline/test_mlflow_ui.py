@@ -70,8 +70,10 @@ def ui(tmp_path_factory: pytest.TempPathFactory) -> tuple[str, str, dict[str, st
             t.log_metrics({"lstm": {"ade_m": ade}})
             fig, ax = plt.subplots()
             ax.plot([0, 1, 2], [0, ade, 2 * ade])
-            t.log_figure(fig, "figures/fig08.png")
+            (root / f"h{hidden}").mkdir()
+            fig.savefig(root / f"h{hidden}" / "fig08.png")
             plt.close(fig)
+            t.log_artifact(root / f"h{hidden}" / "fig08.png", "figures")
             run_ids[f"evaluate-h{hidden}"] = t.run_id
     experiment_id = runs.get_client(runs.settings_from_cfg(cfg, root)).get_experiment_by_name(
         "blindspot").experiment_id

@@ -47,7 +47,6 @@ def test_stage_run_logs_params_metrics_artifacts(toy: Path) -> None:
     (toy / "figs").mkdir()
     (toy / "figs" / "a.txt").write_text("a")
     with runs.stage_run("train", CFG, repo_root=toy) as t:
-        assert runs.current() is t
         for step in range(3):
             t.log_metrics({"loss": 1.0 / (step + 1), "val": {"rmse_m": 0.5 - 0.1 * step}}, step=step)
         t.log_model_file(toy / "model.pt")
@@ -63,8 +62,6 @@ def test_stage_run_logs_params_metrics_artifacts(toy: Path) -> None:
         with pytest.raises(FileNotFoundError, match="nope"):
             t.log_artifact(toy / "nope")
         run_id = t.run_id
-    assert isinstance(runs.current(), runs.NullTracker) and runs.current().run_id is None
-
     client = _client(toy)
     run = client.get_run(run_id)
     assert run.info.status == "FINISHED"
@@ -110,9 +107,8 @@ def test_exception_ends_run_failed_and_propagates(toy: Path) -> None:
 
 def test_nested_stage_runs_get_parent_tag(toy: Path) -> None:
     with runs.stage_run("outer", {"a": 1}, repo_root=toy) as outer:
-        with runs.stage_run("inner", {"b": 2}, repo_root=toy) as inner:
-            assert runs.current() is inner
-        assert runs.current() is outer
+        with runs.stage_run("inner", {"b": 2}, repo_root=toy, parent_run_id=outer.run_id) as inner:
+            pass
     run = _client(toy).get_run(inner.run_id)
     assert run.data.tags["mlflow.parentRunId"] == outer.run_id
 
@@ -121,7 +117,7 @@ def test_disabled_tracking_is_a_no_op(toy: Path) -> None:
     cfg = {"runs": {"enabled": False}, "x": 1}
     (toy / "mlflow.db").unlink()
     with runs.stage_run("train", cfg, repo_root=toy) as t:
-        assert t.run_id is None and runs.current() is t
+        assert t.run_id is None and isinstance(t, runs.NullTracker)
         t.log_metrics({"loss": 1.0})
         t.log_artifact("does-not-matter")
     assert not (toy / "mlflow.db").exists()

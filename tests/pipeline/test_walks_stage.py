@@ -11,7 +11,8 @@ import pandas as pd
 import pytest
 import torch
 
-from blindspot import config, experiment
+from blindspot import config
+from blindspot.traj.config import DirectConfig, LSTMConfig
 from blindspot.stage import StageContext, read_dvc_stages
 from blindspot.traj.lstm import LSTMPredictor, LSTMRegressor, NormStats
 
@@ -37,12 +38,12 @@ def tiny(tmp_path_factory):
                           "jobs=1", "progress=false"], config_dir=REPO / "conf")
     torch.manual_seed(0)
     stats = NormStats(True, "displacement")
-    lstm = LSTMPredictor(LSTMRegressor(experiment.model(cfg)), stats,  # a 2-seed ensemble
-                         more=[(LSTMRegressor(experiment.model(cfg)), stats)])
+    lstm = LSTMPredictor(LSTMRegressor(LSTMConfig.from_cfg(cfg)), stats,  # a 2-seed ensemble
+                         more=[(LSTMRegressor(LSTMConfig.from_cfg(cfg)), stats)])
     lstm.save(root / "data/train/model.pt")
     from blindspot.traj.seq2seq import Seq2SeqEnsemble, Seq2SeqModel, Seq2SeqNet
 
-    direct = experiment.direct(cfg).model          # untrained: the residual head is CV
+    direct = DirectConfig.from_cfg(cfg).model          # untrained: the residual head is CV
     Seq2SeqEnsemble([Seq2SeqModel(Seq2SeqNet(direct), direct) for _ in range(2)],
                     name="lstm_direct").save(root / "data/train_direct/model.pt")
     (root / "reports/metrics").mkdir(parents=True)

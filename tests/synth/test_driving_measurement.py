@@ -16,7 +16,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from blindspot import experiment as ex
+from blindspot.dsp.config import CfarConfig, DetectConfig, DoaConfig, EgoMotionConfig
+from blindspot.radar.config import RadarConfig, SimConfig
+from blindspot.radar.scene import load_scenarios
 from blindspot.config import compose
 from blindspot.radar.driving import scene_truth
 from blindspot.synth.driving_detection import (
@@ -34,11 +36,11 @@ pytestmark = pytest.mark.slow
 def both(request):
     """Both chains on the same frames, under each peak rule (``ego_motion.peak_search``)."""
     cfg = compose(config_dir=REPO / "conf")
-    group, named = ex.scenarios(cfg)
-    radar = ex.driving_radar(cfg)
-    ego = replace(ex.ego_motion(cfg), peak_search=request.param)
-    chain = (ex.driving_cfar(cfg), ex.doa(cfg), ex.detect(cfg))
-    gap, tol = ex.detect(cfg).cluster_gap_m, ego.static_tolerance_mps
+    group, named = load_scenarios(cfg.scenario)
+    radar = RadarConfig.from_cfg(cfg, "driving_radar")
+    ego = replace(EgoMotionConfig.from_cfg(cfg), peak_search=request.param)
+    chain = (CfarConfig.from_cfg(cfg, "driving_cfar"), DoaConfig.from_cfg(cfg), DetectConfig.from_cfg(cfg))
+    gap, tol = DetectConfig.from_cfg(cfg).cluster_gap_m, ego.static_tolerance_mps
     full, fast, truth, egos, counts = [], [], [], [], []
     # the frames of benchmarks/bench_driving.py --scene cpfa (117 frames in view), and the two
     # unobstructed near-side adults (CPNA 25 / 75 %) at the same speeds: a 90th percentile of the
@@ -49,11 +51,11 @@ def both(request):
         tr = tr[(tr.pedestrian == "p0") & (tr.range_m < ego.max_range_m - 2)
                 & (tr.y_vehicle_m > 0.2) & (tr.angle_deg.abs() < 75) & ~tr.occluded]
         frames = tr.frame.to_numpy()
-        res = detect_driving_scene(sc, group, radar, *chain, ego, ex.sim(cfg), frames=frames)
+        res = detect_driving_scene(sc, group, radar, *chain, ego, SimConfig.from_cfg(cfg), frames=frames)
         full.append(points_from_detections(res.detections, res.ego, scene=sc.name,
                                            cluster_gap_m=gap, static_tolerance_mps=tol))
         m = measure_driving([sc], group, radar, *chain, ego,
-                            adc_headroom_db=ex.sim(cfg).adc_headroom_db, frames={sc.name: frames})
+                            adc_headroom_db=SimConfig.from_cfg(cfg).adc_headroom_db, frames={sc.name: frames})
         fast.append(points_from_detections(
             m.points, pd.DataFrame({"frame": frames, "true_speed_mps": sc.speed_mps}),
             scene=sc.name, cluster_gap_m=gap, static_tolerance_mps=tol))

@@ -16,7 +16,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from blindspot import experiment as ex
+from blindspot.dsp.config import CfarConfig, DetectConfig, DoaConfig, EgoMotionConfig
+from blindspot.radar.config import RadarConfig, SimConfig
+from blindspot.radar.scene import load_scenarios
 from blindspot.config import compose
 from blindspot.synth.driving_measurement import measure_driving
 
@@ -28,10 +30,10 @@ FRAMES = np.arange(20, 26)          # six frames of each scene: one batch each b
 def setup(request):
     """The configured chain under each peak rule (``ego_motion.peak_search``)."""
     cfg = compose(config_dir=REPO / "conf")
-    group, named = ex.scenarios(cfg)
-    args = (group, ex.driving_radar(cfg), ex.driving_cfar(cfg), ex.doa(cfg), ex.detect(cfg),
-            replace(ex.ego_motion(cfg), peak_search=request.param))
-    return named, args, ex.sim(cfg).adc_headroom_db
+    group, named = load_scenarios(cfg.scenario)
+    args = (group, RadarConfig.from_cfg(cfg, "driving_radar"), CfarConfig.from_cfg(cfg, "driving_cfar"), DoaConfig.from_cfg(cfg), DetectConfig.from_cfg(cfg),
+            replace(EgoMotionConfig.from_cfg(cfg), peak_search=request.param))
+    return named, args, SimConfig.from_cfg(cfg).adc_headroom_db
 
 
 def _run(scenes, setup, jobs=1):

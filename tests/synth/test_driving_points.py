@@ -14,7 +14,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from blindspot import experiment as ex
+from blindspot.dsp.config import CfarConfig, DetectConfig, DoaConfig, EgoMotionConfig
+from blindspot.radar.config import RadarConfig, SimConfig
+from blindspot.radar.scene import load_scenarios
 from blindspot.config import compose
 from blindspot.radar.driving import ego_pose, scene_truth, static_scatterers
 from blindspot.synth.driving_detection import ego_motion_metrics
@@ -26,13 +28,13 @@ REPO = Path(__file__).resolve().parents[2]
 @pytest.fixture(scope="module")
 def turning_frames():
     cfg = compose(config_dir=REPO / "conf")
-    group, named = ex.scenarios(cfg)
+    group, named = load_scenarios(cfg.scenario)
     sc = replace(named["cpnco_turning"], speed_kmh=30.0)
-    res = measure_driving([sc], group, ex.driving_radar(cfg), ex.driving_cfar(cfg), ex.doa(cfg),
-                          ex.detect(cfg), ex.ego_motion(cfg),
-                          adc_headroom_db=ex.sim(cfg).adc_headroom_db,
+    res = measure_driving([sc], group, RadarConfig.from_cfg(cfg, "driving_radar"), CfarConfig.from_cfg(cfg, "driving_cfar"), DoaConfig.from_cfg(cfg),
+                          DetectConfig.from_cfg(cfg), EgoMotionConfig.from_cfg(cfg),
+                          adc_headroom_db=SimConfig.from_cfg(cfg).adc_headroom_db,
                           frames={sc.name: np.array([20, 28, 33, 36])})
-    return sc, group, ex.ego_motion(cfg), res, ex.driving_radar(cfg).max_velocity_mps
+    return sc, group, EgoMotionConfig.from_cfg(cfg), res, RadarConfig.from_cfg(cfg, "driving_radar").max_velocity_mps
 
 
 @pytest.mark.slow   # the first measured batch pays MUSIC's warm-up (33 s at load 9)

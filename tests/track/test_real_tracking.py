@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import pytest
 
-from blindspot import experiment
+from blindspot.track.config import tracked_recordings
 from blindspot.track.recordings import track_recording
 
 pytestmark = pytest.mark.real_data
@@ -14,7 +14,7 @@ pytestmark = pytest.mark.real_data
 
 @pytest.fixture(scope="module")
 def recordings(composed_config):
-    return experiment.real_tracking(composed_config)
+    return tracked_recordings(composed_config)
 
 
 def test_ti_people_same_four_people_no_id_switch(recordings, shared_dir):

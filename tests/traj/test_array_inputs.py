@@ -7,7 +7,8 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from blindspot.traj.baselines import ConstantVelocity, KalmanCV, kalman_filter, last_valid_index
+from blindspot.kalman import KalmanError, kalman_filter
+from blindspot.traj.baselines import ConstantVelocity, KalmanCV, last_valid_index
 from blindspot.arrays import check_array
 from blindspot.traj.config import PathSpec
 from blindspot.traj.ethucy import (
@@ -73,9 +74,9 @@ FLOAT_CASES = [
     ("kalman.predict", lambda x: KalmanCV().predict(x, 3), BATCH, "history", HistoryError, True),
     ("kalman.smooth", lambda x: KalmanCV().smooth(x), TRACK, "track", HistoryError, True),
     ("kalman_filter.obs", lambda x: kalman_filter(x, *KF, np.zeros(4), np.eye(4)), BATCH, "obs",
-     HistoryError, True),
+     KalmanError, True),
     ("kalman_filter.F", lambda x: kalman_filter(BATCH, x, *KF[1:], np.zeros(4), np.eye(4)),
-     KF[0], "F", HistoryError, False),
+     KF[0], "F", KalmanError, False),
     ("heading_frame", lambda x: heading_frame(x), BATCH, "windows", HistoryError, True),
     ("heading_frame_pairs", lambda x: heading_frame_pairs(x), BATCH, "sequences", HistoryError,
      False),

@@ -5,7 +5,8 @@ import numpy as np
 import pytest
 from pykalman import KalmanFilter
 
-from blindspot.traj.baselines import ConstantVelocity, KalmanCV, cv_model, kalman_filter
+from blindspot.kalman import cv_model, kalman_filter
+from blindspot.traj.baselines import ConstantVelocity, KalmanCV
 from blindspot.traj.predictor import HistoryError, PathPredictor
 
 DT = 0.4

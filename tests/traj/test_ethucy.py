@@ -1,5 +1,6 @@
 """ETH/UCY loading and Social-GAN windowing; on the real data: the README's window counts and the
-published constant-velocity numbers (Schöller et al. 2020), plus a smoke run of the CLI."""
+published constant-velocity numbers (Schöller et al. 2020), plus a smoke run of the protocol and
+its report page."""
 
 import json
 from pathlib import Path
@@ -8,8 +9,7 @@ import numpy as np
 import pytest
 from omegaconf import OmegaConf
 
-from blindspot.bench.ethucy import build_parser, settings_from_args
-from blindspot.bench.ethucy import main as bench_main
+from blindspot.report.ethucy_report import format_report
 from blindspot.report.paper_values import ETHUCY_PUBLISHED
 from blindspot.traj.baselines import ConstantVelocity, KalmanCV
 from blindspot.traj.ethucy import (
@@ -25,11 +25,12 @@ from blindspot.traj.ethucy import (
 from blindspot.traj.ethucy_protocol import (
     MODELS,
     EthUcySettings,
-    LSTMBenchSettings,
     lstm_window_set,
     run_benchmark,
 )
+from blindspot.traj.config import EthUcyConfig, RolloutLSTMConfig
 from blindspot.traj.metrics import ade, fde
+from blindspot.typed_config import ConfigError
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -84,34 +85,27 @@ def test_bad_files_are_named(tmp_path):
         load_split(tmp_path, "nowhere", "test")
 
 
-def test_settings_from_the_config_group_equal_the_flags_of_the_command_line(tmp_path):
-    """conf/ethucy/standard.yaml, typed (EthUcyConfig), gives the settings the command line
-    builds from the same values (--models, --folds, --epochs, --ensemble, --threads, --seed,
-    --calibration): the committed direct-predictor settings are Seq2SeqConfig's defaults but the
-    encoder (set per model key)."""
+def test_settings_from_the_config_group(tmp_path):
+    """conf/ethucy/standard.yaml, typed (EthUcyConfig), gives the run's settings: data under the
+    shared folder, the top-level seed and ethucy.threads in both learned models' settings, the
+    next-point LSTM's settings the typed defaults (conf/ holds the same values)."""
     from dataclasses import replace
-
-    from blindspot.traj.config import EthUcyConfig
 
     group = OmegaConf.load(REPO / "conf" / "ethucy" / "standard.yaml")
     settings = EthUcySettings.from_config(EthUcyConfig.from_mapping(group), shared_dir=tmp_path,
                                           seed=7)
-    argv = ["--data", str(tmp_path / group.data), "--out", "x.json",
-            "--models", ",".join(group.models), "--folds", ",".join(group.folds),
-            "--epochs", str(group.seq2seq.epochs), "--ensemble", str(group.seq2seq.ensemble),
-            "--threads", str(group.threads), "--seed", "7",
-            "--calibration", group.calibration]
-    flags = settings_from_args(build_parser().parse_args(argv))
-    assert replace(settings.seq2seq, cell="gru") == replace(flags.seq2seq, cell="gru")
     assert (settings.models, settings.folds, settings.data_dir, settings.calibration) == (
-        flags.models, flags.folds, flags.data_dir, flags.calibration)
+        tuple(group.models), tuple(group.folds), tmp_path / group.data, group.calibration)
     assert settings.seq2seq.seed == settings.lstm.seed == 7
     assert settings.seq2seq.threads == settings.lstm.num_threads == group.threads
+    assert replace(settings.lstm, seed=0, num_threads=None) == RolloutLSTMConfig()
 
 
-def test_settings_name_the_bad_value(tmp_path):
-    assert EthUcySettings(tmp_path, models="lstm,cvm,lstm").models == ("lstm", "cvm")
-    assert EthUcySettings(tmp_path).models == MODELS
+def test_the_rollout_lstm_settings_name_the_bad_key():
+    with pytest.raises(ConfigError, match="ethucy.lstm_rollout.rotations"):
+        RolloutLSTMConfig.from_mapping({"frame": "heading", "rotations": 2})
+    with pytest.raises(ConfigError, match="ethucy.lstm_rollout.ensemble"):
+        RolloutLSTMConfig.from_mapping({"ensemble": 0})
 
 
 def test_random_rotations_keep_shape_of_motion():
@@ -166,12 +160,10 @@ def test_constant_velocity_reproduces_the_published_numbers(test_windows):
 
 
 @pytest.mark.real_data
-def test_bench_cli_smoke_on_the_eth_fold(ethucy_dir, tmp_path):
-    out, report = tmp_path / "m" / "ethucy.json", tmp_path / "ethucy.md"
-    rc = bench_main(["--data", str(ethucy_dir), "--out", str(out), "--report", str(report),
-                     "--models", "cvm,kalman", "--folds", "eth", "--quiet"])
-    assert rc == 0
-    result = json.loads(out.read_text())
+def test_protocol_smoke_on_the_eth_fold(ethucy_dir):
+    run = run_benchmark(EthUcySettings(ethucy_dir, models=("cvm", "kalman"), folds=("eth",)),
+                        progress=False)
+    result = run.results
     assert set(result) == {"cvm", "kalman", "best"} and result["best"] in ("cvm", "kalman")
     for model in (result["cvm"], result["kalman"]):
         assert set(model) == {"eth", "avg"}
@@ -179,32 +171,22 @@ def test_bench_cli_smoke_on_the_eth_fold(ethucy_dir, tmp_path):
         assert model["avg"]["ade"] == model["eth"]["ade"]
         assert 0 < model["eth"]["ade"] < model["eth"]["fde"] < 5
     assert result["cvm"]["eth"]["ade"] == pytest.approx(1.00, abs=0.01)
-    text = report.read_text()
-    assert "| cvm (ours) |" in text and "published" in text
-    assert "Fitted process noise q (m^2/s^3), meas_std 0.05 m: eth " in text
-    assert "## Calibration (test scenes)" in text and "| cvm | " in text.split("## Calibration")[1]
-    assert not [p.name for p in out.parent.iterdir() if p.name.startswith(".")]   # no temporaries
-    # the library called with typed settings gives the same scores; its validation scores and
-    # details are the plain dicts the report page reads
-    run = run_benchmark(EthUcySettings(ethucy_dir, models=("cvm",), folds=("eth",)), progress=False)
-    assert run.results["cvm"] == result["cvm"]
+    # the validation scores and details are the plain dicts the report page reads
     assert set(run.validation()["cvm"]) == {"eth", "avg"}
     assert run.details()["eth"]["cvm"]["n_windows"] == 181
     json.dumps(run.details())   # plain values only
-
-
-def test_bench_cli_rejects_unknown_model(tmp_path, capsys):
-    with pytest.raises(SystemExit):
-        bench_main(["--out", str(tmp_path / "x.json"), "--models", "cvm,magic"])
-    assert "--models" in capsys.readouterr().err
+    text = format_report(result, run.validation(), run.details(), ("eth",), None,
+                         "python -m blindspot ethucy", None)
+    assert "| cvm (ours) |" in text and "published" in text
+    assert "Fitted process noise q (m^2/s^3), meas_std 0.05 m: eth " in text
 
 
 @pytest.mark.real_data
 def test_lstm_training_pairs_cover_every_nine_frame_stretch(ethucy_dir):
     stretches = load_split(ethucy_dir, "eth", "val", seq_len=9, min_peds=1)
-    heading = lstm_window_set(ethucy_dir, "eth", "val", LSTMBenchSettings(mirror=True))
+    heading = lstm_window_set(ethucy_dir, "eth", "val", RolloutLSTMConfig(mirror=True))
     world = lstm_window_set(ethucy_dir, "eth", "val",
-                            LSTMBenchSettings(frame="world", rotations=2, mirror=False))
+                            RolloutLSTMConfig(frame="world", rotations=2, mirror=False))
     assert len(heading) == 2 * len(stretches) and len(world) == 3 * len(stretches)
     np.testing.assert_allclose(world.x[: len(stretches)], stretches.xy[:, :8], atol=1e-5)
     # heading frame: last input at the origin, last step along +x, target = CVM correction
@@ -218,15 +200,13 @@ def test_lstm_training_pairs_cover_every_nine_frame_stretch(ethucy_dir):
 
 
 @pytest.mark.real_data
-def test_bench_cli_trains_and_scores_the_lstm(ethucy_dir, tmp_path):
-    out = tmp_path / "ethucy.json"
-    rc = bench_main(["--data", str(ethucy_dir), "--out", str(out), "--models", "cvm,lstm",
-                     "--folds", "eth", "--epochs", "1", "--ensemble", "2", "--quiet",
-                     "--threads", "1"])
-    assert rc == 0
-    lstm = json.loads(out.read_text())["lstm"]
-    assert lstm["eth"]["n_windows"] == 181
-    assert 0.5 < lstm["eth"]["ade"] < 2.0     # CVM: 1.00; a broken predictor lands far outside
+def test_protocol_trains_and_scores_the_lstm(ethucy_dir):
+    lstm = RolloutLSTMConfig(epochs=1, ensemble=2, num_threads=1)
+    run = run_benchmark(EthUcySettings(ethucy_dir, models=("cvm", "lstm_rollout"), folds=("eth",),
+                                       lstm=lstm), progress=False)
+    result = run.results["lstm_rollout"]
+    assert result["eth"]["n_windows"] == 181
+    assert 0.5 < result["eth"]["ade"] < 2.0     # CVM: 1.00; a broken predictor lands far outside
 
 
 @pytest.mark.real_data
@@ -252,7 +232,7 @@ def test_each_direct_model_key_trains_its_own_encoder(ethucy_dir):
     with pytest.MonkeyPatch.context() as mp:
         mp.setattr(ethucy_protocol, "train_fold_seq2seq", spy)
         out = ethucy_protocol.run_fold(ethucy_dir, "eth", ("lstm", "gru", "mlp"),
-                                        LSTMBenchSettings(), progress=False, seq2seq=cfg,
+                                        RolloutLSTMConfig(), progress=False, seq2seq=cfg,
                                         calibration="mle")
     assert isinstance(trained["lstm"], torch.nn.LSTM)
     assert isinstance(trained["gru"], torch.nn.GRU)

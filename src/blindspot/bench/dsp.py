@@ -62,10 +62,13 @@ import numpy as np  # noqa: E402
 
 def simulated_frame(cfg, radar, scene_name: str = "straight_car", index: int = 3):
     """One frame of a paper scene from the simulator (returns cube, label)."""
-    from blindspot import experiment
+    from blindspot.dsp.config import CfarConfig, DetectConfig, DoaConfig
+    from blindspot.radar.array import array_for
+    from blindspot.radar.config import RadarConfig
+    from blindspot.radar.scene import load_scenes
     from blindspot.radar.simulator import SimulatedSource
 
-    scenes = experiment.scenes(cfg)
+    scenes = load_scenes(cfg.scene)
     if scene_name not in scenes:
         raise SystemExit(f"--scene {scene_name!r}: expected one of {list(scenes)}")
     src = SimulatedSource(scenes[scene_name], radar)
@@ -111,7 +114,10 @@ def main(argv: list[str] | None = None) -> int:
 
     from hydra.errors import HydraException
 
-    from blindspot import experiment
+    from blindspot.dsp.config import CfarConfig, DetectConfig, DoaConfig
+    from blindspot.radar.array import array_for
+    from blindspot.radar.config import RadarConfig
+    from blindspot.radar.scene import load_scenes
     from blindspot.config import compose
     from blindspot.dsp.chain import DetectionChain
 
@@ -124,8 +130,8 @@ def main(argv: list[str] | None = None) -> int:
         cfg = compose(overrides)
     except HydraException as exc:
         raise SystemExit(f"--set: {exc}") from None
-    radar = experiment.radar(cfg)
-    array = experiment.array(cfg)
+    radar = RadarConfig.from_cfg(cfg)
+    array = array_for(RadarConfig.from_cfg(cfg))
     if args.frame is not None:
         with np.load(args.frame) as z:
             if "cube" not in z:
@@ -140,8 +146,8 @@ def main(argv: list[str] | None = None) -> int:
     else:
         cube, label = simulated_frame(cfg, radar, args.scene, args.frame_index)
 
-    chain = DetectionChain(radar, array, experiment.cfar(cfg), experiment.doa(cfg),
-                           experiment.detect(cfg))
+    chain = DetectionChain(radar, array, CfarConfig.from_cfg(cfg), DoaConfig.from_cfg(cfg),
+                           DetectConfig.from_cfg(cfg))
     with limiter:
         for _ in range(args.warmup):
             res = chain.process(cube)

@@ -52,7 +52,7 @@ import scipy.special
 import scipy.stats
 
 from blindspot.arrays import checked_array
-from blindspot.dsp.config import CFAR_DOMAINS as DOMAINS, CFAR_MODES as MODES
+from blindspot.dsp.config import CFAR_DOMAINS as DOMAINS, CFAR_MODES as MODES, threshold_rule
 
 
 class CfarError(ValueError):
@@ -99,22 +99,17 @@ def _check_power(power: np.ndarray, where: str) -> np.ndarray:
     return p.astype(np.float64, copy=False)
 
 
-def _check_rule(pfa, scale, domain: str) -> None:
-    if (pfa is None) == (scale is None):
-        raise CfarError(
-            f"give exactly one of pfa (false-alarm probability) or scale (threshold multiplier); "
-            f"got pfa={pfa!r}, scale={scale!r}"
-        )
+def _check_threshold(pfa, scale, domain: str) -> None:
+    """The threshold arguments: the rule across them (:func:`blindspot.dsp.config.threshold_rule`,
+    the one CfarConfig keeps), then each value."""
+    broken = threshold_rule(pfa, scale, domain)
+    if broken:
+        key, value, allowed = broken
+        raise CfarError(f"{key}: expected {allowed}, got {value!r}")
     if domain not in DOMAINS:
         raise CfarError(f"domain must be one of {DOMAINS}, got {domain!r}")
-    if pfa is not None:
-        if not (isinstance(pfa, (int, float)) and 0.0 < pfa < 1.0):
-            raise CfarError(f"pfa must be a probability in (0, 1), got {pfa!r}")
-        if domain != "power":
-            raise CfarError(
-                "pfa defines the factor of a square-law (power) detector; domain='db' only works "
-                "with scale"
-            )
+    if pfa is not None and not (isinstance(pfa, (int, float)) and 0.0 < pfa < 1.0):
+        raise CfarError(f"pfa must be a probability in (0, 1), got {pfa!r}")
     if scale is not None and not (isinstance(scale, (int, float)) and np.isfinite(scale)
                                   and scale > 0):
         raise CfarError(f"scale must be a positive finite number, got {scale!r}")
@@ -337,7 +332,7 @@ def cfar_2d(power: np.ndarray, guard, train, *, pfa: float | None = None,
     """
     p = _check_power(power, "cfar_2d")
     g, t = _pair(guard, "guard"), _pair(train, "train")
-    _check_rule(pfa, scale, domain)
+    _check_threshold(pfa, scale, domain)
     _check_window(p.shape, g, t)
     if mode not in MODES:
         raise CfarError(f"mode must be one of {MODES}, got {mode!r}")
@@ -417,7 +412,7 @@ def os_cfar_2d(power: np.ndarray, guard, train, *, rank: float = 0.75, pfa: floa
     """
     p = _check_power(power, "os_cfar_2d")
     g, t = _pair(guard, "guard"), _pair(train, "train")
-    _check_rule(pfa, scale, domain)
+    _check_threshold(pfa, scale, domain)
     _check_window(p.shape, g, t)
     if not (0.0 < rank <= 1.0):
         raise CfarError(f"rank must be a quantile in (0, 1], got {rank!r}")

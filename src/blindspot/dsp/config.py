@@ -10,6 +10,7 @@ conf/ is the source of truth: every key is required (no defaults that could drif
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -48,12 +49,22 @@ class CfarConfig(TypedConfig):
     n_looks: int | str = setting(ge=1, choices=("channels",))
 
     def validate(self) -> None:
-        if (self.pfa is None) == (self.scale is None):
-            raise ConfigError("pfa", {"pfa": self.pfa, "scale": self.scale},
-                              "exactly one of pfa or scale (the other null)")
-        if self.pfa is not None and self.domain != "power":
-            raise ConfigError("domain", self.domain,
-                              "'power' when pfa is given (dB-domain thresholds need scale)")
+        broken = threshold_rule(self.pfa, self.scale, self.domain)
+        if broken:
+            raise ConfigError(*broken)
+
+
+def threshold_rule(pfa, scale, domain: str) -> tuple[str, Any, str] | None:
+    """The CFAR threshold's rule across its settings, or None when it holds: exactly one of
+    ``pfa`` / ``scale``, and ``pfa`` only in the power domain (its factor is a square-law
+    detector's). Returns ``(key, value, what is allowed)`` of the broken part: one rule, raised
+    as a ConfigError by :class:`CfarConfig` and as a CfarError by the functions of
+    :mod:`blindspot.dsp.cfar`."""
+    if (pfa is None) == (scale is None):
+        return "pfa", {"pfa": pfa, "scale": scale}, "exactly one of pfa or scale (the other null)"
+    if pfa is not None and domain != "power":
+        return "domain", domain, "'power' when pfa is given (dB-domain thresholds need scale)"
+    return None
 
 
 @dataclass(frozen=True)

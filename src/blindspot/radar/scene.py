@@ -175,6 +175,14 @@ def load_scenes(group: Any, where: str = "scene") -> dict[str, SceneConfig]:
     return out
 
 
+def car_twin(name: str, all_scenes: Mapping[str, Any]) -> str | None:
+    """The scene with the same walk and no car (``approach_car`` -> ``approach_nocar``)."""
+    if not name.endswith("_car"):
+        return None
+    twin = name[: -len("_car")] + "_nocar"
+    return twin if twin in all_scenes else None
+
+
 def _as_mapping(scene: SceneConfig) -> dict[str, Any]:
     """A built scene as the mapping it came from (body parts as a list of records)."""
     from dataclasses import asdict

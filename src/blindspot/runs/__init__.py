@@ -10,7 +10,7 @@ By concern:
   ``cfg.runs.uri`` > ``sqlite:///<original repo root>/mlflow.db``), one client per URI, the
   experiment created once under a file lock, retries while SQLite is locked.
 - :mod:`~blindspot.runs.stage_runs`: :func:`stage_run` (one run per stage run, always closed
-  FINISHED / FAILED / KILLED), :class:`Tracker` and :class:`NullTracker`, :func:`current`.
+  FINISHED / FAILED / KILLED), :class:`Tracker` and :class:`NullTracker`.
 - :mod:`~blindspot.runs.tags`: git commit, DVC experiment and Hydra job tags of a run.
 - :mod:`~blindspot.runs.stale`: runs left RUNNING by a SIGKILLed process, closed KILLED when
   the next run starts (:func:`close_stale_runs`) or by ``python -m blindspot cleanup``.
@@ -22,7 +22,7 @@ By concern:
   stage reading params.yaml does not need).
 """
 
-from blindspot.runs.stage_runs import PARENT_RUN_ENV, NullTracker, Tracker, current, stage_run
+from blindspot.runs.stage_runs import PARENT_RUN_ENV, NullTracker, Tracker, stage_run
 from blindspot.runs.signals import Terminated, children_die_with_this_process, sigterm_as_exit
 from blindspot.runs.stale import close_stale_runs, close_stale_runs_of
 from blindspot.runs.store import (
@@ -54,7 +54,6 @@ __all__ = [
     "get_client",
     "ensure_experiment",
     "stage_run",
-    "current",
     "SweepCallback",
     "end_open_sweep",
     "sigterm_as_exit",

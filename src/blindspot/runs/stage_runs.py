@@ -138,12 +138,6 @@ class NullTracker:
     def log_model_file(self, path: str | os.PathLike[str], artifact_path: str = "model") -> None:
         """Ignored."""
 
-    def log_figure(self, figure: Any, artifact_file: str) -> None:
-        """Ignored."""
-
-    def log_dict(self, data: Mapping[str, Any], artifact_file: str) -> None:
-        """Ignored."""
-
     def log_text(self, text: str, artifact_file: str) -> None:
         """Ignored."""
 
@@ -234,26 +228,12 @@ class Tracker(NullTracker):
         """Log a saved model (e.g. a torch checkpoint file or directory) as an artifact."""
         self.log_artifact(path, artifact_path)
 
-    def log_figure(self, figure: Any, artifact_file: str) -> None:
-        """Log a matplotlib figure as ``artifact_file`` (e.g. ``"figures/fig08.png"``)."""
-        self.client.log_figure(self.run_id, figure, artifact_file)
-
-    def log_dict(self, data: Mapping[str, Any], artifact_file: str) -> None:
-        """Log a mapping as a JSON/YAML artifact (format from the suffix)."""
-        self.client.log_dict(self.run_id, dict(data), artifact_file)
-
     def log_text(self, text: str, artifact_file: str) -> None:
         """Log text as an artifact file."""
         self.client.log_text(self.run_id, text, artifact_file)
 
 
-_STACK: list[NullTracker] = []
 _NULL = NullTracker()
-
-
-def current() -> NullTracker:
-    """The tracker of the innermost active :func:`stage_run`, or a no-op tracker."""
-    return _STACK[-1] if _STACK else _NULL
 
 
 def _status_for(exc: BaseException | None) -> str:
@@ -281,7 +261,7 @@ def stage_run(
     ``dvc.yaml``; all of ``cfg`` for a stage dvc.yaml does not know) and the whole resolved config
     as the artifact ``config/params.yaml``; tags: ``blindspot.stage``, git commit (``mlflow.source.git.commit``;
     DVC's baseline rev inside an experiment), ``dvc.exp_name``, ``hydra.job_num``... The run is
-    nested under ``parent_run_id``, else under an enclosing stage_run, else under the sweep
+    nested under ``parent_run_id``, else under the sweep
     parent named by ``$BLINDSPOT_MLFLOW_PARENT_RUN_ID``, else, for a stage DVC runs, under the
     pipeline run's parent (:mod:`~blindspot.runs.pipeline`), which gets the stage's headline
     metrics (``cfg.runs.headline``) when it ends. Ends FINISHED / FAILED / KILLED
@@ -292,12 +272,8 @@ def stage_run(
     values = None if cfg is None else _plain(cfg)  # converted once: ~1,300 keys in the pipeline
     settings = settings_from_cfg(values, repo_root)
     if not settings.enabled:
-        _STACK.append(_NULL)
-        try:
-            with sigterm_as_exit():
-                yield _NULL
-        finally:
-            _STACK.pop()
+        with sigterm_as_exit():
+            yield _NULL
         return
 
     work, original = _repo_roots(repo_root)
@@ -306,8 +282,7 @@ def stage_run(
         tags = {**run_tags(stage, work, original), **owner_tags()}
         pipeline_run_id = None
         if parent_run_id is None:
-            outer = next((t for t in reversed(_STACK) if t.run_id), None)
-            parent_run_id = outer.run_id if outer else os.environ.get(PARENT_RUN_ENV) or None
+            parent_run_id = os.environ.get(PARENT_RUN_ENV) or None
         if parent_run_id:
             experiment_id = client.get_run(parent_run_id).info.experiment_id
             close_stale_runs(client, [experiment_id])
@@ -333,7 +308,6 @@ def stage_run(
                 "creating a run",
             )
             tracker = Tracker(client, run.info.run_id)
-            _STACK.append(tracker)
         error: BaseException | None = None
         try:
             if values is not None:
@@ -351,7 +325,6 @@ def stage_run(
             error = exc
             raise
         finally:
-            _STACK.remove(tracker)
             status = _status_for(error)
             with sigterm_deferred(), contextlib.suppress(Exception):
                 _retry(lambda: client.set_terminated(tracker.run_id, status), "ending the run")

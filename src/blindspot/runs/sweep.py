@@ -95,7 +95,6 @@ _SWEEP: _OpenSweep | None = None
 
 def _end_leftover_runs() -> None:
     """End any fluent-API active run a reused (joblib/loky) worker may still hold."""
-    runs._STACK.clear()
     mlflow = sys.modules.get("mlflow")
     if mlflow is not None:
         while mlflow.active_run() is not None:

@@ -1,6 +1,6 @@
 """The "oracle association" reference tracks: each pedestrian's own measured points (associated by
 their truth label, so no association errors and no clutter tracks), filtered by a constant-velocity
-Kalman filter (:func:`blindspot.traj.baselines.kalman_filter`, :func:`~blindspot.traj.baselines.cv_model`).
+Kalman filter (:func:`blindspot.kalman.kalman_filter`, :func:`~blindspot.kalman.cv_model`).
 
 An upper bound for a real tracker on the same points (it knows which point is whose), kept as a
 reference row of the safety results, never as the headline. The output has the schema of
@@ -22,7 +22,7 @@ import pandas as pd
 
 from blindspot.arrays import check_number
 from blindspot.safety.config import OracleConfig
-from blindspot.traj.baselines import cv_model, kalman_filter
+from blindspot.kalman import cv_model, kalman_filter
 
 __all__ = ["TRACK_COLUMNS", "oracle_tracks"]
 

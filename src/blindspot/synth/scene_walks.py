@@ -33,7 +33,7 @@ from blindspot.radar.occlusion import segment_crosses_polygons
 from blindspot.radar.scene import walks
 from blindspot.traj.config import WalksConfig
 
-__all__ = ["BENCHMARK_STREAM", "WalksConfig", "SceneWalks", "draw_scene_walks",
+__all__ = ["BENCHMARK_STREAM", "WalksConfig", "SceneWalks", "car_scene_walks", "draw_scene_walks",
            "measure_scene_walks"]
 
 # Spawn key of the benchmark's random stream ("bnch"); the training paths use the bare seed.
@@ -150,3 +150,18 @@ def measure_scene_walks(walks_: SceneWalks, radar, cfar, doa, detect, *, pedestr
     xy = np.full(walks_.truth.shape, np.nan)
     xy[:, :T_meas] = measured.xy
     return xy
+
+
+def car_scene_walks(bench: WalksConfig, radar, car, cfar, doa, detect, *, seed: int,
+                    jobs: int = 1, progress: bool = False) -> tuple[SceneWalks, np.ndarray]:
+    """(walks, measured): ``bench``'s occluded walks of the paper's car scene ``car`` (a
+    :class:`~blindspot.radar.scene.SceneConfig` with the car: its pedestrian model and occlusion
+    loss) drawn with ``seed`` and measured through the paper's chain on ``jobs`` worker
+    processes; what the walks stage and the studies that score other models on its walks draw."""
+    from blindspot.synth.path_measurement import PedestrianModel
+
+    walks_ = draw_scene_walks(bench, radar.frame_period_s, seed=seed)
+    measured = measure_scene_walks(
+        walks_, radar, cfar, doa, detect, pedestrian=PedestrianModel.from_scene(car),
+        occlusion_db=car.occlusion_db, seed=seed, jobs=jobs, progress=progress)
+    return walks_, measured

@@ -46,7 +46,7 @@ def score_scene_walks(walks: SceneWalks, measured: np.ndarray, *,
     Args:
         walks: the drawn walks (truth, hidden frames, prediction starts).
         measured: (N, T, 2) radar points, NaN where none and from each walk's start on.
-        predictors: {name: PathPredictor} (``experiment.predictors``).
+        predictors: {name: PathPredictor} (``blindspot.traj.baselines.prediction_methods``).
         interpolation_methods: ``eval.interpolation_methods``; ``prediction_input`` the one the
             predictions start from (``eval.prediction_input``).
         gap_predictor: the predictor the forward/bidirectional fills roll out (the LSTM).
@@ -183,3 +183,80 @@ def _last_seen_before(tracks: np.ndarray, start: np.ndarray) -> np.ndarray:
     seen = np.isfinite(tracks).all(axis=-1) & (np.arange(tracks.shape[1])[None, :]
                                                 < start[:, None])
     return tracks.shape[1] - 1 - np.argmax(seen[:, ::-1], axis=1)
+
+
+# ----------------------------------------------------------------------------- the walks stage's
+def walk_statistics(scores: Mapping[str, Mapping[str, np.ndarray]], names: list[str],
+                    members: Mapping[str, object], interpolation_methods, *, n_walks: int,
+                    n_boot: int, level: float, seed: int, train_seed: int):
+    """(metrics, extra, fills): every method's mean over walks with its bootstrap interval
+    (benchmark.json's shape, ``{"n_walks": N, method: {metric: {mean, ci95}}}``), and what does
+    not fit it: the paired differences between methods (``names``) and between fills, and the
+    spread of the ensemble's members (``members``, seeds from ``train_seed``)."""
+    from blindspot.traj.bootstrap import bootstrap_means, paired_differences
+
+    boot = dict(n_boot=n_boot, level=level, seed=seed)
+    pairs = [(a, b) for i, a in enumerate(names) for b in names[i + 1:]]
+    fills = [f"fill_{m}" for m in interpolation_methods]
+    pairs += [(a, b) for i, a in enumerate(fills) for b in fills[i + 1:]]
+    metrics = {"n_walks": n_walks, **bootstrap_means(scores, **boot)}
+    extra: dict = {"paired": paired_differences(scores, pairs, **boot)}
+    if members:
+        spread = {k: [metrics[m][k]["mean"] for m in members]
+                  for k in ("path_error_mean_m", "ade_1s", "ade_2s", "fde_2s")}
+        extra["lstm_members"] = {"n_members": len(members), "seeds_from": int(train_seed),
+                                 **{k: {"min": min(v), "max": max(v)} for k, v in spread.items()}}
+    return metrics, extra, fills
+
+
+def per_walk_table(scores: Mapping[str, Mapping[str, np.ndarray]], walks: SceneWalks):
+    """One row per walk: its index, speed, turn and every ``<method>.<metric>`` score."""
+    import pandas as pd
+
+    per_walk = pd.DataFrame({f"{m}.{k}": v for m, per in scores.items() for k, v in per.items()})
+    per_walk.insert(0, "walk", range(len(walks)))
+    per_walk.insert(1, "speed_mps", walks.speed_mps)
+    per_walk.insert(2, "turn_deg", walks.turn_deg)
+    return per_walk
+
+
+def walk_lines(metrics: dict, names: list[str]) -> list[str]:
+    """One log line per method: the paper's metric with its interval, ADE 1 s, FDE 2 s."""
+    return [f"benchmark {name}: paper's metric {m['path_error_mean_m']['mean']:.3f} m "
+            f"{m['path_error_mean_m']['ci95']}, ADE 1 s {m['ade_1s']['mean']:.3f} m, "
+            f"FDE 2 s {m['fde_2s']['mean']:.3f} m"
+            for name in names for m in [metrics[name]]]
+
+
+def score_walks(walks: SceneWalks, measured: np.ndarray, *, ev, bench, calibration, dt: float,
+                lstm, direct, records: dict, val_scores, seed: int, train_seed: int):
+    """The walks stage's scoring, ``(metrics, extra, scores, names, fills)``: the paper's
+    methods (``ev.prediction_methods``), the direct LSTM ``direct`` (continued at its last
+    step's velocity past its horizon) and each member of the LSTM's ensemble score the walks
+    (:func:`score_scene_walks`) with the calibration stage's distributions (``records``,
+    ``val_scores``) and the adaptive conformal ellipses; then :func:`walk_statistics`."""
+    from blindspot.traj.baselines import kalman_baseline, prediction_methods
+    from blindspot.traj.calibration import calibrated_distributions
+    from blindspot.traj.conformal import AdaptiveConformal
+    from blindspot.traj.direct import NAME as DIRECT
+    from blindspot.traj.predictor import ConstantVelocityTail
+
+    predictors = {**prediction_methods(ev, dt, lstm),
+                  DIRECT: ConstantVelocityTail(direct, direct.cfg.horizon)}
+    distributions, priors = calibrated_distributions(records, predictors, val_scores)
+    c = calibration
+    online = AdaptiveConformal(COVERAGE_LEVELS, c.online_gamma, c.online_window,
+                               c.online_rescale_after)
+    members = ({f"lstm_member{i}": lstm.member(i) for i in range(lstm.n_members)}
+               if lstm.n_members > 1 else {})
+    scores, _ = score_scene_walks(
+        walks, measured, predictors={**predictors, **members},
+        interpolation_methods=ev.interpolation_methods, prediction_input=ev.prediction_input,
+        gap_predictor=lstm, smoother=kalman_baseline(ev, dt).smooth_batch,
+        horizon=bench.horizon_frames, dt_s=dt, horizons_s=ev.horizons_s,
+        distributions=distributions, threads=bench.threads, online=online, priors=priors)
+    names = list(predictors)
+    metrics, extra, fills = walk_statistics(
+        scores, names, members, ev.interpolation_methods, n_walks=len(walks),
+        n_boot=bench.n_bootstrap, level=bench.ci_level, seed=seed, train_seed=train_seed)
+    return metrics, extra, scores, names, fills

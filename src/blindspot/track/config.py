@@ -114,7 +114,7 @@ class TrackedRecording(TypedConfig):
             reference track (CLEAR MOT); null when the recording has no reference tracker.
 
     The record's ``tracker`` mapping (keys of the ``tracker`` group) overrides the tracker
-    group for this recording; :func:`blindspot.experiment.real_tracking` merges and types it.
+    group for this recording; :func:`tracked_recordings` merges and types it.
     """
 
     IGNORED = ("tracker",)
@@ -143,3 +143,21 @@ class RealTrackingConfig(TypedConfig):
     IGNORED = ("name",)
 
     recordings: tuple[TrackedRecording, ...] = setting(min_items=1)
+
+
+def tracked_recordings(cfg) -> dict:
+    """The real recordings of ``cfg.real_tracking`` (the composed config), each with its tracker
+    settings: the ``tracker`` group with the record's ``tracker`` keys laid over it (errors name
+    ``real_tracking.recordings.<name>.tracker.<key>``): ``{name: (TrackedRecording,
+    TrackerConfig)}``."""
+    from omegaconf import OmegaConf
+
+    group = RealTrackingConfig.from_cfg(cfg)
+    TrackerConfig.from_cfg(cfg)  # a bad tracker-group value is named tracker.<key>
+    out = {}
+    for rec in group.recordings:
+        overrides = cfg.real_tracking["recordings"][rec.name].get("tracker") or {}
+        merged = OmegaConf.merge(cfg.tracker, overrides)
+        out[rec.name] = (rec, TrackerConfig.from_mapping(
+            merged, where=f"real_tracking.recordings.{rec.name}.tracker"))
+    return out

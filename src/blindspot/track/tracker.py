@@ -271,7 +271,8 @@ def _numpy_kalman(transition_model, measurement_model):
     (Bar-Shalom et al. 2001, sec. 5.2.3), same input and output types; tests/track check them
     against the stock classes.
 
-    Returns (predictor, updater).
+    Returns (predictor, updater): the arithmetic is :mod:`blindspot.kalman`'s one-step
+    functions, the one Kalman filter of blindspot.
     """
     from stonesoup.predictor.kalman import KalmanPredictor
     from stonesoup.types.array import CovarianceMatrix, StateVector
@@ -279,6 +280,8 @@ def _numpy_kalman(transition_model, measurement_model):
                                             GaussianStatePrediction)
     from stonesoup.types.update import GaussianStateUpdate
     from stonesoup.updater.kalman import KalmanUpdater
+
+    from blindspot import kalman
 
     H = np.asarray(measurement_model.matrix(), float)
     R = np.asarray(measurement_model.covar(), float)
@@ -288,9 +291,9 @@ def _numpy_kalman(transition_model, measurement_model):
             dt = timestamp - prior.timestamp
             F = np.asarray(self.transition_model.matrix(time_interval=dt), float)
             Q = np.asarray(self.transition_model.covar(time_interval=dt), float)
-            x = np.asarray(prior.state_vector, float)
-            P = np.asarray(prior.covar, float)
-            return GaussianStatePrediction(StateVector(F @ x), CovarianceMatrix(F @ P @ F.T + Q),
+            x, P = kalman.predict(np.asarray(prior.state_vector, float),
+                                  np.asarray(prior.covar, float), F, Q)
+            return GaussianStatePrediction(StateVector(x), CovarianceMatrix(P),
                                            timestamp=timestamp,
                                            transition_model=self.transition_model)
 
@@ -299,10 +302,9 @@ def _numpy_kalman(transition_model, measurement_model):
         def measurement_moments(predicted_state, measurement_noise=True):
             """(H x (2, 1), S = H P H^T + R (2, 2), P H^T (4, 2)) of a predicted state, plain
             arrays: what a gate needs, without building the Stone Soup prediction object."""
-            x = np.asarray(predicted_state.state_vector, float)
-            P = np.asarray(predicted_state.covar, float)
-            PHt = P @ H.T
-            return H @ x, H @ PHt + (R if measurement_noise else 0.0), PHt
+            return kalman.measurement_moments(np.asarray(predicted_state.state_vector, float),
+                                              np.asarray(predicted_state.covar, float), H,
+                                              R if measurement_noise else 0.0)
 
         @staticmethod
         def measurement_prediction(predicted_state, moments):
@@ -322,14 +324,12 @@ def _numpy_kalman(transition_model, measurement_model):
             mp = hypothesis.measurement_prediction
             if mp is None:
                 mp = hypothesis.measurement_prediction = self.predict_measurement(pred)
-            S = np.asarray(mp.covar, float)
-            PHt = np.asarray(mp.cross_covar, float)
-            K = np.linalg.solve(S, PHt.T).T  # P H^T S^-1 (S symmetric)
-            innovation = (np.asarray(hypothesis.measurement.state_vector, float)
-                          - np.asarray(mp.state_vector, float))
-            x = np.asarray(pred.state_vector, float) + K @ innovation
-            P = np.asarray(pred.covar, float) - K @ S @ K.T
-            return GaussianStateUpdate(StateVector(x), CovarianceMatrix((P + P.T) / 2),
+            x, P = kalman.update(np.asarray(pred.state_vector, float),
+                                 np.asarray(pred.covar, float),
+                                 np.asarray(hypothesis.measurement.state_vector, float),
+                                 np.asarray(mp.state_vector, float),
+                                 np.asarray(mp.covar, float), np.asarray(mp.cross_covar, float))
+            return GaussianStateUpdate(StateVector(x), CovarianceMatrix(P),
                                        hypothesis=hypothesis,
                                        timestamp=hypothesis.measurement.timestamp)
 

@@ -5,7 +5,8 @@
   linearly. Optionally a least-squares velocity over the last ``k`` valid observations.
 * :class:`KalmanCV` - a Kalman filter on the constant-velocity state ``(x, y, vx, vy)`` with
   white-noise acceleration, which treats NaN rows as missing observations. Prediction uses a
-  batched numpy filter (:func:`kalman_filter`, checked against pykalman in the tests); gap
+  batched numpy filter (:func:`blindspot.kalman.kalman_filter`, checked against pykalman in the
+  tests); gap
   filling uses pykalman's RTS smoother (:meth:`KalmanCV.smooth`). Noise levels can be fitted by
   maximum likelihood on training tracks (:meth:`KalmanCV.fit`).
 
@@ -20,11 +21,11 @@ All arrays are (x, y) in metres; histories are (B, T, 2), NaN rows = missing fra
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
-from typing import NamedTuple
 
 import numpy as np
 
 from blindspot.arrays import check_array
+from blindspot.kalman import FilterResult, check_positive, cv_model, kalman_filter
 from blindspot.traj.distribution import GaussianForecast
 from blindspot.traj.predictor import HistoryError, check_history
 
@@ -35,9 +36,8 @@ __all__ = [
     "cv_error_frame",
     "cv_noise_features",
     "KalmanCV",
-    "FilterResult",
-    "cv_model",
-    "kalman_filter",
+    "kalman_baseline",
+    "prediction_methods",
     "last_valid_index",
 ]
 
@@ -332,142 +332,6 @@ class ConstantVelocity:
         return GaussianForecast(self.predict(h, horizon), cov)
 
 
-# --------------------------------------------------------------------------------------------
-# Kalman filter, constant-velocity model
-# --------------------------------------------------------------------------------------------
-
-
-def cv_model(dt: float, process_psd: float, meas_std: float) -> tuple[np.ndarray, ...]:
-    """Matrices of the 2-D constant-velocity model with continuous white-noise acceleration.
-
-    State ``s = (x, y, vx, vy)`` in m and m/s; observation ``z = (x, y)`` in m.
-
-    Args:
-        dt: frame period in seconds.
-        process_psd: power spectral density ``q`` of the white acceleration noise, m^2/s^3
-            (per axis); ``Q = q [[dt^3/3, dt^2/2], [dt^2/2, dt]]`` per axis.
-        meas_std: standard deviation of each position coordinate's measurement noise, m.
-
-    Returns:
-        ``(F (4, 4), Q (4, 4), H (2, 4), R (2, 2))``.
-    """
-    for key, value, unit in (("dt", dt, "s"), ("process_psd", process_psd, "m^2/s^3"),
-                             ("meas_std", meas_std, "m")):
-        _check_positive(f"KalmanCV.{key}", value, unit)
-    I2 = np.eye(2)
-    F = np.block([[I2, dt * I2], [np.zeros((2, 2)), I2]])
-    Q = process_psd * np.block([[dt**3 / 3 * I2, dt**2 / 2 * I2], [dt**2 / 2 * I2, dt * I2]])
-    H = np.hstack([I2, np.zeros((2, 2))])
-    R = meas_std**2 * I2
-    return F, Q, H, R
-
-
-def _check_positive(key: str, value, unit: str) -> None:
-    """A finite real number > 0 (not a bool, string or complex), else ValueError naming key."""
-    if (isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer,
-                                                                     np.floating))
-            or not np.isfinite(value) or not value > 0):
-        raise ValueError(f"{key}: expected a finite number > 0 ({unit}), found {value!r}")
-
-
-def _unique_rows(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Distinct rows of a boolean (B, T) mask and each row's index into them."""
-    packed = np.ascontiguousarray(np.packbits(mask, axis=1))            # (B, ceil(T/8)) uint8
-    keys = packed.view(np.dtype((np.void, packed.shape[1]))).reshape(-1)
-    _, first, which = np.unique(keys, return_index=True, return_inverse=True)
-    return mask[first], which.reshape(-1)
-
-
-class FilterResult(NamedTuple):
-    """Output of :func:`kalman_filter`.
-
-    means: (B, T, n) filtered state means; covs: (B, T, n, n) filtered covariances;
-    loglik: (B,) log-likelihood of each sequence's observed rows.
-    """
-
-    means: np.ndarray
-    covs: np.ndarray
-    loglik: np.ndarray
-
-
-def kalman_filter(obs: np.ndarray, F: np.ndarray, Q: np.ndarray, H: np.ndarray, R: np.ndarray,
-                  m0: np.ndarray, P0: np.ndarray) -> FilterResult:
-    """Batched linear Kalman filter with missing observations (same recursion as pykalman).
-
-    At t = 0 the prior is ``(m0, P0)``; each step then predicts with ``F, Q`` and corrects with
-    the observation unless the row holds a NaN (missing: the prediction is kept). The loop runs
-    over time only. The covariances and gains depend only on *which* frames are observed, not on
-    the values, so they are computed once per distinct missing-frame pattern (one pattern for
-    fully observed windows) and shared by all sequences with that pattern.
-
-    Args:
-        obs: (B, T, d) observations, NaN rows missing.
-        F: (n, n) transition; Q: (n, n) process covariance; H: (d, n) observation matrix;
-            R: (d, d) measurement covariance.
-        m0: (B, n) or (n,) prior mean at t = 0; P0: (n, n) prior covariance (shared).
-
-    Returns:
-        :class:`FilterResult` with filtered means (B, T, n), covariances (B, T, n, n) and the
-        per-sequence log-likelihood (B,) (sum over observed rows of log N(z_t; H m_t|t-1, S_t)).
-
-    Raises:
-        HistoryError: an argument not real, of the wrong shape, or not finite (``obs`` and
-            ``m0`` may hold NaN: missing rows, tracks without a valid row).
-    """
-    who = "kalman_filter"
-    F = check_array(F, "F", ("n", "n"), error=HistoryError, who=who)
-    n = F.shape[0]
-    Q = check_array(Q, "Q", (n, n), error=HistoryError, who=who)
-    H = check_array(H, "H", ("d", n), error=HistoryError, who=who)
-    z = check_array(obs, "obs", ("B", "T", H.shape[0]), error=HistoryError, who=who,
-                    allow_nan=True)
-    B, T, d = z.shape
-    R = check_array(R, "R", (d, d), error=HistoryError, who=who)
-    m0 = check_array(m0, "m0", ("...", n), error=HistoryError, who=who, allow_nan=True)
-    P0 = check_array(P0, "P0", (n, n), error=HistoryError, who=who)
-    if m0.shape not in ((n,), (B, n)):
-        raise HistoryError(f"{who}: m0 must be ({n},) or ({B}, {n}), found {m0.shape}")
-    observed = np.isfinite(z).all(axis=-1)                               # (B, T)
-    patterns, which = _unique_rows(observed)                             # (U, T), (B,)
-    U = patterns.shape[0]
-    eye = np.eye(n)
-
-    # covariance recursion, once per observation pattern
-    P = np.broadcast_to(P0, (U, n, n)).copy()
-    gains = np.zeros((T, U, n, d))
-    S_inv_all = np.empty((T, U, d, d))
-    logdet_all = np.empty((T, U))
-    covs_u = np.empty((T, U, n, n))
-    for t in range(T):
-        if t > 0:
-            P = F @ P @ F.T + Q
-        S = H @ P @ H.T + R                                              # (U, d, d)
-        S_inv = np.linalg.inv(S)
-        K = P @ H.T @ S_inv                                              # (U, n, d)
-        upd = patterns[:, t]
-        P = np.where(upd[:, None, None], (eye - K @ H) @ P, P)
-        gains[t] = np.where(upd[:, None, None], K, 0.0)
-        S_inv_all[t] = S_inv
-        logdet_all[t] = np.linalg.slogdet(S)[1]
-        covs_u[t] = P
-
-    # mean recursion, all sequences together
-    m = np.broadcast_to(np.asarray(m0, float), (B, n)).copy()
-    means = np.empty((B, T, n))
-    loglik = np.zeros(B)
-    for t in range(T):
-        if t > 0:
-            m = m @ F.T
-        innov = np.where(observed[:, t, None], z[:, t], 0.0) - m @ H.T   # (B, d)
-        m = m + np.einsum("bij,bj->bi", gains[t][which], innov)
-        maha = np.einsum("bi,bij,bj->b", innov, S_inv_all[t][which], innov)
-        ll = -0.5 * (maha + logdet_all[t][which] + d * np.log(2 * np.pi))
-        loglik += np.where(observed[:, t], ll, 0.0)
-        means[:, t] = m
-    covs = np.moveaxis(covs_u, 0, 1)[which]                              # (B, T, n, n)
-    return FilterResult(means, covs, loglik)
-
-
 @dataclass(frozen=True)
 class KalmanCV:
     """Constant-velocity Kalman filter (prediction) and RTS smoother (gap filling).
@@ -493,7 +357,7 @@ class KalmanCV:
     def __post_init__(self) -> None:
         cv_model(self.dt, self.process_psd, self.meas_std)   # validates the three values
         for key in ("init_pos_std", "init_vel_std"):
-            _check_positive(f"KalmanCV.{key}", getattr(self, key), "m" if "pos" in key else "m/s")
+            check_positive(f"KalmanCV.{key}", getattr(self, key), "m" if "pos" in key else "m/s")
 
     # -- model --------------------------------------------------------------------------------
     def matrices(self) -> tuple[np.ndarray, ...]:
@@ -518,7 +382,7 @@ class KalmanCV:
         h = check_history(history, 1, who=f"{self.name}.filter")
         F, Q, H, R = self.matrices()
         m0, P0 = self.prior(h)
-        return kalman_filter(h, F, Q, H, R, m0, P0)
+        return kalman_filter(h, F, Q, H, R, m0, P0, error=HistoryError)
 
     # -- PathPredictor -------------------------------------------------------------------------
     def predict(self, history: np.ndarray, horizon: int) -> np.ndarray:
@@ -718,3 +582,28 @@ class KalmanCV:
         res = minimize(loss, x0, method="Nelder-Mead",
                        options={"maxiter": max_iter, "xatol": 1e-3, "fatol": 1e-7})
         return model_at(res.x)
+
+
+def kalman_baseline(ev, dt: float) -> KalmanCV:
+    """The constant-velocity Kalman baseline of ``eval.kalman`` (``ev``: an
+    :class:`~blindspot.traj.config.EvalConfig`) at the frame period ``dt`` (s)."""
+    k = ev.kalman
+    return KalmanCV(dt=dt, process_psd=k.process_psd, meas_std=k.meas_std)
+
+
+def prediction_methods(ev, dt: float, lstm=None) -> dict:
+    """The prediction methods of ``eval.prediction_methods`` by name (``ev``: an
+    :class:`~blindspot.traj.config.EvalConfig`, ``dt`` the frame period in s, ``lstm`` the scene
+    LSTM or None). Raises ValueError naming the key for a method that is not available."""
+    made = {
+        "lstm": lstm,
+        "constant_velocity": ConstantVelocity(k=ev.cv_fit_points, name="constant_velocity"),
+        "kalman": kalman_baseline(ev, dt),
+    }
+    out = {}
+    for name in ev.prediction_methods:
+        if name not in made or made[name] is None:
+            raise ValueError(f"config key 'eval.prediction_methods' lists {name!r}: expected names "
+                             f"from {sorted(k for k, v in made.items() if v is not None)}")
+        out[name] = made[name]
+    return out

@@ -287,3 +287,64 @@ def from_record(record: dict, predictor, name: str) -> ScaledPredictor:
         raise CalibrationError(f"calibration record of {name!r}: missing or malformed field "
                                f"{e}") from None
     return ScaledPredictor(base, scale, options, name, mixture)
+
+
+# ----------------------------------------------------------------------------- the stage's steps
+def held_out_pairs(measured: np.ndarray, truth: np.ndarray, ids: dict, window: int,
+                   horizon: int, stride: int) -> dict:
+    """{"val": (history, future), "test": (history, future, index)}: :func:`path_pairs` of the
+    validation paths and of the held-out ones (``ids``: path ids by split)."""
+    return {split: path_pairs(measured[ids[split]], truth[ids[split]], window, horizon, stride,
+                              with_index=split == "test") for split in ("val", "test")}
+
+
+def calibrate_on_paths(predictors: dict, pairs: dict, online, *, scale_method: str,
+                       scale_level: float, cv_fit_points: int, n_test_paths: int):
+    """(calibrated predictors, validation scores, metrics): each predictor calibrated on the
+    validation pairs (:func:`calibrate`), its scores there (where the adaptive conformal ellipses
+    of ``online`` start, here and in the walks), and its coverage / NLL on the held-out pairs
+    beside the online coverage: ``{name: {"sim_paths": {...}}}``."""
+    calibrated = calibrate(predictors, *pairs["val"], scale_method=scale_method,
+                           scale_level=scale_level, cv_fit_points=cv_fit_points)
+    prior = {n: forecast_scores(p, *pairs["val"]) for n, p in calibrated.items()}
+    metrics = {name: {"sim_paths": {**calibration_scores(p, *pairs["test"][:2]),
+                                    **online_scores(p, online, prior[name], pairs["test"]),
+                                    "n_paths": int(n_test_paths)}}
+               for name, p in calibrated.items()}
+    return calibrated, prior, metrics
+
+
+def merge_ethucy_folds(metrics: dict, paths) -> dict:
+    """``metrics`` with the ETH/UCY folds of every path ending in :data:`ETHUCY_FILE` merged in
+    (same shape; names mapped by :data:`ETHUCY_NAMES`)."""
+    import json
+    from pathlib import Path
+
+    for path in paths:
+        if str(path).endswith(ETHUCY_FILE):
+            for name, folds in json.loads(Path(path).read_text()).items():
+                metrics.setdefault(ETHUCY_NAMES.get(name, name), {}).update(folds)
+    return metrics
+
+
+def coverage_line(name: str, m: dict) -> str | None:
+    """One log line of a predictor's ``sim_paths`` scores (None without them)."""
+    s = m.get("sim_paths")
+    if not s:
+        return None
+    return (f"calibration {name}: coverage 50/90/95 {s['coverage_50']:.3f} / "
+            f"{s['coverage_90']:.3f} / {s['coverage_95']:.3f}, NLL {s['nll']:.3f} "
+            f"({s['n_points']} points of {s['n_paths']} held-out paths); online "
+            f"{s['online_coverage_50']:.3f} / {s['online_coverage_90']:.3f} / "
+            f"{s['online_coverage_95']:.3f}")
+
+
+def calibrated_distributions(records: dict, predictors: dict, val_scores) -> tuple[dict, dict]:
+    """(distributions, priors): each predictor's calibrated distribution from the calibration
+    stage's records (models.json), and its validation scores from ``val_scores`` (the stage's
+    val_scores.npz: where the adaptive conformal ellipses start)."""
+    distributions = {n: from_record(records[n], p, n) for n, p in predictors.items()
+                     if n in records}
+    with np.load(val_scores) as z:
+        priors = {n: z[n] for n in distributions if n in z.files}
+    return distributions, priors

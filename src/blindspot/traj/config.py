@@ -272,7 +272,7 @@ SEQ2SEQ_LOSSES: tuple[str, ...] = ("ade", "mse")
 @dataclass(frozen=True)
 class Seq2SeqConfig(TypedConfig):
     """The direct multi-step predictor and its training (nested in the ``ethucy`` group as
-    ``ethucy.seq2seq``; every field is measured in ``benchmarks/bench_ethucy_models.py``).
+    ``ethucy.seq2seq``; every field is measured in ``studies/ethucy_models.py``).
 
     Attributes:
         cell: the encoder of the observed history: ``"gru"`` or ``"lstm"`` (recurrent) or
@@ -329,6 +329,46 @@ class Seq2SeqConfig(TypedConfig):
 
 
 @dataclass(frozen=True)
+class RolloutLSTMConfig(TypedConfig):
+    """The next-point LSTM of the ETH/UCY protocol (``lstm_rollout``), nested in the ``ethucy``
+    group as ``ethucy.lstm_rollout`` (:class:`LSTMConfig` / :class:`TrainConfig` settings; its
+    window is fixed to 8; ``seed`` and ``num_threads`` are set from the top-level ``seed`` and
+    ``ethucy.threads``).
+
+    frame ``heading``: each window in its own heading frame (origin at the last point, +x along
+    the last step; :class:`~blindspot.traj.predictor.HeadingFrameRollout`), where ``residual``
+    (predict the correction to constant velocity), ``mirror`` (mirrored copies, predictions
+    averaged) and ``speed_floor`` (scale by the last step length, floored; None: no scaling)
+    apply; ``world``: world coordinates, ``rotations`` random-rotation copies per window.
+    ``ensemble`` LSTMs with seeds ``seed, seed + 1, ...`` average their next points.
+    """
+
+    GROUP = "ethucy.lstm_rollout"
+
+    hidden_size: int = setting(64, ge=1)
+    num_layers: int = setting(1, ge=1)
+    head_hidden: int = setting(32, ge=0)
+    target: str = setting("displacement", choices=TARGETS)
+    epochs: int = setting(8, ge=1)
+    batch_size: int = setting(256, ge=1)
+    lr: float = setting(1e-3, gt=0.0)
+    seed: int = setting(0, ge=0)
+    frame: str = setting("heading", choices=("heading", "world"))
+    residual: bool = setting(True)
+    mirror: bool = setting(True)
+    speed_floor: float | None = setting(None, gt=0.0)
+    rotations: int = setting(0, ge=0)
+    ensemble: int = setting(5, ge=1)
+    num_threads: int | None = setting(None, ge=1)
+
+    def validate(self) -> None:
+        if self.frame == "heading" and self.rotations:
+            raise ConfigError("rotations", self.rotations,
+                              "0 in the heading frame (it is rotation invariant; random "
+                              "rotations need frame: world)")
+
+
+@dataclass(frozen=True)
 class EthUcyConfig(TypedConfig):
     """The Hydra group ``ethucy`` (conf/ethucy/standard.yaml): the ETH/UCY benchmark.
 
@@ -358,6 +398,7 @@ class EthUcyConfig(TypedConfig):
         seq2seq: the direct predictor's model and training settings
             (:class:`blindspot.traj.seq2seq.Seq2SeqConfig`; its ``cell`` is set by the model
             key, its ``threads`` by ``threads``, its first seed by the top-level ``seed``).
+        lstm_rollout: the next-point LSTM's (:class:`RolloutLSTMConfig`), the same way.
     """
 
     GROUP = "ethucy"
@@ -372,6 +413,7 @@ class EthUcyConfig(TypedConfig):
     online_windows: tuple[int, ...] = setting(ge=1, min_items=1)
     online_rescales: tuple[int, ...] = setting(ge=0, min_items=1)
     seq2seq: Seq2SeqConfig = setting()
+    lstm_rollout: RolloutLSTMConfig = setting()
 
 
 @dataclass(frozen=True)
@@ -437,7 +479,7 @@ class DirectConfig(TypedConfig):
     finetune: True: after pre-training, train on the radar pairs (the epochs of ``model``);
         False: the pre-trained members are the model, never trained on a radar pair (needs
         ``pretrain_epochs`` > 0). On occluded walks of the paper's scene the ETH/UCY-only
-        network forecasts better (benchmarks/bench_pretrain_direct.py);
+        network forecasts better (studies/pretrain_direct.py);
     pretrain_walks: at most this many ETH/UCY walks (a seeded random subset; 0 = all of them);
     pretrain_data: the ETH/UCY folder, relative to ``paths.shared_dir``.
     """

@@ -35,7 +35,7 @@ future has passed (``t_revealed`` (N, H)).
 
 A new scene can differ from the validation data by a scale: the Kalman filter's median d^2 on
 one ETH/UCY val scene, against the same fold's other val scenes, ranges from 0.01x to 16x
-(``benchmarks/bench_online_calibration.py --split val-scenes``). A short recording (eth's test
+(``studies/online_calibration.py --split val-scenes``). A short recording (eth's test
 scene: 181 predictions) makes most of its predictions with the prior still in the window, and
 ACI's small steps cannot make up for it. With ``rescale_prior_after = k``, once a step's window
 holds k of the stream's own scores the prior scores still in it are multiplied by the ratio of

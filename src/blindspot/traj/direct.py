@@ -94,7 +94,7 @@ def pretraining_walks(data_dir: str | Path, measured: np.ndarray, truth: np.ndar
     the training paths only). Seeded by ``cfg.model.seed``, rotations and draws on separate
     streams.
 
-    Measured (bench_pretrain_direct.py, 21 held-out radar paths): pre-training 5 epochs on all
+    Measured (studies/pretrain_direct.py, 21 held-out radar paths): pre-training 5 epochs on all
     39,649 walks, then fine-tuning, cut the 3 s ADE / FDE by 10 % against training from scratch.
 
     Raises EthUcyDataError (folder, frame period, shapes) and ValueError when the paths hold no
@@ -168,3 +168,50 @@ def direct_scores(predictors: dict, measured: np.ndarray, truth: np.ndarray, obs
                      "n_pairs": int(len(hist))}
     return out
 
+
+
+# ----------------------------------------------------------------------------- the stage's report
+STEPS_S = (1.0, 2.0, 3.0)   # the horizons train_direct.json reports, beside the model's own
+
+
+def score_steps(dt: float, horizon: int) -> tuple[int, ...]:
+    """The frames scored: 1, 2 and 3 s (:data:`STEPS_S`, at most ``horizon``) and ``horizon``."""
+    return tuple(sorted({min(int(round(s / dt)), horizon) for s in STEPS_S} | {horizon}))
+
+
+def direct_metrics(scores: dict, predictors, steps, dt: float, ids: dict, d, reports,
+                   pre_reports, walks) -> dict:
+    """train_direct.json: each predictor's scores by split, the steps, the paths per split,
+    each member's chosen epoch and the pre-training's (no wall times: same bytes each run)."""
+    return {**{name: {s: scores[s][name] for s in scores} for name in predictors},
+            "steps_frames": list(steps), "frame_period_s": dt,
+            "n_paths": {s: int(len(v)) for s, v in ids.items()},
+            "members": [{"seed": d.model.seed + k, "best_epoch": r.best_epoch,
+                         "val_ade_m": r.best_val_ade} for k, r in enumerate(reports)],
+            "pretrain": {"epochs": d.pretrain_epochs,
+                         "n_walks": 0 if walks is None else int(len(walks)),
+                         "best_epochs": [r.best_epoch for r in pre_reports],
+                         "val_ade_m": [r.best_val_ade for r in pre_reports]}}
+
+
+def direct_line(metrics: dict, predictors, steps, dt: float, d, reports, pre_reports,
+                walks) -> str:
+    """One log line: members, best epochs, training times, held-out ADE/FDE over ~3 s."""
+    k = steps[min(2, len(steps) - 1)]
+    pre = (f"pre-trained {d.pretrain_epochs} epochs on {len(walks)} ETH/UCY walks (best epochs "
+           f"{[r.best_epoch for r in pre_reports]}, {max(r.seconds for r in pre_reports):.0f} s "
+           "each at most), " if pre_reports else "")
+    return (f"train_direct: {len(reports)} members, {pre}best epochs "
+            f"{[r.best_epoch for r in reports]}, {max(r.seconds for r in reports):.0f} s each at "
+            f"most; held-out ADE/FDE over {k * dt:.1f} s: "
+            + ", ".join(f"{n} {v['test'][f'ade_{k}']:.3f}/{v['test'][f'fde_{k}']:.3f} m"
+                        for n, v in metrics.items() if n in predictors))
+
+
+def logged_direct(metrics: dict, predictors, reports) -> dict:
+    """:func:`direct_metrics` as MLflow metrics, each member's training time added."""
+    logged = {n: metrics[n] for n in predictors}
+    logged["members"] = {f"seed{m['seed']}": {**{kk: v for kk, v in m.items() if kk != "seed"},
+                                              "seconds": r.seconds}
+                         for m, r in zip(metrics["members"], reports)}
+    return logged

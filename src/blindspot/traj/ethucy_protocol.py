@@ -1,8 +1,8 @@
 """The ETH/UCY benchmark protocol: CVM, Kalman and the learned predictors scored by ADE / FDE.
 
-:func:`run_benchmark` takes typed :class:`EthUcySettings` (built from the ``ethucy`` config
-group, typed, by :meth:`EthUcySettings.from_config`, or by the command line
-``python -m blindspot.bench.ethucy``) and returns a :class:`BenchmarkRun`: the results dict of
+:func:`run_benchmark` takes :class:`EthUcySettings` (the ``ethucy`` config group, typed, resolved
+by :meth:`EthUcySettings.from_config`: change it with Hydra overrides, e.g. ``python -m blindspot
+ethucy ethucy.models=[cvm] ethucy.folds=[eth]``) and returns a :class:`BenchmarkRun`: the results dict of
 ``reports/metrics/ethucy.json`` and what each model fitted per fold. Nothing is written here; the
 Markdown page is :mod:`blindspot.report.ethucy_report`'s.
 
@@ -53,7 +53,7 @@ from typing import Any
 import numpy as np
 
 from blindspot.traj.baselines import ConstantVelocity, KalmanCV
-from blindspot.traj.config import ETHUCY_MODELS, EthUcyConfig, Seq2SeqConfig
+from blindspot.traj.config import ETHUCY_MODELS, EthUcyConfig, RolloutLSTMConfig, Seq2SeqConfig
 from blindspot.traj.conformal import AdaptiveConformal, select_on_held_out_streams
 from blindspot.traj.distribution import (
     ConditionalScaleMixture,
@@ -87,7 +87,6 @@ from blindspot.traj.predictor import (
 
 __all__ = [
     "MODELS",
-    "LSTMBenchSettings",
     "EthUcySettings",
     "FoldOutcome",
     "BenchmarkRun",
@@ -112,10 +111,6 @@ PROBABILISTIC: tuple[str, ...] = ("cvm", "kalman", "lstm", "gru", "mlp")
 CALIBRATION_LEVELS: tuple[float, ...] = (0.5, 0.9, 0.95)
 #: nominal levels of the reliability curve (figure)
 RELIABILITY_LEVELS: tuple[float, ...] = (0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 0.95, 0.99)
-#: ways to calibrate a forecast on val: a per-step scale (fit_step_scale's methods), a
-#: per-step scale mixture (fit_scale_mixture, MIXTURE_COMPONENTS components) or one such
-#: mixture per class of observed speed (fit_conditional_scale_mixture)
-CALIBRATIONS: tuple[str, ...] = ("mle", "quantile", "mixture", "conditional")
 MIXTURE_COMPONENTS = 3
 #: class edges of the observed speed (m/s, mean of the last two steps) for "conditional":
 #: standing (< 0.2), slow, walking, brisk, fast (> 1.4; the preferred walking speed is about
@@ -126,68 +121,9 @@ SEQ2SEQ_CELL: dict[str, str] = {"lstm": "lstm", "gru": "gru", "mlp": "mlp"}
 
 
 @dataclass(frozen=True)
-class LSTMBenchSettings:
-    """LSTM settings for the benchmark (passed to ``LSTMConfig`` / ``TrainConfig``).
-
-    Attributes:
-        hidden_size, num_layers, head_hidden, target: model (window is fixed to 8).
-        epochs, batch_size, lr, seed: training.
-        frame: ``"heading"`` - every window is expressed in its own heading frame (origin at the
-            last point, +x along the last step) for training and for each rollout step
-            (:class:`~blindspot.traj.predictor.HeadingFrameRollout`); ``"world"`` - the LSTM
-            sees world coordinates (its own translation to the last point still applies).
-        residual: (heading frame) the LSTM predicts the correction to constant velocity.
-        mirror: (heading frame) train on mirrored copies too and average the prediction with
-            the mirrored window's (left/right symmetry).
-        speed_floor: (heading frame) also scale each window by its last step length, floored
-            at this many metres (None = no scaling): the LSTM then sees the shape of the motion
-            independent of walking speed.
-        rotations: (world frame) random-rotation copies added per training window.
-        ensemble: train this many LSTMs with seeds ``seed, seed + 1, ...`` and
-            average their next-point predictions at every rollout step.
-        num_threads: torch threads (None = leave torch's default).
-    """
-
-    hidden_size: int = 64
-    num_layers: int = 1
-    head_hidden: int = 32
-    target: str = "displacement"
-    epochs: int = 8
-    batch_size: int = 256
-    lr: float = 1e-3
-    seed: int = 0
-    frame: str = "heading"
-    residual: bool = True
-    mirror: bool = True
-    speed_floor: float | None = None
-    rotations: int = 0
-    ensemble: int = 5
-    num_threads: int | None = None
-
-    def __post_init__(self) -> None:
-        if self.frame not in ("heading", "world"):
-            raise ValueError(f"frame: expected 'heading' or 'world', found {self.frame!r}")
-        if self.frame == "heading" and self.rotations:
-            raise ValueError("rotations: random rotations do nothing in the heading frame "
-                             "(it is rotation invariant); use frame='world' or rotations=0")
-        if int(self.ensemble) != self.ensemble or self.ensemble < 1:
-            raise ValueError(f"ensemble: expected an integer >= 1, found {self.ensemble!r}")
-
-
-def _choices(value: str | Sequence[str], allowed: Sequence[str], key: str) -> tuple[str, ...]:
-    """A non-empty subset of ``allowed`` (a sequence or a comma-separated string), order kept,
-    duplicates dropped; ValueError naming ``key`` otherwise."""
-    items = [v.strip() for v in value.split(",")] if isinstance(value, str) else [str(v) for v in value]
-    items = [v for v in items if v]
-    bad = [v for v in items if v not in allowed]
-    if bad or not items:
-        raise ValueError(f"{key}: expected a non-empty subset of {','.join(allowed)}, found {value!r}")
-    return tuple(dict.fromkeys(items))
-
-
-@dataclass(frozen=True)
 class EthUcySettings:
-    """What one benchmark run does.
+    """What one benchmark run does: the typed ``ethucy`` group (:class:`EthUcyConfig`, which
+    checks every value) resolved by :meth:`from_config` (paths, seeds, candidate ellipses).
 
     Attributes:
         data_dir: the folder holding ``eth/ hotel/ univ/ zara1/ zara2/``.
@@ -206,15 +142,12 @@ class EthUcySettings:
             a stream whose revealed outcomes keep the ellipses calibrated;
             ``online_coverage_*``); each fold and model chooses one on its own val scenes
             (:func:`online_coverage`).
-
-    Raises:
-        ValueError: an unknown model or fold, or none (naming ``models`` / ``folds``).
     """
 
     data_dir: Path
     models: tuple[str, ...] = MODELS
     folds: tuple[str, ...] = FOLDS
-    lstm: LSTMBenchSettings = field(default_factory=LSTMBenchSettings)
+    lstm: RolloutLSTMConfig = field(default_factory=RolloutLSTMConfig)
     seq2seq: Seq2SeqConfig = field(default_factory=Seq2SeqConfig)
     calibration: str = "mixture"
     speed_edges: tuple[float, ...] = SPEED_EDGES_M_S
@@ -222,30 +155,19 @@ class EthUcySettings:
         default_factory=lambda: (AdaptiveConformal(CALIBRATION_LEVELS),))
 
     def __post_init__(self) -> None:
-        if self.calibration not in CALIBRATIONS:
-            raise ValueError(f"calibration: expected one of {CALIBRATIONS}, found "
-                             f"{self.calibration!r}")
-        edges = tuple(float(e) for e in self.speed_edges)
-        if not edges or any(b <= a for a, b in zip(edges, edges[1:])) or edges[0] <= 0:
-            raise ValueError(f"speed_edges: expected increasing speeds > 0 (m/s), found "
-                             f"{self.speed_edges!r}")
-        object.__setattr__(self, "speed_edges", edges)
         object.__setattr__(self, "data_dir", Path(self.data_dir))
-        object.__setattr__(self, "models", _choices(self.models, MODELS, "models"))
-        object.__setattr__(self, "folds", _choices(self.folds, FOLDS, "folds"))
 
     @classmethod
     def from_config(cls, config: EthUcyConfig, *, shared_dir: str | Path,
                     seed: int) -> EthUcySettings:
         """From the typed ``ethucy`` config group (:class:`~blindspot.traj.config.EthUcyConfig`,
         validated there): ``data`` relative to ``shared_dir`` (or absolute), the models, the
-        folds, the calibration method, the direct predictor's settings (``seq2seq``) and the
-        torch threads; ``seed`` (the config's top-level seed) is every learned model's first
-        seed. The next-point LSTM (``lstm_rollout``) keeps :class:`LSTMBenchSettings`'
-        defaults."""
+        folds, the calibration method, the direct predictor's and the next-point LSTM's settings
+        (``seq2seq``, ``lstm_rollout``) and the torch threads; ``seed`` (the config's top-level
+        seed) is every learned model's first seed."""
         return cls(data_dir=Path(shared_dir) / config.data, models=tuple(config.models),
                    folds=tuple(config.folds),
-                   lstm=LSTMBenchSettings(seed=int(seed), num_threads=config.threads),
+                   lstm=replace(config.lstm_rollout, seed=int(seed), num_threads=config.threads),
                    seq2seq=replace(config.seq2seq, seed=int(seed), threads=config.threads),
                    calibration=config.calibration,
                    speed_edges=tuple(config.calibration_speed_edges),
@@ -286,7 +208,7 @@ def score(predictor: PathPredictor, test: Windows, obs_len: int = OBS_LEN,
     return ade(pred, truth), fde(pred, truth)
 
 
-def lstm_window_set(data_dir: Path, fold: str, split: str, s: LSTMBenchSettings, *,
+def lstm_window_set(data_dir: Path, fold: str, split: str, s: RolloutLSTMConfig, *,
                     augment: bool = True):
     """Next-point windows (8 in -> 1 out) of a fold's split as a ``WindowSet``.
 
@@ -311,7 +233,7 @@ def lstm_window_set(data_dir: Path, fold: str, split: str, s: LSTMBenchSettings,
     return WindowSet(x=xy[:, :OBS_LEN], y=xy[:, OBS_LEN], path_id=pid)
 
 
-def train_fold_lstm(data_dir: Path, fold: str, s: LSTMBenchSettings, progress: bool
+def train_fold_lstm(data_dir: Path, fold: str, s: RolloutLSTMConfig, progress: bool
                     ) -> tuple[PathPredictor, float, int, int]:
     """Train the LSTM on a fold's train split (validated on its val split).
 
@@ -450,7 +372,7 @@ def train_fold_seq2seq(data_dir: Path, fold: str, cfg: Seq2SeqConfig, name: str,
     return ens, fitted
 
 
-def run_fold(data_dir: Path, fold: str, models: Sequence[str], lstm: LSTMBenchSettings,
+def run_fold(data_dir: Path, fold: str, models: Sequence[str], lstm: RolloutLSTMConfig,
              progress: bool = True, seq2seq: Seq2SeqConfig | None = None,
              calibration: str = "mixture",
              speed_edges: Sequence[float] = SPEED_EDGES_M_S,
@@ -483,7 +405,7 @@ def run_fold(data_dir: Path, fold: str, models: Sequence[str], lstm: LSTMBenchSe
         elif name == "lstm_rollout":
             predictor, val_rmse, n_train, n_val = train_fold_lstm(data_dir, fold, lstm, progress)
             fitted = {"val_rmse_m": val_rmse, "n_train_windows": n_train, "n_val_windows": n_val}
-        else:  # guarded by EthUcySettings
+        else:  # guarded by EthUcyConfig
             raise ValueError(f"models: expected a subset of {MODELS}, found {name!r}")
         a, f = score(predictor, test)
         fitted["val_ade_m"], fitted["val_fde_m"] = score(predictor, val)
@@ -597,7 +519,7 @@ def benchmark_items(models: Sequence[str], folds: Sequence[str]) -> list[tuple[s
     return [(fold, m) for m in ranked for fold in folds]
 
 
-def _run_item(item: tuple[str, str], *, data_dir: Path, lstm: LSTMBenchSettings,
+def _run_item(item: tuple[str, str], *, data_dir: Path, lstm: RolloutLSTMConfig,
               progress: bool, seq2seq: Seq2SeqConfig, calibration: str,
               speed_edges: Sequence[float], online: Sequence[AdaptiveConformal]) -> FoldOutcome:
     """One model on one fold (module level, so it pickles): :func:`run_fold` with that model."""

@@ -269,3 +269,12 @@ def _need(obj, method):
         raise InterpolationError(f"interpolation method {method!r} needs a "
                          f"{'smoother' if method == 'kalman' else 'predictor'}")
     return obj
+
+
+def scene_track(points, scene: str, n_frames: int) -> np.ndarray:
+    """(n_frames, 2) x, y of a scene's radar points (the ``localise`` output: columns ``scene``,
+    ``frame``, ``x_m``, ``y_m``), NaN where the frame has no point."""
+    track = np.full((n_frames, 2), np.nan)
+    p = points[points.scene == scene]
+    track[p.frame.to_numpy()] = p[["x_m", "y_m"]].to_numpy()
+    return track

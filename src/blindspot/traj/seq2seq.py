@@ -11,7 +11,7 @@ effective baseline predictor for the TrajNet benchmark", an RNN encoder with a m
 dense head, which beats constant velocity there).
 
 What the model sees and emits (each choice a :class:`Seq2SeqConfig` field, measured by
-``benchmarks/bench_ethucy_models.py``):
+``studies/ethucy_models.py``):
 
 * ``frame="heading"``: every track is moved to its own heading frame (origin at the last
   observed point, +x along the last step, :func:`blindspot.traj.predictor.heading_frame`), so the

@@ -446,3 +446,63 @@ def _train(
     history = pd.DataFrame(rows, columns=list(HISTORY_COLUMNS))
     val_rmse = float(history["val_rmse_m"].iloc[-1]) if len(history) else evaluate(predictor, val)["rmse_m"]
     return TrainResult(predictor=predictor, history=history, val_rmse_m=val_rmse)
+
+
+# ----------------------------------------------------------------------------- the train stage's
+def baseline_errors(predictor, ws: WindowSet, horizon: int) -> dict:
+    """A baseline's one-step RMSE (per coordinate, Euclidean) and ``horizon``-frame rollout
+    ADE/FDE on the windows ``ws``."""
+    pred = predictor.predict(ws.x, 1)[:, 0]
+    return {"rmse_m": rmse_per_coordinate(pred, ws.y), "rmse_euclid_m": rmse_euclidean(pred, ws.y),
+            **rollout_errors(predictor, ws, horizon)}
+
+
+def ensemble_scores(result: EnsembleResult, split: dict, baselines: dict, horizon: int,
+                    workers: int = 1) -> dict:
+    """train.json's errors: the ensemble's and each member's one-step errors, every
+    predictor's ``horizon``-frame rollout ADE/FDE, on the val and test windows (the ensemble's
+    rollouts on ``workers`` threads; the same bits for any number)."""
+    lstm = result.predictor.with_workers(workers)
+    return {
+        "lstm": {**{s: {**evaluate(lstm, split[s]),
+                        **rollout_errors(lstm, split[s], horizon)}
+                    for s in ("val", "test")},
+                 "n_members": len(result.members),
+                 "members": [{"seed": seed,
+                              "val": evaluate(m.predictor, split["val"]),
+                              "test": evaluate(m.predictor, split["test"])}
+                             for seed, m in zip(result.seeds, result.members)]},
+        **{name: {s: baseline_errors(p, split[s], horizon) for s in ("val", "test")}
+           for name, p in baselines.items()},
+        "val_horizon_frames": horizon,
+        "n_windows": {s: len(w) for s, w in split.items()},
+    }
+
+
+def member_steps(result: EnsembleResult) -> Iterator[tuple[dict, int]]:
+    """(metrics, epoch) of every member's history, ``member<i>.<key>``: what members trained in
+    worker processes could not log live."""
+    for i, member in enumerate(result.members):
+        for row in member.history.to_dict("records"):
+            yield {f"member{i}.{k}": v for k, v in row.items() if k != "epoch"}, int(row["epoch"])
+
+
+def logged_scores(metrics: dict, result: EnsembleResult) -> dict:
+    """:func:`ensemble_scores` as MLflow metrics: members by seed, the paper's values left out,
+    the mean seconds per epoch added."""
+    logged = {k: v for k, v in metrics.items() if k != "paper"}
+    logged["lstm"] = {**{k: v for k, v in metrics["lstm"].items() if k != "members"},
+                      **{f"seed{m['seed']}": {"val": m["val"], "test": m["test"]}
+                         for m in metrics["lstm"]["members"]},
+                      "seconds_per_epoch": float(result.history.seconds.mean())}
+    return logged
+
+
+def scores_line(metrics: dict, baselines, paper_val_rmse: float) -> str:
+    """One line of :func:`ensemble_scores` for the log."""
+    val = {name: metrics[name]["val"] for name in ("lstm", *baselines)}
+    return (f"train: val RMSE {val['lstm']['rmse_m']:.4f} m (paper {paper_val_rmse}), "
+            f"test {metrics['lstm']['test']['rmse_m']:.4f} m; constant velocity val "
+            f"{val['constant_velocity']['rmse_m']:.4f} m, Kalman {val['kalman']['rmse_m']:.4f} m; "
+            f"val ADE/FDE over {metrics['val_horizon_frames']} frames: "
+            + ", ".join(f"{k} {v['ade_m']:.3f}/{v['fde_m']:.3f} m" for k, v in val.items()))

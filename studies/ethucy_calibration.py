@@ -1,6 +1,6 @@
 """ETH/UCY calibration of CVM and Kalman per fold: one scale mixture vs one per speed class.
 
-    PYTHONPATH=src BLINDSPOT_SHARED=/work/shared python benchmarks/bench_ethucy_calibration.py \
+    BLINDSPOT_SHARED=/work/shared python studies/ethucy_calibration.py \
         [--edges 0.2,0.6,1.0,1.4] [--components 3]
 
 Fitted on each fold's val split, scored on its test scene (never fitted there): coverage of the
@@ -8,6 +8,10 @@ Fitted on each fold's val split, scored on its test scene (never fitted there): 
 the ``mixture`` calibration) and ``fit_conditional_scale_mixture`` (one per class of observed
 speed, the ``conditional`` calibration). The learned models' numbers are the ethucy stage's
 (reports/ethucy.md).
+
+Conclusion: one scale mixture per class of observed speed (conditional) against one mixture per
+fold, for CV and Kalman on every fold: the ethucy stage calibrates with conditional, speed edges
+0.2 / 0.6 / 1.0 / 1.4 m/s (conf/ethucy/standard.yaml calibration, calibration_speed_edges).
 """
 
 from __future__ import annotations

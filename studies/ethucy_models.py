@@ -1,6 +1,6 @@
 """What helps a path predictor beat constant velocity on ETH/UCY: an ablation table.
 
-    PYTHONPATH=src BLINDSPOT_SHARED=/work/shared python benchmarks/bench_ethucy_models.py \
+    BLINDSPOT_SHARED=/work/shared python studies/ethucy_models.py \
         [--variants base,no_residual,...] [--folds eth,hotel,...] [--jobs 2] [--epochs N]
 
 Every variant is the direct multi-step predictor (:mod:`blindspot.traj.seq2seq`) with the
@@ -11,6 +11,11 @@ variant says otherwise; ``next_point`` is the project's next-point LSTM rolled o
 average over the folds of val ADE/FDE (what settings are chosen on) and test ADE/FDE (reported,
 never chosen on), CVM beside them. ``ensemble_k`` rows are prefixes of one 5-member ensemble.
 Prints the table (Markdown) and, with ``--json``, the per-fold numbers.
+
+Conclusion: the direct multi-step predictor's choices, one change at a time against the base
+(heading frame, residual on constant velocity, mirroring, displacement inputs, the loss, the
+neighbours); the table and the configured seq2seq settings are in conf/ethucy/standard.yaml, the
+encoders over three seeds in README (0.47-0.48 / 1.02-1.05 m; every seed past 0.50 / 1.10).
 """
 
 from __future__ import annotations
@@ -67,8 +72,9 @@ def run_variant(fold: str, name: str, cfg: Seq2SeqConfig, data_dir) -> dict:
     nb = {"val": val_w.neighbours, "test": test_w.neighbours}
     out = {}
     if name == "next_point":
-        from blindspot.traj.ethucy_protocol import LSTMBenchSettings, train_fold_lstm
-        pred, *_ = train_fold_lstm(data_dir, fold, LSTMBenchSettings(ensemble=1, num_threads=1),
+        from blindspot.traj.config import RolloutLSTMConfig
+        from blindspot.traj.ethucy_protocol import train_fold_lstm
+        pred, *_ = train_fold_lstm(data_dir, fold, RolloutLSTMConfig(ensemble=1, num_threads=1),
                                    progress=False)
         preds = {name: pred}
     else:

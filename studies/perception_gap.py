@@ -5,11 +5,16 @@ of the child, first such track classed moving; and, for the frames between line 
 first radar point, whether any detection lies within 1 m of the child at all. Prints figures,
 asserts nothing (issue 12; the perception-bound bullet of docs/studies/safety.md).
 
-    python benchmarks/bench_perception_gap.py [--data data]
+    python studies/perception_gap.py [--data data]
 
 Reads the driving stages' outputs (``dvc repro driving_track`` or ``dvc checkout``):
 data/driving/truth.parquet, points.parquet, tracks.parquet. Intruding lead pedestrians of the
 Monte-Carlo set only (p0 crossing, hit without braking).
+
+Conclusion: at 40 km/h the first radar point whose strongest scatterer is the child comes at a
+median TTC of 1.45 s (CA: 1.20 s) against 1.55 s for the first frame in line of sight; in 345 of
+the 420 frames between the two no detection lies within 1 m of the child: the child is not
+detected yet, not mislabelled (docs/studies/safety.md).
 """
 
 from __future__ import annotations

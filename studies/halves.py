@@ -4,10 +4,15 @@ per predictor of the tracker input, avoided rate (all speeds and <= 40 km/h), fa
 rate (count / non-intruding scenes) and avoided minus false activations. Prints figures, asserts
 nothing (docs/studies/safety.md, the smallest-of CFAR bullet).
 
-    python benchmarks/bench_halves.py BEFORE.parquet AFTER.parquet [--input tracker]
+    python studies/halves.py BEFORE.parquet AFTER.parquet [--input tracker]
 
 Each file is a ``data/safety/scene_outcomes.parquet`` (``dvc repro safety``; for an experiment,
 ``dvc exp run -S 'cfar@driving_cfar=so'`` then copy its scene_outcomes.parquet aside).
+
+Conclusion: the two safety runs' halves of the Monte-Carlo replicates (even tune, odd held out)
+side by side; used to judge the peak search x tracker Doppler gate combinations
+(docs/studies/safety.md, 2026-12-01): the settings that moved were adopted only where the held-out
+half agreed.
 """
 
 from __future__ import annotations

@@ -2,8 +2,8 @@
 stored outputs. Prints figures, asserts nothing (docs/studies/safety.md, "Coasting clutter tracks and
 captured children").
 
-    BLINDSPOT_SHARED=../shared PYTHONPATH=src .venv/bin/python \
-        benchmarks/bench_moving_diagnosis.py [--data data] [--predictor constant_velocity] \
+    BLINDSPOT_SHARED=../shared .venv/bin/python \
+        studies/moving_diagnosis.py [--data data] [--predictor constant_velocity] \
         [--track SCENE:TRACK_ID ...]
 
 From DIR (default ``data``: ``driving/tracks.parquet``, ``driving/points.parquet``,
@@ -25,6 +25,12 @@ From DIR (default ``data``: ``driving/tracks.parquet``, ``driving/points.parquet
    last hit, and the moving flag (the run's).
 
 Time: about 20 s.
+
+Conclusion: a diagnostic, not a tuning: it reads the moving-object test track by track; it
+showed that a child's track is held back by its own velocity uncertainty (v' P_v^-1 v 2.4-3.7
+under the 0.99 quantile 9.21 for three frames), and that most false AEB requests come from
+clutter tracks 3-7 rows old (docs/studies/safety.md, 'Coasting clutter tracks and captured
+children').
 """
 
 from __future__ import annotations
@@ -39,9 +45,9 @@ import pandas as pd
 from omegaconf import OmegaConf
 
 REPO = Path(__file__).resolve().parents[1]
-sys.path[:0] = [str(REPO / "stages")]
 
-from blindspot import experiment  # noqa: E402
+from blindspot.safety.config import WarningConfig  # noqa: E402
+from blindspot.track.config import TrackerConfig  # noqa: E402
 from blindspot.track.moving import (doppler_evidence, doppler_log_ratio,  # noqa: E402
                                     doppler_spread_log_ratio, last_hit_rows, static_evidence,
                                     velocity_chi2)
@@ -119,12 +125,12 @@ def main(argv: list[str]) -> None:
     from blindspot.synth.driving_tracks import track_labels
 
     cfg = OmegaConf.load(REPO / "params.yaml")
-    w = experiment.warning(cfg)
+    w = WarningConfig.from_cfg(cfg)
     d = args.data
     tracks = pd.read_parquet(d / "driving/tracks.parquet")
     points = pd.read_parquet(d / "driving/points.parquet")
     truth = pd.read_parquet(d / "driving/truth.parquet")
-    labels = track_labels(tracks, points, experiment.tracker(cfg).cluster_eps_m)
+    labels = track_labels(tracks, points, TrackerConfig.from_cfg(cfg).cluster_eps_m)
     ego = (truth.groupby(["scene", "frame"], as_index=False)[["ego_x_m", "ego_y_m"]].first()
            .rename(columns={"scene": "group"}))
     pd.set_option("display.width", 250)
