@@ -13,11 +13,13 @@ pages are also saved there (reports/mlflow_runs_page.png is the last one's:
 
 from __future__ import annotations
 
+import contextlib
 import os
 import re
 import shutil
 import subprocess
 import tempfile
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -77,6 +79,13 @@ def ui(tmp_path_factory: pytest.TempPathFactory) -> tuple[str, str, dict[str, st
             run_ids[f"evaluate-h{hidden}"] = t.run_id
     experiment_id = runs.get_client(runs.settings_from_cfg(cfg, root)).get_experiment_by_name(
         "blindspot").experiment_id
+    with _mlflow_server(root) as base:
+        yield base, experiment_id, run_ids
+
+
+@contextlib.contextmanager
+def _mlflow_server(root: Path) -> Iterator[str]:
+    """An MLflow server on the repo's SQLite store, on a free loopback port: its base URL."""
     port = free_port()
     proc = subprocess.Popen(
         [str(VENV_BIN / "mlflow"), "server", "--backend-store-uri",
@@ -85,7 +94,7 @@ def ui(tmp_path_factory: pytest.TempPathFactory) -> tuple[str, str, dict[str, st
         stderr=subprocess.DEVNULL, start_new_session=True)
     try:
         wait_for_port(port, proc, "mlflow server", timeout_s=180)
-        yield f"http://127.0.0.1:{port}", experiment_id, run_ids
+        yield f"http://127.0.0.1:{port}"
     finally:
         stop_group(proc)
 
@@ -143,17 +152,8 @@ def pipeline_ui(tmp_path_factory: pytest.TempPathFactory) -> tuple[str, str, str
     experiment_id = runs.get_client(runs.settings_from_cfg(
         {"runs": {"enabled": True, "uri": None}}, root)).get_experiment_by_name(
         "blindspot").experiment_id
-    port = free_port()
-    server = subprocess.Popen(
-        [str(VENV_BIN / "mlflow"), "server", "--backend-store-uri",
-         f"sqlite:///{root / 'mlflow.db'}", "--host", "127.0.0.1", "--port", str(port),
-         "--workers", "1"], env=clean_env(), stdout=subprocess.DEVNULL,
-        stderr=subprocess.DEVNULL, start_new_session=True)
-    try:
-        wait_for_port(port, server, "mlflow server", timeout_s=180)
-        yield f"http://127.0.0.1:{port}", experiment_id, name
-    finally:
-        stop_group(server)
+    with _mlflow_server(root) as base:
+        yield base, experiment_id, name
 
 
 def test_runs_page_opens_on_the_headline_metric_and_the_changed_param(
