@@ -45,7 +45,8 @@ import numpy as np, pandas as pd
 from blindspot import config
 from blindspot.dsp.config import CfarConfig, DetectConfig, DoaConfig, EgoMotionConfig
 from blindspot.radar.config import RadarConfig, SimConfig
-from blindspot.radar.scene import load_scenarios, load_scenes
+from blindspot.radar.scene import load_scenes
+from blindspot.radar.scenario import load_scenarios
 from blindspot.traj.config import DatasetConfig
 from blindspot.radar.simulator import SimulatedSource
 from blindspot.synth.scene_detection import detect_scenes
@@ -73,7 +74,8 @@ import numpy as np, pandas as pd
 from blindspot import config
 from blindspot.dsp.config import CfarConfig, DetectConfig, DoaConfig, EgoMotionConfig
 from blindspot.radar.config import RadarConfig, SimConfig
-from blindspot.radar.scene import load_scenarios, load_scenes
+from blindspot.radar.scene import load_scenes
+from blindspot.radar.scenario import load_scenarios
 from blindspot.traj.config import DatasetConfig
 from blindspot.synth.path_dataset import measure_path_set, path_table
 from blindspot.synth.path_measurement import PedestrianModel
@@ -101,7 +103,8 @@ import numpy as np, pandas as pd
 from blindspot import config
 from blindspot.dsp.config import CfarConfig, DetectConfig, DoaConfig, EgoMotionConfig
 from blindspot.radar.config import RadarConfig, SimConfig
-from blindspot.radar.scene import load_scenarios, load_scenes
+from blindspot.radar.scene import load_scenes
+from blindspot.radar.scenario import load_scenarios
 from blindspot.traj.config import DatasetConfig
 from blindspot.synth.driving_measurement import measure_driving
 

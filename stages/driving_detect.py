@@ -11,7 +11,7 @@ import pandas as pd
 
 from blindspot.dsp.config import CfarConfig, DetectConfig, DoaConfig, EgoMotionConfig
 from blindspot.radar.config import RadarConfig, SimConfig
-from blindspot.radar.scene import load_scenarios
+from blindspot.radar.scenario import load_scenarios
 from blindspot.cli import main_stage
 from blindspot.io import atomic_path, write_json, write_parquet
 from blindspot.radar.driving import scene_truth

@@ -15,7 +15,7 @@ import pandas as pd
 
 from blindspot.dsp.config import CfarConfig, DetectConfig, DoaConfig, EgoMotionConfig
 from blindspot.radar.config import RadarConfig, SimConfig
-from blindspot.radar.scene import load_scenarios
+from blindspot.radar.scenario import load_scenarios
 from blindspot.typed_config import jobs
 from blindspot.cli import main_stage
 from blindspot.io import write_json, write_parquet

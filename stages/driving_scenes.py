@@ -8,7 +8,7 @@ import numpy as np
 import pandas as pd
 
 from blindspot.radar.config import RadarConfig
-from blindspot.radar.scene import load_scenarios
+from blindspot.radar.scenario import load_scenarios
 from blindspot.cli import main_stage
 from blindspot.io import write_json, write_parquet
 from blindspot.radar.driving import car_polygons, draw_scenarios, scene_truth

@@ -16,7 +16,7 @@ import numpy as np
 import pandas as pd
 
 from blindspot.radar.config import RadarConfig
-from blindspot.radar.scene import load_scenarios
+from blindspot.radar.scenario import load_scenarios
 from blindspot.safety.config import WarningConfig
 from blindspot.traj.baselines import prediction_methods
 from blindspot.traj.config import CalibrationConfig, DatasetConfig, EvalConfig

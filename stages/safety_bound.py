@@ -9,7 +9,7 @@ import json
 
 import pandas as pd
 
-from blindspot.radar.scene import load_scenarios
+from blindspot.radar.scenario import load_scenarios
 from blindspot.safety.config import WarningConfig
 from blindspot.track.config import TrackerConfig
 from blindspot.cli import main_stage

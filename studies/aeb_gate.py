@@ -50,7 +50,7 @@ import numpy as np
 import pandas as pd
 from omegaconf import OmegaConf
 
-from blindspot.radar.scene import load_scenarios
+from blindspot.radar.scenario import load_scenarios
 from blindspot.safety.config import WarningConfig
 from blindspot.io import write_json
 from blindspot.safety.assess import frame_risks, outcome_table

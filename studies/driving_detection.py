@@ -61,7 +61,7 @@ def settings(cfg, name: str, overrides: list[str] = ()) -> dict:
     composed with ``overrides`` (which the CFAR variants compose with as well)."""
     from blindspot.dsp.config import CfarConfig, DetectConfig, DoaConfig, EgoMotionConfig
     from blindspot.radar.config import RadarConfig, SimConfig
-    from blindspot.radar.scene import load_scenarios
+    from blindspot.radar.scenario import load_scenarios
     from blindspot.safety.config import WarningConfig
     from blindspot.track.config import TrackerConfig
     from blindspot.config import compose
@@ -108,7 +108,7 @@ def main(argv: list[str]) -> None:
 
     from blindspot.dsp.config import CfarConfig, DetectConfig, DoaConfig, EgoMotionConfig
     from blindspot.radar.config import RadarConfig, SimConfig
-    from blindspot.radar.scene import load_scenarios
+    from blindspot.radar.scenario import load_scenarios
     from blindspot.safety.config import WarningConfig
     from blindspot.track.config import TrackerConfig
     from blindspot.config import compose

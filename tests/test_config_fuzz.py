@@ -29,7 +29,8 @@ from omegaconf import OmegaConf
 import blindspot.safety.config  # noqa: F401  (registers its typed configs)
 from blindspot.dsp.config import CfarConfig
 from blindspot.radar.config import RadarConfig
-from blindspot.radar.scene import load_scenarios, load_scenes
+from blindspot.radar.scene import load_scenes
+from blindspot.radar.scenario import load_scenarios
 from blindspot.track.config import tracked_recordings
 from blindspot.traj.config import DatasetConfig, PathSpec
 from blindspot.typed_config import ConfigError, TypedConfig, jobs

@@ -293,7 +293,8 @@ def _builders():
     from blindspot.dsp.config import (BridgeConfig, CfarConfig, DetectConfig, DoaConfig,
                                       EgoMotionConfig)
     from blindspot.radar.config import RadarConfig, SimConfig
-    from blindspot.radar.scene import load_scenarios, load_scenes
+    from blindspot.radar.scene import load_scenes
+    from blindspot.radar.scenario import load_scenarios
     from blindspot.track.config import TrackerConfig, tracked_recordings
     from blindspot.traj.config import (CalibrationConfig, DatasetConfig, DirectConfig,
                                        EthUcyConfig, EvalConfig, LSTMConfig, TrainConfig,

@@ -16,7 +16,7 @@ import pytest
 
 from blindspot.dsp.config import CfarConfig, DetectConfig, DoaConfig, EgoMotionConfig
 from blindspot.radar.config import RadarConfig, SimConfig
-from blindspot.radar.scene import load_scenarios
+from blindspot.radar.scenario import load_scenarios
 from blindspot.config import compose
 from blindspot.radar.driving import ego_pose, scene_truth, static_scatterers
 from blindspot.synth.driving_detection import ego_motion_metrics

@@ -70,8 +70,8 @@ import numpy as np
 import pandas as pd
 
 from blindspot.radar.occlusion import segments_blocked
-# the typed config of the ``scenario`` group lives beside the paper scene's (radar/scene.py)
-from blindspot.radar.scene import (  # noqa: F401 - re-exported
+# the typed config of the ``scenario`` group (radar/scenario.py)
+from blindspot.radar.scenario import (  # noqa: F401 - re-exported
     BEHAVIOURS, INTRUDING, KMH, BodyModel, DrivingScene, EgoConfig, MonteCarloConfig, ParkedCar,
     PedestrianSpec, ScenarioGroup, StaticClutter, load_scenarios,
 )

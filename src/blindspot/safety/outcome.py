@@ -61,7 +61,7 @@ class SceneArrays:
 
 def body_boxes(group) -> dict[str, tuple[float, float, float]]:
     """The ``bodies`` argument of :func:`scene_arrays` from a scenario group
-    (:class:`blindspot.radar.scene.ScenarioGroup`): body name -> (length_m, width_m,
+    (:class:`blindspot.radar.scenario.ScenarioGroup`): body name -> (length_m, width_m,
     ref_from_front_m), the [V] boxes of ``conf/scenario``."""
     return {b.name: (b.length_m, b.width_m, b.ref_from_front_m) for b in group.bodies}
 
