@@ -37,6 +37,7 @@ from sklearn.cluster import DBSCAN
 
 from blindspot.parallel import parallel_map
 from blindspot.track.config import TrackerConfig
+from blindspot.track.moving import doppler_motion_log_ratio
 
 __all__ = ["INPUT_COLUMNS", "OUTPUT_COLUMNS", "TrackingError", "cluster_points", "label_objects",
            "track_points"]
@@ -418,12 +419,28 @@ def _gated_hypothesiser(predictor, updater, gate: float, doppler_std_mps: float 
                                      missed_distance=gate)
 
 
-def _linear_initiator(prior, measurement_model):
+def _linear_initiator(prior, measurement_model, doppler_std_mps: float | None = None):
     """Stone Soup's ``SimpleMeasurementInitiator`` for one linear measurement model, with the
     model's pseudo-inverse and the initial covariance computed once instead of per detection
     (1.4 ms per new track in the parent class on this machine). Same state and covariance:
     x0 = prior with the measured dimensions replaced by H^+ z, P0 = H^+ R H^+T + prior covariance
-    outside the measured dimensions."""
+    outside the measured dimensions.
+
+    With ``doppler_std_mps`` (``tracker.init_doppler_std_mps``), a detection whose metadata
+    carries a finite ``doppler_mps`` d (the median ego-motion-compensated radial speed of its n
+    points) and ``sensor_xy`` starts its track with the velocity that the Doppler and the
+    geometry allow instead of the prior's zero: the radial speed is one linear measurement of
+    the velocity, d = u.v + e, e ~ N(0, doppler_std^2 / n), along the unit line of sight u from
+    the sensor to the detection, so the Kalman update of the velocity prior N(0, s0^2 I)
+    (s0 = ``init_velocity_std_mps``) by it gives
+
+        v0 = s0^2 u d / (s0^2 + doppler_std^2 / n),
+        P_v0 = s0^2 I - s0^4 u u^T / (s0^2 + doppler_std^2 / n):
+
+    the radial part known to the Doppler's accuracy, the tangential part still the prior's
+    (Bar-Shalom, Li & Kirubarajan 2001, sec. 5.2.3, one scalar measurement). A static object
+    (d ~ 0) starts near zero velocity as before; a child stepping out with a radial component
+    starts moving. The state order is [x, vx, y, vy]."""
     from stonesoup.initiator.simple import SimpleMeasurementInitiator
     from stonesoup.types.hypothesis import SingleHypothesis
     from stonesoup.types.track import Track
@@ -437,13 +454,39 @@ def _linear_initiator(prior, measurement_model):
     covar0[mapped, :] = 0.0
     covar0[:, mapped] = 0.0
     covar0 = covar0 + h_pinv @ measurement_model.covar() @ h_pinv.T
+    vel = [i for i in range(covar0.shape[0]) if i not in mapped]     # [1, 3]: vx, vy
+
+    def start(det):
+        """(x0 (4, 1), P0 (4, 4)) of one detection (class docstring)."""
+        x0 = base + h_pinv @ det.state_vector
+        if doppler_std_mps is None:
+            return x0, covar0.copy()
+        meta = det.metadata
+        d = float(meta.get("doppler_mps", np.nan))
+        los = np.asarray(det.state_vector, float).ravel() - np.asarray(
+            meta.get("sensor_xy", (0.0, 0.0)), float)
+        rng = float(np.hypot(*los))
+        if not (np.isfinite(d) and rng > 0):
+            return x0, covar0.copy()
+        u = los / rng
+        pv = covar0[np.ix_(vel, vel)]
+        pu = pv @ u
+        s = float(u @ pu) + doppler_std_mps ** 2 / max(int(meta.get("n_points", 1)), 1)
+        gain = pu / s
+        x0 = np.asarray(x0, float).copy()
+        x0[vel, 0] = x0[vel, 0] + gain * (d - float(u @ x0[vel, 0]))
+        p0 = covar0.copy()
+        p0[np.ix_(vel, vel)] = pv - np.outer(gain, pu)
+        return x0, p0
 
     class LinearMeasurementInitiator(SimpleMeasurementInitiator):
         def initiate(self, detections, timestamp, **kwargs):
-            return {Track([GaussianStateUpdate(base + h_pinv @ det.state_vector, covar0.copy(),
-                                               SingleHypothesis(None, det),
-                                               timestamp=det.timestamp)])
-                    for det in detections}
+            out = set()
+            for det in detections:
+                x0, p0 = start(det)
+                out.add(Track([GaussianStateUpdate(x0, p0, SingleHypothesis(None, det),
+                                                   timestamp=det.timestamp)]))
+            return out
 
     return LinearMeasurementInitiator(prior, measurement_model)
 
@@ -484,7 +527,7 @@ def _parts(config: TrackerConfig) -> _Parts:
         associator = JPDA(hypothesiser)
     v2 = config.init_velocity_std_mps ** 2
     prior = GaussianState(np.zeros((4, 1)), np.diag([0.0, v2, 0.0, v2]))
-    initiator = _linear_initiator(prior, measurement_model)
+    initiator = _linear_initiator(prior, measurement_model, config.init_doppler_std_mps)
     return _Parts(measurement_model, predictor, updater, associator, initiator,
                   config.association == "jpda")
 
@@ -496,6 +539,23 @@ class _Book:
     track_id: int
     hits: list[bool] = field(default_factory=list)
     confirmed: bool = False
+    # (points, median ego-compensated radial speed) of each hit's object, oldest first
+    dopplers: list[tuple[int, float]] = field(default_factory=list)
+
+
+def _doppler_confirms(book: _Book, config: TrackerConfig) -> bool:
+    """A tentative track confirms early, on its second consecutive hit, when the radial speeds
+    of its objects say "moving" (``tracker.doppler_confirm_log_ratio``; null: never): their
+    :func:`~blindspot.track.moving.doppler_motion_log_ratio` over its hits (point spread
+    ``tracker.moving.doppler_std_mps``, window ``confirm_n``) reaches that. A static object's
+    compensated Doppler is ~0, so the parked cars' edges, the kerb and zero-Doppler multipath
+    keep the M-of-N rule; a walker with a radial component confirms in two frames."""
+    if (config.doppler_confirm_log_ratio is None or config.moving is None
+            or len(book.hits) < 2 or not all(book.hits[-2:])):
+        return False
+    n, d = np.array(book.dopplers[-config.confirm_n:], float).T
+    return bool(doppler_motion_log_ratio(n, d, config.moving.doppler_std_mps)
+                >= config.doppler_confirm_log_ratio)
 
 
 def _jpda_posterior(track, multihypothesis, updater):
@@ -621,8 +681,11 @@ def _track_group(labelled: pd.DataFrame, frames: pd.DataFrame, config: TrackerCo
         for track, hit in hit_now.items():
             book = live[track]
             book.hits.append(hit)
+            if hit:
+                md = meas_of[track].metadata
+                book.dopplers.append((md["n_points"], md["doppler_mps"]))
             if not book.confirmed:
-                if sum(book.hits[-n:]) >= m:
+                if sum(book.hits[-n:]) >= m or _doppler_confirms(book, config):
                     book.confirmed = True
                 elif sum(book.hits) + max(n - len(book.hits), 0) < m or len(book.hits) >= n:
                     del live[track]
@@ -646,7 +709,8 @@ def _track_group(labelled: pd.DataFrame, frames: pd.DataFrame, config: TrackerCo
         born = parts.initiator.initiate(detections - used, ts)
         rank = {id(d): i for i, d in enumerate(order)}
         for track in sorted(born, key=lambda tr: rank[id(tr[0].hypothesis.measurement)]):
-            live[track] = _Book(next_id, [True])
+            md = track[0].hypothesis.measurement.metadata
+            live[track] = _Book(next_id, [True], dopplers=[(md["n_points"], md["doppler_mps"])])
             next_id += 1
             hit_now[track] = True
             meas_of[track] = track[0].hypothesis.measurement
