@@ -20,7 +20,7 @@ from blindspot.cli import main_stage
 from blindspot.io import write_json, write_parquet
 from blindspot.safety.assess import assess
 from blindspot.safety.outcome import body_boxes
-from blindspot.safety.predict import with_backfill
+from blindspot.safety.predict import TrackState, with_backfill
 from blindspot.safety.risk import EgoShape
 from blindspot.stage import StageResult
 from blindspot.traj.calibration import calibrate, from_record, path_pairs
@@ -45,6 +45,9 @@ def _predictors(cfg, ctx, w):
         base[DIRECT] = Seq2SeqEnsemble.load(ctx.dep("train_direct/model.pt"))
     out = {}
     for name in w.predictors:
+        if name == "track_state":                  # the tracker's own state, Kalman-calibrated
+            out[name] = TrackState(from_record(records["kalman"], base["kalman"], "kalman"))
+            continue
         if name == "none":
             truth, measured, _ = table_to_arrays(pd.read_parquet(ctx.dep("paths.parquet")))
             val = np.unique(WindowSet.load(ctx.dep("val.parquet")).path_id)

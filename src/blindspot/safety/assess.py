@@ -47,16 +47,21 @@ class SafetyResult:
 
 
 def outcome_table(truth: pd.DataFrame, bodies: dict, shape: EgoShape, braking: BrakingModel,
-                  cfg: WarningConfig) -> tuple[Any, np.ndarray, np.ndarray]:
+                  cfg: WarningConfig, *, with_flank: bool = False) -> tuple[Any, ...]:
     """(scene arrays, trigger times (S, F + 1) s, impact speeds (S, F + 1) km/h, NaN avoided)
-    for an AEB request at each frame's decision time (column F: never)."""
+    for an AEB request at each frame's decision time (column F: never). Collisions are front
+    contacts (:func:`~blindspot.safety.outcome.braked_impacts`); a first contact on the car's
+    flank is not one (NaN) and, with ``with_flank``, is flagged in a fourth array (S, F + 1)
+    bool, counted apart."""
     sa = scene_arrays(truth, bodies)
     t, lo, hi = pedestrian_boxes(sa, cfg.outcome_dt_s, cfg.extend_s)
     S = len(sa.scenes)
     trig = np.concatenate([np.broadcast_to(sa.time_s + cfg.decision_delay_s, (S, len(sa.time_s))),
                            np.full((S, 1), NEVER_S)], axis=1)
-    _, v = braked_impacts(sa, t, lo, hi, trig, braking, shape)
-    return sa, trig, v * KMH
+    _, v, front = braked_impacts(sa, t, lo, hi, trig, braking, shape, with_front=True)
+    flank = np.isfinite(v) & ~front
+    impact = np.where(front, v, np.nan) * KMH
+    return (sa, trig, impact, flank) if with_flank else (sa, trig, impact)
 
 
 def frame_risks(risk: pd.DataFrame, scenes: np.ndarray, speed_mps: np.ndarray, n_frames: int,
@@ -202,7 +207,7 @@ def assess(truth: pd.DataFrame, scenes_meta: dict, tracks: dict[str, pd.DataFram
            .rename(columns={"scene": "group"}))
     main = BrakingModel.from_config(cfg.aeb)
     weak = BrakingModel.from_config(cfg.aeb, cfg.sensitivity_decel_mps2)
-    sa, trig, impact = outcome_table(truth, bodies, shape, main, cfg)
+    sa, trig, impact, flank = outcome_table(truth, bodies, shape, main, cfg, with_flank=True)
     _, _, impact_weak = outcome_table(truth, bodies, shape, weak, cfg)
     first_point_s = (None if points is None else
                      _first_time(_lead_observed(truth, sa, points, "p0", points_name), sa.time_s))
@@ -237,6 +242,12 @@ def assess(truth: pd.DataFrame, scenes_meta: dict, tracks: dict[str, pd.DataFram
             weak_res = scene_results(p_all[ev], info, impact_weak[ev], sa.time_s,
                                      p_aeb=p_aeb[ev], **kw)
             m = summarise(res, n_bootstrap=cfg.n_bootstrap, seed=cfg.seed)
+            col = np.where(res_all.aeb_frame.to_numpy() >= 0, res_all.aeb_frame.to_numpy(), F)
+            fl = flank[np.arange(len(col)), col][ev]
+            m["flank_contacts"] = {"n": int(fl.sum()), "n_scenes": int(len(fl)),
+                                   "note": "first contact on the car's flank behind the bumper "
+                                           "(the pedestrian walks into the side): not a "
+                                           "collision in the rates above, counted apart"}
             m["braking_sensitivity"] = {
                 "decel_mps2": cfg.sensitivity_decel_mps2,
                 **{k: summarise(weak_res, n_bootstrap=cfg.n_bootstrap, seed=cfg.seed)[k]

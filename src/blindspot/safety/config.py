@@ -16,7 +16,8 @@ from blindspot.typed_config import ConfigError, TypedConfig, plain, setting
 __all__ = ["PREDICTORS", "PROBABILITY_METHODS", "LSTM_HISTORY", "AEB_GATES", "BrakingConfig",
            "OracleConfig", "WarningConfig", "MOVED_KEYS"]
 
-PREDICTORS: tuple[str, ...] = ("none", "constant_velocity", "kalman", "lstm", "lstm_direct")
+PREDICTORS: tuple[str, ...] = ("none", "constant_velocity", "kalman", "lstm", "lstm_direct",
+                                "track_state")
 PROBABILITY_METHODS: tuple[str, ...] = ("max_step", "union")
 LSTM_HISTORY: tuple[str, ...] = ("cv_backfill", "hold_first")
 AEB_GATES: tuple[str, ...] = ("none", "stopping_time")

@@ -50,7 +50,7 @@ from scipy import stats
 
 from blindspot.safety.ncap import ncap_band
 
-__all__ = ["SceneInfo", "scene_info", "replicate_half", "aeb_gate_s", "scene_frame_risk",
+__all__ = ["SceneInfo", "line_of_sight_onset", "scene_info", "replicate_half", "aeb_gate_s", "scene_frame_risk",
            "trigger_frames", "scene_results",
            "summarise", "operating_curve", "avoided_at_false_activation", "ncap_grid", "wilson",
            "KMH"]
@@ -80,6 +80,23 @@ class SceneInfo:
             object.__setattr__(self, "first_seen_s", np.asarray(self.first_visible_s, float))
 
 
+def line_of_sight_onset(p0: pd.DataFrame) -> pd.Series:
+    """Per scene (index), the time (s) of the first frame of the visible stretch that leads to
+    the crossing: the first frame not ``occluded`` after the last occluded frame at or before
+    the collision time without braking (``collision_time_s``; NaN: the scene's end). A child
+    glimpsed standing far ahead and then hidden again is seen from its last emergence, not
+    from the glimpse (issue 40). NaN where the pedestrian is occluded up to then. ``p0``: one
+    pedestrian's truth rows (columns scene, time_s, occluded, collision_time_s)."""
+    t_end = p0.collision_time_s.astype(float).fillna(np.inf)
+    before = p0[p0.time_s.to_numpy(float) <= t_end.to_numpy() + 1e-9]
+    occ = before[before.occluded.astype(bool)]
+    last_occ = occ.groupby("scene").time_s.max()
+    lo = last_occ.reindex(before.scene).to_numpy(float)
+    clear = before[~before.occluded.astype(bool).to_numpy()
+                   & ~(before.time_s.to_numpy(float) <= np.nan_to_num(lo, nan=-np.inf))]
+    return clear.groupby("scene").time_s.min().reindex(pd.Index(p0.scene.unique()))
+
+
 def scene_info(truth: pd.DataFrame, scenes_meta: dict, scenes: np.ndarray,
                lead: str = "p0", first_point_s: np.ndarray | None = None) -> SceneInfo:
     """From the truth table and ``scenes.json`` (name -> {"pedestrians": [{"name",
@@ -93,7 +110,7 @@ def scene_info(truth: pd.DataFrame, scenes_meta: dict, scenes: np.ndarray,
     if first.frame.isna().any():
         raise KeyError(f"truth: scenes without pedestrian {lead!r}: "
                        f"{list(first.index[first.frame.isna()])[:5]}")
-    vis = p0[~p0.occluded].groupby("scene").time_s.min().reindex(scenes)
+    vis = line_of_sight_onset(p0).reindex(scenes)
     pct = []
     for s in scenes:
         if s not in scenes_meta:

@@ -27,7 +27,7 @@ __all__ = ["TRACK_COLUMNS", "oracle_tracks"]
 
 TRACK_COLUMNS = ("group", "frame", "time_s", "track_id", "x_m", "y_m", "vx_mps", "vy_mps",
                  "cov_xx", "cov_xy", "cov_yy", "cov_vxvx", "cov_vxvy", "cov_vyvy", "confirmed",
-                 "coasting")
+                 "coasting", "cov_xvx", "cov_xvy", "cov_yvx", "cov_yvy")
 
 
 def oracle_tracks(points: pd.DataFrame, cfg: OracleConfig, frame_period_s: float,
@@ -87,6 +87,8 @@ def oracle_tracks(points: pd.DataFrame, cfg: OracleConfig, frame_period_s: float
         "vy_mps": m[:, 3], "cov_xx": P[:, 0, 0], "cov_xy": P[:, 0, 1], "cov_yy": P[:, 1, 1],
         "cov_vxvx": P[:, 2, 2], "cov_vxvy": P[:, 2, 3], "cov_vyvy": P[:, 3, 3],
         "confirmed": count[b, t] >= cfg.confirm_points, "coasting": ~seen[b, t],
+        "cov_xvx": P[:, 0, 2], "cov_xvy": P[:, 0, 3], "cov_yvx": P[:, 1, 2],
+        "cov_yvy": P[:, 1, 3],
         "pedestrian": p.pedestrian.to_numpy()[first][b],
     })
     return out.sort_values(["group", "track_id", "frame"]).reset_index(drop=True)

@@ -47,7 +47,8 @@ INPUT_COLUMNS = ("frame", "time_s", "x_m", "y_m")
 #: Output columns after the optional ``group``.
 OUTPUT_COLUMNS = ("frame", "time_s", "track_id", "x_m", "y_m", "vx_mps", "vy_mps",
                   "cov_xx", "cov_xy", "cov_yy", "cov_vxvx", "cov_vxvy", "cov_vyvy",
-                  "confirmed", "coasting", "n_points", "doppler_mps", "doppler_spread_mps")
+                  "confirmed", "coasting", "n_points", "doppler_mps", "doppler_spread_mps",
+                  "cov_xvx", "cov_xvy", "cov_yvx", "cov_yvy")
 #: The optional point column whose per-object median and sample standard deviation the tracks
 #: carry as ``doppler_mps`` and ``doppler_spread_mps``: the ego-motion-compensated radial speed
 #: of a point (measured radial speed minus the one a static point at its angle would show, m/s;
@@ -733,6 +734,10 @@ def _track_group(labelled: pd.DataFrame, frames: pd.DataFrame, config: TrackerCo
             out["cov_vxvx"].append(c[1, 1])
             out["cov_vxvy"].append(c[1, 3])
             out["cov_vyvy"].append(c[3, 3])
+            out["cov_xvx"].append(c[0, 1])                 # state order [x, vx, y, vy]
+            out["cov_xvy"].append(c[0, 3])
+            out["cov_yvx"].append(c[2, 1])
+            out["cov_yvy"].append(c[2, 3])
             out["confirmed"].append(book.confirmed)
             out["coasting"].append(not hit_now[track])
             det = meas_of.get(track)
@@ -809,7 +814,9 @@ def track_points(points: pd.DataFrame, config: TrackerConfig, jobs: int = 1) -> 
         points lack that column: the evidence of :func:`blindspot.track.moving.moving_tracks`),
         ``doppler_spread_mps`` (their sample standard deviation, ddof 1, m/s, over the points
         with a finite radial speed, while ``n_points`` counts them all: the object's Doppler
-        spread; NaN as ``doppler_mps`` and for a one-point object). Tentative
+        spread; NaN as ``doppler_mps`` and for a one-point object), ``cov_xvx``, ``cov_xvy``,
+        ``cov_yvx``, ``cov_yvy`` (position-velocity cross-covariance, m^2/s: the whole
+        filtered state, which :class:`blindspot.safety.predict.TrackState` forecasts). Tentative
         tracks are included (``confirmed`` False): filter on ``confirmed`` for reported tracks.
 
     Raises:
