@@ -17,6 +17,7 @@ from blindspot import experiment
 from blindspot.cli import main_stage
 from blindspot.io import write_json, write_parquet
 from blindspot.radar.driving import draw_scenarios
+from blindspot.safety.ncap import nominal_scenes
 from blindspot.stage import StageResult
 from blindspot.synth.driving_detection import numeric_leaves
 from blindspot.synth.driving_measurement import measure_driving
@@ -25,7 +26,8 @@ from blindspot.synth.driving_measurement import measure_driving
 def run(cfg, ctx):
     group, named = experiment.scenarios(cfg)
     radar = experiment.driving_radar(cfg)
-    scenes = list(named.values()) + draw_scenarios(group, named[group.figure_scene])
+    scenes = (list(named.values()) + nominal_scenes(named, group.monte_carlo.speeds_kmh)
+              + draw_scenarios(group, named[group.figure_scene]))
     res = measure_driving(scenes, group, radar, experiment.driving_cfar(cfg),
                           experiment.doa(cfg), experiment.detect(cfg), experiment.ego_motion(cfg),
                           adc_headroom_db=experiment.sim(cfg).adc_headroom_db,
