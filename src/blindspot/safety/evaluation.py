@@ -50,7 +50,7 @@ from scipy import stats
 
 from blindspot.safety.ncap import ncap_band
 
-__all__ = ["SceneInfo", "line_of_sight_onset", "scene_info", "replicate_half", "aeb_gate_s", "scene_frame_risk",
+__all__ = ["SceneInfo", "line_of_sight_onset", "first_moving_s", "delay_stats", "scene_info", "replicate_half", "aeb_gate_s", "scene_frame_risk",
            "trigger_frames", "scene_results",
            "summarise", "operating_curve", "avoided_at_false_activation", "ncap_grid", "wilson",
            "KMH"]
@@ -95,6 +95,39 @@ def line_of_sight_onset(p0: pd.DataFrame) -> pd.Series:
     clear = before[~before.occluded.astype(bool).to_numpy()
                    & ~(before.time_s.to_numpy(float) <= np.nan_to_num(lo, nan=-np.inf))]
     return clear.groupby("scene").time_s.min().reindex(pd.Index(p0.scene.unique()))
+
+
+def first_moving_s(tracks: pd.DataFrame, truth: pd.DataFrame, scenes: np.ndarray,
+                   lead: str = "p0", radius_m: float = 1.0) -> np.ndarray:
+    """(S,) s per scene of ``scenes``: the time of the first track row that the decision
+    assesses (confirmed and, with a ``moving`` column, moving) lying within ``radius_m`` of the
+    lead pedestrian's true position at that frame (truth scores, it never feeds the chain);
+    NaN where none. ``tracks``: columns group, frame, time_s, x_m, y_m, confirmed (moving)."""
+    keep = tracks.confirmed.to_numpy(bool).copy()
+    if "moving" in tracks.columns:
+        keep &= tracks.moving.to_numpy(bool)
+    t = tracks.loc[keep, ["group", "frame", "time_s", "x_m", "y_m"]]
+    p = truth.loc[truth.pedestrian == lead, ["scene", "frame", "x_m", "y_m"]].rename(
+        columns={"scene": "group", "x_m": "px", "y_m": "py"})
+    j = t.merge(p, on=["group", "frame"])
+    j = j[np.hypot(j.x_m - j.px, j.y_m - j.py) <= radius_m]
+    return j.groupby("group").time_s.min().reindex(pd.Index(scenes)).to_numpy(float)
+
+
+def delay_stats(delay_s: np.ndarray, speed_kmh: np.ndarray) -> dict:
+    """Median and p90 (s) of the finite ``delay_s`` (S,) overall and per speed (km/h keys as
+    strings of integers), with their counts and the count of scenes without one."""
+    d = np.asarray(delay_s, float)
+    v = np.asarray(speed_kmh, float)
+
+    def one(x):
+        x = x[np.isfinite(x)]
+        return {"median": float(np.median(x)) if len(x) else None,
+                "p90": float(np.percentile(x, 90)) if len(x) else None, "n": int(len(x))}
+    out = {**one(d), "n_never": int((~np.isfinite(d)).sum())}
+    out["by_speed_kmh"] = {f"{s:.0f}": {**one(d[v == s]), "n_never": int(
+        (~np.isfinite(d[v == s])).sum())} for s in np.unique(v)}
+    return out
 
 
 def scene_info(truth: pd.DataFrame, scenes_meta: dict, scenes: np.ndarray,

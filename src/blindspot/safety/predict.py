@@ -27,7 +27,7 @@ from blindspot.traj.baselines import ConstantVelocity, KalmanCV
 from blindspot.traj.distribution import DistributionError
 from blindspot.traj.windows import interpolate_gaps
 
-__all__ = ["BackfilledHistory", "TrackState", "with_backfill", "track_histories",
+__all__ = ["calibrated_predictors", "BackfilledHistory", "TrackState", "with_backfill", "track_histories",
            "incremental_kalman", "track_state_forecast", "risk_table"]
 
 
@@ -237,3 +237,58 @@ def risk_table(tracks: pd.DataFrame, ego: pd.DataFrame, predictors: dict[str, An
                                  "ttc_s": r.ttc_s}))
     cols = ["predictor", "group", "frame", "track_id", "p_collision", "ttc_s"]
     return pd.concat(out, ignore_index=True) if out else pd.DataFrame(columns=cols)
+
+
+def calibrated_predictors(w, base: dict, records: dict, *, direct_path, paths, val, window: int,
+                          calibration, cv_fit_points: int, where: str = "models.json",
+                          frame_periods_s: tuple[float, float] | None = None) -> dict:
+    """name -> calibrated probabilistic predictor for every name of ``w.predictors``
+    (:class:`~blindspot.safety.config.WarningConfig`): ``none`` calibrated here on the
+    validation paths (``paths``: paths.parquet, ``val``: the validation windows, ``window``
+    points, ``calibration`` settings); ``track_state`` (:class:`TrackState`) around the
+    calibrated Kalman; the others from their calibration ``records`` (models.json, named
+    ``where`` in errors) around their point models ``base`` (name -> model; the direct LSTM
+    loaded from ``direct_path`` when asked), the LSTMs' short histories completed as
+    ``w.lstm_history`` says. ``frame_periods_s``: (driving, calibration) frame periods, which
+    must agree. Raises ValueError naming the key of a predictor without a calibration, or
+    of two frame periods that differ."""
+    import torch
+
+    from blindspot.traj.calibration import calibrate, from_record, path_pairs
+    from blindspot.traj.direct import NAME as DIRECT
+    from blindspot.traj.paths import table_to_arrays
+    from blindspot.traj.seq2seq import Seq2SeqEnsemble
+    from blindspot.traj.stationary import Stationary
+    from blindspot.traj.windows import WindowSet
+
+    if frame_periods_s is not None and abs(frame_periods_s[0] - frame_periods_s[1]) > 1e-9:
+        raise ValueError(f"config keys 'driving_radar.frame_period_s' = {frame_periods_s[0]} "
+                         f"and 'radar.frame_period_s' = {frame_periods_s[1]}: the predictors "
+                         "were calibrated at the paper radar's frame period; expected equal")
+    torch.set_num_threads(1)
+    base = dict(base)
+    if DIRECT in w.predictors:
+        base[DIRECT] = Seq2SeqEnsemble.load(direct_path)
+    out = {}
+    for name in w.predictors:
+        if name == "track_state":                  # the tracker's own state, Kalman-calibrated
+            name_k = "kalman"
+        else:
+            name_k = name
+        if name == "none":
+            truth, measured, _ = table_to_arrays(pd.read_parquet(paths))
+            ids = np.unique(WindowSet.load(val).path_id)
+            hist, fut = path_pairs(measured[ids], truth[ids], window, calibration.horizon_frames,
+                                   calibration.stride)
+            out[name] = calibrate({"none": Stationary()}, hist, fut,
+                                  scale_method=calibration.scale_method,
+                                  scale_level=calibration.scale_level,
+                                  cv_fit_points=cv_fit_points)["none"]
+            continue
+        if name_k not in records or name_k not in base:
+            raise ValueError(f"config key 'warning.predictors' lists {name!r}: no calibrated "
+                             f"distribution of {name_k!r} in {where} ({sorted(records)})")
+        p = from_record(records[name_k], base[name_k], name_k)
+        out[name] = TrackState(p) if name == "track_state" else with_backfill(p, base[name_k],
+                                                                              w.lstm_history)
+    return out
