@@ -97,3 +97,23 @@ def test_doppler_first_classes_a_young_uncertain_track_moving():
     z = moving_tracks(t.assign(doppler_mps=0.02), 0.5, doppler_first_log_ratio=float(np.log(100)),
                       doppler_std_mps=0.3)
     assert not z.any()
+
+
+def test_the_context_prior_turns_the_radial_speed_into_a_crossing_speed():
+    """With the velocity prior narrow along the road (the boresight), a child 10 m ahead and
+    2 m beside the lane, whose Doppler shows only 0.27 m/s of its 1.4 m/s crossing, starts
+    moving across the road at the posterior the two allow, several times the isotropic
+    prior's start, and hardly along it."""
+    xy = np.array([2.01, 10.0])
+    v = np.array([-1.4, 0.0])
+    pts = walker(v, doppler=None, n_frames=1, start=(2.0, 10.0), n_points=3).assign(
+        sensor_heading_deg=0.0)
+    iso = track_points(pts, config(init_doppler_std_mps=0.3))
+    ctx = track_points(pts, config(init_doppler_std_mps=0.3, init_doppler_along_std_mps=0.2))
+    u = xy / np.hypot(*xy)
+    d = float(pts.velocity_over_ground_mps.iloc[0])
+    pv = np.diag([1.5 ** 2, 0.2 ** 2])
+    expect = pv @ u * d / (u @ pv @ u + 0.3 ** 2 / 3)
+    np.testing.assert_allclose(ctx[["vx_mps", "vy_mps"]].to_numpy()[0], expect, rtol=1e-6)
+    assert ctx.vx_mps[0] < 2.5 * iso.vx_mps[0] < 0          # several times the radial start
+    assert abs(ctx.vy_mps[0]) < 0.1

@@ -107,6 +107,19 @@ class TrackerConfig(TypedConfig):
             the sensor's pose per frame; points without the heading column are not tested:
             recordings differ in the axis their sensor looks along); null keeps such tracks
             until ``max_misses``.
+        init_doppler_std_mps: the spread of one point's ego-motion-compensated radial speed
+            (m/s) with which a new track's velocity prior is updated by its first object's
+            Doppler (blindspot.track.tracker._linear_initiator: the velocity the Doppler and the
+            geometry allow, not zero); null: zero-mean start (issue 40).
+        init_doppler_along_std_mps: the prior standard deviation of that velocity along the
+            sensor's boresight (the road, for a car's radar; ``init_velocity_std_mps`` across
+            it): a pedestrian stepping out crosses the road; null: isotropic.
+        doppler_confirm_log_ratio: a tentative track confirms on its second consecutive hit
+            when its objects' radial speeds make "moving" this many natural-log units likelier
+            than "static" (blindspot.track.moving.doppler_motion_log_ratio, point spread
+            ``moving.doppler_std_mps``); null: M-of-N only.
+        moving: the moving-object test (:class:`MovingConfig`); null for recordings that need
+            none.
     """
 
     GROUP = "tracker"
@@ -128,6 +141,7 @@ class TrackerConfig(TypedConfig):
     doppler_std_mps: float | None = setting(None, gt=0.0, le=100.0)
     field_of_view_deg: float | None = setting(None, gt=0.0, le=360.0)
     init_doppler_std_mps: float | None = setting(None, gt=0.0, le=100.0)
+    init_doppler_along_std_mps: float | None = setting(None, gt=0.0, le=100.0)
     doppler_confirm_log_ratio: float | None = setting(None, gt=0.0, le=1000.0)
     moving: MovingConfig | None = setting(None)
 
