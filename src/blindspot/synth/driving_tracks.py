@@ -68,7 +68,7 @@ def driving_tracks(truth, points, tcfg, oracle_cfg, *, seed, frame_period_s, job
         "kinematic": confusion(tracks, kinematic, labels, truth),
         "doppler": confusion(tracks, tracks.moving.to_numpy(), labels, truth),
         **{f"moving_{k}": v for k, v in moving_test_settings(mv).items()
-           if v is not None and not isinstance(v, (tuple, list))}}},
+           if isinstance(v, (int, float)) and not isinstance(v, bool)}}},
         "doppler_spread": doppler_spread_by_label(monte_carlo_objects(points, tcfg))}
     tables = {"tracks": tracks}
     refs = {"oracle": (own_points(points), f"{where} (own points by source)"),
