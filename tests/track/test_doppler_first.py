@@ -20,8 +20,11 @@ DT = 0.1
 
 
 def config(**changes) -> TrackerConfig:
+    """gnn_cv.yaml with the Doppler-first keys off unless ``changes`` set them."""
     cfg = TrackerConfig.from_mapping(OmegaConf.load(REPO_ROOT / "conf" / "tracker" / "gnn_cv.yaml"))
-    return dataclasses.replace(cfg, **changes)
+    off = dict(init_doppler_std_mps=None, init_doppler_along_std_mps=None,
+               doppler_confirm_log_ratio=None)
+    return dataclasses.replace(cfg, **{**off, **changes})
 
 
 def walker(v_xy, doppler, n_frames=4, start=(2.0, 10.0), n_points=3):
