@@ -1,5 +1,5 @@
-"""fig_safety: the warning/AEB figures, the Monte-Carlo grid and Euro NCAP nominal grid pages
-(issues 12, 40), from the safety stage's artifacts (blindspot.report computes nothing)."""
+"""fig_safety: the warning/AEB figures, the Monte-Carlo and Euro NCAP nominal grid pages (issues
+12, 40) from the safety stage's artifacts."""
 
 import blindspot  # noqa: F401  first: pins the CPU kernels before numpy loads (blindspot.kernels)
 import json
@@ -16,9 +16,9 @@ from blindspot.stage import StageResult
 
 def run(cfg, ctx):
     metrics = json.loads(ctx.dep("safety.json").read_text())
-    truth, scenes, risk, curves, grid, timeline = (pd.read_parquet(ctx.dep(f)) for f in (
-        "truth.parquet", "scene_outcomes.parquet", "risk.parquet", "operating.parquet",
-        "ncap_grid.parquet", "timeline.parquet"))
+    truth, scenes, risk, curves, grid, timeline = (pd.read_parquet(p) for p in (
+        ctx.dep("truth.parquet"), ctx.dep("scene_outcomes.parquet"), ctx.dep("risk.parquet"),
+        ctx.dep("operating.parquet"), ctx.dep("ncap_grid.parquet"), ctx.dep("timeline.parquet")))
     predictors = predictor_names(metrics)
     settings = metrics[predictors[0]]["settings"]
     headline, name = settings["headline_input"], str(cfg.scenario.figure_scene)
@@ -34,9 +34,8 @@ def run(cfg, ctx):
             risk[(risk.group == name) & (risk.input == inp)], timeline[timeline.input == inp],
             scenes[(scenes.scene == name) & (scenes.input == inp)], info["car_polygons_xy_m"],
             ego_width_m=float(cfg.scenario.ego.width_m),
-            ego_length_m=float(cfg.scenario.ego.length_m),
-            warning_threshold=settings["warning_threshold"],
-            aeb_threshold=settings["aeb_threshold"], predictor=best,
+            ego_length_m=float(cfg.scenario.ego.length_m), predictor=best,
+            **{k: settings[k] for k in ("warning_threshold", "aeb_threshold")},
             title=f"{name} at {info['speed_kmh']:g} km/h ({inp} input)")
 
     outs = [save_figure(timeline_figure(headline), ctx.out("safety_timeline.png"), dpi=110),
@@ -46,9 +45,10 @@ def run(cfg, ctx):
     outs.append(save_figure(fig_operating_characteristic(curves, *oc),
                             ctx.out("safety_operating.png"), dpi=110))
     ev = scenes[(scenes.input == headline) & scenes.evaluated & scenes.intruding]
-    for fig, out in ((fig_ncap_grid(grid[grid.input == headline], predictors), "ncap_grid"),
-                     (fig_lead_times(ev, predictors), "lead_times")):
-        outs.append(save_figure(fig, ctx.out(f"safety_{out}.png"), dpi=110))
+    for fig, out in ((fig_ncap_grid(grid[grid.input == headline], predictors),
+                      ctx.out("safety_ncap_grid.png")),
+                     (fig_lead_times(ev, predictors), ctx.out("safety_lead_times.png"))):
+        outs.append(save_figure(fig, out, dpi=110))
     outs.append(write_text(ctx.out("safety_grid.md"), grid_page(grid, metrics)))
     outs.append(write_text(ctx.out("safety_ncap.md"),
                            ncap_page(json.loads(ctx.dep("ncap.json").read_text()), metrics)))

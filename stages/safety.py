@@ -46,15 +46,15 @@ def run(cfg, ctx):
                  figure_scene=group.figure_scene, draw_seed=group.monte_carlo.seed,
                  only={k: w.reference_predictors for k in ("oracle", "visible_truth",
                                                            "true_state")})
-    for name in ("risk", "scenes", "curves", "grid", "timeline"):
-        write_parquet(ctx.out(_FILES[name]), getattr(res, name))
+    for out, table in ((ctx.out("risk.parquet"), res.risk), (ctx.out("ncap_grid.parquet"),
+                       res.grid), (ctx.out("scene_outcomes.parquet"), res.scenes),
+                       (ctx.out("operating.parquet"), res.curves),
+                       (ctx.out("timeline.parquet"), res.timeline)):
+        write_parquet(out, table)
     write_json(ctx.out("safety.json"), res.metrics)
     write_json(ctx.out("ncap.json"), res.ncap)
     print("\n".join(summary_lines(res.metrics)))
     return StageResult(metrics=logged_metrics(res.metrics))
-
-_FILES = dict(risk="risk.parquet", scenes="scene_outcomes.parquet", curves="operating.parquet",
-              grid="ncap_grid.parquet", timeline="timeline.parquet")
 
 if __name__ == "__main__":
     main_stage(run, "safety")
