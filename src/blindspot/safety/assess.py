@@ -273,15 +273,16 @@ def assess(truth: pd.DataFrame, scenes_meta: dict, tracks: dict[str, pd.DataFram
                    for k in ("avoided_rate", "goals")}}
             curve = operating_curve(p_aeb[ev], info, impact[ev], thresholds)
             m["avoided_rate_at_false_activation_le"] = avoided_at_false_activation(curve)
-            it = info.intruding
-            to_moving = np.where(it, t_moving - fp, np.nan)
-            to_aeb = np.where(it, res.aeb_s.to_numpy(float) - fp, np.nan)
-            m["first_point_to_moving_s"] = delay_stats(to_moving, info.speed_kmh)
-            m["first_point_to_aeb_s"] = delay_stats(to_aeb, info.speed_kmh)
-            for block, half in ((held, ~tuning), (tune, tuning)):
+            it = info.intruding                      # delays of the intruding scenes only
+            to_moving = t_moving - fp
+            to_aeb = res.aeb_s.to_numpy(float) - fp
+            m["first_point_to_moving_s"] = delay_stats(to_moving[it], info.speed_kmh[it])
+            m["first_point_to_aeb_s"] = delay_stats(to_aeb[it], info.speed_kmh[it])
+            for block, half in ((held, ~tuning & it), (tune, tuning & it)):
                 if inp != headline or not half.any():
                     continue
-                hm = summarise(res[half].reset_index(drop=True), n_bootstrap=cfg.n_bootstrap,
+                whole = tuning if block is tune else ~tuning     # intruding and not
+                hm = summarise(res[whole].reset_index(drop=True), n_bootstrap=cfg.n_bootstrap,
                                seed=cfg.seed)
                 block[name] = {
                     "avoided_after_visible_rate": hm["avoided_after_visible_rate"],
