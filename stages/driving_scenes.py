@@ -12,6 +12,7 @@ from blindspot.radar.scenario import load_scenarios
 from blindspot.cli import main_stage
 from blindspot.io import write_json, write_parquet
 from blindspot.radar.driving import car_polygons, draw_scenarios, scene_truth
+from blindspot.safety.ncap import nominal_scenes
 from blindspot.stage import StageResult
 
 
@@ -24,7 +25,9 @@ def run(cfg, ctx):
     group, named = load_scenarios(cfg.scenario)
     radar = RadarConfig.from_cfg(cfg, "driving_radar")
     mc = draw_scenarios(group, named[group.figure_scene])
-    sets = [("named", s) for s in named.values()] + [("monte_carlo", s) for s in mc]
+    ncap = nominal_scenes(named, group.monte_carlo.speeds_kmh)      # Euro NCAP nominal grids
+    sets = ([("named", s) for s in named.values()] + [("ncap", s) for s in ncap]
+            + [("monte_carlo", s) for s in mc])
     truth = pd.concat([scene_truth(s, group, radar.frame_period_s).assign(set=k) for k, s in sets],
                       ignore_index=True)
     first = truth.drop_duplicates(["scene", "pedestrian"]).set_index(["scene", "pedestrian"])
