@@ -28,8 +28,7 @@ from blindspot.traj.lstm import LSTMPredictor
 def run(cfg, ctx):
     w, ev = WarningConfig.from_cfg(cfg), EvalConfig.from_cfg(cfg)
     group, _ = load_scenarios(cfg.scenario)
-    dt = float(RadarConfig.from_cfg(cfg, "driving_radar").frame_period_s)
-    paper_dt = float(RadarConfig.from_cfg(cfg).frame_period_s)
+    dt, paper_dt = (float(RadarConfig.from_cfg(cfg, k).frame_period_s) for k in ("driving_radar", "radar"))
     truth = pd.read_parquet(ctx.dep("truth.parquet"))
     tracks = {"tracker": pd.read_parquet(ctx.dep("tracks.parquet")),
               **{name: pd.read_parquet(ctx.dep(f"tracks_{name}.parquet"))
