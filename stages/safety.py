@@ -1,18 +1,11 @@
-"""safety: collision risk, warning, AEB and the Euro NCAP-style outcome of the Monte-Carlo
-driving scenes (issue 12; blindspot.safety.assess).
-
-Predictors: none (blindspot.traj.stationary, its error model calibrated here on the calibration
-stage's validation pairs with the same settings), constant velocity, Kalman, the scene LSTM and
-the direct multi-step LSTM (lstm_direct, the train_direct stage's; their calibrated
-distributions from data/calibration/models.json; both LSTMs' short histories completed as
-warning.lstm_history says). Inputs (driving_track stage): the tracker's tracks (the
-headline), the oracle-association and visible-truth reference tracks.
-"""
+"""safety: risk, warning, AEB and the Euro NCAP-style outcome of the driving scenes
+(blindspot.safety.assess): the Monte-Carlo set (tuning / held-out halves) and the nominal grids
+(ncap.json), per predictor (warning.predictors) and input: the tracker's tracks, the
+oracle-association and noisy visible-position references, the true state from line of sight."""
 
 import blindspot  # noqa: F401  first: pins the CPU kernels before numpy loads (blindspot.kernels)
 import json
 
-import numpy as np
 import pandas as pd
 
 from blindspot.radar.config import RadarConfig
@@ -23,106 +16,44 @@ from blindspot.traj.config import CalibrationConfig, DatasetConfig, EvalConfig
 from blindspot.typed_config import jobs
 from blindspot.cli import main_stage
 from blindspot.io import write_json, write_parquet
-from blindspot.safety.assess import assess
+from blindspot.safety.assess import assess, logged_metrics, summary_lines
+from blindspot.safety.oracle import true_state_tracks
 from blindspot.safety.outcome import body_boxes
-from blindspot.safety.predict import with_backfill
+from blindspot.safety.predict import calibrated_predictors
 from blindspot.safety.risk import EgoShape
 from blindspot.stage import StageResult
-from blindspot.traj.calibration import calibrate, from_record, path_pairs
-from blindspot.traj.direct import NAME as DIRECT
 from blindspot.traj.lstm import LSTMPredictor
-from blindspot.traj.paths import table_to_arrays
-from blindspot.traj.seq2seq import Seq2SeqEnsemble
-from blindspot.traj.stationary import Stationary
-from blindspot.traj.windows import WindowSet
-
-
-def _predictors(cfg, ctx, w):
-    """name -> calibrated probabilistic predictor (module docstring)."""
-    import torch
-
-    torch.set_num_threads(1)
-    c = CalibrationConfig.from_cfg(cfg)
-    lstm = LSTMPredictor.load(ctx.dep("train/model.pt")).with_workers(jobs(cfg))
-    records = json.loads(ctx.dep("models.json").read_text())
-    base = prediction_methods(EvalConfig.from_cfg(cfg), RadarConfig.from_cfg(cfg).frame_period_s, lstm)          # a new dict: the direct model joins it
-    if DIRECT in w.predictors:
-        base[DIRECT] = Seq2SeqEnsemble.load(ctx.dep("train_direct/model.pt"))
-    out = {}
-    for name in w.predictors:
-        if name == "none":
-            truth, measured, _ = table_to_arrays(pd.read_parquet(ctx.dep("paths.parquet")))
-            val = np.unique(WindowSet.load(ctx.dep("val.parquet")).path_id)
-            hist, fut = path_pairs(measured[val], truth[val], DatasetConfig.from_cfg(cfg).window,
-                                   c.horizon_frames, c.stride)
-            out[name] = calibrate({"none": Stationary()}, hist, fut, scale_method=c.scale_method,
-                                  scale_level=c.scale_level,
-                                  cv_fit_points=EvalConfig.from_cfg(cfg).cv_fit_points)["none"]
-            continue
-        if name not in records or name not in base:
-            raise ValueError(f"config key 'warning.predictors' lists {name!r}: no calibrated "
-                             f"distribution in {ctx.dep('models.json')} ({sorted(records)})")
-        p = from_record(records[name], base[name], name)
-        out[name] = with_backfill(p, base[name], w.lstm_history)
-    return out
 
 
 def run(cfg, ctx):
-    w = WarningConfig.from_cfg(cfg)
+    w, ev = WarningConfig.from_cfg(cfg), EvalConfig.from_cfg(cfg)
     group, _ = load_scenarios(cfg.scenario)
-    dt = float(RadarConfig.from_cfg(cfg, "driving_radar").frame_period_s)
-    if abs(dt - float(RadarConfig.from_cfg(cfg).frame_period_s)) > 1e-9:
-        raise ValueError(f"config keys 'driving_radar.frame_period_s' = {dt} and "
-                         f"'radar.frame_period_s' = {cfg.radar.frame_period_s}: the predictors "
-                         "were calibrated at the paper radar's frame period; expected equal")
+    dt, paper_dt = (float(RadarConfig.from_cfg(cfg, k).frame_period_s) for k in ("driving_radar", "radar"))
     truth = pd.read_parquet(ctx.dep("truth.parquet"))
-    meta = json.loads(ctx.dep("scenes.json").read_text())
     tracks = {"tracker": pd.read_parquet(ctx.dep("tracks.parquet")),
               **{name: pd.read_parquet(ctx.dep(f"tracks_{name}.parquet"))
-                 for name in ("oracle", "visible_truth")}}
-    # the points' truth labels say only when the lead pedestrian was first seen (scene_info)
-    points = pd.read_parquet(ctx.dep("points.parquet"), columns=["scene", "frame", "source"])
-    bodies = body_boxes(group)
-    res = assess(truth, meta, tracks, _predictors(cfg, ctx, w), w, bodies=bodies, points=points,
-                 points_name=str(ctx.dep("points.parquet")),
-                 shape=EgoShape(group.ego.width_m, group.ego.length_m), frame_period_s=dt,
-                 figure_scene=group.figure_scene,
-                 only={"visible_truth": w.reference_predictors,
-                       "oracle": w.reference_predictors})
-    write_parquet(ctx.out("risk.parquet"), res.risk)
-    write_parquet(ctx.out("scene_outcomes.parquet"), res.scenes)
-    write_parquet(ctx.out("operating.parquet"), res.curves)
-    write_parquet(ctx.out("ncap_grid.parquet"), res.grid)
-    write_parquet(ctx.out("timeline.parquet"), res.timeline)
+                 for name in ("oracle", "visible_truth")},
+              "true_state": true_state_tracks(truth)}
+    lstm = LSTMPredictor.load(ctx.dep("train/model.pt")).with_workers(jobs(cfg))
+    preds = calibrated_predictors(
+        w, prediction_methods(ev, paper_dt, lstm), json.loads(ctx.dep("models.json").read_text()),
+        direct_path=ctx.dep("train_direct/model.pt"), paths=ctx.dep("paths.parquet"),
+        val=ctx.dep("val.parquet"), window=DatasetConfig.from_cfg(cfg).window,
+        calibration=CalibrationConfig.from_cfg(cfg), cv_fit_points=ev.cv_fit_points,
+        where=str(ctx.dep("models.json")), frame_periods_s=(dt, paper_dt))
+    res = assess(truth, json.loads(ctx.dep("scenes.json").read_text()), tracks, preds, w,
+                 bodies=body_boxes(group), shape=EgoShape(group.ego.width_m, group.ego.length_m),
+                 points=pd.read_parquet(ctx.dep("points.parquet"), columns=["scene", "frame", "source"]),
+                 points_name=str(ctx.dep("points.parquet")), frame_period_s=dt,
+                 figure_scene=group.figure_scene, draw_seed=group.monte_carlo.seed,
+                 only=dict.fromkeys(("oracle", "visible_truth", "true_state"), w.reference_predictors))
+    for name, table in {"risk": res.risk, "ncap_grid": res.grid, "scene_outcomes": res.scenes,
+                        "operating": res.curves, "timeline": res.timeline}.items():
+        write_parquet(ctx.out(f"{name}.parquet"), table)
     write_json(ctx.out("safety.json"), res.metrics)
-    logged = {}
-    for name, m in res.metrics.items():
-        logged[name] = {"by_input": {inp: {k: v[k] for k in ("avoided_rate",
-                                                             "avoided_after_visible_rate",
-                                                             "false_activation_rate")}
-                                     for inp, v in m["by_input"].items()},
-                        "false_activation_rate": m["false_activation_rate"],
-                        "avoided_rate": m["avoided_rate"],
-                        "avoided_after_visible_rate": m["avoided_after_visible_rate"],
-                        "by_speed_kmh": {k: {kk: v[kk] for kk in ("avoided_rate",
-                                                                   "avoided_after_visible_rate",
-                                                                   "impact_speed_kmh_mean",
-                                                                   "lead_time_s_median")}
-                                         for k, v in m["by_speed_kmh"].items()}}
-        print(f"safety {name}: avoided {m['avoided_rate']} ("
-              f"{m['avoided_after_visible_rate']} with the AEB requested after the lead "
-              f"pedestrian was visible), false activations "
-              f"{m['false_activation_rate']}; impact km/h by speed "
-              + ", ".join(f"{k}: {v['impact_speed_kmh_mean']:.1f}"
-                          for k, v in m["by_speed_kmh"].items()))
-    return StageResult(metrics=_numeric(logged))
-
-
-def _numeric(d):
-    """Drop None leaves (MLflow logs numbers only)."""
-    if isinstance(d, dict):
-        return {k: _numeric(v) for k, v in d.items() if v is not None}
-    return d
+    write_json(ctx.out("ncap.json"), res.ncap)
+    print("\n".join(summary_lines(res.metrics)))
+    return StageResult(metrics=logged_metrics(res.metrics))
 
 
 if __name__ == "__main__":

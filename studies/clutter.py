@@ -6,7 +6,7 @@ Prints figures, asserts nothing.
         [--data DIR] [--json OUT] [--cell M] [--lags L1,L2] [--window N]
 
 DIR (default ``data``) must hold a driving_track + safety run with the grid off
-(warning.moving_static_evidence_min = 0, as the 2026-11-30 repro in /work/main/data): the
+(tracker.moving.static_evidence_min = 0, as the 2026-11-30 repro in /work/main/data): the
 benchmark removes rows from that run's risk rows and refuses tracks whose moving flag already
 left them out.
 
@@ -34,7 +34,7 @@ rule does not call it clutter. Per predictor (the tracker input) the rule's thre
 with the largest Youden J = avoided rate - false-activation rate on the tuning half at the
 configured AEB threshold behind the configured gate; the held-out half is reported at that
 threshold beside the stage's own moving test. The configured rule (params.yaml
-warning.moving_static_*) is reported the same way, with the held-out intruding scenes it stops
+tracker.moving.static_*) is reported the same way, with the held-out intruding scenes it stops
 avoiding and how many of those the grid-off run braked first for a clutter track (luck). Also printed: intruding scenes whose lead
 pedestrian is never classed moving (truth labels, stages/driving_track.confusion; today 20 of
 108), and the causes of the false activations left (first AEB-level track within 1 m of a true
@@ -89,13 +89,13 @@ def displacement_ratio(tracks: pd.DataFrame, window: int) -> np.ndarray:
     return out
 
 
-def persistence(tracks: pd.DataFrame, ego: pd.DataFrame, w, window: int) -> np.ndarray:
+def persistence(tracks: pd.DataFrame, ego: pd.DataFrame, mv, window: int) -> np.ndarray:
     """(N,) per row: the most rows, among any ``window`` consecutive rows of the track so far,
     whose own frame passes the stage's moving test unlatched (fast, chi-square, and the summed
     Doppler log-likelihood ratio above its bound); an M-of-N confirmation of the moving class
     (Blackman & Popoli 1999, sec. 6.2, as for track confirmation). tracks sorted by group,
     track_id, frame."""
-    inst = moving_frames(tracks, ego=ego, **moving_test_settings(w, grid=False))
+    inst = moving_frames(tracks, ego=ego, **moving_test_settings(mv, grid=False))
     key = (tracks.group + "\x00" + tracks.track_id.astype(str)).to_numpy()
     roll = pd.Series(inst.astype(float)).groupby(key, sort=False).rolling(
         window, min_periods=1).sum().to_numpy()
@@ -111,6 +111,7 @@ def main(argv: list[str]) -> None:
     ap.add_argument("--json", type=Path, default=None)
     args = ap.parse_args(argv)
     cfg, w, _, bodies, shape, truth_all, meta, risk = load_inputs(args.data, "tracker")
+    mv = TrackerConfig.from_cfg(cfg).moving
     truth = truth_all[truth_all.set == "monte_carlo"]
     tracks = pd.read_parquet(args.data / "driving/tracks.parquet")
     tracks = tracks.sort_values(["group", "track_id", "frame"]).reset_index(drop=True)
@@ -127,7 +128,7 @@ def main(argv: list[str]) -> None:
         scores[f"static_evidence cell {args.cell:g} m lag {lag}"] = (
             ev, np.array([1, 2, 3, 5, 8, 12, 20, 30, 50, 80, 120]), "ge")
     scores[f"moving test M of {args.window} rows"] = (
-        persistence(tracks, ego, w, args.window), np.arange(2, args.window + 1), "lt")
+        persistence(tracks, ego, mv, args.window), np.arange(2, args.window + 1), "lt")
     key_t = (tracks.group + "\x00" + tracks.track_id.astype(str)).to_numpy()
     age = pd.Series(tracks.confirmed.to_numpy(float)).groupby(key_t, sort=False).cumsum()
     scores["confirmed age (rows)"] = (age.to_numpy(), np.array([2, 3, 5, 8, 10, 15]), "lt")
@@ -142,25 +143,25 @@ def main(argv: list[str]) -> None:
               aeb_threshold=w.aeb_threshold)
     key = ["group", "frame", "track_id"]
     moving = tracks.moving.to_numpy(bool)
-    without_grid = moving_tracks(tracks, ego=ego, **moving_test_settings(w, grid=False))
+    without_grid = moving_tracks(tracks, ego=ego, **moving_test_settings(mv, grid=False))
     if not np.array_equal(moving, without_grid):
         raise SystemExit(f"{args.data / 'driving/tracks.parquet'}: its moving flag is not the "
                          "moving test without the static-evidence grid (was driving_track run "
-                         "with warning.moving_static_evidence_min > 0?); this benchmark needs "
+                         "with tracker.moving.static_evidence_min > 0?); this benchmark needs "
                          "the risk rows of a run with the grid off, e.g. the data/ of "
-                         "`dvc exp run -S warning.moving_static_evidence_min=0`")
+                         "`dvc exp run -S tracker.moving.static_evidence_min=0`")
     import time
     t0 = time.process_time()
-    conf_ev = track_static_evidence(tracks, points, cell_m=w.moving_static_cell_m,
-                                    lag_frames=w.moving_static_lag_frames) \
-        if w.moving_static_evidence_min > 0 else np.zeros(len(tracks), int)
+    conf_ev = track_static_evidence(tracks, points, cell_m=mv.static_cell_m,
+                                    lag_frames=mv.static_lag_frames) \
+        if mv.static_evidence_min > 0 else np.zeros(len(tracks), int)
     cpu = time.process_time() - t0
     n_frames = tracks[["group", "frame"]].drop_duplicates().shape[0]
     print(f"static_evidence (configured) on {len(tracks)} track rows, {int(points.static.sum())} "
           f"static points, {n_frames} scene-frames: {cpu:.2f} s CPU (process_time), "
           f"{1e3 * cpu / n_frames:.3f} ms per frame")
-    conf_name = (f"CONFIGURED static_evidence cell {w.moving_static_cell_m:g} m lag "
-                 f"{w.moving_static_lag_frames} >= {w.moving_static_evidence_min}")
+    conf_name = (f"CONFIGURED static_evidence cell {mv.static_cell_m:g} m lag "
+                 f"{mv.static_lag_frames} >= {mv.static_evidence_min}")
 
     def evaluate(rows: pd.DataFrame):
         out = {}
@@ -182,8 +183,8 @@ def main(argv: list[str]) -> None:
     base_missed = confusion(tracks, moving, labels, truth_all)
     lab = labels.reindex(pd.MultiIndex.from_frame(tracks[["group", "track_id"]])).to_numpy()
     ped = pd.notna(lab) & (lab != "static")
-    kept = moving & ~((conf_ev >= w.moving_static_evidence_min)
-                      & (w.moving_static_evidence_min > 0))
+    kept = moving & ~((conf_ev >= mv.static_evidence_min)
+                      & (mv.static_evidence_min > 0))
     print(f"moving rows (truth labels, all scenes): pedestrian tracks {int((moving & ped).sum())}"
           f" -> {int((kept & ped).sum())}, static-world tracks {int((moving & ~ped).sum())} -> "
           f"{int((kept & ~ped).sum())} with the configured grid")
@@ -211,11 +212,11 @@ def main(argv: list[str]) -> None:
               f"{int((~fa0.follows_pedestrian).sum())}")
         entry = {"stage_moving_test": base, "candidates": {}}
         # the configured rule (params.yaml), paired with the stage's test on the same scenes
-        drop = (conf_ev[idx] >= w.moving_static_evidence_min) \
-            if w.moving_static_evidence_min > 0 else np.zeros(len(rows), bool)
+        drop = (conf_ev[idx] >= mv.static_evidence_min) \
+            if mv.static_evidence_min > 0 else np.zeros(len(rows), bool)
         e = evaluate(rows[~drop])
-        c = confusion(tracks, moving & ~((conf_ev >= w.moving_static_evidence_min)
-                                         & (w.moving_static_evidence_min > 0)),
+        c = confusion(tracks, moving & ~((conf_ev >= mv.static_evidence_min)
+                                         & (mv.static_evidence_min > 0)),
                       labels, truth_all)
         held = ~tune
         r0 = scene_results(*frame_risks(rows, sa.scenes, sa.speed_mps, F, main_brakes,

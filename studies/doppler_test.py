@@ -5,7 +5,7 @@ reported on the other. Prints figures, asserts nothing.
         [--data data] [--predictors constant_velocity,lstm_direct] [--json OUT] \
         [--floors 0,0.1,...] [--spread 0.27,0.79]
 
-The moving test (:func:`blindspot.track.moving.moving_tracks`, settings ``warning.moving_*``)
+The moving test (:func:`blindspot.track.moving.moving_tracks`, settings ``tracker.moving.*``)
 has three Doppler settings, chosen on the same simulated set README reports (the "doubtful"
 note of docs/studies/safety.md): a point's radial-speed spread ``moving_doppler_std_mps`` (0.3 m/s),
 the bound on the summed log-likelihood ratio "moves as tracked" vs "static", ``moving_doppler_log_ratio_min``
@@ -63,6 +63,7 @@ from blindspot.io import write_json  # noqa: E402
 from blindspot.safety.predict import risk_table, with_backfill  # noqa: E402
 from blindspot.track.moving import moving_test_settings, moving_tracks  # noqa: E402
 from blindspot.traj.calibration import from_record  # noqa: E402
+from blindspot.track.config import TrackerConfig  # noqa: E402
 
 STDS = (0.15, 0.3, 0.6)
 BOUNDS = (-np.log(1000.0), -np.log(100.0), -np.log(10.0), -np.log(3.0), -np.log(1.5))
@@ -160,11 +161,12 @@ def main(argv: list[str]) -> None:
     from blindspot.traj.config import EvalConfig
 
     cfg, w, _, bodies, shape, truth_all, meta, _ = load_inputs(args.data, "tracker")
+    mv = TrackerConfig.from_cfg(cfg).moving
     truth, dt, tracks, points, ego = moving_test_inputs(cfg, args.data, truth_all)
 
     # the configured floor's distance below the configured bound (None: no floor)
-    configured_below = (None if w.moving_doppler_log_ratio_floor is None
-                        else w.moving_doppler_log_ratio_min - w.moving_doppler_log_ratio_floor)
+    configured_below = (None if mv.doppler_log_ratio_floor is None
+                        else mv.doppler_log_ratio_min - mv.doppler_log_ratio_floor)
 
     def moving(form: str | None, std: float | None, bound: float | None,
                below: float | None = None, pair: tuple | None | str = "configured",
@@ -172,14 +174,14 @@ def main(argv: list[str]) -> None:
         """The moving flags of a candidate; its floor ``below`` (default the configured
         distance) under its bound; its spread pair and Doppler reference (default the
         configured ones)."""
-        pair = w.moving_doppler_spread_std_mps if pair == "configured" else pair
-        reference = reference or w.moving_doppler_reference
+        pair = mv.doppler_spread_std_mps if pair == "configured" else pair
+        reference = reference or mv.doppler_reference
         below = configured_below if below is None else below
         floor = None if below is None or bound is None else bound - below
         return moving_tracks(tracks, ego=None if bound is None else ego[["group", "frame",
                                                                          "ego_x_m", "ego_y_m"]],
                              points=points, **{
-                                 **moving_test_settings(w), "doppler_std_mps": std or 0.3,
+                                 **moving_test_settings(mv), "doppler_std_mps": std or 0.3,
                                  "doppler_log_ratio_min": bound,
                                  "doppler_llr": form or "common_variance",
                                  "doppler_log_ratio_floor": floor,
@@ -187,8 +189,8 @@ def main(argv: list[str]) -> None:
                                  "doppler_reference": reference})
 
     superset = moving(None, None, None)
-    configured = moving(w.moving_doppler_llr, w.moving_doppler_std_mps,
-                        w.moving_doppler_log_ratio_min)
+    configured = moving(mv.doppler_llr, mv.doppler_std_mps,
+                        mv.doppler_log_ratio_min)
     if not np.array_equal(configured, tracks.moving.to_numpy(bool)):
         raise SystemExit(f"{args.data / 'driving/tracks.parquet'}: its moving flag is not the "
                          "configured moving test (params.yaml changed since driving_track ran?)")
@@ -203,13 +205,13 @@ def main(argv: list[str]) -> None:
                   **{label(f, s, b, p, r): (f, s, b, None, p, r)
                      for r in REFERENCES for p in (None, spread) for f in FORMS for s in STDS
                      for b in BOUNDS}}
-    name_conf = label(w.moving_doppler_llr, w.moving_doppler_std_mps,
-                      w.moving_doppler_log_ratio_min, w.moving_doppler_spread_std_mps,
-                      w.moving_doppler_reference)
+    name_conf = label(mv.doppler_llr, mv.doppler_std_mps,
+                      mv.doppler_log_ratio_min, mv.doppler_spread_std_mps,
+                      mv.doppler_reference)
     for d in (float(v) for v in args.floors.split(",") if v):
         # the floor acts on the frame-by-frame sum only
         candidates[f"{name_conf}, frame velocity, floor bound - {d:.2f}"] = (
-            w.moving_doppler_llr, w.moving_doppler_std_mps, w.moving_doppler_log_ratio_min, d,
+            mv.doppler_llr, mv.doppler_std_mps, mv.doppler_log_ratio_min, d,
             "configured", "frame")
     flags = {name: moving(*sb) for name, sb in candidates.items()}
     flags[name_conf] = configured

@@ -6,8 +6,8 @@ reported on the other. Prints figures, asserts nothing.
         [--speeds 0.3,0.5,0.7] [--probabilities 0.8,0.9,0.95,0.99,0.995] [--json OUT]
 
 A confirmed track is a moving object from its first frame whose filtered velocity is faster
-than ``warning.moving_speed_mps`` and non-zero by the chi-square test at
-``warning.moving_probability`` (:func:`blindspot.track.moving.moving_tracks`), with its
+than ``tracker.moving.speed_mps`` and non-zero by the chi-square test at
+``tracker.moving.probability`` (:func:`blindspot.track.moving.moving_tracks`), with its
 Doppler and static-evidence tests on top. Both kinematic settings were chosen on the paper's
 CA-CFAR cloud; on a child stepping out the test is what holds the track back
 (``moving_diagnosis.py --track``: a 40 km/h child's track at 1.0-1.4 m/s for three frames
@@ -52,6 +52,7 @@ from aeb_gate import load_inputs, outcome_setup  # noqa: E402
 from doppler_test import moving_test_inputs, score_candidates  # noqa: E402
 from blindspot.io import write_json  # noqa: E402
 from blindspot.track.moving import moving_test_settings, moving_tracks  # noqa: E402
+from blindspot.track.config import TrackerConfig  # noqa: E402
 
 
 def _floats(text: str, flag: str, lo: float, hi: float) -> list[float]:
@@ -77,17 +78,18 @@ def main(argv: list[str]) -> None:
     speeds = _floats(args.speeds, "--speeds", 0.0, 10.0)
     probabilities = _floats(args.probabilities, "--probabilities", 0.0, 1.0)
     cfg, w, _, bodies, shape, truth_all, meta, _ = load_inputs(args.data, "tracker")
-    speeds = sorted(set(speeds) | {w.moving_speed_mps})
-    probabilities = sorted(set(probabilities) | {w.moving_probability})
+    mv = TrackerConfig.from_cfg(cfg).moving
+    speeds = sorted(set(speeds) | {mv.speed_mps})
+    probabilities = sorted(set(probabilities) | {mv.probability})
     truth, dt, tracks, points, ego = moving_test_inputs(cfg, args.data, truth_all)
 
     def moving(speed: float, probability: float) -> np.ndarray:
         return moving_tracks(tracks, ego=ego[["group", "frame", "ego_x_m", "ego_y_m"]],
-                             points=points, **{**moving_test_settings(w), "speed_mps": speed,
+                             points=points, **{**moving_test_settings(mv), "speed_mps": speed,
                                                "probability": probability})
 
     flags = {(s, p): moving(s, p) for s in speeds for p in probabilities}
-    conf = (w.moving_speed_mps, w.moving_probability)
+    conf = (mv.speed_mps, mv.probability)
     if not np.array_equal(flags[conf], tracks.moving.to_numpy(bool)):
         raise SystemExit(f"{args.data / 'driving/tracks.parquet'}: its moving flag is not the "
                          "configured moving test (params.yaml changed since driving_track ran?)")

@@ -1,5 +1,5 @@
 """The micro-Doppler spread that the moving test's spread ratio models
-(``warning.moving_doppler_spread_std_mps``, :func:`blindspot.safety.predict
+(``tracker.moving.doppler_spread_std_mps``, :func:`blindspot.safety.predict
 .doppler_spread_log_ratio`), measured on the simulated driving scenes and on a real recording.
 Prints figures, asserts nothing.
 
@@ -61,10 +61,10 @@ def main(argv: list[str]) -> None:
                                object_doppler_spreads, pooled_std)
 
     cfg = OmegaConf.load(REPO / "params.yaml")
-    w = WarningConfig.from_cfg(cfg)
-    pair = w.moving_doppler_spread_std_mps or (0.27, 0.79)
+    mv = TrackerConfig.from_cfg(cfg).moving
+    pair = mv.doppler_spread_std_mps or (0.27, 0.79)
     print(f"spread ratio scored with static {pair[0]} m/s, walker {pair[1]} m/s"
-          + (" (configured)" if w.moving_doppler_spread_std_mps
+          + (" (configured)" if mv.doppler_spread_std_mps
              else " (the measured pair; not configured)"))
     objects = monte_carlo_objects(pd.read_parquet(args.data / "driving/points.parquet"),
                                   TrackerConfig.from_cfg(cfg))

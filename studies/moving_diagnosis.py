@@ -16,11 +16,11 @@ From DIR (default ``data``: ``driving/tracks.parquet``, ``driving/points.parquet
    and measured rows so far, whether it coasts at the request, its last hit, the first frame it
    is classed moving and the largest |Doppler| of its hits; then the labels counted;
 2. the confirmed static-world track rows (by label) that coast faster than
-   ``warning.moving_speed_mps`` (what a coasting clutter track's extrapolation can carry into
+   ``tracker.moving.speed_mps`` (what a coasting clutter track's extrapolation can carry into
    the lane);
 3. per ``--track``: its rows with filtered velocity, hits, Doppler and its spread, the
    kinematic chi-square v' P_v^-1 v, the per-frame Doppler log ratio, the micro-Doppler spread
-   log ratio (0 when ``warning.moving_doppler_spread_std_mps`` is null) and their sum
+   log ratio (0 when ``tracker.moving.doppler_spread_std_mps`` is null) and their sum
    (configured: its reference velocity and floor; and frame by frame without a floor), the static evidence at the row and at its
    last hit, and the moving flag (the run's).
 
@@ -83,25 +83,25 @@ def false_activations(tracks, labels, risk, outcomes, truth, predictor: str) -> 
     return pd.DataFrame(rows)
 
 
-def track_history(tracks, points, ego, w, scene: str, track_id: int) -> pd.DataFrame:
+def track_history(tracks, points, ego, mv, scene: str, track_id: int) -> pd.DataFrame:
     """The rows of one track with the moving test's terms (module docstring, item 3)."""
     t = tracks[tracks.group == scene].sort_values(["track_id", "frame"]).reset_index(drop=True)
     pts = points[points.scene == scene]
     e = t[["group", "frame"]].merge(ego, on=["group", "frame"], how="left")
     llr = doppler_log_ratio(t, e[["ego_x_m", "ego_y_m"]].to_numpy(float),
-                            w.moving_doppler_std_mps, w.moving_doppler_llr)
-    spread = w.moving_doppler_spread_std_mps
-    total = doppler_evidence(t, ego, w.moving_doppler_std_mps, w.moving_doppler_llr,
-                             w.moving_doppler_log_ratio_floor, spread_std_mps=spread,
-                             reference=w.moving_doppler_reference)
-    hits = static_evidence(t, pts, cell_m=w.moving_static_cell_m,
-                           lag_frames=w.moving_static_lag_frames)
+                            mv.doppler_std_mps, mv.doppler_llr)
+    spread = mv.doppler_spread_std_mps
+    total = doppler_evidence(t, ego, mv.doppler_std_mps, mv.doppler_llr,
+                             mv.doppler_log_ratio_floor, spread_std_mps=spread,
+                             reference=mv.doppler_reference)
+    hits = static_evidence(t, pts, cell_m=mv.static_cell_m,
+                           lag_frames=mv.static_lag_frames)
     t = t.assign(chi2_velocity=velocity_chi2(t), doppler_llr=llr,
                  spread_llr=(doppler_spread_log_ratio(t, *spread) if spread is not None
                              else np.zeros(len(t))),
                  doppler_sum=total,
-                 doppler_sum_no_floor=doppler_evidence(t, ego, w.moving_doppler_std_mps,
-                                                       w.moving_doppler_llr,
+                 doppler_sum_no_floor=doppler_evidence(t, ego, mv.doppler_std_mps,
+                                                       mv.doppler_llr,
                                                        spread_std_mps=spread),
                  static_hits=hits, static_hits_last_hit=hits[last_hit_rows(t)])
     cols = ["frame", "x_m", "y_m", "vx_mps", "vy_mps", "n_points", "doppler_mps",
@@ -126,6 +126,7 @@ def main(argv: list[str]) -> None:
 
     cfg = OmegaConf.load(REPO / "params.yaml")
     w = WarningConfig.from_cfg(cfg)
+    mv = TrackerConfig.from_cfg(cfg).moving
     d = args.data
     tracks = pd.read_parquet(d / "driving/tracks.parquet")
     points = pd.read_parquet(d / "driving/points.parquet")
@@ -147,17 +148,17 @@ def main(argv: list[str]) -> None:
     lab = labels.reindex(pd.MultiIndex.from_frame(conf[["group", "track_id"]])).to_numpy()
     static = lab == "static"
     coast = conf.n_points.to_numpy() == 0
-    fast = np.hypot(conf.vx_mps, conf.vy_mps).to_numpy() > w.moving_speed_mps
+    fast = np.hypot(conf.vx_mps, conf.vy_mps).to_numpy() > mv.speed_mps
     print(f"static-world confirmed track rows: {int(static.sum())}, coasting "
-          f"{coast[static].mean():.3f}; coasting faster than {w.moving_speed_mps} m/s: "
+          f"{coast[static].mean():.3f}; coasting faster than {mv.speed_mps} m/s: "
           f"{int((static & coast & fast).sum())}")
     for spec in args.track:
         scene, _, tid = spec.rpartition(":")
         if not scene or not tid.isdigit():
             raise SystemExit(f"--track: expected SCENE:TRACK_ID, found {spec!r}")
         print(f"\n{scene} track {tid} (doppler_sum: the configured sum, floor "
-              f"{w.moving_doppler_log_ratio_floor}, bound {w.moving_doppler_log_ratio_min:.2f})")
-        print(track_history(tracks, points, ego, w, scene, int(tid)).to_string(index=False))
+              f"{mv.doppler_log_ratio_floor}, bound {mv.doppler_log_ratio_min:.2f})")
+        print(track_history(tracks, points, ego, mv, scene, int(tid)).to_string(index=False))
 
 
 if __name__ == "__main__":

@@ -360,10 +360,7 @@ def test_every_stage_file_is_at_most_60_lines() -> None:
     the library."""
     over = {s: n for s in STAGE_FILES
             if (n := len((STAGES / f"{s}.py").read_text().splitlines())) > 60}
-    # Issue 40 owns these and slims them; remove each name here once it is <= 60 lines.
-    known = {"driving_track", "driving_measure", "driving_detect", "driving_scenes", "safety",
-             "fig_safety"}
-    assert set(over) <= known, f"stage files over 60 lines: {over}"
+    assert not over, f"stage files over 60 lines: {over}"
 
 
 @pytest.mark.parametrize("stage", STAGE_FILES)

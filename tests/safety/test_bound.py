@@ -147,3 +147,18 @@ def test_best_request_frame_prefers_the_first_avoiding_frame_from_the_first_on()
     assert best_request_frame(impact, first).tolist() == [2, 2, 4, 1]
     with pytest.raises(BoundError, match="outcome table"):
         best_request_frame(impact, first[:2])
+
+
+def test_line_of_sight_onset_is_the_emergence_that_leads_to_the_crossing():
+    """Issue 40: a child glimpsed standing ahead, hidden again, then stepping out is seen from
+    the last emergence before the collision, not from the glimpse."""
+    from blindspot.safety.evaluation import line_of_sight_onset
+
+    t = np.arange(10) * 0.1
+    occ = [True, False, False, True, True, True, False, False, False, False]   # glimpse at 0.1
+    p0 = pd.DataFrame({"scene": "a", "time_s": t, "occluded": occ, "collision_time_s": 0.9})
+    never_hidden = pd.DataFrame({"scene": "b", "time_s": t, "occluded": False,
+                                 "collision_time_s": np.nan})
+    onset = line_of_sight_onset(pd.concat([p0, never_hidden]))
+    assert onset["a"] == pytest.approx(0.6)
+    assert onset["b"] == pytest.approx(0.0)

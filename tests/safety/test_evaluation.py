@@ -178,15 +178,29 @@ def test_warning_config_errors_name_the_key():
         WarningConfig.from_mapping({**base, "aeb": {**base["aeb"], "decel_mps2": -1.0}})
     with pytest.raises(ConfigError, match="warning.predictors"):
         WarningConfig.from_mapping({**base, "predictors": ["oracle"]})
-    with pytest.raises(ConfigError, match="warning.moving_doppler_log_ratio_floor"):
-        WarningConfig.from_mapping({**base, "moving_doppler_log_ratio_floor": -1.0})
-    with pytest.raises(ConfigError, match="warning.moving_doppler_llr"):
-        WarningConfig.from_mapping({**base, "moving_doppler_llr": "exact"})
+    # the moving-object test's keys moved to the tracker (issue 42): an old key names its new one
+    with pytest.raises(ConfigError, match="tracker.moving.doppler_llr"):
+        WarningConfig.from_mapping({**base, "moving_doppler_llr": "marginal"})
+
+
+def test_moving_config_errors_name_the_key():
+    from omegaconf import OmegaConf
+    from pathlib import Path
+
+    from blindspot.track.config import MovingConfig
+
+    base = OmegaConf.to_container(OmegaConf.load(
+        Path(__file__).resolve().parents[2] / "conf" / "tracker" / "gnn_cv.yaml"))["moving"]
+    MovingConfig.from_mapping(base)
+    with pytest.raises(ConfigError, match="tracker.moving.doppler_log_ratio_floor"):
+        MovingConfig.from_mapping({**base, "doppler_log_ratio_floor": -1.0})
+    with pytest.raises(ConfigError, match="tracker.moving.doppler_llr"):
+        MovingConfig.from_mapping({**base, "doppler_llr": "exact"})
     for bad in ([0.5, 0.5], [0.8, 0.3], [0.0, 0.8], [0.3]):      # equal, swapped, zero, one
-        with pytest.raises(ConfigError, match="warning.moving_doppler_spread_std_mps"):
-            WarningConfig.from_mapping({**base, "moving_doppler_spread_std_mps": bad})
-    ok = WarningConfig.from_mapping({**base, "moving_doppler_spread_std_mps": [0.27, 0.79]})
-    assert ok.moving_doppler_spread_std_mps == (0.27, 0.79)
+        with pytest.raises(ConfigError, match="tracker.moving.doppler_spread_std_mps"):
+            MovingConfig.from_mapping({**base, "doppler_spread_std_mps": bad})
+    ok = MovingConfig.from_mapping({**base, "doppler_spread_std_mps": [0.27, 0.79]})
+    assert ok.doppler_spread_std_mps == (0.27, 0.79)
 
 
 def test_a_skipped_frame_inside_a_history_is_interpolated_from_its_past_neighbours():

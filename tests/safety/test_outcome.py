@@ -86,3 +86,28 @@ def test_missing_body_is_named(scenario):
     truth = _truth(group, [named["cpnco"]])
     with pytest.raises(OutcomeError, match="child"):
         scene_arrays(truth, {"adult": bodies["adult"]})
+
+
+def test_a_pedestrian_walking_into_the_flank_is_not_a_front_contact(scenario):
+    """Issue 40: a crossing pedestrian hit by the bumper is a front contact; one who walks into
+    the side of a car that has already passed its walking line is a flank contact."""
+    group, named, bodies, ego = scenario
+    v0 = 5.0
+    frames = np.arange(41)
+
+    def walker(name, x0, y):                 # crossing toward the ego's path (-x) at 1.4 m/s
+        return pd.DataFrame({
+            "scene": name, "frame": frames, "time_s": frames * 0.1, "ego_x_m": 0.0,
+            "ego_y_m": v0 * frames * 0.1, "ego_yaw_deg": 0.0, "ego_speed_mps": v0,
+            "pedestrian": "p0", "body": "adult", "x_m": x0 - 1.4 * frames * 0.1, "y_m": y,
+            "vx_mps": -1.4, "vy_mps": 0.0})
+    # ahead: the bumper reaches its line (y = 10 m at t = 2 s) as it enters the path
+    # flank: its line is at y = 7.5 m, the bumper passes it at 1.5 s, it reaches the side at 2 s
+    truth = pd.concat([walker("front", 0.9 + 2.8, 10.0), walker("flank", 0.9 + 0.3 + 2.8, 7.5)])
+    sa = scene_arrays(truth, bodies)
+    t, lo, hi = pedestrian_boxes(sa, 0.002, 1.0)
+    it, iv, front = braked_impacts(sa, t, lo, hi, np.full((2, 1), NEVER_S), BRAKE, ego,
+                                   with_front=True)
+    assert np.isfinite(it).all()                          # both touch the car
+    assert front[list(sa.scenes).index("front"), 0]
+    assert not front[list(sa.scenes).index("flank"), 0]

@@ -190,7 +190,8 @@ def test_output_columns_and_types():
     assert list(tracks.columns) == ["frame", "time_s", "track_id", "x_m", "y_m", "vx_mps",
                                     "vy_mps", "cov_xx", "cov_xy", "cov_yy", "cov_vxvx",
                                     "cov_vxvy", "cov_vyvy", "confirmed", "coasting", "n_points",
-                                    "doppler_mps", "doppler_spread_mps"]
+                                    "doppler_mps", "doppler_spread_mps", "cov_xvx", "cov_xvy",
+                                    "cov_yvx", "cov_yvy"]
     assert tracks.frame.dtype == np.int64 and tracks.track_id.dtype == np.int64
     assert tracks.n_points.dtype == np.int64 and tracks.doppler_mps.isna().all()   # no column
     assert tracks.doppler_spread_mps.isna().all()

@@ -82,7 +82,8 @@ __all__ = [
     "load_scenarios", "draw_scenarios", "scene_truth", "ego_pose", "pedestrian_states",
     "collision_without_braking", "car_polygon", "vehicle_to_world", "world_to_vehicle",
     "TRUTH_COLUMNS", "static_scatterers", "body_parts", "scatterers_in_vehicle_frame",
-    "frame_times", "car_polygons", "ego_velocity", "relative_velocity",
+    "frame_times", "car_polygons", "ego_velocity", "relative_velocity", "describe_scenes",
+    "monte_carlo_metrics",
 ]
 
 TRUTH_COLUMNS = (
@@ -583,3 +584,40 @@ def scatterers_in_vehicle_frame(scene: DrivingScene, group: ScenarioGroup, t: fl
     pos = np.concatenate([rel_xy, xyz[:, 2:]], axis=1)
     vel = np.concatenate([rel_v, np.zeros((len(xyz), 1))], axis=1)
     return pos[keep], vel[keep], rcs[keep], att[keep], label[keep]
+
+
+def _finite(x: float) -> float | None:
+    """A float, or None (JSON null) for NaN: no collision."""
+    return float(x) if np.isfinite(x) else None
+
+
+def describe_scenes(sets: list[tuple[str, DrivingScene]], truth: pd.DataFrame) -> dict:
+    """``scenes.json`` of the driving scenes: per scene (``sets``: (set name, scene) pairs; the
+    ``truth`` of :func:`scene_truth` for all of them) its set, speed, seed, parked-car polygons
+    and, per pedestrian, its body, behaviour, side, impact point and collision without braking."""
+    first = truth.drop_duplicates(["scene", "pedestrian"]).set_index(["scene", "pedestrian"])
+
+    def ped(s: DrivingScene, p: PedestrianSpec) -> dict:
+        row = first.loc[(s.name, p.name)]
+        return {"name": p.name, "body": p.body, "behaviour": p.behaviour, "side": p.side,
+                "impact_pct": p.impact_pct, "collision": bool(row["collision"]),
+                "collision_time_s": _finite(row["collision_time_s"]),
+                "impact_point_pct": _finite(row["impact_point_pct"])}
+
+    return {s.name: {"set": k, "speed_kmh": s.speed_kmh, "seed": s.seed,
+                     "car_polygons_xy_m": car_polygons(s).tolist(),
+                     "pedestrians": [ped(s, p) for p in s.pedestrians]}
+            for k, s in sets}
+
+
+def monte_carlo_metrics(truth: pd.DataFrame) -> dict:
+    """The Monte-Carlo set's lead pedestrians (``p0``) without braking: collision rates of the
+    intruding (``cross``) and the other scenes, the fraction of frames hidden, the spread of the
+    impact point (%)."""
+    lead = truth[(truth.set == "monte_carlo") & (truth.pedestrian == "p0")]
+    per = lead.drop_duplicates("scene")
+    intr = per.behaviour == "cross"
+    return {"monte_carlo.collision_rate_intruding": float(per.collision[intr].mean()),
+            "monte_carlo.collision_rate_non_intruding": float(per.collision[~intr].mean()),
+            "monte_carlo.lead_hidden_fraction": float(lead.occluded.mean()),
+            "monte_carlo.impact_point_pct_sd": float(np.nanstd(per.impact_point_pct[intr]))}

@@ -20,14 +20,17 @@ from blindspot.safety.bound import (BOUNDS, best_request_frame, bound_results,
 from blindspot.safety.braking import BrakingModel
 from blindspot.safety.config import WarningConfig
 from blindspot.safety.evaluation import (KMH, SceneInfo, aeb_gate_s,
-                                         avoided_at_false_activation, ncap_grid,
-                                         operating_curve, scene_frame_risk, scene_info,
+                                         avoided_at_false_activation, delay_stats,
+                                         first_moving_s, ncap_grid, operating_curve,
+                                         replicate_half, scene_frame_risk, scene_info,
                                          scene_results, summarise)
+from blindspot.safety.ncap import ncap_band, nominal_cell
 from blindspot.safety.outcome import NEVER_S, braked_impacts, pedestrian_boxes, scene_arrays
 from blindspot.safety.predict import risk_table
 from blindspot.safety.risk import EgoShape
 
-__all__ = ["SafetyResult", "outcome_table", "frame_risks", "assess", "perception_bounds"]
+__all__ = ["SafetyResult", "outcome_table", "frame_risks", "assess", "perception_bounds",
+           "logged_metrics", "summary_lines"]
 
 
 @dataclass(frozen=True)
@@ -44,19 +47,25 @@ class SafetyResult:
     grid: pd.DataFrame
     timeline: pd.DataFrame
     metrics: dict
+    ncap: dict | None = None
 
 
 def outcome_table(truth: pd.DataFrame, bodies: dict, shape: EgoShape, braking: BrakingModel,
-                  cfg: WarningConfig) -> tuple[Any, np.ndarray, np.ndarray]:
+                  cfg: WarningConfig, *, with_flank: bool = False) -> tuple[Any, ...]:
     """(scene arrays, trigger times (S, F + 1) s, impact speeds (S, F + 1) km/h, NaN avoided)
-    for an AEB request at each frame's decision time (column F: never)."""
+    for an AEB request at each frame's decision time (column F: never). Collisions are front
+    contacts (:func:`~blindspot.safety.outcome.braked_impacts`); a first contact on the car's
+    flank is not one (NaN) and, with ``with_flank``, is flagged in a fourth array (S, F + 1)
+    bool, counted apart."""
     sa = scene_arrays(truth, bodies)
     t, lo, hi = pedestrian_boxes(sa, cfg.outcome_dt_s, cfg.extend_s)
     S = len(sa.scenes)
     trig = np.concatenate([np.broadcast_to(sa.time_s + cfg.decision_delay_s, (S, len(sa.time_s))),
                            np.full((S, 1), NEVER_S)], axis=1)
-    _, v = braked_impacts(sa, t, lo, hi, trig, braking, shape)
-    return sa, trig, v * KMH
+    _, v, front = braked_impacts(sa, t, lo, hi, trig, braking, shape, with_front=True)
+    flank = np.isfinite(v) & ~front
+    impact = np.where(front, v, np.nan) * KMH
+    return (sa, trig, impact, flank) if with_flank else (sa, trig, impact)
 
 
 def frame_risks(risk: pd.DataFrame, scenes: np.ndarray, speed_mps: np.ndarray, n_frames: int,
@@ -174,7 +183,9 @@ def assess(truth: pd.DataFrame, scenes_meta: dict, tracks: dict[str, pd.DataFram
            shape: EgoShape, frame_period_s: float, figure_scene: str,
            evaluated_set: str = "monte_carlo", headline: str | None = None,
            only: dict[str, tuple[str, ...]] | None = None,
-           points: pd.DataFrame | None = None, points_name: str = "points") -> SafetyResult:
+           points: pd.DataFrame | None = None, points_name: str = "points",
+           draw_seed: int | None = None, ncap_inputs: tuple[str, ...] = ("tracker", "true_state")
+           ) -> SafetyResult:
     """Run the evaluation (module docstring).
 
     truth: every scene's truth (column ``set`` selects the evaluated scenes; the figure scene
@@ -202,7 +213,7 @@ def assess(truth: pd.DataFrame, scenes_meta: dict, tracks: dict[str, pd.DataFram
            .rename(columns={"scene": "group"}))
     main = BrakingModel.from_config(cfg.aeb)
     weak = BrakingModel.from_config(cfg.aeb, cfg.sensitivity_decel_mps2)
-    sa, trig, impact = outcome_table(truth, bodies, shape, main, cfg)
+    sa, trig, impact, flank = outcome_table(truth, bodies, shape, main, cfg, with_flank=True)
     _, _, impact_weak = outcome_table(truth, bodies, shape, weak, cfg)
     first_point_s = (None if points is None else
                      _first_time(_lead_observed(truth, sa, points, "p0", points_name), sa.time_s))
@@ -217,6 +228,16 @@ def assess(truth: pd.DataFrame, scenes_meta: dict, tracks: dict[str, pd.DataFram
     kw = dict(warning_threshold=cfg.warning_threshold, aeb_threshold=cfg.aeb_threshold,
               decision_delay_s=cfg.decision_delay_s)
     t_col = truth.groupby("scene").collision_time_s.min()
+    nominal = [(i, nominal_cell(s)) for i, s in enumerate(sa.scenes) if nominal_cell(s)]
+    ncap: dict = {}
+    tuning = np.zeros(int(ev.sum()), bool)
+    if ev.any():
+        tuning = replicate_half(sa.scenes[ev])
+    held: dict = {"seed": draw_seed, "split": "odd replicates of each Monte-Carlo cell (even "
+                  "ones tune); one draw", "n_intruding": int((info.intruding & ~tuning).sum()),
+                  "n_non_intruding": int((~info.intruding & ~tuning).sum())}
+    tune: dict = {"n_intruding": int((info.intruding & tuning).sum()),
+                  "n_non_intruding": int((~info.intruding & tuning).sum())}
     for inp, tr in tracks.items():                   # the inputs (oracle, tracker): a few
         late = tr.time_s.to_numpy() > t_col.reindex(tr.group).to_numpy()     # NaN: never late
         tr = tr[~late]
@@ -226,6 +247,9 @@ def assess(truth: pd.DataFrame, scenes_meta: dict, tracks: dict[str, pd.DataFram
                           shape=shape, margin_m=cfg.pedestrian_radius_m,
                           method=cfg.probability, max_len=max_len)
         risks.append(risk.assign(input=inp))
+        t_moving = first_moving_s(tr, truth, sa.scenes)[ev]
+        fp = (info.first_seen_s if first_point_s is None
+              else np.asarray(first_point_s, float)[ev])
         for name in use:                             # the four predictors
             # the gate is the nominal brakes' (also for the weak-brake sensitivity: the system
             # is tuned for its brakes, which then deliver less)
@@ -237,12 +261,45 @@ def assess(truth: pd.DataFrame, scenes_meta: dict, tracks: dict[str, pd.DataFram
             weak_res = scene_results(p_all[ev], info, impact_weak[ev], sa.time_s,
                                      p_aeb=p_aeb[ev], **kw)
             m = summarise(res, n_bootstrap=cfg.n_bootstrap, seed=cfg.seed)
+            col = np.where(res_all.aeb_frame.to_numpy() >= 0, res_all.aeb_frame.to_numpy(), F)
+            fl = flank[np.arange(len(col)), col][ev]
+            m["flank_contacts"] = {"n": int(fl.sum()), "n_scenes": int(len(fl)),
+                                   "note": "first contact on the car's flank behind the bumper "
+                                           "(the pedestrian walks into the side): not a "
+                                           "collision in the rates above, counted apart"}
             m["braking_sensitivity"] = {
                 "decel_mps2": cfg.sensitivity_decel_mps2,
                 **{k: summarise(weak_res, n_bootstrap=cfg.n_bootstrap, seed=cfg.seed)[k]
                    for k in ("avoided_rate", "goals")}}
             curve = operating_curve(p_aeb[ev], info, impact[ev], thresholds)
             m["avoided_rate_at_false_activation_le"] = avoided_at_false_activation(curve)
+            it = info.intruding                      # delays of the intruding scenes only
+            to_moving = t_moving - fp
+            to_aeb = res.aeb_s.to_numpy(float) - fp
+            m["first_point_to_moving_s"] = delay_stats(to_moving[it], info.speed_kmh[it])
+            m["first_point_to_aeb_s"] = delay_stats(to_aeb[it], info.speed_kmh[it])
+            for block, half in ((held, ~tuning & it), (tune, tuning & it)):
+                if inp != headline or not half.any():
+                    continue
+                whole = tuning if block is tune else ~tuning     # intruding and not
+                hm = summarise(res[whole].reset_index(drop=True), n_bootstrap=cfg.n_bootstrap,
+                               seed=cfg.seed)
+                block[name] = {
+                    "avoided_after_visible_rate": hm["avoided_after_visible_rate"],
+                    "avoided_after_visible_rate_ci95": hm["avoided_after_visible_rate_ci95"],
+                    "avoided_rate": hm["avoided_rate"],
+                    "false_activation_rate": hm["false_activation_rate"],
+                    "false_activation_rate_ci95": hm["false_activation_rate_ci95"],
+                    "first_point_to_moving_s_median": delay_stats(
+                        to_moving[half], info.speed_kmh[half])["median"],
+                    "first_point_to_aeb_s_median": delay_stats(
+                        to_aeb[half], info.speed_kmh[half])["median"]}
+            if inp in ncap_inputs:
+                for i, (proto, kmh, pct) in nominal:
+                    imp = float(res_all.impact_speed_kmh.iloc[i])
+                    band, _ = ncap_band(float(kmh), imp)
+                    (ncap.setdefault(proto, {}).setdefault(inp, {}).setdefault(name, {})
+                     .setdefault(kmh, {}))[pct] = {"impact_speed_kmh": imp, "band": str(band)}
             grid = ncap_grid(res)
             m["ncap_score_mean"] = float(grid.score.mean()) if len(grid) else None
             tag = dict(input=inp, predictor=name)
@@ -273,7 +330,58 @@ def assess(truth: pd.DataFrame, scenes_meta: dict, tracks: dict[str, pd.DataFram
     }
     for name in predictors:
         metrics[name]["settings"] = settings
+    metrics["held_out"] = held
+    metrics["tuning"] = tune
     return SafetyResult(pd.concat(risks, ignore_index=True), pd.concat(scenes, ignore_index=True),
                         pd.concat(curves, ignore_index=True), pd.concat(grids, ignore_index=True),
                         pd.concat(lines, ignore_index=True) if lines else pd.DataFrame(),
-                        metrics)
+                        metrics, ncap)
+
+
+def logged_metrics(metrics: dict) -> dict:
+    """The numbers of :func:`assess`'s metrics that the safety stage logs (MLflow logs numbers
+    only: None leaves dropped): per predictor its rates by input and by speed, and the
+    held-out and tuning blocks."""
+    out: dict = {}
+    for name, m in metrics.items():
+        if name in ("held_out", "tuning"):
+            out[name] = m
+            continue
+        out[name] = {
+            "by_input": {inp: {k: v[k] for k in ("avoided_rate", "avoided_after_visible_rate",
+                                                 "false_activation_rate")}
+                         for inp, v in m["by_input"].items()},
+            **{k: m[k] for k in ("false_activation_rate", "avoided_rate",
+                                 "avoided_after_visible_rate")},
+            "by_speed_kmh": {k: {kk: v[kk] for kk in ("avoided_rate",
+                                                      "avoided_after_visible_rate",
+                                                      "impact_speed_kmh_mean",
+                                                      "lead_time_s_median")}
+                             for k, v in m["by_speed_kmh"].items()}}
+    return _numeric(out)
+
+
+def _numeric(d):
+    if isinstance(d, dict):
+        return {k: _numeric(v) for k, v in d.items()
+                if v is not None and not isinstance(v, (str, list))}
+    return d
+
+
+def summary_lines(metrics: dict) -> list[str]:
+    """One printed line per predictor (headline input) and one per held-out predictor."""
+    lines = []
+    for name, m in metrics.items():
+        if name in ("held_out", "tuning"):
+            continue
+        lines.append(f"safety {name}: avoided {m['avoided_rate']} "
+                     f"({m['avoided_after_visible_rate']} with the AEB requested after the "
+                     f"lead pedestrian was visible), false activations "
+                     f"{m['false_activation_rate']}; first point to moving median "
+                     f"{m['first_point_to_moving_s']['median']} s; impact km/h by speed "
+                     + ", ".join(f"{k}: {v['impact_speed_kmh_mean']:.1f}"
+                                 for k, v in m["by_speed_kmh"].items()))
+    for name, h in metrics.get("held_out", {}).items():
+        if isinstance(h, dict):
+            lines.append(f"safety held-out {name}: {h}")
+    return lines

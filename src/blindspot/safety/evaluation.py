@@ -51,7 +51,7 @@ from scipy import stats
 from blindspot.arrays import check_array, check_number
 from blindspot.safety.ncap import ncap_band
 
-__all__ = ["SceneInfo", "scene_info", "replicate_half", "aeb_gate_s", "scene_frame_risk",
+__all__ = ["SceneInfo", "line_of_sight_onset", "first_moving_s", "delay_stats", "scene_info", "replicate_half", "aeb_gate_s", "scene_frame_risk",
            "trigger_frames", "scene_results",
            "summarise", "operating_curve", "avoided_at_false_activation", "ncap_grid", "wilson",
            "KMH"]
@@ -81,6 +81,56 @@ class SceneInfo:
             object.__setattr__(self, "first_seen_s", np.asarray(self.first_visible_s, float))
 
 
+def line_of_sight_onset(p0: pd.DataFrame) -> pd.Series:
+    """Per scene (index), the time (s) of the first frame of the visible stretch that leads to
+    the crossing: the first frame not ``occluded`` after the last occluded frame at or before
+    the collision time without braking (``collision_time_s``; NaN: the scene's end). A child
+    glimpsed standing far ahead and then hidden again is seen from its last emergence, not
+    from the glimpse (issue 40). NaN where the pedestrian is occluded up to then. ``p0``: one
+    pedestrian's truth rows (columns scene, time_s, occluded, collision_time_s)."""
+    t_end = p0.collision_time_s.astype(float).fillna(np.inf)
+    before = p0[p0.time_s.to_numpy(float) <= t_end.to_numpy() + 1e-9]
+    occ = before[before.occluded.astype(bool)]
+    last_occ = occ.groupby("scene").time_s.max()
+    lo = last_occ.reindex(before.scene).to_numpy(float)
+    clear = before[~before.occluded.astype(bool).to_numpy()
+                   & ~(before.time_s.to_numpy(float) <= np.nan_to_num(lo, nan=-np.inf))]
+    return clear.groupby("scene").time_s.min().reindex(pd.Index(p0.scene.unique()))
+
+
+def first_moving_s(tracks: pd.DataFrame, truth: pd.DataFrame, scenes: np.ndarray,
+                   lead: str = "p0", radius_m: float = 1.0) -> np.ndarray:
+    """(S,) s per scene of ``scenes``: the time of the first track row that the decision
+    assesses (confirmed and, with a ``moving`` column, moving) lying within ``radius_m`` of the
+    lead pedestrian's true position at that frame (truth scores, it never feeds the chain);
+    NaN where none. ``tracks``: columns group, frame, time_s, x_m, y_m, confirmed (moving)."""
+    keep = tracks.confirmed.to_numpy(bool).copy()
+    if "moving" in tracks.columns:
+        keep &= tracks.moving.to_numpy(bool)
+    t = tracks.loc[keep, ["group", "frame", "time_s", "x_m", "y_m"]]
+    p = truth.loc[truth.pedestrian == lead, ["scene", "frame", "x_m", "y_m"]].rename(
+        columns={"scene": "group", "x_m": "px", "y_m": "py"})
+    j = t.merge(p, on=["group", "frame"])
+    j = j[np.hypot(j.x_m - j.px, j.y_m - j.py) <= radius_m]
+    return j.groupby("group").time_s.min().reindex(pd.Index(scenes)).to_numpy(float)
+
+
+def delay_stats(delay_s: np.ndarray, speed_kmh: np.ndarray) -> dict:
+    """Median and p90 (s) of the finite ``delay_s`` (S,) overall and per speed (km/h keys as
+    strings of integers), with their counts and the count of scenes without one."""
+    d = np.asarray(delay_s, float)
+    v = np.asarray(speed_kmh, float)
+
+    def one(x):
+        x = x[np.isfinite(x)]
+        return {"median": float(np.median(x)) if len(x) else None,
+                "p90": float(np.percentile(x, 90)) if len(x) else None, "n": int(len(x))}
+    out = {**one(d), "n_never": int((~np.isfinite(d)).sum())}
+    out["by_speed_kmh"] = {f"{s:.0f}": {**one(d[v == s]), "n_never": int(
+        (~np.isfinite(d[v == s])).sum())} for s in np.unique(v)}
+    return out
+
+
 def scene_info(truth: pd.DataFrame, scenes_meta: dict, scenes: np.ndarray,
                lead: str = "p0", first_point_s: np.ndarray | None = None) -> SceneInfo:
     """From the truth table and ``scenes.json`` (name -> {"pedestrians": [{"name",
@@ -94,7 +144,7 @@ def scene_info(truth: pd.DataFrame, scenes_meta: dict, scenes: np.ndarray,
     if first.frame.isna().any():
         raise KeyError(f"truth: scenes without pedestrian {lead!r}: "
                        f"{list(first.index[first.frame.isna()])[:5]}")
-    vis = p0[~p0.occluded].groupby("scene").time_s.min().reindex(scenes)
+    vis = line_of_sight_onset(p0).reindex(scenes)
     pct = []
     for s in scenes:
         if s not in scenes_meta:

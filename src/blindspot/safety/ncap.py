@@ -18,9 +18,21 @@ Scores: green 1.0, yellow 0.75, orange 0.5, brown 0.25, red 0.
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
-__all__ = ["BANDS", "BAND_SCORES", "ncap_band"]
+__all__ = ["BANDS", "BAND_SCORES", "NCAP_PROTOCOLS", "ncap_band", "nominal_scenes",
+           "nominal_cell"]
+
+#: The Euro NCAP nominal grids scored one nominal scene per cell (issue 40): protocol ->
+#: ((named scene of conf/scenario, impact point %), ...): CPNCO (child from behind the parked
+#: cars) at 25 / 50 / 75 %, CPNA (adult nearside) at 25 / 75 %, CPFA (adult farside) at 50 %.
+NCAP_PROTOCOLS: dict[str, tuple[tuple[str, float], ...]] = {
+    "cpnco": (("cpnco", 25.0), ("cpnco", 50.0), ("cpnco", 75.0)),
+    "cpna": (("cpna25", 25.0), ("cpna75", 75.0)),
+    "cpfa": (("cpfa", 50.0),),
+}
 
 BANDS = ("green", "yellow", "orange", "brown", "red")
 BAND_SCORES = {"green": 1.0, "yellow": 0.75, "orange": 0.5, "brown": 0.25, "red": 0.0}
@@ -49,3 +61,35 @@ def ncap_band(ego_speed_kmh, impact_speed_kmh) -> tuple[np.ndarray, np.ndarray]:
     names = np.asarray(BANDS, dtype=object)[idx]
     scores = np.array([BAND_SCORES[b] for b in BANDS])[idx]
     return names, scores
+
+
+def nominal_scenes(named: dict, speeds_kmh) -> list:
+    """The nominal scene of every cell of :data:`NCAP_PROTOCOLS` at the ego speeds
+    ``speeds_kmh``: the named scene (``named``: name -> DrivingScene, the scenario group's)
+    with its speed and its lead pedestrian's (``p0``) impact point replaced, named
+    ``ncap_<protocol>_<speed>kmh_<pct>pct`` (:func:`nominal_cell` reads them back). Euro NCAP
+    runs one test per cell on the nominal geometry; so does this (no draw). Raises KeyError
+    naming a protocol's missing named scene."""
+    out = []
+    for proto, cells in NCAP_PROTOCOLS.items():
+        for base_name, pct in cells:
+            if base_name not in named:
+                raise KeyError(f"scenario.scenes: no scene {base_name!r} (Euro NCAP {proto} "
+                               f"nominal grid); found {sorted(named)}")
+            base = named[base_name]
+            peds = tuple(replace(p, impact_pct=pct) if p.name == "p0" else p
+                         for p in base.pedestrians)
+            for v in speeds_kmh:
+                out.append(replace(base, name=f"ncap_{proto}_{v:.0f}kmh_{pct:.0f}pct",
+                                   speed_kmh=float(v), pedestrians=peds))
+    return out
+
+
+def nominal_cell(scene: str) -> tuple[str, str, str] | None:
+    """(protocol, speed km/h, impact %) as strings of integers from a name of
+    :func:`nominal_scenes`; None for another scene."""
+    parts = str(scene).split("_")
+    if len(parts) != 4 or parts[0] != "ncap" or not parts[2].endswith("kmh") \
+            or not parts[3].endswith("pct"):
+        return None
+    return parts[1], parts[2][:-3], parts[3][:-3]

@@ -24,11 +24,11 @@ from blindspot.arrays import check_number
 from blindspot.safety.config import OracleConfig
 from blindspot.kalman import cv_model, kalman_filter
 
-__all__ = ["TRACK_COLUMNS", "oracle_tracks"]
+__all__ = ["TRACK_COLUMNS", "oracle_tracks", "visible_truth_points", "true_state_tracks"]
 
 TRACK_COLUMNS = ("group", "frame", "time_s", "track_id", "x_m", "y_m", "vx_mps", "vy_mps",
                  "cov_xx", "cov_xy", "cov_yy", "cov_vxvx", "cov_vxvy", "cov_vyvy", "confirmed",
-                 "coasting")
+                 "coasting", "cov_xvx", "cov_xvy", "cov_yvx", "cov_yvy")
 
 
 def oracle_tracks(points: pd.DataFrame, cfg: OracleConfig, frame_period_s: float,
@@ -89,6 +89,8 @@ def oracle_tracks(points: pd.DataFrame, cfg: OracleConfig, frame_period_s: float
         "vy_mps": m[:, 3], "cov_xx": P[:, 0, 0], "cov_xy": P[:, 0, 1], "cov_yy": P[:, 1, 1],
         "cov_vxvx": P[:, 2, 2], "cov_vxvy": P[:, 2, 3], "cov_vyvy": P[:, 3, 3],
         "confirmed": count[b, t] >= cfg.confirm_points, "coasting": ~seen[b, t],
+        "cov_xvx": P[:, 0, 2], "cov_xvy": P[:, 0, 3], "cov_yvx": P[:, 1, 2],
+        "cov_yvy": P[:, 1, 3],
         "pedestrian": p.pedestrian.to_numpy()[first][b],
     })
     return out.sort_values(["group", "track_id", "frame"]).reset_index(drop=True)
@@ -106,3 +108,36 @@ def visible_truth_points(truth: pd.DataFrame, meas_std_m: float, seed: int) -> p
                                                 "x_m", "y_m"]].reset_index(drop=True)
     noise = np.random.default_rng(seed).normal(0.0, meas_std_m, (len(v), 2))
     return v.assign(x_m=v.x_m + noise[:, 0], y_m=v.y_m + noise[:, 1])
+
+
+def true_state_tracks(truth: pd.DataFrame, pos_std_m: float = 0.1,
+                      vel_std_mps: float = 0.2) -> pd.DataFrame:
+    """The "true state from line of sight" reference input (issue 40): every pedestrian's true
+    position and velocity (truth columns x_m, y_m, vx_mps, vy_mps) from the first frame of the
+    visible stretch that leads to its crossing
+    (:func:`blindspot.safety.evaluation.line_of_sight_onset`) on, one confirmed, moving track
+    per pedestrian, with an isotropic covariance of ``pos_std_m`` and ``vel_std_mps``: what a
+    perfect sensor that knows a pedestrian's state the moment it is in sight hands the decision
+    (the physical bound of the decision rule, scored with the ``track_state`` predictor).
+    Columns :data:`TRACK_COLUMNS` + moving, pedestrian; sorted by group, track_id, frame."""
+    from blindspot.safety.evaluation import line_of_sight_onset
+
+    rows = []
+    for ped, p in truth.groupby("pedestrian", sort=True):
+        onset = line_of_sight_onset(p)
+        t0 = onset.reindex(p.scene).to_numpy(float)
+        rows.append(p[p.time_s.to_numpy(float) >= np.nan_to_num(t0, nan=np.inf) - 1e-9])
+    v = pd.concat(rows, ignore_index=True) if rows else truth.iloc[:0]
+    ids = v.groupby("scene").pedestrian.transform(lambda s: pd.factorize(s)[0])
+    n = len(v)
+    out = pd.DataFrame({
+        "group": v.scene.to_numpy(), "frame": v.frame.to_numpy(), "time_s": v.time_s.to_numpy(),
+        "track_id": ids.to_numpy(np.int64), "x_m": v.x_m.to_numpy(float),
+        "y_m": v.y_m.to_numpy(float), "vx_mps": v.vx_mps.to_numpy(float),
+        "vy_mps": v.vy_mps.to_numpy(float), "cov_xx": np.full(n, pos_std_m ** 2),
+        "cov_xy": np.zeros(n), "cov_yy": np.full(n, pos_std_m ** 2),
+        "cov_vxvx": np.full(n, vel_std_mps ** 2), "cov_vxvy": np.zeros(n),
+        "cov_vyvy": np.full(n, vel_std_mps ** 2), "confirmed": True, "coasting": False,
+        "cov_xvx": np.zeros(n), "cov_xvy": np.zeros(n), "cov_yvx": np.zeros(n),
+        "cov_yvy": np.zeros(n), "moving": True, "pedestrian": v.pedestrian.to_numpy()})
+    return out.sort_values(["group", "track_id", "frame"]).reset_index(drop=True)

@@ -164,12 +164,16 @@ def pedestrian_boxes(sa: SceneArrays, dt_s: float, extend_s: float
 
 def braked_impacts(sa: SceneArrays, t: np.ndarray, lo: np.ndarray, hi: np.ndarray,
                    trigger_s: np.ndarray, braking: BrakingModel, ego: EgoShape, *,
-                   chunk: int = 16) -> tuple[np.ndarray, np.ndarray]:
+                   chunk: int = 16, with_front: bool = False) -> tuple[np.ndarray, ...]:
     """First contact of the braked ego with any pedestrian of each scene.
 
     t (T,), lo / hi (S, P, T, 2) from :func:`pedestrian_boxes`; trigger_s (S, K) AEB request
     times, s (:data:`NEVER_S` = never). Returns impact_time_s and impact_speed_mps (S, K), NaN
-    where the collision is avoided. Vectorised in chunks of ``chunk`` scenes (memory).
+    where the collision is avoided; with ``with_front`` also front (S, K) bool: the first
+    contact is a front contact, the pedestrian's box reaching the bumper line (its far edge
+    along the travel at or ahead of the bumper, less one grid step of the ego's travel), not a
+    pedestrian walking into the car's flank behind the bumper (Euro NCAP scores front impacts;
+    issue 40 counts flank contacts apart). Vectorised in chunks of ``chunk`` scenes (memory).
     """
     trig = np.asarray(trigger_s, float)
     S = len(sa.scenes)
@@ -177,6 +181,8 @@ def braked_impacts(sa: SceneArrays, t: np.ndarray, lo: np.ndarray, hi: np.ndarra
         raise OutcomeError(f"braked_impacts: trigger_s must be (S={S}, K), found {trig.shape}")
     out_t = np.full(trig.shape, np.nan)
     out_v = np.full(trig.shape, np.nan)
+    out_front = np.zeros(trig.shape, bool)
+    step = float(t[1] - t[0]) if len(t) > 1 else 0.0
     hw = ego.width_m / 2
     for a in range(0, S, chunk):                       # memory chunks (not a loop per scene)
         b = min(a + chunk, S)
@@ -202,4 +208,10 @@ def braked_impacts(sa: SceneArrays, t: np.ndarray, lo: np.ndarray, hi: np.ndarra
         out_t[a:b] = np.where(anyhit, t[cols][first], np.nan)
         out_v[a:b] = np.where(anyhit, np.take_along_axis(speed, first[..., None], -1)[..., 0],
                               np.nan)
-    return out_t, out_v
+        if with_front:
+            # at the first contact: does any touching box reach the bumper line?
+            reach = yhi >= (yb - speed * step - 1e-9)[:, :, None]              # (s, K, P, C)
+            front = (lat[:, None] & (ylo <= yb[:, :, None])
+                     & (yhi >= yb[:, :, None] - ego.length_m) & reach).any(axis=2)
+            out_front[a:b] = anyhit & np.take_along_axis(front, first[..., None], -1)[..., 0]
+    return (out_t, out_v, out_front) if with_front else (out_t, out_v)

@@ -28,8 +28,8 @@ from blindspot.traj.baselines import ConstantVelocity, KalmanCV
 from blindspot.traj.distribution import DistributionError
 from blindspot.traj.windows import interpolate_gaps
 
-__all__ = ["BackfilledHistory", "with_backfill", "track_histories", "incremental_kalman",
-           "risk_table"]
+__all__ = ["calibrated_predictors", "BackfilledHistory", "TrackState", "with_backfill", "track_histories",
+           "incremental_kalman", "track_state_forecast", "risk_table"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -77,6 +77,51 @@ class BackfilledHistory:
 
     def predict_distribution(self, history: np.ndarray, horizon: int):
         return self.base.predict_distribution(self.fill(history), horizon)
+
+
+@dataclass(frozen=True, eq=False)
+class TrackState:
+    """The ``track_state`` predictor: each track row's own filtered state (the tracker's
+    Kalman filter, ``x_m, y_m, vx_mps, vy_mps`` and the ``cov_*`` columns) forecast at constant
+    velocity, so the prediction knows what the tracker knows (the velocity its Doppler gave a
+    new track, issue 40) instead of re-deriving it from a few positions. ``kalman``: the
+    calibrated Kalman predictor (:class:`blindspot.traj.calibration.ScaledPredictor` around a
+    :class:`~blindspot.traj.baselines.KalmanCV`) whose transition (process noise) and
+    calibration scale the forecast uses (:func:`track_state_forecast`); one Kalman recursion,
+    the tracker's, no second filter."""
+
+    kalman: Any
+    name: str = "track_state"
+
+
+def track_state_forecast(pred: TrackState, rows: pd.DataFrame, horizon: int):
+    """The GaussianForecast (len(rows), horizon) of :class:`TrackState` for the track rows
+    ``rows`` (columns x_m, y_m, vx_mps, vy_mps, cov_xx, cov_xy, cov_yy, cov_vxvx, cov_vxvy,
+    cov_vyvy; the cross terms cov_xvx, cov_xvy, cov_yvx, cov_yvy taken as 0 where absent):
+    :meth:`KalmanCV.forecast_from_state` of the rows' states, scaled by the Kalman's
+    calibration. Raises DistributionError when ``horizon`` is longer than the calibration,
+    ValueError naming a missing column."""
+    k = pred.kalman
+    if horizon > len(k.scale):
+        raise DistributionError(f"track_state: the Kalman calibration covers {len(k.scale)} "
+                                f"steps, asked for {horizon}")
+    need = ["x_m", "y_m", "vx_mps", "vy_mps", "cov_xx", "cov_xy", "cov_yy", "cov_vxvx",
+            "cov_vxvy", "cov_vyvy"]
+    missing = sorted(set(need) - set(rows.columns))
+    if missing:
+        raise ValueError(f"tracks: missing columns {missing} (the track_state predictor "
+                         "forecasts the filtered state)")
+    n = len(rows)
+    m = rows[["x_m", "y_m", "vx_mps", "vy_mps"]].to_numpy(float)
+    col = (lambda c: rows[c].to_numpy(float) if c in rows.columns else np.zeros(n))
+    P = np.zeros((n, 4, 4))
+    for (i, j), c in {(0, 0): "cov_xx", (0, 1): "cov_xy", (1, 1): "cov_yy",
+                      (2, 2): "cov_vxvx", (2, 3): "cov_vxvy", (3, 3): "cov_vyvy",
+                      (0, 2): "cov_xvx", (0, 3): "cov_xvy", (1, 2): "cov_yvx",
+                      (1, 3): "cov_yvy"}.items():
+        P[:, i, j] = P[:, j, i] = col(c)
+    fc = k.base.forecast_from_state(m, P, horizon, **dict(k.options))
+    return fc.scaled(k.scale[:horizon])
 
 
 def with_backfill(predictor, base, mode: str):
@@ -180,7 +225,9 @@ def risk_table(tracks: pd.DataFrame, ego: pd.DataFrame, predictors: dict[str, An
         if not len(rows):
             break
         # a calibrated Kalman filter (ScaledPredictor: base, scale, options), not a wrapped one
-        if (isinstance(getattr(pred, "base", None), KalmanCV)
+        if isinstance(pred, TrackState):
+            fc = track_state_forecast(pred, rows, horizon)
+        elif (isinstance(getattr(pred, "base", None), KalmanCV)
                 and getattr(pred, "scale", None) is not None and hasattr(pred, "options")):
             fc = incremental_kalman(pred, tr, keep, horizon)
         else:
@@ -193,3 +240,58 @@ def risk_table(tracks: pd.DataFrame, ego: pd.DataFrame, predictors: dict[str, An
                                  "ttc_s": r.ttc_s}))
     cols = ["predictor", "group", "frame", "track_id", "p_collision", "ttc_s"]
     return pd.concat(out, ignore_index=True) if out else pd.DataFrame(columns=cols)
+
+
+def calibrated_predictors(w, base: dict, records: dict, *, direct_path, paths, val, window: int,
+                          calibration, cv_fit_points: int, where: str = "models.json",
+                          frame_periods_s: tuple[float, float] | None = None) -> dict:
+    """name -> calibrated probabilistic predictor for every name of ``w.predictors``
+    (:class:`~blindspot.safety.config.WarningConfig`): ``none`` calibrated here on the
+    validation paths (``paths``: paths.parquet, ``val``: the validation windows, ``window``
+    points, ``calibration`` settings); ``track_state`` (:class:`TrackState`) around the
+    calibrated Kalman; the others from their calibration ``records`` (models.json, named
+    ``where`` in errors) around their point models ``base`` (name -> model; the direct LSTM
+    loaded from ``direct_path`` when asked), the LSTMs' short histories completed as
+    ``w.lstm_history`` says. ``frame_periods_s``: (driving, calibration) frame periods, which
+    must agree. Raises ValueError naming the key of a predictor without a calibration, or
+    of two frame periods that differ."""
+    import torch
+
+    from blindspot.traj.calibration import calibrate, from_record, path_pairs
+    from blindspot.traj.direct import NAME as DIRECT
+    from blindspot.traj.paths import table_to_arrays
+    from blindspot.traj.seq2seq import Seq2SeqEnsemble
+    from blindspot.traj.stationary import Stationary
+    from blindspot.traj.windows import WindowSet
+
+    if frame_periods_s is not None and abs(frame_periods_s[0] - frame_periods_s[1]) > 1e-9:
+        raise ValueError(f"config keys 'driving_radar.frame_period_s' = {frame_periods_s[0]} "
+                         f"and 'radar.frame_period_s' = {frame_periods_s[1]}: the predictors "
+                         "were calibrated at the paper radar's frame period; expected equal")
+    torch.set_num_threads(1)
+    base = dict(base)
+    if DIRECT in w.predictors:
+        base[DIRECT] = Seq2SeqEnsemble.load(direct_path)
+    out = {}
+    for name in w.predictors:
+        if name == "track_state":                  # the tracker's own state, Kalman-calibrated
+            name_k = "kalman"
+        else:
+            name_k = name
+        if name == "none":
+            truth, measured, _ = table_to_arrays(pd.read_parquet(paths))
+            ids = np.unique(WindowSet.load(val).path_id)
+            hist, fut = path_pairs(measured[ids], truth[ids], window, calibration.horizon_frames,
+                                   calibration.stride)
+            out[name] = calibrate({"none": Stationary()}, hist, fut,
+                                  scale_method=calibration.scale_method,
+                                  scale_level=calibration.scale_level,
+                                  cv_fit_points=cv_fit_points)["none"]
+            continue
+        if name_k not in records or name_k not in base:
+            raise ValueError(f"config key 'warning.predictors' lists {name!r}: no calibrated "
+                             f"distribution of {name_k!r} in {where} ({sorted(records)})")
+        p = from_record(records[name_k], base[name_k], name_k)
+        out[name] = TrackState(p) if name == "track_state" else with_backfill(p, base[name_k],
+                                                                              w.lstm_history)
+    return out

@@ -290,3 +290,45 @@ def numeric_leaves(tree: dict) -> dict:
         elif isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(v):
             out[k] = v
     return out
+
+
+def figure_scene_detection(scene: DrivingScene, group: ScenarioGroup, radar: RadarConfig, cfar,
+                           doa, detect, ego, sim, *, progress: bool = False) -> dict:
+    """The driving_detect stage's science: ``scene`` (the figure scene) through the full FMCW
+    simulator and the moving-car chain (:func:`detect_driving_scene`), one frame's maps kept
+    for the figure (the middle one of those where the lead pedestrian is visible and walking),
+    and the ego-speed sweep (:func:`ego_speed_sweep`) at every Monte-Carlo speed, driving
+    straight and turning at ``ego.sweep_yaw_rate_deg_s``. Returns a dict: ``frame`` (the
+    arrays of the kept frame's map, for an .npz), ``detections``, ``ego``, ``sweep`` (tables)
+    and ``metrics`` (:func:`ego_motion_metrics` plus the figure scene's)."""
+    from blindspot.radar.driving import scene_truth
+
+    chain = (cfar, doa, detect)
+    truth = scene_truth(scene, group, radar.frame_period_s)
+    lead = truth[truth.pedestrian == scene.pedestrians[0].name]
+    walking = lead[~lead.occluded & (np.hypot(lead.vx_mps, lead.vy_mps) > 0.5)
+                   & (lead.range_m < ego.max_range_m)]
+    keep = (int(walking.frame.iloc[len(walking) // 2]) if len(walking)
+            else int(lead.frame.iloc[-1] // 2))
+    res = detect_driving_scene(scene, group, radar, *chain, ego, sim, keep_frame=keep,
+                               progress=progress)
+    b, i = res.kept, res.kept_index
+    frame = dict(power=b.power[i], threshold=b.threshold[i],
+                 range_axis_m=np.asarray(radar.range_axis_m()[:b.power.shape[1]]),
+                 velocity_axis_mps=radar.velocity_axis_mps(), frame=keep, scene=scene.name,
+                 v_max_mps=radar.max_velocity_mps)
+    sweep = ego_speed_sweep(scene, group, radar, *chain, ego, sim, group.monte_carlo.speeds_kmh,
+                            progress=progress)
+    if ego.sweep_yaw_rate_deg_s:       # the same frames with the ego car turning
+        sweep = pd.concat([sweep, ego_speed_sweep(
+            scene, group, radar, *chain, ego, sim, group.monte_carlo.speeds_kmh,
+            yaw_rate_deg_s=ego.sweep_yaw_rate_deg_s, progress=progress)], ignore_index=True)
+    metrics = ego_motion_metrics(sweep)
+    metrics["figure_scene"] = {"scene": scene.name, "speed_kmh": scene.speed_kmh,
+                               "kept_frame": keep,
+                               "pedestrians": pedestrian_detection_stats(res.detections, truth),
+                               "ego_speed_rms_error_mps": float(np.sqrt(np.nanmean(
+                                   (res.ego.ego_speed_mps - res.ego.true_speed_mps) ** 2))),
+                               "ego_speed_failed_frames": int(res.ego.ego_speed_mps.isna().sum())}
+    return {"frame": frame, "detections": res.detections, "ego": res.ego, "sweep": sweep,
+            "metrics": metrics}

@@ -79,6 +79,7 @@ from blindspot.radar.occlusion import segments_blocked
 from blindspot.synth.path_measurement import _reduced_setup, noncoherent_power, point_scatterers
 
 __all__ = ["MEASURED_COLUMNS", "POINT_COLUMNS", "DrivingMeasurement", "measure_driving",
+           "first_seen_metrics",
            "measure_driving_scenes"]
 
 MEASURED_COLUMNS = ("scene", "pedestrian", "frame", "time_s", "range_m", "angle_deg",
@@ -514,3 +515,58 @@ def measure_driving_scenes(scenes: list[DrivingScene], group: ScenarioGroup, rad
     return measure_driving(scenes, group, radar, cfar, doa, detect, ego,
                            adc_headroom_db=adc_headroom_db, frames=frames,
                            progress=progress).measured
+
+
+def first_seen_metrics(points: pd.DataFrame, measured: pd.DataFrame, truth: pd.DataFrame,
+                       n_scenes: int) -> dict:
+    """The driving_measure stage's metrics: how early each intruding Monte-Carlo pedestrian
+    (``p0``) is first seen, per ego speed (time to collision without braking at its first
+    point within 1.5 m of its truth), from its off-curve points only (static-looking ones
+    dropped, as the clutter filter does) and from every point it returns (static-looking ones
+    kept, what a tracker in the world frame can use), its detection rate while visible and the
+    median error; the truth labels score, they feed nothing. ``points``, ``measured``: the
+    stage's tables; ``truth``: data/driving/truth.parquet; ``n_scenes``: scenes measured."""
+    # the pedestrian's own returns among every point (truth label, for scoring only), static-
+    # looking ones included: the first within 1.5 m of the truth is when a world-frame tracker
+    # could first see it
+    own = points[points.source == "p0"].merge(
+        truth[truth.pedestrian == "p0"][["scene", "frame", "x_m", "y_m", "ttc_s", "behaviour",
+                                         "ego_speed_mps"]],
+        on=["scene", "frame"], suffixes=("", "_t"))
+    own = own[np.hypot(own.x_m - own.x_m_t, own.y_m - own.y_m_t) <= 1.5]
+    mc_names = set(truth.scene[truth.set == "monte_carlo"])
+    own = own[own.scene.isin(mc_names) & (own.behaviour == "cross") & (own.ttc_s > 0)]
+    first_kept = own.groupby("scene").ttc_s.max()
+    first_dropped = own[~own.static].groupby("scene").ttc_s.max()
+    static_share = own.groupby("scene").static.mean()
+    j = truth.merge(measured, on=["scene", "pedestrian", "frame"], how="left", suffixes=("", "_m"))
+    err = np.hypot(j.x_m_m - j.x_m, j.y_m_m - j.y_m)
+    j = j.assign(hit=err <= 1.5, error_m=err)
+    mc = j[(j.set == "monte_carlo") & (j.pedestrian == "p0")]
+    per_speed = {}
+    for kmh, g in mc.groupby(mc.ego_speed_mps * 3.6):
+        intr = g[(g.behaviour == "cross") & (g.ttc_s > 0)]
+        first = intr[intr.hit].groupby("scene").ttc_s.max()          # earliest hit = largest TTC
+        n_sc = intr.scene.nunique()
+        vis = g[~g.occluded]
+        kept = first_kept.reindex(intr.scene.unique()).dropna()
+        dropped = first_dropped.reindex(intr.scene.unique()).dropna()
+        per_speed[f"{kmh:.0f}"] = {
+            "n_scenes_intruding": int(n_sc),
+            "first_seen_ttc_s_median_static_dropped": (float(dropped.median()) if len(dropped)
+                                                       else None),
+            "first_seen_ttc_s_median_static_kept": float(kept.median()) if len(kept) else None,
+            "seen_before_collision_rate_static_kept": float(len(kept) / n_sc) if n_sc else None,
+            "static_share_of_own_points": (float(static_share.reindex(kept.index).mean())
+                                           if len(kept) else None),
+            "seen_before_collision_rate": float(len(first) / n_sc) if n_sc else None,
+            "first_seen_ttc_s_median": float(first.median()) if len(first) else None,
+            "detection_rate_visible": float(vis.hit.mean()) if len(vis) else None,
+            "median_error_m": float(g.error_m[g.hit].median()) if g.hit.any() else None,
+        }
+    n_frames = points.groupby("scene").frame.nunique().sum()
+    metrics = {"n_scenes": int(n_scenes), "n_points": int(len(measured)),
+               "n_radar_points": int(len(points)),
+               "static_points_per_frame": float(points.static.sum() / max(n_frames, 1)),
+               "by_speed_kmh": per_speed}
+    return metrics

@@ -14,11 +14,71 @@ import numpy as np
 import pandas as pd
 
 from blindspot.safety.evaluation import replicate_half
-from blindspot.track.tracker import label_objects
+from blindspot.safety.oracle import oracle_tracks, visible_truth_points
+from blindspot.track.moving import moving_test_settings, moving_tracks
+from blindspot.track.tracker import label_objects, track_points
 
-__all__ = ["tracker_input", "doppler_spread_by_label", "monte_carlo_objects",
+__all__ = ["POINT_COLUMNS", "driving_tracks", "tracker_input", "doppler_spread_by_label", "monte_carlo_objects",
            "object_doppler_spreads", "pooled_std", "own_points", "track_counts", "track_labels",
            "confusion"]
+
+
+#: Columns of data/driving/points.parquet that :func:`driving_tracks` reads.
+POINT_COLUMNS = ("scene", "frame", "time_s", "x_m", "y_m", "velocity_over_ground_mps", "static",
+                 "source")
+
+
+def driving_tracks(truth, points, tcfg, oracle_cfg, *, seed, frame_period_s, jobs=1,
+                   where="points"):
+    """The driving_track stage's science: the tracker on every radar point of every scene with
+    the moving-object test (``tcfg.moving``), and the two reference inputs.
+
+    The headline input: :func:`blindspot.track.tracker.track_points` (settings ``tcfg``, a
+    :class:`~blindspot.track.config.TrackerConfig`) on :func:`tracker_input` (the static
+    world's points included, the points' ``source`` truth label not read), its rows' ``moving``
+    column from :func:`blindspot.track.moving.moving_tracks` with the static-evidence grid of
+    the points' ego-motion ``static`` flag. The truth labels only score that split
+    (:func:`track_labels`, :func:`confusion`, for the kinematic test alone and for the whole
+    test) and the objects' Doppler spread (:func:`doppler_spread_by_label`). The references
+    (:func:`blindspot.safety.oracle.oracle_tracks`, settings ``oracle_cfg``): "oracle" (each
+    pedestrian's own points, associated by their truth label) and "visible_truth" (the true
+    positions at every frame in line of sight plus noise of ``oracle_cfg.meas_std_m``, drawn
+    with ``seed``).
+
+    Returns ``(tables, metrics)``: tables ``tracks``, ``tracks_oracle``,
+    ``tracks_visible_truth`` (the ``blindspot.track`` schema) and the JSON-ready metrics of
+    data/driving/track.json. Raises ValueError naming ``where`` and the missing columns of
+    ``points`` (:data:`POINT_COLUMNS`), or as the functions it calls (``tcfg.moving`` null).
+    """
+    missing = sorted(set(POINT_COLUMNS) - set(points.columns))
+    if missing:
+        raise ValueError(f"{where}: missing columns {missing}")
+    if tcfg.moving is None:
+        raise ValueError("tracker.moving: the driving scenes need the moving-object test's "
+                         "settings (conf/tracker/gnn_cv.yaml), found null")
+    mv = tcfg.moving
+    last = truth.groupby("scene").frame.max().to_dict()
+    pts, ego = tracker_input(truth, points)
+    tracks = track_points(pts, tcfg, jobs=jobs, source=where)
+    kinematic = moving_tracks(tracks, mv.speed_mps, mv.probability)
+    tracks["moving"] = moving_tracks(tracks, ego=ego, **moving_test_settings(mv),
+                                     points=points[["scene", "frame", "x_m", "y_m", "static"]])
+    labels = track_labels(tracks, points, tcfg.cluster_eps_m)
+    metrics = {"tracker": {**track_counts(tracks), "classifier": {
+        "kinematic": confusion(tracks, kinematic, labels, truth),
+        "doppler": confusion(tracks, tracks.moving.to_numpy(), labels, truth),
+        **{f"moving_{k}": v for k, v in moving_test_settings(mv).items()
+           if isinstance(v, (int, float)) and not isinstance(v, bool)}}},
+        "doppler_spread": doppler_spread_by_label(monte_carlo_objects(points, tcfg))}
+    tables = {"tracks": tracks}
+    refs = {"oracle": (own_points(points), f"{where} (own points by source)"),
+            "visible_truth": (visible_truth_points(truth, oracle_cfg.meas_std_m, seed),
+                              "visible truth points")}
+    for name, (p, w) in refs.items():
+        tables[f"tracks_{name}"] = oracle_tracks(p, oracle_cfg, frame_period_s, last_frame=last,
+                                                 where=w)
+        metrics[name] = track_counts(tables[f"tracks_{name}"])
+    return tables, metrics
 
 
 def tracker_input(truth, points):

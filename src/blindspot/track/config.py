@@ -9,13 +9,59 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from blindspot.track.moving import DOPPLER_LLR_FORMS, DOPPLER_REFERENCES
 from blindspot.typed_config import ConfigError, TypedConfig, setting
 
-__all__ = ["ASSOCIATIONS", "TrackerConfig"]
+__all__ = ["ASSOCIATIONS", "MovingConfig", "TrackerConfig"]
 
 #: Data associators: global nearest neighbour (one detection per track, 2-D assignment) or joint
 #: probabilistic data association (every gated detection weighted by its probability).
 ASSOCIATIONS = ("gnn", "jpda")
+
+
+@dataclass(frozen=True)
+class MovingConfig(TypedConfig):
+    """The moving-object test (``tracker.moving``; :func:`blindspot.track.moving.moving_tracks`,
+    its keyword arguments from :func:`blindspot.track.moving.moving_test_settings`): which
+    confirmed tracks are moving objects. Until issue 42 these were the ``warning.moving_*``
+    keys; ``conf/tracker/gnn_cv.yaml`` gives the meaning and source of each.
+
+    Fields: speed_mps, probability (the kinematic test); doppler_std_mps,
+    doppler_log_ratio_min, doppler_llr, doppler_log_ratio_floor, doppler_spread_std_mps,
+    doppler_reference (the Doppler refutation); static_evidence_min, static_cell_m,
+    static_lag_frames (the static evidence grid); doppler_first_log_ratio (the Doppler-first
+    path: a confirmed track whose own radial speeds make "moving" this many natural-log units
+    likelier than "static" is moving without waiting for the kinematic test; null: off).
+    """
+
+    GROUP = "tracker.moving"
+
+    speed_mps: float = setting(ge=0.0, le=10.0)
+    probability: float = setting(gt=0.0, lt=1.0)
+    doppler_std_mps: float = setting(gt=0.0, le=10.0)
+    doppler_log_ratio_min: float = setting(ge=-1000.0, le=0.0)
+    doppler_llr: str = setting("common_variance", choices=DOPPLER_LLR_FORMS)
+    doppler_log_ratio_floor: float | None = setting(None, ge=-1000.0, le=0.0)
+    doppler_spread_std_mps: tuple[float, float] | None = setting(None, gt=0.0, le=10.0,
+                                                                 ordered=True)
+    doppler_reference: str = setting("frame", choices=DOPPLER_REFERENCES)
+    static_evidence_min: int = setting(0, ge=0, le=1_000_000)
+    static_cell_m: float = setting(0.5, gt=0.0, le=10.0)
+    static_lag_frames: int = setting(10, ge=1, le=10_000)
+    doppler_first_log_ratio: float | None = setting(None, gt=0.0, le=1000.0)
+
+    def validate(self) -> None:
+        spread = self.doppler_spread_std_mps
+        if spread is not None and not spread[0] < spread[1]:
+            raise ConfigError("doppler_spread_std_mps", list(spread),
+                              "[static, walker] with static < walker (the walker hypothesis "
+                              "spreads its points' Doppler wider than a static object), or null")
+        floor = self.doppler_log_ratio_floor
+        if floor is not None and floor > self.doppler_log_ratio_min:
+            raise ConfigError("doppler_log_ratio_floor", floor,
+                              "at most tracker.moving.doppler_log_ratio_min = "
+                              f"{self.doppler_log_ratio_min} (a floor above the bound "
+                              "would never let the Doppler test refute a track), or null")
 
 
 @dataclass(frozen=True)
@@ -63,6 +109,19 @@ class TrackerConfig(TypedConfig):
             the sensor's pose per frame; points without the heading column are not tested:
             recordings differ in the axis their sensor looks along); null keeps such tracks
             until ``max_misses``.
+        init_doppler_std_mps: the spread of one point's ego-motion-compensated radial speed
+            (m/s) with which a new track's velocity prior is updated by its first object's
+            Doppler (blindspot.track.tracker._linear_initiator: the velocity the Doppler and the
+            geometry allow, not zero); null: zero-mean start (issue 40).
+        init_doppler_along_std_mps: the prior standard deviation of that velocity along the
+            sensor's boresight (the road, for a car's radar; ``init_velocity_std_mps`` across
+            it): a pedestrian stepping out crosses the road; null: isotropic.
+        doppler_confirm_log_ratio: a tentative track confirms on its second consecutive hit
+            when its objects' radial speeds make "moving" this many natural-log units likelier
+            than "static" (blindspot.track.moving.doppler_motion_log_ratio, point spread
+            ``moving.doppler_std_mps``); null: M-of-N only.
+        moving: the moving-object test (:class:`MovingConfig`); null for recordings that need
+            none.
     """
 
     GROUP = "tracker"
@@ -83,6 +142,10 @@ class TrackerConfig(TypedConfig):
     max_misses: int = setting(ge=0, le=100_000)
     doppler_std_mps: float | None = setting(None, gt=0.0, le=100.0)
     field_of_view_deg: float | None = setting(None, gt=0.0, le=360.0)
+    init_doppler_std_mps: float | None = setting(None, gt=0.0, le=100.0)
+    init_doppler_along_std_mps: float | None = setting(None, gt=0.0, le=100.0)
+    doppler_confirm_log_ratio: float | None = setting(None, gt=0.0, le=1000.0)
+    moving: MovingConfig | None = setting(None)
 
     def validate(self) -> None:
         if self.confirm_m > self.confirm_n:

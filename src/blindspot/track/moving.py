@@ -5,8 +5,8 @@ speed, significantly non-zero (a chi-square test on the velocity covariance), no
 own Doppler (the summed log-likelihood ratio "moves as tracked" vs "static",
 :func:`doppler_log_ratio`, optionally with the objects' Doppler spread,
 :func:`doppler_spread_log_ratio`) and, per row, not standing on the static environment
-(:func:`static_evidence`). The settings are the ``warning.moving_*`` keys
-(:func:`moving_test_settings`).
+(:func:`static_evidence`). The settings are the tracker's ``tracker.moving`` keys
+(:func:`moving_test_settings`; until issue 42 ``warning.moving_*``).
 """
 
 from __future__ import annotations
@@ -19,13 +19,18 @@ from scipy.stats import chi2
 
 from blindspot.arrays import check_number
 
-__all__ = ["DOPPLER_LLR_FORMS", "DOPPLER_REFERENCES", "doppler_log_ratio",
+__all__ = ["DOPPLER_LLR_FORMS", "DOPPLER_REFERENCES", "DOPPLER_FIRST_WINDOW",
+           "doppler_motion_log_ratio", "doppler_motion_evidence", "doppler_log_ratio",
            "doppler_log_ratio_terms", "doppler_spread_log_ratio", "moving_tracks",
            "moving_frames", "velocity_chi2", "doppler_evidence", "moving_test_settings",
            "last_hit_rows", "track_static_evidence", "static_evidence"]
 
 #: Forms of the Doppler log-likelihood ratio (:func:`doppler_log_ratio`).
 DOPPLER_LLR_FORMS: tuple[str, ...] = ("common_variance", "marginal")
+#: Measured rows of a track whose radial speeds the Doppler-first path pools
+#: (:func:`doppler_motion_evidence`): 0.3 s at 10 frames/s, short enough that the radial speed
+#: of a walker seen from a passing car changes little.
+DOPPLER_FIRST_WINDOW = 3
 #: Which velocity the Doppler evidence judges each Doppler against (:func:`doppler_evidence`):
 #: the track's velocity at that frame, or the one it has now.
 DOPPLER_REFERENCES: tuple[str, ...] = ("frame", "current")
@@ -129,6 +134,61 @@ def doppler_log_ratio_terms(tracks: pd.DataFrame, ego_xy: np.ndarray, doppler_st
             np.where(ok[:, None, None], b, 0.0))
 
 
+def doppler_motion_log_ratio(n_points, doppler_mps, doppler_std_mps: float) -> float:
+    """The log-likelihood ratio, "a radial speed other than zero" against "static", of the
+    median ego-motion-compensated radial speeds ``doppler_mps`` (k,) of k objects of one track
+    with ``n_points`` (k,) points each (NaN speeds and empty objects left out): with each
+    point's speed N(mu, doppler_std^2) about the object's radial speed mu, taken as one mu over
+    the k frames, the generalised likelihood ratio of mu = its pooled estimate against mu = 0 is
+
+        llr = z^2 / 2,  z = sum_k n_k d_k / (doppler_std sqrt(sum_k n_k))
+
+    (Van Trees 1968, sec. 2.5; a static object, the parked cars' faces and the kerb, gives
+    z ~ N(0, 1), so llr >= ln 100 = 4.6 in 1 % of its windows). One mu over a few frames: the
+    window must be short, a track's radial speed changes as the ego passes. 0 without a
+    speed."""
+    n = np.asarray(n_points, float)
+    d = np.asarray(doppler_mps, float)
+    ok = np.isfinite(d) & (n > 0)
+    if not ok.any():
+        return 0.0
+    z = (n[ok] * d[ok]).sum() / (doppler_std_mps * np.sqrt(n[ok].sum()))
+    return float(0.5 * z * z)
+
+
+def doppler_motion_evidence(tracks: pd.DataFrame, doppler_std_mps: float,
+                            window: int) -> np.ndarray:
+    """(N,) per row of ``tracks`` (columns group, track_id, frame, n_points, doppler_mps):
+    :func:`doppler_motion_log_ratio` over the track's last ``window`` measured rows up to and
+    including the row (a coasting row: its last measured ones; 0 before any). Vectorised: per
+    track cumulative sums of n d and n over its measured rows, differenced ``window`` back.
+    Any row order. Raises ValueError naming a missing column."""
+    missing = sorted({"group", "track_id", "frame", "n_points", "doppler_mps"}
+                     - set(tracks.columns))
+    if missing:
+        raise ValueError(f"tracks: missing columns {missing} (the blindspot.track schema)")
+    order, key = _track_order(tracks)
+    n = tracks.n_points.to_numpy(float)[order]
+    d = tracks.doppler_mps.to_numpy(float)[order]
+    ok = np.isfinite(d) & (n > 0)
+    nd = np.where(ok, n * np.where(ok, d, 0.0), 0.0)
+    nn = np.where(ok, n, 0.0)
+    hit = pd.DataFrame({"k": key[ok], "nd": nd[ok], "nn": nn[ok]})
+    g = hit.groupby("k", sort=False)
+    c_nd, c_nn = g.nd.cumsum().to_numpy(), g.nn.cumsum().to_numpy()
+    b_nd = pd.Series(c_nd).groupby(hit.k.to_numpy()).shift(window).fillna(0.0).to_numpy()
+    b_nn = pd.Series(c_nn).groupby(hit.k.to_numpy()).shift(window).fillna(0.0).to_numpy()
+    s_nd, s_nn = c_nd - b_nd, c_nn - b_nn
+    with np.errstate(invalid="ignore", divide="ignore"):
+        llr_hit = np.where(s_nn > 0, 0.5 * (s_nd / (doppler_std_mps * np.sqrt(s_nn))) ** 2, 0.0)
+    llr = np.full(len(order), np.nan)
+    llr[np.flatnonzero(ok)] = llr_hit
+    llr = pd.Series(llr).groupby(key, sort=False).ffill().fillna(0.0).to_numpy()
+    out = np.empty(len(order))
+    out[order] = llr
+    return out
+
+
 def doppler_spread_log_ratio(tracks: pd.DataFrame, static_std_mps: float,
                              walker_std_mps: float) -> np.ndarray:
     """(N,) per row of ``tracks`` (columns n_points, doppler_spread_mps): the log-likelihood
@@ -174,6 +234,7 @@ def moving_tracks(tracks: pd.DataFrame, speed_mps: float, probability: float = 0
                   doppler_log_ratio_floor: float | None = None,
                   doppler_spread_std_mps: tuple[float, float] | None = None,
                   doppler_reference: str = "frame",
+                  doppler_first_log_ratio: float | None = None,
                   points: pd.DataFrame | None = None, static_evidence_min: int = 0,
                   static_cell_m: float = 0.5, static_lag_frames: int = 10) -> np.ndarray:
     """(N,) bool per row of ``tracks`` (columns group, track_id, frame, vx_mps, vy_mps,
@@ -216,7 +277,8 @@ def moving_tracks(tracks: pd.DataFrame, speed_mps: float, probability: float = 0
                          doppler_log_ratio_min=doppler_log_ratio_min, doppler_llr=doppler_llr,
                          doppler_log_ratio_floor=doppler_log_ratio_floor,
                          doppler_spread_std_mps=doppler_spread_std_mps,
-                         doppler_reference=doppler_reference)
+                         doppler_reference=doppler_reference,
+                         doppler_first_log_ratio=doppler_first_log_ratio)
     order, key = _track_order(tracks)
     seen = pd.Series(fast[order]).groupby(key, sort=False).cummax().to_numpy(bool)
     out = np.empty(len(tracks), bool)
@@ -233,11 +295,20 @@ def moving_frames(tracks: pd.DataFrame, speed_mps: float, probability: float = 0
                   doppler_llr: str = "common_variance",
                   doppler_log_ratio_floor: float | None = None,
                   doppler_spread_std_mps: tuple[float, float] | None = None,
-                  doppler_reference: str = "frame") -> np.ndarray:
+                  doppler_reference: str = "frame",
+                  doppler_first_log_ratio: float | None = None) -> np.ndarray:
     """(N,) bool per row of ``tracks``: the row's own frame passes :func:`moving_tracks`'s
     kinematic and Doppler tests (confirmed, fast, significantly non-zero, the Doppler sum so
     far above its bound), before the latch and the static-evidence grid; same arguments and
-    errors as :func:`moving_tracks`."""
+    errors as :func:`moving_tracks`.
+
+    With ``doppler_first_log_ratio`` (the Doppler-first path, issue 40) a confirmed, fast row
+    whose track's own radial speeds over its last :data:`DOPPLER_FIRST_WINDOW` measured rows
+    make "moving" at least that many natural-log units likelier than "static"
+    (:func:`doppler_motion_evidence`, point spread ``doppler_std_mps``) passes without the
+    kinematic chi-square test: the radar measures the radial speed in every frame, so a child
+    stepping out with a radial component is seen moving from its first frames, while the
+    filtered velocity needs several frames to become significant."""
     check_number(speed_mps, "speed_mps", ge=0.0, unit="m/s", who="moving_tracks")
     check_number(probability, "probability", gt=0.0, who="moving_tracks")
     if not probability < 1:
@@ -265,7 +336,11 @@ def moving_frames(tracks: pd.DataFrame, speed_mps: float, probability: float = 0
         raise ValueError(f"doppler_log_ratio_floor: expected at most doppler_log_ratio_min = "
                          f"{doppler_log_ratio_min}, found {doppler_log_ratio_floor!r}")
     speed = np.hypot(tracks.vx_mps.to_numpy(float), tracks.vy_mps.to_numpy(float))
-    fast = (speed > speed_mps) & (velocity_chi2(tracks) > chi2.ppf(probability, 2))
+    significant = velocity_chi2(tracks) > chi2.ppf(probability, 2)
+    if doppler_first_log_ratio is not None:
+        significant |= doppler_motion_evidence(tracks, doppler_std_mps,
+                                               DOPPLER_FIRST_WINDOW) >= doppler_first_log_ratio
+    fast = (speed > speed_mps) & significant
     fast &= tracks.confirmed.to_numpy(bool)
     if use_doppler:
         fast &= doppler_evidence(tracks, ego, doppler_std_mps, doppler_llr,
@@ -390,21 +465,23 @@ def track_static_evidence(tracks: pd.DataFrame, points: pd.DataFrame, *, cell_m:
                            lag_frames=lag_frames)[last_hit_rows(tracks)]
 
 
-def moving_test_settings(w, grid: bool = True) -> dict[str, Any]:
+def moving_test_settings(m, grid: bool = True) -> dict[str, Any]:
     """The keyword arguments of :func:`moving_tracks` (``grid`` False: of
-    :func:`moving_frames`, without the static-evidence grid's) that the warning group ``w``
-    (:class:`blindspot.safety.config.WarningConfig`, its ``moving_*`` settings) configures."""
-    out = dict(speed_mps=w.moving_speed_mps, probability=w.moving_probability,
-               doppler_std_mps=w.moving_doppler_std_mps,
-               doppler_log_ratio_min=w.moving_doppler_log_ratio_min,
-               doppler_llr=w.moving_doppler_llr,
-               doppler_log_ratio_floor=w.moving_doppler_log_ratio_floor,
-               doppler_spread_std_mps=w.moving_doppler_spread_std_mps,
-               doppler_reference=w.moving_doppler_reference)
+    :func:`moving_frames`, without the static-evidence grid's) that the tracker's moving-object
+    settings ``m`` (:class:`blindspot.track.config.MovingConfig`, the group ``tracker.moving``)
+    configure."""
+    out = dict(speed_mps=m.speed_mps, probability=m.probability,
+               doppler_std_mps=m.doppler_std_mps,
+               doppler_log_ratio_min=m.doppler_log_ratio_min,
+               doppler_llr=m.doppler_llr,
+               doppler_log_ratio_floor=m.doppler_log_ratio_floor,
+               doppler_spread_std_mps=m.doppler_spread_std_mps,
+               doppler_reference=m.doppler_reference,
+               doppler_first_log_ratio=m.doppler_first_log_ratio)
     if grid:
-        out.update(static_evidence_min=w.moving_static_evidence_min,
-                   static_cell_m=w.moving_static_cell_m,
-                   static_lag_frames=w.moving_static_lag_frames)
+        out.update(static_evidence_min=m.static_evidence_min,
+                   static_cell_m=m.static_cell_m,
+                   static_lag_frames=m.static_lag_frames)
     return out
 
 

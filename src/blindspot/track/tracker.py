@@ -41,6 +41,7 @@ from sklearn.cluster import DBSCAN
 from blindspot.arrays import check_count
 from blindspot.parallel import parallel_map
 from blindspot.track.config import TrackerConfig
+from blindspot.track.moving import doppler_motion_log_ratio
 
 __all__ = ["INPUT_COLUMNS", "OUTPUT_COLUMNS", "TrackingError", "cluster_points", "label_objects",
            "track_points"]
@@ -50,7 +51,8 @@ INPUT_COLUMNS = ("frame", "time_s", "x_m", "y_m")
 #: Output columns after the optional ``group``.
 OUTPUT_COLUMNS = ("frame", "time_s", "track_id", "x_m", "y_m", "vx_mps", "vy_mps",
                   "cov_xx", "cov_xy", "cov_yy", "cov_vxvx", "cov_vxvy", "cov_vyvy",
-                  "confirmed", "coasting", "n_points", "doppler_mps", "doppler_spread_mps")
+                  "confirmed", "coasting", "n_points", "doppler_mps", "doppler_spread_mps",
+                  "cov_xvx", "cov_xvy", "cov_yvx", "cov_yvy")
 #: The optional point column whose per-object median and sample standard deviation the tracks
 #: carry as ``doppler_mps`` and ``doppler_spread_mps``: the ego-motion-compensated radial speed
 #: of a point (measured radial speed minus the one a static point at its angle would show, m/s;
@@ -452,12 +454,37 @@ def _gated_hypothesiser(predictor, updater, gate: float, doppler_std_mps: float 
                                      missed_distance=gate)
 
 
-def _linear_initiator(prior, measurement_model):
+def _linear_initiator(prior, measurement_model, doppler_std_mps: float | None = None,
+                      along_std_mps: float | None = None):
     """Stone Soup's ``SimpleMeasurementInitiator`` for one linear measurement model, with the
     model's pseudo-inverse and the initial covariance computed once instead of per detection
     (1.4 ms per new track in the parent class on this machine). Same state and covariance:
     x0 = prior with the measured dimensions replaced by H^+ z, P0 = H^+ R H^+T + prior covariance
-    outside the measured dimensions."""
+    outside the measured dimensions.
+
+    With ``doppler_std_mps`` (``tracker.init_doppler_std_mps``), a detection whose metadata
+    carries a finite ``doppler_mps`` d (the median ego-motion-compensated radial speed of its n
+    points) and ``sensor_xy`` starts its track with the velocity that the Doppler and the
+    geometry allow instead of the prior's zero: the radial speed is one linear measurement of
+    the velocity, d = u.v + e, e ~ N(0, doppler_std^2 / n), along the unit line of sight u from
+    the sensor to the detection, so the Kalman update of the velocity prior N(0, s0^2 I)
+    (s0 = ``init_velocity_std_mps``) by it gives
+
+        v0 = s0^2 u d / (s0^2 + doppler_std^2 / n),
+        P_v0 = s0^2 I - s0^4 u u^T / (s0^2 + doppler_std^2 / n):
+
+    the radial part known to the Doppler's accuracy, the tangential part still the prior's
+    (Bar-Shalom, Li & Kirubarajan 2001, sec. 5.2.3, one scalar measurement). A static object
+    (d ~ 0) starts near zero velocity as before; a child stepping out with a radial component
+    starts moving. The state order is [x, vx, y, vy].
+
+    With ``along_std_mps`` (``tracker.init_doppler_along_std_mps``) and the detection's
+    ``sensor_heading_rad`` (the boresight (-sin h, cos h): along the road for a car's radar),
+    the velocity prior of that update is s_along along the boresight and s0 across it: the
+    context prior of a pedestrian stepping out from between parked cars, who crosses the road
+    rather than walks along it, so the Doppler's radial speed (mostly across the road for an
+    object beside the lane) fixes the crossing speed. A detection without a heading keeps the
+    isotropic prior."""
     from stonesoup.initiator.simple import SimpleMeasurementInitiator
     from stonesoup.types.hypothesis import SingleHypothesis
     from stonesoup.types.track import Track
@@ -471,13 +498,44 @@ def _linear_initiator(prior, measurement_model):
     covar0[mapped, :] = 0.0
     covar0[:, mapped] = 0.0
     covar0 = covar0 + h_pinv @ measurement_model.covar() @ h_pinv.T
+    vel = [i for i in range(covar0.shape[0]) if i not in mapped]     # [1, 3]: vx, vy
+
+    def start(det):
+        """(x0 (4, 1), P0 (4, 4)) of one detection (class docstring)."""
+        x0 = base + h_pinv @ det.state_vector
+        if doppler_std_mps is None:
+            return x0, covar0.copy()
+        meta = det.metadata
+        d = float(meta.get("doppler_mps", np.nan))
+        los = np.asarray(det.state_vector, float).ravel() - np.asarray(
+            meta.get("sensor_xy", (0.0, 0.0)), float)
+        rng = float(np.hypot(*los))
+        if not (np.isfinite(d) and rng > 0):
+            return x0, covar0.copy()
+        u = los / rng
+        pv = covar0[np.ix_(vel, vel)]
+        h = meta.get("sensor_heading_rad")
+        if along_std_mps is not None and h is not None:
+            b = np.array([-np.sin(h), np.cos(h)])               # boresight: along the road
+            a = np.array([b[1], -b[0]])                         # across it
+            pv = pv[0, 0] * np.outer(a, a) + along_std_mps ** 2 * np.outer(b, b)
+        pu = pv @ u
+        s = float(u @ pu) + doppler_std_mps ** 2 / max(int(meta.get("n_points", 1)), 1)
+        gain = pu / s
+        x0 = np.asarray(x0, float).copy()
+        x0[vel, 0] = x0[vel, 0] + gain * (d - float(u @ x0[vel, 0]))
+        p0 = covar0.copy()
+        p0[np.ix_(vel, vel)] = pv - np.outer(gain, pu)
+        return x0, p0
 
     class LinearMeasurementInitiator(SimpleMeasurementInitiator):
         def initiate(self, detections, timestamp, **kwargs):
-            return {Track([GaussianStateUpdate(base + h_pinv @ det.state_vector, covar0.copy(),
-                                               SingleHypothesis(None, det),
-                                               timestamp=det.timestamp)])
-                    for det in detections}
+            out = set()
+            for det in detections:
+                x0, p0 = start(det)
+                out.add(Track([GaussianStateUpdate(x0, p0, SingleHypothesis(None, det),
+                                                   timestamp=det.timestamp)]))
+            return out
 
     return LinearMeasurementInitiator(prior, measurement_model)
 
@@ -518,7 +576,8 @@ def _parts(config: TrackerConfig) -> _Parts:
         associator = JPDA(hypothesiser)
     v2 = config.init_velocity_std_mps ** 2
     prior = GaussianState(np.zeros((4, 1)), np.diag([0.0, v2, 0.0, v2]))
-    initiator = _linear_initiator(prior, measurement_model)
+    initiator = _linear_initiator(prior, measurement_model, config.init_doppler_std_mps,
+                                  config.init_doppler_along_std_mps)
     return _Parts(measurement_model, predictor, updater, associator, initiator,
                   config.association == "jpda")
 
@@ -532,6 +591,23 @@ class _Book:
     confirmed: bool = False
     born_s: float = 0.0          # time of its first detection (s, the group's clock)
     last_hit_s: float = 0.0      # time of its last detection
+    # (points, median ego-compensated radial speed) of each hit's object, oldest first
+    dopplers: list[tuple[int, float]] = field(default_factory=list)
+
+
+def _doppler_confirms(book: _Book, config: TrackerConfig) -> bool:
+    """A tentative track confirms early, on its second consecutive hit, when the radial speeds
+    of its objects say "moving" (``tracker.doppler_confirm_log_ratio``; null: never): their
+    :func:`~blindspot.track.moving.doppler_motion_log_ratio` over its hits (point spread
+    ``tracker.moving.doppler_std_mps``, window ``confirm_n``) reaches that. A static object's
+    compensated Doppler is ~0, so the parked cars' edges, the kerb and zero-Doppler multipath
+    keep the M-of-N rule; a walker with a radial component confirms in two frames."""
+    if (config.doppler_confirm_log_ratio is None or config.moving is None
+            or len(book.hits) < 2 or not all(book.hits[-2:])):
+        return False
+    n, d = np.array(book.dopplers[-config.confirm_n:], float).T
+    return bool(doppler_motion_log_ratio(n, d, config.moving.doppler_std_mps)
+                >= config.doppler_confirm_log_ratio)
 
 
 def _jpda_posterior(track, multihypothesis, updater):
@@ -613,6 +689,8 @@ def _track_group(labelled: pd.DataFrame, frames: pd.DataFrame, config: TrackerCo
                else np.cos(np.radians(config.field_of_view_deg / 2.0)))
     pose = (_frame_poses(frames) if fov_cos is not None and SENSOR_HEADING_COLUMN in frames
             else None)
+    heading = (np.radians(frames[SENSOR_HEADING_COLUMN].to_numpy(float))
+               if SENSOR_HEADING_COLUMN in frames else None)
     live: dict[object, _Book] = {}
     next_id = 0
     m, n = config.confirm_m, config.confirm_n
@@ -636,7 +714,9 @@ def _track_group(labelled: pd.DataFrame, frames: pd.DataFrame, config: TrackerCo
         order = [Detection(p.reshape(2, 1), timestamp=ts,
                            measurement_model=parts.measurement_model,
                            metadata={"n_points": int(k), "doppler_mps": float(d),
-                                     "doppler_spread_mps": float(sd), "sensor_xy": sensor})
+                                     "doppler_spread_mps": float(sd), "sensor_xy": sensor,
+                                     "sensor_heading_rad": (None if heading is None
+                                                            else float(heading[i_frame]))})
                  for p, k, d, sd in zip(xy, counts, dop, spread)]
         detections = set(order)
         used: set = set()
@@ -676,8 +756,10 @@ def _track_group(labelled: pd.DataFrame, frames: pd.DataFrame, config: TrackerCo
             book.hits.append(hit)
             if hit:
                 book.last_hit_s = float(t)
+                md = meas_of[track].metadata
+                book.dopplers.append((md["n_points"], md["doppler_mps"]))
             if not book.confirmed:
-                if sum(book.hits[-n:]) >= m:
+                if sum(book.hits[-n:]) >= m or _doppler_confirms(book, config):
                     book.confirmed = True
                 elif sum(book.hits) + max(n - len(book.hits), 0) < m or len(book.hits) >= n:
                     del live[track]
@@ -700,7 +782,9 @@ def _track_group(labelled: pd.DataFrame, frames: pd.DataFrame, config: TrackerCo
         born = parts.initiator.initiate(detections - used, ts)
         rank = {id(d): i for i, d in enumerate(order)}
         for track in sorted(born, key=lambda tr: rank[id(tr[0].hypothesis.measurement)]):
-            live[track] = _Book(next_id, [True], born_s=float(t), last_hit_s=float(t))
+            md = track[0].hypothesis.measurement.metadata
+            live[track] = _Book(next_id, [True], born_s=float(t), last_hit_s=float(t),
+                                dopplers=[(md["n_points"], md["doppler_mps"])])
             next_id += 1
             hit_now[track] = True
             meas_of[track] = track[0].hypothesis.measurement
@@ -723,6 +807,10 @@ def _track_group(labelled: pd.DataFrame, frames: pd.DataFrame, config: TrackerCo
             out["cov_vxvx"].append(c[1, 1])
             out["cov_vxvy"].append(c[1, 3])
             out["cov_vyvy"].append(c[3, 3])
+            out["cov_xvx"].append(c[0, 1])                 # state order [x, vx, y, vy]
+            out["cov_xvy"].append(c[0, 3])
+            out["cov_yvx"].append(c[2, 1])
+            out["cov_yvy"].append(c[2, 3])
             out["confirmed"].append(book.confirmed)
             out["coasting"].append(not hit_now[track])
             det = meas_of.get(track)
@@ -801,7 +889,9 @@ def track_points(points: pd.DataFrame, config: TrackerConfig, jobs: int = 1, *,
         points lack that column: the evidence of :func:`blindspot.track.moving.moving_tracks`),
         ``doppler_spread_mps`` (their sample standard deviation, ddof 1, m/s, over the points
         with a finite radial speed, while ``n_points`` counts them all: the object's Doppler
-        spread; NaN as ``doppler_mps`` and for a one-point object). Tentative
+        spread; NaN as ``doppler_mps`` and for a one-point object), ``cov_xvx``, ``cov_xvy``,
+        ``cov_yvx``, ``cov_yvy`` (position-velocity cross-covariance, m^2/s: the whole
+        filtered state, which :class:`blindspot.safety.predict.TrackState` forecasts). Tentative
         tracks are included (``confirmed`` False): filter on ``confirmed`` for reported tracks.
 
     Raises:

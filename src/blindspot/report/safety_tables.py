@@ -1,0 +1,104 @@
+"""Markdown pages of the safety stage's metrics (issue 40): the Monte-Carlo grid page and the
+Euro NCAP nominal grids with the held-out figures. Formatting only: every number is read from
+the metrics the safety stage wrote (reports/metrics/safety.json, ncap.json)."""
+
+from __future__ import annotations
+
+import pandas as pd
+
+from blindspot.report.safety_figures import ncap_grid_markdown
+
+__all__ = ["PREDICTOR_BLOCKS", "predictor_names", "operating_inputs", "grid_page", "ncap_page"]
+
+#: Top-level keys of safety.json that are not predictors.
+PREDICTOR_BLOCKS = ("held_out", "tuning")
+
+
+def predictor_names(metrics: dict) -> list[str]:
+    """The predictors of safety.json, in its order."""
+    return [p for p in metrics if p not in PREDICTOR_BLOCKS]
+
+
+def operating_inputs(metrics: dict, bound: dict) -> tuple[dict, dict, tuple[int, int]]:
+    """(per input the predictors' metrics, the bounds' avoided rates, (M, N) of the bounds'
+    confirmation) of safety.json and safety_bound.json: what the operating-characteristic
+    figure draws."""
+    preds = predictor_names(metrics)
+    inputs = metrics[preds[0]]["settings"]["inputs"]
+    operating = {inp: {p: metrics[p]["by_input"][inp] for p in preds
+                       if inp in metrics[p]["by_input"]} for inp in inputs}
+    bounds = {k: v["avoided_rate"] for k, v in bound.items() if k != "settings"}
+    return operating, bounds, (bound["settings"]["confirm_m"], bound["settings"]["confirm_n"])
+
+
+def grid_page(grid: pd.DataFrame, metrics: dict) -> str:
+    """The Monte-Carlo grid page (reports/tables/safety_grid.md): one Euro NCAP-shaped table
+    per input and predictor (:func:`~blindspot.report.safety_figures.ncap_grid_markdown`)."""
+    preds = predictor_names(metrics)
+    settings = metrics[preds[0]]["settings"]
+    md = [f"Euro NCAP-shaped grid of the Monte-Carlo intruding scenes ({settings['headline_input']}"
+          " input; cells: scenes avoided / scenes, mean impact speed, 2026 band of that mean; and "
+          "how many of them braked from a frame before anything, line of sight or a radar point, "
+          "showed the lead pedestrian: for another pedestrian or clutter). The Euro NCAP "
+          "nominal grids, one scene per cell, are in safety_ncap.md.\n"]
+    for inp in settings["inputs"]:
+        for p in preds:
+            if inp in metrics[p]["by_input"]:
+                md += [f"\n### {p} ({inp})\n\n", ncap_grid_markdown(grid[grid.input == inp], p)]
+    return "".join(md)
+
+
+def _fmt(x, nd=2) -> str:
+    return "-" if x is None else f"{x:.{nd}f}"
+
+
+def ncap_page(ncap: dict, metrics: dict) -> str:
+    """reports/tables/safety_ncap.md: the held-out figures of the headline input per predictor
+    (with their 95 % intervals), the first-radar-point delays per speed, and the Euro NCAP
+    nominal grids (impact speed km/h and 2026 band per cell) per input and predictor."""
+    held, tune = metrics.get("held_out", {}), metrics.get("tuning", {})
+    out = ["# Safety: held-out figures and the Euro NCAP nominal grids\n\n",
+           f"Held out: {held.get('split', '')}; {held.get('n_intruding')} intruding and "
+           f"{held.get('n_non_intruding')} non-intruding scenes (tuning half: "
+           f"{tune.get('n_intruding')} / {tune.get('n_non_intruding')}), draw seed "
+           f"{held.get('seed')}. Rates with Wilson 95 % intervals.\n\n",
+           "| predictor | avoided after visible | false activations | first point -> moving, "
+           "median s | first point -> AEB, median s |\n|---|---|---|---|---|\n"]
+    for p, h in held.items():
+        if not isinstance(h, dict):
+            continue
+        ci_a, ci_f = h.get("avoided_after_visible_rate_ci95"), h.get("false_activation_rate_ci95")
+        out.append(f"| {p} | {_fmt(h['avoided_after_visible_rate'])} "
+                   f"[{_fmt(ci_a[0]) if ci_a else '-'}, {_fmt(ci_a[1]) if ci_a else '-'}] | "
+                   f"{_fmt(h['false_activation_rate'], 3)} "
+                   f"[{_fmt(ci_f[0], 3) if ci_f else '-'}, {_fmt(ci_f[1], 3) if ci_f else '-'}] | "
+                   f"{_fmt(h['first_point_to_moving_s_median'])} | "
+                   f"{_fmt(h['first_point_to_aeb_s_median'])} |\n")
+    out.append("\n## First radar point of the lead pedestrian -> first moving track / AEB request "
+               "(all Monte-Carlo intruding scenes, headline input; median / p90 s, never)\n\n")
+    for p in predictor_names(metrics):
+        m = metrics[p]
+        if "first_point_to_moving_s" not in m:
+            continue
+        mv, ab = m["first_point_to_moving_s"], m["first_point_to_aeb_s"]
+        cells = ", ".join(f"{k} km/h {_fmt(v['median'])} / {_fmt(v['p90'])}"
+                          for k, v in mv["by_speed_kmh"].items())
+        cells_a = ", ".join(f"{k} km/h {_fmt(v['median'])} / {_fmt(v['p90'])}"
+                            for k, v in ab["by_speed_kmh"].items())
+        out.append(f"- {p}: moving {cells} (never {mv['n_never']}); AEB {cells_a} "
+                   f"(never {ab['n_never']})\n")
+    out.append("\n## Euro NCAP nominal grids (one nominal scene per cell; impact speed km/h, "
+               "2026 band)\n")
+    for proto, by_input in ncap.items():
+        for inp, by_pred in by_input.items():
+            for p, by_speed in by_pred.items():
+                pcts = sorted({pc for v in by_speed.values() for pc in v}, key=float)
+                out.append(f"\n### {proto.upper()} ({inp}, {p})\n\n| km/h | "
+                           + " | ".join(f"{pc} %" for pc in pcts) + " |\n|---|"
+                           + "---|" * len(pcts) + "\n")
+                for kmh in sorted(by_speed, key=float):
+                    row = [by_speed[kmh].get(pc) for pc in pcts]
+                    out.append(f"| {kmh} | " + " | ".join(
+                        "-" if c is None else f"{c['impact_speed_kmh']:.1f} {c['band']}"
+                        for c in row) + " |\n")
+    return "".join(out)

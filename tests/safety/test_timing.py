@@ -1,0 +1,56 @@
+"""Issue 40's timing and reference rows: the first moving track row near the lead pedestrian,
+delay statistics per speed, the true-state reference tracks and the track_state forecast."""
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from blindspot.safety.evaluation import delay_stats, first_moving_s
+from blindspot.safety.oracle import true_state_tracks
+from blindspot.safety.predict import TrackState, track_state_forecast
+
+
+def test_first_moving_row_near_the_lead_pedestrian():
+    truth = pd.DataFrame({"scene": "a", "frame": np.arange(5), "pedestrian": "p0",
+                          "x_m": 2.0 - 0.14 * np.arange(5), "y_m": 10.0})
+    tracks = pd.DataFrame({"group": "a", "frame": np.arange(5), "time_s": np.arange(5) * 0.1,
+                           "x_m": truth.x_m + 0.2, "y_m": 10.0,
+                           "confirmed": [False, True, True, True, True],
+                           "moving": [False, False, True, True, True]})
+    clutter = tracks.assign(x_m=5.0, moving=True, confirmed=True)     # far: never counts
+    t = first_moving_s(pd.concat([tracks, clutter]), truth, np.array(["a", "b"]))
+    assert t[0] == pytest.approx(0.2) and np.isnan(t[1])
+
+
+def test_delay_stats_per_speed():
+    s = delay_stats(np.array([0.1, 0.3, np.nan, 0.5]), np.array([10.0, 10.0, 20.0, 20.0]))
+    assert s["median"] == pytest.approx(0.3) and s["n_never"] == 1
+    assert s["by_speed_kmh"]["10"]["median"] == pytest.approx(0.2)
+    assert s["by_speed_kmh"]["20"]["n_never"] == 1
+
+
+def test_true_state_tracks_start_at_the_last_emergence():
+    f = np.arange(6)
+    truth = pd.DataFrame({"scene": "a", "frame": f, "time_s": f * 0.1, "pedestrian": "p0",
+                          "x_m": 3.0 - 0.14 * f, "y_m": 8.0, "vx_mps": -1.4, "vy_mps": 0.0,
+                          "occluded": [False, True, True, False, False, False],
+                          "collision_time_s": 0.5})
+    tr = true_state_tracks(truth)
+    assert tr.frame.tolist() == [3, 4, 5]
+    assert tr.vx_mps.eq(-1.4).all() and tr.moving.all() and tr.confirmed.all()
+
+
+def test_track_state_forecasts_the_filtered_state():
+    from blindspot.traj.baselines import KalmanCV
+
+    class Scaled:                                   # a calibrated Kalman: base, scale, options
+        base = KalmanCV(dt=0.1, process_psd=0.5, meas_std=0.15)
+        scale = np.ones(10)
+        options = {}
+    rows = pd.DataFrame({"x_m": [2.0], "y_m": [8.0], "vx_mps": [-1.4], "vy_mps": [0.0],
+                         "cov_xx": [0.01], "cov_xy": [0.0], "cov_yy": [0.01],
+                         "cov_vxvx": [0.04], "cov_vxvy": [0.0], "cov_vyvy": [0.04]})
+    fc = track_state_forecast(TrackState(Scaled()), rows, 10)
+    np.testing.assert_allclose(fc.mean[0, -1], [2.0 - 1.4 * 1.0, 8.0], atol=1e-9)
+    # variance grows as P_xx + t^2 P_vv + process noise + R: at 1 s at least 0.01 + 0.04
+    assert fc.cov[0, -1, 0, 0] > 0.05
