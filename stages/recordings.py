@@ -37,7 +37,7 @@ def run(cfg, ctx):
                                                  where=f"recordings.{name}.tracker")
             res = run_recording(entry, rec, path, cfg, tracker, lambda dt: kalman_baseline(ev, dt),
                                 warning, progress=cfg.progress)
-            for key in ("points", "tracks", "predictions", "decisions", "detections"):
+            for key in ("points", "tracks", "predictions", "decisions", "detections", "reference"):
                 if getattr(res, key) is not None:
                     write_parquet(folder / name / f"{key}.parquet", getattr(res, key))
             if entry.kind in RAW_KINDS:

@@ -330,7 +330,8 @@ def run_recording(entry: RecordingEntry, rec_cfg: Any, path: Path, groups: Any,
     if entry.kind in ("ti_gtrack", "radhar") and not entry.moving:
         res = track_recording(tr_rec, tracker, path.parent)     # real_tracking's own function
         result.tracks = res.tracks
-        summary.update({k: v for k, v in res.metrics.items() if k not in summary})
+        summary.update({k: v for k, v in res.metrics.items()
+                        if k not in ("n_frames", "n_points")})
     else:
         result.tracks = _track(pts, tracker, str(path.name))
         summary["n_tracks"] = int(result.tracks[result.tracks.confirmed].track_id.nunique())
