@@ -4,10 +4,9 @@ Each entry of cfg.recordings (conf/recordings/) names a capture or a point-cloud
 it goes (blindspot.safety.recording): points (static clutter flagged), tracks (tracker group),
 predicted paths with their distributions (the eval.kalman filter, warning.horizon_s ahead) and,
 for a recording made from a car, the collision risk and warning / AEB request per frame. Writes
-data/recordings/<name>/{points,tracks,predictions,decisions}.parquet (and a raw capture's
-detections and first frame's maps), a range-Doppler figure per raw capture and
-reports/metrics/recordings.json. Your own: a conf/recordings/<name>.yaml, then
-`python -m blindspot recordings recordings=<name>` (README: "Your own radar recording").
+data/recordings/<name>/{points,tracks,predictions,decisions}.parquet (a raw capture's detections,
+first frame's maps and range-Doppler figure too) and reports/metrics/recordings.json. Your own:
+README, "Your own radar recording".
 """
 
 import blindspot  # noqa: F401  first: pins the CPU kernels before numpy loads (blindspot.kernels)
@@ -20,7 +19,7 @@ from blindspot.io import atomic_dir, save_figure, write_json, write_parquet
 from blindspot.report.radar_figures import fig_recording
 from blindspot.safety.config import WarningConfig
 from blindspot.safety.recording import RAW_KINDS, RecordingEntry, run_recording
-from blindspot.stage import StageResult
+from blindspot.stage import StageResult, UndeclaredPath
 from blindspot.track.config import TrackerConfig
 from blindspot.traj.baselines import kalman_baseline
 from blindspot.traj.config import EvalConfig
@@ -28,7 +27,6 @@ from blindspot.traj.config import EvalConfig
 
 def run(cfg, ctx):
     ev, warning, summary, figures = EvalConfig.from_cfg(cfg), WarningConfig.from_cfg(cfg), {}, []
-    # data/recordings is one directory out, renamed into place when whole
     with atomic_dir(ctx.out("recordings")) as folder:
         for name, rec in cfg.recordings.items():
             entry = RecordingEntry.from_mapping({**rec, "name": name}, where=f"recordings.{name}")
@@ -40,19 +38,21 @@ def run(cfg, ctx):
             for key in ("points", "tracks", "predictions", "decisions", "detections", "reference"):
                 if getattr(res, key) is not None:
                     write_parquet(folder / name / f"{key}.parquet", getattr(res, key))
-            if entry.kind in RAW_KINDS:
+            if entry.kind in RAW_KINDS:    # the figure: declared in dvc.yaml, else in its folder
                 f = res.first
                 write_frame_result(folder / name / "frame0.npz", f, scene=name)
+                try:
+                    target = ctx.out(f"recording_{name}.png")
+                except UndeclaredPath:
+                    target = folder / name / "range_doppler.png"
                 figures.append(save_figure(fig_recording(
                     f.power, f.detections, f.range_axis_m, f.velocity_axis_mps,
-                    f"{name} ({entry.kind}), frame 0"), ctx.out(f"recording_{name}.png")))
-            summary[name] = res.summary
-            print(f"recordings {name}: {res.summary['n_frames']} frames, "
-                  f"{res.summary['n_points']} points, {res.summary.get('n_tracks')} tracks")
+                    f"{name} ({entry.kind}), frame 0"), target))
+            summary[name] = s = res.summary
+            print(f"recordings {name}: {s['n_frames']} frames, {s['n_tracks']} tracks")
     write_json(ctx.out("recordings.json"), summary)
-    return StageResult(metrics={f"{n}.{k}": v for n, s in summary.items() for k, v in s.items()
-                                if isinstance(v, (int, float)) and not isinstance(v, bool)},
-                       artifacts=figures)
+    return StageResult(metrics={f"{n}.{k}": v for n, d in summary.items() for k, v in d.items()
+                                if type(v) in (int, float)}, artifacts=figures)
 
 
 if __name__ == "__main__":

@@ -16,13 +16,13 @@ import time
 from blindspot.cli import main_stage
 from blindspot.io import atomic_dir
 from blindspot.report.animation import (decision_frames, driving_movie, key_frame,
-                                        recording_movie, render_movie, render_still)
+                                        recording_movie, render_movie, render_still, WatchConfig)
 from blindspot.stage import StageResult
 from blindspot.synth.driving_maps import scene_to_watch
 
 
 def run(cfg, ctx):
-    w, movies, metrics = cfg.watch, [], {}
+    w, movies, metrics = WatchConfig.from_cfg(cfg), [], {}
     if w.scene and not w.recording:
         s = scene_to_watch(cfg, {
             "truth": ctx.dep("driving/truth.parquet"), "scenes": ctx.dep("scenes.json"),

@@ -25,11 +25,13 @@ import pandas as pd
 from matplotlib.figure import Figure
 
 from blindspot.io import write_bytes
+from blindspot.typed_config import ConfigError, TypedConfig, setting
 from blindspot.report.driving_figures import MOVING_COLOUR, STATIC_COLOUR
 from blindspot.report.style import CAR_COLOUR, cell_edges, to_db
 
 __all__ = ["CHI2_2DOF_90", "Movie", "decision_frames", "driving_movie", "ellipse_axes",
-           "key_frame", "movie_writer", "recording_movie", "render_movie", "render_still"]
+           "key_frame", "movie_writer", "recording_movie", "render_movie", "render_still",
+           "WatchConfig"]
 
 #: 90 % region of a 2-D Gaussian: Mahalanobis radius^2 = chi-square(2 dof) quantile 0.9.
 CHI2_2DOF_90 = 4.605170185988092
@@ -407,3 +409,28 @@ def key_frame(movie: Movie) -> int:
             later = frames[frames >= f]
             return int(later[min(2, len(later) - 1)]) if len(later) else int(frames[-1])
     return int(frames[int(len(frames) * 0.75)])
+
+
+@dataclass(frozen=True)
+class WatchConfig(TypedConfig):
+    """The Hydra group ``watch`` (``conf/watch/default.yaml``): which driving scene and
+    recordings the watch stage animates, and how."""
+
+    GROUP = "watch"
+
+    ego_speed_kmh: float = setting(gt=0.0, le=200.0)
+    predictor: str = setting()
+    input: str = setting()
+    rd_every: int = setting(ge=1, le=10_000)
+    recording_every: int = setting(ge=1, le=10_000)
+    max_frames: int = setting(ge=1, le=100_000)
+    fps: float = setting(gt=0.0, le=120.0)
+    dpi: float = setting(gt=0.0, le=600.0)
+    format: str = setting(choices=("gif", "mp4"))
+    scene: str | None = setting(None)
+    recordings: tuple[str, ...] = setting(())
+    recording: str | None = setting(None)
+
+    def validate(self) -> None:
+        if not (self.scene or self.recordings or self.recording):
+            raise ConfigError("scene", self.scene, "a driving scene, or recordings to animate")

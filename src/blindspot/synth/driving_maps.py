@@ -87,7 +87,7 @@ def scene_to_watch(cfg, paths: dict, *, progress: bool = False) -> SceneToWatch:
     (:func:`blindspot.safety.recording.predict_tracks`, ``warning.horizon_s`` ahead) and the
     range-Doppler maps of every ``cfg.watch.rd_every``-th frame (:func:`driving_scene_maps`).
     Raises ValueError naming the keys for a scene that is not a named one at that speed."""
-    w = cfg.watch
+    w = cfg.watch           # the watch stage has typed it (blindspot.report.animation.WatchConfig)
     group, named = load_scenarios(cfg.scenario)
     meta = json.loads(Path(paths["scenes"]).read_text())
     if w.scene not in named or w.scene not in meta or abs(
