@@ -206,7 +206,8 @@ def _ego_motion(entry: RecordingEntry, pts: pd.DataFrame, where: str) -> pd.Data
     travelled = np.r_[0.0, np.cumsum(v.to_numpy()[:-1] * np.diff(frames.to_numpy()))]
     ego = pd.DataFrame({"frame": frames.index, "time_s": frames.to_numpy(),
                         "ego_speed_mps": v.to_numpy(), "ego_y_m": travelled})
-    pts = pts.merge(ego[["frame", "ego_speed_mps", "ego_y_m"]], on="frame", how="left")
+    pts = pts.drop(columns=["ego_speed_mps", "ego_y_m"], errors="ignore").merge(
+        ego[["frame", "ego_speed_mps", "ego_y_m"]], on="frame", how="left")
     tol = entry.static_speed_mps if entry.static_speed_mps is not None else 0.0
     curve = -pts.ego_speed_mps * np.cos(np.radians(pts.azimuth_deg))
     pts["static"] = (pts.velocity_mps - curve).abs() <= tol
