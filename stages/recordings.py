@@ -2,11 +2,9 @@
 
 Each entry of cfg.recordings (conf/recordings/) names a capture or a point-cloud log and how far
 it goes (blindspot.safety.recording): points (static clutter flagged), tracks (tracker group),
-predicted paths with their distributions (the eval.kalman filter, warning.horizon_s ahead) and,
-for a recording made from a car, the collision risk and warning / AEB request per frame. Writes
-data/recordings/<name>/{points,tracks,predictions,decisions}.parquet (a raw capture's detections,
-first frame's maps and range-Doppler figure too) and reports/metrics/recordings.json. Your own:
-README, "Your own radar recording".
+predicted paths with their distributions (eval.kalman, warning.horizon_s ahead) and, from a car,
+the warning / AEB request per frame: data/recordings/<name>/*.parquet (a raw capture's maps and
+range-Doppler figure too; animation.gif with `animate: true`), reports/metrics/recordings.json.
 """
 
 import blindspot  # noqa: F401  first: pins the CPU kernels before numpy loads (blindspot.kernels)
@@ -16,6 +14,7 @@ from blindspot.cli import main_stage
 from blindspot.config import shared_dir
 from blindspot.dsp.frame_io import write_frame_result
 from blindspot.io import atomic_dir, save_figure, write_json, write_parquet
+from blindspot.report.animation import recording_movie, render_movie
 from blindspot.report.radar_figures import fig_recording
 from blindspot.safety.config import WarningConfig
 from blindspot.safety.recording import RAW_KINDS, RecordingEntry, run_recording
@@ -48,8 +47,10 @@ def run(cfg, ctx):
                 figures.append(save_figure(fig_recording(
                     f.power, f.detections, f.range_axis_m, f.velocity_axis_mps,
                     f"{name} ({entry.kind}), frame 0"), target))
-            summary[name] = s = res.summary
-            print(f"recordings {name}: {s['n_frames']} frames, {s['n_tracks']} tracks")
+            if entry.animate:        # its animation (blindspot.report.animation)
+                render_movie(recording_movie(name, res, every=entry.animate_every,
+                                             max_frames=150), folder / name / "animation.gif")
+            summary[name] = res.summary
     write_json(ctx.out("recordings.json"), summary)
     return StageResult(metrics={f"{n}.{k}": v for n, d in summary.items() for k, v in d.items()
                                 if type(v) in (int, float)}, artifacts=figures)

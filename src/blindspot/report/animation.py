@@ -25,7 +25,7 @@ import pandas as pd
 from matplotlib.figure import Figure
 
 from blindspot.io import write_bytes
-from blindspot.typed_config import ConfigError, TypedConfig, setting
+from blindspot.typed_config import TypedConfig, setting
 from blindspot.report.driving_figures import MOVING_COLOUR, STATIC_COLOUR
 from blindspot.report.style import CAR_COLOUR, cell_edges, to_db
 
@@ -317,36 +317,30 @@ def render_still(movie: Movie, frame: int, path: Path, *, dpi: float = 100.0) ->
     return Path(path)
 
 
-def recording_movie(name: str, folder: Path, *, every: int = 1, max_frames: int | None = None,
-                    rd: dict | None = None) -> Movie:
-    """The Movie of one recording's outputs (``data/recordings/<name>/``: points, tracks,
-    predictions, decisions and TI's tracks, each where present): every ``every``-th frame, at
-    most ``max_frames`` of them; ``rd`` the range-Doppler maps where kept."""
-    folder = Path(folder)
-
-    def read(key: str) -> pd.DataFrame | None:
-        p = folder / f"{key}.parquet"
-        return pd.read_parquet(p) if p.is_file() else None
-
-    points = read("points")
-    if points is None:
-        raise FileNotFoundError(f"recording {name!r}: {folder / 'points.parquet'} not found; "
-                                "run the recordings stage first")
-    tracks = read("tracks")
+def recording_movie(name: str, res, *, every: int = 1, max_frames: int | None = None) -> Movie:
+    """The Movie of one recording: ``res`` has ``points``, ``tracks``, ``predictions``,
+    ``decisions``, ``reference`` (TI's tracks) and ``first`` (a raw capture's first frame with
+    ``power``, ``range_axis_m``, ``velocity_axis_mps``), each None where absent (the recordings
+    stage's result); every ``every``-th frame, at most ``max_frames`` of them."""
+    points = res.points
+    tracks = res.tracks
     tracks = (pd.DataFrame(columns=["frame", "track_id", "x_m", "y_m"]) if tracks is None
               else tracks[tracks.confirmed.astype(bool)])
-    decisions = read("decisions")
-    ego = None
+    decisions, ego, rd = res.decisions, None, None
     if decisions is not None:
         ego = decisions.assign(ego_x_m=0.0, ego_yaw_deg=0.0)[["frame", "ego_x_m", "ego_y_m",
                                                                "ego_yaw_deg"]]
+    first = getattr(res, "first", None)
+    if first is not None:
+        rd = {"frame": np.array([0]), "power": np.asarray(first.power)[None],
+              "range_axis_m": first.range_axis_m, "velocity_axis_mps": first.velocity_axis_mps}
     frames = np.sort(points.frame.unique())[::max(1, int(every))]
     if max_frames is not None:
         frames = frames[:max_frames]
     time_s = points.drop_duplicates("frame").set_index("frame").time_s
     return Movie(title=name, frames=frames, time_s=time_s, points=points, tracks=tracks,
-                 predictions=read("predictions"), decisions=decisions, ego=ego,
-                 reference=read("reference"), reference_label="TI's tracks (gtrack)", rd=rd)
+                 predictions=res.predictions, decisions=decisions, ego=ego,
+                 reference=res.reference, reference_label="TI's tracks (gtrack)", rd=rd)
 
 
 def decision_frames(outcomes: pd.DataFrame | None, scene: str, *, predictor: str,
@@ -413,8 +407,9 @@ def key_frame(movie: Movie) -> int:
 
 @dataclass(frozen=True)
 class WatchConfig(TypedConfig):
-    """The Hydra group ``watch`` (``conf/watch/default.yaml``): which driving scene and
-    recordings the watch stage animates, and how."""
+    """The Hydra group ``watch`` (``conf/watch/default.yaml``): which driving scene the watch
+    stage animates, and how (a recording's animation: its ``animate`` key, the recordings
+    stage)."""
 
     GROUP = "watch"
 
@@ -422,15 +417,7 @@ class WatchConfig(TypedConfig):
     predictor: str = setting()
     input: str = setting()
     rd_every: int = setting(ge=1, le=10_000)
-    recording_every: int = setting(ge=1, le=10_000)
-    max_frames: int = setting(ge=1, le=100_000)
     fps: float = setting(gt=0.0, le=120.0)
     dpi: float = setting(gt=0.0, le=600.0)
     format: str = setting(choices=("gif", "mp4"))
-    scene: str | None = setting(None)
-    recordings: tuple[str, ...] = setting(())
-    recording: str | None = setting(None)
-
-    def validate(self) -> None:
-        if not (self.scene or self.recordings or self.recording):
-            raise ConfigError("scene", self.scene, "a driving scene, or recordings to animate")
+    scene: str = setting()

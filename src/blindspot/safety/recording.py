@@ -81,7 +81,8 @@ class RecordingEntry(TypedConfig):
     along the radar's boresight: the ego speed, a world frame and the decisions);
     ``speed_column`` (the point table's ego-speed column; null: estimated by the radar);
     ``stop_at`` (:data:`STEPS`); ``reference_gate_m`` (TI's tracks, CLEAR MOT gate, m);
-    ``ego_width_m``, ``ego_length_m`` (the car, m). The raw kinds' ``radar``, ``options``,
+    ``ego_width_m``, ``ego_length_m`` (the car, m); ``animate`` (the recordings stage draws
+    ``animation.gif``, every ``animate_every``-th frame, at most 150). The raw kinds' ``radar``, ``options``,
     ``cfar``, ``doa``, ``detect`` and every entry's ``tracker`` mapping are read as they are.
     """
 
@@ -98,6 +99,8 @@ class RecordingEntry(TypedConfig):
     reference_gate_m: float | None = setting(None, gt=0.0, le=100.0)
     ego_width_m: float = setting(1.815, gt=0.0, le=5.0)
     ego_length_m: float = setting(4.358, gt=0.0, le=30.0)
+    animate: bool = setting(False)
+    animate_every: int = setting(4, ge=1, le=10_000)
 
     def validate(self) -> None:
         if not self.path:
@@ -349,4 +352,6 @@ def run_recording(entry: RecordingEntry, rec_cfg: Any, path: Path, groups: Any,
         summary.update(first_warning_s=_first(result.decisions, "warning"),
                        first_aeb_s=_first(result.decisions, "aeb"),
                        max_p_collision=float(result.decisions.p_collision.max()))
+    print(f"recordings {entry.name}: {summary['n_frames']} frames, {summary['n_tracks']} tracks"
+          + (f", first AEB request at {summary['first_aeb_s']} s" if entry.moving else ""))
     return result
