@@ -75,6 +75,8 @@ class Movie:
     ego_size_m: tuple[float, float] = (1.815, 4.358)
     limits: tuple[float, float, float, float] | None = None
     ellipse_ahead_s: float = 1.0
+    follow_ego_m: tuple[float, float] | None = None
+    rd_max_range_m: float | None = None
 
 
 def ellipse_axes(cxx: np.ndarray, cxy: np.ndarray, cyy: np.ndarray, chi2: float = CHI2_2DOF_90
@@ -216,6 +218,9 @@ class _Painter:
                                      else None))
         self._banner(f)
         h0, h1, v0, v1 = self.limits
+        if m.follow_ego_m is not None and m.ego is not None and (m.ego.frame == f).any():
+            ey = float(m.ego.ego_y_m[m.ego.frame == f].iloc[0])
+            h0, h1 = ey - m.follow_ego_m[0], ey + m.follow_ego_m[1]
         ax.set_xlim(h0, h1)
         ax.set_ylim(v0, v1)
         if m.road_view:
@@ -264,6 +269,8 @@ class _Painter:
         ax.pcolormesh(cell_edges(v), cell_edges(r)[:power.shape[0] + 1], db[:, :len(v)],
                       cmap="viridis", vmin=float(np.percentile(db, 50)), vmax=float(db.max()),
                       shading="flat", rasterized=True)
+        if self.m.rd_max_range_m is not None:
+            ax.set_ylim(0.0, self.m.rd_max_range_m)
         ax.set_xlabel("radial velocity (m/s)", fontsize=8)
         ax.set_ylabel("range (m)", fontsize=8)
         ax.tick_params(labelsize=7)
@@ -385,11 +392,12 @@ def driving_movie(title: str, truth: pd.DataFrame, cars: list, points: pd.DataFr
     xs = np.r_[ego.ego_x_m, ped.x_m, box[:, 0] if len(box) else []]
     ys = np.r_[ego.ego_y_m, ped.y_m, box[:, 1] if len(box) else []]
     limits = (float(np.nanmin(ys)) - 6.0, float(np.nanmax(ys)) + 4.0,
-              float(min(np.nanmin(xs) - 3.0, -6.0)), float(max(np.nanmax(xs) + 3.0, 6.0)))
+              float(min(np.nanmin(xs) - 1.0, -6.0)), float(max(np.nanmax(xs) + 1.0, 6.0)))
     return Movie(title=title, frames=frames, time_s=ego.set_index("frame").time_s,
                  points=points, tracks=tracks[keep], predictions=predictions, decisions=dec,
                  ego=ego, cars=list(cars), truth=ped, rd=rd, road_view=True,
-                 ego_size_m=ego_size_m, limits=limits)
+                 ego_size_m=ego_size_m, limits=limits, follow_ego_m=(8.0, 24.0),
+                 rd_max_range_m=30.0)
 
 
 def key_frame(movie: Movie) -> int:

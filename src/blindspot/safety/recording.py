@@ -233,7 +233,7 @@ def predict_tracks(tracks: pd.DataFrame, predictor: Any, horizon: int, dt_s: flo
     frame, time_s, track_id, step, t_ahead_s, x_m, y_m, cov_xx, cov_xy, cov_yy, the forecast
     (B, H) of the rows in that order, and those rows)."""
     tr = tracks.assign(group=0).sort_values(["track_id", "frame"]).reset_index(drop=True)
-    keep = tr.confirmed.to_numpy(bool)
+    keep = tr.confirmed.to_numpy(bool).copy()
     if "moving" in tr:
         keep &= tr.moving.to_numpy(bool)
     rows = tr[keep].reset_index(drop=True)
