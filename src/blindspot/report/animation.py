@@ -5,8 +5,8 @@ covariances, decisions, range-Doppler maps, computed by the stages' library room
 Each frame: a bird's-eye view (the ego car, the parked cars, the radar points with static and
 moving coloured apart, the confirmed tracks with their IDs and trails, each predicted path with
 the 90 % ellipse of one step (1 s ahead by default), a reference tracker's tracks beside ours
-where given, the warning and AEB request from the frame they are made on) and a strip with the range-Doppler map
-of the same frame (the nearest earlier frame whose map was kept).
+where given, the warning and AEB request from the frame they are made on) and a strip with the
+range-Doppler map of the same frame (the nearest earlier frame whose map was kept).
 
 Output: MP4 through matplotlib's FFMpegWriter where ffmpeg exists and an ``.mp4`` is asked for;
 a GIF through PillowWriter otherwise (an ``.mp4`` asked for without ffmpeg is written as the
@@ -169,7 +169,8 @@ class _Painter:
             p = np.asarray(poly, float)
             h, v = self._hv(p[:, 0], p[:, 1])
             ax.add_patch(Polygon(np.c_[h, v], closed=True, facecolor=CAR_COLOUR,
-                                 edgecolor="0.35", zorder=0, label="parked cars" if i == 0 else None))
+                                 edgecolor="0.35", zorder=0,
+                                 label="parked cars" if i == 0 else None))
         if m.truth is not None:
             for _, t in m.truth[m.truth.frame <= f].groupby("pedestrian"):
                 ax.plot(*self._hv(t.x_m, t.y_m), ":", color="tab:blue", lw=1.0)
