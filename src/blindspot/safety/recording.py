@@ -83,8 +83,8 @@ class RecordingEntry(TypedConfig):
     ``stop_at`` (:data:`STEPS`); ``reference_gate_m`` (TI's tracks, CLEAR MOT gate, m);
     ``ego_width_m``, ``ego_length_m`` (the car, m); ``animate`` (the recordings stage draws
     ``animation.gif``, every ``animate_every``-th frame, at most 150). The raw kinds'
-    ``radar``, ``options``,
-    ``cfar``, ``doa``, ``detect`` and every entry's ``tracker`` mapping are read as they are.
+    ``radar``, ``options``, ``cfar``, ``doa``, ``detect`` and every entry's ``tracker`` mapping
+    are read as they are.
     """
 
     IGNORED = ("radar", "options", "cfar", "doa", "detect", "tracker")
