@@ -172,8 +172,11 @@ class _Painter:
                                  edgecolor="0.35", zorder=0,
                                  label="parked cars" if i == 0 else None))
         if m.truth is not None:
-            for _, t in m.truth[m.truth.frame <= f].groupby("pedestrian"):
+            for k, (_, t) in enumerate(m.truth[m.truth.frame <= f].groupby("pedestrian")):
                 ax.plot(*self._hv(t.x_m, t.y_m), ":", color="tab:blue", lw=1.0)
+                now = t[t.frame == f]
+                ax.plot(*self._hv(now.x_m, now.y_m), "x", color="tab:blue", ms=7, mew=2,
+                        label="pedestrian (truth)" if k == 0 else None)
         self._ego(f)
         p = self.pts.get(f)
         if p is not None:
