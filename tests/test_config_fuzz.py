@@ -31,6 +31,7 @@ from blindspot.dsp.config import CfarConfig
 from blindspot.radar.config import RadarConfig
 from blindspot.radar.scene import load_scenes
 from blindspot.radar.scenario import load_scenarios
+from blindspot.report.animation import WatchConfig
 from blindspot.track.config import tracked_recordings
 from blindspot.traj.config import DatasetConfig, PathSpec
 from blindspot.typed_config import ConfigError, TypedConfig, jobs
@@ -78,6 +79,7 @@ LOADERS = {
     "driving_radar": lambda cfg: RadarConfig.from_cfg(cfg, "driving_radar"),
     "driving_cfar": lambda cfg: CfarConfig.from_cfg(cfg, "driving_cfar"),
     "jobs": jobs,
+    "watch": WatchConfig.from_cfg,    # the report room's group (the watch stage)
 }
 
 

@@ -280,9 +280,14 @@ def _build_recordings(cfg):
     from blindspot.dsp.config import CfarConfig, DetectConfig, DoaConfig
     from blindspot.radar.config import RadarConfig
 
+    from blindspot.safety.recording import RAW_KINDS, RecordingEntry
+
     out = {}
     for name, rec in cfg.recordings.items():
-        out[name] = [RadarConfig.from_mapping(rec.radar, where=f"recordings.{name}.radar")] + [
+        out[name] = [RecordingEntry.from_mapping({**rec, "name": name}, where=f"recordings.{name}")]
+        if rec.kind not in RAW_KINDS:      # a point-cloud log: no radar profile, no chain
+            continue
+        out[name] += [RadarConfig.from_mapping(rec.radar, where=f"recordings.{name}.radar")] + [
             kind.from_mapping(OmegaConf.merge(cfg[g], rec.get(g) or {}), where=f"recordings.{name}.{g}")
             for g, kind in (("cfar", CfarConfig), ("doa", DoaConfig), ("detect", DetectConfig))]
     assert out
@@ -309,7 +314,14 @@ def _builders():
         "scenario": lambda cfg: load_scenarios(cfg.scenario),
         "real_tracking": tracked_recordings,
         "warning": _build_warning,
+        "watch": _build_watch,
     }
+
+
+def _build_watch(cfg):
+    from blindspot.report.animation import WatchConfig
+
+    return WatchConfig.from_cfg(cfg)
 
 
 def _build_warning(cfg):

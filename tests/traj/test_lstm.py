@@ -117,13 +117,14 @@ def test_rollout_on_worker_threads_has_the_same_bits_as_one_thread(monkeypatch):
     assert LSTMPredictor.ensemble([m.with_workers(2) for m in members]).workers == 2
 
 
-def test_rollout_uses_only_last_window_and_horizon_zero():
+def test_rollout_uses_only_last_window_and_refuses_horizon_zero():
     p = tiny_predictor()
     hist = histories(t=W + 5)
     longer = np.concatenate([np.full((5, 3, 2), 1e3), hist], axis=1)
     np.testing.assert_array_equal(p.predict(hist, 4), p.predict(longer, 4))
     np.testing.assert_array_equal(p.predict(hist, 4), p.predict(hist[:, -W:], 4))
-    assert p.predict(hist, 0).shape == (5, 0, 2)
+    with pytest.raises(ValueError, match=r"horizon: expected an integer >= 1, found 0"):
+        p.predict(hist, 0)      # as every predictor (issue 45): no empty forecast
 
 
 def test_history_gaps():
