@@ -60,6 +60,17 @@ def simulated_capture(path: Path, n_frames: int = 10) -> Path:
     return write_dca1000(path, np.stack(frames))
 
 
+def _run_recordings(tmp_path, shared_dir, run_dir):
+    """`python -m blindspot recordings recordings=mine` with tmp_path/conf on Hydra's search path
+    and the run's outputs in ``run_dir``: the completed process."""
+    env = {**os.environ, "PYTHONPATH": str(REPO / "src"), "BLINDSPOT_SHARED": str(shared_dir)}
+    return subprocess.run(
+        [sys.executable, "-m", "blindspot", "recordings", "recordings=mine", "runs.enabled=false",
+         "progress=false", f"hydra.searchpath=[file://{tmp_path / 'conf'}]",
+         f"hydra.run.dir={run_dir}"], cwd=REPO, env=env, capture_output=True, text=True,
+        timeout=300)
+
+
 def test_the_command_on_a_simulated_capture_and_a_cut_of_tis_people_log(tmp_path, shared_dir):
     """`python -m blindspot recordings recordings=<mine>` on the user's own conf file: points,
     tracks, predicted paths per recording, the summary with n_tracks, TI's tracks kept."""
@@ -84,12 +95,7 @@ ti_cut:
             max_misses: 80}}
 """)
     run_dir = tmp_path / "run"
-    env = {**os.environ, "PYTHONPATH": str(REPO / "src"), "BLINDSPOT_SHARED": str(shared_dir)}
-    proc = subprocess.run(
-        [sys.executable, "-m", "blindspot", "recordings", "recordings=mine", "runs.enabled=false",
-         "progress=false", f"hydra.searchpath=[file://{tmp_path / 'conf'}]",
-         f"hydra.run.dir={run_dir}"], cwd=REPO, env=env, capture_output=True, text=True,
-        timeout=300)
+    proc = _run_recordings(tmp_path, shared_dir, run_dir)
     assert proc.returncode == 0, proc.stderr[-3000:]
     summary = json.loads((run_dir / "reports/metrics/recordings.json").read_text())
     assert set(summary) == {"sim", "ti_cut"}
@@ -213,12 +219,7 @@ def test_a_reader_error_names_the_file_and_leaves_no_half_written_folder(tmp_pat
              "  tracker: {{cluster_min_samples: 2, confirm_m: 6, confirm_n: 8}}\n")
     (conf / "mine.yaml").write_text("good:\n" + entry.format(good) + "bad:\n" + entry.format(bad))
     run_dir = tmp_path / "run"
-    env = {**os.environ, "PYTHONPATH": str(REPO / "src"), "BLINDSPOT_SHARED": str(shared_dir)}
-    proc = subprocess.run(
-        [sys.executable, "-m", "blindspot", "recordings", "recordings=mine", "runs.enabled=false",
-         "progress=false", f"hydra.searchpath=[file://{tmp_path / 'conf'}]",
-         f"hydra.run.dir={run_dir}"], cwd=REPO, env=env, capture_output=True, text=True,
-        timeout=300)
+    proc = _run_recordings(tmp_path, shared_dir, run_dir)
     assert proc.returncode != 0
     assert "bad.bin" in proc.stderr and "expected" in proc.stderr, proc.stderr[-2000:]
     assert not (run_dir / "data/recordings").exists()
