@@ -7,7 +7,7 @@ points' truth label is not read), each confirmed track classed moving or not by 
 moving-object test (``tracker.moving``: Doppler-first, kinematic, Doppler refutation, static
 evidence grid; blindspot.track.moving.moving_tracks). The truth labels only score that split
 (driving_track.json ``classifier``). The references: "oracle association" (each pedestrian's
-own points by their truth label, Kalman filtered) and "visible truth" (the true positions at
+own points by their truth label, Kalman filtered) and "noisy_position" (the true positions at
 every frame in line of sight, plus measurement noise), so the safety results separate what
 perception misses from what the warning logic does.
 """

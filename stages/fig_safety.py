@@ -39,8 +39,8 @@ def run(cfg, ctx):
             title=f"{name} at {info['speed_kmh']:g} km/h ({inp} input)")
 
     outs = [save_figure(timeline_figure(headline), ctx.out("safety_timeline.png"), dpi=110),
-            save_figure(timeline_figure("visible_truth"),
-                        ctx.out("safety_timeline_visible_truth.png"), dpi=110)]
+            save_figure(timeline_figure("noisy_position"),
+                        ctx.out("safety_timeline_noisy_position.png"), dpi=110)]
     oc = operating_inputs(metrics, json.loads(ctx.dep("safety_bound.json").read_text()))
     outs.append(save_figure(fig_operating_characteristic(curves, *oc),
                             ctx.out("safety_operating.png"), dpi=110))

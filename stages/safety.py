@@ -32,7 +32,7 @@ def run(cfg, ctx):
     truth = pd.read_parquet(ctx.dep("truth.parquet"))
     tracks = {"tracker": pd.read_parquet(ctx.dep("tracks.parquet")),
               **{name: pd.read_parquet(ctx.dep(f"tracks_{name}.parquet"))
-                 for name in ("oracle", "visible_truth")},
+                 for name in ("oracle", "noisy_position")},
               "true_state": true_state_tracks(truth)}
     lstm = LSTMPredictor.load(ctx.dep("train/model.pt")).with_workers(jobs(cfg))
     preds = calibrated_predictors(
@@ -46,7 +46,7 @@ def run(cfg, ctx):
                  points=pd.read_parquet(ctx.dep("points.parquet"), columns=["scene", "frame", "source"]),
                  points_name=str(ctx.dep("points.parquet")), frame_period_s=dt,
                  figure_scene=group.figure_scene, draw_seed=group.monte_carlo.seed,
-                 only=dict.fromkeys(("oracle", "visible_truth", "true_state"), w.reference_predictors))
+                 only=dict.fromkeys(("oracle", "noisy_position", "true_state"), w.reference_predictors))
     for name, table in {"risk": res.risk, "ncap_grid": res.grid, "scene_outcomes": res.scenes,
                         "operating": res.curves, "timeline": res.timeline}.items():
         write_parquet(ctx.out(f"{name}.parquet"), table)

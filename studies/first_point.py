@@ -45,18 +45,13 @@ def _typed(v: str):
         return v
 
 
-def main(argv: list[str]) -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--data", type=Path, default=REPO / "data")
-    ap.add_argument("--half", default="tuning", choices=("tuning", "held_out", "all"))
-    ap.add_argument("--jobs", type=int, default=2)
-    ap.add_argument("overrides", nargs="*")
-    args = ap.parse_args(argv)
-    cfg = OmegaConf.load(REPO / "params.yaml")
+def tracker_config(cfg, overrides: list[str]) -> TrackerConfig:
+    """params.yaml's tracker settings with ``key=value`` overrides (``moving.<key>`` for the
+    moving test; ``null`` for None), checked as the stage checks them."""
     tcfg = TrackerConfig.from_cfg(cfg)
     mv = dataclasses.asdict(tcfg.moving)
     top = {}
-    for o in args.overrides:
+    for o in overrides:
         k, v = o.split("=", 1)
         if k.startswith("moving."):
             mv[k[7:]] = _typed(v)
@@ -65,9 +60,19 @@ def main(argv: list[str]) -> None:
     for k in ("confirm_m", "confirm_n", "max_misses", "cluster_min_samples"):
         if k in top:
             top[k] = int(top[k])
-    for k in ("static_evidence_min", "static_lag_frames"):
+    for k in ("static_evidence_min", "static_lag_frames", "crossing_window"):
         mv[k] = int(mv[k])
-    tcfg = dataclasses.replace(tcfg, **top, moving=MovingConfig.from_mapping(mv))
+    return dataclasses.replace(tcfg, **top, moving=MovingConfig.from_mapping(mv))
+
+
+def main(argv: list[str]) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--data", type=Path, default=REPO / "data")
+    ap.add_argument("--half", default="tuning", choices=("tuning", "held_out", "all"))
+    ap.add_argument("--jobs", type=int, default=2)
+    ap.add_argument("overrides", nargs="*")
+    args = ap.parse_args(argv)
+    tcfg = tracker_config(OmegaConf.load(REPO / "params.yaml"), args.overrides)
     truth = pd.read_parquet(args.data / "driving" / "truth.parquet")
     points = pd.read_parquet(args.data / "driving" / "points.parquet")
     mc = truth[truth.set == "monte_carlo"].scene.unique()

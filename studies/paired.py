@@ -5,7 +5,7 @@ figures, asserts nothing (docs/studies/safety.md, the LSTM and fresh-draw bullet
 
     python studies/paired.py [--outcomes data/safety/scene_outcomes.parquet ...]
         [--pairs lstm_direct:constant_velocity,lstm_direct:kalman,lstm:constant_velocity]
-        [--inputs tracker,oracle,visible_truth] [--n-bootstrap 10000] [--against B.parquet ...]
+        [--inputs tracker,oracle,noisy_position] [--n-bootstrap 10000] [--against B.parquet ...]
 
 With ``--against``, A is read from ``--outcomes`` and B from that second run of the same scenes
 (e.g. a setting against the default, both ``dvc repro safety`` on one draw), and a pair may name
@@ -99,7 +99,7 @@ def main(argv: list[str] | None = None) -> None:
                     help="scene_outcomes.parquet of one or more draws (pooled)")
     ap.add_argument("--pairs", default="lstm_direct:constant_velocity,lstm_direct:kalman,"
                                        "lstm:constant_velocity")
-    ap.add_argument("--inputs", default="tracker,oracle,visible_truth")
+    ap.add_argument("--inputs", default="tracker,oracle,noisy_position")
     ap.add_argument("--n-bootstrap", type=int, default=10_000)
     ap.add_argument("--against", type=Path, nargs="+", default=None,
                     help="a second run's scene_outcomes.parquet per draw: B is read from them")

@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 
 from blindspot.safety.braking import BrakingModel
 from blindspot.safety.evaluation import aeb_gate_s
-from blindspot.safety.oracle import oracle_tracks, visible_truth_points
+from blindspot.safety.oracle import oracle_tracks, noisy_position_points
 from blindspot.safety.outcome import OutcomeError, pedestrian_boxes
 from blindspot.safety.predict import track_histories
 from blindspot.track.moving import doppler_log_ratio, moving_tracks
@@ -70,9 +70,9 @@ def test_oracle_tracks_refuses_a_zero_frame_period(period):
         oracle_tracks(pd.DataFrame(), None, period)
 
 
-def test_visible_truth_points_refuses_a_negative_noise():
-    with pytest.raises(ValueError, match=r"visible_truth_points: meas_std_m: .*found -0.1"):
-        visible_truth_points(pd.DataFrame(), -0.1, 0)
+def test_noisy_position_points_refuses_a_negative_noise():
+    with pytest.raises(ValueError, match=r"noisy_position_points: meas_std_m: .*found -0.1"):
+        noisy_position_points(pd.DataFrame(), -0.1, 0)
 
 
 @pytest.mark.parametrize("kw, name", [(dict(speed_mps=np.array([5.0, np.nan])), "speed_mps"),

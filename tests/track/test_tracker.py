@@ -675,7 +675,8 @@ def test_tracker_input_gives_the_ego_yaw_as_the_sensor_heading():
     assert pts.frame.tolist() == [0, 0, 1, 2] and np.isnan(pts.x_m[2])
     assert pts.sensor_heading_deg.tolist() == [0.0, 0.0, 5.0, 10.0]
     assert pts.sensor_y_m.tolist() == [1.0, 1.0, 2.0, 3.0]
-    assert list(ego.columns) == ["group", "frame", "ego_x_m", "ego_y_m"]
+    assert list(ego.columns) == ["group", "frame", "ego_x_m", "ego_y_m", "ego_yaw_deg"]
+    assert ego.ego_yaw_deg.tolist() == [0.0, 5.0, 10.0]          # the crossing test's path axis
 
 
 @settings(max_examples=200, deadline=None)

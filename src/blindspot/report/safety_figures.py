@@ -33,7 +33,7 @@ PREDICTOR_LABELS = {"none": "none (stays put)", "constant_velocity": "constant v
                     "lstm_direct": "scene LSTM, direct"}
 BAND_COLOURS = {"green": "#3a9d23", "yellow": "#f2d300", "orange": "#f28c00",
                 "brown": "#8b5a2b", "red": "#d62728"}
-INPUT_STYLES = {"tracker": "-", "oracle": "--", "visible_truth": ":"}
+INPUT_STYLES = {"tracker": "-", "oracle": "--", "noisy_position": ":"}
 
 
 def _colour(name: str) -> str:

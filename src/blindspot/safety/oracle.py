@@ -24,7 +24,7 @@ from blindspot.arrays import check_number
 from blindspot.safety.config import OracleConfig
 from blindspot.kalman import cv_model, kalman_filter
 
-__all__ = ["TRACK_COLUMNS", "oracle_tracks", "visible_truth_points", "true_state_tracks"]
+__all__ = ["TRACK_COLUMNS", "oracle_tracks", "noisy_position_points", "true_state_tracks"]
 
 TRACK_COLUMNS = ("group", "frame", "time_s", "track_id", "x_m", "y_m", "vx_mps", "vy_mps",
                  "cov_xx", "cov_xy", "cov_yy", "cov_vxvx", "cov_vxvy", "cov_vyvy", "confirmed",
@@ -96,14 +96,14 @@ def oracle_tracks(points: pd.DataFrame, cfg: OracleConfig, frame_period_s: float
     return out.sort_values(["group", "track_id", "frame"]).reset_index(drop=True)
 
 
-def visible_truth_points(truth: pd.DataFrame, meas_std_m: float, seed: int) -> pd.DataFrame:
+def noisy_position_points(truth: pd.DataFrame, meas_std_m: float, seed: int) -> pd.DataFrame:
     """The points an ideal detector would give: every pedestrian's true reference point at every
     frame its line of sight is clear (``occluded`` False), plus white Gaussian noise of
     ``meas_std_m`` per coordinate (one generator seeded by ``seed``). Columns scene, pedestrian,
-    frame, time_s, x_m, y_m: the input of :func:`oracle_tracks` for the "visible truth"
+    frame, time_s, x_m, y_m: the input of :func:`oracle_tracks` for the "noisy_position"
     reference (perception removed as a cause: what the warning logic does when the pedestrian
     is seen whenever visible)."""
-    check_number(meas_std_m, "meas_std_m", ge=0.0, unit="m", who="visible_truth_points")
+    check_number(meas_std_m, "meas_std_m", ge=0.0, unit="m", who="noisy_position_points")
     v = truth.loc[~truth.occluded.astype(bool), ["scene", "pedestrian", "frame", "time_s",
                                                 "x_m", "y_m"]].reset_index(drop=True)
     noise = np.random.default_rng(seed).normal(0.0, meas_std_m, (len(v), 2))

@@ -14,7 +14,7 @@ import numpy as np
 import pandas as pd
 
 from blindspot.safety.evaluation import replicate_half
-from blindspot.safety.oracle import oracle_tracks, visible_truth_points
+from blindspot.safety.oracle import oracle_tracks, noisy_position_points
 from blindspot.track.moving import moving_test_settings, moving_tracks
 from blindspot.track.tracker import label_objects, track_points
 
@@ -41,12 +41,12 @@ def driving_tracks(truth, points, tcfg, oracle_cfg, *, seed, frame_period_s, job
     (:func:`track_labels`, :func:`confusion`, for the kinematic test alone and for the whole
     test) and the objects' Doppler spread (:func:`doppler_spread_by_label`). The references
     (:func:`blindspot.safety.oracle.oracle_tracks`, settings ``oracle_cfg``): "oracle" (each
-    pedestrian's own points, associated by their truth label) and "visible_truth" (the true
+    pedestrian's own points, associated by their truth label) and "noisy_position" (the true
     positions at every frame in line of sight plus noise of ``oracle_cfg.meas_std_m``, drawn
     with ``seed``).
 
     Returns ``(tables, metrics)``: tables ``tracks``, ``tracks_oracle``,
-    ``tracks_visible_truth`` (the ``blindspot.track`` schema) and the JSON-ready metrics of
+    ``tracks_noisy_position`` (the ``blindspot.track`` schema) and the JSON-ready metrics of
     data/driving/track.json. Raises ValueError naming ``where`` and the missing columns of
     ``points`` (:data:`POINT_COLUMNS`), or as the functions it calls (``tcfg.moving`` null).
     """
@@ -72,8 +72,8 @@ def driving_tracks(truth, points, tcfg, oracle_cfg, *, seed, frame_period_s, job
         "doppler_spread": doppler_spread_by_label(monte_carlo_objects(points, tcfg))}
     tables = {"tracks": tracks}
     refs = {"oracle": (own_points(points), f"{where} (own points by source)"),
-            "visible_truth": (visible_truth_points(truth, oracle_cfg.meas_std_m, seed),
-                              "visible truth points")}
+            "noisy_position": (noisy_position_points(truth, oracle_cfg.meas_std_m, seed),
+                              "noisy position points")}
     for name, (p, w) in refs.items():
         tables[f"tracks_{name}"] = oracle_tracks(p, oracle_cfg, frame_period_s, last_frame=last,
                                                  where=w)
@@ -97,7 +97,7 @@ def tracker_input(truth, points):
         Doppler's line of sight), ``sensor_heading_deg`` (the ego's yaw: the radar looks ahead,
         the axis of ``tracker.field_of_view_deg``), and one row with NaN coordinates for each frame without a
         point (so every frame is stepped and tracks coast through it); ``ego`` one row per
-        (``group``, ``frame``) with ``ego_x_m``, ``ego_y_m``.
+        (``group``, ``frame``) with ``ego_x_m``, ``ego_y_m``, ``ego_yaw_deg``.
     """
     frames = truth[["scene", "frame", "time_s"]].drop_duplicates(["scene", "frame"])
     pose = (truth.groupby(["scene", "frame"], as_index=False)
@@ -107,7 +107,7 @@ def tracker_input(truth, points):
            .merge(pose.rename(columns={"ego_x_m": "sensor_x_m", "ego_y_m": "sensor_y_m",
                                        "ego_yaw_deg": "sensor_heading_deg"}),
                   on=["group", "frame"], how="left"))
-    return pts, pose.drop(columns="ego_yaw_deg")
+    return pts, pose
 
 
 def doppler_spread_by_label(objects):

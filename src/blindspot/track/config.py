@@ -31,7 +31,12 @@ class MovingConfig(TypedConfig):
     doppler_reference (the Doppler refutation); static_evidence_min, static_cell_m,
     static_lag_frames (the static evidence grid); doppler_first_log_ratio (the Doppler-first
     path: a confirmed track whose own radial speeds make "moving" this many natural-log units
-    likelier than "static" is moving without waiting for the kinematic test; null: off).
+    likelier than "static" is moving without waiting for the kinematic test; null: off);
+    crossing_log_ratio (the crossing prior: a confirmed track whose first radial speeds make
+    "stepping toward the ego's path" this many natural-log units likelier than "static" is
+    moving; null: off) and its hypothesis, crossing_speed_mps, crossing_speed_std_mps,
+    crossing_walker_std_mps, crossing_static_std_mps, crossing_window, crossing_corridor_m
+    (:class:`blindspot.track.crossing.CrossingPrior`).
     """
 
     GROUP = "tracker.moving"
@@ -49,6 +54,13 @@ class MovingConfig(TypedConfig):
     static_cell_m: float = setting(0.5, gt=0.0, le=10.0)
     static_lag_frames: int = setting(10, ge=1, le=10_000)
     doppler_first_log_ratio: float | None = setting(None, gt=0.0, le=1000.0)
+    crossing_log_ratio: float | None = setting(None, ge=-1000.0, le=1000.0)
+    crossing_speed_mps: float = setting(1.4, gt=0.0, le=10.0)
+    crossing_speed_std_mps: float = setting(0.5, gt=0.0, le=10.0)
+    crossing_walker_std_mps: float = setting(0.35, gt=0.0, le=10.0)
+    crossing_static_std_mps: float = setting(0.15, gt=0.0, le=10.0)
+    crossing_window: int = setting(3, ge=1, le=1000)
+    crossing_corridor_m: float = setting(5.0, gt=0.0, le=100.0)
 
     def validate(self) -> None:
         spread = self.doppler_spread_std_mps
@@ -120,6 +132,11 @@ class TrackerConfig(TypedConfig):
             when its objects' radial speeds make "moving" this many natural-log units likelier
             than "static" (blindspot.track.moving.doppler_motion_log_ratio, point spread
             ``moving.doppler_std_mps``); null: M-of-N only.
+        doppler_update_std_mps: the spread of one point's ego-motion-compensated radial speed
+            about its object's (m/s) with which every hit's Doppler updates the track's velocity
+            after its position (a range-rate measurement, d = u.v + e, e ~ N(0, sd^2 / n); blindspot
+            .track.tracker._doppler_update): a walker turning along the kerb shows it in the
+            next frame's radial speed, where positions need several frames; null: positions only.
         moving: the moving-object test (:class:`MovingConfig`); null for recordings that need
             none.
     """
@@ -145,6 +162,7 @@ class TrackerConfig(TypedConfig):
     init_doppler_std_mps: float | None = setting(None, gt=0.0, le=100.0)
     init_doppler_along_std_mps: float | None = setting(None, gt=0.0, le=100.0)
     doppler_confirm_log_ratio: float | None = setting(None, gt=0.0, le=1000.0)
+    doppler_update_std_mps: float | None = setting(None, gt=0.0, le=100.0)
     moving: MovingConfig | None = setting(None)
 
     def validate(self) -> None:

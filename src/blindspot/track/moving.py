@@ -18,6 +18,7 @@ import pandas as pd
 from scipy.stats import chi2
 
 from blindspot.arrays import check_number
+from blindspot.track.crossing import CrossingPrior, crossing_evidence
 
 __all__ = ["DOPPLER_LLR_FORMS", "DOPPLER_REFERENCES", "DOPPLER_FIRST_WINDOW",
            "doppler_motion_log_ratio", "doppler_motion_evidence", "doppler_log_ratio",
@@ -235,6 +236,8 @@ def moving_tracks(tracks: pd.DataFrame, speed_mps: float, probability: float = 0
                   doppler_spread_std_mps: tuple[float, float] | None = None,
                   doppler_reference: str = "frame",
                   doppler_first_log_ratio: float | None = None,
+                  crossing_prior: CrossingPrior | None = None,
+                  crossing_log_ratio: float | None = None,
                   points: pd.DataFrame | None = None, static_evidence_min: int = 0,
                   static_cell_m: float = 0.5, static_lag_frames: int = 10) -> np.ndarray:
     """(N,) bool per row of ``tracks`` (columns group, track_id, frame, vx_mps, vy_mps,
@@ -271,14 +274,17 @@ def moving_tracks(tracks: pd.DataFrame, speed_mps: float, probability: float = 0
     velocity passes the tests above while the ego passes the car; a pedestrian standing still
     on its own static hits for ``static_lag_frames`` frames is left out too). Raises ValueError
     naming a missing column, a row without an ego position, a ``doppler_llr`` not in
-    DOPPLER_LLR_FORMS, or a ``doppler_log_ratio_floor`` above ``doppler_log_ratio_min``."""
+    DOPPLER_LLR_FORMS, or a ``doppler_log_ratio_floor`` above ``doppler_log_ratio_min``. With
+    ``crossing_prior`` and ``crossing_log_ratio``, :func:`moving_frames`' crossing test makes
+    rows moving too (before the latch and the grid)."""
     fast = moving_frames(tracks, speed_mps, probability, ego=ego,
                          doppler_std_mps=doppler_std_mps,
                          doppler_log_ratio_min=doppler_log_ratio_min, doppler_llr=doppler_llr,
                          doppler_log_ratio_floor=doppler_log_ratio_floor,
                          doppler_spread_std_mps=doppler_spread_std_mps,
                          doppler_reference=doppler_reference,
-                         doppler_first_log_ratio=doppler_first_log_ratio)
+                         doppler_first_log_ratio=doppler_first_log_ratio,
+                         crossing_prior=crossing_prior, crossing_log_ratio=crossing_log_ratio)
     order, key = _track_order(tracks)
     seen = pd.Series(fast[order]).groupby(key, sort=False).cummax().to_numpy(bool)
     out = np.empty(len(tracks), bool)
@@ -296,7 +302,9 @@ def moving_frames(tracks: pd.DataFrame, speed_mps: float, probability: float = 0
                   doppler_log_ratio_floor: float | None = None,
                   doppler_spread_std_mps: tuple[float, float] | None = None,
                   doppler_reference: str = "frame",
-                  doppler_first_log_ratio: float | None = None) -> np.ndarray:
+                  doppler_first_log_ratio: float | None = None,
+                  crossing_prior: CrossingPrior | None = None,
+                  crossing_log_ratio: float | None = None) -> np.ndarray:
     """(N,) bool per row of ``tracks``: the row's own frame passes :func:`moving_tracks`'s
     kinematic and Doppler tests (confirmed, fast, significantly non-zero, the Doppler sum so
     far above its bound), before the latch and the static-evidence grid; same arguments and
@@ -308,7 +316,15 @@ def moving_frames(tracks: pd.DataFrame, speed_mps: float, probability: float = 0
     (:func:`doppler_motion_evidence`, point spread ``doppler_std_mps``) passes without the
     kinematic chi-square test: the radar measures the radial speed in every frame, so a child
     stepping out with a radial component is seen moving from its first frames, while the
-    filtered velocity needs several frames to become significant."""
+    filtered velocity needs several frames to become significant.
+
+    With ``crossing_log_ratio`` and ``crossing_prior`` (the crossing prior, issue 40;
+    :mod:`blindspot.track.crossing`) a confirmed row whose track's first radial speeds make "a
+    pedestrian stepping toward the ego's path" at least that many natural-log units likelier
+    than "static" (:func:`~blindspot.track.crossing.crossing_evidence`) is moving too, without
+    the speed, kinematic and Doppler-refutation tests: its velocity across the road is not
+    known yet, its radial speed's sign and scale are. That needs ``ego`` with ``ego_yaw_deg``
+    (the path's direction). Raises ValueError when only one of the two is given."""
     check_number(speed_mps, "speed_mps", ge=0.0, unit="m/s", who="moving_tracks")
     check_number(probability, "probability", gt=0.0, who="moving_tracks")
     if not probability < 1:
@@ -346,6 +362,15 @@ def moving_frames(tracks: pd.DataFrame, speed_mps: float, probability: float = 0
         fast &= doppler_evidence(tracks, ego, doppler_std_mps, doppler_llr,
                                  doppler_log_ratio_floor, spread_std_mps=doppler_spread_std_mps,
                                  reference=doppler_reference) > doppler_log_ratio_min
+    if (crossing_prior is None) != (crossing_log_ratio is None):
+        raise ValueError("crossing_prior, crossing_log_ratio: expected both or neither, found "
+                         f"{type(crossing_prior).__name__} and {crossing_log_ratio!r}")
+    if crossing_prior is not None:
+        if ego is None:
+            raise ValueError("ego: expected the ego's poses (group, frame, ego_x_m, ego_y_m, "
+                             "ego_yaw_deg) for the crossing test, found None")
+        llr, _, _ = crossing_evidence(tracks, ego, crossing_prior)
+        fast |= tracks.confirmed.to_numpy(bool) & (llr >= crossing_log_ratio)
     return fast
 
 
@@ -477,7 +502,13 @@ def moving_test_settings(m, grid: bool = True) -> dict[str, Any]:
                doppler_log_ratio_floor=m.doppler_log_ratio_floor,
                doppler_spread_std_mps=m.doppler_spread_std_mps,
                doppler_reference=m.doppler_reference,
-               doppler_first_log_ratio=m.doppler_first_log_ratio)
+               doppler_first_log_ratio=m.doppler_first_log_ratio,
+               crossing_prior=None if m.crossing_log_ratio is None else CrossingPrior(
+                   speed_mps=m.crossing_speed_mps, speed_std_mps=m.crossing_speed_std_mps,
+                   walker_std_mps=m.crossing_walker_std_mps,
+                   static_std_mps=m.crossing_static_std_mps, window=m.crossing_window,
+                   corridor_m=m.crossing_corridor_m),
+               crossing_log_ratio=m.crossing_log_ratio)
     if grid:
         out.update(static_evidence_min=m.static_evidence_min,
                    static_cell_m=m.static_cell_m,

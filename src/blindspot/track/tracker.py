@@ -637,6 +637,35 @@ def _jpda_posterior(track, multihypothesis, updater):
     return GaussianStatePrediction(mean, covar, timestamp=ts), False
 
 
+def _doppler_update(state, detection, doppler_std_mps: float):
+    """The state after the range-rate measurement of ``detection`` (``tracker
+    .doppler_update_std_mps``): its object's median ego-motion-compensated radial speed d of n
+    points, d = u.v + e, e ~ N(0, doppler_std^2 / n), u the unit line of sight from the sensor
+    to the updated position (held fixed: the extended Kalman filter's linearisation, whose
+    neglected term is the position's spread over the range, a few cm in m), as one scalar
+    Kalman update of the whole state [x, vx, y, vy] (positions move with their correlation to
+    the velocity; Bar-Shalom, Li & Kirubarajan 2001, sec. 5.2 and 10.3). A detection without a
+    finite Doppler, or at the sensor, leaves the state as it is."""
+    from stonesoup.types.update import GaussianStateUpdate
+
+    meta = detection.metadata
+    d = float(meta.get("doppler_mps", np.nan))
+    x = np.asarray(state.state_vector, float).ravel()
+    los = np.array([x[0], x[2]]) - np.asarray(meta.get("sensor_xy", (0.0, 0.0)), float)
+    rng = float(np.hypot(*los))
+    if not (np.isfinite(d) and rng > 0):
+        return state
+    h = np.array([0.0, los[0] / rng, 0.0, los[1] / rng])
+    p = np.asarray(state.covar, float)
+    ph = p @ h
+    s = float(h @ ph) + doppler_std_mps ** 2 / max(int(meta.get("n_points", 1)), 1)
+    k = ph / s
+    x_new = x + k * (d - float(h @ x))
+    p_new = p - np.outer(k, ph)
+    return GaussianStateUpdate(x_new.reshape(-1, 1), 0.5 * (p_new + p_new.T),
+                               state.hypothesis, state.timestamp)
+
+
 def _objects(xy: np.ndarray, labels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(k, 2) centroids of the points (n, 2) of each label, in label order, and (k,) counts."""
     _, inverse, counts = np.unique(labels, return_inverse=True, return_counts=True)
@@ -747,6 +776,8 @@ def _track_group(labelled: pd.DataFrame, frames: pd.DataFrame, config: TrackerCo
                     if hit:
                         used.add(hyp.measurement)
                         meas_of[track] = hyp.measurement
+                if hit and config.doppler_update_std_mps is not None:
+                    state = _doppler_update(state, meas_of[track], config.doppler_update_std_mps)
                 track.append(state)
                 hit_now[track] = hit
         # Track management: M-of-N confirmation, deletion of failed tentatives and of confirmed

@@ -1,0 +1,188 @@
+"""The crossing prior: is a young track a pedestrian stepping toward the ego's lane, or static?
+
+A child stepping out from behind a parked car moves across the road, nearly tangentially to a
+radar 10-25 m behind it: the ego-motion-compensated radial speed of its points is small (about
+-1.4 m/s times the sine of its bearing off the road's axis, -0.1 to -0.3 m/s) but has a known
+sign and scale, and its first frames carry no kinematic velocity yet. The context that the
+scene gives (issue 40: "an object appearing at the edge of a parked car's shadow, moving
+toward the lane") is put into the prior of one hypothesis:
+
+* H1, a crosser: the object moves toward the line of the ego's path (perpendicular to the ego's
+  heading, from the object's side) at a speed s ~ N(``speed_mps``, ``speed_std_mps``^2); each
+  frame's median radial speed d_k of n_k points is d_k = s b_k + e_k, b_k = u_k . c_k (u the
+  unit line of sight from the radar, c the unit vector toward the path), e_k ~ N(0,
+  ``walker_std_mps``^2 / n_k) (the walker's micro-Doppler spread about its body);
+* H0, static: d_k ~ N(0, ``static_std_mps``^2 / n_k) (the static world's residual spread).
+
+With s marginalised, the frames' radial speeds are jointly Gaussian under H1 with covariance
+D1 + tau^2 b b^T (tau = ``speed_std_mps``); the Sherman-Morrison identity gives the log
+likelihood ratio in closed form from per-track running sums over the track's first ``window``
+measured rows (Kay 1998, "Fundamentals of Statistical Signal Processing II", sec. 5.6: the
+Bayesian linear model's detector). The same sums give the posterior of s under H1
+(:func:`crossing_evidence`'s ``speed``), the velocity a crossing track's decision may use.
+Objects further than ``corridor_m`` beside the ego's path, or behind the radar, get 0.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+
+from blindspot.arrays import check_number
+
+__all__ = ["CrossingPrior", "crossing_evidence", "toward_path"]
+
+
+@dataclass(frozen=True)
+class CrossingPrior:
+    """The crossing hypothesis' settings (``tracker.moving.crossing_*``; module docstring)."""
+
+    speed_mps: float = 1.4          # m/s, a walking child's crossing speed (Euro NCAP: 5 km/h)
+    speed_std_mps: float = 0.5      # m/s, its spread
+    walker_std_mps: float = 0.35    # m/s, a walker's point radial-speed spread about its body
+    static_std_mps: float = 0.15    # m/s, a static point's residual radial speed
+    window: int = 3                 # measured rows from a track's birth that the test pools
+    corridor_m: float = 5.0         # m, largest offset beside the ego's path that is tested
+
+    def __post_init__(self) -> None:
+        for name in ("speed_mps", "speed_std_mps", "walker_std_mps", "static_std_mps",
+                     "corridor_m"):
+            check_number(getattr(self, name), name, gt=0.0, who="CrossingPrior")
+        if not (isinstance(self.window, (int, np.integer)) and self.window >= 1):
+            raise ValueError(f"CrossingPrior: window: expected an integer >= 1, found "
+                             f"{self.window!r}")
+
+
+def toward_path(tracks: pd.DataFrame, ego: pd.DataFrame) -> tuple[np.ndarray, ...]:
+    """Per row of ``tracks`` (group, frame, x_m, y_m) with the ego's pose of its frame
+    (``ego``: group, frame, ego_x_m, ego_y_m, ego_yaw_deg; yaw 0 = +y, positive to the left):
+    (c (N, 2) the unit vector from the row toward the line of the ego's path, perpendicular to
+    its heading; lateral (N,) m, the row's offset beside that line; ahead (N,) m, its distance
+    along the heading; u (N, 2) the unit line of sight from the radar). Raises ValueError
+    naming a missing column or a row without an ego pose."""
+    need = {"group", "frame", "ego_x_m", "ego_y_m", "ego_yaw_deg"}
+    missing = sorted(need - set(ego.columns))
+    if missing:
+        raise ValueError(f"ego: missing columns {missing} (group, frame, ego_x_m, ego_y_m, "
+                         "ego_yaw_deg)")
+    pose = tracks[["group", "frame"]].merge(ego[list(need)], on=["group", "frame"],
+                                            how="left")
+    if pose.ego_x_m.isna().any():
+        bad = pose[pose.ego_x_m.isna()].iloc[0]
+        raise ValueError(f"ego: no pose for group {bad.group!r} frame {bad.frame}")
+    yaw = np.radians(pose.ego_yaw_deg.to_numpy(float))
+    fwd = np.c_[-np.sin(yaw), np.cos(yaw)]
+    left = np.c_[-np.cos(yaw), -np.sin(yaw)]
+    rel = (tracks[["x_m", "y_m"]].to_numpy(float)
+           - pose[["ego_x_m", "ego_y_m"]].to_numpy(float))
+    lateral = (rel * left).sum(axis=1)
+    ahead = (rel * fwd).sum(axis=1)
+    c = -np.sign(lateral)[:, None] * left
+    rng = np.hypot(rel[:, 0], rel[:, 1])
+    u = rel / np.where(rng > 0, rng, 1.0)[:, None]
+    return c, lateral, ahead, u
+
+
+def crossing_evidence(tracks: pd.DataFrame, ego: pd.DataFrame,
+                      prior: CrossingPrior) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per row of ``tracks`` (columns group, track_id, frame, x_m, y_m, n_points,
+    doppler_mps; any order), over its track's first ``prior.window`` measured rows up to the
+    row: (llr (N,) the log likelihood ratio crosser / static of the module docstring, 0 before
+    any measured row; speed (N,) m/s, the posterior mean of the crossing speed s under H1;
+    speed_std (N,) m/s, its standard deviation). Rows outside the corridor or behind the radar
+    add nothing. Raises ValueError naming a missing column (:func:`toward_path` for ``ego``)."""
+    if not isinstance(prior, CrossingPrior):
+        raise ValueError(f"prior: expected a CrossingPrior, found {type(prior).__name__}")
+    missing = sorted({"group", "track_id", "frame", "x_m", "y_m", "n_points", "doppler_mps"}
+                     - set(tracks.columns))
+    if missing:
+        raise ValueError(f"tracks: missing columns {missing} (the blindspot.track schema)")
+    c, lateral, ahead, u = toward_path(tracks, ego)
+    b = (u * c).sum(axis=1)
+    n = tracks.n_points.to_numpy(float)
+    d = tracks.doppler_mps.to_numpy(float)
+    ok = ((n > 0) & np.isfinite(d) & (np.abs(lateral) <= prior.corridor_m) & (ahead > 0)
+          & np.isfinite(b))
+    key = pd.MultiIndex.from_frame(tracks[["group", "track_id"]]).codes
+    key = key[0].astype(np.int64) * (int(key[1].max(initial=0)) + 1) + key[1]
+    order = np.lexsort((tracks.frame.to_numpy(), key))
+    ok_o, key_o = ok[order], key[order]
+    rank = pd.Series(ok_o.astype(int)).groupby(key_o, sort=False).cumsum().to_numpy()
+    use = ok_o & (rank <= prior.window)
+    w = np.where(use, n[order] / prior.walker_std_mps ** 2, 0.0)
+    bo, do = np.where(use, b[order], 0.0), np.where(use, d[order], 0.0)
+    terms = {"A": w * bo ** 2, "Bd": w * bo * do, "Q1": w * do ** 2,
+             "Q0": np.where(use, n[order] * do ** 2 / prior.static_std_mps ** 2, 0.0),
+             "K": use.astype(float)}
+    s = pd.DataFrame(terms).groupby(key_o, sort=False).cumsum()
+    a, bd, q1, q0, k = (s[c].to_numpy() for c in ("A", "Bd", "Q1", "Q0", "K"))
+    mu, tau2 = prior.speed_mps, prior.speed_std_mps ** 2
+    bb = bd - mu * a                                   # sum w b (d - mu b)
+    q = q1 - 2 * mu * bd + mu * mu * a                 # sum w (d - mu b)^2
+    l1 = -0.5 * (q - tau2 * bb ** 2 / (1 + tau2 * a) + np.log1p(tau2 * a)
+                 + 2 * k * np.log(prior.walker_std_mps))
+    l0 = -0.5 * (q0 + 2 * k * np.log(prior.static_std_mps))
+    prec = 1.0 / tau2 + a
+    out = [np.empty(len(tracks)) for _ in range(3)]
+    for arr, val in zip(out, (l1 - l0, (mu / tau2 + bd) / prec, 1.0 / np.sqrt(prec))):
+        arr[order] = val
+    return out[0], out[1], out[2]
+
+
+def crossing_state(tracks: pd.DataFrame, ego: pd.DataFrame, prior: CrossingPrior,
+                   rows: np.ndarray, init_velocity_std_mps: float) -> pd.DataFrame:
+    """A copy of ``tracks`` whose ``rows`` ((N,) bool: the rows a decision reads as crossers)
+    carry the velocity under the crossing prior instead of the tracker's zero-mean one.
+
+    Along the unit vector c toward the ego's path (:func:`toward_path`) the tracker's filtered
+    velocity (mean m = c.v, variance p = c^T P_v c) was formed under a N(0,
+    ``init_velocity_std_mps``^2) prior across the road; the crossing prior is N(mu, tau^2)
+    (``prior.speed_mps``, ``prior.speed_std_mps``). Swapping one Gaussian prior for another
+    divides the old one out of the posterior and multiplies the new one in:
+
+        1 / p' = max(1 / p - 1 / s0^2, 0) + 1 / tau^2,   m' = p' (m / p - 0 + mu / tau^2)
+
+    (exact for a linear-Gaussian filter without process noise, whose posterior is prior times
+    likelihood; with process noise the old prior's weight has partly decayed, so the swap is a
+    slight over-correction in a young track and negligible in an old one, whose 1 / p is far
+    above both priors' precisions). Only the component along c changes; the velocity's
+    covariance keeps its other components and the position-velocity cross-covariances along c
+    scale by sqrt(p' / p) (their correlation kept). Raises ValueError for ``rows`` of another
+    length or an ``init_velocity_std_mps`` that is not > 0."""
+    check_number(init_velocity_std_mps, "init_velocity_std_mps", gt=0.0, unit="m/s",
+                 who="crossing_state")
+    rows = np.asarray(rows, bool)
+    if rows.shape != (len(tracks),):
+        raise ValueError(f"rows: expected a bool array of length {len(tracks)}, found shape "
+                         f"{rows.shape}")
+    out = tracks.copy()
+    if not rows.any():
+        return out
+    sel = tracks[rows]
+    c, _, _, _ = toward_path(sel, ego)
+    v = sel[["vx_mps", "vy_mps"]].to_numpy(float)
+    pv = np.stack([sel[["cov_vxvx", "cov_vxvy"]].to_numpy(float),
+                   sel[["cov_vxvy", "cov_vyvy"]].to_numpy(float)], axis=1)
+    m = (v * c).sum(axis=1)
+    p = np.einsum("ni,nij,nj->n", c, pv, c)
+    tau2, s02 = prior.speed_std_mps ** 2, init_velocity_std_mps ** 2
+    info = np.maximum(1.0 / p - 1.0 / s02, 0.0)
+    p_new = 1.0 / (info + 1.0 / tau2)
+    m_new = p_new * (info * m + prior.speed_mps / tau2)
+    v_new = v + (m_new - m)[:, None] * c
+    # P' = P + (p' - p) c c^T keeps every component orthogonal to c; cross-covariances scale
+    pv_new = pv + (p_new - p)[:, None, None] * c[:, :, None] * c[:, None, :]
+    out.loc[rows, "vx_mps"], out.loc[rows, "vy_mps"] = v_new[:, 0], v_new[:, 1]
+    out.loc[rows, "cov_vxvx"] = pv_new[:, 0, 0]
+    out.loc[rows, "cov_vxvy"] = pv_new[:, 0, 1]
+    out.loc[rows, "cov_vyvy"] = pv_new[:, 1, 1]
+    cross = ["cov_xvx", "cov_xvy", "cov_yvx", "cov_yvy"]
+    if set(cross) <= set(tracks.columns):
+        scale = np.sqrt(p_new / np.where(p > 0, p, 1.0))
+        pxv = sel[cross].to_numpy(float).reshape(-1, 2, 2)      # rows x, y; columns vx, vy
+        along = np.einsum("nij,nj->ni", pxv, c)                 # cov(pos, c.v)
+        pxv = pxv + ((scale - 1.0)[:, None] * along)[:, :, None] * c[:, None, :]
+        out.loc[rows, cross] = pxv.reshape(-1, 4)
+    return out
