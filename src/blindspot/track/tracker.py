@@ -730,15 +730,14 @@ def _gnn_stage(tracks: list, z: np.ndarray, free: np.ndarray, F: np.ndarray, Q: 
             det[rows[r_i[took]]] = cols[c_i[took]]
             dist_of[rows[r_i[took]]] = cost[r_i[took], c_i[took]]
     hit = det >= 0
-    for i in range(n_t):
-        if hit[i]:
-            zhat = xp[i, [0, 2], None]
-            PHt = Pp[i][:, [0, 2]]
-            xi, Pi = kalman.update(xp[i, :, None], Pp[i], z[det[i], :, None], zhat,
-                                   Pp[i][[0, 2]][:, [0, 2]] + R, PHt)
-            tracks[i].x, tracks[i].P = xi.ravel(), Pi
-        else:
-            tracks[i].x, tracks[i].P = xp[i], Pp[i]
+    h = np.flatnonzero(hit)
+    if h.size:                          # the matched tracks' corrections, one stacked update
+        ph = Pp[h]
+        xu, Pu = kalman.update(xp[h, :, None], ph, z[det[h], :, None], xp[h][:, [0, 2], None],
+                               ph[:, [0, 2]][:, :, [0, 2]] + R, ph[:, :, [0, 2]])
+        xp[h], Pp[h] = xu[:, :, 0], Pu
+    for tr, xi, Pi in zip(tracks, xp, Pp):
+        tr.x, tr.P = xi, Pi
     return hit, det, dist_of
 
 
