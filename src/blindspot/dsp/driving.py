@@ -85,7 +85,7 @@ def unwrap_and_angles(ula: np.ndarray, v_wrapped: np.ndarray, odometry_mps: np.n
     if d == 0:
         return np.zeros(0, np.int64), np.zeros(0), np.zeros(0)
     order, v = _choose_order(ula, v_wrapped, odometry_mps, chain, v_max_mps,
-                             lambda comp: _bartlett_angles(comp, chain))
+                             lambda comp: _bartlett_angles(comp, chain), ORDER_GRID_DEG)
     rows = np.arange(d)
     x = compensate_tdm_velocity(ula, v, chain.radar.wavelength_m, chain.slot_times_s,
                                 chain.ula_tx)
@@ -105,22 +105,37 @@ def unwrap_and_angles(ula: np.ndarray, v_wrapped: np.ndarray, odometry_mps: np.n
 
 
 def _choose_order(ula: np.ndarray, v_wrapped: np.ndarray, odometry_mps: np.ndarray,
-                  chain: DetectionChain, v_max_mps: float, scan) -> tuple[np.ndarray, np.ndarray]:
+                  chain: DetectionChain, v_max_mps: float, scan,
+                  scan_grid_deg: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """The Doppler ambiguity order of each detection and its unwrapped velocity, (D,) int64 and
     (D,) m/s: for every order m that can reach the static world, the snapshots ``ula`` (D, E, L)
     are TDM-compensated with ``v_m = v_wrapped + 2 m v_max`` and ``scan`` maps them,
-    (D*M, E, L), to angles (D*M,) deg; the order kept minimises ``|v_m + v_odo cos(theta_m)|``
-    (module docstring, step 3)."""
+    (K, E, L), to angles (K,) deg; the order kept minimises ``|v_m + v_odo cos(theta_m)|``
+    (module docstring, step 3).
+
+    ``scan_grid_deg``: the angles ``scan`` can return, if known. Then an order whose residual
+    is, at every one of them, larger than another order's residual at its worst one (by more
+    than 1e-9 m/s, far above rounding) cannot be kept whatever the scan says, and is not
+    scanned: the same choice, for about half the scans (the orders far from the static world's
+    velocities at the ego's speed)."""
     d = len(v_wrapped)
     odo = np.asarray(odometry_mps, dtype=float)
     lo = int(np.floor((-np.max(np.abs(odo)) - 2 * v_max_mps) / (2 * v_max_mps)))
     orders = np.arange(lo, 2)
     v_m = v_wrapped[:, None] + 2 * v_max_mps * orders[None, :]               # (D, M)
-    comp = compensate_tdm_velocity(np.repeat(ula, len(orders), axis=0), v_m.reshape(-1),
-                                   chain.radar.wavelength_m, chain.slot_times_s,
-                                   chain.ula_tx)                              # (D*M, E, L)
-    theta = scan(comp).reshape(d, len(orders))
-    resid = np.abs(v_m - static_radial_velocity(theta, 1.0) * odo[:, None])
+    if scan_grid_deg is None:
+        need = np.ones(v_m.shape, dtype=bool)
+    else:                               # each order's best and worst residual over the grid
+        s = static_radial_velocity(np.asarray(scan_grid_deg, float), 1.0)   # (G,)
+        spread = np.abs(v_m[:, :, None] - s[None, None, :] * odo[:, None, None])
+        need = spread.min(axis=2) <= spread.max(axis=2).min(axis=1)[:, None] + 1e-9
+    di, mi = np.nonzero(need)
+    comp = compensate_tdm_velocity(ula[di], v_m[di, mi], chain.radar.wavelength_m,
+                                   chain.slot_times_s, chain.ula_tx)          # (K, E, L)
+    theta = np.full(v_m.shape, np.nan)
+    theta[di, mi] = scan(comp)
+    resid = np.where(need, np.abs(v_m - static_radial_velocity(theta, 1.0) * odo[:, None]),
+                     np.inf)
     best = np.argmin(resid, axis=1)
     return orders[best].astype(np.int64), v_m[np.arange(d), best]
 
