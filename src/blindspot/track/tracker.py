@@ -11,7 +11,12 @@ the way its tutorials read:
 * gating: ``DistanceHypothesiser`` with the ``Mahalanobis`` measure (GNN) or
   ``PDAHypothesiser`` (JPDA), gate = chi-square quantile of ``gate_probability``, 2 dof;
 * association: ``GNNWith2DAssignment`` (global nearest neighbour) or ``JPDA`` (the posterior
-  a Gaussian-mixture reduction of the weighted hypotheses, ``gm_reduce_single``);
+  a Gaussian-mixture reduction of the weighted hypotheses, ``gm_reduce_single``). GNN runs
+  the same arithmetic on arrays (:func:`_gnn_stage`: every track's prediction, gate and
+  update stacked, scipy's assignment on Stone Soup's cost matrix), byte-equal to the Stone Soup
+  objects' path, which stays as its reference (``_Parts.fast``) and for JPDA: a Python object
+  per track, hypothesis and detection cost ~0.3 ms per track and frame, the driving scenes'
+  hundreds of static objects made it the whole tracker's time;
 * initiation: ``SimpleMeasurementInitiator`` from every object no live track took, velocity
   prior zero with ``init_velocity_std_mps``;
 * management: M-of-N confirmation of tentative tracks, deletion of confirmed tracks silent
