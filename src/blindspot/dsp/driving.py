@@ -117,8 +117,8 @@ def _choose_order(ula: np.ndarray, v_wrapped: np.ndarray, odometry_mps: np.ndarr
     ``scan_grid_deg``: the angles ``scan`` can return, if known. Then an order whose residual
     is, at every one of them, larger than another order's residual at its worst one (by more
     than 1e-9 m/s, far above rounding) cannot be kept whatever the scan says, and is not
-    scanned: the same choice, for about half the scans (the orders far from the static world's
-    velocities at the ego's speed)."""
+    scanned, nor is a detection left with one order: the same choice, for a fraction of the
+    scans (the orders far from the static world's velocities at the ego's speed)."""
     d = len(v_wrapped)
     odo = np.asarray(odometry_mps, dtype=float)
     lo = int(np.floor((-np.max(np.abs(odo)) - 2 * v_max_mps) / (2 * v_max_mps)))
@@ -130,13 +130,16 @@ def _choose_order(ula: np.ndarray, v_wrapped: np.ndarray, odometry_mps: np.ndarr
         s = static_radial_velocity(np.asarray(scan_grid_deg, float), 1.0)   # (G,)
         spread = np.abs(v_m[:, :, None] - s[None, None, :] * odo[:, None, None])
         need = spread.min(axis=2) <= spread.max(axis=2).min(axis=1)[:, None] + 1e-9
-    di, mi = np.nonzero(need)
-    comp = compensate_tdm_velocity(ula[di], v_m[di, mi], chain.radar.wavelength_m,
-                                   chain.slot_times_s, chain.ula_tx)          # (K, E, L)
+    # a detection left with one order takes it unscanned
+    scanned = need & (need.sum(axis=1) > 1)[:, None]
+    di, mi = np.nonzero(scanned)
     theta = np.full(v_m.shape, np.nan)
-    theta[di, mi] = scan(comp)
-    resid = np.where(need, np.abs(v_m - static_radial_velocity(theta, 1.0) * odo[:, None]),
-                     np.inf)
+    if di.size:
+        comp = compensate_tdm_velocity(ula[di], v_m[di, mi], chain.radar.wavelength_m,
+                                       chain.slot_times_s, chain.ula_tx)      # (K, E, L)
+        theta[di, mi] = scan(comp)
+    resid = np.where(scanned, np.abs(v_m - static_radial_velocity(theta, 1.0) * odo[:, None]),
+                     np.where(need, 0.0, np.inf))
     best = np.argmin(resid, axis=1)
     return orders[best].astype(np.int64), v_m[np.arange(d), best]
 
