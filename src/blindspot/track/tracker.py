@@ -669,7 +669,7 @@ def _state_arrays(track) -> tuple[np.ndarray, np.ndarray]:
 
 def _gnn_stage(tracks: list, z: np.ndarray, free: np.ndarray, F: np.ndarray, Q: np.ndarray,
                R: np.ndarray, gate: float, doppler: tuple | None, doppler_std_mps: float | None
-               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+               ) -> tuple[np.ndarray, np.ndarray]:
     """One association stage of the GNN tracker on arrays: what Stone Soup's
     ``GNNWith2DAssignment`` with the gated Mahalanobis hypothesiser
     (:func:`_gated_hypothesiser`) and the Kalman steps of :func:`_numpy_kalman` give, without a
@@ -682,20 +682,21 @@ def _gnn_stage(tracks: list, z: np.ndarray, free: np.ndarray, F: np.ndarray, Q: 
     Doppler term of :meth:`_with_doppler` included), a track gating no detection coasts, and
     the tracks gating one are assigned by scipy's ``linear_sum_assignment`` on Stone Soup's
     cost matrix (distances within the gate, one missed-detection column per track at the
-    gate's distance). Matched tracks get :func:`blindspot.kalman.update`. Tested equal to the
-    Stone Soup path (tests/track/test_tracker.py).
+    gate's distance). Matched tracks get :func:`blindspot.kalman.update`. Tested byte-equal to
+    the Stone Soup path (tests/track/test_fast_gnn.py).
 
     Args:
         tracks: the stage's :class:`_Track` objects (T); their x and P are replaced.
         z: (D, 2) the frame's object positions; free: (D,) bool, those no earlier stage took.
         F, Q: the transition over the frame interval; R: (2, 2) the measurement noise.
         gate: the gate on the distance (sqrt of the 2-dof squared distance).
-        doppler: None or the detections' Doppler terms (``_doppler_terms``: median radial
-            speed, point count, unit line of sight (2, D), has a value); doppler_std_mps: the
-            Doppler gate's point spread.
+        doppler: None or the detections' Doppler terms (as the hypothesiser's
+            ``_doppler_terms``: median radial speed (D,), point count (D,) >= 1, unit line of
+            sight (2, D) from the sensor, has a value (D,)); doppler_std_mps: the Doppler gate's
+            point spread.
 
     Returns:
-        (hit (T,) bool, detection index (T,) int, -1 for a miss, distance (T,)).
+        (hit (T,) bool, detection index (T,) int, -1 for a miss).
     """
     from scipy.optimize import linear_sum_assignment
 
@@ -707,7 +708,6 @@ def _gnn_stage(tracks: list, z: np.ndarray, free: np.ndarray, F: np.ndarray, Q: 
     xp = (F @ x[:, :, None])[:, :, 0]           # F x per track (the same bytes as one by one)
     Pp = kalman.predict_covariance(P, F, Q)
     det = np.full(n_t, -1, np.int64)
-    dist_of = np.full(n_t, np.inf)
     cols = np.flatnonzero(free)
     if cols.size:
         S = Pp[:, [0, 2]][:, :, [0, 2]] + R                               # H P H^T + R, H = [e0, e2]
@@ -733,7 +733,6 @@ def _gnn_stage(tracks: list, z: np.ndarray, free: np.ndarray, F: np.ndarray, Q: 
             r_i, c_i = linear_sum_assignment(cost)
             took = c_i < cols.size
             det[rows[r_i[took]]] = cols[c_i[took]]
-            dist_of[rows[r_i[took]]] = cost[r_i[took], c_i[took]]
     hit = det >= 0
     h = np.flatnonzero(hit)
     if h.size:                          # the matched tracks' corrections, one stacked update
@@ -743,7 +742,7 @@ def _gnn_stage(tracks: list, z: np.ndarray, free: np.ndarray, F: np.ndarray, Q: 
         xp[h], Pp[h] = xu[:, :, 0], Pu
     for tr, xi, Pi in zip(tracks, xp, Pp):
         tr.x, tr.P = xi, Pi
-    return hit, det, dist_of
+    return hit, det
 
 
 def _objects(xy: np.ndarray, labels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -854,8 +853,8 @@ def _track_group(labelled: pd.DataFrame, frames: pd.DataFrame, config: TrackerCo
                 tracks = [tr for tr, book in live.items() if book.confirmed is stage]
                 if not tracks:
                     continue
-                hits, det, _ = _gnn_stage(tracks, xy, free, F, Q, R_meas, parts.gate, terms,
-                                          parts.doppler_std_mps)
+                hits, det = _gnn_stage(tracks, xy, free, F, Q, R_meas, parts.gate, terms,
+                                       parts.doppler_std_mps)
                 free[det[hits]] = False
                 for track, hit, j in zip(tracks, hits, det):
                     hit_now[track] = bool(hit)
