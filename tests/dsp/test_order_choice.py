@@ -20,7 +20,8 @@ from blindspot.radar.config import RadarConfig
 def chain():
     cfg = compose([])
     radar = RadarConfig.from_cfg(cfg, "driving_radar")
-    return DetectionChain.from_config(radar, array_for(radar), CfarConfig.from_cfg(cfg, "driving_cfar"),
+    return DetectionChain.from_config(radar, array_for(radar),
+                                      CfarConfig.from_cfg(cfg, "driving_cfar"),
                                       DoaConfig.from_cfg(cfg), DetectConfig.from_cfg(cfg))
 
 

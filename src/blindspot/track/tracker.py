@@ -710,7 +710,7 @@ def _gnn_stage(tracks: list, z: np.ndarray, free: np.ndarray, F: np.ndarray, Q: 
     det = np.full(n_t, -1, np.int64)
     cols = np.flatnonzero(free)
     if cols.size:
-        S = Pp[:, [0, 2]][:, :, [0, 2]] + R                               # H P H^T + R, H = [e0, e2]
+        S = Pp[:, [0, 2]][:, :, [0, 2]] + R                   # H P H^T + R, H = [e0, e2]
         a, b, c, d = S[:, 0, 0, None], S[:, 0, 1, None], S[:, 1, 0, None], S[:, 1, 1, None]
         v0 = z[cols, 0][None, :] - xp[:, 0, None]
         v1 = z[cols, 1][None, :] - xp[:, 2, None]
