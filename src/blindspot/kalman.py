@@ -49,11 +49,12 @@ def update(x: np.ndarray, P: np.ndarray, z: np.ndarray, zhat: np.ndarray, S: np.
            PHt: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """One correction of a predicted state (x (n, 1), P (n, n)) by the measurement z (d, 1),
     given its moments (:func:`measurement_moments`): ``K = P H^T S^-1``, ``x + K (z - zhat)``,
-    ``P - K S K^T`` made symmetric."""
-    K = np.linalg.solve(S, PHt.T).T  # P H^T S^-1 (S symmetric)
+    ``P - K S K^T`` made symmetric. Stacks of states (leading axes on every argument) are
+    corrected together, each with the same bytes as alone (tests/test_kalman.py)."""
+    K = np.swapaxes(np.linalg.solve(S, np.swapaxes(PHt, -1, -2)), -1, -2)  # P H^T S^-1
     x = x + K @ (z - zhat)
-    P = P - K @ S @ K.T
-    return x, (P + P.T) / 2
+    P = P - K @ S @ np.swapaxes(K, -1, -2)
+    return x, (P + np.swapaxes(P, -1, -2)) / 2
 
 
 def cv_model(dt: float, process_psd: float, meas_std: float) -> tuple[np.ndarray, ...]:
