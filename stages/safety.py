@@ -1,7 +1,8 @@
 """safety: risk, warning, AEB and the Euro NCAP-style outcome of the driving scenes
-(blindspot.safety.assess): the Monte-Carlo set (tuning / held-out halves) and the nominal grids
-(ncap.json), per predictor (warning.predictors) and input: the tracker's tracks, the
-oracle-association and noisy visible-position references, the true state from line of sight."""
+(blindspot.safety.assess): the Monte-Carlo set (the tuning draw; its even / odd halves) and the
+nominal grids (ncap.json), with the held-out draw's block (safety_held_out stage), per predictor
+(warning.predictors) and input: the tracker's tracks, the oracle-association and noisy-position
+references, the true state from line of sight."""
 
 import blindspot  # noqa: F401  first: pins the CPU kernels before numpy loads (blindspot.kernels)
 import json
@@ -11,36 +12,27 @@ import pandas as pd
 from blindspot.radar.config import RadarConfig
 from blindspot.radar.scenario import load_scenarios
 from blindspot.safety.config import WarningConfig
-from blindspot.traj.baselines import prediction_methods
-from blindspot.traj.config import CalibrationConfig, DatasetConfig, EvalConfig
 from blindspot.typed_config import jobs
 from blindspot.cli import main_stage
 from blindspot.io import write_json, write_parquet
 from blindspot.safety.assess import assess, logged_metrics, summary_lines
 from blindspot.safety.oracle import true_state_tracks
 from blindspot.safety.outcome import body_boxes
-from blindspot.safety.predict import calibrated_predictors
+from blindspot.safety.predict import stage_predictors
 from blindspot.safety.risk import EgoShape
 from blindspot.stage import StageResult
-from blindspot.traj.lstm import LSTMPredictor
 
 
 def run(cfg, ctx):
-    w, ev = WarningConfig.from_cfg(cfg), EvalConfig.from_cfg(cfg)
+    w = WarningConfig.from_cfg(cfg)
     group, _ = load_scenarios(cfg.scenario)
-    dt, paper_dt = (float(RadarConfig.from_cfg(cfg, k).frame_period_s) for k in ("driving_radar", "radar"))
+    dt = float(RadarConfig.from_cfg(cfg, "driving_radar").frame_period_s)
     truth = pd.read_parquet(ctx.dep("truth.parquet"))
     tracks = {"tracker": pd.read_parquet(ctx.dep("tracks.parquet")),
               **{name: pd.read_parquet(ctx.dep(f"tracks_{name}.parquet"))
                  for name in ("oracle", "noisy_position")},
               "true_state": true_state_tracks(truth)}
-    lstm = LSTMPredictor.load(ctx.dep("train/model.pt")).with_workers(jobs(cfg))
-    preds = calibrated_predictors(
-        w, prediction_methods(ev, paper_dt, lstm), json.loads(ctx.dep("models.json").read_text()),
-        direct_path=ctx.dep("train_direct/model.pt"), paths=ctx.dep("paths.parquet"),
-        val=ctx.dep("val.parquet"), window=DatasetConfig.from_cfg(cfg).window,
-        calibration=CalibrationConfig.from_cfg(cfg), cv_fit_points=ev.cv_fit_points,
-        where=str(ctx.dep("models.json")), frame_periods_s=(dt, paper_dt))
+    preds = stage_predictors(cfg, ctx.dep, jobs=jobs(cfg))
     res = assess(truth, json.loads(ctx.dep("scenes.json").read_text()), tracks, preds, w,
                  bodies=body_boxes(group), shape=EgoShape(group.ego.width_m, group.ego.length_m),
                  points=pd.read_parquet(ctx.dep("points.parquet"), columns=["scene", "frame", "source"]),
@@ -50,6 +42,9 @@ def run(cfg, ctx):
     for name, table in {"risk": res.risk, "ncap_grid": res.grid, "scene_outcomes": res.scenes,
                         "operating": res.curves, "timeline": res.timeline}.items():
         write_parquet(ctx.out(f"{name}.parquet"), table)
+    # the held-out draw of its own seed (safety_held_out stage); the halves of this draw beside it
+    res.metrics["held_out_half"] = res.metrics.pop("held_out")
+    res.metrics["held_out"] = json.loads(ctx.dep("safety_held_out.json").read_text())
     write_json(ctx.out("safety.json"), res.metrics)
     write_json(ctx.out("ncap.json"), res.ncap)
     print("\n".join(summary_lines(res.metrics)))

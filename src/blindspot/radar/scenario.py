@@ -139,7 +139,9 @@ class DrivingScene(TypedConfig):
 class MonteCarloConfig(TypedConfig):
     """The seeded Monte-Carlo set (:func:`draw_scenarios`): a grid of ego speed x impact point x
     intruding / non-intruding, ``scenes_per_cell`` draws per cell of body, behaviour, gap
-    position (where along the parked cars the pedestrian steps out), timing and bystanders."""
+    position (where along the parked cars the pedestrian steps out), timing and bystanders;
+    ``held_out_seed`` and ``held_out_scenes_per_cell`` draw the independent held-out set of the
+    same grid (:func:`blindspot.safety.held_out.held_out_scenes`, issue 40)."""
 
     seed: int = setting(ge=0, le=2**63 - 1)
     speeds_kmh: tuple[float, ...] = setting(gt=0.0, le=200.0, min_items=1)
@@ -152,6 +154,14 @@ class MonteCarloConfig(TypedConfig):
     delay_jitter_s: float = setting(ge=0.0, le=10.0)
     speed_jitter: float = setting(ge=0.0, le=0.5)
     max_bystanders: int = setting(ge=0, le=2)
+    held_out_seed: int = setting(1, ge=0, le=2**63 - 1)
+    held_out_scenes_per_cell: int = setting(17, ge=1, le=10_000)
+
+    def validate(self) -> None:
+        if self.held_out_seed == self.seed:
+            raise ConfigError("held_out_seed", self.held_out_seed,
+                              f"a seed other than monte_carlo.seed = {self.seed} (the held-out "
+                              "draw must be independent of the tuning draw)")
 
 
 @dataclass(frozen=True)

@@ -10,8 +10,9 @@ from blindspot.report.safety_figures import ncap_grid_markdown
 
 __all__ = ["PREDICTOR_BLOCKS", "predictor_names", "operating_inputs", "grid_page", "ncap_page"]
 
-#: Top-level keys of safety.json that are not predictors.
-PREDICTOR_BLOCKS = ("held_out", "tuning")
+#: Top-level keys of safety.json that are not predictors (the independent held-out draw, the
+#: tuning draw's halves).
+PREDICTOR_BLOCKS = ("held_out", "held_out_half", "tuning")
 
 
 def predictor_names(metrics: dict) -> list[str]:
@@ -58,10 +59,11 @@ def ncap_page(ncap: dict, metrics: dict) -> str:
     nominal grids (impact speed km/h and 2026 band per cell) per input and predictor."""
     held, tune = metrics.get("held_out", {}), metrics.get("tuning", {})
     out = ["# Safety: held-out figures and the Euro NCAP nominal grids\n\n",
-           f"Held out: {held.get('split', '')}; {held.get('n_intruding')} intruding and "
-           f"{held.get('n_non_intruding')} non-intruding scenes (tuning half: "
-           f"{tune.get('n_intruding')} / {tune.get('n_non_intruding')}), draw seed "
-           f"{held.get('seed')}. Rates with Wilson 95 % intervals.\n\n",
+           f"Held out: the independent draw of seed {held.get('seed')} (safety_held_out stage; "
+           f"tracker input), {held.get('n_intruding')} intruding and "
+           f"{held.get('n_non_intruding')} non-intruding scenes; every setting was chosen on the "
+           f"tuning draw (its even half: {tune.get('n_intruding')} / "
+           f"{tune.get('n_non_intruding')}). Rates with Wilson 95 % intervals.\n\n",
            "| predictor | avoided after visible | false activations | first point -> moving, "
            "median s | first point -> AEB, median s |\n|---|---|---|---|---|\n"]
     for p, h in held.items():

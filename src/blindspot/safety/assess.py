@@ -30,7 +30,7 @@ from blindspot.safety.predict import risk_table
 from blindspot.safety.risk import EgoShape
 
 __all__ = ["SafetyResult", "outcome_table", "frame_risks", "assess", "perception_bounds",
-           "logged_metrics", "summary_lines"]
+           "logged_metrics", "summary_lines", "METRIC_BLOCKS"]
 
 
 @dataclass(frozen=True)
@@ -338,13 +338,18 @@ def assess(truth: pd.DataFrame, scenes_meta: dict, tracks: dict[str, pd.DataFram
                         metrics, ncap)
 
 
+#: Keys of the safety metrics that are blocks of numbers, not predictors: the tuning draw's
+#: halves (``tuning``, ``held_out_half``) and the independent held-out draw (``held_out``).
+METRIC_BLOCKS = ("held_out", "held_out_half", "tuning")
+
+
 def logged_metrics(metrics: dict) -> dict:
     """The numbers of :func:`assess`'s metrics that the safety stage logs (MLflow logs numbers
     only: None leaves dropped): per predictor its rates by input and by speed, and the
     held-out and tuning blocks."""
     out: dict = {}
     for name, m in metrics.items():
-        if name in ("held_out", "tuning"):
+        if name in METRIC_BLOCKS:
             out[name] = m
             continue
         out[name] = {
@@ -372,7 +377,7 @@ def summary_lines(metrics: dict) -> list[str]:
     """One printed line per predictor (headline input) and one per held-out predictor."""
     lines = []
     for name, m in metrics.items():
-        if name in ("held_out", "tuning"):
+        if name in METRIC_BLOCKS:
             continue
         lines.append(f"safety {name}: avoided {m['avoided_rate']} "
                      f"({m['avoided_after_visible_rate']} with the AEB requested after the "

@@ -16,6 +16,7 @@ unpadded history.
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass
 from typing import Any
 
@@ -23,12 +24,16 @@ import numpy as np
 import pandas as pd
 
 from blindspot.arrays import check_count
+from blindspot.radar.config import RadarConfig
+from blindspot.safety.config import WarningConfig
 from blindspot.safety.risk import EgoShape, collision_risk
-from blindspot.traj.baselines import ConstantVelocity, KalmanCV
+from blindspot.traj.baselines import ConstantVelocity, KalmanCV, prediction_methods
+from blindspot.traj.config import CalibrationConfig, DatasetConfig, EvalConfig
+from blindspot.traj.lstm import LSTMPredictor
 from blindspot.traj.distribution import DistributionError
 from blindspot.traj.windows import interpolate_gaps
 
-__all__ = ["calibrated_predictors", "BackfilledHistory", "TrackState", "with_backfill", "track_histories",
+__all__ = ["calibrated_predictors", "stage_predictors", "BackfilledHistory", "TrackState", "with_backfill", "track_histories",
            "incremental_kalman", "track_state_forecast", "risk_table"]
 
 
@@ -295,3 +300,21 @@ def calibrated_predictors(w, base: dict, records: dict, *, direct_path, paths, v
         out[name] = TrackState(p) if name == "track_state" else with_backfill(p, base[name_k],
                                                                               w.lstm_history)
     return out
+
+
+def stage_predictors(cfg, dep, *, jobs: int = 1) -> dict:
+    """The calibrated predictors the safety stages score (:func:`calibrated_predictors` of
+    ``warning.predictors``), built from the composed config ``cfg`` (groups warning, eval,
+    dataset, calibration, driving_radar, radar) and the stage's inputs by file name
+    (``dep(name)`` -> Path: train/model.pt, train_direct/model.pt, models.json, paths.parquet,
+    val.parquet); the LSTM's rollouts on ``jobs`` workers."""
+    w, ev = WarningConfig.from_cfg(cfg), EvalConfig.from_cfg(cfg)
+    dt, paper_dt = (float(RadarConfig.from_cfg(cfg, k).frame_period_s)
+                    for k in ("driving_radar", "radar"))
+    lstm = LSTMPredictor.load(dep("train/model.pt")).with_workers(jobs)
+    return calibrated_predictors(
+        w, prediction_methods(ev, paper_dt, lstm), json.loads(dep("models.json").read_text()),
+        direct_path=dep("train_direct/model.pt"), paths=dep("paths.parquet"),
+        val=dep("val.parquet"), window=DatasetConfig.from_cfg(cfg).window,
+        calibration=CalibrationConfig.from_cfg(cfg), cv_fit_points=ev.cv_fit_points,
+        where=str(dep("models.json")), frame_periods_s=(dt, paper_dt))
