@@ -270,8 +270,27 @@ def verdicts(metrics: Mapping[str, Metrics]) -> list[str]:
         out.append(f"**Does it protect the child stepping out?** {answer.capitalize()}: braking "
                    f"on our tracks and predictions avoids {100 * avoided:.0f} % of the simulated "
                    f"collisions with {100 * false:.0f} % false AEB activations; "
-                   f"{len(met)} of {len(met) + len(missed)} Euro NCAP-style goals met.")
+                   f"{len(met)} of {len(met) + len(missed)} Euro NCAP-style goals met."
+                   + _held_out_sentence(_get(metrics, ("safety", "held_out")) or {}))
     return out
+
+
+def _held_out_sentence(held: Mapping[str, Any]) -> str:
+    """`` On the held-out draw ...``: the predictor of safety.json's held-out block (the
+    independent draw) that avoids most once the child is visible, with its intervals; "" when
+    the block has no predictor."""
+    preds = {k: v for k, v in held.items() if isinstance(v, dict) and k != "none"
+             and _num(v.get("avoided_after_visible_rate")) is not None}
+    if not preds:
+        return ""
+    name, h = max(preds.items(), key=lambda kv: kv[1]["avoided_after_visible_rate"])
+    rate = _fmt_ci({"mean": h["avoided_after_visible_rate"],
+                    "ci95": h.get("avoided_after_visible_rate_ci95")}, 0, "%")
+    fa = _fmt_ci({"mean": h.get("false_activation_rate"),
+                  "ci95": h.get("false_activation_rate_ci95")}, 0, "%")
+    return (f" On the held-out draw (seed {held.get('seed')}, {held.get('n_intruding')} + "
+            f"{held.get('n_non_intruding')} scenes, settings chosen on the other draw) "
+            f"{_label(name)} avoids {rate} once the child is visible, at {fa} false activations.")
 
 
 def results_block(metrics: Mapping[str, Metrics]) -> str:
