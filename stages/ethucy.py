@@ -4,7 +4,7 @@ predictors, their ADE/FDE and the calibration of their predictive distributions.
 The protocol of blindspot.traj.ethucy_protocol with the settings of cfg.ethucy (conf/ethucy/;
 a subset with Hydra overrides: `python -m blindspot ethucy ethucy.models=[cvm] ethucy.folds=[eth]`).
 Writes
-reports/metrics/ethucy.json (ADE/FDE per model and fold, "best"),
+reports/metrics/ethucy.json (ADE/FDE per model and fold, "best", "seeds", "best_of_20"),
 reports/metrics/calibration_ethucy.json ({method: {fold: {coverage_50, coverage_90,
 coverage_95, nll}}}, the ETH/UCY part of calibration.json), the reliability curves behind the
 figure (reports/metrics/reliability_ethucy.json), the figure reports/figures/ethucy_reliability.png
@@ -39,9 +39,12 @@ def run(cfg, ctx):
     details = bench.details()
     report = write_text(ctx.out("ethucy.md"), format_report(
         bench.results, bench.validation(), details, settings.folds, lstm,
-        "python -m blindspot ethucy", None, seq2seq=asdict(settings.seq2seq),
+        "python -m blindspot ethucy", None, seq2seq={**asdict(settings.seq2seq), "mix_cell":
+                                                     settings.mix_cell, "mix_modes": settings.mix_modes},
         calibration=calibration, calibration_method=settings.calibration))
-    metrics = {m: r["avg"] for m, r in bench.results.items() if isinstance(r, dict)}
+    metrics = {m: r["avg"] for m, r in bench.results.items() if isinstance(r, dict) and "avg" in r}
+    metrics.update({k: {m: v["avg"] for m, v in r.items()}       # best_of_20: {model: avg}
+                    for k, r in bench.results.items() if k.startswith("best_of_")})
     # the wall times go to MLflow and the log, not to the page, whose bytes a rerun reproduces
     seconds = {m: sum(details[f][m]["seconds"] for f in settings.folds)
                for m in settings.models}

@@ -143,3 +143,34 @@ def test_the_online_choice_table_names_each_folds_setting():
     text = format_online_choice(cal, FOLDS)
     assert table_row(text, "kalman")[:3] == ["kalman", "0.002 / 100 / 3 (1.46 pp)", "-"]
     assert format_online_choice({"kalman": {"eth": {"coverage_50": 0.5}}}, FOLDS) == ""
+
+
+def test_seeds_and_multi_modal_blocks_are_tables_not_model_rows():
+    """Issue 43: "seeds" and "best_of_20" are blocks of ethucy.json, not models: the main table
+    and the CVM verdicts leave them out; the page prints each seed, the mean +- sd and the
+    best-of-20 and mixture scores from the values given."""
+    from blindspot.report.ethucy_report import format_multimodal, format_seeds
+
+    results = {**RESULTS, "mix": scores((0.8, 1.8), (0.3, 0.55)),
+               "seeds": {"mix": {"n": 3, "ade": [0.55, 0.56, 0.57], "fde": [1.2, 1.1, 1.15],
+                                 "ade_mean": 0.56, "ade_sd": 0.01, "fde_mean": 1.15,
+                                 "fde_sd": 0.05}},
+               "best_of_20": {"mix": {"eth": {"ade": 0.41, "fde": 0.72},
+                                      "hotel": {"ade": 0.13, "fde": 0.21},
+                                      "avg": {"ade": 0.27, "fde": 0.465},
+                                      "sd": {"ade": 0.004, "fde": 0.008}}}}
+    table = format_table(results, FOLDS, published=False)
+    assert "seeds" not in table and "best_of" not in table and "| mix (ours) |" in table
+    assert not any("seeds" in line or "best_of" in line for line in compare_to_cvm(results))
+    seeds = format_seeds(results)
+    assert "| mix | 3 | 0.550, 0.560, 0.570 | 1.200, 1.100, 1.150 | 0.560 +- 0.010 | " \
+           "1.150 +- 0.050 |" in seeds
+    row = {"mixture_nll": 1.0, "mixture_coverage_50": 0.4, "mixture_coverage_90": 0.8,
+           "mixture_coverage_95": 0.9}
+    det = {f: {"mix": {"fitted": {"seed_scores": [{**row, "point": "mean"},
+                                                  {**row, "mixture_nll": 3.0, "point": "mode"}]}}}
+           for f in FOLDS}
+    multi = format_multimodal(results, det, FOLDS)
+    assert "| mix | 0.41 / 0.72 | 0.13 / 0.21 | 0.27 / 0.47 | 0.004 / 0.008 |" in multi
+    assert "NLL 2.00; 0.400 / 0.800 / 0.900; point mean,mode" in multi
+    assert format_seeds(RESULTS) == "" and format_multimodal(RESULTS, det, FOLDS) == ""

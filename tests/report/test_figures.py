@@ -326,6 +326,17 @@ def test_page_with_ethucy_reports_averages_and_verdict():
     assert "ETH/UCY: Kalman (CV) (best on val) 0.54 / 1.17 m vs CVM" in kalman_page
     assert "does not beat CVM on ADE and FDE." in kalman_page
     assert "does not beat CVM on FDE (it does on ADE)" in page
+    # issue 43: the "seeds" and "best_of_20" blocks are not models; the spread and the
+    # best-of-20 are shown beside them
+    eth["best"] = "lstm"
+    eth["seeds"] = {"lstm": {"n": 3, "ade_sd": 0.004, "fde_sd": 0.011, "ade_mean": 0.5,
+                             "fde_mean": 1.2}}
+    eth["best_of_20"] = {"mix": {"avg": {"ade": 0.21, "fde": 0.35}}}
+    row = table_row(build_page(page_metrics(ethucy=eth), {}),
+                    "ETH/UCY average ADE / FDE (observe 8, predict 12)")
+    assert row[2] == "LSTM encoder 0.50 / 1.20 m (best on val), mean of 3 seeds (sd 0.004 / 0.011 m)"
+    assert row[3] == ("CVM 0.52 / 1.14 m; Kalman (CV) 0.54 / 1.17 m; "
+                      "multi-modal MLP encoder best-of-20 0.21 / 0.35 m")
 
 
 def test_differences_name_the_baseline_that_wins():

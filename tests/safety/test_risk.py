@@ -135,3 +135,65 @@ def test_zero_margin_and_zero_speed_are_valid():
     lo, hi = footprints(np.zeros(1), 3, 0.1, EGO, 0.0)
     assert lo.shape == hi.shape == (1, 3, 2)
     assert np.allclose(hi[0, :, 0], EGO.width_m / 2)
+
+
+def test_a_mixture_collides_with_the_probability_of_its_colliding_hypotheses():
+    """Issue 43: a child at the kerb stops (far from the car) with probability 0.7 or crosses
+    into the footprint with 0.3: P(collision) is 0.3 x that of the crossing path alone (its
+    mass is the weighted sum of its components'), where the moment-matched Gaussian would say
+    something else; one hypothesis is collision_risk itself; a non-mixture is named."""
+    from blindspot.safety.risk import mixture_collision_risk
+    from blindspot.traj.mixture import MixtureForecast
+
+    H = 10
+    cross = np.tile([[0.0, -2.0]], (H, 1))               # inside the footprint at every step
+    stop = np.tile([[15.0, 30.0]], (H, 1))               # far away
+    means = np.stack([stop, cross])[None]                # (1, 2, H, 2)
+    covs = np.broadcast_to(np.eye(2) * 0.05**2, (1, 2, H, 2, 2))
+    mix = MixtureForecast(np.array([[0.7, 0.3]]), means, covs)
+    args = (np.zeros((1, 2)), np.zeros(1), np.zeros(1), 0.1, EGO)
+    r = mixture_collision_risk(mix, *args, margin_m=0.3)
+    alone = collision_risk(mix.component(1), *args, margin_m=0.3)
+    assert alone.p_collision[0] == pytest.approx(1.0, abs=1e-9)
+    assert r.p_collision[0] == pytest.approx(0.3, abs=1e-9)
+    assert np.allclose(r.p_step, 0.3 * alone.p_step)
+    one = MixtureForecast(np.ones((1, 1)), means[:, 1:], covs[:, 1:])
+    assert np.array_equal(mixture_collision_risk(one, *args, margin_m=0.3).p_step, alone.p_step)
+    with pytest.raises(RiskError, match="mixture"):
+        mixture_collision_risk(mix.component(0), *args, margin_m=0.3)
+
+
+def test_risk_table_scores_a_predictor_with_a_mixture_by_its_mixture():
+    """A predictor offering predict_mixture (issue 43) is scored by mixture_collision_risk in
+    risk_table; one offering only predict_distribution as before."""
+    import pandas as pd
+
+    from blindspot.safety.predict import risk_table
+    from blindspot.safety.risk import mixture_collision_risk
+    from blindspot.traj.mixture import MixtureForecast
+
+    class Forking:
+        """Stops 15 m aside (0.6) or walks to the bumper (0.4), whatever the history."""
+        name = "forking"
+
+        def predict_mixture(self, history, horizon):
+            b = history.shape[0]
+            means = np.stack([np.tile([[15.0, 30.0]], (horizon, 1)),
+                              np.tile([[0.0, -2.0]], (horizon, 1))])
+            return MixtureForecast(np.tile([0.6, 0.4], (b, 1)),
+                                   np.broadcast_to(means, (b, 2, horizon, 2)),
+                                   np.broadcast_to(np.eye(2) * 0.01, (b, 2, horizon, 2, 2)))
+
+        def predict_distribution(self, history, horizon):
+            return self.predict_mixture(history, horizon).to_gaussian()
+
+    tracks = pd.DataFrame({"group": "g", "frame": [0, 1], "track_id": 1, "x_m": [0.0, 0.0],
+                           "y_m": [-2.0, -2.0], "confirmed": True})
+    ego = pd.DataFrame({"group": "g", "frame": [0, 1], "ego_x_m": 0.0, "ego_y_m": 0.0,
+                        "ego_yaw_deg": 0.0, "ego_speed_mps": 0.0})
+    out = risk_table(tracks, ego, {"forking": Forking()}, horizon=5, dt_s=0.1, shape=EGO,
+                     margin_m=0.3, method="max_step", max_len=10)
+    assert np.allclose(out.p_collision, 0.4)
+    mix = Forking().predict_mixture(np.zeros((1, 2, 2)), 5)
+    assert np.allclose(out.p_collision, mixture_collision_risk(
+        mix, np.zeros((1, 2)), np.zeros(1), np.zeros(1), 0.1, EGO, margin_m=0.3).p_collision)

@@ -223,8 +223,8 @@ def test_each_direct_model_key_trains_its_own_encoder(ethucy_dir):
     trained = {}
     real = ethucy_protocol.train_fold_seq2seq
 
-    def spy(data_dir, fold, cfg, name, progress=False):
-        ens, fitted = real(data_dir, fold, cfg, name, progress)
+    def spy(data_dir, fold, cfg, name, progress=False, **kw):
+        ens, fitted = real(data_dir, fold, cfg, name, progress, **kw)
         trained[name] = ens.members[0].net.encoder
         return ens, fitted
 
@@ -357,3 +357,63 @@ def test_the_online_setting_is_chosen_on_the_folds_val_scenes_alone(ethucy_dir):
     for p in (50, 90, 95):
         lo, hi = calib[f"online_coverage_{p}_ci95"]
         assert lo <= calib[f"online_coverage_{p}"] <= hi
+
+
+def _outcome(seed_rows):
+    from blindspot.traj.ethucy_protocol import FoldOutcome
+
+    a = float(np.mean([r["ade"] for r in seed_rows]))
+    f = float(np.mean([r["fde"] for r in seed_rows]))
+    return FoldOutcome(a, f, 10, 1.0, {"seed_scores": seed_rows, "val_ade_m": a,
+                                       "val_fde_m": f})
+
+
+def test_seeds_and_best_of_blocks_are_the_seeds_mean_and_sample_sd():
+    """Issue 43: ethucy.json's "seeds" block holds each seed's fold-averaged ADE / FDE, their
+    mean and sample sd (ddof 1), "best_of_20" the fold rows' seed means and their average;
+    models without seed rows (cvm) get neither."""
+    from blindspot.traj.ethucy_protocol import FoldOutcome, summarise
+
+    ade = {"eth": [0.9, 0.8, 1.0], "hotel": [0.3, 0.4, 0.2]}
+    per_fold = {}
+    for f, vals in ade.items():
+        rows = [{"ade": v, "fde": 2 * v, "best_of_ade": v / 4, "best_of_fde": v / 2,
+                 "best_of_n": 20} for v in vals]
+        per_fold[f] = {"mix": _outcome(rows),
+                       "cvm": FoldOutcome(1.0, 2.0, 10, 1.0, {"val_ade_m": 0.5, "val_fde_m": 1.0})}
+    out = summarise(per_fold, ("cvm", "mix"))
+    per_seed = [(0.9 + 0.3) / 2, (0.8 + 0.4) / 2, (1.0 + 0.2) / 2]     # 0.6 each
+    assert out["seeds"]["mix"]["ade"] == pytest.approx(per_seed)
+    assert out["seeds"]["mix"]["ade_mean"] == pytest.approx(0.6)
+    assert out["seeds"]["mix"]["ade_sd"] == pytest.approx(0.0, abs=1e-12)
+    assert out["mix"]["avg"]["ade"] == pytest.approx(out["seeds"]["mix"]["ade_mean"])
+    assert "cvm" not in out["seeds"] and out["best"] == "cvm"
+    b = out["best_of_20"]["mix"]
+    assert b["eth"]["ade"] == pytest.approx(0.9 / 4) and b["hotel"]["fde"] == pytest.approx(0.15)
+    assert b["avg"]["ade"] == pytest.approx((0.9 + 0.3) / 8)
+    # a spread the sd must see: seeds 0.5 / 0.7 on one fold -> sd of (0.5, 0.7) = 0.1414
+    two = {"eth": {"mix": _outcome([{"ade": 0.5, "fde": 1.0}, {"ade": 0.7, "fde": 1.4}])}}
+    s = summarise(two, ("mix",))["seeds"]["mix"]
+    assert s["ade_sd"] == pytest.approx(np.std([0.5, 0.7], ddof=1))
+    assert s["fde_mean"] == pytest.approx(1.2) and "best_of_20" not in summarise(two, ("mix",))
+
+
+@pytest.mark.real_data
+def test_the_multi_modal_model_is_scored_best_of_20_over_its_seeds(ethucy_dir):
+    """mix on fold eth, two seeds, one epoch: the fold's ADE is the seeds' mean, best-of-20
+    beats the single prediction (the nearest of 20 hypotheses), the point is chosen on val,
+    and the calibration scores its moment-matched Gaussian."""
+    from blindspot.traj.config import Seq2SeqConfig
+    from blindspot.traj.ethucy_protocol import run_fold
+
+    cfg = Seq2SeqConfig(epochs=1, ensemble=1, neighbours=0, threads=1)
+    out = run_fold(ethucy_dir, "eth", ("mix",), RolloutLSTMConfig(), progress=False,
+                   seq2seq=cfg, calibration="mle", seeds=2)["mix"]
+    rows = out.fitted["seed_scores"]
+    assert [r["seed"] for r in rows] == [0, 1]
+    assert out.ade == pytest.approx(np.mean([r["ade"] for r in rows]))
+    for r in rows:
+        assert r["best_of_n"] == 20 and r["point"] in ("mean", "mode")
+        assert 0.1 < r["best_of_ade"] < r["ade"] and r["best_of_fde"] < r["fde"]
+        assert 0.0 < r["mixture_coverage_50"] < r["mixture_coverage_90"] <= 1.0
+    assert 0.0 < out.calibration["online_coverage_90"] <= 1.0

@@ -346,3 +346,53 @@ def test_fine_tuning_starts_from_the_pretrained_weights_and_keeps_what_they_lear
             assert np.array_equal(va.numpy(), vb.numpy()), k
     with pytest.raises(ValueError, match="init holds 1 members"):
         train_ensemble(small, val, cfg2, init=Seq2SeqEnsemble([pre]))
+
+
+def forking_tracks(rng, n, T=20, dt=0.4, fork=8):
+    """Straight walks (1.2 m/s, random heading) that after ``fork`` frames turn 90 degrees left
+    or right at random (each half the time): a future with two modes."""
+    h0 = rng.uniform(0, 2 * np.pi, n)[:, None]
+    side = rng.choice([-1.0, 1.0], n)[:, None]
+    heading = h0 + np.where(np.arange(T)[None, :] >= fork, side * np.pi / 2, 0.0)
+    steps = 1.2 * dt * np.stack([np.cos(heading), np.sin(heading)], axis=-1)
+    return rng.uniform(-10, 10, (n, 1, 2)) + np.cumsum(steps, axis=1)
+
+
+def test_multi_modal_head_finds_both_turns_a_single_path_averages():
+    """Left or right at random: one path can only go between them (ADE of the average); the
+    mixture's best hypothesis follows the true turn, its weights split about evenly and the
+    moment covariance holds the spread between the turns."""
+    rng = np.random.default_rng(3)
+    train, val, test = forking_tracks(rng, 1500), forking_tracks(rng, 200), forking_tracks(rng, 200)
+    cfg = replace(CFG, epochs=6, nll_weight=0.1)
+    single, _ = train_seq2seq(train, val, cfg)
+    multi, _ = train_seq2seq(train, val, replace(cfg, modes=4))
+    obs, fut = test[:, :8], test[:, 8:]
+    one = np.linalg.norm(single.predict(obs, 12) - fut, axis=-1).mean()
+    mix = multi.predict_mixture(obs, 12)
+    from blindspot.traj.mixture import best_of
+    best = best_of(mix.means, fut)[0]
+    assert best < 0.3 * one, (best, one)        # the left/right average misses by metres
+    # the two most probable hypotheses take most of the mass, about half each
+    top2 = np.sort(mix.weights, axis=1)[:, -2:]
+    assert np.median(top2.sum(1)) > 0.8 and 0.25 < np.median(top2[:, 0]) <= 0.5
+    # predict / predict_distribution give the mixture's moments (the point: its mean)
+    fc = multi.predict_distribution(obs, 12)
+    assert np.allclose(fc.mean, mix.mean()) and np.allclose(fc.cov, mix.moment_cov())
+    multi.point = "mode"
+    assert np.allclose(multi.predict(obs, 12), mix.most_likely())
+
+
+def test_multi_modal_model_saves_and_loads_and_a_single_path_has_no_mixture(tmp_path):
+    rng = np.random.default_rng(4)
+    tracks = forking_tracks(rng, 200)
+    multi, _ = train_seq2seq(tracks[:150], tracks[150:], replace(CFG, epochs=1, modes=3))
+    path = Seq2SeqEnsemble([multi], name="mix").save(tmp_path / "mix.pt")
+    back = Seq2SeqEnsemble.load(path).members[0]
+    a, b = multi.predict_mixture(tracks[:5, :8], 12), back.predict_mixture(tracks[:5, :8], 12)
+    assert np.array_equal(a.means, b.means) and np.array_equal(a.weights, b.weights)
+    single, _ = train_seq2seq(tracks[:150], tracks[150:], replace(CFG, epochs=1))
+    with pytest.raises(HistoryError, match="modes"):
+        single.predict_mixture(tracks[:5, :8], 12)
+    with pytest.raises(ValueError, match="point"):
+        Seq2SeqModel(single.net, single.cfg, point="median")

@@ -15,14 +15,80 @@ from typing import Any
 
 from blindspot.report.paper_values import ETHUCY_PUBLISHED
 
-__all__ = ["format_table", "compare_to_cvm", "format_calibration", "format_report"]
+__all__ = ["format_table", "compare_to_cvm", "format_calibration", "format_seeds",
+           "format_multimodal", "format_report"]
 
 Results = Mapping[str, Mapping[str, Mapping[str, float]]]
 
 
+#: blocks of a results dict that are not a model's row
+_BLOCKS = ("seeds",)
+
+
 def _models(results: Mapping[str, Any]) -> dict[str, Any]:
-    """The per-model rows of a results dict (``"best"``, a model name, left out)."""
-    return {m: r for m, r in results.items() if isinstance(r, Mapping)}
+    """The per-model rows of a results dict (``"best"``, a model name, and the ``"seeds"`` and
+    ``"best_of_<n>"`` blocks left out)."""
+    return {m: r for m, r in results.items() if isinstance(r, Mapping) and m not in _BLOCKS
+            and not m.startswith("best_of_")}
+
+
+def format_seeds(results: Mapping[str, Any]) -> str:
+    """Markdown table of ``results["seeds"]``: per learned model each seed's fold-averaged
+    ADE / FDE and their mean +- sample sd; "" when the block is absent."""
+    seeds = results.get("seeds") or {}
+    if not seeds:
+        return ""
+    lines = ["| model | seeds | ADE per seed | FDE per seed | ADE mean +- sd | FDE mean +- sd |",
+             "|---|---|---|---|---|---|"]
+    for m, r in seeds.items():
+        lines.append(f"| {m} | {r['n']} | " + ", ".join(f"{x:.3f}" for x in r["ade"]) + " | "
+                     + ", ".join(f"{x:.3f}" for x in r["fde"])
+                     + f" | {r['ade_mean']:.3f} +- {r['ade_sd']:.3f} | "
+                       f"{r['fde_mean']:.3f} +- {r['fde_sd']:.3f} |")
+    return "\n".join(lines)
+
+
+def format_multimodal(results: Mapping[str, Any],
+                      details: Mapping[str, Mapping[str, Mapping[str, Any]]],
+                      folds: Sequence[str]) -> str:
+    """Markdown tables of the multi-modal models: best-of-N ADE / FDE per fold (seed mean)
+    and average +- sd over the seeds; the mixture's NLL and the coverage of its 50/90/95 %
+    highest-density regions per fold (uncalibrated, seed mean); the single prediction val chose
+    per fold and seed. "" when no ``best_of_<n>`` block."""
+    blocks = {k: v for k, v in results.items() if k.startswith("best_of_")
+              and isinstance(v, Mapping)}
+    if not blocks:
+        return ""
+    lines: list[str] = []
+    for key, rows in blocks.items():
+        n = key.removeprefix("best_of_")
+        lines += [f"Best-of-{n} ADE / FDE (m; per window the nearest of the model's {n} most "
+                  "probable hypotheses, ADE and FDE each on its own; mean over the seeds):", "",
+                  "| model | " + " | ".join([*folds, "avg", "sd over seeds"]) + " |",
+                  "|---|" + "---|" * (len(folds) + 2)]
+        for m, r in rows.items():
+            lines.append(f"| {m} | " + " | ".join(_cell(r.get(f)) for f in [*folds, "avg"])
+                         + f" | {r['sd']['ade']:.3f} / {r['sd']['fde']:.3f} |")
+        lines.append("")
+        lines += ["The mixture as a distribution (uncalibrated; per step the mixture of the "
+                  "hypotheses' Gaussians): NLL, nats per point, and the coverage of its 50 / 90 "
+                  "/ 95 % highest-density regions (Monte Carlo, 100 draws per point); seed mean. "
+                  "Point: the single prediction val chose per seed (`mean`: the mixture's "
+                  "mean, `mode`: its most probable hypothesis).", "",
+                  "| model | " + " | ".join(folds) + " |", "|---|" + "---|" * len(folds)]
+        for m in rows:
+            cells = []
+            for f in folds:
+                sc = details[f][m]["fitted"]["seed_scores"]
+                mean = {k: sum(x[k] for x in sc) / len(sc) for k in
+                        ("mixture_nll", "mixture_coverage_50", "mixture_coverage_90",
+                         "mixture_coverage_95")}
+                cells.append(f"NLL {mean['mixture_nll']:.2f}; {mean['mixture_coverage_50']:.3f}"
+                             f" / {mean['mixture_coverage_90']:.3f} / "
+                             f"{mean['mixture_coverage_95']:.3f}; point "
+                             + ",".join(x.get("point", "-") for x in sc))
+            lines.append(f"| {m} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
 
 
 def format_calibration(calibration: Mapping[str, Mapping[str, Mapping[str, Any]]],
@@ -193,6 +259,7 @@ def format_report(results: Results, validation: Results,
     if seq2seq is not None and direct:
         enc = {"lstm": "an LSTM encoder", "gru": "a GRU encoder",
                "mlp": "a dense (MLP) encoder over the flattened inputs"}
+        n_seeds = (results.get("seeds") or {}).get(direct[0], {}).get("n", 1)
         for m in direct:
             parts.append(
                 f"- **{m}**: direct multi-step predictor (`blindspot.traj.seq2seq`) with "
@@ -207,11 +274,33 @@ def format_report(results: Results, validation: Results,
                    if seq2seq.get("nll_weight") else "")
                 + (f"; the mean of {seq2seq.get('ensemble')} members trained with consecutive "
                    "seeds, each" if (seq2seq.get("ensemble") or 1) > 1 else
-                   f"; one network (seed {seq2seq.get('seed')}),")
-                + " kept at its epoch of lowest val ADE. Epochs kept per fold: "
-                + ", ".join(f"{f} {details[f][m]['fitted'].get('best_epochs')}" for f in folds)
+                   f"; one network per seed ({n_seeds} seeds from {seq2seq.get('seed')}; "
+                   "the table gives their mean, the distributions are the first seed's),")
+                + f" up to {seq2seq.get('epochs')} epochs, kept at the epoch of lowest val ADE."
+                + " Epochs kept per fold (per seed): "
+                + ", ".join(f"{f} " + str([x["best_epochs"][0] for x in
+                                           details[f][m]["fitted"]["seed_scores"]]
+                                          if "seed_scores" in details[f][m]["fitted"]
+                                          else details[f][m]["fitted"].get("best_epochs"))
+                            for f in folds)
                 + ".")
-        shown = {k: v for k, v in dict(seq2seq).items() if k != "cell"}
+        if "mix" in models:
+            parts.append(
+                "- **mix**: the multi-modal predictor: the same direct predictor with "
+                f"{(seq2seq.get('mix_cell') or 'the MLP')} encoder and "
+                f"{seq2seq.get('mix_modes')} hypotheses, each a Gaussian path, with their "
+                "probabilities (a mixture, `blindspot.traj.mixture`), trained by relaxed "
+                "winner-takes-all on the ADE, cross-entropy on the winner and the winner's "
+                "Gaussian NLL, each hypothesis started at a k-means anchor of the training "
+                "futures' deviations from constant velocity. Its single prediction is the "
+                "mixture's mean or its most probable hypothesis, whichever val prefers; its "
+                "ellipses come from the mixture's second moment about that prediction. Epochs "
+                "kept per fold (per seed): "
+                + ", ".join(f"{f} " + str([x["best_epochs"][0] for x in
+                                           details[f]["mix"]["fitted"]["seed_scores"]])
+                            for f in folds) + ".")
+        shown = {k: v for k, v in dict(seq2seq).items()
+                 if k not in ("cell", "mix_cell", "mix_modes")}
         parts.append(f"  Settings (`ethucy.seq2seq`; the encoder is set by the model key): "
                      f"`{json.dumps(shown)}`. What each choice is worth (ablation table, measured "
                      "on the val and test splits, with its command): `conf/ethucy/standard.yaml`.")
@@ -236,6 +325,13 @@ def format_report(results: Results, validation: Results,
             + ", ".join(f"{f} {details[f]['lstm_rollout']['fitted']['val_rmse_m']:.4f}"
                         for f in folds) + ".",
         ]
+    if (seeds := format_seeds(results)):
+        parts += ["", "## Seeds", "",
+                  "Each learned model trained with every seed; its ADE / FDE averaged over the "
+                  "folds per seed, and the mean and sample sd over the seeds (the table above "
+                  "gives the mean):", "", seeds]
+    if (multi := format_multimodal(results, details, folds)):
+        parts += ["", "## Multi-modal predictions", "", multi]
     parts += ["", "## Validation splits", "",
               "The same metrics on each fold's val split (parts of the training scenes, never "
               "the test scene): settings are to be chosen on these, not on the test table.",
@@ -251,7 +347,7 @@ def format_report(results: Results, validation: Results,
                   "noise model of its errors (along/cross-track covariance per step, scaled "
                   "by the history's speed and acceleration) fitted on val; kalman: the filter's "
                   "own F P F^T + Q + R; lstm / gru / mlp: the Gaussian head plus the ensemble "
-                  "spread. "
+                  "spread; mix: the mixture's second moment about its single prediction. "
                   "Rows \"online\": the same forecasts' adaptive conformal ellipses "
                   "(`blindspot.traj.conformal`, Gibbs & Candès 2021): each test scene a stream, "
                   "each prediction's ellipse radii the conformal quantiles of the last outcomes "

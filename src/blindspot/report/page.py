@@ -213,11 +213,19 @@ def summary_rows(metrics: Mapping[str, Metrics]) -> list[tuple[str, str, str, st
             a = _get(eth, model, "avg")
             return "n/a" if not a else f"{a['ade']:.2f} / {a['fde']:.2f} m"
 
-        models = [m for m in eth if isinstance(eth[m], dict)]
+        # model rows hold "avg"; "seeds" and "best_of_<n>" are blocks about them (issue 43)
+        models = [m for m in eth if isinstance(eth[m], dict) and "avg" in eth[m]]
         best = ethucy_lead(eth)
-        base = "; ".join(f"{ethucy_label(m)} {avg(m)}" for m in models if m != best)
+        base = "; ".join([f"{ethucy_label(m)} {avg(m)}" for m in models if m != best]
+                         + [f"{ethucy_label(m)} best-of-{k.removeprefix('best_of_')} "
+                            f"{r['avg']['ade']:.2f} / {r['avg']['fde']:.2f} m"
+                            for k, block in eth.items() if k.startswith("best_of_")
+                            and isinstance(block, dict) for m, r in block.items()])
+        sd = (eth.get("seeds") or {}).get(best)
         ours = (f"{ethucy_label(best)} {avg(best)}"
-                + (" (best on val)" if best == eth.get("best") else "")) if best else "n/a"
+                + (" (best on val)" if best == eth.get("best") else "")
+                + (f", mean of {sd['n']} seeds (sd {sd['ade_sd']:.3f} / {sd['fde_sd']:.3f} m)"
+                   if sd else "")) if best else "n/a"
         rows.append(("ETH/UCY average ADE / FDE (observe 8, predict 12)", published, ours, base,
                      command("ethucy")))
     else:
@@ -293,7 +301,7 @@ SIM_PATHS = "sim_paths"
 #: not the radar paths' direct LSTM (lstm_direct) either
 _ETHUCY_LABELS = {"cvm": "CVM", "constant_velocity": "constant velocity", "kalman": "Kalman (CV)",
                   "lstm": "LSTM encoder", "gru": "GRU encoder", "mlp": "MLP encoder",
-                  "lstm_rollout": "next-point LSTM"}
+                  "mix": "multi-modal MLP encoder", "lstm_rollout": "next-point LSTM"}
 
 
 def ethucy_label(model: str) -> str:
@@ -305,7 +313,7 @@ def ethucy_label(model: str) -> str:
 def ethucy_lead(eth: Metrics) -> str | None:
     """The ETH/UCY model the page puts first: the one val chose (ethucy.json's "best") when it
     has a row, else the LSTM encoder's, else None."""
-    rows = [m for m in eth if isinstance(eth[m], Mapping)]
+    rows = [m for m in eth if isinstance(eth[m], Mapping) and "avg" in eth[m]]
     best = eth.get("best")
     return best if best in rows else ("lstm" if "lstm" in rows else None)
 

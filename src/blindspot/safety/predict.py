@@ -26,11 +26,12 @@ import pandas as pd
 from blindspot.arrays import check_count
 from blindspot.radar.config import RadarConfig
 from blindspot.safety.config import WarningConfig
-from blindspot.safety.risk import EgoShape, collision_risk
+from blindspot.safety.risk import EgoShape, collision_risk, mixture_collision_risk
 from blindspot.traj.baselines import ConstantVelocity, KalmanCV, prediction_methods
 from blindspot.traj.config import CalibrationConfig, DatasetConfig, EvalConfig
 from blindspot.traj.lstm import LSTMPredictor
 from blindspot.traj.distribution import DistributionError
+from blindspot.traj.mixture import MixtureForecast
 from blindspot.traj.windows import interpolate_gaps
 
 __all__ = ["calibrated_predictors", "stage_predictors", "BackfilledHistory", "TrackState", "with_backfill", "track_histories",
@@ -211,7 +212,8 @@ def risk_table(tracks: pd.DataFrame, ego: pd.DataFrame, predictors: dict[str, An
     confirmed, ...; with a ``moving`` column (:func:`moving_tracks`) only rows confirmed and
     moving are scored, the static world's tracks are not); ego: columns group, frame, ego_x_m, ego_y_m, ego_yaw_deg, ego_speed_mps
     (one row per group and frame). predictors: name -> probabilistic predictor
-    (``predict_distribution(history (B, T, 2), horizon)``). Returns columns predictor, group,
+    (``predict_distribution(history (B, T, 2), horizon)``; one offering ``predict_mixture``
+    is scored by its mixture, :func:`~blindspot.safety.risk.mixture_collision_risk`). Returns columns predictor, group,
     frame, track_id, p_collision, ttc_s. Raises ValueError when a track row has no ego state.
     """
     tr = tracks.sort_values(["group", "track_id", "frame"]).reset_index(drop=True)
@@ -235,9 +237,12 @@ def risk_table(tracks: pd.DataFrame, ego: pd.DataFrame, predictors: dict[str, An
         elif (isinstance(getattr(pred, "base", None), KalmanCV)
                 and getattr(pred, "scale", None) is not None and hasattr(pred, "options")):
             fc = incremental_kalman(pred, tr, keep, horizon)
+        elif callable(getattr(pred, "predict_mixture", None)):   # multi-modal (issue 43)
+            fc = pred.predict_mixture(hist, horizon)
         else:
             fc = pred.predict_distribution(hist, horizon)
-        r = collision_risk(fc, e[["ego_x_m", "ego_y_m"]].to_numpy(),
+        risk = mixture_collision_risk if isinstance(fc, MixtureForecast) else collision_risk
+        r = risk(fc, e[["ego_x_m", "ego_y_m"]].to_numpy(),
                            np.radians(e.ego_yaw_deg.to_numpy()), e.ego_speed_mps.to_numpy(),
                            dt_s, shape, margin_m=margin_m, method=method)
         out.append(pd.DataFrame({"predictor": name, "group": rows.group, "frame": rows.frame,

@@ -34,7 +34,7 @@ TARGETS: tuple[str, ...] = ("displacement", "absolute")
 OPTIMIZERS: tuple[str, ...] = ("adam", "adamw")
 SCHEDULES: tuple[str, ...] = ("constant", "cosine")
 PREDICTION_METHODS: tuple[str, ...] = ("lstm", "constant_velocity", "kalman")
-ETHUCY_MODELS: tuple[str, ...] = ("cvm", "kalman", "lstm", "gru", "mlp",
+ETHUCY_MODELS: tuple[str, ...] = ("cvm", "kalman", "lstm", "gru", "mlp", "mix",
                                   "lstm_rollout")
 SEED_MAX = 2**63 - 1     # the largest seed numpy and torch both take
 
@@ -299,6 +299,9 @@ class Seq2SeqConfig(TypedConfig):
         neighbours: K > 0: the K pedestrians nearest at the last observed frame are context
             (their observed tracks relative to the walker's, pooled by attention,
             :class:`blindspot.traj.seq2seq.SocialAttention`); 0 = the walker alone.
+        modes: M > 1: the head emits M hypotheses (each a Gaussian path) and their
+            probabilities, trained winner-takes-all (:mod:`blindspot.traj.mixture`); 1 = one
+            Gaussian path.
     """
 
     GROUP = "ethucy.seq2seq"
@@ -326,6 +329,7 @@ class Seq2SeqConfig(TypedConfig):
     seed: int = setting(0, ge=0)
     threads: int = setting(1, ge=1)
     neighbours: int = setting(8, ge=0)
+    modes: int = setting(1, ge=1)
 
 
 @dataclass(frozen=True)
@@ -399,6 +403,10 @@ class EthUcyConfig(TypedConfig):
             (:class:`blindspot.traj.seq2seq.Seq2SeqConfig`; its ``cell`` is set by the model
             key, its ``threads`` by ``threads``, its first seed by the top-level ``seed``).
         lstm_rollout: the next-point LSTM's (:class:`RolloutLSTMConfig`), the same way.
+        seeds: how many seeds each learned model is trained with (the top-level ``seed``,
+            ``seed + 1``, ...); the results are their mean, ``"seeds"`` their spread.
+        mix_cell / mix_modes: the multi-modal model ``mix``: the direct predictor with this
+            encoder and ``mix_modes`` hypotheses (:mod:`blindspot.traj.mixture`).
     """
 
     GROUP = "ethucy"
@@ -414,6 +422,9 @@ class EthUcyConfig(TypedConfig):
     online_rescales: tuple[int, ...] = setting(ge=0, min_items=1)
     seq2seq: Seq2SeqConfig = setting()
     lstm_rollout: RolloutLSTMConfig = setting()
+    seeds: int = setting(1, ge=1)
+    mix_cell: str = setting("mlp", choices=SEQ2SEQ_CELLS)
+    mix_modes: int = setting(20, ge=2)
 
 
 @dataclass(frozen=True)

@@ -19,14 +19,26 @@ anything learns it from its fold's ``train`` split (and ``val`` for the LSTM's v
   on the 8 -> 12 ADE, the epoch kept by the val split's ADE; an ensemble of seeds.
 * ``gru``: the same predictor with a GRU encoder (Cho et al. 2014) instead of the LSTM.
 * ``mlp``: the same predictor with a dense (MLP) encoder instead of the LSTM.
+* ``mix``: the multi-modal predictor: the same predictor (encoder ``mix_cell``) with
+  ``mix_modes`` hypotheses and their probabilities (:mod:`blindspot.traj.mixture`); its single
+  prediction is the mixture's mean or its most probable hypothesis, whichever has the lower
+  ADE on the fold's val split; scored also best-of-N (N = its hypotheses) and as a mixture
+  (NLL, coverage of its highest-density regions).
 * ``lstm_rollout``: the project's next-point LSTM with a window of 8, trained on every fully
   observed 9-frame stretch (8 in, 1 out) of the fold's train split, validated on the val split,
   rolled out 12 steps (today's paper model; slow, kept for the ablation).
 
+Seeds: every learned model is trained ``seeds`` times (seeds ``seed, seed + 1, ...``); its
+ADE / FDE per fold are the mean over the seeds, and the distributions are scored for the first
+seed's network.
+
 Results ``{model: {fold: {"ade", "fde", "n_windows"}, ..., "avg": {"ade", "fde"}}, "best":
-model}`` (avg = unweighted mean over the folds run, as in the literature; ``best`` = the model
-with the lowest average ADE on the folds' *val* splits, so the choice never looks at a test
-scene).
+model, "seeds": {model: {"ade_mean", "fde_mean", "ade_sd", "fde_sd", "n"}}, "best_of_20":
+{model: {fold: {"ade", "fde"}, "avg": {"ade", "fde"}}}}`` (avg = unweighted mean over the folds
+run, as in the literature; ``best`` = the model with the lowest average ADE on the folds' *val*
+splits, so the choice never looks at a test scene; ``seeds``: the mean and sample standard
+deviation over the seeds of each learned model's fold-averaged ADE / FDE; ``best_of_20``: the
+multi-modal models' best-of-20 scores, seed mean).
 
 Predictive distributions (issue 10, section 2): every model but ``lstm_rollout`` gives a
 :class:`~blindspot.traj.distribution.GaussianForecast` (cvm: :class:`CVNoise` fitted on the
@@ -94,6 +106,10 @@ __all__ = [
     "calibration_scores",
     "online_coverage",
     "train_fold_seq2seq",
+    "seq2seq_config",
+    "choose_point",
+    "mixture_scores",
+    "seed_spread",
     "lstm_window_set",
     "train_fold_lstm",
     "val_windows",
@@ -106,7 +122,7 @@ __all__ = [
 
 MODELS: tuple[str, ...] = ETHUCY_MODELS
 #: models that give a predictive distribution (scored for calibration)
-PROBABILISTIC: tuple[str, ...] = ("cvm", "kalman", "lstm", "gru", "mlp")
+PROBABILISTIC: tuple[str, ...] = ("cvm", "kalman", "lstm", "gru", "mlp", "mix")
 #: ellipse levels of ``calibration.json``
 CALIBRATION_LEVELS: tuple[float, ...] = (0.5, 0.9, 0.95)
 #: nominal levels of the reliability curve (figure)
@@ -117,7 +133,9 @@ MIXTURE_COMPONENTS = 3
 #: 1.3-1.4 m/s, Bohannon 1997, "Comfortable and maximum walking speed of adults aged 20-79")
 SPEED_EDGES_M_S: tuple[float, ...] = (0.2, 0.6, 1.0, 1.4)
 #: encoder of each direct-predictor model key
-SEQ2SEQ_CELL: dict[str, str] = {"lstm": "lstm", "gru": "gru", "mlp": "mlp"}
+SEQ2SEQ_CELL: dict[str, str] = {"lstm": "lstm", "gru": "gru", "mlp": "mlp", "mix": "mlp"}
+#: hypotheses of the best-of-N score (the field's best-of-20)
+BEST_OF = 20
 
 
 @dataclass(frozen=True)
@@ -142,6 +160,8 @@ class EthUcySettings:
             a stream whose revealed outcomes keep the ellipses calibrated;
             ``online_coverage_*``); each fold and model chooses one on its own val scenes
             (:func:`online_coverage`).
+        seeds: seeds per learned model (``seq2seq.seed``, + 1, ...).
+        mix_cell, mix_modes: the encoder and hypotheses of ``mix``.
     """
 
     data_dir: Path
@@ -153,6 +173,9 @@ class EthUcySettings:
     speed_edges: tuple[float, ...] = SPEED_EDGES_M_S
     online: tuple[AdaptiveConformal, ...] = field(
         default_factory=lambda: (AdaptiveConformal(CALIBRATION_LEVELS),))
+    seeds: int = 1
+    mix_cell: str = "mlp"
+    mix_modes: int = BEST_OF
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "data_dir", Path(self.data_dir))
@@ -174,7 +197,8 @@ class EthUcySettings:
                    online=tuple(AdaptiveConformal(CALIBRATION_LEVELS, g, w, k)
                                 for g, w, k in itertools.product(
                                     config.online_gammas, config.online_windows,
-                                    config.online_rescales)))
+                                    config.online_rescales)),
+                   seeds=config.seeds, mix_cell=config.mix_cell, mix_modes=config.mix_modes)
 
 
 @dataclass
@@ -349,7 +373,8 @@ def calibration_scores(forecast: GaussianForecast, truth: np.ndarray,
 
 
 def train_fold_seq2seq(data_dir: Path, fold: str, cfg: Seq2SeqConfig, name: str,
-                       progress: bool = False):
+                       progress: bool = False, *, train: Windows | None = None,
+                       val: Windows | None = None):
     """Train the direct predictor's ensemble on a fold's train split, keeping each member's
     epoch with the lowest ADE on the fold's val split (Social-GAN windows).
 
@@ -358,12 +383,15 @@ def train_fold_seq2seq(data_dir: Path, fold: str, cfg: Seq2SeqConfig, name: str,
 
     Returns:
         ``(ensemble, fitted)``: the :class:`~blindspot.traj.seq2seq.Seq2SeqEnsemble` and what
-        the report shows (members' kept epochs, training windows, seconds).
+        the report shows (members' kept epochs, training windows, seconds). ``train`` /
+        ``val``: the fold's windows when already loaded (as this function loads them).
     """
     from blindspot.traj.seq2seq import train_ensemble
 
-    train = load_split(data_dir, fold, "train", min_peds=1, neighbours=cfg.neighbours)
-    val = val_windows(data_dir, fold, cfg.neighbours)
+    if train is None:
+        train = load_split(data_dir, fold, "train", min_peds=1, neighbours=cfg.neighbours)
+    if val is None:
+        val = val_windows(data_dir, fold, cfg.neighbours)
     say = (lambda line: print(f"[{fold}] {line}", flush=True)) if progress else None
     ens, reports = train_ensemble(train.xy, val.xy, cfg, name=name, progress=say,
                                   train_nb=train.neighbours, val_nb=val.neighbours)
@@ -372,15 +400,85 @@ def train_fold_seq2seq(data_dir: Path, fold: str, cfg: Seq2SeqConfig, name: str,
     return ens, fitted
 
 
+def seq2seq_config(seq2seq: Seq2SeqConfig, name: str, mix_cell: str = "mlp",
+                   mix_modes: int = BEST_OF) -> Seq2SeqConfig:
+    """The direct predictor's settings for model key ``name``: its encoder, and for ``mix``
+    ``mix_cell`` with ``mix_modes`` hypotheses."""
+    if name not in SEQ2SEQ_CELL:
+        raise ValueError(f"name: expected one of {tuple(SEQ2SEQ_CELL)}, found {name!r}")
+    if name == "mix":
+        return replace(seq2seq, cell=mix_cell, modes=int(mix_modes))
+    return replace(seq2seq, cell=SEQ2SEQ_CELL[name], modes=1)
+
+
+def choose_point(ens: Any, val: Windows) -> str:
+    """``"mean"`` or ``"mode"``: which single prediction of a multi-modal ``ens`` (one member)
+    has the lower ADE on the val windows (the mixture's mean, or its most probable
+    hypothesis); the member is left predicting that one."""
+    model = ens.members[0]
+    mix = model.predict_mixture(val.observed(), PRED_LEN, neighbours=val.neighbours)
+    truth = val.future()
+    point = "mode" if ade(mix.most_likely(), truth) < ade(mix.mean(), truth) else "mean"
+    model.point = point
+    return point
+
+
+def mixture_scores(model: Any, test: Windows, n: int = BEST_OF) -> dict[str, Any]:
+    """Best-of-``n`` ADE / FDE (m) of a multi-modal model's ``n`` most probable hypotheses on
+    the test windows and, of its whole mixture, the NLL (nats per point) and the coverage of
+    the 50/90/95 % highest-density regions (uncalibrated; :mod:`blindspot.traj.mixture`)."""
+    from blindspot.traj.mixture import best_of
+
+    mix = model.predict_mixture(test.observed(), PRED_LEN, neighbours=test.neighbours)
+    order = np.argsort(-mix.weights, axis=1, kind="stable")[:, :n]
+    means = np.take_along_axis(mix.means, order[:, :, None, None], axis=1)
+    b_ade, b_fde = best_of(means, test.future())
+    cov = mix.coverage(test.future(), CALIBRATION_LEVELS)
+    return {"best_of_ade": b_ade, "best_of_fde": b_fde, "best_of_n": int(means.shape[1]),
+            "mixture_nll": mix.nll(test.future()),
+            **{f"mixture_coverage_{round(100 * lv)}": float(c)
+               for lv, c in zip(CALIBRATION_LEVELS, cov)}}
+
+
+def _train_seeds(data_dir: Path, fold: str, cfg: Seq2SeqConfig, name: str, seeds: int,
+                 progress: bool, val: Windows, test: Windows) -> tuple[Any, dict[str, Any]]:
+    """Train ``name`` with ``seeds`` seeds (``cfg.seed`` + k) on the fold; score each on test
+    and val. Returns the first seed's predictor and ``fitted`` with the per-seed rows
+    (``seed_scores``) and their mean test ADE / FDE (``ade``, ``fde``)."""
+    train = load_split(data_dir, fold, "train", min_peds=1, neighbours=cfg.neighbours)
+    rows, first, fitted = [], None, {}
+    for k in range(seeds):
+        ens, fit = train_fold_seq2seq(data_dir, fold, replace(cfg, seed=cfg.seed + k), name,
+                                      progress, train=train, val=val)
+        row: dict[str, Any] = {"seed": cfg.seed + k, "best_epochs": fit["best_epochs"]}
+        if cfg.modes > 1:
+            row["point"] = choose_point(ens, val)
+            row.update(mixture_scores(ens.members[0], test))
+        row["ade"], row["fde"] = score(ens, test)
+        row["val_ade"], row["val_fde"] = score(ens, val)
+        rows.append(row)
+        if first is None:
+            first, fitted = ens, fit
+    fitted = {**fitted, "seed_scores": rows,
+              "val_ade_m": float(np.mean([r["val_ade"] for r in rows])),
+              "val_fde_m": float(np.mean([r["val_fde"] for r in rows]))}
+    return first, fitted
+
+
 def run_fold(data_dir: Path, fold: str, models: Sequence[str], lstm: RolloutLSTMConfig,
              progress: bool = True, seq2seq: Seq2SeqConfig | None = None,
              calibration: str = "mixture",
              speed_edges: Sequence[float] = SPEED_EDGES_M_S,
-             online: Sequence[AdaptiveConformal] | None = None) -> dict[str, FoldOutcome]:
+             online: Sequence[AdaptiveConformal] | None = None, *, seeds: int = 1,
+             mix_cell: str = "mlp", mix_modes: int = BEST_OF) -> dict[str, FoldOutcome]:
     """Evaluate the requested models on one fold: ADE/FDE on test and val, and (models with a
     distribution) calibration on test after a calibration fitted on val, and the coverage of
     the adaptive conformal ellipses of the setting chosen among ``online`` on val
-    (:func:`online_coverage`; default: :class:`AdaptiveConformal`'s settings alone)."""
+    (:func:`online_coverage`; default: :class:`AdaptiveConformal`'s settings alone).
+
+    The direct predictors (``lstm``, ``gru``, ``mlp``, ``mix``) are trained with ``seeds``
+    seeds; their ADE / FDE are the seeds' mean (``fitted["seed_scores"]`` each seed's), their
+    distributions the first seed's."""
     online = tuple(online) if online else (AdaptiveConformal(CALIBRATION_LEVELS),)
     seq2seq = seq2seq if seq2seq is not None else Seq2SeqConfig()
     k = seq2seq.neighbours if any(m in SEQ2SEQ_CELL for m in models) else 0
@@ -400,15 +498,19 @@ def run_fold(data_dir: Path, fold: str, models: Sequence[str], lstm: RolloutLSTM
             predictor = KalmanCV().fit(train.xy, objective="forecast", obs_len=OBS_LEN)
             fitted = {"process_psd_m2_s3": predictor.process_psd, "meas_std_m": predictor.meas_std}
         elif name in SEQ2SEQ_CELL:
-            predictor, fitted = train_fold_seq2seq(
-                data_dir, fold, replace(seq2seq, cell=SEQ2SEQ_CELL[name]), name, progress)
+            predictor, fitted = _train_seeds(
+                data_dir, fold, seq2seq_config(seq2seq, name, mix_cell, mix_modes), name,
+                int(seeds), progress, val, test)
         elif name == "lstm_rollout":
             predictor, val_rmse, n_train, n_val = train_fold_lstm(data_dir, fold, lstm, progress)
             fitted = {"val_rmse_m": val_rmse, "n_train_windows": n_train, "n_val_windows": n_val}
         else:  # guarded by EthUcyConfig
             raise ValueError(f"models: expected a subset of {MODELS}, found {name!r}")
-        a, f = score(predictor, test)
-        fitted["val_ade_m"], fitted["val_fde_m"] = score(predictor, val)
+        if "seed_scores" in fitted:      # the seeds' mean
+            a, f = (float(np.mean([r[k] for r in fitted["seed_scores"]])) for k in ("ade", "fde"))
+        else:
+            a, f = score(predictor, test)
+            fitted["val_ade_m"], fitted["val_fde_m"] = score(predictor, val)
         calib = None
         if name in PROBABILISTIC:
             raw_val = predictor.predict_distribution(val.observed(), PRED_LEN,
@@ -485,6 +587,50 @@ def summarise(per_fold: dict[str, dict[str, FoldOutcome]], models: Sequence[str]
                float(np.mean([r[m].fitted["val_fde_m"] for r in per_fold.values()])))
            for m in models}
     out["best"] = min(models, key=lambda m: val[m])
+    seeded = [m for m in models
+              if all("seed_scores" in r[m].fitted for r in per_fold.values())]
+    if seeded:
+        out["seeds"] = {m: seed_spread(per_fold, m) for m in seeded}
+    multi = [m for m in seeded if all("best_of_ade" in row for r in per_fold.values()
+                                      for row in r[m].fitted["seed_scores"])]
+    for m in multi:        # keyed by the hypotheses scored (BEST_OF unless a model has fewer)
+        n = min(row["best_of_n"] for r in per_fold.values() for row in r[m].fitted["seed_scores"])
+        out.setdefault(f"best_of_{n}", {})[m] = _best_of_rows(per_fold, m)
+    return out
+
+
+def seed_spread(per_fold: dict[str, dict[str, FoldOutcome]], model: str) -> dict[str, Any]:
+    """``{"ade_mean", "fde_mean", "ade_sd", "fde_sd", "n", "ade", "fde"}`` of a model trained
+    with several seeds: each seed's ADE / FDE averaged over the folds (``ade``, ``fde``: lists
+    in seed order), their mean and sample standard deviation (0 with one seed)."""
+    rows = [r[model].fitted["seed_scores"] for r in per_fold.values()]
+    n = len(rows[0])
+    if any(len(x) != n for x in rows):
+        raise ValueError(f"per_fold: {model!r} was trained with different seed counts per fold "
+                         f"({[len(x) for x in rows]})")
+    out: dict[str, Any] = {"n": n}
+    for k in ("ade", "fde"):
+        per_seed = [float(np.mean([x[i][k] for x in rows])) for i in range(n)]
+        out[k] = per_seed
+        out[f"{k}_mean"] = float(np.mean(per_seed))
+        out[f"{k}_sd"] = float(np.std(per_seed, ddof=1)) if n > 1 else 0.0
+    return out
+
+
+def _best_of_rows(per_fold: dict[str, dict[str, FoldOutcome]], model: str) -> dict[str, Any]:
+    """``{fold: {"ade", "fde"}, "avg": {...}, "sd": {...}}``: a multi-modal model's best-of-N
+    scores per fold (seed mean), their unweighted fold average and its sd over the seeds."""
+    out: dict[str, Any] = {}
+    per_seed: dict[str, list[list[float]]] = {"ade": [], "fde": []}
+    for fold, r in per_fold.items():
+        rows = r[model].fitted["seed_scores"]
+        out[fold] = {k: float(np.mean([x[f"best_of_{k}"] for x in rows])) for k in ("ade", "fde")}
+        for k in ("ade", "fde"):
+            per_seed[k].append([x[f"best_of_{k}"] for x in rows])
+    out["avg"] = {k: float(np.mean([out[f][k] for f in per_fold])) for k in ("ade", "fde")}
+    fold_avg = {k: np.mean(np.array(v), axis=0) for k, v in per_seed.items()}   # (seeds,)
+    out["sd"] = {k: float(np.std(v, ddof=1)) if len(v) > 1 else 0.0
+                 for k, v in fold_avg.items()}
     return out
 
 
@@ -507,8 +653,8 @@ def calibration_table(per_fold: dict[str, dict[str, FoldOutcome]], *, reliabilit
 
 #: relative training cost of each model on a fold (the learned ones dominate): the order in which
 #: run_benchmark hands (fold, model) items to the workers, costliest first
-_COST_RANK: dict[str, int] = {"lstm_rollout": 0, "lstm": 1, "gru": 2, "mlp": 3, "kalman": 4,
-                               "cvm": 5}
+_COST_RANK: dict[str, int] = {"lstm_rollout": 0, "lstm": 1, "gru": 2, "mix": 3, "mlp": 4,
+                               "kalman": 5, "cvm": 6}
 
 
 def benchmark_items(models: Sequence[str], folds: Sequence[str]) -> list[tuple[str, str]]:
@@ -521,11 +667,13 @@ def benchmark_items(models: Sequence[str], folds: Sequence[str]) -> list[tuple[s
 
 def _run_item(item: tuple[str, str], *, data_dir: Path, lstm: RolloutLSTMConfig,
               progress: bool, seq2seq: Seq2SeqConfig, calibration: str,
-              speed_edges: Sequence[float], online: Sequence[AdaptiveConformal]) -> FoldOutcome:
+              speed_edges: Sequence[float], online: Sequence[AdaptiveConformal],
+              seeds: int = 1, mix_cell: str = "mlp", mix_modes: int = BEST_OF) -> FoldOutcome:
     """One model on one fold (module level, so it pickles): :func:`run_fold` with that model."""
     fold, model = item
     return run_fold(data_dir, fold, (model,), lstm, progress=progress, seq2seq=seq2seq,
-                    calibration=calibration, speed_edges=speed_edges, online=online)[model]
+                    calibration=calibration, speed_edges=speed_edges, online=online,
+                    seeds=seeds, mix_cell=mix_cell, mix_modes=mix_modes)[model]
 
 
 def run_benchmark(settings: EthUcySettings, *, progress: bool = True,
@@ -547,7 +695,8 @@ def run_benchmark(settings: EthUcySettings, *, progress: bool = True,
     work = partial(_run_item, data_dir=settings.data_dir, lstm=settings.lstm,
                    progress=progress and jobs <= 1, seq2seq=settings.seq2seq,
                    calibration=settings.calibration, speed_edges=settings.speed_edges,
-                   online=settings.online)
+                   online=settings.online, seeds=settings.seeds, mix_cell=settings.mix_cell,
+                   mix_modes=settings.mix_modes)
     outcomes = dict(zip(items, parallel_map(work, items, jobs,
                                             progress="ETH/UCY folds x models" if progress
                                             else None)))

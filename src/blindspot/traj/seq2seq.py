@@ -38,6 +38,20 @@ What the model sees and emits (each choice a :class:`Seq2SeqConfig` field, measu
   occupancy grid, Alahi et al. 2016), with a learned "nobody" slot so an empty scene is a
   valid input. Predicting without neighbours (``neighbours=None``) means nobody is near.
 
+* ``modes`` (M > 1): the head emits M hypotheses, each a Gaussian path, and their
+  probabilities (a mixture; :mod:`blindspot.traj.mixture`), trained by relaxed
+  winner-takes-all on the ADE (Rupprecht et al. 2017, "Learning in an uncertain world"; the
+  multiple-trajectory loss of Cui et al. 2019, "Multimodal trajectory predictions for autonomous
+  driving"): the hypothesis nearest the truth takes weight 1 - :data:`WTA_EPSILON` of the
+  ADE, the others share the rest; the probabilities are trained by cross-entropy on that
+  winner and the winner's Gaussian by its NLL. Each hypothesis starts at one of M anchors,
+  k-means centres of the training futures' deviations from constant velocity (the anchors
+  of Chai et al. 2019, "MultiPath"), so the hypotheses start apart. Its mean and covariance
+  (what ``predict`` / ``predict_distribution`` give) are the mixture's moments;
+  :meth:`Seq2SeqModel.predict_mixture` gives the mixture itself. Mirrored copies are a
+  training augmentation only here (the M hypotheses are not averaged with the mirrored
+  scene's, which would pair unrelated hypotheses).
+
 An ensemble (:class:`Seq2SeqEnsemble`) averages the members' means; its covariance is the
 moment-matched mixture (mean of the members' covariances plus the spread of their means), the
 "deep ensembles" estimate of Lakshminarayanan et al. 2017.
@@ -73,6 +87,7 @@ from blindspot.traj.config import (
     Seq2SeqConfig,
 )
 from blindspot.traj.distribution import GaussianForecast
+from blindspot.traj.mixture import MixtureForecast, kmeans
 from blindspot.traj.predictor import HistoryError, check_history, heading_frame
 
 __all__ = [
@@ -93,6 +108,8 @@ __all__ = [
 ]
 
 _MIRROR = np.array([1.0, -1.0])
+#: relaxed winner-takes-all: the share of the ADE loss the M - 1 losing hypotheses take
+WTA_EPSILON = 0.05
 _ENSEMBLE_FORMAT = "blindspot.seq2seq-ensemble/1"
 
 
@@ -148,16 +165,34 @@ class Seq2SeqNet(nn.Module):
             self.encoder = rnn(cfg.hidden_size, cfg.hidden_size, num_layers=cfg.num_layers,
                                batch_first=True)
         n_ctx = cfg.hidden_size * (2 if self.social is not None else 1)
+        # M hypotheses of (horizon, 5) and, when M > 1, their M logits
+        n_out = cfg.modes * cfg.horizon * 5 + (cfg.modes if cfg.modes > 1 else 0)
         self.head = nn.Sequential(nn.Linear(n_ctx + 2, cfg.head_hidden), nn.ReLU(),
-                                  nn.Linear(cfg.head_hidden, cfg.horizon * 5))
+                                  nn.Linear(cfg.head_hidden, n_out))
         # start at CVM with unit-ish spread: zero the last layer
         nn.init.zeros_(self.head[-1].weight)
         nn.init.zeros_(self.head[-1].bias)
 
+    def set_anchors(self, anchors: np.ndarray) -> None:
+        """Start hypothesis m at ``anchors[m]`` (M, horizon, 2), a framed deviation from the
+        residual base (the head's mean-offset biases; its weights stay zero)."""
+        a = np.asarray(anchors, dtype=float)
+        if a.shape != (self.cfg.modes, self.cfg.horizon, 2):
+            raise ValueError(f"Seq2SeqNet.set_anchors: anchors: expected shape "
+                             f"{(self.cfg.modes, self.cfg.horizon, 2)}, found {a.shape}")
+        if self.cfg.outputs == "displacement":
+            a = np.diff(a, axis=1, prepend=0.0)
+        m, h = self.cfg.modes, self.cfg.horizon
+        with torch.no_grad():
+            bias = self.head[-1].bias[:m * h * 5].view(m, h, 5)
+            bias[..., :2] = torch.as_tensor(a, dtype=bias.dtype)
+
     def forward(self, u: torch.Tensor, last_step: torch.Tensor,
-                social: torch.Tensor | None = None) -> torch.Tensor:
+                social: torch.Tensor | None = None
+                ) -> torch.Tensor | tuple[torch.Tensor, torch.Tensor]:
         """u: (B, L, 2) inputs; last_step: (B, 2) last observed step; social: (B, K, obs_len,
-        5) :func:`social_features` (needed when ``cfg.neighbours``) -> (B, horizon, 5)."""
+        5) :func:`social_features` (needed when ``cfg.neighbours``) -> (B, horizon, 5); with
+        ``cfg.modes`` M > 1, ``((B, M, horizon, 5), (B, M) logits)``."""
         if self.cfg.cell == "mlp":
             enc = self.encoder(u.flatten(1))
         else:
@@ -168,7 +203,11 @@ class Seq2SeqNet(nn.Module):
             mask = social[..., -1].amax(dim=-1) > 0                          # (B, K)
             enc = torch.cat([enc, self.social(social.flatten(2), mask, enc)], dim=-1)
         z = torch.cat([enc, last_step], dim=-1)
-        return self.head(z).view(-1, self.cfg.horizon, 5)
+        out = self.head(z)
+        m, h = self.cfg.modes, self.cfg.horizon
+        if m == 1:
+            return out.view(-1, h, 5)
+        return out[:, :m * h * 5].view(-1, m, h, 5), out[:, m * h * 5:]
 
 
 # --------------------------------------------------------------------------------------------
@@ -268,10 +307,16 @@ class FitReport:
 class Seq2SeqModel:
     """One trained network with its config; predicts means and Gaussians in world metres."""
 
-    def __init__(self, net: Seq2SeqNet, cfg: Seq2SeqConfig, name: str = "seq2seq") -> None:
+    def __init__(self, net: Seq2SeqNet, cfg: Seq2SeqConfig, name: str = "seq2seq",
+                 point: str = "mean") -> None:
+        if point not in ("mean", "mode"):
+            raise ValueError(f"Seq2SeqModel: point: expected 'mean' or 'mode', found {point!r}")
         self.net = net.eval()
         self.cfg = cfg
         self.name = name
+        #: a multi-modal model's single prediction: the mixture's mean or its most probable
+        #: hypothesis (the covariance is the mixture's second moment about it)
+        self.point = point
 
     def _raw(self, obs: np.ndarray, neighbours: np.ndarray | None = None
              ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -286,7 +331,7 @@ class Seq2SeqModel:
         """Framed mean (B, H, 2) and cov (B, H, 2, 2) (None unless ``with_cov``) of framed
         inputs, averaged with the mirrored scene's when ``cfg.mirror`` (the tracks and their
         mirror images in one network call of 2B rows)."""
-        if not self.cfg.mirror:
+        if not self.cfg.mirror or self.cfg.modes > 1:
             return self._framed(x, soc, with_cov=with_cov)
         n = x.shape[0]
         both, c_both = self._framed(
@@ -300,16 +345,50 @@ class Seq2SeqModel:
             cov = 0.5 * (c_both[:n] + c_both[n:] * flip)
         return mean, cov
 
-    def _framed(self, x: np.ndarray, soc: np.ndarray | None = None, *, with_cov: bool = True
-                ) -> tuple[np.ndarray, np.ndarray | None]:
+    def _net_out(self, x: np.ndarray, soc: np.ndarray | None):
         cfg = self.cfg
         with torch.no_grad(), _threads(cfg.threads):
             u = torch.as_tensor(_inputs(x, cfg), dtype=torch.float32)
             last = torch.as_tensor(x[:, -1] - x[:, -2], dtype=torch.float32)
             s = None if soc is None else torch.as_tensor(soc, dtype=torch.float32)
-            out = self.net(u, last, s).double().numpy()
-        mean = _decode_mean(out[..., :2], x, cfg)
+            return self.net(u, last, s)
+
+    def _framed(self, x: np.ndarray, soc: np.ndarray | None = None, *, with_cov: bool = True
+                ) -> tuple[np.ndarray, np.ndarray | None]:
+        if self.cfg.modes > 1:       # the mixture about its mean or its most probable path
+            mix = self._framed_mixture(x, soc)
+            centre = mix.most_likely() if self.point == "mode" else mix.mean()
+            return centre, (mix.second_moment(centre) if with_cov else None)
+        out = self._net_out(x, soc).double().numpy()
+        mean = _decode_mean(out[..., :2], x, self.cfg)
         return mean, (_covariance(out[..., 2:]) if with_cov else None)
+
+    def _framed_mixture(self, x: np.ndarray, soc: np.ndarray | None = None) -> MixtureForecast:
+        """The M hypotheses of framed inputs as a :class:`MixtureForecast` in the frame."""
+        out, logits = self._net_out(x, soc)
+        out, logits = out.double().numpy(), logits.double().numpy()
+        b, m = out.shape[:2]
+        flat = out.reshape(b * m, *out.shape[2:])
+        means = _decode_mean(flat[..., :2], np.repeat(x, m, axis=0), self.cfg)
+        covs = _covariance(flat[..., 2:])
+        w = np.exp(logits - logits.max(axis=1, keepdims=True))
+        return MixtureForecast(w / w.sum(axis=1, keepdims=True),
+                               means.reshape(b, m, *means.shape[1:]),
+                               covs.reshape(b, m, *covs.shape[1:]))
+
+    def predict_mixture(self, history: np.ndarray, horizon: int, *,
+                        neighbours: np.ndarray | None = None) -> MixtureForecast:
+        """(B, T, 2) history -> the M hypotheses over the next ``horizon`` (<= cfg.horizon)
+        positions in world metres, a :class:`MixtureForecast` (a model with ``cfg.modes`` > 1;
+        HistoryError otherwise); ``neighbours`` as in :meth:`predict_distribution`."""
+        if self.cfg.modes < 2:
+            raise HistoryError(f"{self.name}.predict_mixture: the model emits one path "
+                               f"(modes = {self.cfg.modes}); expected modes > 1")
+        obs = self._observed(history, horizon)
+        x, soc, origin, rot = _framed_inputs(
+            obs, _check_neighbours(neighbours, obs.shape[0], self.cfg, self.name), self.cfg)
+        mix = self._framed_mixture(x, soc).truncated(horizon)
+        return mix.transformed(np.linalg.inv(rot), origin)
 
     def _mean_of_framed(self, framed: tuple[np.ndarray, np.ndarray | None, np.ndarray,
                                             np.ndarray], horizon: int) -> np.ndarray:
@@ -567,9 +646,23 @@ def _rotate_batch(x: torch.Tensor, y: torch.Tensor, s: torch.Tensor | None, thet
     return x, y, s
 
 
-def _loss(out: torch.Tensor, base: torch.Tensor, y: torch.Tensor, cfg: Seq2SeqConfig
-          ) -> tuple[torch.Tensor, torch.Tensor]:
-    """(total loss, ADE of the batch) for head output (B, H, 5) against framed truth y."""
+def _gaussian_nll(e: torch.Tensor, p: torch.Tensor) -> torch.Tensor:
+    """Per-point NLL (without the constant ln 2 pi) of errors e (..., 2) under the head's
+    Gaussians p (..., 3: log sx, log sy, atanh rho)."""
+    ls = p[..., 0:2].clamp(-7.0, 5.0)
+    rho = torch.tanh(p[..., 2]).clamp(-0.99, 0.99)
+    zx, zy = e[..., 0] * torch.exp(-ls[..., 0]), e[..., 1] * torch.exp(-ls[..., 1])
+    one = 1 - rho**2
+    return 0.5 * (zx**2 - 2 * rho * zx * zy + zy**2) / one + ls.sum(-1) + 0.5 * torch.log(one)
+
+
+def _loss(out: torch.Tensor | tuple[torch.Tensor, torch.Tensor], base: torch.Tensor,
+          y: torch.Tensor, cfg: Seq2SeqConfig) -> tuple[torch.Tensor, torch.Tensor]:
+    """(total loss, ADE of the batch) for head output (B, H, 5) against framed truth y; with
+    ``cfg.modes`` > 1 the output is ``((B, M, H, 5), (B, M) logits)``, the loss the relaxed
+    winner-takes-all one (module docstring) and the ADE that of the winners (best of M)."""
+    if cfg.modes > 1:
+        return _mixture_loss(out[0], out[1], base, y, cfg)
     off = out[..., :2]
     if cfg.outputs == "displacement":
         off = torch.cumsum(off, dim=1)
@@ -579,13 +672,41 @@ def _loss(out: torch.Tensor, base: torch.Tensor, y: torch.Tensor, cfg: Seq2SeqCo
     fit = ade if cfg.loss == "ade" else (err**2).sum(-1).mean()
     if cfg.nll_weight <= 0:
         return fit, ade
-    e = err.detach()
-    ls = out[..., 2:4].clamp(-7.0, 5.0)
-    rho = torch.tanh(out[..., 4]).clamp(-0.99, 0.99)
-    zx, zy = e[..., 0] * torch.exp(-ls[..., 0]), e[..., 1] * torch.exp(-ls[..., 1])
-    one = 1 - rho**2
-    nll = (0.5 * (zx**2 - 2 * rho * zx * zy + zy**2) / one + ls.sum(-1) + 0.5 * torch.log(one))
-    return fit + cfg.nll_weight * nll.mean(), ade
+    return fit + cfg.nll_weight * _gaussian_nll(err.detach(), out[..., 2:]).mean(), ade
+
+
+def _mixture_loss(out: torch.Tensor, logits: torch.Tensor, base: torch.Tensor, y: torch.Tensor,
+                  cfg: Seq2SeqConfig) -> tuple[torch.Tensor, torch.Tensor]:
+    off = out[..., :2]
+    if cfg.outputs == "displacement":
+        off = torch.cumsum(off, dim=2)
+    err = y[:, None] - (base[:, None] + off)                                 # (B, M, H, 2)
+    dist = torch.linalg.vector_norm(err, dim=-1)                             # (B, M, H)
+    per = dist.mean(-1) if cfg.loss == "ade" else (err**2).sum(-1).mean(-1)  # (B, M)
+    win = per.detach().argmin(dim=1)                                         # (B,)
+    m = cfg.modes
+    w = torch.full_like(per, WTA_EPSILON / (m - 1))
+    w.scatter_(1, win[:, None], 1.0 - WTA_EPSILON)
+    fit = (w * per).sum(1).mean()
+    ade = dist.mean(-1).gather(1, win[:, None]).mean()
+    loss = fit + torch.nn.functional.cross_entropy(logits, win)
+    if cfg.nll_weight > 0:
+        idx = win[:, None, None, None]
+        e = err.detach().gather(1, idx.expand(-1, 1, *err.shape[2:]))[:, 0]
+        p = out[..., 2:].gather(1, idx.expand(-1, 1, *out.shape[2:3], 3))[:, 0]
+        loss = loss + cfg.nll_weight * _gaussian_nll(e, p).mean()
+    return loss, ade
+
+
+def mixture_anchors(x: np.ndarray, y: np.ndarray, cfg: Seq2SeqConfig, seed: int) -> np.ndarray:
+    """(M, horizon, 2) starting points of the M hypotheses: k-means centres
+    (:func:`blindspot.traj.mixture.kmeans`, seeded) of framed futures ``y`` (N, H, 2) as
+    deviations from the residual base of framed observations ``x`` (N, obs_len, 2)."""
+    step = x[:, -1] - x[:, -2]
+    base = x[:, -1:, :] + (step[:, None, :] * np.arange(1, cfg.horizon + 1)[None, :, None]
+                           if cfg.residual else 0.0)
+    dev = (y - base).reshape(len(y), -1)
+    return kmeans(dev, cfg.modes, seed=seed).reshape(cfg.modes, cfg.horizon, 2)
 
 
 def train_seq2seq(train_xy: np.ndarray, val_xy: np.ndarray, cfg: Seq2SeqConfig, *,
@@ -642,6 +763,8 @@ def train_seq2seq(train_xy: np.ndarray, val_xy: np.ndarray, cfg: Seq2SeqConfig, 
         net = Seq2SeqNet(cfg)
         if init is not None:
             net.load_state_dict(init.net.state_dict())
+        elif cfg.modes > 1:
+            net.set_anchors(mixture_anchors(x_np, y_np, cfg, seed))
         opt = torch.optim.AdamW(net.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
         sched = torch.optim.lr_scheduler.CosineAnnealingLR(opt, T_max=cfg.epochs)
         x_all = torch.as_tensor(x_np, dtype=torch.float32)
@@ -739,7 +862,7 @@ def _train_member(train_xy: np.ndarray, val_xy: np.ndarray, cfg: Seq2SeqConfig, 
 # what the weights compute (Seq2SeqNet's shapes, and the frame and encoding of its inputs and
 # outputs); the rest are training settings a fine-tuning may change
 _ARCHITECTURE = ("cell", "hidden_size", "num_layers", "head_hidden", "obs_len", "horizon",
-                 "inputs", "outputs", "frame", "residual", "speed_floor", "neighbours")
+                 "inputs", "outputs", "frame", "residual", "speed_floor", "neighbours", "modes")
 
 
 def _check_architecture(have: Seq2SeqConfig, want: Seq2SeqConfig, who: str) -> None:
