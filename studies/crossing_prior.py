@@ -18,7 +18,7 @@ data/windows/val.parquet). Time: about a minute of CPU per run (the tracker on 1
 
 Conclusion (2026-12-05, tuning half, docs/studies/first-point-to-brake.md): the per-hit Doppler
 update at 1.0 m/s and the crossing test at ln ratio 1.0 take the median first point -> moving
-from 0.60 to 0.20 s and track_state's avoided-after-visible from 0.37 to 0.50 at 7.4 % false
+from 0.60 to 0.30 s and track_state's avoided-after-visible from 0.37 to 0.50 at 7.4 % false
 activations (5.6 % before); swapping in the crossing prior's velocity adds false activations
 (11-13 %) and avoids no more: not adopted.
 """
@@ -73,6 +73,7 @@ def main(argv: list[str]) -> None:
     ap.add_argument("--predictors", default="track_state,constant_velocity")
     ap.add_argument("--swap-velocity", type=float, default=None)
     ap.add_argument("--true-state", action="store_true")
+    ap.add_argument("--curve", action="store_true", help="print the operating characteristic")
     ap.add_argument("--jobs", type=int, default=1)
     ap.add_argument("overrides", nargs="*")
     args = ap.parse_args(argv)
@@ -136,6 +137,9 @@ def main(argv: list[str]) -> None:
         best = {fa: oc.avoided_rate[oc.false_activation_rate <= fa].max() for fa in (0.03, 0.05, 0.1)}
         print("  operating characteristic (AEB threshold swept): most avoided at false activations "
               + ", ".join(f"<= {fa:.0%}: {v:.3f}" for fa, v in best.items()))
+        if args.curve:
+            print(oc[["threshold", "avoided_rate", "false_activation_rate"]].round(3)
+                  .to_string(index=False))
 
 
 if __name__ == "__main__":

@@ -8,7 +8,8 @@ import pandas as pd
 
 from blindspot.report.safety_figures import ncap_grid_markdown
 
-__all__ = ["PREDICTOR_BLOCKS", "predictor_names", "operating_inputs", "grid_page", "ncap_page"]
+__all__ = ["PREDICTOR_BLOCKS", "predictor_names", "operating_inputs", "grid_page", "ncap_page",
+           "lstm_verdict"]
 
 #: Top-level keys of safety.json that are not predictors (the independent held-out draw, the
 #: tuning draw's halves).
@@ -76,6 +77,7 @@ def ncap_page(ncap: dict, metrics: dict) -> str:
                    f"[{_fmt(ci_f[0], 3) if ci_f else '-'}, {_fmt(ci_f[1], 3) if ci_f else '-'}] | "
                    f"{_fmt(h['first_point_to_moving_s_median'])} | "
                    f"{_fmt(h['first_point_to_aeb_s_median'])} |\n")
+    out.append(lstm_verdict(held))
     out.append("\n## First radar point of the lead pedestrian -> first moving track / AEB request "
                "(all Monte-Carlo intruding scenes, headline input; median / p90 s, never)\n\n")
     for p in predictor_names(metrics):
@@ -104,3 +106,32 @@ def ncap_page(ncap: dict, metrics: dict) -> str:
                         "-" if c is None else f"{c['impact_speed_kmh']:.1f} {c['band']}"
                         for c in row) + " |\n")
     return "".join(out)
+
+
+def lstm_verdict(held: dict, learned: tuple[str, ...] = ("lstm", "lstm_direct"),
+                 baselines: tuple[str, ...] = ("constant_velocity", "kalman")) -> str:
+    """One paragraph: do the learned predictors earn their place against the baselines on the
+    held-out block (``held``: predictor -> avoided_after_visible_rate(_ci95),
+    false_activation_rate)? A learned predictor earns it when the lower end of its avoided
+    interval is above the best baseline's avoided rate and its false activations are no
+    higher; "" when the block lacks them."""
+    have = [p for p in (*learned, *baselines) if isinstance(held.get(p), dict)]
+    base = [p for p in baselines if p in have]
+    if not base or not any(p in have for p in learned):
+        return ""
+    top = max(base, key=lambda p: held[p]["avoided_after_visible_rate"])
+    a0, f0 = held[top]["avoided_after_visible_rate"], held[top]["false_activation_rate"]
+    earns = [p for p in learned if p in have
+             and (held[p].get("avoided_after_visible_rate_ci95") or [0.0])[0] > a0
+             and held[p]["false_activation_rate"] <= f0]
+    rows = ", ".join(f"{p} {_fmt(held[p]['avoided_after_visible_rate'])} at "
+                     f"{_fmt(held[p]['false_activation_rate'], 3)}" for p in have)
+    if earns:
+        word = (f"{' and '.join(earns)} earn{'s' if len(earns) == 1 else ''} "
+                f"{'its' if len(earns) == 1 else 'their'} place: the 95 % interval of its avoided "
+                f"rate above {top}'s, at no more false activations")
+    else:
+        word = (f"the LSTMs do not earn their place on these numbers: the 95 % interval of "
+                f"neither's avoided rate lies above {top}'s at no more false activations")
+    return (f"\nLearned against baseline predictors, held out (avoided after visible at false "
+            f"activations): {rows}; {word}.\n\n")
