@@ -120,8 +120,8 @@ def main(argv: list[str]) -> None:
     from blindspot.synth.driving_tracks import confusion, track_labels
     labels = track_labels(tracks, points, TrackerConfig.from_cfg(cfg).cluster_eps_m)
 
-    ego = (truth_all.groupby(["scene", "frame"], as_index=False)[["ego_x_m", "ego_y_m"]]
-           .first().rename(columns={"scene": "group"}))
+    ego = (truth_all.groupby(["scene", "frame"], as_index=False)
+           [["ego_x_m", "ego_y_m", "ego_yaw_deg"]].first().rename(columns={"scene": "group"}))
     scores: dict[str, tuple[np.ndarray, np.ndarray, str]] = {}
     for lag in (int(v) for v in args.lags.split(",")):           # as the stage reads it
         ev = track_static_evidence(tracks, points, cell_m=args.cell, lag_frames=lag)

@@ -178,8 +178,8 @@ def main(argv: list[str]) -> None:
         reference = reference or mv.doppler_reference
         below = configured_below if below is None else below
         floor = None if below is None or bound is None else bound - below
-        return moving_tracks(tracks, ego=None if bound is None else ego[["group", "frame",
-                                                                         "ego_x_m", "ego_y_m"]],
+        return moving_tracks(tracks, ego=ego[["group", "frame", "ego_x_m", "ego_y_m",
+                                              "ego_yaw_deg"]],
                              points=points, **{
                                  **moving_test_settings(mv), "doppler_std_mps": std or 0.3,
                                  "doppler_log_ratio_min": bound,

@@ -84,7 +84,8 @@ def main(argv: list[str]) -> None:
     truth, dt, tracks, points, ego = moving_test_inputs(cfg, args.data, truth_all)
 
     def moving(speed: float, probability: float) -> np.ndarray:
-        return moving_tracks(tracks, ego=ego[["group", "frame", "ego_x_m", "ego_y_m"]],
+        return moving_tracks(tracks, ego=ego[["group", "frame", "ego_x_m", "ego_y_m",
+                                              "ego_yaw_deg"]],
                              points=points, **{**moving_test_settings(mv), "speed_mps": speed,
                                                "probability": probability})
 
