@@ -15,7 +15,8 @@ from blindspot.typed_config import jobs
 from blindspot.cli import main_stage
 from blindspot.io import write_json
 from blindspot.safety.assess import assess, logged_metrics
-from blindspot.safety.held_out import held_out_block, held_out_scenes, held_out_truth
+from blindspot.safety.held_out import (held_out_block, held_out_noise, held_out_scenes,
+                                       held_out_truth)
 from blindspot.safety.outcome import body_boxes
 from blindspot.safety.predict import stage_predictors
 from blindspot.safety.risk import EgoShape
@@ -33,7 +34,7 @@ def run(cfg, ctx):
     truth, meta = held_out_truth(scenes, group, dt)
     points = measure_driving(scenes, group, radar, CfarConfig.from_cfg(cfg, "driving_cfar"),
                              DoaConfig.from_cfg(cfg), DetectConfig.from_cfg(cfg),
-                             EgoMotionConfig.from_cfg(cfg),
+                             held_out_noise(EgoMotionConfig.from_cfg(cfg), seed),
                              adc_headroom_db=SimConfig.from_cfg(cfg).adc_headroom_db,
                              jobs=n_jobs, progress=cfg.progress).points
     tables, _ = driving_tracks(truth, points, TrackerConfig.from_cfg(cfg), w.oracle, seed=w.seed,

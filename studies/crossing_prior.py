@@ -20,7 +20,7 @@ Conclusion (2026-12-05, tuning half, docs/studies/first-point-to-brake.md): the 
 update at 1.0 m/s and the crossing test at ln ratio 1.0 take the median first point -> moving
 from 0.60 to 0.30 s and track_state's avoided-after-visible from 0.37 to 0.50 at 7.4 % false
 activations (5.6 % before); swapping in the crossing prior's velocity adds false activations
-(11-13 %) and avoids no more: not adopted.
+(22 %) and avoids no more (0.48): not adopted.
 """
 
 from __future__ import annotations

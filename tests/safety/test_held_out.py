@@ -54,6 +54,18 @@ def test_the_block_has_the_issue_shape():
     assert set(block) == {"seed", "n_intruding", "n_non_intruding", "track_state"}
 
 
+def test_the_held_out_measurement_has_its_own_noise_seed(composed_config):
+    from blindspot.dsp.config import EgoMotionConfig
+    from blindspot.safety.held_out import held_out_noise
+
+    ego = EgoMotionConfig.from_cfg(composed_config)
+    a, b = held_out_noise(ego, 1), held_out_noise(ego, 2)
+    assert a.seed != ego.seed and a.seed != b.seed and a == held_out_noise(ego, 1)
+    assert dataclasses.replace(a, seed=ego.seed) == ego                 # nothing else changes
+    with pytest.raises(ValueError, match="held_out_noise: held_out_seed: expected an integer"):
+        held_out_noise(ego, -1)
+
+
 def test_bad_arguments_are_named():
     with pytest.raises(ValueError, match="held_out_block: metrics: expected the per-predictor"):
         held_out_block({"tuning": {}}, seed=1)

@@ -85,20 +85,39 @@ def test_outside_the_corridor_or_behind_the_radar_adds_nothing():
 
 
 def test_the_prior_swap_is_the_product_of_gaussians_along_the_crossing_direction():
-    tr = _track([-0.2] * 2).assign(vx_mps=-0.3, vy_mps=0.05, cov_vxvx=0.5, cov_vxvy=0.1,
-                                   cov_vyvy=0.3, cov_xvx=0.02, cov_xvy=0.0, cov_yvx=0.0,
-                                   cov_yvy=0.01)
-    prior = CrossingPrior(speed_mps=1.4, speed_std_mps=0.5)
-    out = crossing_state(tr, EGO, prior, np.array([False, True]), init_velocity_std_mps=1.5)
+    """Velocity along c = (-1, 0) uncorrelated with the rest: the swapped posterior is the
+    filter's likelihood (its posterior divided by the N(0, 1.5^2) prior) times N(1.4, 0.5^2)."""
+    tr = _track([-0.2] * 2).assign(vx_mps=-0.3, vy_mps=0.05, cov_vxvx=0.5, cov_vxvy=0.0,
+                                   cov_vyvy=0.3, cov_xx=0.02, cov_xy=0.0, cov_yy=0.02,
+                                   cov_xvx=0.0, cov_xvy=0.0, cov_yvx=0.0, cov_yvy=0.01)
+    out = crossing_state(tr, EGO, CrossingPrior(speed_mps=1.4, speed_std_mps=0.5),
+                         np.array([False, True]), init_velocity_std_mps=1.5)
     pd.testing.assert_frame_equal(out.iloc[:1], tr.iloc[:1])
-    # c = (-1, 0): along c the filter has m = 0.3, p = 0.5 under a N(0, 1.5^2) prior
-    info = 1 / 0.5 - 1 / 1.5 ** 2
-    p_new = 1 / (info + 1 / 0.25)
-    m_new = p_new * (info * 0.3 + 1.4 / 0.25)
+    m, p = 0.3, 0.5                                  # c.v and its variance from the tracker
+    like_prec = 1 / p - 1 / 1.5 ** 2
+    like_mean = (m / p) / like_prec                  # the N(0, s0^2) prior divided out
+    p_new = 1 / (like_prec + 1 / 0.25)
+    m_new = p_new * (like_prec * like_mean + 1.4 / 0.25)
     assert out.vx_mps.iloc[1] == pytest.approx(-m_new)
     assert out.cov_vxvx.iloc[1] == pytest.approx(p_new)
     assert out.vy_mps.iloc[1] == pytest.approx(0.05) and out.cov_vyvy.iloc[1] == pytest.approx(0.3)
-    assert out.cov_xvx.iloc[1] == pytest.approx(0.02 * np.sqrt(p_new / 0.5))
+
+
+def test_the_prior_swap_keeps_the_covariance_positive_semi_definite():
+    """After a tight Doppler update the velocity is correlated along the line of sight, which is
+    not perpendicular to c; the swap must keep the state covariance a covariance."""
+    u = np.array([2.0, 10.0]) / np.hypot(2.0, 10.0)
+    pv = 2.25 * np.eye(2)
+    g = pv @ u / (u @ pv @ u + 0.05 ** 2)
+    pv = pv - np.outer(g, u @ pv)
+    tr = _track([-0.2]).assign(x_m=2.0, y_m=10.0, cov_vxvx=pv[0, 0], cov_vxvy=pv[0, 1],
+                               cov_vyvy=pv[1, 1], cov_xx=0.02, cov_xy=0.0, cov_yy=0.02,
+                               cov_xvx=0.0, cov_xvy=0.0, cov_yvx=0.0, cov_yvy=0.0)
+    out = crossing_state(tr, EGO, CrossingPrior(), np.array([True]), 1.5).iloc[0]
+    v = np.array([[out.cov_vxvx, out.cov_vxvy], [out.cov_vxvy, out.cov_vyvy]])
+    assert np.linalg.eigvalsh(v).min() >= -1e-12
+    on_line = crossing_state(tr.assign(x_m=0.0), EGO, CrossingPrior(), np.array([True]), 1.5)
+    assert np.isfinite(on_line[["vx_mps", "vy_mps"]].to_numpy()).all()
 
 
 def test_moving_tracks_takes_the_crossing_test_and_checks_its_pair():
@@ -125,9 +144,19 @@ def test_the_prior_refuses_bad_settings(bad):
         CrossingPrior(**bad)
 
 
-def test_crossing_state_refuses_rows_of_another_length():
+def test_crossing_state_refuses_rows_of_another_length_and_a_wider_prior():
     with pytest.raises(ValueError, match="rows: expected a bool array of length 2"):
         crossing_state(_track([0.0] * 2), EGO, CrossingPrior(), np.array([True]), 1.5)
+    with pytest.raises(ValueError, match="prior.speed_std_mps: expected less than"):
+        crossing_state(_track([0.0]), EGO, CrossingPrior(speed_std_mps=2.0), np.array([True]),
+                       1.5)
+
+
+def test_the_window_is_the_first_measured_rows_from_birth():
+    """A track whose first rows lie outside the corridor is not young when it enters it."""
+    tr = _track([-0.3] * 6).assign(x_m=[9.0, 9.0, 9.0, 2.0, 2.0, 2.0])
+    llr, _, _ = crossing_evidence(tr, EGO, CrossingPrior(window=3, corridor_m=5.0))
+    assert (llr == 0).all()
 
 
 def test_the_per_hit_doppler_update_is_the_scalar_kalman_update():

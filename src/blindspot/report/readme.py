@@ -271,26 +271,29 @@ def verdicts(metrics: Mapping[str, Metrics]) -> list[str]:
                    f"on our tracks and predictions avoids {100 * avoided:.0f} % of the simulated "
                    f"collisions with {100 * false:.0f} % false AEB activations; "
                    f"{len(met)} of {len(met) + len(missed)} Euro NCAP-style goals met."
-                   + _held_out_sentence(_get(metrics, ("safety", "held_out")) or {}))
+                   + _held_out_sentence(_get(metrics, ("safety",)) or {}))
     return out
 
 
-def _held_out_sentence(held: Mapping[str, Any]) -> str:
-    """`` On the held-out draw ...``: the predictor of safety.json's held-out block (the
-    independent draw) that avoids most once the child is visible, with its intervals; "" when
-    the block has no predictor."""
+def _held_out_sentence(safety: Mapping[str, Any]) -> str:
+    """`` On the held-out draw ...``: of safety.json (``safety``), the predictor that avoids
+    most once the child is visible on the tuning draw (chosen there, not on the held-out
+    numbers), with its held-out rates and intervals; "" without a held-out block."""
+    held = safety.get("held_out") or {}
     preds = {k: v for k, v in held.items() if isinstance(v, dict) and k != "none"
-             and _num(v.get("avoided_after_visible_rate")) is not None}
+             and _num(v.get("avoided_after_visible_rate")) is not None
+             and _num((safety.get(k) or {}).get("avoided_after_visible_rate")) is not None}
     if not preds:
         return ""
-    name, h = max(preds.items(), key=lambda kv: kv[1]["avoided_after_visible_rate"])
+    name = max(preds, key=lambda k: safety[k]["avoided_after_visible_rate"])
+    h = preds[name]
     rate = _fmt_ci({"mean": h["avoided_after_visible_rate"],
                     "ci95": h.get("avoided_after_visible_rate_ci95")}, 0, "%")
     fa = _fmt_ci({"mean": h.get("false_activation_rate"),
                   "ci95": h.get("false_activation_rate_ci95")}, 0, "%")
     return (f" On the held-out draw (seed {held.get('seed')}, {held.get('n_intruding')} + "
-            f"{held.get('n_non_intruding')} scenes, settings chosen on the other draw) "
-            f"{_label(name)} avoids {rate} once the child is visible, at {fa} false activations.")
+            f"{held.get('n_non_intruding')} scenes, settings and predictor chosen on the other "
+            f"draw) {_label(name)} avoids {rate} once the child is visible, at {fa} false activations.")
 
 
 def results_block(metrics: Mapping[str, Metrics]) -> str:

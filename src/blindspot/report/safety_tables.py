@@ -127,11 +127,13 @@ def lstm_verdict(held: dict, learned: tuple[str, ...] = ("lstm", "lstm_direct"),
     rows = ", ".join(f"{p} {_fmt(held[p]['avoided_after_visible_rate'])} at "
                      f"{_fmt(held[p]['false_activation_rate'], 3)}" for p in have)
     if earns:
-        word = (f"{' and '.join(earns)} earn{'s' if len(earns) == 1 else ''} "
-                f"{'its' if len(earns) == 1 else 'their'} place: the 95 % interval of its avoided "
-                f"rate above {top}'s, at no more false activations")
+        one = len(earns) == 1
+        word = (f"{' and '.join(earns)} earn{'s' if one else ''} {'its' if one else 'their'} "
+                f"place: the 95 % interval of {'its' if one else 'each'} avoided rate lies above "
+                f"{top}'s, at no more false activations")
     else:
-        word = (f"the LSTMs do not earn their place on these numbers: the 95 % interval of "
-                f"neither's avoided rate lies above {top}'s at no more false activations")
+        word = (f"the LSTMs do not earn their place on these numbers: for none of them does the "
+                f"95 % interval of the avoided rate lie above {top}'s at no more false "
+                f"activations")
     return (f"\nLearned against baseline predictors, held out (avoided after visible at false "
             f"activations): {rows}; {word}.\n\n")

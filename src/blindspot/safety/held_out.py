@@ -1,7 +1,7 @@
 """The held-out draw (issue 40): an independent Monte-Carlo set of the same grid, drawn with its
 own seed (``scenario.monte_carlo.held_out_seed``, ``held_out_scenes_per_cell`` scenes per cell),
 run through the whole chain with the settings chosen on the tuning draw (the main draw of the
-driving stages), and scored the way the safety stage scores: the only numbers here that no
+driving stages) and its own receiver noise (:func:`held_out_noise`), and scored the way the safety stage scores: the only numbers here that no
 setting was chosen on.
 
 The chain is the driving stages' own functions, in memory: scene truth
@@ -15,11 +15,13 @@ from __future__ import annotations
 
 import dataclasses
 
+import numpy as np
 import pandas as pd
 
 from blindspot.radar.driving import describe_scenes, draw_scenarios, scene_truth
 
-__all__ = ["HELD_OUT_KEYS", "held_out_scenes", "held_out_truth", "held_out_block"]
+__all__ = ["HELD_OUT_KEYS", "held_out_scenes", "held_out_truth", "held_out_noise",
+           "held_out_block"]
 
 #: Per predictor, the numbers of the held-out block (``safety.json["held_out"]``).
 HELD_OUT_KEYS = ("avoided_after_visible_rate", "avoided_after_visible_rate_ci95",
@@ -40,6 +42,20 @@ def held_out_scenes(group, named: dict) -> list:
                                scenes_per_cell=mc.held_out_scenes_per_cell)
     return draw_scenarios(dataclasses.replace(group, monte_carlo=held),
                           named[group.figure_scene])
+
+
+def held_out_noise(ego, held_out_seed: int):
+    """The ``ego_motion`` settings (:class:`~blindspot.dsp.config.EgoMotionConfig`) of the
+    held-out measurement: its seed, which seeds the measurement's random draws (the receiver
+    noise) batch by batch (:func:`~blindspot.synth.driving_measurement.measure_driving`), drawn from
+    (``ego.seed``, ``held_out_seed``), so the held-out scenes do not reuse the tuning draw's
+    noise fields batch by batch. Raises ValueError for a negative ``held_out_seed``."""
+    if not (isinstance(held_out_seed, (int, np.integer)) and held_out_seed >= 0):
+        raise ValueError(f"held_out_noise: held_out_seed: expected an integer >= 0, found "
+                         f"{held_out_seed!r}")
+    seed = int(np.random.SeedSequence([int(ego.seed), int(held_out_seed)]).generate_state(
+        1, np.uint64)[0] >> np.uint64(1))
+    return dataclasses.replace(ego, seed=seed)
 
 
 def held_out_truth(scenes: list, group, frame_period_s: float) -> tuple[pd.DataFrame, dict]:

@@ -54,7 +54,7 @@ class MovingConfig(TypedConfig):
     static_cell_m: float = setting(0.5, gt=0.0, le=10.0)
     static_lag_frames: int = setting(10, ge=1, le=10_000)
     doppler_first_log_ratio: float | None = setting(None, gt=0.0, le=1000.0)
-    crossing_log_ratio: float | None = setting(None, ge=-1000.0, le=1000.0)
+    crossing_log_ratio: float | None = setting(None, gt=0.0, le=1000.0)
     crossing_speed_mps: float = setting(1.4, gt=0.0, le=10.0)
     crossing_speed_std_mps: float = setting(0.5, gt=0.0, le=10.0)
     crossing_walker_std_mps: float = setting(0.35, gt=0.0, le=10.0)
@@ -135,7 +135,7 @@ class TrackerConfig(TypedConfig):
         doppler_update_std_mps: the spread of one point's ego-motion-compensated radial speed
             about its object's (m/s) with which every hit's Doppler updates the track's velocity
             after its position (a range-rate measurement, d = u.v + e, e ~ N(0, sd^2 / n); blindspot
-            .track.tracker._doppler_update): a walker turning along the kerb shows it in the
+            .track.tracker._range_rate_update): a walker turning along the kerb shows it in the
             next frame's radial speed, where positions need several frames; null: positions only.
         moving: the moving-object test (:class:`MovingConfig`); null for recordings that need
             none.

@@ -90,7 +90,8 @@ def crossing_evidence(tracks: pd.DataFrame, ego: pd.DataFrame,
     """Per row of ``tracks`` (columns group, track_id, frame, x_m, y_m, n_points,
     doppler_mps; any order), over its track's first ``prior.window`` measured rows up to the
     row: (llr (N,) the log likelihood ratio crosser / static of the module docstring, 0 before
-    any measured row; speed (N,) m/s, the posterior mean of the crossing speed s under H1;
+    any measured row, held at its window's value after the window (so a track that passed
+    stays passed); speed (N,) m/s, the posterior mean of the crossing speed s under H1;
     speed_std (N,) m/s, its standard deviation). Rows outside the corridor or behind the radar
     add nothing. Raises ValueError naming a missing column (:func:`toward_path` for ``ego``)."""
     if not isinstance(prior, CrossingPrior):
@@ -103,13 +104,15 @@ def crossing_evidence(tracks: pd.DataFrame, ego: pd.DataFrame,
     b = (u * c).sum(axis=1)
     n = tracks.n_points.to_numpy(float)
     d = tracks.doppler_mps.to_numpy(float)
-    ok = ((n > 0) & np.isfinite(d) & (np.abs(lateral) <= prior.corridor_m) & (ahead > 0)
-          & np.isfinite(b))
+    measured = (n > 0) & np.isfinite(d)
+    ok = measured & (np.abs(lateral) <= prior.corridor_m) & (ahead > 0) & np.isfinite(b)
     key = pd.MultiIndex.from_frame(tracks[["group", "track_id"]]).codes
     key = key[0].astype(np.int64) * (int(key[1].max(initial=0)) + 1) + key[1]
     order = np.lexsort((tracks.frame.to_numpy(), key))
     ok_o, key_o = ok[order], key[order]
-    rank = pd.Series(ok_o.astype(int)).groupby(key_o, sort=False).cumsum().to_numpy()
+    # the window is the track's first measured rows from its birth; of those, the ones in the
+    # corridor and ahead are pooled (an old track entering the corridor is not young)
+    rank = pd.Series(measured[order].astype(int)).groupby(key_o, sort=False).cumsum().to_numpy()
     use = ok_o & (rank <= prior.window)
     w = np.where(use, n[order] / prior.walker_std_mps ** 2, 0.0)
     bo, do = np.where(use, b[order], 0.0), np.where(use, d[order], 0.0)
@@ -134,25 +137,26 @@ def crossing_evidence(tracks: pd.DataFrame, ego: pd.DataFrame,
 def crossing_state(tracks: pd.DataFrame, ego: pd.DataFrame, prior: CrossingPrior,
                    rows: np.ndarray, init_velocity_std_mps: float) -> pd.DataFrame:
     """A copy of ``tracks`` whose ``rows`` ((N,) bool: the rows a decision reads as crossers)
-    carry the velocity under the crossing prior instead of the tracker's zero-mean one.
+    carry the state under the crossing prior instead of the tracker's zero-mean one.
 
-    Along the unit vector c toward the ego's path (:func:`toward_path`) the tracker's filtered
-    velocity (mean m = c.v, variance p = c^T P_v c) was formed under a N(0,
-    ``init_velocity_std_mps``^2) prior across the road; the crossing prior is N(mu, tau^2)
-    (``prior.speed_mps``, ``prior.speed_std_mps``). Swapping one Gaussian prior for another
-    divides the old one out of the posterior and multiplies the new one in:
-
-        1 / p' = max(1 / p - 1 / s0^2, 0) + 1 / tau^2,   m' = p' (m / p - 0 + mu / tau^2)
-
-    (exact for a linear-Gaussian filter without process noise, whose posterior is prior times
-    likelihood; with process noise the old prior's weight has partly decayed, so the swap is a
-    slight over-correction in a young track and negligible in an old one, whose 1 / p is far
-    above both priors' precisions). Only the component along c changes; the velocity's
-    covariance keeps its other components and the position-velocity cross-covariances along c
-    scale by sqrt(p' / p) (their correlation kept). Raises ValueError for ``rows`` of another
-    length or an ``init_velocity_std_mps`` that is not > 0."""
+    Along the unit vector c toward the ego's path (:func:`toward_path`) the tracker's state was
+    formed under a N(0, s0^2) velocity prior (s0 = ``init_velocity_std_mps``); the crossing
+    prior is N(mu, tau^2) (``prior.speed_mps``, ``prior.speed_std_mps``, tau < s0). Swapping
+    one Gaussian prior of c.v for another multiplies the posterior by N(mu, tau^2) / N(0, s0^2),
+    which is the likelihood of a pseudo-measurement of c.v with precision
+    1 / tau^2 - 1 / s0^2 and value z = (mu / tau^2) / (1 / tau^2 - 1 / s0^2). It is applied as
+    one scalar Kalman update of the whole state [x, vx, y, vy] with h = [0, cx, 0, cy], so the
+    covariance stays positive semi-definite and the components across c and the positions move
+    with their correlations (exact for a linear-Gaussian filter without process noise; with it
+    the old prior's weight has partly decayed, a slight over-correction in a young track).
+    Rows on the path's line (no direction toward it) are left as they are. Raises ValueError
+    for ``rows`` of another length, or a prior not narrower than ``init_velocity_std_mps``."""
     check_number(init_velocity_std_mps, "init_velocity_std_mps", gt=0.0, unit="m/s",
                  who="crossing_state")
+    if not prior.speed_std_mps < init_velocity_std_mps:
+        raise ValueError(f"crossing_state: prior.speed_std_mps: expected less than "
+                         f"init_velocity_std_mps = {init_velocity_std_mps}, found "
+                         f"{prior.speed_std_mps!r}")
     rows = np.asarray(rows, bool)
     if rows.shape != (len(tracks),):
         raise ValueError(f"rows: expected a bool array of length {len(tracks)}, found shape "
@@ -162,27 +166,33 @@ def crossing_state(tracks: pd.DataFrame, ego: pd.DataFrame, prior: CrossingPrior
         return out
     sel = tracks[rows]
     c, _, _, _ = toward_path(sel, ego)
-    v = sel[["vx_mps", "vy_mps"]].to_numpy(float)
-    pv = np.stack([sel[["cov_vxvx", "cov_vxvy"]].to_numpy(float),
-                   sel[["cov_vxvy", "cov_vyvy"]].to_numpy(float)], axis=1)
-    m = (v * c).sum(axis=1)
-    p = np.einsum("ni,nij,nj->n", c, pv, c)
-    tau2, s02 = prior.speed_std_mps ** 2, init_velocity_std_mps ** 2
-    info = np.maximum(1.0 / p - 1.0 / s02, 0.0)
-    p_new = 1.0 / (info + 1.0 / tau2)
-    m_new = p_new * (info * m + prior.speed_mps / tau2)
-    v_new = v + (m_new - m)[:, None] * c
-    # P' = P + (p' - p) c c^T keeps every component orthogonal to c; cross-covariances scale
-    pv_new = pv + (p_new - p)[:, None, None] * c[:, :, None] * c[:, None, :]
-    out.loc[rows, "vx_mps"], out.loc[rows, "vy_mps"] = v_new[:, 0], v_new[:, 1]
-    out.loc[rows, "cov_vxvx"] = pv_new[:, 0, 0]
-    out.loc[rows, "cov_vxvy"] = pv_new[:, 0, 1]
-    out.loc[rows, "cov_vyvy"] = pv_new[:, 1, 1]
-    cross = ["cov_xvx", "cov_xvy", "cov_yvx", "cov_yvy"]
-    if set(cross) <= set(tracks.columns):
-        scale = np.sqrt(p_new / np.where(p > 0, p, 1.0))
-        pxv = sel[cross].to_numpy(float).reshape(-1, 2, 2)      # rows x, y; columns vx, vy
-        along = np.einsum("nij,nj->ni", pxv, c)                 # cov(pos, c.v)
-        pxv = pxv + ((scale - 1.0)[:, None] * along)[:, :, None] * c[:, None, :]
-        out.loc[rows, cross] = pxv.reshape(-1, 4)
+    has = np.hypot(c[:, 0], c[:, 1]) > 0
+    cols = ["x_m", "vx_mps", "y_m", "vy_mps"]
+    x = sel[cols].to_numpy(float)
+    cov = {("x", "x"): "cov_xx", ("x", "y"): "cov_xy", ("y", "y"): "cov_yy",
+           ("vx", "vx"): "cov_vxvx", ("vx", "vy"): "cov_vxvy", ("vy", "vy"): "cov_vyvy",
+           ("x", "vx"): "cov_xvx", ("x", "vy"): "cov_xvy", ("y", "vx"): "cov_yvx",
+           ("y", "vy"): "cov_yvy"}
+    names = ["x", "vx", "y", "vy"]
+    P = np.zeros((len(sel), 4, 4))
+    for i, a in enumerate(names):
+        for j, b in enumerate(names):
+            key = cov.get((a, b)) or cov.get((b, a))
+            if key in sel.columns:
+                P[:, i, j] = sel[key].to_numpy(float)
+    h = np.zeros((len(sel), 4))
+    h[:, 1], h[:, 3] = c[:, 0], c[:, 1]
+    prec = 1.0 / prior.speed_std_mps ** 2 - 1.0 / init_velocity_std_mps ** 2
+    z = (prior.speed_mps / prior.speed_std_mps ** 2) / prec
+    ph = np.einsum("kij,kj->ki", P, h)
+    k = ph / (np.einsum("ki,ki->k", h, ph) + 1.0 / prec)[:, None]
+    x_new = x + k * (z - np.einsum("ki,ki->k", h, x))[:, None]
+    P_new = P - k[:, :, None] * ph[:, None, :]
+    P_new = 0.5 * (P_new + np.swapaxes(P_new, 1, 2))
+    x_new = np.where(has[:, None], x_new, x)
+    P_new = np.where(has[:, None, None], P_new, P)
+    out.loc[rows, cols] = x_new
+    for (a, b), key in cov.items():
+        if key in out.columns:
+            out.loc[rows, key] = P_new[:, names.index(a), names.index(b)]
     return out

@@ -366,6 +366,8 @@ def moving_frames(tracks: pd.DataFrame, speed_mps: float, probability: float = 0
         raise ValueError("crossing_prior, crossing_log_ratio: expected both or neither, found "
                          f"{type(crossing_prior).__name__} and {crossing_log_ratio!r}")
     if crossing_prior is not None:
+        # > 0: rows outside the corridor, behind the radar or before a measurement score 0
+        check_number(crossing_log_ratio, "crossing_log_ratio", gt=0.0, who="moving_tracks")
         if ego is None:
             raise ValueError("ego: expected the ego's poses (group, frame, ego_x_m, ego_y_m, "
                              "ego_yaw_deg) for the crossing test, found None")

@@ -657,7 +657,7 @@ def _range_rate_update(x: np.ndarray, P: np.ndarray, doppler_mps: np.ndarray,
     ego-motion-compensated radial speed d of n points, d = u.v + e, e ~ N(0, doppler_std^2 / n),
     u the unit line of sight from the sensor (``sensor_xy``) to the updated position (held
     fixed: the extended Kalman filter's linearisation, whose neglected term is the position's
-    spread over the range, a few cm in m), as one scalar Kalman update of the whole state
+    spread across the line of sight: a few cm of a 10 m range), as one scalar Kalman update of the whole state
     (positions move with their correlation to the velocity; Bar-Shalom, Li & Kirubarajan 2001,
     sec. 5.2 and 10.3). Rows without a finite Doppler, or at the sensor, keep their state."""
     x = np.asarray(x, float)
