@@ -245,7 +245,8 @@ def assess(truth: pd.DataFrame, scenes_meta: dict, tracks: dict[str, pd.DataFram
                or k in only[inp]}
         risk = risk_table(tr, ego, use, horizon=horizon, dt_s=frame_period_s,
                           shape=shape, margin_m=cfg.pedestrian_radius_m,
-                          method=cfg.probability, max_len=max_len)
+                          method=cfg.probability, max_len=max_len,
+                          max_coast_s=cfg.max_coast_s)
         risks.append(risk.assign(input=inp))
         t_moving = first_moving_s(tr, truth, sa.scenes)[ev]
         fp = (info.first_seen_s if first_point_s is None

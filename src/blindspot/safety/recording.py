@@ -46,7 +46,7 @@ import pandas as pd
 
 from blindspot.dsp.ego_motion import EgoMotionError, estimate_ego_speed
 from blindspot.dsp.recording import detect_recording
-from blindspot.safety.predict import track_histories
+from blindspot.safety.predict import decision_rows, track_histories
 from blindspot.safety.risk import EgoShape, collision_risk
 from blindspot.track.config import TrackedRecording, TrackerConfig
 from blindspot.track.recordings import load_points, track_recording
@@ -229,14 +229,13 @@ def _track(points: pd.DataFrame, tracker: TrackerConfig, source: str) -> pd.Data
 
 
 def predict_tracks(tracks: pd.DataFrame, predictor: Any, horizon: int, dt_s: float,
-                   max_len: int) -> tuple[pd.DataFrame, Any]:
-    """Each confirmed (and, with that column, moving) track row's predicted path: (long table
-    frame, time_s, track_id, step, t_ahead_s, x_m, y_m, cov_xx, cov_xy, cov_yy, the forecast
-    (B, H) of the rows in that order, and those rows)."""
+                   max_len: int, max_coast_s: float | None = None) -> tuple[pd.DataFrame, Any]:
+    """Each track row a decision reads (:func:`blindspot.safety.predict.decision_rows`:
+    confirmed, moving with that column, measured within ``max_coast_s``): its predicted path
+    (long table frame, time_s, track_id, step, t_ahead_s, x_m, y_m, cov_xx, cov_xy, cov_yy, the
+    forecast (B, H) of the rows in that order, and those rows)."""
     tr = tracks.assign(group=0).sort_values(["track_id", "frame"]).reset_index(drop=True)
-    keep = tr.confirmed.to_numpy(bool).copy()
-    if "moving" in tr:
-        keep &= tr.moving.to_numpy(bool)
+    keep = decision_rows(tr, dt_s, max_coast_s)
     rows = tr[keep].reset_index(drop=True)
     cols = ["frame", "time_s", "track_id", "step", "t_ahead_s", "x_m", "y_m", "cov_xx",
             "cov_xy", "cov_yy"]
@@ -344,7 +343,7 @@ def run_recording(entry: RecordingEntry, rec_cfg: Any, path: Path, groups: Any,
         return result
     max_len = int(round(warning.max_history_s / dt))
     result.predictions, fc, rows = predict_tracks(result.tracks, predictor_for(dt), horizon,
-                                                  dt, max_len)
+                                                  dt, max_len, warning.max_coast_s)
     summary.update(horizon_s=horizon * dt, n_predicted_rows=int(len(rows)))
     if _steps_to(entry, "decisions") and entry.moving:
         ego = pts.drop_duplicates("frame")[["frame", "time_s", "ego_speed_mps", "ego_y_m"]]

@@ -36,7 +36,10 @@ class MovingConfig(TypedConfig):
     "stepping toward the ego's path" this many natural-log units likelier than "static" is
     moving; null: off) and its hypothesis, crossing_speed_mps, crossing_speed_std_mps,
     crossing_walker_std_mps, crossing_static_std_mps, crossing_window, crossing_corridor_m
-    (:class:`blindspot.track.crossing.CrossingPrior`).
+    (:class:`blindspot.track.crossing.CrossingPrior`; the corridor bounds the approach test
+    too); approach_probability (the approach test: a velocity whose component toward the
+    ego's path passes a one-sided test at this probability is significant,
+    :func:`blindspot.track.crossing.approach_z`; null: off).
     """
 
     GROUP = "tracker.moving"
@@ -61,6 +64,7 @@ class MovingConfig(TypedConfig):
     crossing_static_std_mps: float = setting(0.15, gt=0.0, le=10.0)
     crossing_window: int = setting(3, ge=1, le=1000)
     crossing_corridor_m: float = setting(5.0, gt=0.0, le=100.0)
+    approach_probability: float | None = setting(None, gt=0.0, lt=1.0)
 
     def validate(self) -> None:
         spread = self.doppler_spread_std_mps

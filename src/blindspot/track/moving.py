@@ -15,16 +15,16 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
-from scipy.stats import chi2
+from scipy.stats import chi2, norm
 
 from blindspot.arrays import check_number
-from blindspot.track.crossing import CrossingPrior, crossing_evidence
+from blindspot.track.crossing import CrossingPrior, approach_z, crossing_evidence
 
 __all__ = ["DOPPLER_LLR_FORMS", "DOPPLER_REFERENCES", "DOPPLER_FIRST_WINDOW",
            "doppler_motion_log_ratio", "doppler_motion_evidence", "doppler_log_ratio",
            "doppler_log_ratio_terms", "doppler_spread_log_ratio", "moving_tracks",
            "moving_frames", "velocity_chi2", "doppler_evidence", "moving_test_settings",
-           "last_hit_rows", "track_static_evidence", "static_evidence"]
+           "last_hit_rows", "coast_frames", "track_static_evidence", "static_evidence"]
 
 #: Forms of the Doppler log-likelihood ratio (:func:`doppler_log_ratio`).
 DOPPLER_LLR_FORMS: tuple[str, ...] = ("common_variance", "marginal")
@@ -238,6 +238,8 @@ def moving_tracks(tracks: pd.DataFrame, speed_mps: float, probability: float = 0
                   doppler_first_log_ratio: float | None = None,
                   crossing_prior: CrossingPrior | None = None,
                   crossing_log_ratio: float | None = None,
+                  approach_probability: float | None = None,
+                  approach_corridor_m: float = 5.0,
                   points: pd.DataFrame | None = None, static_evidence_min: int = 0,
                   static_cell_m: float = 0.5, static_lag_frames: int = 10) -> np.ndarray:
     """(N,) bool per row of ``tracks`` (columns group, track_id, frame, vx_mps, vy_mps,
@@ -276,7 +278,8 @@ def moving_tracks(tracks: pd.DataFrame, speed_mps: float, probability: float = 0
     naming a missing column, a row without an ego position, a ``doppler_llr`` not in
     DOPPLER_LLR_FORMS, or a ``doppler_log_ratio_floor`` above ``doppler_log_ratio_min``. With
     ``crossing_prior`` and ``crossing_log_ratio``, :func:`moving_frames`' crossing test makes
-    rows moving too (before the latch and the grid)."""
+    rows moving too (before the latch and the grid); with ``approach_probability`` its approach
+    test stands in for the chi-square test."""
     fast = moving_frames(tracks, speed_mps, probability, ego=ego,
                          doppler_std_mps=doppler_std_mps,
                          doppler_log_ratio_min=doppler_log_ratio_min, doppler_llr=doppler_llr,
@@ -284,7 +287,9 @@ def moving_tracks(tracks: pd.DataFrame, speed_mps: float, probability: float = 0
                          doppler_spread_std_mps=doppler_spread_std_mps,
                          doppler_reference=doppler_reference,
                          doppler_first_log_ratio=doppler_first_log_ratio,
-                         crossing_prior=crossing_prior, crossing_log_ratio=crossing_log_ratio)
+                         crossing_prior=crossing_prior, crossing_log_ratio=crossing_log_ratio,
+                         approach_probability=approach_probability,
+                         approach_corridor_m=approach_corridor_m)
     order, key = _track_order(tracks)
     seen = pd.Series(fast[order]).groupby(key, sort=False).cummax().to_numpy(bool)
     out = np.empty(len(tracks), bool)
@@ -304,7 +309,9 @@ def moving_frames(tracks: pd.DataFrame, speed_mps: float, probability: float = 0
                   doppler_reference: str = "frame",
                   doppler_first_log_ratio: float | None = None,
                   crossing_prior: CrossingPrior | None = None,
-                  crossing_log_ratio: float | None = None) -> np.ndarray:
+                  crossing_log_ratio: float | None = None,
+                  approach_probability: float | None = None,
+                  approach_corridor_m: float = 5.0) -> np.ndarray:
     """(N,) bool per row of ``tracks``: the row's own frame passes :func:`moving_tracks`'s
     kinematic and Doppler tests (confirmed, fast, significantly non-zero, the Doppler sum so
     far above its bound), before the latch and the static-evidence grid; same arguments and
@@ -324,7 +331,13 @@ def moving_frames(tracks: pd.DataFrame, speed_mps: float, probability: float = 0
     than "static" (:func:`~blindspot.track.crossing.crossing_evidence`) is moving too, without
     the speed, kinematic and Doppler-refutation tests: its velocity across the road is not
     known yet, its radial speed's sign and scale are. That needs ``ego`` with ``ego_yaw_deg``
-    (the path's direction). Raises ValueError when only one of the two is given."""
+    (the path's direction). Raises ValueError when only one of the two is given.
+
+    With ``approach_probability`` (the approach test, issue 40) a row's velocity is also
+    significant when its component toward the ego's path passes the one-sided test
+    :func:`~blindspot.track.crossing.approach_z` > Phi^-1(``approach_probability``) (rows within
+    ``approach_corridor_m`` m of the path's line and ahead of the radar); the speed, confirmation
+    and Doppler-refutation tests still apply. That needs ``ego`` with ``ego_yaw_deg`` too."""
     check_number(speed_mps, "speed_mps", ge=0.0, unit="m/s", who="moving_tracks")
     check_number(probability, "probability", gt=0.0, who="moving_tracks")
     if not probability < 1:
@@ -353,6 +366,16 @@ def moving_frames(tracks: pd.DataFrame, speed_mps: float, probability: float = 0
                          f"{doppler_log_ratio_min}, found {doppler_log_ratio_floor!r}")
     speed = np.hypot(tracks.vx_mps.to_numpy(float), tracks.vy_mps.to_numpy(float))
     significant = velocity_chi2(tracks) > chi2.ppf(probability, 2)
+    if approach_probability is not None:
+        check_number(approach_probability, "approach_probability", gt=0.0, who="moving_tracks")
+        if not approach_probability < 1:
+            raise ValueError(f"moving_tracks: approach_probability: expected a number in (0, "
+                             f"1), found {approach_probability!r}")
+        if ego is None:
+            raise ValueError("ego: expected the ego's poses (group, frame, ego_x_m, ego_y_m, "
+                             "ego_yaw_deg) for the approach test, found None")
+        significant |= (approach_z(tracks, ego, approach_corridor_m)
+                        > norm.ppf(approach_probability))
     if doppler_first_log_ratio is not None:
         significant |= doppler_motion_evidence(tracks, doppler_std_mps,
                                                DOPPLER_FIRST_WINDOW) >= doppler_first_log_ratio
@@ -479,6 +502,24 @@ def last_hit_rows(tracks: pd.DataFrame) -> np.ndarray:
     return out
 
 
+def coast_frames(tracks: pd.DataFrame) -> np.ndarray:
+    """(N,) int per row of ``tracks`` (columns group, track_id, frame, coasting): the frames
+    since the row's track last had a measurement (0 on a measured row, ``coasting`` False; rows
+    before a track's first measured row count from the track's first row). Any row order.
+    Raises ValueError naming a missing column."""
+    missing = sorted({"group", "track_id", "frame", "coasting"} - set(tracks.columns))
+    if missing:
+        raise ValueError(f"tracks: missing columns {missing} (the blindspot.track schema)")
+    order, key = _track_order(tracks)
+    frame = tracks.frame.to_numpy(np.int64)[order]
+    measured = ~tracks.coasting.to_numpy(bool)[order]
+    last = pd.Series(np.where(measured, frame, np.nan)).groupby(key, sort=False).ffill()
+    first = pd.Series(frame).groupby(key, sort=False).transform("first")
+    out = np.empty(len(order), np.int64)
+    out[order] = frame - last.fillna(first).to_numpy(np.int64)
+    return out
+
+
 def track_static_evidence(tracks: pd.DataFrame, points: pd.DataFrame, *, cell_m: float,
                           lag_frames: int) -> np.ndarray:
     """(N,) int per row of ``tracks`` (columns group, track_id, frame, x_m, y_m, n_points): the
@@ -510,7 +551,9 @@ def moving_test_settings(m, grid: bool = True) -> dict[str, Any]:
                    walker_std_mps=m.crossing_walker_std_mps,
                    static_std_mps=m.crossing_static_std_mps, window=m.crossing_window,
                    corridor_m=m.crossing_corridor_m),
-               crossing_log_ratio=m.crossing_log_ratio)
+               crossing_log_ratio=m.crossing_log_ratio,
+               approach_probability=m.approach_probability,
+               approach_corridor_m=m.crossing_corridor_m)
     if grid:
         out.update(static_evidence_min=m.static_evidence_min,
                    static_cell_m=m.static_cell_m,
