@@ -13,7 +13,7 @@ between the starts of two successive frames (the tracker builds one Stone Soup t
 frame, first in its loop; the last frame to the loop's end), plus the frame's share of the
 scene's batched work (input checks, DBSCAN of every frame in one call, the output table, the
 moving test). Then, per frame, the decision on
-that frame's assessed rows (confirmed and moving): the moving test's evidence for the frame's
+that frame's assessed rows (confirmed, moving, not coasting past warning.max_coast_s): the moving test's evidence for the frame's
 rows, the track_state forecast (3 s at 0.1 s) and P(collision) against the ego footprint
 (blindspot.safety.risk.collision_risk), timed frame by frame. The moving test runs vectorised
 over a scene in the stage; here its cost per frame is the scene's share. Times are CPU time
@@ -40,7 +40,7 @@ from omegaconf import OmegaConf  # noqa: E402
 
 from blindspot.radar.scenario import load_scenarios  # noqa: E402
 from blindspot.track.config import TrackerConfig  # noqa: E402
-from blindspot.safety.predict import TrackState, track_state_forecast  # noqa: E402
+from blindspot.safety.predict import TrackState, decision_rows, track_state_forecast  # noqa: E402
 from blindspot.safety.risk import EgoShape, collision_risk  # noqa: E402
 from blindspot.synth.driving_tracks import tracker_input  # noqa: E402
 from blindspot.track import tracker as T  # noqa: E402
@@ -109,7 +109,8 @@ def main(argv: list[str]) -> None:
         frames = np.sort(pts.frame.unique())[: n_frames]
         track_ms += [(f, scene, ms) for f, ms in zip(frames, 1e3 * (steps + shared))]
         e = tr_s.groupby("frame")[["ego_x_m", "ego_y_m", "ego_yaw_deg", "ego_speed_mps"]].first()
-        for f, rows in tracks[tracks.confirmed & tracks.moving].groupby("frame"):
+        assessed = decision_rows(tracks, 0.1, cfg.warning.max_coast_s)
+        for f, rows in tracks[assessed].groupby("frame"):
             t2 = time.process_time()
             fc = track_state_forecast(pred, rows, 30)
             ee = e.loc[[f] * len(rows)]

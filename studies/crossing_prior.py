@@ -36,6 +36,7 @@ from pathlib import Path
 import blindspot  # noqa: F401  first: pins the CPU kernels before numpy loads
 import numpy as np
 import pandas as pd
+import yaml
 from omegaconf import OmegaConf
 
 from blindspot.radar.scenario import load_scenarios
@@ -107,8 +108,11 @@ def main(argv: list[str]) -> None:
                                     tcfg.init_velocity_std_mps)
         inputs = {"tracker": tracks}
     for o in args.warning:
-        k, v = o.split("=", 1)
-        cfg.warning[k] = None if v == "null" else float(v)
+        k, eq, v = o.partition("=")
+        if not eq or k not in cfg.warning:
+            raise SystemExit(f"--warning {o!r}: expected KEY=VALUE with KEY one of "
+                             f"{sorted(cfg.warning)}")
+        cfg.warning[k] = yaml.safe_load(v)
     w, ev = WarningConfig.from_cfg(cfg), EvalConfig.from_cfg(cfg)
     group, _ = load_scenarios(cfg.scenario)
     dt = float(cfg.driving_radar.frame_period_s)

@@ -123,7 +123,7 @@ def score_candidates(cfg, w, data: Path, pname: str, sup: pd.DataFrame, ego: pd.
     risk = risk_table(sup, ego, {pname: calibrated(cfg, pname, data)},
                       horizon=int(round(w.horizon_s / dt)), dt_s=dt, shape=shape,
                       margin_m=w.pedestrian_radius_m, method=w.probability,
-                      max_len=int(round(w.max_history_s / dt)))
+                      max_len=int(round(w.max_history_s / dt)), max_coast_s=w.max_coast_s)
     rows_key = pd.MultiIndex.from_frame(risk[key])
     results = {}
     for name, flag in flags.items():

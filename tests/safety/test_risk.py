@@ -192,7 +192,7 @@ def test_risk_table_scores_a_predictor_with_a_mixture_by_its_mixture():
     ego = pd.DataFrame({"group": "g", "frame": [0, 1], "ego_x_m": 0.0, "ego_y_m": 0.0,
                         "ego_yaw_deg": 0.0, "ego_speed_mps": 0.0})
     out = risk_table(tracks, ego, {"forking": Forking()}, horizon=5, dt_s=0.1, shape=EGO,
-                     margin_m=0.3, method="max_step", max_len=10)
+                     margin_m=0.3, method="max_step", max_len=10, max_coast_s=None)
     assert np.allclose(out.p_collision, 0.4)
     mix = Forking().predict_mixture(np.zeros((1, 2, 2)), 5)
     assert np.allclose(out.p_collision, mixture_collision_risk(

@@ -13,7 +13,8 @@ from scipy.stats import chi2, norm
 from blindspot.safety.predict import decision_rows
 from blindspot.track.config import MovingConfig
 from blindspot.track.crossing import approach_z
-from blindspot.track.moving import coast_frames, moving_frames, moving_tracks
+from blindspot.track.moving import (coast_frames, moving_frames, moving_test_settings,
+                                     moving_tracks)
 from blindspot.typed_config import ConfigError
 
 EGO = pd.DataFrame({"group": "g", "frame": np.arange(6), "ego_x_m": 0.0,
@@ -40,6 +41,22 @@ def test_approach_z_is_the_velocity_toward_the_path_in_its_own_sigmas():
     # outside the corridor, behind the radar: 0
     assert approach_z(_rows([-1.0], [0.0], x=6.0), EGO, 5.0)[0] == 0.0
     assert approach_z(_rows([-1.0], [0.0], y=-3.0), EGO, 5.0)[0] == 0.0
+
+
+@pytest.mark.parametrize("yaw_deg", [90.0, 45.0, -30.0])
+def test_approach_z_follows_the_ego_heading(yaw_deg):
+    # heading (-sin yaw, cos yaw), left (-cos yaw, -sin yaw) (yaw counter-clockwise from +y);
+    # a track 10 m ahead and 2 m to the right moves toward the path along +left
+    a = np.radians(yaw_deg)
+    fwd, left = np.array([-np.sin(a), np.cos(a)]), np.array([-np.cos(a), -np.sin(a)])
+    pos, v = 10 * fwd - 2 * left, 1.0 * left + 0.5 * fwd
+    cov = np.array([[0.2, 0.05], [0.05, 0.1]])
+    ego = EGO.assign(ego_yaw_deg=yaw_deg, ego_x_m=3.0, ego_y_m=-1.0)
+    rows = _rows([v[0]], [v[1]], x=3.0 + pos[0], y=-1.0 + pos[1], cov=cov)
+    want = 1.0 / np.sqrt(left @ cov @ left)        # written out: c = left, c.v = 1
+    assert approach_z(rows, ego, 5.0)[0] == pytest.approx(want)
+    away = rows.assign(vx_mps=-v[0], vy_mps=-v[1])
+    assert approach_z(away, ego, 5.0)[0] == pytest.approx(-want)
 
 
 def test_static_objects_pass_at_the_nominal_one_sided_rate():
@@ -83,6 +100,11 @@ def test_approach_test_checks_its_arguments():
                 doppler_log_ratio_min=-2.3)
     with pytest.raises(ConfigError, match="tracker.moving.approach_probability"):
         MovingConfig.from_mapping({**base, "approach_probability": 1.5})
+    with pytest.raises(ValueError, match="approach_corridor_m"):
+        moving_tracks(rows, 0.5, ego=EGO, approach_probability=0.9, approach_corridor_m=0.0)
+    settings = moving_test_settings(MovingConfig.from_mapping(
+        {**base, "approach_probability": 0.8, "crossing_corridor_m": 3.0}))
+    assert settings["approach_probability"] == 0.8 and settings["approach_corridor_m"] == 3.0
 
 
 def test_coast_frames_counts_frames_since_the_last_measurement():
@@ -92,6 +114,9 @@ def test_coast_frames_counts_frames_since_the_last_measurement():
     shuffled = t.sample(frac=1, random_state=0)
     assert list(coast_frames(t)) == [0, 0, 1, 2, 0, 1, 0, 1, 0]
     assert list(coast_frames(shuffled)) == list(coast_frames(t)[shuffled.index])
+    # another group with the same track id keeps its own count
+    both = pd.concat([t, t.assign(group="h", coasting=False)], ignore_index=True)
+    assert list(coast_frames(both)) == [0, 0, 1, 2, 0, 1, 0, 1, 0] + [0] * 9
     with pytest.raises(ValueError, match=r"missing columns \['coasting'\]"):
         coast_frames(t.drop(columns="coasting"))
 
@@ -103,7 +128,9 @@ def test_decision_rows_drop_long_coasting_moving_rows_only_with_the_limit():
     assert list(decision_rows(t, 0.1, None)) == [False, False] + [True] * 5
     assert list(decision_rows(t, 0.1, 0.3)) == [False, False, True, True, True, True, False]
     assert list(decision_rows(t, 0.1, 0.0)) == [False, False, True] + [False] * 4
-    assert decision_rows(t.drop(columns="coasting"), 0.1, 0.0).sum() == 5  # no column: no limit
+    assert decision_rows(t.drop(columns="coasting"), 0.1, None).sum() == 5  # no limit
+    with pytest.raises(ValueError, match=r"missing columns \['coasting'\]"):
+        decision_rows(t.drop(columns="coasting"), 0.1, 0.3)
     with pytest.raises(ValueError, match="max_coast_s"):
         decision_rows(t, 0.1, -0.1)
     with pytest.raises(ValueError, match="dt_s"):

@@ -66,7 +66,7 @@ def test_risk_table_scores_moving_rows_only():
     ego = t[["group", "frame"]].drop_duplicates().assign(ego_x_m=0.0, ego_y_m=-1.0,
                                                          ego_yaw_deg=0.0, ego_speed_mps=5.0)
     r = risk_table(t, ego, {"x": Fixed()}, horizon=5, dt_s=0.1, shape=EgoShape(1.8, 4.5),
-                   margin_m=0.3, method="max_step", max_len=5)
+                   margin_m=0.3, method="max_step", max_len=5, max_coast_s=None)
     assert len(r) == int(t.moving.sum()) and (r.p_collision > 0.9).all()
 
 

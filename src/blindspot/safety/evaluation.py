@@ -100,8 +100,9 @@ def line_of_sight_onset(p0: pd.DataFrame) -> pd.Series:
 
 def first_moving_s(tracks: pd.DataFrame, truth: pd.DataFrame, scenes: np.ndarray,
                    lead: str = "p0", radius_m: float = 1.0) -> np.ndarray:
-    """(S,) s per scene of ``scenes``: the time of the first track row that the decision
-    assesses (confirmed and, with a ``moving`` column, moving) lying within ``radius_m`` of the
+    """(S,) s per scene of ``scenes``: the time of the first track row classed a moving object
+    (confirmed and, with a ``moving`` column, moving; the decision's coasting limit does not
+    apply: a first moving row is a measured one) lying within ``radius_m`` of the
     lead pedestrian's true position at that frame (truth scores, it never feeds the chain);
     NaN where none. ``tracks``: columns group, frame, time_s, x_m, y_m, confirmed (moving)."""
     keep = tracks.confirmed.to_numpy(bool).copy()

@@ -36,7 +36,7 @@ from blindspot.traj.mixture import MixtureForecast
 from blindspot.traj.windows import interpolate_gaps
 
 __all__ = ["calibrated_predictors", "stage_predictors", "BackfilledHistory", "TrackState", "with_backfill", "track_histories",
-           "incremental_kalman", "track_state_forecast", "risk_table"]
+           "incremental_kalman", "track_state_forecast", "decision_rows", "risk_table"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -207,33 +207,38 @@ def incremental_kalman(pred, tracks: pd.DataFrame, keep: np.ndarray, horizon: in
 def decision_rows(tracks: pd.DataFrame, dt_s: float, max_coast_s: float | None) -> np.ndarray:
     """(N,) bool per row of ``tracks``: the rows a decision may read. Confirmed; moving where
     the table has that column (the tracker on every point: the static world's tracks are not
-    scored); and, with ``max_coast_s`` and a ``coasting`` column, measured within the last
-    ``max_coast_s`` s (:func:`blindspot.track.moving.coast_frames` times ``dt_s``): a track
-    coasting longer is the filter's extrapolation, not something the radar sees (issue 40: the
-    parked cars' clutter tracks that coast on a spurious velocity for a second were most of
-    the false activations' triggers). Raises ValueError for a ``dt_s`` not > 0 or a
-    ``max_coast_s`` not None and >= 0."""
+    scored); and, unless ``max_coast_s`` is None, measured within the last ``max_coast_s`` s
+    (:func:`blindspot.track.moving.coast_frames` of the ``coasting`` column, times ``dt_s``): a
+    track coasting longer is the filter's extrapolation, not something the radar sees (issue 40:
+    clutter tracks coasting off the parked cars on a spurious velocity requested a third of the
+    false activations). Raises ValueError naming a missing column (``coasting`` only with a
+    limit), a ``dt_s`` not > 0 or a ``max_coast_s`` < 0."""
     check_number(dt_s, "dt_s", gt=0.0, unit="s", who="decision_rows")
+    need = {"confirmed"} | ({"group", "track_id", "frame", "coasting"}
+                            if max_coast_s is not None else set())
+    missing = sorted(need - set(tracks.columns))
+    if missing:
+        raise ValueError(f"decision_rows: tracks: missing columns {missing} (the "
+                         "blindspot.track schema; coasting is needed for max_coast_s)")
     keep = tracks.confirmed.to_numpy(bool).copy()
     if "moving" in tracks.columns:
         keep &= tracks.moving.to_numpy(bool)
     if max_coast_s is not None:
         check_number(max_coast_s, "max_coast_s", ge=0.0, unit="s", who="decision_rows")
-        if "coasting" in tracks.columns:
-            keep &= coast_frames(tracks) * dt_s <= max_coast_s + 1e-9
+        keep &= coast_frames(tracks) * dt_s <= max_coast_s + 1e-9
     return keep
 
 
 def risk_table(tracks: pd.DataFrame, ego: pd.DataFrame, predictors: dict[str, Any], *,
                horizon: int, dt_s: float, shape: EgoShape, margin_m: float, method: str,
-               max_len: int, max_coast_s: float | None = None) -> pd.DataFrame:
+               max_len: int, max_coast_s: float | None) -> pd.DataFrame:
     """P(collision) and TTC per confirmed track row and predictor.
 
     tracks: the tracker's output (``blindspot.track`` schema: group, frame, track_id, x_m, y_m,
     confirmed, ...; with a ``moving`` column (:func:`moving_tracks`) only rows confirmed and
     moving are scored, the static world's tracks are not); ego: columns group, frame, ego_x_m, ego_y_m, ego_yaw_deg, ego_speed_mps
     (one row per group and frame). ``max_coast_s``: rows coasting longer are not scored
-    (:func:`decision_rows`). predictors: name -> probabilistic predictor
+    (:func:`decision_rows`; None: no limit). predictors: name -> probabilistic predictor
     (``predict_distribution(history (B, T, 2), horizon)``; one offering ``predict_mixture``
     is scored by its mixture, :func:`~blindspot.safety.risk.mixture_collision_risk`). Returns columns predictor, group,
     frame, track_id, p_collision, ttc_s. Raises ValueError when a track row has no ego state.

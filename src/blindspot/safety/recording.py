@@ -18,7 +18,8 @@ Per recording (an entry of the Hydra group ``recordings``, :class:`RecordingEntr
    :func:`blindspot.track.tracker.track_points`; for the point-cloud logs exactly the
    real_tracking stage's :func:`~blindspot.track.recordings.track_recording`, with TI's tracks
    as its reference).
-3. **predictions**: each confirmed track's predicted path at every frame, with its Gaussian
+3. **predictions**: each confirmed track's predicted path at every frame (from a car: the
+   rows its decision reads, none coasting past ``warning.max_coast_s``), with its Gaussian
    distribution per step (``warning.horizon_s`` ahead; the ``eval.kalman`` constant-velocity
    Kalman filter at the recording's frame period, :func:`blindspot.traj.baselines.
    kalman_baseline`, the project's calibrated Kalman settings).
@@ -229,7 +230,7 @@ def _track(points: pd.DataFrame, tracker: TrackerConfig, source: str) -> pd.Data
 
 
 def predict_tracks(tracks: pd.DataFrame, predictor: Any, horizon: int, dt_s: float,
-                   max_len: int, max_coast_s: float | None = None) -> tuple[pd.DataFrame, Any]:
+                   max_len: int, max_coast_s: float | None) -> tuple[pd.DataFrame, Any]:
     """Each track row a decision reads (:func:`blindspot.safety.predict.decision_rows`:
     confirmed, moving with that column, measured within ``max_coast_s``): its predicted path
     (long table frame, time_s, track_id, step, t_ahead_s, x_m, y_m, cov_xx, cov_xy, cov_yy, the
@@ -342,10 +343,14 @@ def run_recording(entry: RecordingEntry, rec_cfg: Any, path: Path, groups: Any,
     if not _steps_to(entry, "predictions"):
         return result
     max_len = int(round(warning.max_history_s / dt))
-    result.predictions, fc, rows = predict_tracks(result.tracks, predictor_for(dt), horizon,
-                                                  dt, max_len, warning.max_coast_s)
+    decides = _steps_to(entry, "decisions") and entry.moving
+    # a recording that decides predicts the rows its decision reads (no coasting past
+    # warning.max_coast_s); a still radar's predictions follow every confirmed track
+    result.predictions, fc, rows = predict_tracks(
+        result.tracks, predictor_for(dt), horizon, dt, max_len,
+        max_coast_s=warning.max_coast_s if decides else None)
     summary.update(horizon_s=horizon * dt, n_predicted_rows=int(len(rows)))
-    if _steps_to(entry, "decisions") and entry.moving:
+    if decides:
         ego = pts.drop_duplicates("frame")[["frame", "time_s", "ego_speed_mps", "ego_y_m"]]
         result.decisions = decide(fc, rows, ego.sort_values("frame"), dt,
                                   EgoShape(entry.ego_width_m, entry.ego_length_m), warning)

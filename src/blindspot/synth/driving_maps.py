@@ -106,7 +106,8 @@ def scene_to_watch(cfg, paths: dict, *, progress: bool = False) -> SceneToWatch:
     pred = from_record(records[w.predictor], kalman_baseline(EvalConfig.from_cfg(cfg), dt),
                        w.predictor)
     predictions, _, _ = predict_tracks(tracks, pred, int(round(cfg.warning.horizon_s / dt)), dt,
-                                       int(round(cfg.warning.max_history_s / dt)))
+                                       int(round(cfg.warning.max_history_s / dt)),
+                                       max_coast_s=cfg.warning.max_coast_s)
     rd = driving_scene_maps(named[w.scene], group, radar, CfarConfig.from_cfg(cfg, "driving_cfar"),
                             DoaConfig.from_cfg(cfg), DetectConfig.from_cfg(cfg),
                             EgoMotionConfig.from_cfg(cfg), SimConfig.from_cfg(cfg),

@@ -279,7 +279,7 @@ def moving_tracks(tracks: pd.DataFrame, speed_mps: float, probability: float = 0
     DOPPLER_LLR_FORMS, or a ``doppler_log_ratio_floor`` above ``doppler_log_ratio_min``. With
     ``crossing_prior`` and ``crossing_log_ratio``, :func:`moving_frames`' crossing test makes
     rows moving too (before the latch and the grid); with ``approach_probability`` its approach
-    test stands in for the chi-square test."""
+    test also makes a velocity significant, beside the chi-square test."""
     fast = moving_frames(tracks, speed_mps, probability, ego=ego,
                          doppler_std_mps=doppler_std_mps,
                          doppler_log_ratio_min=doppler_log_ratio_min, doppler_llr=doppler_llr,
@@ -374,6 +374,8 @@ def moving_frames(tracks: pd.DataFrame, speed_mps: float, probability: float = 0
         if ego is None:
             raise ValueError("ego: expected the ego's poses (group, frame, ego_x_m, ego_y_m, "
                              "ego_yaw_deg) for the approach test, found None")
+        check_number(approach_corridor_m, "approach_corridor_m", gt=0.0, unit="m",
+                     who="moving_tracks")
         significant |= (approach_z(tracks, ego, approach_corridor_m)
                         > norm.ppf(approach_probability))
     if doppler_first_log_ratio is not None:
