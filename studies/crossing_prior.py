@@ -4,7 +4,7 @@ false activations, first point -> moving and -> AEB request (medians), and per s
 rate and the median TTC at the AEB request. Prints figures, asserts nothing.
 
     BLINDSPOT_SHARED=../shared PYTHONPATH=src .venv/bin/python studies/crossing_prior.py \
-        [--data data] [--half tuning|held_out] [--predictors track_state,constant_velocity] \
+        [--data data] [--half tuning|held_out|all] [--predictors track_state,constant_velocity] \
         [--swap-velocity LLR] [--true-state] [--warning key=value ...] \
         [tracker overrides key=value ...]
 
@@ -13,7 +13,8 @@ moving.crossing_log_ratio=1.0, null for off). ``--swap-velocity LLR``: the rows 
 (within ``moving.crossing_window`` measured rows) whose crossing evidence reaches LLR carry the
 velocity under the crossing prior (:func:`blindspot.track.crossing.crossing_state`) instead of
 the tracker's. ``--true-state``: the true state from line of sight instead of the tracker (the
-decision rule's bound on the same half). ``--warning key=value``: a ``warning`` setting for
+decision rule's bound on the same half). ``--half all``: the whole tuning draw (both halves).
+``--warning key=value``: a ``warning`` setting for
 the decision (e.g. max_coast_s=null, aeb_gate_margin_s=0.1). Reads data/driving (truth, points, scenes.json) and the
 predictors' models (data/calibration/models.json, data/train*/model.pt, data/paths,
 data/windows/val.parquet). Time: about a minute of CPU per run (the tracker on 108 scenes).
@@ -38,6 +39,7 @@ import numpy as np
 import pandas as pd
 import yaml
 from omegaconf import OmegaConf
+from scipy.stats import chi2, norm
 
 from blindspot.radar.scenario import load_scenarios
 from blindspot.safety.assess import assess
@@ -48,8 +50,9 @@ from blindspot.safety.outcome import body_boxes
 from blindspot.safety.predict import calibrated_predictors
 from blindspot.safety.risk import EgoShape
 from blindspot.synth.driving_tracks import tracker_input
-from blindspot.track.crossing import crossing_evidence, crossing_state
-from blindspot.track.moving import moving_test_settings, moving_tracks
+from blindspot.track.crossing import approach_z, crossing_evidence, crossing_state
+from blindspot.track.moving import (coast_frames, doppler_evidence, moving_test_settings,
+                                     moving_tracks, track_static_evidence, velocity_chi2)
 from blindspot.track.tracker import track_points
 from blindspot.traj.baselines import prediction_methods
 from blindspot.traj.config import CalibrationConfig, DatasetConfig, EvalConfig
@@ -70,10 +73,62 @@ def _young(tracks: pd.DataFrame, window: int) -> np.ndarray:
     return out
 
 
+def dissect(res, tracks: pd.DataFrame, truth: pd.DataFrame, points: pd.DataFrame,
+            ego: pd.DataFrame, tcfg, predictor: str) -> None:
+    """Print what held the decision back (``--dissect``): per false activation the track row
+    that requested it (its frames since the last radar point, the nearest true pedestrian's
+    distance and behaviour); and of the lead pedestrian's confirmed rows before its track was
+    first classed moving (before the collision), the share failing each of the moving test's
+    parts. The lead's track: the one with most rows within 0.7 m of p0's true position."""
+    m = tcfg.moving
+    sc = res.scenes[(res.scenes.predictor == predictor) & (res.scenes.input == "tracker")]
+    fa = sc[~sc.intruding & (sc.aeb_frame >= 0)]
+    risk = res.risk[(res.risk.predictor == predictor) & (res.risk.input == "tracker")]
+    tr = tracks.assign(coast=coast_frames(tracks))
+    print(f"false activations: {len(fa)} of {int((~sc.intruding).sum())} non-intruding scenes")
+    for s in fa.itertuples():
+        r = risk[(risk.group == s.scene) & (risk.frame == s.aeb_frame)]
+        r = r.sort_values("p_collision").iloc[-1]
+        row = tr[(tr.group == s.scene) & (tr.track_id == r.track_id)
+                 & (tr.frame == s.aeb_frame)].iloc[0]
+        t = truth[(truth.scene == s.scene) & (truth.frame == s.aeb_frame)]
+        d = np.hypot(t.x_m - row.x_m, t.y_m - row.y_m)
+        near = t.iloc[int(np.argmin(d.to_numpy()))]
+        print(f"  {s.scene}: track {r.track_id}, {row.coast} frames since its last point, "
+              f"nearest pedestrian {d.min():.2f} m ({near.behaviour})")
+    p0 = truth[truth.pedestrian == "p0"][["scene", "frame", "x_m", "y_m", "collision_time_s",
+                                          "time_s"]].rename(columns={"scene": "group"})
+    on = tracks.merge(p0, on=["group", "frame"], suffixes=("", "_p0"))
+    on = on[np.hypot(on.x_m - on.x_m_p0, on.y_m - on.y_m_p0) < 0.7]
+    lead = on.groupby(["group", "track_id"]).size().reset_index().sort_values(0)
+    lead = lead.groupby("group").tail(1)[["group", "track_id"]]
+    parts = {"speed": np.hypot(tracks.vx_mps, tracks.vy_mps).to_numpy() > m.speed_mps,
+             "chi-square": velocity_chi2(tracks) > chi2.ppf(m.probability, 2),
+             "Doppler refutation": doppler_evidence(
+                 tracks, ego, m.doppler_std_mps, m.doppler_llr, m.doppler_log_ratio_floor,
+                 spread_std_mps=m.doppler_spread_std_mps, reference=m.doppler_reference)
+             > m.doppler_log_ratio_min,
+             "static grid": track_static_evidence(
+                 tracks, points[["scene", "frame", "x_m", "y_m", "static"]],
+                 cell_m=m.static_cell_m, lag_frames=m.static_lag_frames)
+             < m.static_evidence_min}
+    if m.approach_probability is not None:
+        parts["approach"] = (approach_z(tracks, ego, m.crossing_corridor_m)
+                             > norm.ppf(m.approach_probability))
+    t = tracks.assign(**{k: v for k, v in parts.items()}).merge(lead, on=["group", "track_id"])
+    t = t.merge(p0[["group", "frame", "collision_time_s"]], on=["group", "frame"])
+    first = t[t.moving].groupby("group").frame.min()
+    pre = t[t.confirmed & (t.frame < t.group.map(first).fillna(np.inf))
+            & (t.time_s <= t.collision_time_s) & t.group.isin(sc[sc.intruding].scene)]
+    print(f"lead's confirmed rows before it was classed moving: {len(pre)} in "
+          f"{pre.group.nunique()} scenes; failing " + ", ".join(
+              f"{k} {1 - pre[k].mean():.0%}" for k in parts))
+
+
 def main(argv: list[str]) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--data", type=Path, default=REPO / "data")
-    ap.add_argument("--half", default="tuning", choices=("tuning", "held_out"))
+    ap.add_argument("--half", default="tuning", choices=("tuning", "held_out", "all"))
     ap.add_argument("--predictors", default="track_state,constant_velocity")
     ap.add_argument("--swap-velocity", type=float, default=None)
     ap.add_argument("--true-state", action="store_true")
@@ -81,6 +136,8 @@ def main(argv: list[str]) -> None:
     ap.add_argument("--jobs", type=int, default=1)
     ap.add_argument("--warning", action="append", default=[], metavar="KEY=VALUE",
                     help="a warning-group setting for the decision (null: None)")
+    ap.add_argument("--dissect", action="store_true",
+                    help="what held the first predictor's decision back (tracker input)")
     ap.add_argument("overrides", nargs="*")
     args = ap.parse_args(argv)
     cfg = OmegaConf.load(REPO / "params.yaml")
@@ -90,7 +147,7 @@ def main(argv: list[str]) -> None:
     points = pd.read_parquet(d / "driving" / "points.parquet")
     mc = truth[truth.set == "monte_carlo"].scene.unique()
     half = replicate_half(mc)
-    keep = mc[half] if args.half == "tuning" else mc[~half]
+    keep = {"tuning": mc[half], "held_out": mc[~half], "all": mc}[args.half]
     truth, points = truth[truth.scene.isin(keep)], points[points.scene.isin(keep)]
     if args.true_state:
         inputs = {"true_state": true_state_tracks(truth)}
@@ -131,12 +188,15 @@ def main(argv: list[str]) -> None:
                                                               group.ego.length_m),
                  points=points[["scene", "frame", "source"]], frame_period_s=dt,
                  figure_scene=keep[0], draw_seed=int(group.monte_carlo.seed), ncap_inputs=())
-    print(f"{args.half} half, {len(keep)} scenes; overrides {args.overrides}"
+    print(f"{args.half} {'draw' if args.half == 'all' else 'half'}, {len(keep)} scenes; overrides {args.overrides}"
           + (f"; velocity swap at ln ratio {args.swap_velocity}" if args.swap_velocity else "")
           + ("; true state from line of sight" if args.true_state else ""))
-    block = res.metrics.get("tuning" if args.half == "tuning" else "held_out", {})
+    block = ({} if args.half == "all"                     # the whole draw: no half's block
+             else res.metrics.get("tuning" if args.half == "tuning" else "held_out", {}))
     for p in preds:
         m = {**res.metrics[p], **block.get(p, {})}
+        for k in ("first_point_to_moving_s", "first_point_to_aeb_s"):   # the whole draw's
+            m.setdefault(f"{k}_median", (m.get(k) or {}).get("median"))
         print(f"{p:18s} avoided after visible {m['avoided_after_visible_rate']:.3f}, false "
               f"activations {m['false_activation_rate']:.3f}, first point -> moving "
               f"{m.get('first_point_to_moving_s_median')} s, -> AEB "
@@ -152,6 +212,8 @@ def main(argv: list[str]) -> None:
         if args.curve:
             print(oc[["threshold", "avoided_rate", "false_activation_rate"]].round(3)
                   .to_string(index=False))
+    if args.dissect and not args.true_state:
+        dissect(res, tracks, truth, points, ego, tcfg, next(iter(preds)))
 
 
 if __name__ == "__main__":
