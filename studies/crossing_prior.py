@@ -5,7 +5,7 @@ rate and the median TTC at the AEB request. Prints figures, asserts nothing.
 
     BLINDSPOT_SHARED=../shared PYTHONPATH=src .venv/bin/python studies/crossing_prior.py \
         [--data data] [--half tuning|held_out|all] [--predictors track_state,constant_velocity] \
-        [--swap-velocity LLR] [--true-state] [--warning key=value ...] \
+        [--swap-velocity LLR] [--true-state [--velocity-lag K]] [--warning key=value ...] \
         [tracker overrides key=value ...]
 
 Overrides as studies/first_point.py (e.g. doppler_update_std_mps=1.0
@@ -13,7 +13,10 @@ moving.crossing_log_ratio=1.0, null for off). ``--swap-velocity LLR``: the rows 
 (within ``moving.crossing_window`` measured rows) whose crossing evidence reaches LLR carry the
 velocity under the crossing prior (:func:`blindspot.track.crossing.crossing_state`) instead of
 the tracker's. ``--true-state``: the true state from line of sight instead of the tracker (the
-decision rule's bound on the same half). ``--half all``: the whole tuning draw (both halves).
+decision rule's bound on the same half); with ``--velocity-lag K`` each true-state row carries
+the velocity its pedestrian had K frames earlier (the first K rows of a track its first
+velocity): what a filter whose velocity lags a turn by K frames but whose position is exact
+gives the decision. ``--half all``: the whole tuning draw (both halves).
 ``--warning key=value``: a ``warning`` setting for
 the decision (e.g. max_coast_s=null, aeb_gate_margin_s=0.1). Reads data/driving (truth, points, scenes.json) and the
 predictors' models (data/calibration/models.json, data/train*/model.pt, data/paths,
@@ -132,6 +135,8 @@ def main(argv: list[str]) -> None:
     ap.add_argument("--predictors", default="track_state,constant_velocity")
     ap.add_argument("--swap-velocity", type=float, default=None)
     ap.add_argument("--true-state", action="store_true")
+    ap.add_argument("--velocity-lag", type=int, default=0, metavar="K",
+                    help="with --true-state: each row's velocity from K frames earlier")
     ap.add_argument("--curve", action="store_true", help="print the operating characteristic")
     ap.add_argument("--jobs", type=int, default=1)
     ap.add_argument("--warning", action="append", default=[], metavar="KEY=VALUE",
@@ -149,8 +154,15 @@ def main(argv: list[str]) -> None:
     half = replicate_half(mc)
     keep = {"tuning": mc[half], "held_out": mc[~half], "all": mc}[args.half]
     truth, points = truth[truth.scene.isin(keep)], points[points.scene.isin(keep)]
+    if args.velocity_lag and not args.true_state or args.velocity_lag < 0:
+        raise SystemExit(f"--velocity-lag {args.velocity_lag}: expected K >= 0 frames, "
+                         "with --true-state")
     if args.true_state:
-        inputs = {"true_state": true_state_tracks(truth)}
+        ts = true_state_tracks(truth)
+        if args.velocity_lag:
+            g = ts.groupby(["group", "track_id"])[["vx_mps", "vy_mps"]]
+            ts[["vx_mps", "vy_mps"]] = g.shift(args.velocity_lag).fillna(g.transform("first"))
+        inputs = {"true_state": ts}
     else:
         pts, ego = tracker_input(truth, points)
         tracks = track_points(pts, tcfg, jobs=args.jobs)
@@ -190,7 +202,8 @@ def main(argv: list[str]) -> None:
                  figure_scene=keep[0], draw_seed=int(group.monte_carlo.seed), ncap_inputs=())
     print(f"{args.half} {'draw' if args.half == 'all' else 'half'}, {len(keep)} scenes; overrides {args.overrides}"
           + (f"; velocity swap at ln ratio {args.swap_velocity}" if args.swap_velocity else "")
-          + ("; true state from line of sight" if args.true_state else ""))
+          + ("; true state in line of sight" if args.true_state else "")
+          + (f", velocity {args.velocity_lag} frames late" if args.velocity_lag else ""))
     block = ({} if args.half == "all"                     # the whole draw: no half's block
              else res.metrics.get("tuning" if args.half == "tuning" else "held_out", {}))
     for p in preds:

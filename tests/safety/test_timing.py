@@ -29,15 +29,37 @@ def test_delay_stats_per_speed():
     assert s["by_speed_kmh"]["20"]["n_never"] == 1
 
 
-def test_true_state_tracks_start_at_the_last_emergence():
+def test_true_state_tracks_cover_every_frame_in_sight():
     f = np.arange(6)
-    truth = pd.DataFrame({"scene": "a", "frame": f, "time_s": f * 0.1, "pedestrian": "p0",
+    child = pd.DataFrame({"scene": "a", "frame": f, "time_s": f * 0.1, "pedestrian": "p0",
                           "x_m": 3.0 - 0.14 * f, "y_m": 8.0, "vx_mps": -1.4, "vy_mps": 0.0,
                           "occluded": [False, True, True, False, False, False],
                           "collision_time_s": 0.5})
-    tr = true_state_tracks(truth)
-    assert tr.frame.tolist() == [3, 4, 5]
-    assert tr.vx_mps.eq(-1.4).all() and tr.moving.all() and tr.confirmed.all()
+    # a pedestrian that never collides and is hidden once the ego has passed: its frames in
+    # sight before that are what the decision must not brake for (the row used to drop them)
+    kerb = child.assign(pedestrian="p1", x_m=4.0, vx_mps=0.0, vy_mps=1.4,
+                        occluded=[False, False, False, False, True, True],
+                        collision_time_s=np.nan)
+    tr = true_state_tracks(pd.concat([kerb, child]))
+    assert tr.moving.all() and tr.confirmed.all() and not tr.coasting.any()
+    by = {k: g.frame.tolist() for k, g in tr.groupby(["pedestrian", "track_id"])}
+    # the child's glimpse and its emergence are two tracks; ids unique within the scene
+    assert by == {("p0", 0): [0], ("p0", 1): [3, 4, 5], ("p1", 2): [0, 1, 2, 3]}
+    assert tr[tr.pedestrian == "p0"].vx_mps.eq(-1.4).all()
+    np.testing.assert_allclose(tr.cov_xx, 0.01)
+    np.testing.assert_allclose(tr.cov_vxvx, 0.04)
+
+
+def test_true_state_tracks_check_their_input():
+    with pytest.raises(ValueError, match=r"lacks columns \['occluded'\]"):
+        true_state_tracks(pd.DataFrame({"scene": ["a"], "pedestrian": "p0", "frame": 0,
+                                        "time_s": 0.0, "x_m": 0.0, "y_m": 0.0, "vx_mps": 0.0,
+                                        "vy_mps": 0.0}))
+    with pytest.raises(ValueError, match="vel_std_mps"):
+        true_state_tracks(pd.DataFrame(), vel_std_mps=0.0)
+    assert true_state_tracks(pd.DataFrame(columns=["scene", "pedestrian", "frame", "time_s",
+                                                   "x_m", "y_m", "vx_mps", "vy_mps",
+                                                   "occluded"])).empty
 
 
 def test_track_state_forecasts_the_filtered_state():

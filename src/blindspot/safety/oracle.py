@@ -112,27 +112,45 @@ def noisy_position_points(truth: pd.DataFrame, meas_std_m: float, seed: int) -> 
 
 def true_state_tracks(truth: pd.DataFrame, pos_std_m: float = 0.1,
                       vel_std_mps: float = 0.2) -> pd.DataFrame:
-    """The "true state from line of sight" reference input (issue 40): every pedestrian's true
-    position and velocity (truth columns x_m, y_m, vx_mps, vy_mps) from the first frame of the
-    visible stretch that leads to its crossing
-    (:func:`blindspot.safety.evaluation.line_of_sight_onset`) on, one confirmed, moving track
-    per pedestrian, with an isotropic covariance of ``pos_std_m`` and ``vel_std_mps``: what a
-    perfect sensor that knows a pedestrian's state the moment it is in sight hands the decision
-    (the physical bound of the decision rule, scored with the ``track_state`` predictor).
-    Columns :data:`TRACK_COLUMNS` + moving, pedestrian; sorted by group, track_id, frame."""
-    from blindspot.safety.evaluation import line_of_sight_onset
-
-    rows = []
-    for ped, p in truth.groupby("pedestrian", sort=True):
-        onset = line_of_sight_onset(p)
-        t0 = onset.reindex(p.scene).to_numpy(float)
-        rows.append(p[p.time_s.to_numpy(float) >= np.nan_to_num(t0, nan=np.inf) - 1e-9])
-    v = pd.concat(rows, ignore_index=True) if rows else truth.iloc[:0]
-    ids = v.groupby("scene").pedestrian.transform(lambda s: pd.factorize(s)[0])
+    """The "true state in line of sight" reference input (issue 40): every pedestrian's true
+    position and velocity (truth columns x_m, y_m, vx_mps, vy_mps) at every frame its line of
+    sight is clear (``occluded`` False), one confirmed, moving track per visible stretch (a
+    pedestrian hidden and seen again starts a new track, so a predictor that fits a track's
+    history never spans the gap), with an isotropic covariance of ``pos_std_m`` and
+    ``vel_std_mps``: what a perfect sensor that knows a pedestrian's state whenever it is in
+    sight hands the decision (the physical bound of the decision rule, scored with the
+    ``track_state`` predictor). Every pedestrian counts, the ones that never cross the ego's
+    path included: their false activations are the rule's own. (Until 2026-12-05 only the
+    stretch leading to a crossing was kept, which for a pedestrian that never collides was the
+    stretch after its last occlusion of the whole scene, usually after the ego had passed: the
+    row's false activations read 0 where the rule gives about 3 %.)
+    Columns :data:`TRACK_COLUMNS` + moving, pedestrian; sorted by group, track_id, frame.
+    Raises ValueError naming the missing truth columns or a non-positive spread."""
+    check_number(pos_std_m, "pos_std_m", gt=0.0, unit="m", who="true_state_tracks")
+    check_number(vel_std_mps, "vel_std_mps", gt=0.0, unit="m/s", who="true_state_tracks")
+    need = {"scene", "pedestrian", "frame", "time_s", "x_m", "y_m", "vx_mps", "vy_mps",
+            "occluded"}
+    missing = sorted(need - set(truth.columns))
+    if missing:
+        raise ValueError(f"true_state_tracks: truth lacks columns {missing}")
+    if truth.empty:
+        return pd.DataFrame(columns=[*TRACK_COLUMNS, "moving", "pedestrian"])
+    t = truth.sort_values(["scene", "pedestrian", "frame"]).reset_index(drop=True)
+    seen = ~t.occluded.astype(bool).to_numpy()
+    key = (t.scene + "\x00" + t.pedestrian).to_numpy()
+    new_key = np.r_[True, key[1:] != key[:-1]]
+    gap = np.r_[True, np.diff(t.frame.to_numpy()) != 1]
+    # a stretch starts at a visible row whose predecessor is another pedestrian's, hidden or
+    # not the previous frame
+    start = seen & (new_key | gap | ~np.r_[False, seen[:-1]])
+    stretch = np.cumsum(start)[seen] - 1
+    v = t[seen]
+    # numbered 0.. within each scene (rows are sorted by scene, so a scene's stretches follow)
+    local = stretch - pd.Series(stretch).groupby(v.scene.to_numpy()).transform("min").to_numpy()
     n = len(v)
     out = pd.DataFrame({
         "group": v.scene.to_numpy(), "frame": v.frame.to_numpy(), "time_s": v.time_s.to_numpy(),
-        "track_id": ids.to_numpy(np.int64), "x_m": v.x_m.to_numpy(float),
+        "track_id": local.astype(np.int64), "x_m": v.x_m.to_numpy(float),
         "y_m": v.y_m.to_numpy(float), "vx_mps": v.vx_mps.to_numpy(float),
         "vy_mps": v.vy_mps.to_numpy(float), "cov_xx": np.full(n, pos_std_m ** 2),
         "cov_xy": np.zeros(n), "cov_yy": np.full(n, pos_std_m ** 2),
