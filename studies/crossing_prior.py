@@ -14,9 +14,8 @@ moving.crossing_log_ratio=1.0, null for off). ``--swap-velocity LLR``: the rows 
 velocity under the crossing prior (:func:`blindspot.track.crossing.crossing_state`) instead of
 the tracker's. ``--true-state``: the true state from line of sight instead of the tracker (the
 decision rule's bound on the same half); with ``--velocity-lag K`` each true-state row carries
-the velocity its pedestrian had K frames earlier (the first K rows of a track its first
-velocity): what a filter whose velocity lags a turn by K frames but whose position is exact
-gives the decision. ``--half all``: the whole tuning draw (both halves).
+the true velocity its pedestrian had K frames earlier (in sight or not): the decision on exact
+positions with a velocity K frames late. ``--half all``: the whole tuning draw (both halves).
 ``--warning key=value``: a ``warning`` setting for
 the decision (e.g. max_coast_s=null, aeb_gate_margin_s=0.1). Reads data/driving (truth, points, scenes.json) and the
 predictors' models (data/calibration/models.json, data/train*/model.pt, data/paths,
@@ -76,11 +75,37 @@ def _young(tracks: pd.DataFrame, window: int) -> np.ndarray:
     return out
 
 
+def _late_velocity(ts: pd.DataFrame, truth: pd.DataFrame, lag: int) -> pd.DataFrame:
+    """``ts`` (true-state tracks) with each row's velocity replaced by its pedestrian's true
+    velocity ``lag`` frames earlier (from the whole truth, in sight or not; a row within the
+    scene's first ``lag`` frames keeps its own)."""
+    late = truth[["scene", "pedestrian", "frame", "vx_mps", "vy_mps"]].rename(
+        columns={"scene": "group", "vx_mps": "vx_late", "vy_mps": "vy_late"})
+    late = late.assign(frame=late.frame + lag)
+    out = ts.merge(late, on=["group", "pedestrian", "frame"], how="left", validate="1:1")
+    out["vx_mps"] = out.vx_late.fillna(out.vx_mps)
+    out["vy_mps"] = out.vy_late.fillna(out.vy_mps)
+    return out.drop(columns=["vx_late", "vy_late"])
+
+
+def _frames_since_turn(truth: pd.DataFrame, scene: str, pedestrian: str, frame: int,
+                       change_mps: float = 0.3) -> int | None:
+    """Frames from the last frame at or before ``frame`` at which ``pedestrian``'s true
+    velocity changed by more than ``change_mps`` over one frame (a turn, a start or a stop) to
+    ``frame``; None when it never changed."""
+    p = truth[(truth.scene == scene) & (truth.pedestrian == pedestrian)
+              & (truth.frame <= frame)].sort_values("frame")
+    dv = np.hypot(p.vx_mps.diff(), p.vy_mps.diff()).to_numpy()
+    changed = p.frame.to_numpy()[np.nan_to_num(dv) > change_mps]
+    return int(frame - changed.max()) if changed.size else None
+
+
 def dissect(res, tracks: pd.DataFrame, truth: pd.DataFrame, points: pd.DataFrame,
             ego: pd.DataFrame, tcfg, predictor: str) -> None:
     """Print what held the decision back (``--dissect``): per false activation the track row
     that requested it (its frames since the last radar point, the nearest true pedestrian's
-    distance and behaviour); and of the lead pedestrian's confirmed rows before its track was
+    distance and behaviour, and how many frames before the request that pedestrian's velocity
+    last changed by more than 0.3 m/s); and of the lead pedestrian's confirmed rows before its track was
     first classed moving (before the collision), the share failing each of the moving test's
     parts. The lead's track: the one with most rows within 0.7 m of p0's true position."""
     m = tcfg.moving
@@ -97,8 +122,11 @@ def dissect(res, tracks: pd.DataFrame, truth: pd.DataFrame, points: pd.DataFrame
         t = truth[(truth.scene == s.scene) & (truth.frame == s.aeb_frame)]
         d = np.hypot(t.x_m - row.x_m, t.y_m - row.y_m)
         near = t.iloc[int(np.argmin(d.to_numpy()))]
+        turn = _frames_since_turn(truth, s.scene, near.pedestrian, int(s.aeb_frame))
         print(f"  {s.scene}: track {r.track_id}, {row.coast} frames since its last point, "
-              f"nearest pedestrian {d.min():.2f} m ({near.behaviour})")
+              f"nearest pedestrian {d.min():.2f} m ({near.behaviour}; its velocity last "
+              f"changed by > 0.3 m/s "
+              + ("never" if turn is None else f"{turn} frames before the request") + ")")
     p0 = truth[truth.pedestrian == "p0"][["scene", "frame", "x_m", "y_m", "collision_time_s",
                                           "time_s"]].rename(columns={"scene": "group"})
     on = tracks.merge(p0, on=["group", "frame"], suffixes=("", "_p0"))
@@ -145,6 +173,10 @@ def main(argv: list[str]) -> None:
                     help="what held the first predictor's decision back (tracker input)")
     ap.add_argument("overrides", nargs="*")
     args = ap.parse_args(argv)
+    if args.velocity_lag < 0:
+        ap.error(f"--velocity-lag: expected an integer >= 0 frames, found {args.velocity_lag}")
+    if args.velocity_lag and not args.true_state:
+        ap.error("--velocity-lag needs --true-state")
     cfg = OmegaConf.load(REPO / "params.yaml")
     tcfg = tracker_config(cfg, args.overrides)
     d = args.data
@@ -154,15 +186,12 @@ def main(argv: list[str]) -> None:
     half = replicate_half(mc)
     keep = {"tuning": mc[half], "held_out": mc[~half], "all": mc}[args.half]
     truth, points = truth[truth.scene.isin(keep)], points[points.scene.isin(keep)]
-    if args.velocity_lag and not args.true_state or args.velocity_lag < 0:
-        raise SystemExit(f"--velocity-lag {args.velocity_lag}: expected K >= 0 frames, "
-                         "with --true-state")
     if args.true_state:
         ts = true_state_tracks(truth)
         if args.velocity_lag:
-            g = ts.groupby(["group", "track_id"])[["vx_mps", "vy_mps"]]
-            ts[["vx_mps", "vy_mps"]] = g.shift(args.velocity_lag).fillna(g.transform("first"))
-        inputs = {"true_state": ts}
+            inputs = {"true_state": _late_velocity(ts, truth, args.velocity_lag)}
+        else:
+            inputs = {"true_state": ts}
     else:
         pts, ego = tracker_input(truth, points)
         tracks = track_points(pts, tcfg, jobs=args.jobs)

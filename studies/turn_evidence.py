@@ -1,9 +1,12 @@
 """How much one frame of radar says about a pedestrian's turn (issue 40, the fourth pass of
-docs/studies/first-point-to-brake.md): the scatter of the pedestrians' own points about their
-truth, in position and in ego-motion-compensated radial speed, for walking and for standing
-pedestrians. Prints figures, asserts nothing.
+docs/studies/first-point-to-brake.md): what a turn does in one frame (the turning pedestrians'
+largest one-frame change of true radial speed, and the largest one-frame departure of their
+true position from a constant-velocity step), against the scatter of the pedestrians' own
+points about their truth (each point, and each frame's centroid of them, in position; each
+point's ego-motion-compensated radial speed), walking and standing. Prints figures, asserts
+nothing.
 
-    BLINDSPOT_SHARED=../shared .venv/bin/python studies/turn_evidence.py [--data data]
+    .venv/bin/python studies/turn_evidence.py [--data data]
 
 Reads DATA/driving/points.parquet and truth.parquet of a ``dvc repro``. A point counts as a
 pedestrian's where the truth label of its cell's strongest scatterer (``source``) names it (for
@@ -11,11 +14,13 @@ scoring only; the chain never sees it). The radial speed's truth is the pedestri
 over ground along the line of sight from the ego to the point. "Robust sd" is 1.4826 times the
 median absolute deviation: the core of the scatter, without the limbs' tail.
 
-Conclusion (2026-12-05, paper profile): the median position error is 0.17 m, more than the
-0.14 m a turning walker leaves its course in the first 0.1 s frame; the radial speed of a
-walking pedestrian's point scatters 0.27 m/s (robust sd; 0.68 m/s plain sd) about the truth,
-with 22 % of its points more than 0.8 m/s off (the limbs): a U-turn's first frame (up to
-1.3 m/s radial) stands out in the Doppler of one frame only where that tail does not hide it.
+Conclusion (2026-12-05, paper profile): a turning pedestrian departs from a constant-velocity
+step by at most 0.11 m in one 0.1 s frame (median over the 79 turning pedestrians) and its true
+radial speed changes by up to 1.04 m/s (median; p90 1.24); a frame's centroid of its own
+points lies 0.15 m from the truth (median; a point 0.17 m), and a walking pedestrian's point's
+radial speed scatters 0.27 m/s about the truth (robust sd; 0.68 m/s plain sd, 22 % of the
+points more than 0.8 m/s off). One frame's position says little about a turn; its Doppler
+says more, where the tail does not hide it.
 """
 
 from __future__ import annotations
@@ -44,7 +49,8 @@ def main(argv: list[str] | None = None) -> None:
     points = pd.read_parquet(d / "points.parquet", columns=[
         "scene", "frame", "x_m", "y_m", "velocity_over_ground_mps", "source"])
     truth = pd.read_parquet(d / "truth.parquet", columns=[
-        "scene", "frame", "pedestrian", "x_m", "y_m", "vx_mps", "vy_mps", "ego_x_m", "ego_y_m"])
+        "scene", "frame", "time_s", "pedestrian", "behaviour", "x_m", "y_m", "vx_mps", "vy_mps",
+        "ego_x_m", "ego_y_m"])
     own = points.merge(truth.rename(columns={"pedestrian": "source", "x_m": "true_x_m",
                                              "y_m": "true_y_m"}), on=["scene", "frame", "source"])
     los = np.stack([own.x_m - own.ego_x_m, own.y_m - own.ego_y_m])
@@ -53,7 +59,28 @@ def main(argv: list[str] | None = None) -> None:
                 ).to_numpy()
     error = np.hypot(own.x_m - own.true_x_m, own.y_m - own.true_y_m).to_numpy()
     walking = np.hypot(own.vx_mps, own.vy_mps).to_numpy() > args.walking_mps
-    print(f"{len(own)} pedestrian points ({walking.sum()} walking, {(~walking).sum()} standing)")
+    centroid = own.groupby(["scene", "frame", "source"])[["x_m", "y_m", "true_x_m",
+                                                           "true_y_m"]].mean()
+    c_err = np.hypot(centroid.x_m - centroid.true_x_m, centroid.y_m - centroid.true_y_m)
+    turning = truth[truth.behaviour == "turn_back"].sort_values(["scene", "pedestrian",
+                                                                   "frame"])
+    g = turning.groupby(["scene", "pedestrian"])
+    u = np.stack([turning.x_m - turning.ego_x_m, turning.y_m - turning.ego_y_m])
+    u /= np.hypot(*u)
+    radial = pd.Series(u[0] * turning.vx_mps + u[1] * turning.vy_mps, index=turning.index)
+    step = radial.groupby([turning.scene, turning.pedestrian]).diff().abs()
+    dt = g.time_s.diff()
+    off = np.hypot(turning.x_m - (g.x_m.shift() + dt * g.vx_mps.shift()),
+                   turning.y_m - (g.y_m.shift() + dt * g.vy_mps.shift()))
+    per = pd.DataFrame({"radial": step, "off": off}).groupby(
+        [turning.scene, turning.pedestrian]).max()
+    print(f"{len(per)} turning pedestrians (turn_back), per pedestrian the largest one-frame "
+          f"change of true radial speed: median {per.radial.median():.2f}, p90 "
+          f"{per.radial.quantile(0.9):.2f} m/s; the largest one-frame departure from a "
+          f"constant-velocity step: median {per.off.median():.3f} m")
+    print(f"{len(own)} pedestrian points ({walking.sum()} walking, {(~walking).sum()} standing); "
+          f"a frame's centroid of one pedestrian's points: median error {c_err.median():.3f} m "
+          f"({len(c_err)} frames)")
     for name, rows in (("all", np.ones_like(walking)), ("walking", walking),
                        ("standing", ~walking)):
         r = residual[rows]

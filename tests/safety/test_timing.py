@@ -50,16 +50,40 @@ def test_true_state_tracks_cover_every_frame_in_sight():
     np.testing.assert_allclose(tr.cov_vxvx, 0.04)
 
 
+def test_true_state_tracks_split_at_gaps_and_number_per_scene():
+    f = np.arange(5)
+    walker = pd.DataFrame({"scene": "b", "frame": f, "time_s": f * 0.1, "pedestrian": "p0",
+                           "x_m": 3.0, "y_m": 8.0 + 0.14 * f, "vx_mps": 0.0, "vy_mps": 1.4,
+                           "occluded": False, "collision_time_s": np.nan})
+    gappy = walker.assign(scene="c").drop(index=2)            # frame 2 missing: two tracks
+    other = walker.assign(pedestrian="p1")                    # a second pedestrian in scene b
+    shuffled = pd.concat([gappy, other, walker]).sample(frac=1.0, random_state=0)
+    tr = true_state_tracks(shuffled)
+    by = {k: g.frame.tolist() for k, g in tr.groupby(["group", "pedestrian", "track_id"])}
+    assert by == {("b", "p0", 0): [0, 1, 2, 3, 4], ("b", "p1", 1): [0, 1, 2, 3, 4],
+                  ("c", "p0", 0): [0, 1], ("c", "p0", 1): [3, 4]}
+    cat = true_state_tracks(shuffled.astype({"scene": "category", "pedestrian": "category"}))
+    assert sorted(map(tuple, cat[["track_id", "frame"]].to_numpy().tolist())) == \
+        sorted(map(tuple, tr[["track_id", "frame"]].to_numpy().tolist()))
+
+
 def test_true_state_tracks_check_their_input():
+    row = {"scene": ["a"], "pedestrian": "p0", "frame": 0, "time_s": 0.0, "x_m": 0.0,
+           "y_m": 0.0, "vx_mps": 0.0, "vy_mps": 0.0}
     with pytest.raises(ValueError, match=r"lacks columns \['occluded'\]"):
-        true_state_tracks(pd.DataFrame({"scene": ["a"], "pedestrian": "p0", "frame": 0,
-                                        "time_s": 0.0, "x_m": 0.0, "y_m": 0.0, "vx_mps": 0.0,
-                                        "vy_mps": 0.0}))
+        true_state_tracks(pd.DataFrame(row))
+    with pytest.raises(ValueError, match="occluded: expected booleans, found dtype"):
+        true_state_tracks(pd.DataFrame({**row, "occluded": ["False"]}))
+    with pytest.raises(ValueError, match="more than one row per"):
+        true_state_tracks(pd.concat([pd.DataFrame({**row, "occluded": False})] * 2))
+    with pytest.raises(TypeError, match="expected a pandas DataFrame, found dict"):
+        true_state_tracks({**row, "occluded": False})
     with pytest.raises(ValueError, match="vel_std_mps"):
         true_state_tracks(pd.DataFrame(), vel_std_mps=0.0)
-    assert true_state_tracks(pd.DataFrame(columns=["scene", "pedestrian", "frame", "time_s",
-                                                   "x_m", "y_m", "vx_mps", "vy_mps",
-                                                   "occluded"])).empty
+    with pytest.raises(ValueError, match="pos_std_m"):
+        true_state_tracks(pd.DataFrame(), pos_std_m=0.0)
+    empty = true_state_tracks(pd.DataFrame({**row, "occluded": False}).iloc[:0])
+    assert empty.empty and empty.track_id.dtype == np.int64
 
 
 def test_track_state_forecasts_the_filtered_state():

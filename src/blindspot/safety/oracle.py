@@ -114,48 +114,56 @@ def true_state_tracks(truth: pd.DataFrame, pos_std_m: float = 0.1,
                       vel_std_mps: float = 0.2) -> pd.DataFrame:
     """The "true state in line of sight" reference input (issue 40): every pedestrian's true
     position and velocity (truth columns x_m, y_m, vx_mps, vy_mps) at every frame its line of
-    sight is clear (``occluded`` False), one confirmed, moving track per visible stretch (a
-    pedestrian hidden and seen again starts a new track, so a predictor that fits a track's
-    history never spans the gap), with an isotropic covariance of ``pos_std_m`` and
-    ``vel_std_mps``: what a perfect sensor that knows a pedestrian's state whenever it is in
-    sight hands the decision (the physical bound of the decision rule, scored with the
-    ``track_state`` predictor). Every pedestrian counts, the ones that never cross the ego's
-    path included: their false activations are the rule's own. (Until 2026-12-05 only the
-    stretch leading to a crossing was kept, which for a pedestrian that never collides was the
-    stretch after its last occlusion of the whole scene, usually after the ego had passed: the
-    row's false activations read 0 where the rule gives about 3 %.)
+    sight is clear (``occluded`` False), one track per visible stretch (a pedestrian hidden, or
+    missing from a frame, and seen again starts a new track, so a predictor that fits a track's
+    history never spans the gap; ids 0.. within each scene), with an isotropic covariance of
+    ``pos_std_m`` and ``vel_std_mps``: what a perfect sensor that knows a pedestrian's state
+    whenever it is in sight hands the decision (the physical bound of the decision rule, scored
+    with the ``track_state`` predictor). Every pedestrian counts, the ones that never cross the
+    ego's path included, and every row is confirmed and ``moving`` (a standing pedestrian too:
+    the sensor knows its velocity), so the row's false activations are the rule's own.
     Columns :data:`TRACK_COLUMNS` + moving, pedestrian; sorted by group, track_id, frame.
-    Raises ValueError naming the missing truth columns or a non-positive spread."""
+    Raises ValueError naming the missing truth columns, an ``occluded`` column that is not
+    boolean, duplicate (scene, pedestrian, frame) rows or a non-positive spread."""
     check_number(pos_std_m, "pos_std_m", gt=0.0, unit="m", who="true_state_tracks")
     check_number(vel_std_mps, "vel_std_mps", gt=0.0, unit="m/s", who="true_state_tracks")
+    if not isinstance(truth, pd.DataFrame):
+        raise TypeError(f"true_state_tracks: truth: expected a pandas DataFrame, found "
+                        f"{type(truth).__name__}")
     need = {"scene", "pedestrian", "frame", "time_s", "x_m", "y_m", "vx_mps", "vy_mps",
             "occluded"}
     missing = sorted(need - set(truth.columns))
     if missing:
         raise ValueError(f"true_state_tracks: truth lacks columns {missing}")
-    if truth.empty:
-        return pd.DataFrame(columns=[*TRACK_COLUMNS, "moving", "pedestrian"])
+    if not pd.api.types.is_bool_dtype(truth.occluded):
+        raise ValueError(f"true_state_tracks: truth.occluded: expected booleans, found dtype "
+                         f"{truth.occluded.dtype}")
+    if truth.duplicated(["scene", "pedestrian", "frame"]).any():
+        raise ValueError("true_state_tracks: truth has more than one row per (scene, "
+                         "pedestrian, frame)")
     t = truth.sort_values(["scene", "pedestrian", "frame"]).reset_index(drop=True)
-    seen = ~t.occluded.astype(bool).to_numpy()
-    key = (t.scene + "\x00" + t.pedestrian).to_numpy()
-    new_key = np.r_[True, key[1:] != key[:-1]]
-    gap = np.r_[True, np.diff(t.frame.to_numpy()) != 1]
+    seen = ~t.occluded.to_numpy(bool)
+    who = t.groupby(["scene", "pedestrian"], sort=False, observed=True).ngroup().to_numpy()
+    new_who = np.r_[True, who[1:] != who[:-1]]
+    gap = np.r_[True, np.diff(t.frame.to_numpy(np.int64)) != 1]
     # a stretch starts at a visible row whose predecessor is another pedestrian's, hidden or
     # not the previous frame
-    start = seen & (new_key | gap | ~np.r_[False, seen[:-1]])
+    start = seen & (new_who | gap | ~np.r_[False, seen[:-1]])
     stretch = np.cumsum(start)[seen] - 1
     v = t[seen]
     # numbered 0.. within each scene (rows are sorted by scene, so a scene's stretches follow)
-    local = stretch - pd.Series(stretch).groupby(v.scene.to_numpy()).transform("min").to_numpy()
+    scene = v.scene.to_numpy()
+    local = stretch - pd.Series(stretch).groupby(scene).transform("min").to_numpy(np.int64)
     n = len(v)
     out = pd.DataFrame({
-        "group": v.scene.to_numpy(), "frame": v.frame.to_numpy(), "time_s": v.time_s.to_numpy(),
+        "group": scene, "frame": v.frame.to_numpy(np.int64), "time_s": v.time_s.to_numpy(float),
         "track_id": local.astype(np.int64), "x_m": v.x_m.to_numpy(float),
         "y_m": v.y_m.to_numpy(float), "vx_mps": v.vx_mps.to_numpy(float),
         "vy_mps": v.vy_mps.to_numpy(float), "cov_xx": np.full(n, pos_std_m ** 2),
         "cov_xy": np.zeros(n), "cov_yy": np.full(n, pos_std_m ** 2),
         "cov_vxvx": np.full(n, vel_std_mps ** 2), "cov_vxvy": np.zeros(n),
-        "cov_vyvy": np.full(n, vel_std_mps ** 2), "confirmed": True, "coasting": False,
-        "cov_xvx": np.zeros(n), "cov_xvy": np.zeros(n), "cov_yvx": np.zeros(n),
-        "cov_yvy": np.zeros(n), "moving": True, "pedestrian": v.pedestrian.to_numpy()})
+        "cov_vyvy": np.full(n, vel_std_mps ** 2), "confirmed": np.ones(n, bool),
+        "coasting": np.zeros(n, bool), "cov_xvx": np.zeros(n), "cov_xvy": np.zeros(n),
+        "cov_yvx": np.zeros(n), "cov_yvy": np.zeros(n), "moving": np.ones(n, bool),
+        "pedestrian": v.pedestrian.to_numpy()})
     return out.sort_values(["group", "track_id", "frame"]).reset_index(drop=True)
