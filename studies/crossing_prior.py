@@ -105,9 +105,9 @@ def dissect(res, tracks: pd.DataFrame, truth: pd.DataFrame, points: pd.DataFrame
     """Print what held the decision back (``--dissect``): per false activation the track row
     that requested it (its frames since the last radar point, the nearest true pedestrian's
     distance and behaviour, and how many frames before the request that pedestrian's velocity
-    last changed by more than 0.3 m/s); and of the lead pedestrian's confirmed rows before its track was
-    first classed moving (before the collision), the share failing each of the moving test's
-    parts. The lead's track: the one with most rows within 0.7 m of p0's true position."""
+    last changed by more than 0.3 m/s); and of the lead pedestrian's confirmed rows before its
+    track was first classed moving (before the collision), the share failing each of the
+    moving test's parts. The lead's track: the one with most rows within 0.7 m of p0's true position."""
     m = tcfg.moving
     sc = res.scenes[(res.scenes.predictor == predictor) & (res.scenes.input == "tracker")]
     fa = sc[~sc.intruding & (sc.aeb_frame >= 0)]

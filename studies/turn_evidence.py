@@ -6,7 +6,7 @@ points about their truth (each point, and each frame's centroid of them, in posi
 point's ego-motion-compensated radial speed), walking and standing. Prints figures, asserts
 nothing.
 
-    .venv/bin/python studies/turn_evidence.py [--data data]
+    .venv/bin/python studies/turn_evidence.py [--data data] [--walking-mps 0.5]
 
 Reads DATA/driving/points.parquet and truth.parquet of a ``dvc repro``. A point counts as a
 pedestrian's where the truth label of its cell's strongest scatterer (``source``) names it (for
@@ -14,13 +14,14 @@ scoring only; the chain never sees it). The radial speed's truth is the pedestri
 over ground along the line of sight from the ego to the point. "Robust sd" is 1.4826 times the
 median absolute deviation: the core of the scatter, without the limbs' tail.
 
-Conclusion (2026-12-05, paper profile): a turning pedestrian departs from a constant-velocity
-step by at most 0.11 m in one 0.1 s frame (median over the 79 turning pedestrians) and its true
-radial speed changes by up to 1.04 m/s (median; p90 1.24); a frame's centroid of its own
-points lies 0.15 m from the truth (median; a point 0.17 m), and a walking pedestrian's point's
-radial speed scatters 0.27 m/s about the truth (robust sd; 0.68 m/s plain sd, 22 % of the
-points more than 0.8 m/s off). One frame's position says little about a turn; its Doppler
-says more, where the tail does not hide it.
+Conclusion (2026-12-05, paper profile): a turning pedestrian's largest one-frame departure
+from a constant-velocity step is 0.11 m (median over the 79 turning pedestrians) and its
+largest one-frame change of true radial speed 1.04 m/s (median; p90 1.24); a frame's centroid
+of a pedestrian's points (all pedestrians) lies 0.15 m from the truth (median; a point
+0.17 m), and a walking pedestrian's point's radial speed scatters 0.27 m/s about the truth
+(robust sd; 0.68 m/s plain sd, 22 % of the points more than 0.8 m/s off). A turn's first-frame
+step is smaller than a frame's centroid error; its Doppler shows more, where the tail does not
+hide it.
 """
 
 from __future__ import annotations
