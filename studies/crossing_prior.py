@@ -12,8 +12,8 @@ Overrides as studies/first_point.py (e.g. doppler_update_std_mps=1.0
 moving.crossing_log_ratio=1.0, null for off). ``--swap-velocity LLR``: the rows of young tracks
 (within ``moving.crossing_window`` measured rows) whose crossing evidence reaches LLR carry the
 velocity under the crossing prior (:func:`blindspot.track.crossing.crossing_state`) instead of
-the tracker's. ``--true-state``: the true state from line of sight instead of the tracker (the
-decision rule's bound on the same half); with ``--velocity-lag K`` each true-state row carries
+the tracker's. ``--true-state``: the true state of every pedestrian at every frame in line of
+sight instead of the tracker (the decision rule's bound on the same half); with ``--velocity-lag K`` each true-state row carries
 the true velocity its pedestrian had K frames earlier (in sight or not): the decision on exact
 positions with a velocity K frames late. ``--half all``: the whole tuning draw (both halves).
 ``--warning key=value``: a ``warning`` setting for
@@ -107,7 +107,8 @@ def dissect(res, tracks: pd.DataFrame, truth: pd.DataFrame, points: pd.DataFrame
     distance and behaviour, and how many frames before the request that pedestrian's velocity
     last changed by more than 0.3 m/s); and of the lead pedestrian's confirmed rows before its
     track was first classed moving (before the collision), the share failing each of the
-    moving test's parts. The lead's track: the one with most rows within 0.7 m of p0's true position."""
+    moving test's parts. The lead's track: the one with most rows within 0.7 m of p0's true
+    position."""
     m = tcfg.moving
     sc = res.scenes[(res.scenes.predictor == predictor) & (res.scenes.input == "tracker")]
     fa = sc[~sc.intruding & (sc.aeb_frame >= 0)]
