@@ -3,14 +3,15 @@ docs/studies/first-point-to-brake.md): what a turn does in one frame (the turnin
 largest one-frame change of true radial speed, and the largest one-frame departure of their
 true position from a constant-velocity step), against the scatter of the pedestrians' own
 points about their truth (each point, and each frame's centroid of them, in position; each
-point's ego-motion-compensated radial speed), walking and standing. Prints figures, asserts
-nothing.
+point's ego-motion-compensated radial speed), walking and standing; and how many frames the
+tracker's velocity takes to follow the turn (:func:`tracker_turn_lag`). Prints figures,
+asserts nothing.
 
     .venv/bin/python studies/turn_evidence.py [--data data] [--walking-mps 0.5]
 
-Reads DATA/driving/points.parquet and truth.parquet of a ``dvc repro``. A point counts as a
-pedestrian's where the truth label of its cell's strongest scatterer (``source``) names it (for
-scoring only; the chain never sees it). The radial speed's truth is the pedestrian's velocity
+Reads DATA/driving/points.parquet, truth.parquet and tracks.parquet of a ``dvc repro``. A
+point counts as a pedestrian's where the truth label of its cell's strongest scatterer
+(``source``) names it (for scoring only; the chain never sees it). The radial speed's truth is the pedestrian's velocity
 over ground along the line of sight from the ego to the point. "Robust sd" is 1.4826 times the
 median absolute deviation: the core of the scatter, without the limbs' tail.
 
@@ -21,7 +22,8 @@ of a pedestrian's points (all pedestrians) lies 0.15 m from the truth (median; a
 0.17 m), and a walking pedestrian's point's radial speed scatters 0.27 m/s about the truth
 (robust sd; 0.68 m/s plain sd, 22 % of the points more than 0.8 m/s off). A turn's first-frame
 step is smaller than a frame's centroid error; its Doppler shows more, where the tail does not
-hide it.
+hide it. The tracker's velocity follows a turn (45 deg) after a median of 2 frames: within 1 /
+2 / 3 frames in 18 / 38 / 50 of the 58 turns with a confirmed track near the pedestrian.
 """
 
 from __future__ import annotations
@@ -38,6 +40,41 @@ REPO = Path(__file__).resolve().parents[1]
 def robust_sd(x: np.ndarray) -> float:
     """1.4826 x the median absolute deviation of ``x`` (the sd of a Gaussian core)."""
     return float(1.4826 * np.median(np.abs(x - np.median(x))))
+
+
+def tracker_turn_lag(truth: pd.DataFrame, tracks: pd.DataFrame, *, turn_deg: float = 45.0,
+                     near_m: float = 0.7) -> pd.DataFrame:
+    """Per turning pedestrian (behaviour ``turn_back``): its turn frame (the first frame whose
+    true velocity is more than ``turn_deg`` off the previous frame's, both at walking speed)
+    and the frames until the confirmed tracker track that followed it (most rows within
+    ``near_m`` of it from 5 frames before to 15 after the turn) has a velocity more than
+    ``turn_deg`` off the pre-turn velocity (``lag``; NaN: no track near, -1: not within the
+    track's rows). Columns scene, pedestrian, turn_frame, lag."""
+    cos = np.cos(np.radians(turn_deg))
+    rows = []
+    turning = truth[truth.behaviour == "turn_back"].sort_values(["scene", "pedestrian", "frame"])
+    for (scene, ped), p in turning.groupby(["scene", "pedestrian"], sort=False):
+        v, f = p[["vx_mps", "vy_mps"]].to_numpy(), p.frame.to_numpy()
+        speed = np.hypot(v[:, 0], v[:, 1])
+        turned = (speed[:-1] > 0.5) & (speed[1:] > 0.3) & (
+            np.einsum("ij,ij->i", v[1:], v[:-1]) < cos * speed[1:] * speed[:-1])
+        if not turned.any():
+            continue
+        i = int(np.flatnonzero(turned)[0]) + 1
+        ft, v0 = int(f[i]), v[i - 1]
+        q = tracks[(tracks.group == scene) & tracks.confirmed.to_numpy(bool)
+                   & tracks.frame.between(ft - 5, ft + 15)]
+        m = q.merge(p[["frame", "x_m", "y_m"]], on="frame", suffixes=("", "_true"))
+        m = m[np.hypot(m.x_m - m.x_m_true, m.y_m - m.y_m_true) < near_m]
+        lag = np.nan
+        if len(m):
+            k = q[(q.track_id == m.track_id.value_counts().index[0]) & (q.frame >= ft)]
+            k = k.sort_values("frame")
+            kv = k[["vx_mps", "vy_mps"]].to_numpy()
+            off = kv @ v0 < cos * np.hypot(kv[:, 0], kv[:, 1]) * np.hypot(*v0)
+            lag = float(k.frame.to_numpy()[off][0] - ft) if off.any() else -1.0
+        rows.append((scene, ped, ft, lag))
+    return pd.DataFrame(rows, columns=["scene", "pedestrian", "turn_frame", "lag"])
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -79,6 +116,14 @@ def main(argv: list[str] | None = None) -> None:
           f"change of true radial speed: median {per.radial.median():.2f}, p90 "
           f"{per.radial.quantile(0.9):.2f} m/s; the largest one-frame departure from a "
           f"constant-velocity step: median {per.off.median():.3f} m")
+    lag = tracker_turn_lag(truth, pd.read_parquet(d / "tracks.parquet", columns=[
+        "group", "frame", "track_id", "x_m", "y_m", "vx_mps", "vy_mps", "confirmed"]))
+    seen = lag.lag[lag.lag >= 0]
+    print(f"{len(lag)} turns (> 45 deg in a frame); {int(lag.lag.isna().sum())} with no confirmed "
+          f"track within 0.7 m; the track's velocity 45 deg off the pre-turn velocity after "
+          f"median {seen.median():.1f} frames, within 1 / 2 / 3 frames in "
+          f"{int((seen <= 1).sum())} / {int((seen <= 2).sum())} / {int((seen <= 3).sum())} of "
+          f"{len(seen)} turns ({int((lag.lag < 0).sum())} never within the track's rows)")
     print(f"{len(own)} pedestrian points ({walking.sum()} walking, {(~walking).sum()} standing); "
           f"a frame's centroid of one pedestrian's points: median error {c_err.median():.3f} m "
           f"({len(c_err)} frames)")
