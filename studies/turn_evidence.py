@@ -52,6 +52,7 @@ def tracker_turn_lag(truth: pd.DataFrame, tracks: pd.DataFrame, *, turn_deg: flo
     track's rows). Columns scene, pedestrian, turn_frame, lag."""
     cos = np.cos(np.radians(turn_deg))
     rows = []
+    confirmed = {g: t for g, t in tracks[tracks.confirmed.to_numpy(bool)].groupby("group")}
     turning = truth[truth.behaviour == "turn_back"].sort_values(["scene", "pedestrian", "frame"])
     for (scene, ped), p in turning.groupby(["scene", "pedestrian"], sort=False):
         v, f = p[["vx_mps", "vy_mps"]].to_numpy(), p.frame.to_numpy()
@@ -62,8 +63,8 @@ def tracker_turn_lag(truth: pd.DataFrame, tracks: pd.DataFrame, *, turn_deg: flo
             continue
         i = int(np.flatnonzero(turned)[0]) + 1
         ft, v0 = int(f[i]), v[i - 1]
-        q = tracks[(tracks.group == scene) & tracks.confirmed.to_numpy(bool)
-                   & tracks.frame.between(ft - 5, ft + 15)]
+        q = confirmed.get(scene, tracks.iloc[:0])
+        q = q[q.frame.between(ft - 5, ft + 15)]
         m = q.merge(p[["frame", "x_m", "y_m"]], on="frame", suffixes=("", "_true"))
         m = m[np.hypot(m.x_m - m.x_m_true, m.y_m - m.y_m_true) < near_m]
         lag = np.nan

@@ -411,3 +411,12 @@ def test_current_velocity_reference_is_late_for_a_pedestrian_who_stood_before_wa
     frame = moving_tracks(t, 0.5, doppler_log_ratio_floor=np.log(0.01), **kw)
     assert not frame[:10].any() and frame[10:].all()
     assert not moving_tracks(t, 0.5, doppler_reference="current", **kw).any()
+
+
+def test_confirmed_moving_reads_the_moving_column_only_where_it_exists():
+    from blindspot.track.moving import confirmed_moving
+    t = pd.DataFrame({"confirmed": [True, True, False], "moving": [True, False, True]})
+    assert confirmed_moving(t).tolist() == [True, False, False]
+    assert confirmed_moving(t.drop(columns="moving")).tolist() == [True, True, False]
+    with pytest.raises(ValueError, match=r"missing columns \['confirmed'\]"):
+        confirmed_moving(t.drop(columns="confirmed"))

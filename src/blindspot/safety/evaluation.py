@@ -50,6 +50,7 @@ from scipy import stats
 
 from blindspot.arrays import check_array, check_number
 from blindspot.safety.ncap import ncap_band
+from blindspot.track.moving import confirmed_moving
 
 __all__ = ["SceneInfo", "line_of_sight_onset", "first_moving_s", "delay_stats", "scene_info", "replicate_half", "aeb_gate_s", "scene_frame_risk",
            "trigger_frames", "scene_results",
@@ -105,9 +106,7 @@ def first_moving_s(tracks: pd.DataFrame, truth: pd.DataFrame, scenes: np.ndarray
     apply: a first moving row is a measured one) lying within ``radius_m`` of the
     lead pedestrian's true position at that frame (truth scores, it never feeds the chain);
     NaN where none. ``tracks``: columns group, frame, time_s, x_m, y_m, confirmed (moving)."""
-    keep = tracks.confirmed.to_numpy(bool).copy()
-    if "moving" in tracks.columns:
-        keep &= tracks.moving.to_numpy(bool)
+    keep = confirmed_moving(tracks)
     t = tracks.loc[keep, ["group", "frame", "time_s", "x_m", "y_m"]]
     p = truth.loc[truth.pedestrian == lead, ["scene", "frame", "x_m", "y_m"]].rename(
         columns={"scene": "group", "x_m": "px", "y_m": "py"})

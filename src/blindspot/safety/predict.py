@@ -27,7 +27,7 @@ from blindspot.arrays import check_count, check_number
 from blindspot.radar.config import RadarConfig
 from blindspot.safety.config import WarningConfig
 from blindspot.safety.risk import EgoShape, collision_risk, mixture_collision_risk
-from blindspot.track.moving import coast_frames
+from blindspot.track.moving import coast_frames, confirmed_moving
 from blindspot.traj.baselines import ConstantVelocity, KalmanCV, prediction_methods
 from blindspot.traj.config import CalibrationConfig, DatasetConfig, EvalConfig
 from blindspot.traj.lstm import LSTMPredictor
@@ -220,9 +220,7 @@ def decision_rows(tracks: pd.DataFrame, dt_s: float, max_coast_s: float | None) 
     if missing:
         raise ValueError(f"decision_rows: tracks: missing columns {missing} (the "
                          "blindspot.track schema; coasting is needed for max_coast_s)")
-    keep = tracks.confirmed.to_numpy(bool).copy()
-    if "moving" in tracks.columns:
-        keep &= tracks.moving.to_numpy(bool)
+    keep = confirmed_moving(tracks)
     if max_coast_s is not None:
         check_number(max_coast_s, "max_coast_s", ge=0.0, unit="s", who="decision_rows")
         keep &= coast_frames(tracks) * dt_s <= max_coast_s + 1e-9

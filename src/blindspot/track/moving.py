@@ -24,7 +24,8 @@ __all__ = ["DOPPLER_LLR_FORMS", "DOPPLER_REFERENCES", "DOPPLER_FIRST_WINDOW",
            "doppler_motion_log_ratio", "doppler_motion_evidence", "doppler_log_ratio",
            "doppler_log_ratio_terms", "doppler_spread_log_ratio", "moving_tracks",
            "moving_frames", "velocity_chi2", "doppler_evidence", "moving_test_settings",
-           "last_hit_rows", "coast_frames", "track_static_evidence", "static_evidence"]
+           "last_hit_rows", "coast_frames", "confirmed_moving", "track_static_evidence",
+           "static_evidence"]
 
 #: Forms of the Doppler log-likelihood ratio (:func:`doppler_log_ratio`).
 DOPPLER_LLR_FORMS: tuple[str, ...] = ("common_variance", "marginal")
@@ -520,6 +521,20 @@ def coast_frames(tracks: pd.DataFrame) -> np.ndarray:
     out = np.empty(len(order), np.int64)
     out[order] = frame - last.fillna(first).to_numpy(np.int64)
     return out
+
+
+def confirmed_moving(tracks: pd.DataFrame) -> np.ndarray:
+    """(N,) bool per row of ``tracks``: confirmed and, where the table has a ``moving`` column
+    (:func:`moving_tracks`), classed moving: the rows that stand for a moving object (the
+    decision's, :func:`blindspot.safety.predict.decision_rows`, and the first-moving time's,
+    :func:`blindspot.safety.evaluation.first_moving_s`). Raises ValueError naming a missing
+    ``confirmed`` column."""
+    if "confirmed" not in tracks.columns:
+        raise ValueError("tracks: missing columns ['confirmed'] (the blindspot.track schema)")
+    keep = tracks.confirmed.to_numpy(bool).copy()
+    if "moving" in tracks.columns:
+        keep &= tracks.moving.to_numpy(bool)
+    return keep
 
 
 def track_static_evidence(tracks: pd.DataFrame, points: pd.DataFrame, *, cell_m: float,
