@@ -47,7 +47,7 @@ import pandas as pd  # noqa: E402
 from omegaconf import OmegaConf  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
-TRACK_TABLES = ("tracks", "tracks_oracle", "tracks_visible_truth")
+TRACK_TABLES = ("tracks", "tracks_oracle", "tracks_noisy_position")
 
 
 def _measure(cfg, names: list[str]) -> tuple[float, dict[str, pd.DataFrame]]:
@@ -112,7 +112,8 @@ def _safety(cfg, data: Path, truth_all, mc: list[str], n: int) -> float:
             deps = {"scenes.json": "driving/scenes.json", "models.json": "calibration/models.json",
                     "train/model.pt": "train/model.pt", "val.parquet": "windows/val.parquet",
                     "train_direct/model.pt": "train_direct/model.pt",
-                    "paths.parquet": "paths/paths.parquet"}
+                    "paths.parquet": "paths/paths.parquet",
+                    "safety_held_out.json": "../reports/metrics/safety_held_out.json"}
 
             class Ctx:
                 def dep(self, key, cut=cut):

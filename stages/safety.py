@@ -1,6 +1,7 @@
 """safety: risk, warning, AEB and the Euro NCAP-style outcome of the driving scenes
-(blindspot.safety.assess): the Monte-Carlo set (the tuning draw; its even / odd halves) and the
-nominal grids (ncap.json), with the held-out draw's block (safety_held_out stage), per predictor
+(blindspot.safety.assess): the main Monte-Carlo draw (its even / odd halves) and the nominal
+grids (ncap.json), with the blocks of the independent tuning and held-out draws (safety_tuning,
+safety_held_out stages), per predictor
 (warning.predictors) and input: the tracker's tracks, the oracle-association and noisy-position
 references, the true state from line of sight."""
 
@@ -42,8 +43,10 @@ def run(cfg, ctx):
     for name, table in {"risk": res.risk, "ncap_grid": res.grid, "scene_outcomes": res.scenes,
                         "operating": res.curves, "timeline": res.timeline}.items():
         write_parquet(ctx.out(f"{name}.parquet"), table)
-    # the held-out draw of its own seed (safety_held_out stage); the halves of this draw beside it
+    # the tuning and held-out draws of their own seeds (safety_tuning, safety_held_out stages);
+    # the halves of this draw beside them
     res.metrics["held_out_half"] = res.metrics.pop("held_out")
+    res.metrics["tuning_draw"] = json.loads(ctx.dep("safety_tuning.json").read_text())
     res.metrics["held_out"] = json.loads(ctx.dep("safety_held_out.json").read_text())
     write_json(ctx.out("safety.json"), res.metrics)
     write_json(ctx.out("ncap.json"), res.ncap)

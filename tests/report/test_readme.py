@@ -60,3 +60,24 @@ def test_the_report_stage_declares_both_readmes():
     assert ctx.out("reports/README.md").as_posix() == "reports/README.md"
     deps = declared_files(REPO_ROOT, "report").deps
     assert all(f"reports/metrics/{n}.json" in deps for n in readme.METRICS_FILES)
+
+
+def test_the_held_out_sentence_picks_on_the_tuning_draw_and_reads_its_operating_point():
+    at = {"avoided_after_visible_rate": 0.4, "avoided_after_visible_rate_ci95": [0.35, 0.46],
+          "false_activation_rate": 0.05, "false_activation_rate_ci95": [0.03, 0.08],
+          "aeb_threshold": 0.97, "false_activation_target": 0.03}
+    held = {"seed": 1, "n_intruding": 306, "n_non_intruding": 306,
+            "kalman": {"avoided_after_visible_rate": 0.48, "false_activation_rate": 0.17,
+                       "at_tuning_operating_point": at},
+            "lstm": {"avoided_after_visible_rate": 0.46, "false_activation_rate": 0.22}}
+    # the main draw prefers lstm, the independent tuning draw kalman: the tuning draw decides
+    safety = {"held_out": held, "lstm": {"avoided_after_visible_rate": 0.6},
+              "kalman": {"avoided_after_visible_rate": 0.5},
+              "tuning_draw": {"lstm": {"avoided_after_visible_rate": 0.4},
+                              "kalman": {"avoided_after_visible_rate": 0.5}}}
+    text = readme._held_out_sentence(safety)
+    assert "scenes, settings and predictor chosen on other draws) Kalman (CV) avoids 48 %" in text
+    assert "at the AEB threshold the tuning draw chose for at most 3 % false activations (0.97)" \
+        in text
+    del safety["tuning_draw"]                                   # without it: the main draw
+    assert "other draws) paper's LSTM avoids 46 %" in readme._held_out_sentence(safety)

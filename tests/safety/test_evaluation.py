@@ -33,7 +33,7 @@ def test_operating_curve_ends_and_scene_results():
     p = np.array([[0, 0.9, 0.9], [0, 0, 0.4], [0.2, 0.2, 0.2], [0, 0, 0]], float)
     # outcome table: a request at frame 0 or 1 avoids, at frame 2 or never hits at 20/30 km/h
     impact = np.array([[np.nan, np.nan, 20.0, 30.0]] * 4)
-    curve = operating_curve(p, info, impact, np.array([0.1, 0.3, 0.95]))
+    curve = operating_curve(p, info, impact, np.array([0.1, 0.3, 0.95]), np.array([0.0, 0.1, 0.2]))
     assert curve.avoided_rate.tolist() == [0.5, 0.5, 0.0]
     assert curve.false_activation_rate.tolist() == [0.5, 0.0, 0.0]
     res = scene_results(p, info, impact, np.array([0.0, 0.1, 0.2]), warning_threshold=0.3,
@@ -112,6 +112,33 @@ def test_scene_info_counts_the_lead_pedestrians_first_radar_point_as_seen():
         scene_info(truth, meta, np.array(["a"]), first_point_s=np.array([0.1, 0.2]))
 
 
+def test_the_operating_curve_agrees_with_scene_results_at_every_threshold():
+    """Two ways to the same numbers: the vectorised sweep (operating_curve) and the per-scene
+    decisions at one threshold (scene_results, summarise), on random risks, outcomes and first
+    sightings, including requests before the lead pedestrian was seen."""
+    rng = np.random.default_rng(3)
+    n_int, n_non, F = 30, 20, 12
+    info = _info(n_int, n_non)
+    times = 0.1 * np.arange(F)
+    seen = np.where(rng.random(n_int + n_non) < 0.1, np.nan, rng.uniform(0, 1.2, n_int + n_non))
+    info = SceneInfo(info.scenes, info.speed_kmh, info.intruding, info.impact_pct,
+                     info.collision_s, info.first_visible_s, seen)
+    p = rng.random((n_int + n_non, F)) ** 3
+    impact = np.where(rng.random((n_int + n_non, F + 1)) < 0.5, np.nan, 25.0)
+    thresholds = np.linspace(0.05, 0.95, 19)
+    curve = operating_curve(p, info, impact, thresholds, times)
+    for t, row in zip(thresholds, curve.itertuples()):
+        res = scene_results(p, info, impact, times, warning_threshold=t, aeb_threshold=t,
+                            decision_delay_s=0.1)
+        m = summarise(res, n_bootstrap=100, seed=0)
+        assert row.avoided_rate == pytest.approx(m["avoided_rate"])
+        assert row.avoided_after_visible_rate == pytest.approx(m["avoided_after_visible_rate"])
+        assert row.false_activation_rate == pytest.approx(m["false_activation_rate"])
+    assert (curve.avoided_after_visible_rate < curve.avoided_rate).any()   # the case is live
+    with pytest.raises(ValueError, match="operating_curve: frame_times"):
+        operating_curve(p, info, impact, thresholds, times[:-1])
+
+
 def test_avoided_at_false_activation_reads_the_curve_at_each_level():
     """The operating characteristic of the case above, read at false-activation levels: at
     most 0 % gives the thresholds 0.3 and 0.95 (avoided 0.5 and 0.0), at most 50 % all three;
@@ -119,7 +146,7 @@ def test_avoided_at_false_activation_reads_the_curve_at_each_level():
     info = _info(2, 2)
     p = np.array([[0, 0.9, 0.9], [0, 0, 0.4], [0.2, 0.2, 0.2], [0, 0, 0]], float)
     impact = np.array([[np.nan, np.nan, 20.0, 30.0]] * 4)
-    curve = operating_curve(p, info, impact, np.array([0.1, 0.3, 0.95]))
+    curve = operating_curve(p, info, impact, np.array([0.1, 0.3, 0.95]), np.array([0.0, 0.1, 0.2]))
     assert avoided_at_false_activation(curve, (0.0, 0.01, 0.5)) == {"0": 0.5, "0.01": 0.5,
                                                                      "0.5": 0.5}
     noisy = curve.assign(false_activation_rate=[0.5, 0.25, 0.25], avoided_rate=[1.0, 0.5, 0.0])

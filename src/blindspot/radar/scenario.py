@@ -140,8 +140,10 @@ class MonteCarloConfig(TypedConfig):
     """The seeded Monte-Carlo set (:func:`draw_scenarios`): a grid of ego speed x impact point x
     intruding / non-intruding, ``scenes_per_cell`` draws per cell of body, behaviour, gap
     position (where along the parked cars the pedestrian steps out), timing and bystanders;
-    ``held_out_seed`` and ``held_out_scenes_per_cell`` draw the independent held-out set of the
-    same grid (:func:`blindspot.safety.held_out.held_out_scenes`, issue 40)."""
+    ``tuning_seed`` / ``tuning_scenes_per_cell`` and ``held_out_seed`` /
+    ``held_out_scenes_per_cell`` draw the independent tuning and held-out sets of the same grid
+    (:func:`blindspot.safety.draws.independent_scenes`, issue 40); the main draw (``seed``,
+    ``scenes_per_cell``) is the one the driving stages keep per scene for figures and studies."""
 
     seed: int = setting(ge=0, le=2**63 - 1)
     speeds_kmh: tuple[float, ...] = setting(gt=0.0, le=200.0, min_items=1)
@@ -156,12 +158,18 @@ class MonteCarloConfig(TypedConfig):
     max_bystanders: int = setting(ge=0, le=2)
     held_out_seed: int = setting(1, ge=0, le=2**63 - 1)
     held_out_scenes_per_cell: int = setting(17, ge=1, le=10_000)
+    tuning_seed: int = setting(2, ge=0, le=2**63 - 1)
+    tuning_scenes_per_cell: int = setting(17, ge=1, le=10_000)
 
     def validate(self) -> None:
         if self.held_out_seed == self.seed:
             raise ConfigError("held_out_seed", self.held_out_seed,
                               f"a seed other than monte_carlo.seed = {self.seed} (the held-out "
                               "draw must be independent of the tuning draw)")
+        if self.tuning_seed in (self.seed, self.held_out_seed):
+            raise ConfigError("tuning_seed", self.tuning_seed,
+                              f"a seed other than monte_carlo.seed = {self.seed} and "
+                              f"held_out_seed = {self.held_out_seed} (each draw has its own)")
 
 
 @dataclass(frozen=True)

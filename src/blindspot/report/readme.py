@@ -277,23 +277,35 @@ def verdicts(metrics: Mapping[str, Metrics]) -> list[str]:
 
 def _held_out_sentence(safety: Mapping[str, Any]) -> str:
     """`` On the held-out draw ...``: of safety.json (``safety``), the predictor that avoids
-    most once the child is visible on the tuning draw (chosen there, not on the held-out
-    numbers), with its held-out rates and intervals; "" without a held-out block."""
+    most once the child is visible on the tuning draw (the independent one, ``tuning_draw``,
+    where there is one, else the main draw: chosen there, not on the held-out numbers), with
+    its held-out rates and intervals, and at the AEB operating point the tuning draw chose for
+    it; "" without a held-out block."""
     held = safety.get("held_out") or {}
+    tuning = safety.get("tuning_draw") or safety
     preds = {k: v for k, v in held.items() if isinstance(v, dict) and k != "none"
              and _num(v.get("avoided_after_visible_rate")) is not None
-             and _num((safety.get(k) or {}).get("avoided_after_visible_rate")) is not None}
+             and _num((tuning.get(k) or {}).get("avoided_after_visible_rate")) is not None}
     if not preds:
         return ""
-    name = max(preds, key=lambda k: safety[k]["avoided_after_visible_rate"])
+    name = max(preds, key=lambda k: tuning[k]["avoided_after_visible_rate"])
     h = preds[name]
-    rate = _fmt_ci({"mean": h["avoided_after_visible_rate"],
-                    "ci95": h.get("avoided_after_visible_rate_ci95")}, 0, "%")
-    fa = _fmt_ci({"mean": h.get("false_activation_rate"),
-                  "ci95": h.get("false_activation_rate_ci95")}, 0, "%")
-    return (f" On the held-out draw (seed {held.get('seed')}, {held.get('n_intruding')} + "
-            f"{held.get('n_non_intruding')} scenes, settings and predictor chosen on the other "
-            f"draw) {_label(name)} avoids {rate} once the child is visible, at {fa} false activations.")
+    out = (f" On the held-out draw (seed {held.get('seed')}, {held.get('n_intruding')} + "
+           f"{held.get('n_non_intruding')} scenes, settings and predictor chosen on other draws) "
+           f"{_label(name)} avoids {_rate(h, 'avoided_after_visible_rate')} once the child is "
+           f"visible, at {_rate(h, 'false_activation_rate')} false activations")
+    op = h.get("at_tuning_operating_point")
+    if op and _num(op.get("avoided_after_visible_rate")) is not None:
+        out += (f"; at the AEB threshold the tuning draw chose for at most "
+                f"{100 * op['false_activation_target']:.0f} % false activations "
+                f"({op['aeb_threshold']:.2f}), {_rate(op, 'avoided_after_visible_rate')} at "
+                f"{_rate(op, 'false_activation_rate')}")
+    return out + "."
+
+
+def _rate(block: Mapping[str, Any], key: str) -> str:
+    """``block[key]`` in percent with its ``key_ci95`` interval."""
+    return _fmt_ci({"mean": block.get(key), "ci95": block.get(f"{key}_ci95")}, 0, "%")
 
 
 def results_block(metrics: Mapping[str, Metrics]) -> str:

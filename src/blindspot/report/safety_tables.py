@@ -11,9 +11,9 @@ from blindspot.report.safety_figures import ncap_grid_markdown
 __all__ = ["PREDICTOR_BLOCKS", "predictor_names", "operating_inputs", "grid_page", "ncap_page",
            "lstm_verdict"]
 
-#: Top-level keys of safety.json that are not predictors (the independent held-out draw, the
-#: tuning draw's halves).
-PREDICTOR_BLOCKS = ("held_out", "held_out_half", "tuning")
+#: Top-level keys of safety.json that are not predictors (the independent tuning and held-out
+#: draws, the main draw's halves).
+PREDICTOR_BLOCKS = ("held_out", "held_out_half", "tuning", "tuning_draw")
 
 
 def predictor_names(metrics: dict) -> list[str]:
@@ -54,27 +54,41 @@ def _fmt(x, nd=2) -> str:
     return "-" if x is None else f"{x:.{nd}f}"
 
 
+def _rate_ci(block: dict, key: str, nd: int) -> str:
+    """``0.52 [0.47, 0.58]``: ``block[key]`` with its ``key_ci95`` ("-" for a missing end)."""
+    ci = block.get(f"{key}_ci95")
+    return (f"{_fmt(block.get(key), nd)} [{_fmt(ci[0], nd) if ci else '-'}, "
+            f"{_fmt(ci[1], nd) if ci else '-'}]")
+
+
 def ncap_page(ncap: dict, metrics: dict) -> str:
     """reports/tables/safety_ncap.md: the held-out figures of the headline input per predictor
     (with their 95 % intervals), the first-radar-point delays per speed, and the Euro NCAP
     nominal grids (impact speed km/h and 2026 band per cell) per input and predictor."""
     held, tune = metrics.get("held_out", {}), metrics.get("tuning", {})
+    draw = metrics.get("tuning_draw", {})
     out = ["# Safety: held-out figures and the Euro NCAP nominal grids\n\n",
            f"Held out: the independent draw of seed {held.get('seed')} (safety_held_out stage; "
            f"tracker input), {held.get('n_intruding')} intruding and "
-           f"{held.get('n_non_intruding')} non-intruding scenes; every setting was chosen on the "
-           f"tuning draw (its even half: {tune.get('n_intruding')} / "
-           f"{tune.get('n_non_intruding')}). Rates with Wilson 95 % intervals.\n\n",
-           "| predictor | avoided after visible | false activations | first point -> moving, "
-           "median s | first point -> AEB, median s |\n|---|---|---|---|---|\n"]
+           f"{held.get('n_non_intruding')} non-intruding scenes. The chain's settings were chosen "
+           f"on the main draw's even half ({tune.get('n_intruding')} / "
+           f"{tune.get('n_non_intruding')}); each predictor's AEB operating point (the threshold "
+           f"that avoids most once the child is visible with false activations at most the "
+           f"target) on the independent tuning draw of seed {draw.get('seed')} "
+           f"({draw.get('n_intruding')} / {draw.get('n_non_intruding')}; safety_tuning stage). "
+           f"Rates with Wilson 95 % intervals.\n\n",
+           "| predictor | avoided after visible | false activations | at the tuning draw's "
+           "operating point: threshold, avoided after visible, false activations | first point "
+           "-> moving, median s | first point -> AEB, median s |\n|---|---|---|---|---|---|\n"]
     for p, h in held.items():
         if not isinstance(h, dict):
             continue
-        ci_a, ci_f = h.get("avoided_after_visible_rate_ci95"), h.get("false_activation_rate_ci95")
-        out.append(f"| {p} | {_fmt(h['avoided_after_visible_rate'])} "
-                   f"[{_fmt(ci_a[0]) if ci_a else '-'}, {_fmt(ci_a[1]) if ci_a else '-'}] | "
-                   f"{_fmt(h['false_activation_rate'], 3)} "
-                   f"[{_fmt(ci_f[0], 3) if ci_f else '-'}, {_fmt(ci_f[1], 3) if ci_f else '-'}] | "
+        op = h.get("at_tuning_operating_point")
+        at = ("-" if not op else
+              f"{_fmt(op['aeb_threshold'])}, {_rate_ci(op, 'avoided_after_visible_rate', 2)}, "
+              f"{_rate_ci(op, 'false_activation_rate', 3)}")
+        out.append(f"| {p} | {_rate_ci(h, 'avoided_after_visible_rate', 2)} | "
+                   f"{_rate_ci(h, 'false_activation_rate', 3)} | {at} | "
                    f"{_fmt(h['first_point_to_moving_s_median'])} | "
                    f"{_fmt(h['first_point_to_aeb_s_median'])} |\n")
     out.append(lstm_verdict(held))

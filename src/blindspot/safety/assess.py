@@ -272,7 +272,7 @@ def assess(truth: pd.DataFrame, scenes_meta: dict, tracks: dict[str, pd.DataFram
                 "decel_mps2": cfg.sensitivity_decel_mps2,
                 **{k: summarise(weak_res, n_bootstrap=cfg.n_bootstrap, seed=cfg.seed)[k]
                    for k in ("avoided_rate", "goals")}}
-            curve = operating_curve(p_aeb[ev], info, impact[ev], thresholds)
+            curve = operating_curve(p_aeb[ev], info, impact[ev], thresholds, sa.time_s)
             m["avoided_rate_at_false_activation_le"] = avoided_at_false_activation(curve)
             it = info.intruding                      # delays of the intruding scenes only
             to_moving = t_moving - fp
@@ -339,9 +339,10 @@ def assess(truth: pd.DataFrame, scenes_meta: dict, tracks: dict[str, pd.DataFram
                         metrics, ncap)
 
 
-#: Keys of the safety metrics that are blocks of numbers, not predictors: the tuning draw's
-#: halves (``tuning``, ``held_out_half``) and the independent held-out draw (``held_out``).
-METRIC_BLOCKS = ("held_out", "held_out_half", "tuning")
+#: Keys of the safety metrics that are blocks of numbers, not predictors: the main draw's
+#: halves (``tuning``, ``held_out_half``) and the independent tuning and held-out draws
+#: (``tuning_draw``, ``held_out``; :mod:`blindspot.safety.draws`).
+METRIC_BLOCKS = ("held_out", "held_out_half", "tuning", "tuning_draw")
 
 
 def logged_metrics(metrics: dict) -> dict:

@@ -366,18 +366,28 @@ def summarise(res: pd.DataFrame, *, n_bootstrap: int, seed: int) -> dict:
 
 
 def operating_curve(p: np.ndarray, info: SceneInfo, impact_kmh: np.ndarray,
-                    thresholds: np.ndarray) -> pd.DataFrame:
-    """AEB threshold swept: per threshold the avoided rate and mean impact speed (intruding
-    scenes) and the false-activation rate (non-intruding). Vectorised over scenes and
+                    thresholds: np.ndarray, frame_times: np.ndarray) -> pd.DataFrame:
+    """AEB threshold swept: per threshold the avoided rate, the avoided-after-visible rate (the
+    request made from a frame at or after the first that showed the lead pedestrian, as
+    :func:`scene_results` counts it) and the mean impact speed (intruding scenes), and the
+    false-activation rate (non-intruding). p (S, F) the AEB risk, impact_kmh (S, F + 1) the
+    outcome table, thresholds (N,), frame_times (F,) s. Vectorised over scenes and
     thresholds."""
+    n_frames = p.shape[1]
+    check_array(frame_times, "frame_times", (n_frames,), who="operating_curve")
     trig = trigger_frames(p, thresholds)                                   # (S, N)
     imp = np.take_along_axis(impact_kmh, trig, axis=1)                     # (S, N)
+    seen = np.where(np.isnan(info.first_seen_s), np.inf, info.first_seen_s) - 1e-9
+    start = np.r_[np.asarray(frame_times, float), np.inf][trig]           # (S, N), inf: never
+    early = np.isfinite(start) & (start < seen[:, None])
     it, non = info.intruding, ~info.intruding
     return pd.DataFrame({
         "threshold": thresholds,
         "avoided_rate": np.isnan(imp[it]).mean(0) if it.any() else np.nan,
+        "avoided_after_visible_rate": (np.isnan(imp[it]) & ~early[it]).mean(0)
+        if it.any() else np.nan,
         "impact_speed_kmh_mean": np.nan_to_num(imp[it], nan=0.0).mean(0) if it.any() else np.nan,
-        "false_activation_rate": (trig[non] < p.shape[1]).mean(0) if non.any() else np.nan,
+        "false_activation_rate": (trig[non] < n_frames).mean(0) if non.any() else np.nan,
     })
 
 
