@@ -113,6 +113,7 @@ def _safety(cfg, data: Path, truth_all, mc: list[str], n: int) -> float:
                     "train/model.pt": "train/model.pt", "val.parquet": "windows/val.parquet",
                     "train_direct/model.pt": "train_direct/model.pt",
                     "paths.parquet": "paths/paths.parquet",
+                    "safety_tuning.json": "../reports/metrics/safety_tuning.json",
                     "safety_held_out.json": "../reports/metrics/safety_held_out.json"}
 
             class Ctx:

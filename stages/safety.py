@@ -1,9 +1,7 @@
 """safety: risk, warning, AEB and the Euro NCAP-style outcome of the driving scenes
-(blindspot.safety.assess): the main Monte-Carlo draw (its even / odd halves) and the nominal
-grids (ncap.json), with the blocks of the independent tuning and held-out draws (safety_tuning,
-safety_held_out stages), per predictor
-(warning.predictors) and input: the tracker's tracks, the oracle-association and noisy-position
-references, the true state from line of sight."""
+(blindspot.safety.assess) per predictor and input (tracker, oracle association, noisy position,
+true state): the main Monte-Carlo draw (its even / odd halves), the nominal grids (ncap.json) and
+the independent tuning and held-out draws' blocks with each predictor's AEB operating point."""
 
 import blindspot  # noqa: F401  first: pins the CPU kernels before numpy loads (blindspot.kernels)
 import json
@@ -17,6 +15,8 @@ from blindspot.typed_config import jobs
 from blindspot.cli import main_stage
 from blindspot.io import write_json, write_parquet
 from blindspot.safety.assess import assess, logged_metrics, summary_lines
+from blindspot.safety.draws import chain_digest, read_draw
+from blindspot.safety.operating_point import operating_blocks
 from blindspot.safety.oracle import true_state_tracks
 from blindspot.safety.outcome import body_boxes
 from blindspot.safety.predict import stage_predictors
@@ -43,11 +43,13 @@ def run(cfg, ctx):
     for name, table in {"risk": res.risk, "ncap_grid": res.grid, "scene_outcomes": res.scenes,
                         "operating": res.curves, "timeline": res.timeline}.items():
         write_parquet(ctx.out(f"{name}.parquet"), table)
-    # the tuning and held-out draws of their own seeds (safety_tuning, safety_held_out stages);
-    # the halves of this draw beside them
+    # the independent draws (safety_tuning, safety_held_out), each predictor's AEB operating
+    # point chosen on the first and read on the second; this draw's halves beside them
     res.metrics["held_out_half"] = res.metrics.pop("held_out")
-    res.metrics["tuning_draw"] = json.loads(ctx.dep("safety_tuning.json").read_text())
-    res.metrics["held_out"] = json.loads(ctx.dep("safety_held_out.json").read_text())
+    digest = chain_digest(cfg)
+    res.metrics["tuning_draw"], res.metrics["held_out"] = operating_blocks(
+        read_draw(ctx.dep("safety_tuning.json"), digest),
+        read_draw(ctx.dep("safety_held_out.json"), digest), w.false_activation_target)
     write_json(ctx.out("safety.json"), res.metrics)
     write_json(ctx.out("ncap.json"), res.ncap)
     print("\n".join(summary_lines(res.metrics)))

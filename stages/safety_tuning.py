@@ -1,11 +1,9 @@
 """safety_tuning: the independent tuning Monte-Carlo draw (issue 40; blindspot.safety.draws):
 scenario.monte_carlo.tuning_seed, tuning_scenes_per_cell scenes per cell of the main grid,
 through the radar measurement, the tracker and the decision (blindspot.synth.independent_draw);
-per predictor its rates at the configured thresholds and the AEB operating point chosen on it
-(the threshold that avoids most once the child is visible with at most
-warning.false_activation_target false activations; blindspot.safety.operating_point), which
-the held-out stage reads. Writes reports/metrics/safety_tuning.json (git-tracked so that a
-fresh clone's repro reuses it)."""
+per predictor its rates at the configured thresholds and its operating characteristic, on which
+the safety stage chooses each predictor's AEB operating point (blindspot.safety.operating_point).
+Writes reports/metrics/safety_tuning.json (git-tracked so that a fresh clone's repro reuses it)."""
 
 import blindspot  # noqa: F401  first: pins the CPU kernels before numpy loads (blindspot.kernels)
 
@@ -13,9 +11,7 @@ from blindspot.cli import main_stage
 from blindspot.io import write_json
 from blindspot.radar.scenario import load_scenarios
 from blindspot.safety.assess import logged_metrics
-from blindspot.safety.config import WarningConfig
-from blindspot.safety.draws import draw_block
-from blindspot.safety.operating_point import choose_in_block
+from blindspot.safety.draws import chain_digest, draw_block, draw_summary
 from blindspot.safety.predict import stage_predictors
 from blindspot.stage import StageResult
 from blindspot.synth.independent_draw import assess_draw
@@ -28,17 +24,9 @@ def run(cfg, ctx):
     res = assess_draw(cfg, stage_predictors(cfg, ctx.dep, jobs=n_jobs), seed=seed,
                       per_cell=mc.tuning_scenes_per_cell, jobs=n_jobs, progress=cfg.progress,
                       where="tuning")
-    block = choose_in_block(draw_block(res.metrics, seed), res.curves,
-                            WarningConfig.from_cfg(cfg).false_activation_target)
+    block = draw_block(res.metrics, seed, res.curves, chain_digest(cfg))
     write_json(ctx.out("safety_tuning.json"), block)
-    for name, h in block.items():
-        if isinstance(h, dict):
-            op = h["operating_point"]
-            print(f"safety_tuning {name}: avoided after visible "
-                  f"{h['avoided_after_visible_rate']:.3f} at {h['false_activation_rate']:.3f} "
-                  f"false activations; operating point {op['aeb_threshold']:.2f} "
-                  f"(target {'met' if op['target_met'] else 'not met'}): "
-                  f"{op['avoided_after_visible_rate']:.3f} at {op['false_activation_rate']:.3f}")
+    print("\n".join(draw_summary("safety_tuning", block)))
     return StageResult(metrics=logged_metrics({"tuning_draw": block}))
 
 

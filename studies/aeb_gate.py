@@ -57,6 +57,7 @@ from blindspot.safety.assess import frame_risks, outcome_table
 from blindspot.safety.braking import BrakingModel
 from blindspot.safety.evaluation import (SceneInfo, aeb_gate_s, avoided_at_false_activation,
                                          operating_curve, replicate_half, scene_info,
+                                         aeb_thresholds,
                                          scene_results, summarise)
 from blindspot.safety.outcome import body_boxes
 from blindspot.safety.risk import EgoShape
@@ -221,7 +222,7 @@ def main(argv: list[str]) -> None:
     main_brakes, sa, impact, info, tune = outcome_setup(truth, meta, bodies, shape, w)
     F = len(sa.time_s)
     halves = {"tune": tune, "held_out": ~tune}
-    thresholds = np.linspace(0, 1, w.n_thresholds + 2)[1:-1]
+    thresholds = aeb_thresholds(w.n_thresholds, w.tail_thresholds)
     margins = sorted({float(m) for m in args.margins.split(",")} | {w.aeb_gate_margin_s})
     print(f"{len(sa.scenes)} scenes ({tune.sum()} tune / {(~tune).sum()} held out), input "
           f"{args.input}; gate TTC_stop + decision delay {w.decision_delay_s} s + margin at "
@@ -245,7 +246,8 @@ def main(argv: list[str]) -> None:
                 margin_s=m, decision_delay_s=w.decision_delay_s)
         tuned: dict = {}
         for (gate, m), (_, p_aeb) in variants.items():
-            c = operating_curve(p_aeb[tune], _subset(info, tune), impact[tune], thresholds)
+            c = operating_curve(p_aeb[tune], _subset(info, tune), impact[tune], thresholds,
+                                sa.time_s)
             tuned[(gate, m)] = _best(c, args.max_fa if args.rule == "max_fa" else None)
         pick = {}
         for gate in ("none", "stopping_time"):
@@ -284,7 +286,7 @@ def main(argv: list[str]) -> None:
         # the held-out operating curve of each gate at its tuned margin
         for gate, (key, _) in pick.items():
             c = operating_curve(variants[key][1][~tune], _subset(info, ~tune), impact[~tune],
-                                thresholds)
+                                thresholds, sa.time_s)
             out[f"tuned_{gate}"]["held_out_curve"] = c.round(4).to_dict(orient="list")
             out[f"tuned_{gate}"]["held_out_avoided_at_fa"] = avoided_at_false_activation(
                 c, (0.1, 0.2, 0.3))

@@ -15,7 +15,8 @@ velocity under the crossing prior (:func:`blindspot.track.crossing.crossing_stat
 the tracker's. ``--true-state``: the true state of every pedestrian at every frame in line of
 sight instead of the tracker (the decision rule's bound on the same half); with ``--velocity-lag K`` each true-state row carries
 the true velocity its pedestrian had K frames earlier (in sight or not): the decision on exact
-positions with a velocity K frames late. ``--half all``: the whole tuning draw (both halves).
+positions with a velocity K frames late. ``--half all``: the whole main draw (both halves; the independent tuning and held-out
+draws of the safety_tuning / safety_held_out stages are not read here).
 ``--warning key=value``: a ``warning`` setting for
 the decision (e.g. max_coast_s=null, aeb_gate_margin_s=0.1). Reads data/driving (truth, points, scenes.json) and the
 predictors' models (data/calibration/models.json, data/train*/model.pt, data/paths,

@@ -3,7 +3,7 @@ against constant velocity and Kalman on the held-out numbers, or the report says
 
 from __future__ import annotations
 
-from blindspot.report.safety_tables import PREDICTOR_BLOCKS, lstm_verdict, predictor_names
+from blindspot.report.safety_tables import lstm_verdict, predictor_names
 
 
 def _held(direct_avoided, direct_ci, direct_fa):
@@ -28,14 +28,15 @@ def test_no_verdict_without_both_kinds_and_blocks_are_not_predictors():
     assert lstm_verdict({"kalman": {"avoided_after_visible_rate": 0.4,
                                     "false_activation_rate": 0.1}}) == ""
     assert lstm_verdict({}) == ""
-    metrics = {"lstm": {}, **{b: {} for b in PREDICTOR_BLOCKS}}
+    blocks = ("held_out", "held_out_half", "tuning", "tuning_draw")
+    metrics = {"lstm": {"by_input": {}}, **{b: {"seed": 1, "lstm": {}} for b in blocks}}
     assert predictor_names(metrics) == ["lstm"]
 
 
 def test_the_held_out_table_reads_the_tuning_draws_operating_point():
     from blindspot.report.safety_tables import ncap_page
 
-    op = {"aeb_threshold": 0.97, "false_activation_target": 0.03,
+    op = {"aeb_threshold": 0.9999, "false_activation_target": 0.03, "target_met_on_tuning": True,
           "avoided_after_visible_rate": 0.45, "avoided_after_visible_rate_ci95": [0.4, 0.5],
           "false_activation_rate": 0.046, "false_activation_rate_ci95": [0.027, 0.077]}
     held = {"seed": 1, "n_intruding": 306, "n_non_intruding": 306,
@@ -47,8 +48,10 @@ def test_the_held_out_table_reads_the_tuning_draws_operating_point():
     page = ncap_page({}, {"held_out": held, "tuning": {"n_intruding": 54, "n_non_intruding": 54},
                           "tuning_draw": {"seed": 2, "n_intruding": 306,
                                           "n_non_intruding": 306}})
-    assert ("| kalman | 0.48 [0.43, 0.54] | 0.173 [0.130, 0.220] | 0.97, 0.45 [0.40, 0.50], "
+    assert ("| kalman | 0.48 [0.43, 0.54] | 0.173 [0.130, 0.220] | 0.9999, 0.45 [0.40, 0.50], "
             "0.046 [0.027, 0.077] | 0.30 | 0.50 |") in page
+    op["target_met_on_tuning"] = False                       # marked: the target was missed
+    assert "| 0.9999*, 0.45" in ncap_page({}, {"held_out": held})
     assert "tuning draw of seed 2 (306 / 306" in page
     del held["kalman"]["at_tuning_operating_point"]            # an older block: a dash
     assert "| 0.173 [0.130, 0.220] | - | 0.30" in ncap_page({}, {"held_out": held})

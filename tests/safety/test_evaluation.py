@@ -7,7 +7,8 @@ import pandas as pd
 import pytest
 
 from blindspot.safety.config import OracleConfig, WarningConfig
-from blindspot.safety.evaluation import (SceneInfo, avoided_at_false_activation, operating_curve,
+from blindspot.safety.evaluation import (SceneInfo, aeb_thresholds, avoided_at_false_activation,
+                                         operating_curve,
                                          scene_info, scene_results, summarise,
                                          trigger_frames)
 from blindspot.safety.oracle import TRACK_COLUMNS, oracle_tracks
@@ -120,16 +121,21 @@ def test_the_operating_curve_agrees_with_scene_results_at_every_threshold():
     n_int, n_non, F = 30, 20, 12
     info = _info(n_int, n_non)
     times = 0.1 * np.arange(F)
-    seen = np.where(rng.random(n_int + n_non) < 0.1, np.nan, rng.uniform(0, 1.2, n_int + n_non))
+    # first sightings between frames, on a frame's start (what real data gives: the boundary)
+    # and never
+    seen = np.where(rng.random(n_int + n_non) < 0.5, rng.uniform(0, 1.2, n_int + n_non),
+                    times[rng.integers(0, F, n_int + n_non)])
+    seen[rng.random(n_int + n_non) < 0.1] = np.nan
     info = SceneInfo(info.scenes, info.speed_kmh, info.intruding, info.impact_pct,
                      info.collision_s, info.first_visible_s, seen)
-    p = rng.random((n_int + n_non, F)) ** 3
+    p = rng.random((n_int + n_non, F)) ** 3                 # the AEB's (gated) risk
+    p_warn = rng.random((n_int + n_non, F))                   # the warning's: another one
     impact = np.where(rng.random((n_int + n_non, F + 1)) < 0.5, np.nan, 25.0)
     thresholds = np.linspace(0.05, 0.95, 19)
     curve = operating_curve(p, info, impact, thresholds, times)
     for t, row in zip(thresholds, curve.itertuples()):
-        res = scene_results(p, info, impact, times, warning_threshold=t, aeb_threshold=t,
-                            decision_delay_s=0.1)
+        res = scene_results(p_warn, info, impact, times, warning_threshold=0.5,
+                            aeb_threshold=t, decision_delay_s=0.1, p_aeb=p)
         m = summarise(res, n_bootstrap=100, seed=0)
         assert row.avoided_rate == pytest.approx(m["avoided_rate"])
         assert row.avoided_after_visible_rate == pytest.approx(m["avoided_after_visible_rate"])
@@ -137,6 +143,19 @@ def test_the_operating_curve_agrees_with_scene_results_at_every_threshold():
     assert (curve.avoided_after_visible_rate < curve.avoided_rate).any()   # the case is live
     with pytest.raises(ValueError, match="operating_curve: frame_times"):
         operating_curve(p, info, impact, thresholds, times[:-1])
+
+
+def test_the_threshold_grid_is_even_in_the_unit_interval_plus_its_tail():
+    assert aeb_thresholds(3).tolist() == [0.25, 0.5, 0.75]
+    got = aeb_thresholds(99, (0.9999, 0.999, 0.99, 0.35))     # 0.99, 0.35 on the grid already
+    assert len(got) == 101 and got[-2:].tolist() == [0.999, 0.9999]
+    assert np.sum(np.isclose(got, 0.35, rtol=0, atol=1e-9)) == 1   # 0.35000000000000003 once
+    assert np.all(np.diff(got) > 0)
+    with pytest.raises(ValueError, match="aeb_thresholds: tail: expected thresholds in"):
+        aeb_thresholds(9, (1.0,))
+    assert aeb_thresholds(1, 0.999).tolist() == [0.5, 0.999]          # a scalar tail
+    with pytest.raises(ValueError, match="aeb_thresholds: n: expected an integer >= 1"):
+        aeb_thresholds(0)
 
 
 def test_avoided_at_false_activation_reads_the_curve_at_each_level():

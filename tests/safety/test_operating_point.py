@@ -5,15 +5,13 @@ fallback where no threshold keeps to the target, the held-out reading with Wilso
 
 from __future__ import annotations
 
-import itertools
-
 import numpy as np
 import pandas as pd
 import pytest
 from scipy import stats
 
-from blindspot.safety.operating_point import (choose_in_block, choose_operating_point,
-                                              operating_point_at, read_in_block)
+from blindspot.safety.operating_point import (choose_operating_point, operating_blocks,
+                                              operating_point_at)
 
 
 def _curve(avoided_after, fa, avoided=None, thresholds=None):
@@ -61,23 +59,44 @@ def test_the_held_out_reading_carries_wilson_intervals_of_its_counts():
         assert got[f"{key}_ci95"] == pytest.approx([ci.low, ci.high])
 
 
+def _block(seed, curve_a, curve_b, n_int=4, n_non=10):
+    as_lists = lambda c: {k: c[k].tolist() for k in c.columns}            # noqa: E731
+    return {"seed": seed, "chain_digest": "x", "n_intruding": n_int, "n_non_intruding": n_non,
+            "a": {"avoided_after_visible_rate": 0.1, "curve": as_lists(curve_a)},
+            "b": {"avoided_after_visible_rate": 0.2, "curve": as_lists(curve_b)}}
+
+
 def test_blocks_choose_on_the_tuning_draw_and_read_the_held_out_draw_there():
-    curves = pd.concat([_curve([0.5, 0.25], [0.1, 0.0], thresholds=[0.3, 0.6])
-                        .assign(input=i, predictor=p)
-                        for i, p in itertools.product(("tracker", "oracle"), ("a", "b"))])
-    tuning = choose_in_block({"seed": 2, "n_intruding": 4, "n_non_intruding": 10, "a": {},
-                              "b": {}}, curves, 0.03)
-    assert tuning["seed"] == 2 and tuning["a"]["operating_point"]["aeb_threshold"] == 0.6
-    held = read_in_block({"seed": 1, "n_intruding": 4, "n_non_intruding": 10, "a": {"x": 1}},
-                         curves, tuning)
+    tune_a = _curve([0.5, 0.25], [0.1, 0.0], thresholds=[0.3, 0.6])
+    tune_b = _curve([0.5, 0.25], [0.2, 0.1], thresholds=[0.3, 0.6])    # never within 3 %
+    held_a = _curve([0.75, 0.5], [0.2, 0.1], thresholds=[0.3, 0.6])
+    tuning, held = operating_blocks(_block(2, tune_a, tune_b), _block(1, held_a, held_a), 0.03)
+    assert tuning["seed"] == 2 and held["seed"] == 1 and held["chain_digest"] == "x"
+    assert "curve" not in tuning["a"] and "curve" not in held["a"]
+    op = tuning["a"]["operating_point"]
+    assert op["aeb_threshold"] == 0.6 and op["target_met"] and op["top_of_grid"]
+    assert op["avoided_after_visible_rate_ci95"] == pytest.approx(
+        list(stats.binomtest(1, 4).proportion_ci(0.95, method="wilson")))
     at = held["a"]["at_tuning_operating_point"]
-    assert held["a"]["x"] == 1 and at["aeb_threshold"] == 0.6
-    assert at["avoided_after_visible_rate"] == 0.25 and at["false_activation_target"] == 0.03
-    with pytest.raises(KeyError, match="read_in_block: tuning: no operating_point for "
-                                       "predictor 'c'"):
-        read_in_block({"n_intruding": 4, "n_non_intruding": 10, "c": {}}, curves, tuning)
-    with pytest.raises(ValueError, match="no tracker-input curve of predictor 'c'"):
-        choose_in_block({"c": {}}, curves, 0.03)
+    assert held["a"]["avoided_after_visible_rate"] == 0.1          # the block's own rates stay
+    assert at["aeb_threshold"] == 0.6 and at["avoided_after_visible_rate"] == 0.5
+    assert at["false_activation_rate"] == 0.1 and at["target_met_on_tuning"]
+    assert not at["false_activation_within_target"]                # 10 % held out > 3 %
+    assert not held["b"]["at_tuning_operating_point"]["target_met_on_tuning"]
+
+
+def test_blocks_of_one_draw_or_not_of_a_draw_are_refused():
+    c = _curve([0.5, 0.25], [0.1, 0.0], thresholds=[0.3, 0.6])
+    with pytest.raises(ValueError, match="blocks of one draw \\(seed 1\\)"):
+        operating_blocks(_block(1, c, c), _block(1, c, c), 0.03)
+    with pytest.raises(TypeError, match="operating_blocks: tuning: expected a draw block"):
+        operating_blocks([], _block(1, c, c), 0.03)
+    with pytest.raises(KeyError, match="operating_blocks: held_out: missing \\['n_intruding'\\]"):
+        operating_blocks(_block(2, c, c), {"seed": 1, "n_non_intruding": 3}, 0.03)
+    tuning = _block(2, c, c)
+    del tuning["b"]["curve"]
+    with pytest.raises(KeyError, match="draw_curve: block of seed 2: no curve of predictor 'b'"):
+        operating_blocks(tuning, _block(1, c, c), 0.03)
 
 
 def test_bad_arguments_are_named():

@@ -95,7 +95,8 @@ TRUTH_COLUMNS = (
 
 
 # ----------------------------------------------------------------------------- Monte Carlo
-def draw_scenarios(group: ScenarioGroup, base: DrivingScene) -> list[DrivingScene]:
+def draw_scenarios(group: ScenarioGroup, base: DrivingScene, *, seed: int | None = None,
+                   per_cell: int | None = None) -> list[DrivingScene]:
     """The seeded Monte-Carlo set around ``base`` (the CPNCO-like scene: its parked cars,
     clutter and timing).
 
@@ -109,12 +110,23 @@ def draw_scenarios(group: ScenarioGroup, base: DrivingScene) -> list[DrivingScen
     (x U(1 +- speed_jitter)) and 0..``max_bystanders`` non-intruding bystanders stepping out
     further up the road. One ``numpy`` generator seeded by ``monte_carlo.seed``: the same
     config gives the same scenes. Names ``mc_<speed>kmh_<p>pct_<int|non>_<k>``.
+
+    ``seed`` and ``per_cell`` replace ``monte_carlo.seed`` and ``scenes_per_cell`` (another
+    draw of the same grid: :func:`blindspot.safety.draws.independent_scenes`); ValueError for
+    a seed that is not an integer >= 0 or a per_cell that is not an integer >= 1.
     """
     mc = group.monte_carlo
-    rng = np.random.default_rng(np.random.SeedSequence([mc.seed, 11]))
+    seed = mc.seed if seed is None else seed
+    per_cell = mc.scenes_per_cell if per_cell is None else per_cell
+    for name, value, low in (("seed", seed, 0), ("per_cell", per_cell, 1)):
+        if isinstance(value, (bool, np.bool_)) or not (isinstance(value, (int, np.integer))
+                                                        and value >= low):
+            raise ValueError(f"draw_scenarios: {name}: expected an integer >= {low}, found "
+                             f"{value!r}")
+    rng = np.random.default_rng(np.random.SeedSequence([int(seed), 11]))
     lead = base.pedestrians[0]
     cells = [(v, p, intr) for v in mc.speeds_kmh for p in mc.impact_pct for intr in (True, False)]
-    n = len(cells) * mc.scenes_per_cell
+    n = len(cells) * per_cell
     body = rng.choice(len(mc.bodies), n)
     behav = rng.choice(len(mc.non_intruding), n)
     front_gap = rng.uniform(*mc.front_gap_m, n)
@@ -128,8 +140,8 @@ def draw_scenarios(group: ScenarioGroup, base: DrivingScene) -> list[DrivingScen
     seeds = rng.integers(0, 2**62, n)
     cars0 = base.parked_cars
     out = []
-    for i, (v, p, intr) in enumerate(c for c in cells for _ in range(mc.scenes_per_cell)):
-        k = i % mc.scenes_per_cell
+    for i, (v, p, intr) in enumerate(c for c in cells for _ in range(per_cell)):
+        k = i % per_cell
         bname = mc.bodies[body[i]]
         half_w = group.body(bname).width_m / 2
         if cars0 and between[i] and len(cars0) >= 2:

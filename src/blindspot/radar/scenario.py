@@ -156,7 +156,7 @@ class MonteCarloConfig(TypedConfig):
     delay_jitter_s: float = setting(ge=0.0, le=10.0)
     speed_jitter: float = setting(ge=0.0, le=0.5)
     max_bystanders: int = setting(ge=0, le=2)
-    held_out_seed: int = setting(1, ge=0, le=2**63 - 1)
+    held_out_seed: int = setting(3, ge=0, le=2**63 - 1)
     held_out_scenes_per_cell: int = setting(17, ge=1, le=10_000)
     tuning_seed: int = setting(2, ge=0, le=2**63 - 1)
     tuning_scenes_per_cell: int = setting(17, ge=1, le=10_000)
@@ -165,7 +165,7 @@ class MonteCarloConfig(TypedConfig):
         if self.held_out_seed == self.seed:
             raise ConfigError("held_out_seed", self.held_out_seed,
                               f"a seed other than monte_carlo.seed = {self.seed} (the held-out "
-                              "draw must be independent of the tuning draw)")
+                              "draw must be independent of the main draw)")
         if self.tuning_seed in (self.seed, self.held_out_seed):
             raise ConfigError("tuning_seed", self.tuning_seed,
                               f"a seed other than monte_carlo.seed = {self.seed} and "

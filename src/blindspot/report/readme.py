@@ -294,12 +294,24 @@ def _held_out_sentence(safety: Mapping[str, Any]) -> str:
            f"{held.get('n_non_intruding')} scenes, settings and predictor chosen on other draws) "
            f"{_label(name)} avoids {_rate(h, 'avoided_after_visible_rate')} once the child is "
            f"visible, at {_rate(h, 'false_activation_rate')} false activations")
-    op = h.get("at_tuning_operating_point")
-    if op and _num(op.get("avoided_after_visible_rate")) is not None:
-        out += (f"; at the AEB threshold the tuning draw chose for at most "
-                f"{100 * op['false_activation_target']:.0f} % false activations "
-                f"({op['aeb_threshold']:.2f}), {_rate(op, 'avoided_after_visible_rate')} at "
-                f"{_rate(op, 'false_activation_rate')}")
+    # at the false-activation target: of the predictors whose operating point kept to it on the
+    # tuning draw, the one that avoids most there, read at that point on the held-out draw
+    ops = {k: v["at_tuning_operating_point"] for k, v in preds.items()
+           if _num((v.get("at_tuning_operating_point") or {}).get("avoided_after_visible_rate"))
+           is not None and _num(((tuning.get(k) or {}).get("operating_point") or {})
+                                .get("avoided_after_visible_rate")) is not None}
+    met = {k: v for k, v in ops.items() if v.get("target_met_on_tuning")}
+    if met:
+        best = max(met, key=lambda k: tuning[k]["operating_point"]["avoided_after_visible_rate"])
+        op = met[best]
+        out += (f"; with each predictor's AEB threshold chosen on the tuning draw for at most "
+                f"{100 * op['false_activation_target']:.0f} % false activations, "
+                f"{_label(best)} avoids {_rate(op, 'avoided_after_visible_rate')} at "
+                f"{_rate(op, 'false_activation_rate')} (threshold {op['aeb_threshold']:.6g})")
+    elif ops:
+        target = next(iter(ops.values()))["false_activation_target"]
+        out += (f"; no predictor's AEB threshold kept to {100 * target:.0f} % false activations "
+                f"on the tuning draw")
     return out + "."
 
 

@@ -8,17 +8,13 @@ import pandas as pd
 
 from blindspot.report.safety_figures import ncap_grid_markdown
 
-__all__ = ["PREDICTOR_BLOCKS", "predictor_names", "operating_inputs", "grid_page", "ncap_page",
+__all__ = ["predictor_names", "operating_inputs", "grid_page", "ncap_page",
            "lstm_verdict"]
 
-#: Top-level keys of safety.json that are not predictors (the independent tuning and held-out
-#: draws, the main draw's halves).
-PREDICTOR_BLOCKS = ("held_out", "held_out_half", "tuning", "tuning_draw")
-
-
 def predictor_names(metrics: dict) -> list[str]:
-    """The predictors of safety.json, in its order."""
-    return [p for p in metrics if p not in PREDICTOR_BLOCKS]
+    """The predictors of safety.json, in its order: its entries with rates by input
+    (``by_input``); the blocks of the draws and halves beside them have none."""
+    return [p for p, m in metrics.items() if isinstance(m, dict) and "by_input" in m]
 
 
 def operating_inputs(metrics: dict, bound: dict) -> tuple[dict, dict, tuple[int, int]]:
@@ -76,7 +72,8 @@ def ncap_page(ncap: dict, metrics: dict) -> str:
            f"that avoids most once the child is visible with false activations at most the "
            f"target) on the independent tuning draw of seed {draw.get('seed')} "
            f"({draw.get('n_intruding')} / {draw.get('n_non_intruding')}; safety_tuning stage). "
-           f"Rates with Wilson 95 % intervals.\n\n",
+           f"Rates with Wilson 95 % intervals; *: no threshold kept to the target on the "
+           f"tuning draw (the one with the fewest false activations there).\n\n",
            "| predictor | avoided after visible | false activations | at the tuning draw's "
            "operating point: threshold, avoided after visible, false activations | first point "
            "-> moving, median s | first point -> AEB, median s |\n|---|---|---|---|---|---|\n"]
@@ -85,7 +82,8 @@ def ncap_page(ncap: dict, metrics: dict) -> str:
             continue
         op = h.get("at_tuning_operating_point")
         at = ("-" if not op else
-              f"{_fmt(op['aeb_threshold'])}, {_rate_ci(op, 'avoided_after_visible_rate', 2)}, "
+              f"{op['aeb_threshold']:.6g}{'' if op.get('target_met_on_tuning', True) else '*'}, "
+              f"{_rate_ci(op, 'avoided_after_visible_rate', 2)}, "
               f"{_rate_ci(op, 'false_activation_rate', 3)}")
         out.append(f"| {p} | {_rate_ci(h, 'avoided_after_visible_rate', 2)} | "
                    f"{_rate_ci(h, 'false_activation_rate', 3)} | {at} | "

@@ -20,7 +20,8 @@ from blindspot.safety.bound import (BOUNDS, best_request_frame, bound_results,
 from blindspot.safety.braking import BrakingModel
 from blindspot.safety.config import WarningConfig
 from blindspot.safety.evaluation import (KMH, SceneInfo, aeb_gate_s,
-                                         avoided_at_false_activation, delay_stats,
+                                         aeb_thresholds, avoided_at_false_activation,
+                                         delay_stats,
                                          first_moving_s, ncap_grid, operating_curve,
                                          replicate_half, scene_frame_risk, scene_info,
                                          scene_results, summarise)
@@ -220,7 +221,7 @@ def assess(truth: pd.DataFrame, scenes_meta: dict, tracks: dict[str, pd.DataFram
     info_all = scene_info(truth, scenes_meta, sa.scenes, first_point_s=first_point_s)
     ev = _evaluated(truth, sa.scenes, evaluated_set)
     info = SceneInfo(*(np.asarray(getattr(info_all, f))[ev] for f in SceneInfo.__dataclass_fields__))
-    thresholds = np.linspace(0, 1, cfg.n_thresholds + 2)[1:-1]
+    thresholds = aeb_thresholds(cfg.n_thresholds, cfg.tail_thresholds)
     fig_i = int(np.flatnonzero(sa.scenes == figure_scene)[0]) if figure_scene in sa.scenes else None
     F = len(sa.time_s)
     risks, scenes, curves, grids, lines = [], [], [], [], []

@@ -85,6 +85,7 @@ class WarningConfig(TypedConfig):
     aeb_gate_margin_s: float = setting(0.0, ge=0.0, le=5.0)
     max_coast_s: float | None = setting(None, ge=0.0, le=60.0)
     false_activation_target: float = setting(0.03, gt=0.0, lt=1.0)
+    tail_thresholds: tuple[float, ...] = setting((), gt=0.0, lt=1.0)
     seed: int = setting(0, ge=0, le=2**63 - 1)
 
     @classmethod

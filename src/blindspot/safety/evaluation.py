@@ -54,7 +54,7 @@ from blindspot.track.moving import confirmed_moving
 
 __all__ = ["SceneInfo", "line_of_sight_onset", "first_moving_s", "delay_stats", "scene_info", "replicate_half", "aeb_gate_s", "scene_frame_risk",
            "trigger_frames", "scene_results",
-           "summarise", "operating_curve", "avoided_at_false_activation", "ncap_grid", "wilson",
+           "summarise", "aeb_thresholds", "operating_curve", "avoided_at_false_activation", "ncap_grid", "wilson",
            "KMH"]
 
 KMH = 3.6
@@ -278,7 +278,7 @@ def scene_results(p: np.ndarray, info: SceneInfo, impact_kmh: np.ndarray,
         lead = np.where(warn_s < info.collision_s, info.collision_s - warn_s, np.nan)
         aeb_lead = np.where(aeb_s < info.collision_s, info.collision_s - aeb_s, np.nan)
     # the frame each decision was made from starts decision_delay_s before the decision
-    seen = np.where(np.isnan(info.first_seen_s), np.inf, info.first_seen_s) - 1e-9
+    seen = _seen_before(info)
     with np.errstate(invalid="ignore"):
         warned_early = np.isfinite(warn_s) & (warn_s - decision_delay_s < seen)
         aeb_early = np.isfinite(aeb_s) & (aeb_s - decision_delay_s < seen)
@@ -365,6 +365,32 @@ def summarise(res: pd.DataFrame, *, n_bootstrap: int, seed: int) -> dict:
     }
 
 
+def aeb_thresholds(n: int, tail=()) -> np.ndarray:
+    """The AEB thresholds of the operating characteristic, ascending: ``n`` evenly spaced in
+    (0, 1) (``k / (n + 1)``) and the ``tail`` ones (a threshold within 1e-9 of one already there
+    is not added again). The calibrated probabilities of collision saturate near 1 on the
+    tracker's rows, so thresholds such as 0.999 or 0.9999 still separate scenes that 0.99 does
+    not. Raises ValueError for ``n`` below 1 or a tail threshold outside (0, 1)."""
+    if isinstance(n, bool) or not (isinstance(n, (int, np.integer)) and n >= 1):
+        raise ValueError(f"aeb_thresholds: n: expected an integer >= 1, found {n!r}")
+    t = np.atleast_1d(np.asarray(tail, float)).ravel()
+    if not np.all((t > 0) & (t < 1)):
+        raise ValueError(f"aeb_thresholds: tail: expected thresholds in (0, 1), found "
+                         f"{t.tolist()!r}")
+    out = list(np.linspace(0, 1, n + 2)[1:-1])
+    for x in np.sort(t):
+        if not np.any(np.abs(np.asarray(out) - x) <= 1e-9):
+            out.append(float(x))
+    return np.sort(np.asarray(out))
+
+
+def _seen_before(info: SceneInfo) -> np.ndarray:
+    """(S,) the time (s) a decision's frame must start before to come before anything showed
+    the lead pedestrian (``info.first_seen_s`` less 1e-9 for rounding; inf where nothing ever
+    did: every request there is early)."""
+    return np.where(np.isnan(info.first_seen_s), np.inf, info.first_seen_s) - 1e-9
+
+
 def operating_curve(p: np.ndarray, info: SceneInfo, impact_kmh: np.ndarray,
                     thresholds: np.ndarray, frame_times: np.ndarray) -> pd.DataFrame:
     """AEB threshold swept: per threshold the avoided rate, the avoided-after-visible rate (the
@@ -377,7 +403,7 @@ def operating_curve(p: np.ndarray, info: SceneInfo, impact_kmh: np.ndarray,
     check_array(frame_times, "frame_times", (n_frames,), who="operating_curve")
     trig = trigger_frames(p, thresholds)                                   # (S, N)
     imp = np.take_along_axis(impact_kmh, trig, axis=1)                     # (S, N)
-    seen = np.where(np.isnan(info.first_seen_s), np.inf, info.first_seen_s) - 1e-9
+    seen = _seen_before(info)
     start = np.r_[np.asarray(frame_times, float), np.inf][trig]           # (S, N), inf: never
     early = np.isfinite(start) & (start < seen[:, None])
     it, non = info.intruding, ~info.intruding

@@ -6,14 +6,19 @@ fixed AEB threshold (``warning.aeb_threshold``) meets the second half only by ch
 detector is set for a false-alarm budget is Neyman and Pearson's (1933): among the thresholds
 whose false-activation rate on the tuning draw is at most the target
 (``warning.false_activation_target``), the one that avoids most once the child is visible; the
-held-out draw is then read at that threshold (:func:`operating_point_at`), so its rates are
-those of a setting chosen elsewhere. Where no threshold of the tuning draw keeps to the target,
-the choice is the threshold with the fewest false activations (then the most avoided), marked
-``target_met: false``. Ties go to the larger threshold (the same rates on the tuning draw, fewer
-activations in expectation).
+held-out draw is then read at that threshold (:func:`operating_point_at`,
+:func:`operating_blocks`), so its rates are those of a setting chosen elsewhere. Where no
+threshold of the tuning draw keeps to the target, the choice is the threshold with the fewest
+false activations (then the most avoided), marked ``target_met: false``. Ties go to the larger
+threshold: on any draw a larger threshold requests in a subset of the scenes a smaller one
+does, so it activates (and avoids) no more often. The rule uses the point estimate of the
+tuning draw's false-activation rate, so the held-out rate at the chosen threshold comes out
+above the target about as often as below it (read ``false_activation_within_target`` with its
+interval).
 
 The curves are :func:`blindspot.safety.evaluation.operating_curve`'s: one row per threshold with
-``threshold``, ``avoided_rate``, ``avoided_after_visible_rate`` and ``false_activation_rate``.
+``threshold``, ``avoided_rate``, ``avoided_after_visible_rate`` and ``false_activation_rate``;
+the draws keep them in their blocks (:func:`blindspot.safety.draws.draw_block`).
 """
 
 from __future__ import annotations
@@ -22,10 +27,11 @@ import numpy as np
 import pandas as pd
 
 from blindspot.arrays import check_number
+from blindspot.safety.draws import draw_curve
 from blindspot.safety.evaluation import wilson
 
-__all__ = ["OPERATING_COLUMNS", "choose_operating_point", "operating_point_at", "choose_in_block",
-           "read_in_block"]
+__all__ = ["OPERATING_COLUMNS", "choose_operating_point", "operating_point_at",
+           "operating_blocks"]
 
 #: The columns of an operating characteristic these functions read.
 OPERATING_COLUMNS = ("threshold", "avoided_rate", "avoided_after_visible_rate",
@@ -67,8 +73,10 @@ def choose_operating_point(curve: pd.DataFrame, false_activation_target: float) 
         false_activation_target: the largest false-activation rate allowed, in (0, 1).
 
     Returns:
-        ``{"aeb_threshold", "false_activation_target", "target_met", "avoided_rate",
-        "avoided_after_visible_rate", "false_activation_rate"}`` (rates on the tuning draw).
+        ``{"aeb_threshold", "false_activation_target", "target_met", "top_of_grid",
+        "avoided_rate", "avoided_after_visible_rate", "false_activation_rate"}`` (rates on the
+        tuning draw; ``top_of_grid``: the largest threshold swept was chosen, so the grid may
+        stop short of a better one).
 
     Raises:
         TypeError, KeyError, ValueError: a curve that is not a DataFrame, lacks a column, is
@@ -88,6 +96,7 @@ def choose_operating_point(curve: pd.DataFrame, false_activation_target: float) 
     return {"aeb_threshold": float(best.threshold),
             "false_activation_target": float(false_activation_target),
             "target_met": bool(ok.any()),
+            "top_of_grid": bool(best.threshold == thr.max()),
             "avoided_rate": float(best.avoided_rate),
             "avoided_after_visible_rate": float(best.avoided_after_visible_rate),
             "false_activation_rate": float(best.false_activation_rate)}
@@ -119,7 +128,7 @@ def operating_point_at(curve: pd.DataFrame, threshold: float, n_intruding: int,
     if at.size != 1:
         raise ValueError(f"{who}: threshold: expected one of the curve's thresholds "
                          f"({c.threshold.min():g}..{c.threshold.max():g}, {len(c)} of them; both "
-                         f"draws sweep warning.n_thresholds), found {threshold!r}")
+                         f"draws sweep warning.n_thresholds and tail_thresholds), found {threshold!r}")
     row = c.iloc[int(at[0])]
     out: dict = {"aeb_threshold": float(row.threshold)}
     for key, n in (("avoided_rate", n_intruding), ("avoided_after_visible_rate", n_intruding),
@@ -133,47 +142,53 @@ def operating_point_at(curve: pd.DataFrame, threshold: float, n_intruding: int,
     return out
 
 
-def _curve_of(curves: pd.DataFrame, predictor: str, who: str) -> pd.DataFrame:
-    """The tracker input's operating characteristic of ``predictor`` in an assessment's curves
-    (columns ``input`` and ``predictor`` beside :data:`OPERATING_COLUMNS`)."""
-    missing = [c for c in ("input", "predictor") if c not in curves.columns]
+def _block_counts(block, name: str) -> tuple[int, int]:
+    if not isinstance(block, dict):
+        raise TypeError(f"operating_blocks: {name}: expected a draw block (a dict of "
+                        f"blindspot.safety.draws.draw_block), found {type(block).__name__}")
+    missing = [k for k in ("seed", "n_intruding", "n_non_intruding") if k not in block]
     if missing:
-        raise KeyError(f"{who}: curves: missing columns {missing} (assess()'s curves)")
-    c = curves[(curves.input == "tracker") & (curves.predictor == predictor)]
-    if c.empty:
-        raise ValueError(f"{who}: curves: no tracker-input curve of predictor {predictor!r} "
-                         f"(found {sorted(curves.predictor.unique())})")
-    return c
+        raise KeyError(f"operating_blocks: {name}: missing {missing} (a draw block of "
+                       f"blindspot.safety.draws.draw_block?)")
+    return block["n_intruding"], block["n_non_intruding"]
 
 
-def choose_in_block(block: dict, curves: pd.DataFrame, false_activation_target: float) -> dict:
-    """A copy of a draw's block (:func:`blindspot.safety.draws.draw_block` of the tuning draw)
-    with each predictor's ``operating_point`` (:func:`choose_operating_point` on its tracker
-    curve in ``curves``)."""
-    out = dict(block)
-    for name, m in block.items():
-        if isinstance(m, dict):
-            out[name] = {**m, "operating_point": choose_operating_point(
-                _curve_of(curves, name, "choose_in_block"), false_activation_target)}
-    return out
+def operating_blocks(tuning: dict, held_out: dict, false_activation_target: float
+                     ) -> tuple[dict, dict]:
+    """The tuning and held-out draws' blocks for ``safety.json``: each predictor's AEB
+    operating point chosen on the tuning draw (``operating_point``: :func:`choose_operating_point`
+    on its curve, with the Wilson intervals of its rates there, which are optimistic: the
+    threshold was chosen on them) and read on the held-out draw (``at_tuning_operating_point``:
+    :func:`operating_point_at`, with ``target_met_on_tuning`` and
+    ``false_activation_within_target``, the held-out rate at most the target). The blocks'
+    curves (:func:`blindspot.safety.draws.draw_block`) are left out.
 
-
-def read_in_block(block: dict, curves: pd.DataFrame, tuning: dict) -> dict:
-    """A copy of a draw's block (the held-out draw's) with each predictor's
-    ``at_tuning_operating_point``: :func:`operating_point_at` its tracker curve in ``curves``,
-    at the threshold the tuning draw's block (``tuning``, of :func:`choose_in_block`) chose for
-    it. Raises KeyError naming a predictor the tuning block has no operating point for."""
-    out = dict(block)
-    for name, m in block.items():
+    Raises:
+        TypeError, KeyError: a block that is not a draw block; a predictor of the held-out
+            block without a curve in the tuning block.
+        ValueError: both blocks of one draw (the same seed), or the errors of
+            :func:`choose_operating_point` and :func:`operating_point_at`.
+    """
+    n_tune, n_held = _block_counts(tuning, "tuning"), _block_counts(held_out, "held_out")
+    if tuning["seed"] == held_out["seed"]:
+        raise ValueError(f"operating_blocks: tuning and held_out are blocks of one draw (seed "
+                         f"{tuning['seed']}): the operating point must be read on another draw")
+    tune_out = {k: v for k, v in tuning.items() if not isinstance(v, dict)}
+    held_out_out = {k: v for k, v in held_out.items() if not isinstance(v, dict)}
+    for name, m in held_out.items():
         if not isinstance(m, dict):
             continue
-        chosen = (tuning.get(name) or {}).get("operating_point")
-        if not chosen:
-            raise KeyError(f"read_in_block: tuning: no operating_point for predictor {name!r} "
-                           "(rerun the safety_tuning stage with the same warning.predictors)")
-        out[name] = {**m, "at_tuning_operating_point": {
-            **operating_point_at(_curve_of(curves, name, "read_in_block"),
-                                 chosen["aeb_threshold"], block["n_intruding"],
-                                 block["n_non_intruding"]),
-            "false_activation_target": chosen["false_activation_target"]}}
-    return out
+        curve = draw_curve(tuning, name)
+        op = choose_operating_point(curve, false_activation_target)
+        at_tuning = operating_point_at(curve, op["aeb_threshold"], *n_tune)
+        tune_out[name] = {**{k: v for k, v in tuning[name].items() if k != "curve"},
+                          "operating_point": {**op, **at_tuning}}
+        at = operating_point_at(draw_curve(held_out, name), op["aeb_threshold"], *n_held)
+        held_out_out[name] = {
+            **{k: v for k, v in m.items() if k != "curve"},
+            "at_tuning_operating_point": {
+                **at, "false_activation_target": op["false_activation_target"],
+                "target_met_on_tuning": op["target_met"],
+                "false_activation_within_target":
+                    bool(at["false_activation_rate"] <= op["false_activation_target"] + 1e-12)}}
+    return tune_out, held_out_out

@@ -210,7 +210,7 @@ def decision_rows(tracks: pd.DataFrame, dt_s: float, max_coast_s: float | None) 
     scored); and, unless ``max_coast_s`` is None, measured within the last ``max_coast_s`` s
     (:func:`blindspot.track.moving.coast_frames` of the ``coasting`` column, times ``dt_s``): a
     track coasting longer is the filter's extrapolation, not something the radar sees (issue 40:
-    tracks coasting 4-12 frames requested 7 of the tuning draw's 15 false activations, most of
+    tracks coasting 4-12 frames requested 7 of the main draw's 15 false activations, most of
     them clutter off the parked cars). Raises ValueError naming a missing column (``coasting`` only with a
     limit), a ``dt_s`` not > 0 or a ``max_coast_s`` < 0."""
     check_number(dt_s, "dt_s", gt=0.0, unit="s", who="decision_rows")

@@ -35,9 +35,12 @@ def assess_draw(cfg, predictors: dict, *, seed: int, per_cell: int, jobs: int = 
     detect, ego_motion, tracker, warning); ``where`` names the draw in the tracker's errors.
     Returns :func:`~blindspot.safety.assess.assess`'s result: its ``metrics`` (the halves of
     the draw under ``held_out`` / ``tuning`` mean nothing here: the whole draw is the set) and
-    ``curves`` (the operating characteristic per predictor) are what the draw stages keep.
-    Raises the errors of :func:`~blindspot.safety.draws.independent_scenes` for a bad seed or
-    size."""
+    ``curves`` (the operating characteristic per predictor) are what the draw stages keep
+    (:func:`~blindspot.safety.draws.draw_block`). Raises ValueError for an empty ``where`` and
+    the errors of :func:`~blindspot.safety.draws.independent_scenes` for a bad seed or size."""
+    if not (isinstance(where, str) and where):
+        raise ValueError(f"assess_draw: where: expected the draw's name (a non-empty string), "
+                         f"found {where!r}")
     group, named = load_scenarios(cfg.scenario)
     radar, w = RadarConfig.from_cfg(cfg, "driving_radar"), WarningConfig.from_cfg(cfg)
     dt = float(radar.frame_period_s)
