@@ -25,7 +25,9 @@ from blindspot.stage import StageResult
 
 
 def run(cfg, ctx):
-    w = WarningConfig.from_cfg(cfg)
+    w, digest = WarningConfig.from_cfg(cfg), chain_digest(cfg)
+    draws = (read_draw(ctx.dep("safety_tuning.json"), digest),      # first: fail fast
+             read_draw(ctx.dep("safety_held_out.json"), digest))
     group, _ = load_scenarios(cfg.scenario)
     dt = float(RadarConfig.from_cfg(cfg, "driving_radar").frame_period_s)
     truth = pd.read_parquet(ctx.dep("truth.parquet"))
@@ -43,13 +45,9 @@ def run(cfg, ctx):
     for name, table in {"risk": res.risk, "ncap_grid": res.grid, "scene_outcomes": res.scenes,
                         "operating": res.curves, "timeline": res.timeline}.items():
         write_parquet(ctx.out(f"{name}.parquet"), table)
-    # the independent draws (safety_tuning, safety_held_out), each predictor's AEB operating
-    # point chosen on the first and read on the second; this draw's halves beside them
-    res.metrics["held_out_half"] = res.metrics.pop("held_out")
-    digest = chain_digest(cfg)
+    # the independent draws: each predictor's AEB operating point chosen on one, read on the other
     res.metrics["tuning_draw"], res.metrics["held_out"] = operating_blocks(
-        read_draw(ctx.dep("safety_tuning.json"), digest),
-        read_draw(ctx.dep("safety_held_out.json"), digest), w.false_activation_target)
+        *draws, w.false_activation_target)
     write_json(ctx.out("safety.json"), res.metrics)
     write_json(ctx.out("ncap.json"), res.ncap)
     print("\n".join(summary_lines(res.metrics)))

@@ -11,20 +11,18 @@ from blindspot.cli import main_stage
 from blindspot.io import write_json
 from blindspot.radar.scenario import load_scenarios
 from blindspot.safety.assess import logged_metrics
-from blindspot.safety.draws import chain_digest, draw_block, draw_summary
+from blindspot.safety.draws import draw_summary
 from blindspot.safety.predict import stage_predictors
 from blindspot.stage import StageResult
-from blindspot.synth.independent_draw import assess_draw
+from blindspot.synth.independent_draw import draw_stage_block
 from blindspot.typed_config import jobs
 
 
 def run(cfg, ctx):
     mc = load_scenarios(cfg.scenario)[0].monte_carlo
-    seed, n_jobs = mc.tuning_seed, jobs(cfg)
-    res = assess_draw(cfg, stage_predictors(cfg, ctx.dep, jobs=n_jobs), seed=seed,
-                      per_cell=mc.tuning_scenes_per_cell, jobs=n_jobs, progress=cfg.progress,
-                      where="tuning")
-    block = draw_block(res.metrics, seed, res.curves, chain_digest(cfg))
+    block = draw_stage_block(cfg, stage_predictors(cfg, ctx.dep, jobs=jobs(cfg)),
+                             seed=mc.tuning_seed, per_cell=mc.tuning_scenes_per_cell,
+                             jobs=jobs(cfg), progress=cfg.progress, where="tuning")
     write_json(ctx.out("safety_tuning.json"), block)
     print("\n".join(draw_summary("safety_tuning", block)))
     return StageResult(metrics=logged_metrics({"tuning_draw": block}))

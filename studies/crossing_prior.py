@@ -236,7 +236,7 @@ def main(argv: list[str]) -> None:
           + ("; true state in line of sight" if args.true_state else "")
           + (f", velocity {args.velocity_lag} frames late" if args.velocity_lag else ""))
     block = ({} if args.half == "all"                     # the whole draw: no half's block
-             else res.metrics.get("tuning" if args.half == "tuning" else "held_out", {}))
+             else res.metrics.get("tuning_half" if args.half == "tuning" else "held_out_half", {}))
     for p in preds:
         m = {**res.metrics[p], **block.get(p, {})}
         for k in ("first_point_to_moving_s", "first_point_to_aeb_s"):   # the whole draw's

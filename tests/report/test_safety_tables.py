@@ -28,7 +28,7 @@ def test_no_verdict_without_both_kinds_and_blocks_are_not_predictors():
     assert lstm_verdict({"kalman": {"avoided_after_visible_rate": 0.4,
                                     "false_activation_rate": 0.1}}) == ""
     assert lstm_verdict({}) == ""
-    blocks = ("held_out", "held_out_half", "tuning", "tuning_draw")
+    blocks = ("held_out", "held_out_half", "tuning_half", "tuning_draw")
     metrics = {"lstm": {"by_input": {}}, **{b: {"seed": 1, "lstm": {}} for b in blocks}}
     assert predictor_names(metrics) == ["lstm"]
 
@@ -45,7 +45,7 @@ def test_the_held_out_table_reads_the_tuning_draws_operating_point():
                        "false_activation_rate": 0.173, "false_activation_rate_ci95": [0.13, 0.22],
                        "first_point_to_moving_s_median": 0.3, "first_point_to_aeb_s_median": 0.5,
                        "at_tuning_operating_point": op}}
-    page = ncap_page({}, {"held_out": held, "tuning": {"n_intruding": 54, "n_non_intruding": 54},
+    page = ncap_page({}, {"held_out": held, "tuning_half": {"n_intruding": 54, "n_non_intruding": 54},
                           "tuning_draw": {"seed": 2, "n_intruding": 306,
                                           "n_non_intruding": 306}})
     assert ("| kalman | 0.48 [0.43, 0.54] | 0.173 [0.130, 0.220] | 0.9999, 0.45 [0.40, 0.50], "

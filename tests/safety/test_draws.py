@@ -12,7 +12,7 @@ import pytest
 
 from blindspot.radar.driving import draw_scenarios
 from blindspot.radar.scenario import load_scenarios
-from blindspot.safety.draws import (CURVE_COLUMNS, DRAW_KEYS, chain_digest, draw_block,
+from blindspot.safety.draws import (CHAIN_KEYS, CURVE_COLUMNS, DRAW_KEYS, chain_digest, draw_block,
                                     draw_curve, draw_noise, draw_truth, independent_scenes,
                                     read_draw)
 from blindspot.typed_config import ConfigError
@@ -104,6 +104,13 @@ def test_a_block_is_read_only_with_the_chain_settings_it_was_made_with(composed_
     other = composed_config.copy()
     other.tracker.process_noise_m2ps3 = 2 * composed_config.tracker.process_noise_m2ps3
     assert chain_digest(other) != digest
+    # what no draw's numbers depend on leaves it: the budget the safety stage chooses for, a
+    # figure's setting, the worker count
+    same = composed_config.copy()
+    same.warning.false_activation_target = 0.05
+    same.eval.fig06_frame = composed_config.eval.fig06_frame + 1
+    same.jobs = 7
+    assert chain_digest(same) == digest
     path = tmp_path / "safety_tuning.json"
     path.write_text(json.dumps({"seed": 2, "chain_digest": digest}))
     assert read_draw(path, digest)["seed"] == 2
@@ -112,8 +119,27 @@ def test_a_block_is_read_only_with_the_chain_settings_it_was_made_with(composed_
     path.write_text(json.dumps({"seed": 2}))
     with pytest.raises(ValueError, match="safety_tuning.json: expected a draw block"):
         read_draw(path, digest)
-    with pytest.raises(KeyError, match="chain_digest: cfg: missing config groups \\['tracker'\\]"):
+    path.write_text("{")
+    with pytest.raises(ValueError, match="safety_tuning.json: expected a draw block in JSON, "
+                                         "found invalid JSON"):
+        read_draw(path, digest)
+    with pytest.raises(ValueError, match="read_draw: digest: expected chain_digest's string"):
+        read_draw(path, None)
+    with pytest.raises(KeyError, match="chain_digest: cfg: missing config key 'tracker'"):
         chain_digest({k: composed_config[k] for k in composed_config if k != "tracker"})
+
+
+def test_the_digest_hashes_what_the_draw_stages_declare():
+    """The draw stages' DVC params (less jobs) are the keys the digest hashes: a key DVC reruns
+    the draws for and the digest ignores (or the reverse) would let the safety stage refuse
+    up-to-date draws, or read stale ones."""
+    import yaml
+
+    from ..conftest import REPO_ROOT
+
+    stages = yaml.safe_load((REPO_ROOT / "dvc.yaml").read_text())["stages"]
+    for name in ("safety_tuning", "safety_held_out"):
+        assert [k for k in stages[name]["params"] if k != "jobs"] == list(CHAIN_KEYS), name
 
 
 def test_each_draw_measures_with_its_own_noise_seed(composed_config):

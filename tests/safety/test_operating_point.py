@@ -93,6 +93,10 @@ def test_blocks_of_one_draw_or_not_of_a_draw_are_refused():
         operating_blocks([], _block(1, c, c), 0.03)
     with pytest.raises(KeyError, match="operating_blocks: held_out: missing \\['n_intruding'\\]"):
         operating_blocks(_block(2, c, c), {"seed": 1, "n_non_intruding": 3}, 0.03)
+    fewer = _block(2, c, c)
+    del fewer["b"]
+    with pytest.raises(KeyError, match="the blocks' predictors differ \\(\\['b'\\] in one only\\)"):
+        operating_blocks(fewer, _block(1, c, c), 0.03)
     tuning = _block(2, c, c)
     del tuning["b"]["curve"]
     with pytest.raises(KeyError, match="draw_curve: block of seed 2: no curve of predictor 'b'"):

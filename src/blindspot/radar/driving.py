@@ -69,6 +69,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from blindspot.arrays import check_count
 from blindspot.radar.occlusion import segments_blocked
 # the typed config of the ``scenario`` group (radar/scenario.py)
 from blindspot.radar.scenario import (  # noqa: F401 - re-exported
@@ -118,11 +119,8 @@ def draw_scenarios(group: ScenarioGroup, base: DrivingScene, *, seed: int | None
     mc = group.monte_carlo
     seed = mc.seed if seed is None else seed
     per_cell = mc.scenes_per_cell if per_cell is None else per_cell
-    for name, value, low in (("seed", seed, 0), ("per_cell", per_cell, 1)):
-        if isinstance(value, (bool, np.bool_)) or not (isinstance(value, (int, np.integer))
-                                                        and value >= low):
-            raise ValueError(f"draw_scenarios: {name}: expected an integer >= {low}, found "
-                             f"{value!r}")
+    check_count(seed, "seed", who="draw_scenarios")
+    check_count(per_cell, "per_cell", ge=1, who="draw_scenarios")
     rng = np.random.default_rng(np.random.SeedSequence([int(seed), 11]))
     lead = base.pedestrians[0]
     cells = [(v, p, intr) for v in mc.speeds_kmh for p in mc.impact_pct for intr in (True, False)]

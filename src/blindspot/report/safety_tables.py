@@ -61,7 +61,7 @@ def ncap_page(ncap: dict, metrics: dict) -> str:
     """reports/tables/safety_ncap.md: the held-out figures of the headline input per predictor
     (with their 95 % intervals), the first-radar-point delays per speed, and the Euro NCAP
     nominal grids (impact speed km/h and 2026 band per cell) per input and predictor."""
-    held, tune = metrics.get("held_out", {}), metrics.get("tuning", {})
+    held, tune = metrics.get("held_out", {}), metrics.get("tuning_half", {})
     draw = metrics.get("tuning_draw", {})
     out = ["# Safety: held-out figures and the Euro NCAP nominal grids\n\n",
            f"Held out: the independent draw of seed {held.get('seed')} (safety_held_out stage; "

@@ -332,8 +332,8 @@ def assess(truth: pd.DataFrame, scenes_meta: dict, tracks: dict[str, pd.DataFram
     }
     for name in predictors:
         metrics[name]["settings"] = settings
-    metrics["held_out"] = held
-    metrics["tuning"] = tune
+    metrics["held_out_half"] = held
+    metrics["tuning_half"] = tune
     return SafetyResult(pd.concat(risks, ignore_index=True), pd.concat(scenes, ignore_index=True),
                         pd.concat(curves, ignore_index=True), pd.concat(grids, ignore_index=True),
                         pd.concat(lines, ignore_index=True) if lines else pd.DataFrame(),
@@ -341,9 +341,9 @@ def assess(truth: pd.DataFrame, scenes_meta: dict, tracks: dict[str, pd.DataFram
 
 
 #: Keys of the safety metrics that are blocks of numbers, not predictors: the main draw's
-#: halves (``tuning``, ``held_out_half``) and the independent tuning and held-out draws
+#: halves (``tuning_half``, ``held_out_half``) and the independent tuning and held-out draws
 #: (``tuning_draw``, ``held_out``; :mod:`blindspot.safety.draws`).
-METRIC_BLOCKS = ("held_out", "held_out_half", "tuning", "tuning_draw")
+METRIC_BLOCKS = ("held_out", "held_out_half", "tuning_half", "tuning_draw")
 
 
 def logged_metrics(metrics: dict) -> dict:

@@ -25,9 +25,10 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from blindspot.arrays import check_count
 from blindspot.radar.driving import describe_scenes, draw_scenarios, scene_truth
 
-__all__ = ["DRAW_KEYS", "CURVE_COLUMNS", "CHAIN_GROUPS", "independent_scenes", "draw_truth",
+__all__ = ["DRAW_KEYS", "CURVE_COLUMNS", "CHAIN_KEYS", "DIGEST_EXCLUDED", "independent_scenes", "draw_truth",
            "draw_noise", "chain_digest", "draw_block", "draw_curve", "read_draw", "draw_summary"]
 
 #: Per predictor, the rates of a draw's block (``safety_tuning.json``, ``safety_held_out.json``).
@@ -38,11 +39,17 @@ DRAW_KEYS = ("avoided_after_visible_rate", "avoided_after_visible_rate_ci95",
 #: (:func:`blindspot.safety.evaluation.operating_curve`'s columns).
 CURVE_COLUMNS = ("threshold", "avoided_rate", "avoided_after_visible_rate",
                  "false_activation_rate")
-#: The config groups a draw's chain reads (blindspot.synth.independent_draw.assess_draw and the
-#: predictors of blindspot.safety.predict.stage_predictors): their digest ties a draw's block
-#: to its settings.
-CHAIN_GROUPS = ("scenario", "driving_radar", "sim", "driving_cfar", "doa", "detect",
-                "ego_motion", "tracker", "warning", "calibration", "dataset", "eval", "radar")
+#: The config keys (groups or dotted keys) a draw's chain reads
+#: (blindspot.synth.independent_draw.assess_draw and the predictors of
+#: blindspot.safety.predict.stage_predictors): the draw stages' DVC params (less ``jobs``, which
+#: changes no result) and what :func:`chain_digest` hashes.
+CHAIN_KEYS = ("scenario", "driving_radar", "sim.adc_headroom_db", "driving_cfar", "doa",
+              "detect", "ego_motion", "tracker", "warning", "calibration", "dataset.window",
+              "eval.cv_fit_points", "eval.kalman", "eval.prediction_methods",
+              "radar.frame_period_s")
+#: Keys of :data:`CHAIN_KEYS` that no draw's numbers depend on, left out of the digest: the
+#: false-activation budget is read by the safety stage's choice of the operating point only.
+DIGEST_EXCLUDED = ("warning.false_activation_target",)
 
 
 def independent_scenes(group, named: dict, seed: int, per_cell: int) -> list:
@@ -67,8 +74,7 @@ def draw_noise(ego, seed: int):
     receiver noise) batch by batch (:func:`~blindspot.synth.driving_measurement.measure_driving`),
     drawn from (``ego.seed``, ``seed``), so no draw reuses another's noise fields batch by
     batch. Raises ValueError for a negative ``seed``."""
-    if not (isinstance(seed, (int, np.integer)) and seed >= 0):
-        raise ValueError(f"draw_noise: seed: expected an integer >= 0, found {seed!r}")
+    check_count(seed, "seed", who="draw_noise")
     mixed = int(np.random.SeedSequence([int(ego.seed), int(seed)]).generate_state(
         1, np.uint64)[0] >> np.uint64(1))
     return dataclasses.replace(ego, seed=mixed)
@@ -84,17 +90,28 @@ def draw_truth(scenes: list, group, frame_period_s: float) -> tuple[pd.DataFrame
     return truth, describe_scenes([("monte_carlo", s) for s in scenes], truth)
 
 
-def chain_digest(cfg, groups: tuple[str, ...] = CHAIN_GROUPS) -> str:
-    """A short digest (16 hex digits) of the composed config's ``groups`` (the settings a
-    draw's chain reads): two draw blocks, or a block and the config that reads it, that share
-    it were made with the same chain. Raises KeyError naming a group ``cfg`` lacks."""
+def chain_digest(cfg, keys: tuple[str, ...] = CHAIN_KEYS,
+                 excluded: tuple[str, ...] = DIGEST_EXCLUDED) -> str:
+    """A short digest (16 hex digits) of the composed config's ``keys`` (groups or dotted keys)
+    less ``excluded``: two draw blocks, or a block and the config that reads it, that share it
+    were made with the same settings (the code and the models are DVC's to track). Raises
+    KeyError naming a key ``cfg`` lacks."""
     from omegaconf import OmegaConf
 
-    missing = [g for g in groups if g not in cfg]
-    if missing:
-        raise KeyError(f"chain_digest: cfg: missing config groups {missing}")
-    plain = {g: OmegaConf.to_container(cfg[g], resolve=True) if OmegaConf.is_config(cfg[g])
-             else cfg[g] for g in groups}
+    def value(key: str):
+        node = cfg
+        for part in key.split("."):
+            if part not in node:
+                raise KeyError(f"chain_digest: cfg: missing config key {key!r}")
+            node = node[part]
+        return OmegaConf.to_container(node, resolve=True) if OmegaConf.is_config(node) else node
+
+    plain = {k: value(k) for k in keys}
+    for key in excluded:
+        head, _, leaf = key.rpartition(".")
+        parent = plain.get(head) if head in plain else None
+        if isinstance(parent, dict):
+            parent.pop(leaf, None)
     text = json.dumps(plain, sort_keys=True, default=str)
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 
@@ -113,9 +130,9 @@ def draw_block(metrics: dict, seed: int, curves: pd.DataFrame, digest: str) -> d
         ValueError: metrics without predictors, a seed that is not an integer >= 0, or a
             predictor without a tracker-input curve in ``curves``.
     """
-    if isinstance(seed, (bool, np.bool_)) or not (isinstance(seed, (int, np.integer))
-                                                   and seed >= 0):
-        raise ValueError(f"draw_block: seed: expected an integer >= 0, found {seed!r}")
+    check_count(seed, "seed", who="draw_block")
+    if not (isinstance(digest, str) and digest):
+        raise ValueError(f"draw_block: digest: expected chain_digest's string, found {digest!r}")
     preds = {k: v for k, v in metrics.items()
              if isinstance(v, dict) and "avoided_after_visible_rate" in v}
     if not preds:
@@ -159,7 +176,13 @@ def read_draw(path: Path, digest: str) -> dict:
     (``digest``, :func:`chain_digest` of its config). Raises FileNotFoundError, ValueError
     naming the file (not a draw block, or other chain settings: rerun its stage)."""
     path = Path(path)
-    block = json.loads(path.read_text())
+    if not (isinstance(digest, str) and digest):
+        raise ValueError(f"read_draw: digest: expected chain_digest's string, found {digest!r}")
+    try:
+        block = json.loads(path.read_text())
+    except json.JSONDecodeError as exc:
+        raise ValueError(f"{path}: expected a draw block in JSON, found invalid JSON "
+                         f"({exc})") from exc
     if not isinstance(block, dict) or "chain_digest" not in block:
         raise ValueError(f"{path}: expected a draw block (draw_block's, with a chain_digest), "
                          f"found keys {sorted(block)[:6] if isinstance(block, dict) else block!r}")

@@ -48,7 +48,7 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
-from blindspot.arrays import check_array, check_number
+from blindspot.arrays import check_array, check_count, check_number
 from blindspot.safety.ncap import ncap_band
 from blindspot.track.moving import confirmed_moving
 
@@ -371,8 +371,7 @@ def aeb_thresholds(n: int, tail=()) -> np.ndarray:
     is not added again). The calibrated probabilities of collision saturate near 1 on the
     tracker's rows, so thresholds such as 0.999 or 0.9999 still separate scenes that 0.99 does
     not. Raises ValueError for ``n`` below 1 or a tail threshold outside (0, 1)."""
-    if isinstance(n, bool) or not (isinstance(n, (int, np.integer)) and n >= 1):
-        raise ValueError(f"aeb_thresholds: n: expected an integer >= 1, found {n!r}")
+    check_count(n, "n", ge=1, who="aeb_thresholds")
     t = np.atleast_1d(np.asarray(tail, float)).ravel()
     if not np.all((t > 0) & (t < 1)):
         raise ValueError(f"aeb_thresholds: tail: expected thresholds in (0, 1), found "

@@ -11,10 +11,10 @@ held-out draw is then read at that threshold (:func:`operating_point_at`,
 threshold of the tuning draw keeps to the target, the choice is the threshold with the fewest
 false activations (then the most avoided), marked ``target_met: false``. Ties go to the larger
 threshold: on any draw a larger threshold requests in a subset of the scenes a smaller one
-does, so it activates (and avoids) no more often. The rule uses the point estimate of the
-tuning draw's false-activation rate, so the held-out rate at the chosen threshold comes out
-above the target about as often as below it (read ``false_activation_within_target`` with its
-interval).
+does, so it false-activates no more often. The rule uses the point estimate of the tuning
+draw's false-activation rate, not an upper bound, so nothing keeps the held-out rate at the
+chosen threshold within the target: read ``false_activation_within_target`` with its
+interval.
 
 The curves are :func:`blindspot.safety.evaluation.operating_curve`'s: one row per threshold with
 ``threshold``, ``avoided_rate``, ``avoided_after_visible_rate`` and ``false_activation_rate``;
@@ -26,7 +26,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from blindspot.arrays import check_number
+from blindspot.arrays import check_count, check_number
 from blindspot.safety.draws import draw_curve
 from blindspot.safety.evaluation import wilson
 
@@ -121,9 +121,8 @@ def operating_point_at(curve: pd.DataFrame, threshold: float, n_intruding: int,
     who = "operating_point_at"
     c = _checked(curve, who)
     _unit_interval(threshold, "threshold", who)
-    for name, n in (("n_intruding", n_intruding), ("n_non_intruding", n_non_intruding)):
-        if isinstance(n, bool) or not (isinstance(n, (int, np.integer)) and n >= 1):
-            raise ValueError(f"{who}: {name}: expected an integer >= 1, found {n!r}")
+    check_count(n_intruding, "n_intruding", ge=1, who=who)
+    check_count(n_non_intruding, "n_non_intruding", ge=1, who=who)
     at = np.flatnonzero(np.isclose(c.threshold.to_numpy(float), threshold, rtol=0, atol=1e-9))
     if at.size != 1:
         raise ValueError(f"{who}: threshold: expected one of the curve's thresholds "
@@ -164,8 +163,8 @@ def operating_blocks(tuning: dict, held_out: dict, false_activation_target: floa
     curves (:func:`blindspot.safety.draws.draw_block`) are left out.
 
     Raises:
-        TypeError, KeyError: a block that is not a draw block; a predictor of the held-out
-            block without a curve in the tuning block.
+        TypeError, KeyError: a block that is not a draw block; blocks of different
+            predictors; a predictor without a curve.
         ValueError: both blocks of one draw (the same seed), or the errors of
             :func:`choose_operating_point` and :func:`operating_point_at`.
     """
@@ -173,11 +172,15 @@ def operating_blocks(tuning: dict, held_out: dict, false_activation_target: floa
     if tuning["seed"] == held_out["seed"]:
         raise ValueError(f"operating_blocks: tuning and held_out are blocks of one draw (seed "
                          f"{tuning['seed']}): the operating point must be read on another draw")
+    names = [k for k, v in held_out.items() if isinstance(v, dict)]
+    other = sorted(set(k for k, v in tuning.items() if isinstance(v, dict)) ^ set(names))
+    if other:
+        raise KeyError(f"operating_blocks: the blocks' predictors differ ({other} in one only): "
+                       "both draws must run warning.predictors of one config")
     tune_out = {k: v for k, v in tuning.items() if not isinstance(v, dict)}
     held_out_out = {k: v for k, v in held_out.items() if not isinstance(v, dict)}
-    for name, m in held_out.items():
-        if not isinstance(m, dict):
-            continue
+    for name in names:
+        m = held_out[name]
         curve = draw_curve(tuning, name)
         op = choose_operating_point(curve, false_activation_target)
         at_tuning = operating_point_at(curve, op["aeb_threshold"], *n_tune)

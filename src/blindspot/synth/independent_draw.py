@@ -15,14 +15,15 @@ from blindspot.radar.config import RadarConfig, SimConfig
 from blindspot.radar.scenario import load_scenarios
 from blindspot.safety.assess import SafetyResult, assess
 from blindspot.safety.config import WarningConfig
-from blindspot.safety.draws import draw_noise, draw_truth, independent_scenes
+from blindspot.safety.draws import (chain_digest, draw_block, draw_noise, draw_truth,
+                                    independent_scenes)
 from blindspot.safety.outcome import body_boxes
 from blindspot.safety.risk import EgoShape
 from blindspot.synth.driving_measurement import measure_driving
 from blindspot.synth.driving_tracks import driving_tracks
 from blindspot.track.config import TrackerConfig
 
-__all__ = ["assess_draw"]
+__all__ = ["assess_draw", "draw_stage_block"]
 
 
 def assess_draw(cfg, predictors: dict, *, seed: int, per_cell: int, jobs: int = 1,
@@ -57,3 +58,13 @@ def assess_draw(cfg, predictors: dict, *, seed: int, per_cell: int, jobs: int = 
                   bodies=body_boxes(group), shape=EgoShape(group.ego.width_m, group.ego.length_m),
                   points=points[["scene", "frame", "source"]], frame_period_s=dt,
                   figure_scene=scenes[0].name, draw_seed=seed, ncap_inputs=())
+
+
+def draw_stage_block(cfg, predictors: dict, *, seed: int, per_cell: int, jobs: int = 1,
+                     progress: bool = False, where: str = "draw") -> dict:
+    """What a draw stage writes (safety_tuning.json, safety_held_out.json): the block
+    (:func:`blindspot.safety.draws.draw_block`: rates, operating characteristics and the digest
+    of ``cfg``'s chain settings) of :func:`assess_draw` with these arguments."""
+    res = assess_draw(cfg, predictors, seed=seed, per_cell=per_cell, jobs=jobs,
+                      progress=progress, where=where)
+    return draw_block(res.metrics, seed, res.curves, chain_digest(cfg))
