@@ -95,3 +95,24 @@ def test_the_held_out_sentence_picks_on_the_tuning_draw_and_reads_its_operating_
         in readme._held_out_sentence(safety)
     del safety["tuning_draw"]                                   # without it: the main draw
     assert "other draws) paper's LSTM avoids 46 %" in readme._held_out_sentence(safety)
+
+
+def test_the_bound_sentence_reads_each_bound_and_the_tracker_row_beside_them():
+    def rate(r, lo, hi):
+        return {"avoided_after_visible_rate": r, "avoided_after_visible_rate_ci95": [lo, hi]}
+    bound = {"line_of_sight": rate(0.9, 0.83, 0.94), "radar_point": rate(0.73, 0.64, 0.81),
+             "confirmed_track": rate(0.62, 0.53, 0.71),
+             "settings": {"n_scenes": 216, "confirm_m": 3, "confirm_n": 5}}
+    safety = {"track_state": {"settings": {"aeb_threshold": 0.5},
+                              "by_input": {"tracker": {"avoided_after_visible_rate": 0.574,
+                                                       "false_activation_rate": 0.093}}}}
+    text = readme._bound_sentence(bound, safety)
+    assert ("would avoid 90 [83, 94] % from the child's first frame in line of sight, "
+            "73 [64, 81] % from its first radar point, 62 [53, 71] % from a track confirmed "
+            "on 3 of 5 frames of its points; the chain's own tracks give 57 % at 9 % false "
+            "activations (track state, AEB threshold 0.5)") in text
+    assert text.startswith(" On the main draw (216 scenes)")
+    del bound["radar_point"], safety["track_state"]             # what exists is said
+    text = readme._bound_sentence(bound, safety)
+    assert "its first radar point" not in text and "chain's own" not in text
+    assert readme._bound_sentence({}, safety) == ""

@@ -36,7 +36,8 @@ Cell = Callable[[Mapping[str, Metrics]], str]
 NA = "n/a"
 
 #: the metrics files the block reads (reports/metrics/<name>.json); the report stage's deps
-METRICS_FILES = ("train", "benchmark", "train_direct", "ethucy", "safety", "real_tracking")
+METRICS_FILES = ("train", "benchmark", "train_direct", "ethucy", "safety", "safety_bound",
+                 "real_tracking")
 
 
 class MissingMarkers(ValueError):
@@ -271,8 +272,44 @@ def verdicts(metrics: Mapping[str, Metrics]) -> list[str]:
                    f"on our tracks and predictions avoids {100 * avoided:.0f} % of the simulated "
                    f"collisions with {100 * false:.0f} % false AEB activations; "
                    f"{len(met)} of {len(met) + len(missed)} Euro NCAP-style goals met."
-                   + _held_out_sentence(_get(metrics, ("safety",)) or {}))
+                   + _held_out_sentence(_get(metrics, ("safety",)) or {})
+                   + _bound_sentence(_get(metrics, ("safety_bound",)) or {},
+                                     _get(metrics, ("safety",)) or {}))
     return out
+
+
+#: safety_bound.json's bounds, in the chain's order: what a perfect decision could do from
+#: the first frame of each piece of information about the lead child
+_BOUND_STEPS = (("line_of_sight", "the child's first frame in line of sight"),
+                ("radar_point", "its first radar point"),
+                ("confirmed_track", "a track confirmed on M of N frames of its points"))
+
+
+def _bound_sentence(bound: Mapping[str, Any], safety: Mapping[str, Any]) -> str:
+    """`` On the main draw a perfect decision ...``: of safety_bound.json (``bound``), what any
+    decision could avoid once the child is visible, braking at the best frame from the first
+    frame of each piece of information (:data:`_BOUND_STEPS`), beside the tracker-input
+    track-state row of safety.json on the same scenes; "" without the bounds. The goal a reader
+    compares them with is the issue's, not typed here."""
+    steps = [(name, words, bound[name]) for name, words in _BOUND_STEPS
+             if _num((bound.get(name) or {}).get("avoided_after_visible_rate")) is not None]
+    if not steps:
+        return ""
+    settings = bound.get("settings") or {}
+    parts = [f"{_rate(b, 'avoided_after_visible_rate')} from {words}".replace(
+        "M of N", f"{settings.get('confirm_m', 'M')} of {settings.get('confirm_n', 'N')}")
+        for _, words, b in steps]
+    row = _get(safety, ("track_state", "by_input", "tracker")) or {}
+    tracker, false = (_num(row.get(k)) for k in ("avoided_after_visible_rate",
+                                                 "false_activation_rate"))
+    threshold = _num(_get(safety, ("track_state", "settings", "aeb_threshold")))
+    ours = (f"; the chain's own tracks give {100 * tracker:.0f} % at {100 * false:.0f} % false "
+            f"activations (track state, AEB threshold {threshold:g})"
+            if None not in (tracker, false, threshold) else "")
+    return (f" On the main draw ({settings.get('n_scenes', NA)} scenes), a perfect decision, "
+            f"braking at the best frame and never for a child who does not cross, would avoid "
+            + ", ".join(parts) + ours
+            + ": the radar's detection bounds what any decision can reach.")
 
 
 def _held_out_sentence(safety: Mapping[str, Any]) -> str:
