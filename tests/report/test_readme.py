@@ -34,7 +34,9 @@ def test_missing_files_and_keys_print_na_and_new_keys_are_ignored():
     safety["held_out"] = {"seed": 1, "lstm_direct": {"avoided_after_visible_rate": 0.5}}
     block = readme.results_block({**m, "safety": safety, "headline": {"x": 1}})
     assert "**Does it protect the child?** n/a (the safety stage has not run)." in block
-    assert len(block.splitlines()) == len(readme.ROWS) + 2 + 1 + 3
+    assert len(block.splitlines()) == len(readme.ROWS) + 2 + 1 + 4   # 3 verdicts, the bounds
+    assert len(readme.results_block({k: v for k, v in m.items() if k != "safety_bound"})
+               .splitlines()) == len(readme.ROWS) + 2 + 1 + 3            # no bounds: no line
 
 
 def test_replace_block_keeps_the_rest_and_needs_the_markers():
@@ -97,22 +99,38 @@ def test_the_held_out_sentence_picks_on_the_tuning_draw_and_reads_its_operating_
     assert "other draws) paper's LSTM avoids 46 %" in readme._held_out_sentence(safety)
 
 
-def test_the_bound_sentence_reads_each_bound_and_the_tracker_row_beside_them():
+def test_the_bound_verdict_reads_each_bound_and_the_tracker_row_beside_them():
     def rate(r, lo, hi):
-        return {"avoided_after_visible_rate": r, "avoided_after_visible_rate_ci95": [lo, hi]}
+        # avoided_rate (braking before the child is visible counts too) differs on purpose:
+        # the verdict reads the rate once the child is visible
+        return {"avoided_after_visible_rate": r, "avoided_after_visible_rate_ci95": [lo, hi],
+                "avoided_rate": r + 0.05, "false_activation_rate": 0.0,
+                "false_activation_rate_ci95": [0.0, 0.03], "n_intruding": 108,
+                "n_non_intruding": 107}
     bound = {"line_of_sight": rate(0.9, 0.83, 0.94), "radar_point": rate(0.73, 0.64, 0.81),
              "confirmed_track": rate(0.62, 0.53, 0.71),
-             "settings": {"n_scenes": 216, "confirm_m": 3, "confirm_n": 5}}
+             "settings": {"n_scenes": 215, "confirm_m": 3, "confirm_n": 5}}
     safety = {"track_state": {"settings": {"aeb_threshold": 0.5},
-                              "by_input": {"tracker": {"avoided_after_visible_rate": 0.574,
-                                                       "false_activation_rate": 0.093}}}}
-    text = readme._bound_sentence(bound, safety)
-    assert ("would avoid 90 [83, 94] % from the child's first frame in line of sight, "
-            "73 [64, 81] % from its first radar point, 62 [53, 71] % from a track confirmed "
-            "on 3 of 5 frames of its points; the chain's own tracks give 57 % at 9 % false "
-            "activations (track state, AEB threshold 0.5)") in text
-    assert text.startswith(" On the main draw (216 scenes)")
+                              "by_input": {"tracker": {
+                                  "avoided_after_visible_rate": 0.574,
+                                  "avoided_after_visible_rate_ci95": [0.48, 0.66],
+                                  "avoided_rate": 0.62, "false_activation_rate": 0.093,
+                                  "false_activation_rate_ci95": [0.05, 0.16]}}}}
+    text = readme._bound_verdict(bound, safety)
+    assert text.startswith("**What perception allows:** on the main draw (108 + 107 scenes)")
+    assert ("avoids once the child is visible 90 [83, 94] % from its first frame in line of "
+            "sight, 73 [64, 81] % from its first radar point, 62 [53, 71] % from a track "
+            "confirmed on 3 of 5 frames of its points, each at 0 [0, 3] % false activations; "
+            "the chain on its own tracks (track state, AEB threshold 0.5) 57 [48, 66] % at "
+            "9 [5, 16] %") in text
+    # the step that loses most, whichever it is
+    assert text.endswith("The largest step lost: from its first frame in line of sight to its "
+                         "first radar point, 17 points.")
+    bound["confirmed_track"] = rate(0.40, 0.3, 0.5)
+    assert text != readme._bound_verdict(bound, safety)
+    assert readme._bound_verdict(bound, safety).endswith(
+        "from its first radar point to a track confirmed on 3 of 5 frames of its points, 33 points.")
     del bound["radar_point"], safety["track_state"]             # what exists is said
-    text = readme._bound_sentence(bound, safety)
-    assert "its first radar point" not in text and "chain's own" not in text
-    assert readme._bound_sentence({}, safety) == ""
+    text = readme._bound_verdict(bound, safety)
+    assert "its first radar point" not in text and "own tracks" not in text
+    assert readme._bound_verdict({}, safety) == ""

@@ -236,7 +236,8 @@ def results_table(metrics: Mapping[str, Metrics]) -> str:
 
 
 def verdicts(metrics: Mapping[str, Metrics]) -> list[str]:
-    """The three one-line verdicts: the paper's reproduction, ETH/UCY, the safety answer."""
+    """The one-line verdicts: the paper's reproduction, ETH/UCY, the safety answer, and what
+    perception allows (where safety_bound.json exists)."""
     out = []
     ours = _num(_get(metrics, ("benchmark", "lstm_direct", "path_error_mean_m", "mean")))
     base = {b: _num(_get(metrics, ("benchmark", b, "path_error_mean_m", "mean"))) for b in BASELINES}
@@ -272,44 +273,12 @@ def verdicts(metrics: Mapping[str, Metrics]) -> list[str]:
                    f"on our tracks and predictions avoids {100 * avoided:.0f} % of the simulated "
                    f"collisions with {100 * false:.0f} % false AEB activations; "
                    f"{len(met)} of {len(met) + len(missed)} Euro NCAP-style goals met."
-                   + _held_out_sentence(_get(metrics, ("safety",)) or {})
-                   + _bound_sentence(_get(metrics, ("safety_bound",)) or {},
-                                     _get(metrics, ("safety",)) or {}))
+                   + _held_out_sentence(_get(metrics, ("safety",)) or {}))
+    bounds = _bound_verdict(_get(metrics, ("safety_bound",)) or {},
+                            _get(metrics, ("safety",)) or {})
+    if bounds:
+        out.append(bounds)
     return out
-
-
-#: safety_bound.json's bounds, in the chain's order: what a perfect decision could do from
-#: the first frame of each piece of information about the lead child
-_BOUND_STEPS = (("line_of_sight", "the child's first frame in line of sight"),
-                ("radar_point", "its first radar point"),
-                ("confirmed_track", "a track confirmed on M of N frames of its points"))
-
-
-def _bound_sentence(bound: Mapping[str, Any], safety: Mapping[str, Any]) -> str:
-    """`` On the main draw a perfect decision ...``: of safety_bound.json (``bound``), what any
-    decision could avoid once the child is visible, braking at the best frame from the first
-    frame of each piece of information (:data:`_BOUND_STEPS`), beside the tracker-input
-    track-state row of safety.json on the same scenes; "" without the bounds. The goal a reader
-    compares them with is the issue's, not typed here."""
-    steps = [(name, words, bound[name]) for name, words in _BOUND_STEPS
-             if _num((bound.get(name) or {}).get("avoided_after_visible_rate")) is not None]
-    if not steps:
-        return ""
-    settings = bound.get("settings") or {}
-    parts = [f"{_rate(b, 'avoided_after_visible_rate')} from {words}".replace(
-        "M of N", f"{settings.get('confirm_m', 'M')} of {settings.get('confirm_n', 'N')}")
-        for _, words, b in steps]
-    row = _get(safety, ("track_state", "by_input", "tracker")) or {}
-    tracker, false = (_num(row.get(k)) for k in ("avoided_after_visible_rate",
-                                                 "false_activation_rate"))
-    threshold = _num(_get(safety, ("track_state", "settings", "aeb_threshold")))
-    ours = (f"; the chain's own tracks give {100 * tracker:.0f} % at {100 * false:.0f} % false "
-            f"activations (track state, AEB threshold {threshold:g})"
-            if None not in (tracker, false, threshold) else "")
-    return (f" On the main draw ({settings.get('n_scenes', NA)} scenes), a perfect decision, "
-            f"braking at the best frame and never for a child who does not cross, would avoid "
-            + ", ".join(parts) + ours
-            + ": the radar's detection bounds what any decision can reach.")
 
 
 def _held_out_sentence(safety: Mapping[str, Any]) -> str:
@@ -349,6 +318,47 @@ def _held_out_sentence(safety: Mapping[str, Any]) -> str:
         target = next(iter(ops.values()))["false_activation_target"]
         out += (f"; no predictor's AEB threshold kept to {100 * target:.0f} % false activations "
                 f"on the tuning draw")
+    return out + "."
+
+
+#: safety_bound.json's bounds, in the chain's order: what a perfect decision could do from
+#: the first frame of each piece of information about the lead child ({m}, {n}: M of N)
+_BOUND_STEPS = (("line_of_sight", "its first frame in line of sight"),
+                ("radar_point", "its first radar point"),
+                ("confirmed_track", "a track confirmed on {m} of {n} frames of its points"))
+
+
+def _bound_verdict(bound: Mapping[str, Any], safety: Mapping[str, Any]) -> str:
+    """``**What perception allows:** ...``: of safety_bound.json (``bound``), what a decision
+    braking at the best frame from the first frame of each piece of information
+    (:data:`_BOUND_STEPS`) avoids once the child is visible, and at what false-activation rate,
+    beside the tracker-input track-state row of safety.json on the same scenes, and the step
+    of the chain that loses most; "" without the bounds."""
+    settings = bound.get("settings") or {}
+    steps = [(words.format(m=settings.get("confirm_m", "M"), n=settings.get("confirm_n", "N")),
+              bound[name]) for name, words in _BOUND_STEPS
+             if _num((bound.get(name) or {}).get("avoided_after_visible_rate")) is not None]
+    if not steps:
+        return ""
+    first = steps[0][1]
+    out = (f"**What perception allows:** on the main draw ({first.get('n_intruding', NA)} + "
+           f"{first.get('n_non_intruding', NA)} scenes) a perfect decision, braking at the best "
+           f"frame, avoids once the child is visible "
+           + ", ".join(f"{_rate(b, 'avoided_after_visible_rate')} from {words}"
+                       for words, b in steps)
+           + f", each at {_rate(first, 'false_activation_rate')} false activations")
+    row = _get(safety, ("track_state", "by_input", "tracker")) or {}
+    threshold = _num(_get(safety, ("track_state", "settings", "aeb_threshold")))
+    if None not in (_num(row.get("avoided_after_visible_rate")),
+                    _num(row.get("false_activation_rate")), threshold):
+        out += (f"; the chain on its own tracks ({_label('track_state')}, AEB threshold "
+                f"{threshold:g}) {_rate(row, 'avoided_after_visible_rate')} at "
+                f"{_rate(row, 'false_activation_rate')}")
+    if len(steps) > 1:
+        drops = [(a[1]["avoided_after_visible_rate"] - b[1]["avoided_after_visible_rate"],
+                  a[0], b[0]) for a, b in zip(steps, steps[1:])]
+        drop, a, b = max(drops)
+        out += f". The largest step lost: from {a} to {b}, {100 * drop:.0f} points"
     return out + "."
 
 
