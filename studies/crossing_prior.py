@@ -158,6 +158,21 @@ def dissect(res, tracks: pd.DataFrame, truth: pd.DataFrame, points: pd.DataFrame
               f"{k} {1 - pre[k].mean():.0%}" for k in parts))
 
 
+def study_predictors(cfg, w: WarningConfig, d: Path, wanted: list[str]) -> dict:
+    """The safety stage's calibrated predictors named in ``wanted``, from a finished run's
+    models under ``d`` (data/: train, train_direct, calibration, paths, windows)."""
+    ev, dt = EvalConfig.from_cfg(cfg), float(cfg.driving_radar.frame_period_s)
+    preds = calibrated_predictors(
+        w, prediction_methods(ev, float(cfg.radar.frame_period_s),
+                              LSTMPredictor.load(d / "train" / "model.pt")),
+        json.loads((d / "calibration" / "models.json").read_text()),
+        direct_path=d / "train_direct" / "model.pt", paths=d / "paths" / "paths.parquet",
+        val=d / "windows" / "val.parquet", window=DatasetConfig.from_cfg(cfg).window,
+        calibration=CalibrationConfig.from_cfg(cfg), cv_fit_points=ev.cv_fit_points,
+        where="models.json", frame_periods_s=(dt, float(cfg.radar.frame_period_s)))
+    return {k: v for k, v in preds.items() if k in wanted}
+
+
 def main(argv: list[str]) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--data", type=Path, default=REPO / "data")
@@ -213,19 +228,10 @@ def main(argv: list[str]) -> None:
             raise SystemExit(f"--warning {o!r}: expected KEY=VALUE with KEY one of "
                              f"{sorted(cfg.warning)}")
         cfg.warning[k] = yaml.safe_load(v)
-    w, ev = WarningConfig.from_cfg(cfg), EvalConfig.from_cfg(cfg)
+    w = WarningConfig.from_cfg(cfg)
     group, _ = load_scenarios(cfg.scenario)
     dt = float(cfg.driving_radar.frame_period_s)
-    wanted = args.predictors.split(",")
-    preds = calibrated_predictors(
-        w, prediction_methods(ev, float(cfg.radar.frame_period_s),
-                              LSTMPredictor.load(d / "train" / "model.pt")),
-        json.loads((d / "calibration" / "models.json").read_text()),
-        direct_path=d / "train_direct" / "model.pt", paths=d / "paths" / "paths.parquet",
-        val=d / "windows" / "val.parquet", window=DatasetConfig.from_cfg(cfg).window,
-        calibration=CalibrationConfig.from_cfg(cfg), cv_fit_points=ev.cv_fit_points,
-        where="models.json", frame_periods_s=(dt, float(cfg.radar.frame_period_s)))
-    preds = {k: v for k, v in preds.items() if k in wanted}
+    preds = study_predictors(cfg, w, d, args.predictors.split(","))
     res = assess(truth, json.loads((d / "driving" / "scenes.json").read_text()), inputs, preds,
                  w, bodies=body_boxes(group), shape=EgoShape(group.ego.width_m,
                                                               group.ego.length_m),
