@@ -27,8 +27,7 @@ import argparse
 import json
 from pathlib import Path
 
-import pandas as pd
-
+from blindspot.safety.draws import draw_curve
 from blindspot.safety.operating_point import choose_operating_point
 
 REPO = Path(__file__).resolve().parents[1]
@@ -37,11 +36,13 @@ REPO = Path(__file__).resolve().parents[1]
 def summary(block: dict, predictor: str, target: float) -> str:
     """One predictor's line of a draw block (safety_tuning.json)."""
     b = block[predictor]
-    op = choose_operating_point(pd.DataFrame(b["curve"]), target)
+    op = choose_operating_point(draw_curve(block, predictor), target)
+    flags = ("" if op["target_met"] else " (budget missed: the fewest false activations)") + (
+        " (top of the grid)" if op["top_of_grid"] else "")
     return (f"{predictor:18s} configured threshold: {b['avoided_after_visible_rate']:.3f} at "
             f"{b['false_activation_rate']:.3f}; <= {target:.0%}: threshold "
             f"{op['aeb_threshold']:.6g}, {op['avoided_after_visible_rate']:.3f} at "
-            f"{op['false_activation_rate']:.3f}; first point -> moving "
+            f"{op['false_activation_rate']:.3f}{flags}; first point -> moving "
             f"{b['first_point_to_moving_s_median']:.2f} s")
 
 
@@ -51,14 +52,23 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--predictors", default="track_state,constant_velocity,lstm_direct")
     ap.add_argument("--target", type=float, default=0.03)
     args = ap.parse_args(argv)
-    runs = {"committed": REPO / "reports" / "metrics" / "safety_tuning.json"}
-    for r in args.runs:
-        runs[r.name] = r / "reports" / "metrics" / "safety_tuning.json"
-    for name, path in runs.items():
+    paths = [REPO / "reports" / "metrics" / "safety_tuning.json"]
+    paths += [r / "reports" / "metrics" / "safety_tuning.json" for r in args.runs]
+    blocks = {}
+    for path in dict.fromkeys(paths):                       # each file once, in order
         if not path.is_file():
             raise SystemExit(f"{path}: no safety_tuning.json (run the stage with "
                              f"hydra.run.dir={path.parents[2]})")
-        block = json.loads(path.read_text())
+        blocks[path] = json.loads(path.read_text())
+    draw = ("seed", "n_intruding", "n_non_intruding")
+    committed = blocks[paths[0]]
+    for path, block in blocks.items():
+        if any(block.get(k) != committed.get(k) for k in draw):
+            found = ", ".join(f"{k} {block.get(k)}" for k in draw)
+            want = ", ".join(f"{k} {committed.get(k)}" for k in draw)
+            raise SystemExit(f"{path}: another draw ({found}) than the committed one ({want})")
+    for path, block in blocks.items():
+        name = "committed" if path == paths[0] else str(path.parents[2])
         print(f"{name} (seed {block['seed']}, {block['n_intruding']} + "
               f"{block['n_non_intruding']} scenes, settings {block['chain_digest'][:10]})")
         for p in args.predictors.split(","):
