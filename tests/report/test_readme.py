@@ -117,7 +117,8 @@ def test_the_bound_verdict_reads_each_bound_and_the_tracker_row_beside_them():
                                   "avoided_rate": 0.62, "false_activation_rate": 0.093,
                                   "false_activation_rate_ci95": [0.05, 0.16]}}}}
     text = readme._bound_verdict(bound, safety)
-    assert text.startswith("**What perception allows:** on the main draw (108 + 107 scenes)")
+    assert text.startswith("**What perception allows:** on the main Monte-Carlo draw (the one "
+                           "above, 108 + 107 scenes)")
     assert ("avoids once the child is visible 90 [83, 94] % from its first frame in line of "
             "sight, 73 [64, 81] % from its first radar point, 62 [53, 71] % from a track "
             "confirmed on 3 of 5 frames of its points, each at 0 [0, 3] % false activations; "

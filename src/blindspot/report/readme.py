@@ -341,7 +341,8 @@ def _bound_verdict(bound: Mapping[str, Any], safety: Mapping[str, Any]) -> str:
     if not steps:
         return ""
     first = steps[0][1]
-    out = (f"**What perception allows:** on the main draw ({first.get('n_intruding', NA)} + "
+    out = (f"**What perception allows:** on the main Monte-Carlo draw (the one above, "
+           f"{first.get('n_intruding', NA)} + "
            f"{first.get('n_non_intruding', NA)} scenes) a perfect decision, braking at the best "
            f"frame, avoids once the child is visible "
            + ", ".join(f"{_rate(b, 'avoided_after_visible_rate')} from {words}"
