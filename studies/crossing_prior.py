@@ -52,15 +52,13 @@ from blindspot.safety.oracle import true_state_tracks
 from blindspot.safety.outcome import body_boxes
 from blindspot.safety.predict import calibrated_predictors
 from blindspot.safety.risk import EgoShape
-from blindspot.synth.driving_tracks import tracker_input
 from blindspot.track.crossing import approach_z, crossing_evidence, crossing_state
 from blindspot.track.moving import (coast_frames, doppler_evidence, moving_test_settings,
-                                     moving_tracks, track_static_evidence, velocity_chi2)
-from blindspot.track.tracker import track_points
+                                     track_static_evidence, velocity_chi2)
 from blindspot.traj.baselines import prediction_methods
 from blindspot.traj.config import CalibrationConfig, DatasetConfig, EvalConfig
 from blindspot.traj.lstm import LSTMPredictor
-from first_point import tracker_config  # studies/ is on the path of a script run from it
+from first_point import tracked, tracker_config  # studies/ is on a script's path
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -173,6 +171,21 @@ def study_predictors(cfg, w: WarningConfig, d: Path, wanted: list[str]) -> dict:
     return {k: v for k, v in preds.items() if k in wanted}
 
 
+def study_assess(cfg, w: WarningConfig, d: Path, truth: pd.DataFrame, points: pd.DataFrame,
+                 inputs: dict, preds: dict):
+    """The safety stage's assessment (:func:`blindspot.safety.assess.assess`) of the scenes of
+    ``truth`` (a part of the main draw; its first scene is the figure scene) on each input's
+    tracks with ``preds`` and the warning settings ``w``; ``d``: data/ of a finished run."""
+    group, _ = load_scenarios(cfg.scenario)
+    return assess(truth, json.loads((d / "driving" / "scenes.json").read_text()), inputs, preds,
+                  w, bodies=body_boxes(group), shape=EgoShape(group.ego.width_m,
+                                                               group.ego.length_m),
+                  points=points[["scene", "frame", "source"]],
+                  frame_period_s=float(cfg.driving_radar.frame_period_s),
+                  figure_scene=truth.scene.iloc[0], draw_seed=int(group.monte_carlo.seed),
+                  ncap_inputs=())
+
+
 def main(argv: list[str]) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--data", type=Path, default=REPO / "data")
@@ -210,11 +223,8 @@ def main(argv: list[str]) -> None:
         else:
             inputs = {"true_state": ts}
     else:
-        pts, ego = tracker_input(truth, points)
-        tracks = track_points(pts, tcfg, jobs=args.jobs)
+        tracks, ego = tracked(truth, points, tcfg, args.jobs)
         settings = moving_test_settings(tcfg.moving)
-        tracks["moving"] = moving_tracks(tracks, ego=ego, **settings,
-                                         points=points[["scene", "frame", "x_m", "y_m", "static"]])
         if args.swap_velocity is not None and settings["crossing_prior"] is not None:
             prior = settings["crossing_prior"]
             llr, _, _ = crossing_evidence(tracks, ego, prior)
@@ -229,14 +239,8 @@ def main(argv: list[str]) -> None:
                              f"{sorted(cfg.warning)}")
         cfg.warning[k] = yaml.safe_load(v)
     w = WarningConfig.from_cfg(cfg)
-    group, _ = load_scenarios(cfg.scenario)
-    dt = float(cfg.driving_radar.frame_period_s)
     preds = study_predictors(cfg, w, d, args.predictors.split(","))
-    res = assess(truth, json.loads((d / "driving" / "scenes.json").read_text()), inputs, preds,
-                 w, bodies=body_boxes(group), shape=EgoShape(group.ego.width_m,
-                                                              group.ego.length_m),
-                 points=points[["scene", "frame", "source"]], frame_period_s=dt,
-                 figure_scene=keep[0], draw_seed=int(group.monte_carlo.seed), ncap_inputs=())
+    res = study_assess(cfg, w, d, truth, points, inputs, preds)
     print(f"{args.half} {'draw' if args.half == 'all' else 'half'}, {len(keep)} scenes; overrides {args.overrides}"
           + (f"; velocity swap at ln ratio {args.swap_velocity}" if args.swap_velocity else "")
           + ("; true state in line of sight" if args.true_state else "")

@@ -65,6 +65,18 @@ def tracker_config(cfg, overrides: list[str]) -> TrackerConfig:
     return dataclasses.replace(tcfg, **top, moving=MovingConfig.from_mapping(mv))
 
 
+def tracked(truth: pd.DataFrame, points: pd.DataFrame, tcfg: TrackerConfig, jobs: int
+            ) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """(the tracker's tracks of the driving scenes of ``truth`` and ``points`` with tcfg's
+    moving-object test in column ``moving``, the ego's poses): what the driving_track stage
+    computes, for settings given as overrides."""
+    pts, ego = tracker_input(truth, points)
+    tracks = track_points(pts, tcfg, jobs=jobs)
+    tracks["moving"] = moving_tracks(tracks, ego=ego, **moving_test_settings(tcfg.moving),
+                                     points=points[["scene", "frame", "x_m", "y_m", "static"]])
+    return tracks, ego
+
+
 def main(argv: list[str]) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--data", type=Path, default=REPO / "data")
@@ -79,10 +91,7 @@ def main(argv: list[str]) -> None:
     half = replicate_half(mc)
     keep = mc if args.half == "all" else mc[half if args.half == "tuning" else ~half]
     truth, points = truth[truth.scene.isin(keep)], points[points.scene.isin(keep)]
-    pts, ego = tracker_input(truth, points)
-    tracks = track_points(pts, tcfg, jobs=args.jobs)
-    tracks["moving"] = moving_tracks(tracks, ego=ego, **moving_test_settings(tcfg.moving),
-                                     points=points[["scene", "frame", "x_m", "y_m", "static"]])
+    tracks, _ = tracked(truth, points, tcfg, args.jobs)
     lead = truth[truth.pedestrian == "p0"].groupby("scene").first()
     intr = lead.index[((lead.behaviour == "cross") & lead.collision.astype(bool)).to_numpy()]
     fp = (points[points.source == "p0"].merge(truth[["scene", "frame", "time_s"]]

@@ -21,7 +21,6 @@ other 12 the chain takes a median 0.5 s from the first point to the AEB request.
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
 
 import blindspot  # noqa: F401  first: pins the CPU kernels before numpy loads
@@ -29,17 +28,10 @@ import numpy as np
 import pandas as pd
 from omegaconf import OmegaConf
 
-from blindspot.radar.scenario import load_scenarios
-from blindspot.safety.assess import assess
 from blindspot.safety.config import WarningConfig
 from blindspot.safety.oracle import true_state_tracks
-from blindspot.safety.outcome import body_boxes
-from blindspot.safety.risk import EgoShape
-from blindspot.synth.driving_tracks import tracker_input
-from blindspot.track.moving import moving_test_settings, moving_tracks
-from blindspot.track.tracker import track_points
-from crossing_prior import study_predictors  # studies/ is on the path of a script run from it
-from first_point import tracker_config
+from crossing_prior import study_assess, study_predictors  # studies/ is on a script's path
+from first_point import tracked, tracker_config
 
 REPO = Path(__file__).resolve().parents[1]
 NEAR_M = 0.7          # m, a track row "on the child"
@@ -81,20 +73,11 @@ def main(argv: list[str] | None = None) -> None:
     points = pd.read_parquet(d / "points.parquet")
     mc = truth[truth.set == "monte_carlo"].scene.unique()
     truth, points = truth[truth.scene.isin(mc)], points[points.scene.isin(mc)]
-    pts, ego = tracker_input(truth, points)
-    tcfg = tracker_config(cfg, args.overrides)
-    tracks = track_points(pts, tcfg, jobs=args.jobs)
-    tracks["moving"] = moving_tracks(tracks, ego=ego, **moving_test_settings(tcfg.moving),
-                                     points=points[["scene", "frame", "x_m", "y_m", "static"]])
+    tracks, _ = tracked(truth, points, tracker_config(cfg, args.overrides), args.jobs)
     w = WarningConfig.from_cfg(cfg)
-    group, _ = load_scenarios(cfg.scenario)
-    res = assess(truth, json.loads((d / "scenes.json").read_text()),
-                 {"tracker": tracks, "true_state": true_state_tracks(truth)},
-                 study_predictors(cfg, w, args.data, [args.predictor]), w,
-                 bodies=body_boxes(group), shape=EgoShape(group.ego.width_m, group.ego.length_m),
-                 points=points[["scene", "frame", "source"]],
-                 frame_period_s=float(cfg.driving_radar.frame_period_s), figure_scene=mc[0],
-                 draw_seed=int(group.monte_carlo.seed), ncap_inputs=())
+    res = study_assess(cfg, w, args.data, truth, points,
+                       {"tracker": tracks, "true_state": true_state_tracks(truth)},
+                       study_predictors(cfg, w, args.data, [args.predictor]))
     sc = res.scenes[res.scenes.intruding & (res.scenes.predictor == args.predictor)]
     avoided = sc.pivot_table(index="scene", columns="input", values="avoided", aggfunc="first")
     request = sc.pivot_table(index="scene", columns="input", values="aeb_lead_time_s",

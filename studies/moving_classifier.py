@@ -40,7 +40,6 @@ The next step is the pair (the angle search and a learned test) on the 306 + 306
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
 
 import blindspot  # noqa: F401  first: pins the CPU kernels before numpy loads
@@ -50,19 +49,14 @@ from omegaconf import OmegaConf
 from sklearn.ensemble import HistGradientBoostingClassifier
 from sklearn.metrics import roc_auc_score
 
-from blindspot.radar.scenario import load_scenarios
-from blindspot.safety.assess import assess
 from blindspot.safety.config import WarningConfig
 from blindspot.safety.evaluation import replicate_half
-from blindspot.safety.outcome import body_boxes
-from blindspot.safety.risk import EgoShape
-from blindspot.synth.driving_tracks import tracker_input
 from blindspot.track.config import TrackerConfig
 from blindspot.track.crossing import approach_z, crossing_evidence, toward_path
-from blindspot.track.moving import (coast_frames, moving_test_settings, moving_tracks,
-                                     static_evidence, velocity_chi2)
-from blindspot.track.tracker import track_points
-from crossing_prior import study_predictors  # studies/ is on the path of a script run from it
+from blindspot.track.moving import (coast_frames, moving_test_settings, static_evidence,
+                                     velocity_chi2)
+from crossing_prior import study_assess, study_predictors  # studies/ is on a script's path
+from first_point import tracked
 
 REPO = Path(__file__).resolve().parents[1]
 GRIDS = ((0.5, 10), (0.5, 5), (0.3, 5), (0.3, 3), (0.5, 3))    # (cell m, lag frames)
@@ -126,13 +120,13 @@ def main(argv: list[str] | None = None) -> None:
     points = pd.read_parquet(args.points or d / "driving" / "points.parquet")
     mc = truth[truth.set == "monte_carlo"].scene.unique()
     truth, points = truth[truth.scene.isin(mc)], points[points.scene.isin(mc)]
-    pts, ego = tracker_input(truth, points)
     tcfg = TrackerConfig.from_cfg(cfg)
-    t = track_points(pts, tcfg, jobs=args.jobs).reset_index(drop=True)
+    t, ego = tracked(truth, points, tcfg, args.jobs)
+    t = t.reset_index(drop=True)
+    rule = t.moving.to_numpy(bool)
     settings = moving_test_settings(tcfg.moving)
-    grid = points[["scene", "frame", "x_m", "y_m", "static"]]
-    rule = moving_tracks(t, ego=ego, **settings, points=grid)
-    f, order, key = features(t, ego, grid, settings)
+    f, order, key = features(t, ego, points[["scene", "frame", "x_m", "y_m", "static"]],
+                             settings)
     y = near_pedestrian(t, truth)
     train = replicate_half(t.group.to_numpy())
     if args.train == "held_out":
@@ -154,21 +148,14 @@ def main(argv: list[str] | None = None) -> None:
         moving[order] = hit.to_numpy(bool)
         inputs[f"classifier >= {th:g}"] = moving & conf
     w = WarningConfig.from_cfg(cfg)
-    group, _ = load_scenarios(cfg.scenario)
-    dt = float(cfg.driving_radar.frame_period_s)
     preds = study_predictors(cfg, w, d, ["track_state"])
     keep = mc[~replicate_half(mc) if args.train == "tuning" else replicate_half(mc)]
     tk, pk = truth[truth.scene.isin(keep)], points[points.scene.isin(keep)]
-    meta = json.loads((d / "driving" / "scenes.json").read_text())
     print(f"assessed: {len(keep)} scenes of the other half, track_state")
     for name, moving in inputs.items():
         tracks = t.assign(moving=moving)
-        res = assess(tk, meta, {"tracker": tracks[tracks.group.isin(keep)]}, preds, w,
-                     bodies=body_boxes(group), shape=EgoShape(group.ego.width_m,
-                                                              group.ego.length_m),
-                     points=pk[["scene", "frame", "source"]], frame_period_s=dt,
-                     figure_scene=keep[0], draw_seed=int(group.monte_carlo.seed),
-                     ncap_inputs=())
+        res = study_assess(cfg, w, d, tk, pk, {"tracker": tracks[tracks.group.isin(keep)]},
+                           preds)
         m = res.metrics["track_state"]
         per = res.scenes[res.scenes.intruding].groupby("speed_kmh").avoided.mean()
         print(f"  {name:18s} avoided after visible {m['avoided_after_visible_rate']:.3f}, false "
