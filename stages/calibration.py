@@ -19,9 +19,9 @@ from blindspot.traj.baselines import prediction_methods
 from blindspot.traj.calibration import (LEVELS, calibrate_on_paths, coverage_line,
                                         held_out_pairs, merge_ethucy_folds, to_record)
 from blindspot.traj.config import CalibrationConfig, DatasetConfig, EvalConfig
-from blindspot.traj.conformal import AdaptiveConformal
 from blindspot.traj.direct import NAME as DIRECT, path_splits
 from blindspot.traj.lstm import LSTMPredictor
+from blindspot.traj.online import online_ellipses
 from blindspot.traj.paths import table_to_arrays
 from blindspot.traj.seq2seq import Seq2SeqEnsemble
 from blindspot.traj.windows import WindowSet
@@ -42,7 +42,7 @@ def run(cfg, ctx):
     lstm = LSTMPredictor.load(ctx.dep("train/model.pt")).with_workers(jobs(cfg))
     predictors = {**prediction_methods(ev, RadarConfig.from_cfg(cfg).frame_period_s, lstm),
                   DIRECT: Seq2SeqEnsemble.load(ctx.dep("train_direct/model.pt"))}
-    online = AdaptiveConformal(LEVELS, c.online_gamma, c.online_window, c.online_rescale_after)
+    online = online_ellipses(c, LEVELS)
     calibrated, prior, metrics = calibrate_on_paths(
         predictors, pairs, online, scale_method=c.scale_method, scale_level=c.scale_level,
         cv_fit_points=ev.cv_fit_points, n_test_paths=len(ids["test"]))

@@ -52,6 +52,10 @@ VARIANTS: dict[str, dict] = {
     "social_k4": {"neighbours": 4},
     "social_k8": {"neighbours": 8},
     "lstm_social_k8": {"cell": "lstm", "neighbours": 8},
+    "wide": {"hidden_size": 128, "head_hidden": 256},
+    "epochs32": {"epochs": 32},
+    "scale_aug15": {"scale_aug": 0.15},
+    "scale_aug30": {"scale_aug": 0.3},
 }
 
 

@@ -1,8 +1,8 @@
-"""Adaptive conformal ellipses on the ETH/UCY folds: coverage per setting, CV and Kalman.
+"""Online ellipses on the ETH/UCY folds: coverage per setting, CV and Kalman.
 
     BLINDSPOT_SHARED=<shared> python studies/online_calibration.py \
         [--split val-scenes|val|test] [--gammas 0.002 0.005 0.01] [--windows 60 100 150] \
-        [--rescale 0 3 5 10] [--reveal step whole]
+        [--rescale 0 3 5 10] [--etas 0.05 0.1 0.2] [--eta-steps 0 0.05] [--reveal step whole]
 
 The ethucy stage chooses the setting itself, per fold and model, among the candidates of
 ``ethucy.online_*`` (:func:`blindspot.traj.conformal.select_on_held_out_streams`, the rule of
@@ -23,9 +23,10 @@ candidates give with constant velocity and the Kalman filter:
 * ``--split test``: the test scenes as streams (what the ethucy stage reports, there for every
   model), with the val-calibrated scale mixture's coverage beside: a check, not a choice.
 
-Settings: ``gamma`` (ACI step per prediction time), ``window`` (revealed scores kept), ``rescale``
-(:class:`~blindspot.traj.conformal.AdaptiveConformal`'s ``rescale_prior_after``; 0 off) and
-``reveal`` (``step``: each future point known at its own frame; ``whole``: the whole future at its
+Settings: the sliding window's ``gamma`` (ACI step per prediction time), ``window`` (revealed
+scores kept) and ``rescale`` (:class:`~blindspot.traj.conformal.AdaptiveConformal`'s
+``rescale_prior_after``; 0 off); the scale tracker's ``eta`` and ``eta_step``
+(:class:`~blindspot.traj.scale_tracker.ScaleTracker`); and ``reveal`` (``step``: each future point known at its own frame; ``whole``: the whole future at its
 last frame). Prints per setting the worst and mean distance from nominal and the largest share of
 unbounded ellipses (with ``--per-stream`` or a single setting, first each stream's 50 / 90 / 95 %
 coverage). Constant velocity and the Kalman filter only: they need no training, so the table takes
@@ -54,6 +55,7 @@ from blindspot.traj.distribution import fit_scale_mixture, mahalanobis_sq
 from blindspot.traj.ethucy import FOLDS, OBS_LEN, PRED_LEN, load_split
 from blindspot.traj.ethucy_protocol import (CALIBRATION_LEVELS, MIXTURE_COMPONENTS,
                                              reveal_times, val_windows)
+from blindspot.traj.scale_tracker import ScaleTracker
 
 
 def main() -> None:
@@ -62,6 +64,9 @@ def main() -> None:
     ap.add_argument("--gammas", type=float, nargs="+", default=[0.002, 0.005, 0.01])
     ap.add_argument("--windows", type=int, nargs="+", default=[60, 100, 150])
     ap.add_argument("--rescale", type=int, nargs="+", default=[0, 3, 5, 10])
+    ap.add_argument("--etas", type=float, nargs="*", default=[0.05, 0.1, 0.2],
+                    help="scale tracker steps (none: the sliding window alone)")
+    ap.add_argument("--eta-steps", type=float, nargs="+", default=[0.0, 0.05])
     ap.add_argument("--reveal", choices=("step", "whole"), nargs="+", default=["step", "whole"])
     ap.add_argument("--top", type=int, default=0,
                     help="print only the best N settings of each fold (0: all)")
@@ -72,7 +77,11 @@ def main() -> None:
     args = ap.parse_args()
     data = args.data or Path(os.environ.get("BLINDSPOT_SHARED", "../shared")) / "data/ethucy"
     levels = np.asarray(CALIBRATION_LEVELS)
-    settings = list(itertools.product(args.reveal, args.gammas, args.windows, args.rescale))
+    lv = tuple(levels)
+    settings = [(reveal, c) for reveal in args.reveal for c in (
+        *(AdaptiveConformal(lv, g, w, k) for g, w, k in itertools.product(
+            args.gammas, args.windows, args.rescale)),
+        *(ScaleTracker(lv, e, s) for e, s in itertools.product(args.etas, args.eta_steps)))]
     print(f"split {args.split}; coverage of the "
           f"{' / '.join(f'{round(100 * x)}' for x in levels)} % ellipses")
     for fold in FOLDS:
@@ -81,10 +90,9 @@ def main() -> None:
         for name, d2, start, prior, scene, note in _streams(data, fold, args.split, levels):
             row = [f"{fold:6s} {name:6s} {scene[:16]:16s} n={len(d2):6d}{note}"]
             for key in settings:
-                reveal, gamma, window, rescale = key
-                hits, unb = stream_coverage(AdaptiveConformal(tuple(levels), gamma, window,
-                                                              rescale),
-                                            d2, *reveal_times(start, reveal == "step"), prior)
+                reveal, candidate = key
+                hits, unb = stream_coverage(candidate, d2,
+                                            *reveal_times(start, reveal == "step"), prior)
                 dist[key].append(np.abs(hits - levels))
                 unbounded[key].append(unb)
                 row.append(f"{_name(key)} {_fmt(hits)}" + (f" u {unb:.3f}" if unb else ""))
@@ -138,8 +146,11 @@ def _streams(data: Path, fold: str, split: str, levels: np.ndarray):
 
 
 def _name(key: tuple) -> str:
-    reveal, gamma, window, rescale = key
-    return f"{reveal} g={gamma} W={window} k={rescale}"
+    reveal, candidate = key
+    if isinstance(candidate, ScaleTracker):
+        return f"{reveal} scale eta={candidate.eta} step={candidate.eta_step}"
+    return (f"{reveal} g={candidate.gamma} W={candidate.window} "
+            f"k={candidate.rescale_prior_after}")
 
 
 def _fmt(x: np.ndarray) -> str:

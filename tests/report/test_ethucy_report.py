@@ -141,7 +141,14 @@ def test_the_online_choice_table_names_each_folds_setting():
     cal = {"kalman": {"eth": {"online_gamma": 0.002, "online_window": 100,
                               "online_rescale_after": 3, "online_val_distance": 0.0146}}}
     text = format_online_choice(cal, FOLDS)
-    assert table_row(text, "kalman")[:3] == ["kalman", "0.002 / 100 / 3 (1.46 pp)", "-"]
+    assert table_row(text, "kalman")[:3] == ["kalman", "ACI 0.002 / 100 / 3 (1.46 pp)", "-"]
+    cal["kalman"]["hotel"] = {"online_method": "scale_tracker", "online_eta": 0.05,
+                              "online_eta_step": 0.05, "online_val_distance": 0.0071}
+    assert table_row(format_online_choice(cal, FOLDS), "kalman")[2] == \
+        "scale 0.05 + step 0.05 (0.71 pp)"
+    cal["kalman"]["hotel"] = {"online_method": "scale_tracker", "online_eta": 0.1,
+                              "online_eta_step": 0.0}
+    assert table_row(format_online_choice(cal, FOLDS), "kalman")[2] == "scale 0.1"
     assert format_online_choice({"kalman": {"eth": {"coverage_50": 0.5}}}, FOLDS) == ""
 
 

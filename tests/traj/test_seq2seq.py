@@ -269,6 +269,36 @@ def test_rotation_augmentation_turns_track_future_and_neighbour_vectors_alike():
     assert _rotate_batch(x, y, None, th)[2] is None
 
 
+def test_scale_augmentation_scales_track_future_and_neighbour_vectors_alike():
+    """``_scale_batch``: each scene's points and its neighbours' relative positions and steps
+    are multiplied by the scene's own factor (a walker of another speed on a path of the same
+    shape); the presence flag is not; a config with ``scale_aug`` trains bit for bit the same
+    twice and differs from one without."""
+    import torch
+
+    from blindspot.traj.seq2seq import _scale_batch
+
+    rng = np.random.default_rng(11)
+    x, y = torch.tensor(rng.normal(size=(3, 8, 2))), torch.tensor(rng.normal(size=(3, 12, 2)))
+    s = torch.tensor(rng.normal(size=(3, 2, 8, 5)))
+    k = torch.tensor([0.8, 1.0, 1.3], dtype=torch.float64)
+    xs, ys, ss = _scale_batch(x, y, s, k)
+    for b in range(3):
+        np.testing.assert_allclose(xs[b].numpy(), x[b].numpy() * float(k[b]), atol=1e-12)
+        np.testing.assert_allclose(ys[b].numpy(), y[b].numpy() * float(k[b]), atol=1e-12)
+        np.testing.assert_allclose(ss[b][..., :4].numpy(), s[b][..., :4].numpy() * float(k[b]),
+                                   atol=1e-12)
+        np.testing.assert_array_equal(ss[b][..., 4].numpy(), s[b][..., 4].numpy())
+    assert _scale_batch(x, y, None, k)[2] is None
+    xy = turning_tracks(np.random.default_rng(12), 200)
+    cfg = replace(CFG, scale_aug=0.2, epochs=1)
+    one, two = (train_seq2seq(xy[:150], xy[150:], cfg)[0] for _ in range(2))
+    plain = train_seq2seq(xy[:150], xy[150:], replace(cfg, scale_aug=0.0))[0]
+    obs = xy[150:, :8]
+    np.testing.assert_array_equal(one.predict(obs, 12), two.predict(obs, 12))
+    assert not np.array_equal(one.predict(obs, 12), plain.predict(obs, 12))
+
+
 def test_a_damaged_ensemble_file_is_named(tmp_path):
     import torch
 

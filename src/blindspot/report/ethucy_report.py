@@ -127,24 +127,30 @@ def format_calibration(calibration: Mapping[str, Mapping[str, Mapping[str, Any]]
 
 def format_online_choice(calibration: Mapping[str, Mapping[str, Mapping[str, Any]]],
                          folds: Sequence[str]) -> str:
-    """Markdown table of the adaptive conformal setting each method chose on each fold's val
-    scenes (``online_gamma`` / ``online_window`` / ``online_rescale_after``) and its mean
-    distance from nominal there (``online_val_distance``, percentage points); "" when no row
-    names one."""
+    """Markdown table of the online setting each method chose on each fold's val scenes and its
+    mean distance from nominal there (``online_val_distance``, percentage points): "ACI
+    gamma / window / rescale after" (``online_method`` ``"aci_window"`` or absent, from
+    ``online_gamma`` / ``online_window`` / ``online_rescale_after``) or "scale eta [+ step
+    eta]" (``"scale_tracker"``, ``online_eta`` / ``online_eta_step``); "" when no row names
+    one."""
     lines = ["| method | " + " | ".join(folds) + " |", "|---|" + "---|" * len(folds)]
     seen = False
     for m, rows in calibration.items():
         cells = []
         for f in folds:
             r = rows.get(f) or {}
-            if "online_gamma" not in r:
+            if r.get("online_method") == "scale_tracker":
+                step = r.get("online_eta_step") or 0.0
+                cell = f"scale {r['online_eta']:g}" + (f" + step {step:g}" if step else "")
+            elif "online_gamma" in r:
+                cell = (f"ACI {r['online_gamma']:g} / {r['online_window']} / "
+                        f"{r['online_rescale_after']}")
+            else:
                 cells.append("-")
                 continue
             seen = True
             d = r.get("online_val_distance")
-            cells.append(f"{r['online_gamma']:g} / {r['online_window']} / "
-                         f"{r['online_rescale_after']}"
-                         + (f" ({100 * d:.2f} pp)" if d is not None else ""))
+            cells.append(cell + (f" ({100 * d:.2f} pp)" if d is not None else ""))
         lines.append(f"| {m} | " + " | ".join(cells) + " |")
     return "\n".join(lines) if seen else ""
 
@@ -348,21 +354,25 @@ def format_report(results: Results, validation: Results,
                   "by the history's speed and acceleration) fitted on val; kalman: the filter's "
                   "own F P F^T + Q + R; lstm / gru / mlp: the Gaussian head plus the ensemble "
                   "spread; mix: the mixture's second moment about its single prediction. "
-                  "Rows \"online\": the same forecasts' adaptive conformal ellipses "
-                  "(`blindspot.traj.conformal`, Gibbs & Candès 2021): each test scene a stream, "
-                  "each prediction's ellipse radii the conformal quantiles of the last outcomes "
-                  "already revealed when it is made (each future point at its own frame; the "
-                  "val scores before any, taking the scene's scale once a few of its own are "
-                  "known), at levels moved by ACI; they use the scene's past outcomes, never the "
-                  "one being scored. \"90 %: [lo, hi]\": the 95 % interval of the 90 % "
+                  "Rows \"online\": the same forecasts' online ellipses, each test scene a "
+                  "stream, each future point known at its own frame; they use the scene's past "
+                  "outcomes, never the one being scored. Two kinds, chosen per fold and method "
+                  "on the val scenes: scale tracking (`blindspot.traj.scale_tracker`, "
+                  "Angelopoulos et al. 2023's quantile tracker on the log radius): the val "
+                  "scores' quantile at each step times one scale per level that every revealed "
+                  "outcome moves, a miss widening and a hit narrowing it; or sliding-window ACI "
+                  "(`blindspot.traj.conformal`, Gibbs & Candès 2021): the conformal quantiles of "
+                  "the last revealed outcomes (the val scores before any, taking the scene's "
+                  "scale once a few of its own are known), at levels moved by ACI. \"90 %: [lo, hi]\": the 95 % interval of the 90 % "
                   "coverage, a bootstrap over the scene's pedestrians (one pedestrian's windows "
                   "overlap and are not independent draws). "
                   "\"unbounded\": the share of points whose ellipse at some level is infinite "
-                  "(ACI asked for more than the window can give).",
+                  "(ACI asked for more than its window can give).",
                   "", format_calibration(calibration, folds),
                   *(["", "Online setting each method chose on each fold's own val scenes "
-                     "(ACI step / window / rescale after; in brackets its mean distance from "
-                     "nominal there, each val scene met as a new scene):", "", choice]
+                     "(scale: the tracker's step [+ its per-step correction's]; ACI: step / "
+                     "window / rescale after; in brackets its mean distance from nominal there, "
+                     "each val scene met as a new scene):", "", choice]
                     if (choice := format_online_choice(calibration, folds)) else []),
                   "", "Reliability figure: `reports/figures/ethucy_reliability.png`."]
     if ablation:

@@ -55,8 +55,9 @@ def score_scene_walks(walks: SceneWalks, measured: np.ndarray, *,
         distributions: {name: predictor with ``predict_distribution``} for the methods that
             give a Gaussian forecast (scored on the same histories as their point prediction).
         threads: torch threads while scoring (restored after).
-        online, priors: the adaptive conformal ellipses
-            (:class:`blindspot.traj.conformal.AdaptiveConformal`) scored beside each
+        online, priors: the online ellipses (``calibration.online_method``:
+            :class:`blindspot.traj.scale_tracker.ScaleTracker` or
+            :class:`blindspot.traj.conformal.AdaptiveConformal`) scored beside each
             distribution whose name has a prior, ``priors[name]`` (M, H_cal) its scores on the
             validation pairs (the calibration stage's ``val_scores.npz``): the walks are met one
             after another in their drawn order, each walk's ellipses from the outcomes of the
@@ -114,10 +115,10 @@ def distribution_scores(predictor, tracks: np.ndarray, start: np.ndarray, end: n
     the walks whose forecast, counted from the last point seen (missed frames just before the
     start add steps), stays within it; the others get NaN.
 
-    With ``online`` (an :class:`~blindspot.traj.conformal.AdaptiveConformal` of the same
-    levels) and ``prior`` (M, S) (the predictor's scores on its validation pairs, S forecast
+    With ``online`` (online ellipses of the same levels,
+    :class:`~blindspot.traj.conformal.OnlineEllipses`) and ``prior`` (M, S) (the predictor's scores on its validation pairs, S forecast
     steps from the last point seen), also ``online_coverage_<p>`` per walk: the share of its
-    points inside the adaptive conformal ellipses, each point ranked with the others of its
+    points inside the online ellipses, each point scored with the others of its
     forecast step (step lead + j for the walk's point j), the walks one stream in their order
     (walk k's outcome known before walk k + 1 is predicted)."""
     from blindspot.traj.distribution import chi2_2dof_radius_sq, mahalanobis_sq
@@ -161,8 +162,8 @@ def lead_of(tracks: np.ndarray, start: np.ndarray) -> np.ndarray:
 
 def _online_shares(online, prior: np.ndarray, d2: np.ndarray, lead: np.ndarray
                    ) -> dict[str, np.ndarray]:
-    """Per-walk share of points (d2 (n, H), NaN after a walk's horizon) inside the adaptive
-    conformal ellipses; point j of walk b is forecast step lead[b] + j of ``prior``'s S."""
+    """Per-walk share of points (d2 (n, H), NaN after a walk's horizon) inside the online
+    ellipses; point j of walk b is forecast step lead[b] + j of ``prior``'s S."""
     n, h = d2.shape
     steps = prior.shape[1]
     col = lead[:, None] + np.arange(h)[None, :]                             # (n, H)
@@ -234,19 +235,18 @@ def score_walks(walks: SceneWalks, measured: np.ndarray, *, ev, bench, calibrati
     methods (``ev.prediction_methods``), the direct LSTM ``direct`` (continued at its last
     step's velocity past its horizon) and each member of the LSTM's ensemble score the walks
     (:func:`score_scene_walks`) with the calibration stage's distributions (``records``,
-    ``val_scores``) and the adaptive conformal ellipses; then :func:`walk_statistics`."""
+    ``val_scores``) and the online ellipses; then :func:`walk_statistics`."""
     from blindspot.traj.baselines import kalman_baseline, prediction_methods
     from blindspot.traj.calibration import calibrated_distributions
-    from blindspot.traj.conformal import AdaptiveConformal
     from blindspot.traj.direct import NAME as DIRECT
+    from blindspot.traj.online import online_ellipses
     from blindspot.traj.predictor import ConstantVelocityTail
 
     predictors = {**prediction_methods(ev, dt, lstm),
                   DIRECT: ConstantVelocityTail(direct, direct.cfg.horizon)}
     distributions, priors = calibrated_distributions(records, predictors, val_scores)
     c = calibration
-    online = AdaptiveConformal(COVERAGE_LEVELS, c.online_gamma, c.online_window,
-                               c.online_rescale_after)
+    online = online_ellipses(c, COVERAGE_LEVELS)
     members = ({f"lstm_member{i}": lstm.member(i) for i in range(lstm.n_members)}
                if lstm.n_members > 1 else {})
     scores, _ = score_scene_walks(

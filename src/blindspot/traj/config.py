@@ -21,6 +21,8 @@ from blindspot.typed_config import ConfigError, TypedConfig, setting
 # algorithms: the ETH/UCY leave-one-scene-out folds and the gap-filling methods.
 ETHUCY_FOLDS: tuple[str, ...] = ("eth", "hotel", "univ", "zara1", "zara2")
 INTERPOLATION_METHODS = ("forward", "kalman", "bidirectional")
+#: the online ellipses (blindspot.traj.scale_tracker, blindspot.traj.conformal)
+ONLINE_METHODS = ("scale_tracker", "aci_window")
 
 __all__ = [
     "ACTIVATIONS", "DatasetConfig", "ETHUCY_MODELS", "EthUcyConfig", "EvalConfig", "KalmanConfig", "LSTMConfig", "OPTIMIZERS",
@@ -282,7 +284,8 @@ class Seq2SeqConfig(TypedConfig):
         head_hidden: width of the dense head's hidden layer.
         obs_len: observed positions read (the ETH/UCY protocol: 8).
         horizon: future steps emitted (12).
-        frame, inputs, outputs, residual, mirror, rotation_deg: see :mod:`blindspot.traj.seq2seq`.
+        frame, inputs, outputs, residual, mirror, rotation_deg, scale_aug: see
+            :mod:`blindspot.traj.seq2seq`.
         speed_floor: > 0: the frame is also scaled by the last step's length, floored at this
             many metres (:func:`~blindspot.traj.predictor.heading_frame`), so the network sees
             the shape of the motion whatever the walking speed; 0 = metres.
@@ -318,6 +321,7 @@ class Seq2SeqConfig(TypedConfig):
     residual: bool = setting(True)
     mirror: bool = setting(True)
     rotation_deg: float = setting(0.0, ge=0.0, le=180.0)
+    scale_aug: float = setting(0.0, ge=0.0, le=1.0)
     speed_floor: float = setting(0.0, ge=0.0)
     loss: str = setting("ade", choices=SEQ2SEQ_LOSSES)
     nll_weight: float = setting(0.1, ge=0.0)
@@ -397,8 +401,12 @@ class EthUcyConfig(TypedConfig):
             (:class:`blindspot.traj.conformal.AdaptiveConformal`): the ACI step size per
             prediction time (Gibbs & Candès 2021 use 0.005), in [0, 1); the revealed scores
             kept per step; the own outcomes after which the prior scores take the scene's
-            scale (``rescale_prior_after``; 0 off). Each fold and model chooses among them on
-            its own val scenes (:func:`blindspot.traj.conformal.select_on_held_out_streams`).
+            scale (``rescale_prior_after``; 0 off).
+        online_etas / online_eta_steps: candidate settings of the scale-tracking ellipses
+            (:class:`blindspot.traj.scale_tracker.ScaleTracker`): the shared log-scale's step
+            and the per-step correction's, per revealed outcome (empty etas: none). Each fold
+            and model chooses among all the candidates of both kinds on its own val scenes
+            (:func:`blindspot.traj.conformal.select_on_held_out_streams`).
         seq2seq: the direct predictor's model and training settings
             (:class:`blindspot.traj.seq2seq.Seq2SeqConfig`; its ``cell`` is set by the model
             key, its ``threads`` by ``threads``, its first seed by the top-level ``seed``).
@@ -420,6 +428,8 @@ class EthUcyConfig(TypedConfig):
     online_gammas: tuple[float, ...] = setting(ge=0.0, lt=1.0, min_items=1)
     online_windows: tuple[int, ...] = setting(ge=1, min_items=1)
     online_rescales: tuple[int, ...] = setting(ge=0, min_items=1)
+    online_etas: tuple[float, ...] = setting(gt=0.0, le=1.0)
+    online_eta_steps: tuple[float, ...] = setting(ge=0.0, le=1.0, min_items=1)
     seq2seq: Seq2SeqConfig = setting()
     lstm_rollout: RolloutLSTMConfig = setting()
     seeds: int = setting(1, ge=1)
@@ -523,8 +533,10 @@ class CalibrationConfig(TypedConfig):
     scale_method / scale_level: :func:`fit_step_scale`'s method and level, or ``"mixture"``:
         a per-step scale mixture (:func:`blindspot.traj.distribution.fit_scale_mixture`,
         heavy-tailed errors; ``scale_level`` unused).
-    online_gamma / online_window / online_rescale_after: the adaptive conformal ellipses
-        scored beside (:class:`blindspot.traj.conformal.AdaptiveConformal`).
+    online_method: the online ellipses scored beside: ``"scale_tracker"``
+        (:class:`blindspot.traj.scale_tracker.ScaleTracker`, with ``online_eta`` /
+        ``online_eta_step``) or ``"aci_window"`` (:class:`blindspot.traj.conformal.AdaptiveConformal`,
+        with ``online_gamma`` / ``online_window`` / ``online_rescale_after``).
     """
 
     GROUP = "calibration"
@@ -533,6 +545,9 @@ class CalibrationConfig(TypedConfig):
     stride: int = setting(ge=1, le=1000)
     scale_method: str = setting(choices=("mle", "quantile", "mixture"))
     scale_level: float = setting(gt=0.0, lt=1.0)
+    online_method: str = setting(choices=ONLINE_METHODS)
     online_gamma: float = setting(ge=0.0, lt=1.0)
     online_window: int = setting(ge=1)
     online_rescale_after: int = setting(ge=0)
+    online_eta: float = setting(gt=0.0, le=1.0)
+    online_eta_step: float = setting(ge=0.0, le=1.0)

@@ -63,9 +63,9 @@ import numpy as np
 
 from blindspot.arrays import check_array
 
-__all__ = ["AdaptiveConformal", "ConformalError", "HeldOutStreamScore",
-           "cluster_bootstrap_coverage", "ellipse_hits", "rank_held_out",
-           "select_on_held_out_streams", "stream_coverage"]
+__all__ = ["AdaptiveConformal", "ConformalError", "HeldOutStreamScore", "OnlineEllipses",
+           "check_stream_inputs", "cluster_bootstrap_coverage", "ellipse_hits",
+           "rank_held_out", "select_on_held_out_streams", "stream_coverage"]
 
 #: prefix of the adaptive ellipses' coverage keys in the metrics files
 #: (``online_coverage_50`` beside the val calibration's ``coverage_50``)
@@ -73,11 +73,103 @@ KEY_PREFIX = "online_coverage_"
 
 
 class ConformalError(ValueError):
-    """Scores, times or settings of :class:`AdaptiveConformal` of the wrong shape or value."""
+    """Scores, times or settings of the online ellipses (:class:`AdaptiveConformal`,
+    :class:`~blindspot.traj.scale_tracker.ScaleTracker`) of the wrong shape or value."""
+
+
+def check_stream_inputs(scores, t_predicted, t_revealed, stream, prior, *, who: str
+                        ) -> tuple[np.ndarray, ...]:
+    """The arguments of an online method's ``radii`` checked and as arrays: ``(scores (N, H),
+    t_predicted (N,), t_revealed (N, H), stream (N,) int, prior (M, H))``; a (N,)
+    ``t_revealed`` (the whole future known at once) broadcast to every step.
+
+    Raises:
+        ConformalError (prefixed with ``who``): mismatched shapes, non-finite times, a
+            non-integer stream, or an outcome revealed at or before its prediction.
+    """
+    s = check_array(scores, "scores", ("N", "H"), error=ConformalError, who=who,
+                    allow_nan=True)
+    n, h = s.shape
+    prior = check_array(prior, "prior", ("M", h), error=ConformalError, who=who,
+                        allow_nan=True)
+    tp = check_array(t_predicted, "t_predicted", (n,), error=ConformalError, who=who)
+    per_step = np.ndim(t_revealed) == 2
+    tr = check_array(t_revealed, "t_revealed", (n, h) if per_step else (n,),
+                     error=ConformalError, who=who)
+    group = check_array(stream, "stream", (n,), error=ConformalError, who=who, dtype=int)
+    tr = tr if per_step else np.broadcast_to(tr[:, None], (n, h))
+    early = tr <= tp[:, None]
+    if np.any(early):
+        i, k = np.unravel_index(int(np.argmax(early)), early.shape)
+        at = f"row {i} step {k}" if per_step else f"row {i}"
+        raise ConformalError(f"{who}: t_revealed must be after t_predicted (an outcome is "
+                             f"known only after its prediction is made); {at} has "
+                             f"t_predicted {tp[i]:g}, t_revealed {tr[i, k]:g}")
+    return s, tp, tr, group, prior
+
+
+class OnlineEllipses:
+    """What the online ellipses share (:class:`AdaptiveConformal`,
+    :class:`blindspot.traj.scale_tracker.ScaleTracker`): nominal ``levels``, ``radii(scores,
+    t_predicted, t_revealed, stream, prior)`` (L, N, H) in d^2 units, the coverage computed
+    from them, and ``setting``, what the metrics files record of the choice."""
+
+    levels: tuple[float, ...]
+
+    def radii(self, scores: np.ndarray, t_predicted: np.ndarray, t_revealed: np.ndarray,
+              stream: np.ndarray, prior: np.ndarray) -> np.ndarray:
+        raise NotImplementedError
+
+    @property
+    def setting(self) -> dict[str, float | int | str]:
+        raise NotImplementedError
+
+    def coverage(self, scores: np.ndarray, t_predicted: np.ndarray, t_revealed: np.ndarray,
+                 stream: np.ndarray, prior: np.ndarray, clusters: np.ndarray | None = None,
+                 n_boot: int = 2000, seed: int = 0) -> dict[str, float | list[float]]:
+        """Coverage and size of the :meth:`radii` (same arguments and errors), for the metrics
+        files: ``online_coverage_<p>`` (p = the level in whole percent): the share of the
+        finite ``scores`` inside their ellipse; ``online_unbounded_<p>``: the share of those
+        points whose ellipse is unbounded (+inf: a coverage bought that way says nothing);
+        ``online_radius_<p>``: the median finite radius, in standard deviations of the
+        forecast's own covariance (sqrt of d^2; a Gaussian's 90 % ellipse: 2.15).
+
+        With ``clusters`` (N,) (integer ids: the pedestrian of each prediction, the path), also
+        ``online_coverage_<p>_ci95``: [lo, hi] of a cluster bootstrap (``n_boot`` resamples of
+        the clusters with replacement, ``seed``; percentile interval) of the coverage of these
+        same ellipses. One pedestrian's overlapping windows are not independent draws, so
+        this, not a binomial interval over the points, says how far a fold's coverage can
+        stray by chance (ETH/UCY eth: 181 windows of a few dozen pedestrians). The radii are
+        held fixed (they depend on other pedestrians' outcomes too): an interval conditional
+        on them."""
+        radii = self.radii(scores, t_predicted, t_revealed, stream, prior)
+        hits = ellipse_hits(scores, radii)
+        seen = ~np.isnan(np.asarray(scores, float))
+        out: dict[str, float | list[float]] = {}
+        for lv, c, r in zip(self.levels, hits, radii):
+            p = round(100 * lv)
+            finite = r[seen & np.isfinite(r)]
+            out[f"{KEY_PREFIX}{p}"] = float(c)
+            out[f"online_unbounded_{p}"] = float(np.isinf(r[seen]).mean()) if seen.any() else 0.0
+            out[f"online_radius_{p}"] = float(np.sqrt(np.median(finite))) if finite.size \
+                else float("inf")
+        if clusters is not None:
+            inside = (np.asarray(scores, float)[None] <= radii) & seen[None]     # (L, N, H)
+            ci = cluster_bootstrap_coverage(inside, seen, clusters, n_boot, seed)
+            for lv, (lo, hi) in zip(self.levels, ci):
+                out[f"{KEY_PREFIX}{round(100 * lv)}_ci95"] = [float(lo), float(hi)]
+        return out
+
+    def _check_levels(self) -> None:
+        lv = np.asarray(self.levels, float)
+        if lv.ndim != 1 or lv.size == 0 or not np.all((lv > 0) & (lv < 1)) \
+                or len({round(100 * x) for x in lv}) != lv.size:
+            raise ConformalError(f"levels: expected nominal coverages in (0, 1), distinct in "
+                                 f"whole percent, found {self.levels!r}")
 
 
 @dataclass(frozen=True)
-class AdaptiveConformal:
+class AdaptiveConformal(OnlineEllipses):
     """Sliding-window conformal ellipses with ACI level updates (module docstring).
 
     Attributes:
@@ -99,11 +191,7 @@ class AdaptiveConformal:
     rescale_prior_after: int = 0
 
     def __post_init__(self) -> None:
-        lv = np.asarray(self.levels, float)
-        if lv.ndim != 1 or lv.size == 0 or not np.all((lv > 0) & (lv < 1)) \
-                or len({round(100 * x) for x in lv}) != lv.size:
-            raise ConformalError(f"levels: expected nominal coverages in (0, 1), distinct in "
-                                 f"whole percent, found {self.levels!r}")
+        self._check_levels()
         if not (np.isfinite(self.gamma) and 0 <= self.gamma < 1):
             raise ConformalError(f"gamma: expected a step size in [0, 1), found {self.gamma!r}")
         if isinstance(self.window, bool) or not (isinstance(self.window, (int, np.integer))
@@ -143,25 +231,9 @@ class AdaptiveConformal:
         level at t depends on the outcomes before t); everything within one time (all its
         predictions, steps and levels) is vectorised.
         """
-        who = "AdaptiveConformal.radii"
-        s = check_array(scores, "scores", ("N", "H"), error=ConformalError, who=who,
-                        allow_nan=True)
+        s, tp, tr, group, prior = check_stream_inputs(scores, t_predicted, t_revealed, stream,
+                                                      prior, who="AdaptiveConformal.radii")
         n, h = s.shape
-        prior = check_array(prior, "prior", ("M", h), error=ConformalError, who=who,
-                            allow_nan=True)
-        tp = check_array(t_predicted, "t_predicted", (n,), error=ConformalError, who=who)
-        per_step = np.ndim(t_revealed) == 2
-        tr = check_array(t_revealed, "t_revealed", (n, h) if per_step else (n,),
-                         error=ConformalError, who=who)
-        group = check_array(stream, "stream", (n,), error=ConformalError, who=who, dtype=int)
-        tr = tr if per_step else np.broadcast_to(tr[:, None], (n, h))
-        early = tr <= tp[:, None]
-        if np.any(early):
-            i, k = np.unravel_index(int(np.argmax(early)), early.shape)
-            at = f"row {i} step {k}" if per_step else f"row {i}"
-            raise ConformalError(f"{who}: t_revealed must be after t_predicted (an outcome is "
-                                 f"known only after its prediction is made); {at} has "
-                                 f"t_predicted {tp[i]:g}, t_revealed {tr[i, k]:g}")
         alpha = 1.0 - np.asarray(self.levels, float)                      # (L,)
         out = np.empty((alpha.size, n, h))
         if prior.shape[0] > self.window:   # evenly spaced through the validation set
@@ -171,41 +243,11 @@ class AdaptiveConformal:
             out[:, rows] = self._stream(s[rows], tp[rows], tr[rows], prior, alpha)
         return out
 
-    def coverage(self, scores: np.ndarray, t_predicted: np.ndarray, t_revealed: np.ndarray,
-                 stream: np.ndarray, prior: np.ndarray, clusters: np.ndarray | None = None,
-                 n_boot: int = 2000, seed: int = 0) -> dict[str, float | list[float]]:
-        """Coverage and size of the :meth:`radii` (same arguments and errors), for the metrics
-        files: ``online_coverage_<p>`` (p = the level in whole percent): the share of the
-        finite ``scores`` inside their ellipse; ``online_unbounded_<p>``: the share of those
-        points whose ellipse is unbounded (+inf: a coverage bought that way says nothing);
-        ``online_radius_<p>``: the median finite radius, in standard deviations of the
-        forecast's own covariance (sqrt of d^2; a Gaussian's 90 % ellipse: 2.15).
-
-        With ``clusters`` (N,) (integer ids: the pedestrian of each prediction, the path), also
-        ``online_coverage_<p>_ci95``: [lo, hi] of a cluster bootstrap (``n_boot`` resamples of
-        the clusters with replacement, ``seed``; percentile interval) of the coverage of these
-        same ellipses. One pedestrian's overlapping windows are not independent draws, so
-        this, not a binomial interval over the points, says how far a fold's coverage can
-        stray by chance (ETH/UCY eth: 181 windows of a few dozen pedestrians). The radii are
-        held fixed (they depend on other pedestrians' outcomes too): an interval conditional
-        on them."""
-        radii = self.radii(scores, t_predicted, t_revealed, stream, prior)
-        hits = ellipse_hits(scores, radii)
-        seen = ~np.isnan(np.asarray(scores, float))
-        out: dict[str, float | list[float]] = {}
-        for lv, c, r in zip(self.levels, hits, radii):
-            p = round(100 * lv)
-            finite = r[seen & np.isfinite(r)]
-            out[f"{KEY_PREFIX}{p}"] = float(c)
-            out[f"online_unbounded_{p}"] = float(np.isinf(r[seen]).mean()) if seen.any() else 0.0
-            out[f"online_radius_{p}"] = float(np.sqrt(np.median(finite))) if finite.size \
-                else float("inf")
-        if clusters is not None:
-            inside = (np.asarray(scores, float)[None] <= radii) & seen[None]     # (L, N, H)
-            ci = cluster_bootstrap_coverage(inside, seen, clusters, n_boot, seed)
-            for lv, (lo, hi) in zip(self.levels, ci):
-                out[f"{KEY_PREFIX}{round(100 * lv)}_ci95"] = [float(lo), float(hi)]
-        return out
+    @property
+    def setting(self) -> dict[str, float | int | str]:
+        """What the metrics files record of the setting."""
+        return {"online_method": "aci_window", "online_gamma": self.gamma,
+                "online_window": self.window, "online_rescale_after": self.rescale_prior_after}
 
     def _stream(self, s: np.ndarray, tp: np.ndarray, tr: np.ndarray, prior: np.ndarray,
                 alpha: np.ndarray) -> np.ndarray:
@@ -310,7 +352,7 @@ class HeldOutStreamScore:
         return cls(float(d.mean()), float(d.max()), float(max(unbounded, default=0.0)))
 
 
-def stream_coverage(candidate: AdaptiveConformal, scores: np.ndarray, t_predicted: np.ndarray,
+def stream_coverage(candidate: OnlineEllipses, scores: np.ndarray, t_predicted: np.ndarray,
                     t_revealed: np.ndarray, prior: np.ndarray) -> tuple[np.ndarray, float]:
     """One stream met with ``prior`` as its first window (the arguments of
     :meth:`AdaptiveConformal.radii`, one stream): the (L,) coverage of its ellipses and the
@@ -332,7 +374,7 @@ def rank_held_out(table: Sequence[HeldOutStreamScore]) -> list[int]:
                                  table[i].distance_mean))
 
 
-def select_on_held_out_streams(candidates: Sequence[AdaptiveConformal], scores: np.ndarray,
+def select_on_held_out_streams(candidates: Sequence[OnlineEllipses], scores: np.ndarray,
                                t_predicted: np.ndarray, t_revealed: np.ndarray,
                                stream: np.ndarray) -> tuple[int, list[HeldOutStreamScore]]:
     """Choose among settings of the adaptive conformal ellipses on validation data alone.

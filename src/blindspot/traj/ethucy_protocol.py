@@ -66,7 +66,9 @@ import numpy as np
 
 from blindspot.traj.baselines import ConstantVelocity, KalmanCV
 from blindspot.traj.config import ETHUCY_MODELS, EthUcyConfig, RolloutLSTMConfig, Seq2SeqConfig
-from blindspot.traj.conformal import AdaptiveConformal, select_on_held_out_streams
+from blindspot.traj.conformal import (AdaptiveConformal, OnlineEllipses,
+                                      select_on_held_out_streams)
+from blindspot.traj.scale_tracker import ScaleTracker
 from blindspot.traj.distribution import (
     ConditionalScaleMixture,
     GaussianForecast,
@@ -155,9 +157,10 @@ class EthUcySettings:
             per-step scale mixture, :func:`fit_scale_mixture`) or ``"conditional"`` (one
             mixture per class of observed speed, :func:`fit_conditional_scale_mixture`).
         speed_edges: the classes' observed-speed edges for ``"conditional"``, m/s.
-        online: candidate settings of the adaptive conformal ellipses scored beside the val
-            calibration (:class:`~blindspot.traj.conformal.AdaptiveConformal`: each test scene
-            a stream whose revealed outcomes keep the ellipses calibrated;
+        online: candidate settings of the online ellipses scored beside the val calibration
+            (:class:`~blindspot.traj.conformal.AdaptiveConformal`,
+            :class:`~blindspot.traj.scale_tracker.ScaleTracker`: each test scene a stream
+            whose revealed outcomes keep the ellipses calibrated;
             ``online_coverage_*``); each fold and model chooses one on its own val scenes
             (:func:`online_coverage`).
         seeds: seeds per learned model (``seq2seq.seed``, + 1, ...).
@@ -171,7 +174,7 @@ class EthUcySettings:
     seq2seq: Seq2SeqConfig = field(default_factory=Seq2SeqConfig)
     calibration: str = "mixture"
     speed_edges: tuple[float, ...] = SPEED_EDGES_M_S
-    online: tuple[AdaptiveConformal, ...] = field(
+    online: tuple[OnlineEllipses, ...] = field(
         default_factory=lambda: (AdaptiveConformal(CALIBRATION_LEVELS),))
     seeds: int = 1
     mix_cell: str = "mlp"
@@ -194,10 +197,13 @@ class EthUcySettings:
                    seq2seq=replace(config.seq2seq, seed=int(seed), threads=config.threads),
                    calibration=config.calibration,
                    speed_edges=tuple(config.calibration_speed_edges),
-                   online=tuple(AdaptiveConformal(CALIBRATION_LEVELS, g, w, k)
-                                for g, w, k in itertools.product(
-                                    config.online_gammas, config.online_windows,
-                                    config.online_rescales)),
+                   online=(*(AdaptiveConformal(CALIBRATION_LEVELS, g, w, k)
+                             for g, w, k in itertools.product(
+                                 config.online_gammas, config.online_windows,
+                                 config.online_rescales)),
+                           *(ScaleTracker(CALIBRATION_LEVELS, e, s)
+                             for e, s in itertools.product(config.online_etas,
+                                                           config.online_eta_steps))),
                    seeds=config.seeds, mix_cell=config.mix_cell, mix_modes=config.mix_modes)
 
 
@@ -309,20 +315,21 @@ def reveal_times(start: np.ndarray, per_step: bool = True) -> tuple[np.ndarray, 
     return tp, tp + PRED_LEN
 
 
-def online_coverage(online: Sequence[AdaptiveConformal], val_forecast: GaussianForecast,
+def online_coverage(online: Sequence[OnlineEllipses], val_forecast: GaussianForecast,
                     val: Windows, test_forecast: GaussianForecast, test: Windows
                     ) -> dict[str, Any]:
-    """``{"online_coverage_50", ...}``: coverage on the test windows of the adaptive conformal
-    ellipses (:class:`~blindspot.traj.conformal.AdaptiveConformal`) of a forecast, with the
+    """``{"online_coverage_50", ...}``: coverage on the test windows of the online ellipses
+    (:class:`~blindspot.traj.conformal.AdaptiveConformal`,
+    :class:`~blindspot.traj.scale_tracker.ScaleTracker`) of a forecast, with the
     setting chosen among ``online`` on the val windows alone
     (:func:`~blindspot.traj.conformal.select_on_held_out_streams`: each val scene met as a new
     scene, the fold's other val scenes its prior; with one val scene, the first candidate).
-    The val scores (d^2 of ``val_forecast``) then fill the test scenes' first window. Each
+    The val scores (d^2 of ``val_forecast``) are then the test scenes' prior. Each
     test scene file is a stream; each future point is known at its own frame
     (:func:`reveal_times`); the ellipse of each window uses only the outcomes known when it
     is predicted. Also ``online_coverage_<p>_ci95`` (a bootstrap over the test pedestrians,
-    ``track_id``), the setting chosen (``online_gamma``, ``online_window``,
-    ``online_rescale_after``) and its mean distance from nominal on the val scenes
+    ``track_id``), the setting chosen (its ``setting``: ``online_method`` and its
+    parameters) and its mean distance from nominal on the val scenes
     (``online_val_distance``).
 
     A fold's val scenes never include its own test recording (the tails of the *other*
@@ -338,8 +345,7 @@ def online_coverage(online: Sequence[AdaptiveConformal], val_forecast: GaussianF
     d2 = mahalanobis_sq(test_forecast, test.future())
     out: dict[str, Any] = chosen.coverage(d2, *reveal_times(test.start), test.file_index,
                                           d2_val, clusters=test.track_id)
-    out.update(online_gamma=chosen.gamma, online_window=chosen.window,
-               online_rescale_after=chosen.rescale_prior_after)
+    out.update(chosen.setting)
     if table is not None:
         out["online_val_distance"] = table[best].distance_mean
     return out
@@ -469,7 +475,7 @@ def run_fold(data_dir: Path, fold: str, models: Sequence[str], lstm: RolloutLSTM
              progress: bool = True, seq2seq: Seq2SeqConfig | None = None,
              calibration: str = "mixture",
              speed_edges: Sequence[float] = SPEED_EDGES_M_S,
-             online: Sequence[AdaptiveConformal] | None = None, *, seeds: int = 1,
+             online: Sequence[OnlineEllipses] | None = None, *, seeds: int = 1,
              mix_cell: str = "mlp", mix_modes: int = BEST_OF) -> dict[str, FoldOutcome]:
     """Evaluate the requested models on one fold: ADE/FDE on test and val, and (models with a
     distribution) calibration on test after a calibration fitted on val, and the coverage of
@@ -667,7 +673,7 @@ def benchmark_items(models: Sequence[str], folds: Sequence[str]) -> list[tuple[s
 
 def _run_item(item: tuple[str, str], *, data_dir: Path, lstm: RolloutLSTMConfig,
               progress: bool, seq2seq: Seq2SeqConfig, calibration: str,
-              speed_edges: Sequence[float], online: Sequence[AdaptiveConformal],
+              speed_edges: Sequence[float], online: Sequence[OnlineEllipses],
               seeds: int = 1, mix_cell: str = "mlp", mix_modes: int = BEST_OF) -> FoldOutcome:
     """One model on one fold (module level, so it pickles): :func:`run_fold` with that model."""
     fold, model = item

@@ -25,6 +25,10 @@ What the model sees and emits (each choice a :class:`Seq2SeqConfig` field, measu
   with that of the mirrored track (walking has no preferred side).
 * ``rotation_deg``: training copies rotated by a uniform random angle in
   [-rotation_deg, rotation_deg] (180 = any direction, the usual world-frame augmentation).
+* ``scale_aug`` (a > 0): each training window (its neighbours' positions and steps with it)
+  scaled by a factor log-uniform in [e^-a, e^a], a walker of another speed on a path of the
+  same shape (a scene recorded at another pace or scale, as ETH/UCY's eth is against the
+  others).
 * Gaussian head (``nll_weight > 0``): per step, log standard deviations along both axes and a
   correlation, trained by the Gaussian negative log-likelihood with the mean held fixed
   (detached), so the uncertainty head never pulls the mean away from the ADE optimum.
@@ -646,6 +650,17 @@ def _rotate_batch(x: torch.Tensor, y: torch.Tensor, s: torch.Tensor | None, thet
     return x, y, s
 
 
+def _scale_batch(x: torch.Tensor, y: torch.Tensor, s: torch.Tensor | None, k: torch.Tensor
+                 ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor | None]:
+    """The scale augmentation: framed observed (B, T, 2) and future (B, H, 2) points and the
+    vector parts of the social features (B, K, T, 5: relative position and own step; the
+    presence flag unchanged) each multiplied by its scene's factor ``k`` (B,)."""
+    x, y = x * k[:, None, None], y * k[:, None, None]
+    if s is not None:
+        s = torch.cat([s[..., :4] * k[:, None, None, None], s[..., 4:]], dim=-1)
+    return x, y, s
+
+
 def _gaussian_nll(e: torch.Tensor, p: torch.Tensor) -> torch.Tensor:
     """Per-point NLL (without the constant ln 2 pi) of errors e (..., 2) under the head's
     Gaussians p (..., 3: log sx, log sy, atanh rho)."""
@@ -798,6 +813,9 @@ def train_seq2seq(train_xy: np.ndarray, val_xy: np.ndarray, cfg: Seq2SeqConfig, 
                     th = (torch.rand(x.shape[0], generator=gen) * 2 - 1) * np.deg2rad(
                         cfg.rotation_deg)
                     x, y, s = _rotate_batch(x, y, s, th)
+                if cfg.scale_aug > 0:
+                    x, y, s = _scale_batch(x, y, s, torch.exp(
+                        (torch.rand(x.shape[0], generator=gen) * 2 - 1) * cfg.scale_aug))
                 u, step, base = _torch_batch(x, cfg)
                 loss, _ = _loss(net(u, step, s), base, y, cfg)
                 opt.zero_grad()
