@@ -2,7 +2,7 @@
 
     BLINDSPOT_SHARED=<shared> python studies/online_calibration.py \
         [--split val-scenes|val|test] [--gammas 0.002 0.005 0.01] [--windows 60 100 150] \
-        [--rescale 0 3 5 10] [--etas 0.05 0.1 0.2] [--eta-steps 0 0.05] [--reveal step whole]
+        [--rescale 0 3 5 10] [--etas 0.02 0.05] [--kappas 5 10 20] [--reveal step whole]
 
 The ethucy stage chooses the setting itself, per fold and model, among the candidates of
 ``ethucy.online_*`` (:func:`blindspot.traj.conformal.select_on_held_out_streams`, the rule of
@@ -25,7 +25,7 @@ candidates give with constant velocity and the Kalman filter:
 
 Settings: the sliding window's ``gamma`` (ACI step per prediction time), ``window`` (revealed
 scores kept) and ``rescale`` (:class:`~blindspot.traj.conformal.AdaptiveConformal`'s
-``rescale_prior_after``; 0 off); the scale tracker's ``eta`` and ``eta_step``
+``rescale_prior_after``; 0 off); the scale tracker's ``eta`` and ``kappa``
 (:class:`~blindspot.traj.scale_tracker.ScaleTracker`); and ``reveal`` (``step``: each future point known at its own frame; ``whole``: the whole future at its
 last frame). Prints per setting the worst and mean distance from nominal and the largest share of
 unbounded ellipses (with ``--per-stream`` or a single setting, first each stream's 50 / 90 / 95 %
@@ -64,9 +64,9 @@ def main() -> None:
     ap.add_argument("--gammas", type=float, nargs="+", default=[0.002, 0.005, 0.01])
     ap.add_argument("--windows", type=int, nargs="+", default=[60, 100, 150])
     ap.add_argument("--rescale", type=int, nargs="+", default=[0, 3, 5, 10])
-    ap.add_argument("--etas", type=float, nargs="*", default=[0.05, 0.1, 0.2],
+    ap.add_argument("--etas", type=float, nargs="*", default=[0.02, 0.05],
                     help="scale tracker steps (none: the sliding window alone)")
-    ap.add_argument("--eta-steps", type=float, nargs="+", default=[0.0, 0.05])
+    ap.add_argument("--kappas", type=float, nargs="+", default=[5.0, 10.0, 20.0])
     ap.add_argument("--reveal", choices=("step", "whole"), nargs="+", default=["step", "whole"])
     ap.add_argument("--top", type=int, default=0,
                     help="print only the best N settings of each fold (0: all)")
@@ -81,7 +81,7 @@ def main() -> None:
     settings = [(reveal, c) for reveal in args.reveal for c in (
         *(AdaptiveConformal(lv, g, w, k) for g, w, k in itertools.product(
             args.gammas, args.windows, args.rescale)),
-        *(ScaleTracker(lv, e, s) for e, s in itertools.product(args.etas, args.eta_steps)))]
+        *(ScaleTracker(lv, e, k) for e, k in itertools.product(args.etas, args.kappas)))]
     print(f"split {args.split}; coverage of the "
           f"{' / '.join(f'{round(100 * x)}' for x in levels)} % ellipses")
     for fold in FOLDS:
@@ -148,7 +148,7 @@ def _streams(data: Path, fold: str, split: str, levels: np.ndarray):
 def _name(key: tuple) -> str:
     reveal, candidate = key
     if isinstance(candidate, ScaleTracker):
-        return f"{reveal} scale eta={candidate.eta} step={candidate.eta_step}"
+        return f"{reveal} scale eta={candidate.eta} kappa={candidate.kappa}"
     return (f"{reveal} g={candidate.gamma} W={candidate.window} "
             f"k={candidate.rescale_prior_after}")
 

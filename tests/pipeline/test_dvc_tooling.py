@@ -88,6 +88,8 @@ def test_dvc_repro_runs_the_stage_and_logs_it(repo: Path) -> None:
 
 
 def test_dvc_repro_refuses_params_stale_against_conf(repo: Path) -> None:
+    dvc("repro", repo=repo)     # up to date, whether or not the test above ran first
+    _commit(repo, "repro")
     small = repo / "conf" / "model" / "small.yaml"
     original = small.read_text()
     small.write_text(original.replace("hidden_size: 16", "hidden_size: 20"))

@@ -119,7 +119,8 @@ def test_calibration_then_benchmark_on_a_tiny_setting(tiny):
     for level in (50, 90, 95):
         entry = m["kalman"][f"online_coverage_{level}"]
         assert 0.0 <= entry["mean"] <= 1.0 and len(entry["ci95"]) == 2
-    assert "Adaptive conformal ellipses" in (root / "reports/tables/benchmark.md").read_text()
+    assert "Online ellipses (`calibration.online_method`" in \
+        (root / "reports/tables/benchmark.md").read_text()
     assert "lstm - kalman" in m["paired"]
     # the scenes' direct LSTM beside the paper's methods: scored, calibrated, paired
     assert {"path_error_mean_m", "ade_1s", "fde_2s", "coverage_90", "online_coverage_90"} <= \

@@ -143,12 +143,8 @@ def test_the_online_choice_table_names_each_folds_setting():
     text = format_online_choice(cal, FOLDS)
     assert table_row(text, "kalman")[:3] == ["kalman", "ACI 0.002 / 100 / 3 (1.46 pp)", "-"]
     cal["kalman"]["hotel"] = {"online_method": "scale_tracker", "online_eta": 0.05,
-                              "online_eta_step": 0.05, "online_val_distance": 0.0071}
-    assert table_row(format_online_choice(cal, FOLDS), "kalman")[2] == \
-        "scale 0.05 + step 0.05 (0.71 pp)"
-    cal["kalman"]["hotel"] = {"online_method": "scale_tracker", "online_eta": 0.1,
-                              "online_eta_step": 0.0}
-    assert table_row(format_online_choice(cal, FOLDS), "kalman")[2] == "scale 0.1"
+                              "online_kappa": 10.0, "online_val_distance": 0.0071}
+    assert table_row(format_online_choice(cal, FOLDS), "kalman")[2] == "scale 0.05 / 10 (0.71 pp)"
     assert format_online_choice({"kalman": {"eth": {"coverage_50": 0.5}}}, FOLDS) == ""
 
 

@@ -135,3 +135,20 @@ def test_the_bound_verdict_reads_each_bound_and_the_tracker_row_beside_them():
     text = readme._bound_verdict(bound, safety)
     assert "its first radar point" not in text and "own tracks" not in text
     assert readme._bound_verdict({}, safety) == ""
+
+
+def test_the_online_sentence_counts_the_scenes_within_two_points_and_names_the_furthest():
+    folds = {"eth": {"online_coverage_50": 0.501, "online_coverage_90": 0.887,
+                     "online_coverage_95": 0.937},
+             "hotel": {"online_coverage_50": 0.52, "online_coverage_90": 0.90,
+                       "online_coverage_95": 0.95},
+             "univ": {"online_coverage_50": 0.48, "online_coverage_90": 0.9,
+                      "online_coverage_95": 0.95, "coverage_50": 0.2}}
+    text = readme._online_sentence(folds)
+    # 2 points exactly is within (hotel, univ); eth's 90 % misses by 1.3 points: within too
+    assert "cover within 2 points of 50 / 90 / 95 % on 3 of 3 test scenes" in text
+    assert text.endswith("(furthest: hotel 50 %, 0.520).")
+    folds["eth"]["online_coverage_95"] = 0.925
+    assert "on 2 of 3 test scenes (furthest: eth 95 %, 0.925)." in readme._online_sentence(folds)
+    assert readme._online_sentence({"eth": {"coverage_50": 0.5}}) == ""
+    assert readme._online_sentence({}) == ""

@@ -130,9 +130,8 @@ def format_online_choice(calibration: Mapping[str, Mapping[str, Mapping[str, Any
     """Markdown table of the online setting each method chose on each fold's val scenes and its
     mean distance from nominal there (``online_val_distance``, percentage points): "ACI
     gamma / window / rescale after" (``online_method`` ``"aci_window"`` or absent, from
-    ``online_gamma`` / ``online_window`` / ``online_rescale_after``) or "scale eta [+ step
-    eta]" (``"scale_tracker"``, ``online_eta`` / ``online_eta_step``); "" when no row names
-    one."""
+    ``online_gamma`` / ``online_window`` / ``online_rescale_after``) or "scale eta / kappa"
+    (``"scale_tracker"``, ``online_eta`` / ``online_kappa``); "" when no row names one."""
     lines = ["| method | " + " | ".join(folds) + " |", "|---|" + "---|" * len(folds)]
     seen = False
     for m, rows in calibration.items():
@@ -140,8 +139,7 @@ def format_online_choice(calibration: Mapping[str, Mapping[str, Mapping[str, Any
         for f in folds:
             r = rows.get(f) or {}
             if r.get("online_method") == "scale_tracker":
-                step = r.get("online_eta_step") or 0.0
-                cell = f"scale {r['online_eta']:g}" + (f" + step {step:g}" if step else "")
+                cell = f"scale {r['online_eta']:g} / {r['online_kappa']:g}"
             elif "online_gamma" in r:
                 cell = (f"ACI {r['online_gamma']:g} / {r['online_window']} / "
                         f"{r['online_rescale_after']}")
@@ -357,10 +355,11 @@ def format_report(results: Results, validation: Results,
                   "Rows \"online\": the same forecasts' online ellipses, each test scene a "
                   "stream, each future point known at its own frame; they use the scene's past "
                   "outcomes, never the one being scored. Two kinds, chosen per fold and method "
-                  "on the val scenes: scale tracking (`blindspot.traj.scale_tracker`, "
-                  "Angelopoulos et al. 2023's quantile tracker on the log radius): the val "
-                  "scores' quantile at each step times one scale per level that every revealed "
-                  "outcome moves, a miss widening and a hit narrowing it; or sliding-window ACI "
+                  "on the val scenes: scale tracking (`blindspot.traj.scale_tracker`): the val "
+                  "scores' quantile at each step times one scale per level, which tracks the "
+                  "scene's quantile (Angelopoulos et al. 2023's quantile tracker on the log "
+                  "radius, every revealed outcome one step) and is corrected by the miss rate "
+                  "the ellipses delivered so far (bounded); or sliding-window ACI "
                   "(`blindspot.traj.conformal`, Gibbs & Candès 2021): the conformal quantiles of "
                   "the last revealed outcomes (the val scores before any, taking the scene's "
                   "scale once a few of its own are known), at levels moved by ACI. \"90 %: [lo, hi]\": the 95 % interval of the 90 % "
@@ -370,7 +369,7 @@ def format_report(results: Results, validation: Results,
                   "(ACI asked for more than its window can give).",
                   "", format_calibration(calibration, folds),
                   *(["", "Online setting each method chose on each fold's own val scenes "
-                     "(scale: the tracker's step [+ its per-step correction's]; ACI: step / "
+                     "(scale: the tracker's step / the correction's gain; ACI: step / "
                      "window / rescale after; in brackets its mean distance from nominal there, "
                      "each val scene met as a new scene):", "", choice]
                     if (choice := format_online_choice(calibration, folds)) else []),

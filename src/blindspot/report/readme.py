@@ -36,8 +36,8 @@ Cell = Callable[[Mapping[str, Metrics]], str]
 NA = "n/a"
 
 #: the metrics files the block reads (reports/metrics/<name>.json); the report stage's deps
-METRICS_FILES = ("train", "benchmark", "train_direct", "ethucy", "safety", "safety_bound",
-                 "real_tracking")
+METRICS_FILES = ("train", "benchmark", "train_direct", "ethucy", "calibration_ethucy", "safety",
+                 "safety_bound", "real_tracking")
 
 
 class MissingMarkers(ValueError):
@@ -259,7 +259,8 @@ def verdicts(metrics: Mapping[str, Metrics]) -> list[str]:
     else:
         word = ("beats" if a < ca and f < cf else "loses to" if a > ca and f > cf else "ties with")
         out.append(f"**ETH/UCY:** our direct predictor ({ethucy_label(name)}, val's choice) {word} constant velocity on both averages: ADE / FDE "
-                   f"{a:.2f} / {f:.2f} m against {ca:.2f} / {cf:.2f} m.")
+                   f"{a:.2f} / {f:.2f} m against {ca:.2f} / {cf:.2f} m."
+                   + _online_sentence((_get(metrics, ("calibration_ethucy", name)) or {})))
     avoided = _num(_get(metrics, ("safety", "lstm_direct", "avoided_rate")))
     false = _num(_get(metrics, ("safety", "lstm_direct", "false_activation_rate")))
     goals = _get(metrics, ("safety", "lstm_direct", "goals")) or {}
@@ -279,6 +280,33 @@ def verdicts(metrics: Mapping[str, Metrics]) -> list[str]:
     if bounds:
         out.append(bounds)
     return out
+
+
+#: the online ellipses' levels (calibration_ethucy.json ``online_coverage_<p>``) and the
+#: distance from nominal the issue asks of each (percentage points)
+_ONLINE_LEVELS = (50, 90, 95)
+_ONLINE_TOLERANCE_PP = 2
+
+
+def _online_sentence(folds: Mapping[str, Any]) -> str:
+    """`` Its online ellipses ...``: of one model's calibration_ethucy.json block (``{fold:
+    {"online_coverage_50", ...}}``), on how many test scenes every level's coverage is within
+    :data:`_ONLINE_TOLERANCE_PP` points of nominal, and the scene and level furthest off;
+    "" without online coverage."""
+    off = {(fold, p): abs(c - p / 100) for fold, row in folds.items() if isinstance(row, Mapping)
+           for p in _ONLINE_LEVELS
+           if (c := _num(row.get(f"online_coverage_{p}"))) is not None}
+    scenes = sorted({fold for fold, _ in off})
+    if not scenes:
+        return ""
+    tol = _ONLINE_TOLERANCE_PP / 100
+    within = [s for s in scenes if all(v <= tol + 1e-12 for (f, _), v in off.items() if f == s)]
+    (fold, p), worst = max(off.items(), key=lambda kv: kv[1])
+    cov = folds[fold][f"online_coverage_{p}"]
+    return (f" Its online ellipses (set from each test scene's revealed outcomes, the method "
+            f"chosen on val) cover within {_ONLINE_TOLERANCE_PP} points of "
+            f"{' / '.join(map(str, _ONLINE_LEVELS))} % on {len(within)} of {len(scenes)} "
+            f"test scenes (furthest: {fold} {p} %, {cov:.3f}).")
 
 
 def _held_out_sentence(safety: Mapping[str, Any]) -> str:

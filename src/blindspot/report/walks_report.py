@@ -83,9 +83,11 @@ def benchmark_table(metrics: Mapping[str, Any], command: str) -> str:
     online = [p for p in preds if "online_coverage_90" in metrics[p]]
     if online:
         keys = ("online_coverage_50", "online_coverage_90", "online_coverage_95")
-        lines += ["", "Adaptive conformal ellipses (blindspot.traj.conformal): the walks met one "
-                  "after another, each walk's ellipses from the outcomes of the walks before it "
-                  "(the validation scores before any).", "",
+        lines += ["", "Online ellipses (`calibration.online_method`: scale tracking, "
+                  "blindspot.traj.scale_tracker, or sliding-window ACI, "
+                  "blindspot.traj.conformal): the walks met one after another, each walk's "
+                  "ellipses from the outcomes of the walks before it (the validation scores "
+                  "before any).", "",
                   "| method | " + " | ".join(_NAMES[k[len("online_"):]] for k in keys) + " |",
                   "|---|" + "---|" * len(keys)]
         lines += [f"| {method_label(p)} | " + " | ".join(_fmt(metrics[p].get(k)) for k in keys)

@@ -28,8 +28,9 @@ import pandas as pd
 from blindspot.arrays import check_count
 from blindspot.radar.driving import describe_scenes, draw_scenarios, scene_truth
 
-__all__ = ["DRAW_KEYS", "CURVE_COLUMNS", "CHAIN_KEYS", "DIGEST_EXCLUDED", "independent_scenes", "draw_truth",
-           "draw_noise", "chain_digest", "draw_block", "draw_curve", "read_draw", "draw_summary"]
+__all__ = ["DRAW_KEYS", "CURVE_COLUMNS", "CHAIN_KEYS", "DIGEST_EXCLUDED", "independent_scenes",
+           "draw_truth", "draw_noise", "chain_digest", "draw_block", "draw_curve", "read_draw",
+           "draw_summary"]
 
 #: Per predictor, the rates of a draw's block (``safety_tuning.json``, ``safety_held_out.json``).
 DRAW_KEYS = ("avoided_after_visible_rate", "avoided_after_visible_rate_ci95",
@@ -109,7 +110,7 @@ def chain_digest(cfg, keys: tuple[str, ...] = CHAIN_KEYS,
     plain = {k: value(k) for k in keys}
     for key in excluded:
         head, _, leaf = key.rpartition(".")
-        parent = plain.get(head) if head in plain else None
+        parent = plain.get(head)
         if isinstance(parent, dict):
             parent.pop(leaf, None)
     text = json.dumps(plain, sort_keys=True, default=str)

@@ -127,7 +127,8 @@ def operating_point_at(curve: pd.DataFrame, threshold: float, n_intruding: int,
     if at.size != 1:
         raise ValueError(f"{who}: threshold: expected one of the curve's thresholds "
                          f"({c.threshold.min():g}..{c.threshold.max():g}, {len(c)} of them; both "
-                         f"draws sweep warning.n_thresholds and tail_thresholds), found {threshold!r}")
+                         f"draws sweep warning.n_thresholds and tail_thresholds), "
+                         f"found {threshold!r}")
     row = c.iloc[int(at[0])]
     out: dict = {"aeb_threshold": float(row.threshold)}
     for key, n in (("avoided_rate", n_intruding), ("avoided_after_visible_rate", n_intruding),

@@ -232,10 +232,11 @@ def forecast_scores(predictor, history: np.ndarray, future: np.ndarray) -> np.nd
 
 def online_scores(predictor, online, prior: np.ndarray,
                   test: tuple[np.ndarray, ...]) -> dict[str, float | list[float]]:
-    """``{"online_coverage_50", ...}`` of a calibrated predictor's adaptive conformal ellipses
-    ``online`` (a :class:`~blindspot.traj.conformal.AdaptiveConformal`, passed in so that the
-    stages reading a calibration do not import it) on test pairs: ``prior`` (M, H) the
-    :func:`forecast_scores` of the validation pairs, which fill the first window, ``test`` =
+    """``{"online_coverage_50", ...}`` of a calibrated predictor's online ellipses
+    ``online`` ( :class:`~blindspot.traj.conformal.OnlineEllipses`, passed in
+    so that the stages reading a calibration do not import them; their ``setting`` is
+    recorded beside) on test pairs: ``prior`` (M, H) the
+    :func:`forecast_scores` of the validation pairs (the ellipses' prior), ``test`` =
     (history, future, path, start) of
     :func:`path_pairs` with ``with_index``. The paths are one stream, met one after another
     as one radar meets walkers (path k's outcomes known before path k + 1 starts; a single walk
@@ -248,8 +249,8 @@ def online_scores(predictor, online, prior: np.ndarray,
     span = int(start.max(initial=0)) + h.shape[1] + f.shape[1] + 1  # frames of a path, and more
     t_pred = np.asarray(path, dtype=np.int64) * span + start + h.shape[1] - 1
     t_seen = t_pred[:, None] + 1 + np.arange(f.shape[1])
-    return online.coverage(d2, t_pred, t_seen, np.zeros(len(d2), np.int64), prior,
-                           clusters=np.asarray(path))
+    return {**online.coverage(d2, t_pred, t_seen, np.zeros(len(d2), np.int64), prior,
+                              clusters=np.asarray(path)), **online.setting}
 
 
 def to_record(p: ScaledPredictor) -> dict:

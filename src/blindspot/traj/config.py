@@ -402,9 +402,10 @@ class EthUcyConfig(TypedConfig):
             prediction time (Gibbs & Candès 2021 use 0.005), in [0, 1); the revealed scores
             kept per step; the own outcomes after which the prior scores take the scene's
             scale (``rescale_prior_after``; 0 off).
-        online_etas / online_eta_steps: candidate settings of the scale-tracking ellipses
-            (:class:`blindspot.traj.scale_tracker.ScaleTracker`): the shared log-scale's step
-            and the per-step correction's, per revealed outcome (empty etas: none). Each fold
+        online_etas / online_kappas: candidate settings of the scale-tracking ellipses
+            (:class:`blindspot.traj.scale_tracker.ScaleTracker`): the tracker's step in log
+            radius per revealed outcome and the coverage correction's gain (empty etas:
+            none). Each fold
             and model chooses among all the candidates of both kinds on its own val scenes
             (:func:`blindspot.traj.conformal.select_on_held_out_streams`).
         seq2seq: the direct predictor's model and training settings
@@ -429,7 +430,7 @@ class EthUcyConfig(TypedConfig):
     online_windows: tuple[int, ...] = setting(ge=1, min_items=1)
     online_rescales: tuple[int, ...] = setting(ge=0, min_items=1)
     online_etas: tuple[float, ...] = setting(gt=0.0, le=1.0)
-    online_eta_steps: tuple[float, ...] = setting(ge=0.0, le=1.0, min_items=1)
+    online_kappas: tuple[float, ...] = setting(ge=0.0, le=100.0, min_items=1)
     seq2seq: Seq2SeqConfig = setting()
     lstm_rollout: RolloutLSTMConfig = setting()
     seeds: int = setting(1, ge=1)
@@ -535,7 +536,7 @@ class CalibrationConfig(TypedConfig):
         heavy-tailed errors; ``scale_level`` unused).
     online_method: the online ellipses scored beside: ``"scale_tracker"``
         (:class:`blindspot.traj.scale_tracker.ScaleTracker`, with ``online_eta`` /
-        ``online_eta_step``) or ``"aci_window"`` (:class:`blindspot.traj.conformal.AdaptiveConformal`,
+        ``online_kappa``) or ``"aci_window"`` (:class:`blindspot.traj.conformal.AdaptiveConformal`,
         with ``online_gamma`` / ``online_window`` / ``online_rescale_after``).
     """
 
@@ -550,4 +551,4 @@ class CalibrationConfig(TypedConfig):
     online_window: int = setting(ge=1)
     online_rescale_after: int = setting(ge=0)
     online_eta: float = setting(gt=0.0, le=1.0)
-    online_eta_step: float = setting(ge=0.0, le=1.0)
+    online_kappa: float = setting(ge=0.0, le=100.0)

@@ -46,6 +46,12 @@ window (after ``window`` own outcomes the window and the guarantee are the plain
 Which setting a scene needs is chosen on validation scenes met as new scenes
 (:func:`select_on_held_out_streams`).
 
+What every online method shares (:class:`OnlineEllipses`: ``levels``, ``radii``, the coverage
+report, ``setting``) and its input check (:func:`check_stream_inputs`) live here too; the other
+method, :class:`blindspot.traj.scale_tracker.ScaleTracker`, keeps no window and moves one scale
+per level on every revealed outcome. :func:`select_on_held_out_streams` chooses among settings
+of both kinds.
+
 Causal by construction: a prediction's radii depend on scores revealed strictly by its own time
 (tested by changing every later score). One stream per scene recording (``stream``): outcomes
 are not shared between recordings.
@@ -118,10 +124,12 @@ class OnlineEllipses:
 
     def radii(self, scores: np.ndarray, t_predicted: np.ndarray, t_revealed: np.ndarray,
               stream: np.ndarray, prior: np.ndarray) -> np.ndarray:
+        """(L, N, H) radii in d^2 units of every prediction's ellipses (each method's own)."""
         raise NotImplementedError
 
     @property
     def setting(self) -> dict[str, float | int | str]:
+        """``online_method`` and the method's parameters, for the metrics files."""
         raise NotImplementedError
 
     def coverage(self, scores: np.ndarray, t_predicted: np.ndarray, t_revealed: np.ndarray,

@@ -201,9 +201,9 @@ class EthUcySettings:
                              for g, w, k in itertools.product(
                                  config.online_gammas, config.online_windows,
                                  config.online_rescales)),
-                           *(ScaleTracker(CALIBRATION_LEVELS, e, s)
-                             for e, s in itertools.product(config.online_etas,
-                                                           config.online_eta_steps))),
+                           *(ScaleTracker(CALIBRATION_LEVELS, e, k)
+                             for e, k in itertools.product(config.online_etas,
+                                                           config.online_kappas))),
                    seeds=config.seeds, mix_cell=config.mix_cell, mix_modes=config.mix_modes)
 
 

@@ -13,7 +13,7 @@ __all__ = ["online_ellipses"]
 
 def online_ellipses(c: CalibrationConfig, levels: tuple[float, ...]) -> OnlineEllipses:
     """The online ellipses of ``c.online_method`` at ``levels``: ``"scale_tracker"`` with
-    ``online_eta`` / ``online_eta_step``, ``"aci_window"`` with ``online_gamma`` /
+    ``online_eta`` / ``online_kappa``, ``"aci_window"`` with ``online_gamma`` /
     ``online_window`` / ``online_rescale_after``.
 
     Raises:
@@ -24,7 +24,7 @@ def online_ellipses(c: CalibrationConfig, levels: tuple[float, ...]) -> OnlineEl
         raise ConformalError(f"online_ellipses: c: expected a CalibrationConfig, found "
                              f"{type(c).__name__}")
     if c.online_method == "scale_tracker":
-        return ScaleTracker(tuple(levels), c.online_eta, c.online_eta_step)
+        return ScaleTracker(tuple(levels), c.online_eta, c.online_kappa)
     if c.online_method == "aci_window":
         return AdaptiveConformal(tuple(levels), c.online_gamma, c.online_window,
                                  c.online_rescale_after)
