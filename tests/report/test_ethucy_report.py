@@ -9,6 +9,7 @@ from blindspot.report.ethucy_report import (
     format_calibration,
     format_report,
     format_table,
+    off_nominal,
 )
 from blindspot.report.paper_values import ETHUCY_PUBLISHED
 
@@ -177,3 +178,10 @@ def test_seeds_and_multi_modal_blocks_are_tables_not_model_rows():
     assert "| mix | 0.41 / 0.72 | 0.13 / 0.21 | 0.27 / 0.47 | 0.004 / 0.008 |" in multi
     assert "NLL 2.00; 0.400 / 0.800 / 0.900; point mean,mode" in multi
     assert format_seeds(RESULTS) == "" and format_multimodal(RESULTS, det, FOLDS) == ""
+
+
+def test_exactly_the_tolerance_is_within_and_anything_beyond_is_off():
+    """The README's count of calibrated scenes and the page's stars share one rule: 2 points
+    off is within (0.52 - 0.50 is 0.020000000000000018 in floats), 2.01 points is not."""
+    assert not off_nominal(0.52, 0.50) and not off_nominal(0.88, 0.90)
+    assert off_nominal(0.5201, 0.50) and off_nominal(0.8799, 0.90)

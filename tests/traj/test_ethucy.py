@@ -28,7 +28,7 @@ from blindspot.traj.ethucy_protocol import (
     lstm_window_set,
     run_benchmark,
 )
-from blindspot.traj.config import EthUcyConfig, RolloutLSTMConfig
+from blindspot.traj.config import EthUcyConfig, RolloutLSTMConfig, Seq2SeqConfig
 from blindspot.traj.metrics import ade, fde
 from blindspot.typed_config import ConfigError
 
@@ -106,6 +106,14 @@ def test_the_rollout_lstm_settings_name_the_bad_key():
         RolloutLSTMConfig.from_mapping({"frame": "heading", "rotations": 2})
     with pytest.raises(ConfigError, match="ethucy.lstm_rollout.ensemble"):
         RolloutLSTMConfig.from_mapping({"ensemble": 0})
+
+
+def test_scale_augmentation_with_a_speed_scaled_frame_is_refused():
+    """The speed-scaled frame divides the scale out, so the combination would only train on
+    windows whose last step sits at the floor: refused, naming the key."""
+    with pytest.raises(ConfigError, match="ethucy.seq2seq.scale_aug.*speed_floor"):
+        Seq2SeqConfig.from_mapping({"scale_aug": 0.15, "speed_floor": 0.05})
+    assert Seq2SeqConfig.from_mapping({"scale_aug": 0.15}).scale_aug == 0.15
 
 
 def test_random_rotations_keep_shape_of_motion():

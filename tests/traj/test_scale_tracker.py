@@ -142,8 +142,20 @@ def test_equal_to_the_one_outcome_at_a_time_reference(kappa):
     got = conf.radii(s, tp, tr, group, prior)
     for g in (0, 1):
         rows = group == g
-        want = reference_radii(s[rows], tp[rows], tr[rows], prior, LEVELS, 0.07, kappa, 20)
+        want = np.maximum.accumulate(   # LEVELS ascending: each level at least the one below
+            reference_radii(s[rows], tp[rows], tr[rows], prior, LEVELS, 0.07, kappa, 20), axis=0)
         np.testing.assert_allclose(got[:, rows], want, rtol=1e-12)
+
+
+def test_the_ellipses_are_nested_whatever_the_order_of_the_levels():
+    """Levels one point apart, given out of order, each tracked on its own by a large step: at
+    every prediction and step the higher level's radius is at least the lower's (without the
+    nesting the 51 % radius falls below the 50 % one on this stream)."""
+    levels = (0.95, 0.51, 0.5)
+    s, tp, tr, _ = bursty_drifting_scene(3)
+    prior = np.random.default_rng(7).exponential(2.0, (500, 12))
+    r = ScaleTracker(levels, eta=0.5, kappa=0.0).radii(s, tp, tr, np.zeros(tp.size, int), prior)
+    assert np.all(r[1] >= r[2]) and np.all(r[0] >= r[1])
 
 
 def test_a_prediction_never_sees_a_later_outcome():

@@ -19,6 +19,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from blindspot.io import write_text
+from blindspot.report.ethucy_report import COVERAGE_TOLERANCE_PP, off_nominal
 from blindspot.report.page import ethucy_label
 from blindspot.report.paper_values import (ETHUCY_CVM, PATH_ERROR_FIRST_BELOW_M, PATH_ERROR_MEAN_M,
                                            VAL_RMSE)
@@ -282,31 +283,28 @@ def verdicts(metrics: Mapping[str, Metrics]) -> list[str]:
     return out
 
 
-#: the online ellipses' levels (calibration_ethucy.json ``online_coverage_<p>``) and the
-#: distance from nominal the issue asks of each (percentage points)
+#: the online ellipses' levels (calibration_ethucy.json ``online_coverage_<p>``)
 _ONLINE_LEVELS = (50, 90, 95)
-_ONLINE_TOLERANCE_PP = 2
 
 
 def _online_sentence(folds: Mapping[str, Any]) -> str:
     """`` Its online ellipses ...``: of one model's calibration_ethucy.json block (``{fold:
     {"online_coverage_50", ...}}``), on how many test scenes every level's coverage is within
-    :data:`_ONLINE_TOLERANCE_PP` points of nominal, and the scene and level furthest off;
-    "" without online coverage."""
-    off = {(fold, p): abs(c - p / 100) for fold, row in folds.items() if isinstance(row, Mapping)
+    :data:`~blindspot.report.ethucy_report.COVERAGE_TOLERANCE_PP` points of nominal, and the
+    scene and level furthest off; "" without online coverage."""
+    cov = {(fold, p): c for fold, row in folds.items() if isinstance(row, Mapping)
            for p in _ONLINE_LEVELS
            if (c := _num(row.get(f"online_coverage_{p}"))) is not None}
-    scenes = sorted({fold for fold, _ in off})
+    scenes = sorted({fold for fold, _ in cov})
     if not scenes:
         return ""
-    tol = _ONLINE_TOLERANCE_PP / 100
-    within = [s for s in scenes if all(v <= tol + 1e-12 for (f, _), v in off.items() if f == s)]
-    (fold, p), worst = max(off.items(), key=lambda kv: kv[1])
-    cov = folds[fold][f"online_coverage_{p}"]
+    within = [s for s in scenes
+              if not any(off_nominal(c, p / 100) for (f, p), c in cov.items() if f == s)]
+    fold, p = max(cov, key=lambda k: abs(cov[k] - k[1] / 100))
     return (f" Its online ellipses (set from each test scene's revealed outcomes, the method "
-            f"chosen on val) cover within {_ONLINE_TOLERANCE_PP} points of "
+            f"chosen on val) cover within {COVERAGE_TOLERANCE_PP} points of "
             f"{' / '.join(map(str, _ONLINE_LEVELS))} % on {len(within)} of {len(scenes)} "
-            f"test scenes (furthest: {fold} {p} %, {cov:.3f}).")
+            f"test scenes (furthest: {fold} {p} %, {cov[fold, p]:.3f}).")
 
 
 def _held_out_sentence(safety: Mapping[str, Any]) -> str:

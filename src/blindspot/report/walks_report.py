@@ -35,12 +35,29 @@ def _fmt(entry: Mapping[str, Any] | None, digits: int = 3) -> str:
 def benchmark_methods(metrics: Mapping[str, Any]) -> tuple[list[str], list[str]]:
     """(prediction methods, fill methods) of a benchmark.json: every top-level key whose value is
     a mapping of metrics, except ``paired``, the seed-ensemble members (``lstm_member<i>``) and
-    their summary (``lstm_members``), which have their own table; fills are the ``fill_<method>``
+    their summary (``lstm_members``), which have their own table, and ``online_setting``; fills are the ``fill_<method>``
     keys. Both lists keep the file's order."""
     keys = [k for k, v in metrics.items() if isinstance(v, Mapping)
-            and k not in ("paired", "lstm_members") and not k.startswith("lstm_member")]
+            and k not in ("paired", "lstm_members", "online_setting")
+            and not k.startswith("lstm_member")]
     fills = [k for k in keys if k.startswith("fill_")]
     return [k for k in keys if k not in fills], fills
+
+
+_ONLINE_METHODS = {"aci_window": "sliding-window ACI, blindspot.traj.conformal",
+                   "scale_tracker": "scale tracking, blindspot.traj.scale_tracker"}
+
+
+def _online_method(setting: Mapping[str, Any] | None) -> str:
+    """The online ellipses' method and parameters as the walks stage recorded them
+    (``online_setting``: ``online_method`` and ``online_<parameter>``), or where to set it."""
+    if not setting:
+        return "`calibration.online_method`"
+    method = setting.get("online_method")
+    params = ", ".join(f"{k[len('online_'):]} {v}" for k, v in setting.items()
+                       if k != "online_method")
+    return (f"`calibration.online_method` {method}: {_ONLINE_METHODS.get(method, method)}"
+            + (f"; {params}" if params else ""))
 
 
 def _members(metrics: Mapping[str, Any]) -> list[str]:
@@ -83,11 +100,9 @@ def benchmark_table(metrics: Mapping[str, Any], command: str) -> str:
     online = [p for p in preds if "online_coverage_90" in metrics[p]]
     if online:
         keys = ("online_coverage_50", "online_coverage_90", "online_coverage_95")
-        lines += ["", "Online ellipses (`calibration.online_method`: scale tracking, "
-                  "blindspot.traj.scale_tracker, or sliding-window ACI, "
-                  "blindspot.traj.conformal): the walks met one after another, each walk's "
-                  "ellipses from the outcomes of the walks before it (the validation scores "
-                  "before any).", "",
+        lines += ["", f"Online ellipses ({_online_method(metrics.get('online_setting'))}): "
+                  "the walks met one after another, each walk's ellipses from the outcomes of "
+                  "the walks before it (the validation scores before any).", "",
                   "| method | " + " | ".join(_NAMES[k[len("online_"):]] for k in keys) + " |",
                   "|---|" + "---|" * len(keys)]
         lines += [f"| {method_label(p)} | " + " | ".join(_fmt(metrics[p].get(k)) for k in keys)

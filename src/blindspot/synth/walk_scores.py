@@ -235,7 +235,8 @@ def score_walks(walks: SceneWalks, measured: np.ndarray, *, ev, bench, calibrati
     methods (``ev.prediction_methods``), the direct LSTM ``direct`` (continued at its last
     step's velocity past its horizon) and each member of the LSTM's ensemble score the walks
     (:func:`score_scene_walks`) with the calibration stage's distributions (``records``,
-    ``val_scores``) and the online ellipses; then :func:`walk_statistics`."""
+    ``val_scores``) and the online ellipses; then :func:`walk_statistics`; ``extra`` also
+    names the online ellipses' setting (``online_setting``)."""
     from blindspot.traj.baselines import kalman_baseline, prediction_methods
     from blindspot.traj.calibration import calibrated_distributions
     from blindspot.traj.direct import NAME as DIRECT
@@ -259,4 +260,5 @@ def score_walks(walks: SceneWalks, measured: np.ndarray, *, ev, bench, calibrati
     metrics, extra, fills = walk_statistics(
         scores, names, members, ev.interpolation_methods, n_walks=len(walks),
         n_boot=bench.n_bootstrap, level=bench.ci_level, seed=seed, train_seed=train_seed)
+    extra["online_setting"] = online.setting
     return metrics, extra, scores, names, fills

@@ -224,8 +224,8 @@ def calibration_scores(predictor, history: np.ndarray, future: np.ndarray) -> di
 
 def forecast_scores(predictor, history: np.ndarray, future: np.ndarray) -> np.ndarray:
     """(N, H) squared Mahalanobis distance of each true future point (N, H, 2) under the
-    predictor's forecast from ``history`` (N, W, 2): the scores the adaptive conformal ellipses
-    (:mod:`blindspot.traj.conformal`) rank (those of the validation pairs are the window they
+    predictor's forecast from ``history`` (N, W, 2): the scores the online ellipses
+    (:mod:`blindspot.traj.online`) rank (those of the validation pairs are the prior they
     start from)."""
     return mahalanobis_sq(predictor.predict_distribution(history, future.shape[1]), future)
 
@@ -302,8 +302,8 @@ def held_out_pairs(measured: np.ndarray, truth: np.ndarray, ids: dict, window: i
 def calibrate_on_paths(predictors: dict, pairs: dict, online, *, scale_method: str,
                        scale_level: float, cv_fit_points: int, n_test_paths: int):
     """(calibrated predictors, validation scores, metrics): each predictor calibrated on the
-    validation pairs (:func:`calibrate`), its scores there (where the adaptive conformal ellipses
-    of ``online`` start, here and in the walks), and its coverage / NLL on the held-out pairs
+    validation pairs (:func:`calibrate`), its scores there (where the online ellipses of
+    ``online`` start, here and in the walks), and its coverage / NLL on the held-out pairs
     beside the online coverage: ``{name: {"sim_paths": {...}}}``."""
     calibrated = calibrate(predictors, *pairs["val"], scale_method=scale_method,
                            scale_level=scale_level, cv_fit_points=cv_fit_points)
@@ -343,7 +343,7 @@ def coverage_line(name: str, m: dict) -> str | None:
 def calibrated_distributions(records: dict, predictors: dict, val_scores) -> tuple[dict, dict]:
     """(distributions, priors): each predictor's calibrated distribution from the calibration
     stage's records (models.json), and its validation scores from ``val_scores`` (the stage's
-    val_scores.npz: where the adaptive conformal ellipses start)."""
+    val_scores.npz: where the online ellipses start)."""
     distributions = {n: from_record(records[n], p, n) for n, p in predictors.items()
                      if n in records}
     with np.load(val_scores) as z:

@@ -335,6 +335,13 @@ class Seq2SeqConfig(TypedConfig):
     neighbours: int = setting(8, ge=0)
     modes: int = setting(1, ge=1)
 
+    def validate(self) -> None:
+        if self.scale_aug > 0 and self.speed_floor > 0:
+            raise ConfigError("scale_aug", self.scale_aug,
+                              "0 when speed_floor > 0 (the speed-scaled frame divides the "
+                              "scale out: scaled windows would only change the last step's "
+                              "floor, inputs the network never meets at prediction time)")
+
 
 @dataclass(frozen=True)
 class RolloutLSTMConfig(TypedConfig):

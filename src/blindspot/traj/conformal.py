@@ -362,10 +362,10 @@ class HeldOutStreamScore:
 
 def stream_coverage(candidate: OnlineEllipses, scores: np.ndarray, t_predicted: np.ndarray,
                     t_revealed: np.ndarray, prior: np.ndarray) -> tuple[np.ndarray, float]:
-    """One stream met with ``prior`` as its first window (the arguments of
-    :meth:`AdaptiveConformal.radii`, one stream): the (L,) coverage of its ellipses and the
-    largest share, over levels, of its finite scores whose ellipse is unbounded (0 without a
-    finite score)."""
+    """One stream met as a new scene, ``prior`` all it knows before its own outcomes (the
+    arguments of :meth:`OnlineEllipses.radii`, one stream): the (L,) coverage of its ellipses
+    and the largest share, over levels, of its finite scores whose ellipse is unbounded (0
+    without a finite score)."""
     s = np.asarray(scores, float)
     radii = candidate.radii(s, t_predicted, t_revealed, np.zeros(len(s), np.int64), prior)
     seen = ~np.isnan(s)
@@ -385,10 +385,13 @@ def rank_held_out(table: Sequence[HeldOutStreamScore]) -> list[int]:
 def select_on_held_out_streams(candidates: Sequence[OnlineEllipses], scores: np.ndarray,
                                t_predicted: np.ndarray, t_revealed: np.ndarray,
                                stream: np.ndarray) -> tuple[int, list[HeldOutStreamScore]]:
-    """Choose among settings of the adaptive conformal ellipses on validation data alone.
+    """Choose among settings of the online ellipses (either kind: sliding-window conformal,
+    :class:`AdaptiveConformal`, or scale tracking, :class:`blindspot.traj.scale_tracker.
+    ScaleTracker`) on validation data alone.
 
-    Each validation stream (a scene recording) is run as a new scene: its first window is
-    filled with the scores of the *other* streams (the prior a test scene meets), and its
+    Each validation stream (a scene recording) is run as a new scene: its prior (the first
+    window, or the quantiles a tracker starts from) is the scores of the *other* streams (the
+    prior a test scene meets), and its
     ellipses are scored against its own outcomes (:func:`stream_coverage`). The choice is the
     first of :func:`rank_held_out`: the candidate with the smallest mean distance from nominal
     over streams and levels among those that never give an unbounded ellipse (one that says

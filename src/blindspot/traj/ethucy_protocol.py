@@ -49,7 +49,7 @@ of :func:`run_fold`: a per-step covariance scale,
 setting, one such mixture per class of observed speed,
 :func:`~blindspot.traj.distribution.fit_conditional_scale_mixture`) and scored on the test scene:
 coverage of the 50/90/95 % ellipses and the NLL (:func:`calibration_scores`), beside the
-adaptive conformal ellipses of :func:`online_coverage`.
+online ellipses (sliding-window conformal or scale tracking) of :func:`online_coverage`.
 """
 
 from __future__ import annotations
@@ -479,7 +479,7 @@ def run_fold(data_dir: Path, fold: str, models: Sequence[str], lstm: RolloutLSTM
              mix_cell: str = "mlp", mix_modes: int = BEST_OF) -> dict[str, FoldOutcome]:
     """Evaluate the requested models on one fold: ADE/FDE on test and val, and (models with a
     distribution) calibration on test after a calibration fitted on val, and the coverage of
-    the adaptive conformal ellipses of the setting chosen among ``online`` on val
+    the online ellipses of the setting chosen among ``online`` on val
     (:func:`online_coverage`; default: :class:`AdaptiveConformal`'s settings alone).
 
     The direct predictors (``lstm``, ``gru``, ``mlp``, ``mix``) are trained with ``seeds``
