@@ -26,6 +26,7 @@ from pathlib import Path
 import blindspot  # noqa: F401  first: pins the CPU kernels before numpy loads
 import numpy as np
 import pandas as pd
+import yaml
 from omegaconf import OmegaConf
 
 from blindspot.track.config import TrackerConfig
@@ -39,10 +40,8 @@ REPO = Path(__file__).resolve().parents[1]
 
 
 def _typed(v: str):
-    try:
-        return float(v) if v.lower() not in ("null", "none") else None
-    except ValueError:
-        return v
+    """A command-line value as YAML reads it: 2 an int, 2.0 a float, null (or none) None."""
+    return None if v.lower() == "none" else yaml.safe_load(v)
 
 
 def tracker_config(cfg, overrides: list[str]) -> TrackerConfig:
@@ -57,11 +56,6 @@ def tracker_config(cfg, overrides: list[str]) -> TrackerConfig:
             mv[k[7:]] = _typed(v)
         else:
             top[k] = _typed(v)
-    for k in ("confirm_m", "confirm_n", "max_misses", "cluster_min_samples"):
-        if k in top:
-            top[k] = int(top[k])
-    for k in ("static_evidence_min", "static_lag_frames", "crossing_window"):
-        mv[k] = int(mv[k])
     return dataclasses.replace(tcfg, **top, moving=MovingConfig.from_mapping(mv))
 
 

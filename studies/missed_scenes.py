@@ -6,7 +6,7 @@ each input; then how many are lost before the first radar point (it comes 0.3 s 
 line of sight) and the median delays of the others. Prints figures, asserts nothing.
 
     BLINDSPOT_SHARED=../shared .venv/bin/python studies/missed_scenes.py [--data data] \\
-        [--predictor track_state] [tracker overrides key=value ...]
+        [--predictor track_state] [--set monte_carlo|ncap] [--all] [tracker overrides ...]
 
 Reads data/driving (truth, points, scenes.json) and the predictors' models as
 ``studies/crossing_prior.py``; runs the tracker on the whole main draw (about 30 s of CPU).
@@ -65,13 +65,17 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--data", type=Path, default=REPO / "data")
     ap.add_argument("--predictor", default="track_state")
     ap.add_argument("--jobs", type=int, default=2)
+    ap.add_argument("--set", default="monte_carlo", choices=("monte_carlo", "ncap"),
+                    help="the draw (monte_carlo) or Euro NCAP's nominal grids (ncap)")
+    ap.add_argument("--all", action="store_true",
+                    help="every intruding scene's timeline, not only the missed ones")
     ap.add_argument("overrides", nargs="*")
     args = ap.parse_args(argv)
     cfg = OmegaConf.load(REPO / "params.yaml")
     d = args.data / "driving"
     truth = pd.read_parquet(d / "truth.parquet")
     points = pd.read_parquet(d / "points.parquet")
-    mc = truth[truth.set == "monte_carlo"].scene.unique()
+    mc = truth[truth.set == args.set].scene.unique()
     truth, points = truth[truth.scene.isin(mc)], points[points.scene.isin(mc)]
     tracks, _ = tracked(truth, points, tracker_config(cfg, args.overrides), args.jobs)
     w = WarningConfig.from_cfg(cfg)
@@ -82,7 +86,8 @@ def main(argv: list[str] | None = None) -> None:
     avoided = sc.pivot_table(index="scene", columns="input", values="avoided", aggfunc="first")
     request = sc.pivot_table(index="scene", columns="input", values="aeb_lead_time_s",
                              aggfunc="first")
-    missed = avoided.index[(avoided.true_state == 1) & (avoided.tracker == 0)]
+    missed = (avoided.index if args.all
+              else avoided.index[(avoided.true_state == 1) & (avoided.tracker == 0)])
     lead = truth[truth.pedestrian == "p0"]
     own = points[points.source == "p0"]
     rows = [timeline(s, lead[lead.scene == s], own[own.scene == s],
@@ -90,8 +95,11 @@ def main(argv: list[str] | None = None) -> None:
     table = pd.DataFrame(rows).set_index("scene")
     table["aeb_tracker"] = request.tracker.reindex(table.index)
     table["aeb_true_state"] = request.true_state.reindex(table.index)
-    print(f"{len(missed)} of {len(avoided)} intruding scenes avoided on the true state and "
-          f"missed on the tracker ({args.predictor}); true TTC (s) at each step:")
+    table["avoided_tracker"] = avoided.tracker.reindex(table.index)
+    table["avoided_true_state"] = avoided.true_state.reindex(table.index)
+    print(f"{len(missed)} of {len(avoided)} intruding scenes "
+          + ("" if args.all else "avoided on the true state and missed on the tracker ")
+          + f"({args.predictor}); true TTC (s) at each step:")
     with pd.option_context("display.width", 200):
         print(table.round(2).to_string())
     gap = table.line_of_sight - table.radar_point

@@ -147,6 +147,37 @@ def test_static_evidence_removes_a_cluster_sliding_along_a_parked_car():
     assert moving_tracks(tracks, 0.5, points=points, static_evidence_min=0).all()
 
 
+def test_a_track_with_its_own_radial_speed_is_not_held_back_by_the_car_s_old_hits():
+    """static_exempt_log_ratio: a car's face (x = 2 m) seen since frame 0; from frame 15 a
+    child steps out over it at 1.4 m/s (its points static-looking, tangential) with its own
+    radial speed (-0.5 m/s, 3 points a frame, point spread 0.3 m/s: ln ratio 8.3 on its second
+    row, above 4.6), a cluster sliding along the face with the static world's (0). The grid
+    alone holds the child back while it stands on the face's old hits; with the exemption it
+    is moving from its second row, and the sliding cluster is held back as before."""
+    f = np.arange(40)
+    ys = np.arange(0.0, 4.5 + 1e-9, 0.3)
+    face = pd.DataFrame({"scene": "s0", "frame": np.repeat(f, len(ys)), "x_m": 2.0,
+                         "y_m": np.tile(ys, len(f)), "static": True})
+    fc = f[15:]
+    x = 2.5 - 0.14 * (fc - 15)
+    slide = pd.DataFrame({"group": "s0", "track_id": 1, "frame": f, "x_m": 2.0,
+                          "y_m": 0.1 * f, "vx_mps": 0.0, "vy_mps": 1.0, "doppler_mps": 0.0})
+    child = pd.DataFrame({"group": "s0", "track_id": 2, "frame": fc, "x_m": x, "y_m": 2.25,
+                          "vx_mps": -1.4, "vy_mps": 0.0, "doppler_mps": -0.5})
+    tracks = pd.concat([slide, child], ignore_index=True).assign(
+        cov_vxvx=0.01, cov_vxvy=0.0, cov_vyvy=0.01, confirmed=True, n_points=3)
+    kw = dict(points=face, static_evidence_min=1, static_cell_m=0.5, static_lag_frames=10)
+    grid = moving_tracks(tracks, 0.5, **kw)
+    exempt = moving_tracks(tracks, 0.5, static_exempt_log_ratio=4.6, **kw)
+    on_slide, on_child = slice(0, 40), slice(40, None)
+    np.testing.assert_array_equal(exempt[on_slide], grid[on_slide])
+    assert not exempt[on_slide][10:].any()
+    assert not grid[on_child][:5].any()                       # held back on the face's hits
+    assert not exempt[on_child][0] and exempt[on_child][1:].all()
+    with pytest.raises(ValueError, match="static_exempt_log_ratio"):
+        moving_tracks(tracks, 0.5, static_exempt_log_ratio=0.0, **kw)
+
+
 def test_static_evidence_is_read_at_the_last_hit_of_a_coasting_track():
     # the sliding cluster loses its points at frame 20 on the car's face and coasts at its
     # filtered velocity, turned into the lane (-1.4 m/s in x, 1.4 m/s in y): its extrapolated

@@ -832,3 +832,30 @@ def test_track_points_checks_its_own_config_and_jobs():
 def test_compare_tracks_checks_its_own_gate(gate):
     with pytest.raises(ValueError, match=r"compare_tracks: gate_m: expected a finite number > 0"):
         compare_tracks(pd.DataFrame(), pd.DataFrame(), gate)
+
+
+def _stale_track_and_newcomer() -> pd.DataFrame:
+    """A static object at (0, 10) seen in frames 0-9, then silent; a newcomer 1.0 m beside it
+    seen from frame 12 on (frames 10-11 empty): by frame 20 the silent track's grown gate
+    reaches the newcomer, whose own track is tentative or young."""
+    old = frame_table(np.arange(10), np.tile([0.0, 10.0], (10, 1)))
+    gap = frame_table(np.arange(10, 12), np.full((2, 2), np.nan))
+    new = frame_table(np.arange(12, 40), np.tile([1.0, 10.0], (28, 1)))
+    return pd.concat([old, gap, new], ignore_index=True)
+
+
+@pytest.mark.parametrize("name", ["gnn_cv", "jpda_cv"])
+def test_a_long_silent_confirmed_track_loses_its_priority_over_a_newcomers_track(name):
+    """With confirmed tracks always first, the object's track, silent since frame 9, takes the
+    newcomer's detection once its grown gate reaches it and the newcomer's own track dies;
+    with tracker.priority_max_coast_frames = 2 the silent track meets the newcomer's in the
+    second stage, by distance, and the newcomer keeps one track from frame 12 to the end."""
+    pts = _stale_track_and_newcomer()
+    always = track_points(pts, config(name, max_misses=40, priority_max_coast_frames=None))
+    owner = always[(always.frame == 39) & ~always.coasting].track_id
+    assert list(owner) == [0]                                  # the silent track took it
+    demoted = track_points(pts, config(name, max_misses=40, priority_max_coast_frames=2))
+    on_new = demoted[(demoted.frame >= 12) & ~demoted.coasting
+                     & np.isclose(demoted.x_m, 1.0, atol=0.3)]
+    assert on_new.track_id.nunique() == 1 and on_new.frame.min() == 12
+    assert set(demoted[demoted.track_id == on_new.track_id.iloc[0]].frame) >= set(range(12, 40))

@@ -29,7 +29,9 @@ class MovingConfig(TypedConfig):
     Fields: speed_mps, probability (the kinematic test); doppler_std_mps,
     doppler_log_ratio_min, doppler_llr, doppler_log_ratio_floor, doppler_spread_std_mps,
     doppler_reference (the Doppler refutation); static_evidence_min, static_cell_m,
-    static_lag_frames (the static evidence grid); doppler_first_log_ratio (the Doppler-first
+    static_lag_frames (the static evidence grid), static_exempt_log_ratio (a row whose track's
+    own radial speeds make "moving" this many natural-log units likelier than "static" is not
+    held back by the grid; null: the grid holds back every row on it); doppler_first_log_ratio (the Doppler-first
     path: a confirmed track whose own radial speeds make "moving" this many natural-log units
     likelier than "static" is moving without waiting for the kinematic test; null: off);
     crossing_log_ratio (the crossing prior: a confirmed track whose first radial speeds make
@@ -56,6 +58,7 @@ class MovingConfig(TypedConfig):
     static_evidence_min: int = setting(0, ge=0, le=1_000_000)
     static_cell_m: float = setting(0.5, gt=0.0, le=10.0)
     static_lag_frames: int = setting(10, ge=1, le=10_000)
+    static_exempt_log_ratio: float | None = setting(None, gt=0.0, le=1000.0)
     doppler_first_log_ratio: float | None = setting(None, gt=0.0, le=1000.0)
     crossing_log_ratio: float | None = setting(None, gt=0.0, le=1000.0)
     crossing_speed_mps: float = setting(1.4, gt=0.0, le=10.0)
@@ -107,6 +110,13 @@ class TrackerConfig(TypedConfig):
             measurement in ``confirm_m`` of its last ``confirm_n`` frames, and deleted when its
             first ``confirm_n`` frames cannot give that (M-of-N logic; Blackman & Popoli 1999,
             sec. 6.3).
+        priority_max_coast_frames: a confirmed track is associated first (before the
+            tentative tracks, with their detections out of reach) only while it has missed at
+            most this many frames in a row; a confirmed track silent for longer is associated
+            with the tentative ones in the second stage, by distance: its grown gate then cannot
+            take a detection a fresh track sits on (a parked car's edge track coasting 8 frames
+            took a child's first points 1.45 m off, Euro NCAP CPNCO 20 km/h); null: every
+            confirmed track first.
         max_misses: a confirmed track is deleted once silent (no measurement) for longer than
             this many frames take, the time they span at the recording's median frame period,
             whether the silence comes as frames without points or as no frames at all; until
@@ -161,6 +171,7 @@ class TrackerConfig(TypedConfig):
     confirm_m: int = setting(ge=1, le=1000)
     confirm_n: int = setting(ge=1, le=1000)
     max_misses: int = setting(ge=0, le=100_000)
+    priority_max_coast_frames: int | None = setting(None, ge=0, le=100_000)
     doppler_std_mps: float | None = setting(None, gt=0.0, le=100.0)
     field_of_view_deg: float | None = setting(None, gt=0.0, le=360.0)
     init_doppler_std_mps: float | None = setting(None, gt=0.0, le=100.0)

@@ -242,7 +242,8 @@ def moving_tracks(tracks: pd.DataFrame, speed_mps: float, probability: float = 0
                   approach_probability: float | None = None,
                   approach_corridor_m: float = 5.0,
                   points: pd.DataFrame | None = None, static_evidence_min: int = 0,
-                  static_cell_m: float = 0.5, static_lag_frames: int = 10) -> np.ndarray:
+                  static_cell_m: float = 0.5, static_lag_frames: int = 10,
+                  static_exempt_log_ratio: float | None = None) -> np.ndarray:
     """(N,) bool per row of ``tracks`` (columns group, track_id, frame, vx_mps, vy_mps,
     cov_vxvx, cov_vxvy, cov_vyvy, confirmed; the tracker's world-frame filtered state): True
     from the track's first confirmed row on whose velocity is both fast, sqrt(vx^2 + vy^2) >
@@ -275,7 +276,13 @@ def moving_tracks(tracks: pd.DataFrame, speed_mps: float, probability: float = 0
     static hits, nothing the radar saw moved there; :func:`track_static_evidence`), reaches
     ``static_evidence_min`` (a cluster sliding along a parked car's face, whose kinematic
     velocity passes the tests above while the ego passes the car; a pedestrian standing still
-    on its own static hits for ``static_lag_frames`` frames is left out too). Raises ValueError
+    on its own static hits for ``static_lag_frames`` frames is left out too). With
+    ``static_exempt_log_ratio`` the grid does not hold back a row whose track's own radial
+    speeds over its last :data:`DOPPLER_FIRST_WINDOW` measured rows make "moving" at least that
+    many natural-log units likelier than "static" (:func:`doppler_motion_evidence`, point
+    spread ``doppler_std_mps``): the cluster sliding along a car's face has the static world's
+    radial speed, a child stepping out beside the car's corner (on the car's old hits) has its
+    own. Raises ValueError
     naming a missing column, a row without an ego position, a ``doppler_llr`` not in
     DOPPLER_LLR_FORMS, or a ``doppler_log_ratio_floor`` above ``doppler_log_ratio_min``. With
     ``crossing_prior`` and ``crossing_log_ratio``, :func:`moving_frames`' crossing test makes
@@ -296,8 +303,14 @@ def moving_tracks(tracks: pd.DataFrame, speed_mps: float, probability: float = 0
     out = np.empty(len(tracks), bool)
     out[order] = seen
     if points is not None and static_evidence_min > 0:
-        out &= track_static_evidence(tracks, points, cell_m=static_cell_m,
-                                     lag_frames=static_lag_frames) < static_evidence_min
+        clear = track_static_evidence(tracks, points, cell_m=static_cell_m,
+                                      lag_frames=static_lag_frames) < static_evidence_min
+        if static_exempt_log_ratio is not None:
+            check_number(static_exempt_log_ratio, "static_exempt_log_ratio", gt=0.0,
+                         who="moving_tracks")
+            clear |= doppler_motion_evidence(tracks, doppler_std_mps, DOPPLER_FIRST_WINDOW
+                                             ) >= static_exempt_log_ratio
+        out &= clear
     return out
 
 
@@ -574,7 +587,8 @@ def moving_test_settings(m, grid: bool = True) -> dict[str, Any]:
     if grid:
         out.update(static_evidence_min=m.static_evidence_min,
                    static_cell_m=m.static_cell_m,
-                   static_lag_frames=m.static_lag_frames)
+                   static_lag_frames=m.static_lag_frames,
+                   static_exempt_log_ratio=m.static_exempt_log_ratio)
     return out
 
 

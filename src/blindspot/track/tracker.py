@@ -607,6 +607,16 @@ class _Book:
     dopplers: list[tuple[int, float]] = field(default_factory=list)
 
 
+def _first_stage(book: _Book, max_coast: int | None) -> bool:
+    """Whether a track is associated in the first stage: confirmed and, with ``max_coast``
+    (``tracker.priority_max_coast_frames``), silent for at most that many frames in a row."""
+    if not book.confirmed:
+        return False
+    if max_coast is None or len(book.hits) <= max_coast:
+        return True
+    return any(book.hits[-(max_coast + 1):])
+
+
 def _doppler_confirms(book: _Book, config: TrackerConfig) -> bool:
     """A tentative track confirms early, on its second consecutive hit, when the radial speeds
     of its objects say "moving" (``tracker.doppler_confirm_log_ratio``; null: never): their
@@ -868,7 +878,10 @@ def _track_group(labelled: pd.DataFrame, frames: pd.DataFrame, config: TrackerCo
         # Two-stage association: confirmed tracks first, tentative tracks with what is left. A
         # new track's wide velocity prior gives it a small Mahalanobis distance to anything
         # nearby, so one joint assignment lets clutter-born tracks steal a confirmed track's
-        # detection (Blackman & Popoli 1999, sec. 6.3: confirmed tracks have priority).
+        # detection (Blackman & Popoli 1999, sec. 6.3: confirmed tracks have priority). With
+        # tracker.priority_max_coast_frames a long-silent confirmed track joins the second.
+        first = {tr: _first_stage(book, config.priority_max_coast_frames)
+                 for tr, book in live.items()}
         if fast:
             free = np.ones(len(xy), bool)
             F = np.asarray(parts.predictor.transition_model.matrix(time_interval=ts - prev_ts),
@@ -882,7 +895,7 @@ def _track_group(labelled: pd.DataFrame, frames: pd.DataFrame, config: TrackerCo
                 terms = (dop, np.maximum(counts.astype(float), 1.0),
                          los / np.where(rng > 0, rng, 1.0), np.isfinite(dop) & (rng > 0))
             for stage in (True, False):
-                tracks = [tr for tr, book in live.items() if book.confirmed is stage]
+                tracks = [tr for tr in live if first[tr] is stage]
                 if not tracks:
                     continue
                 hits, det = _gnn_stage(tracks, xy, free, F, Q, R_meas, parts.gate, terms,
@@ -908,7 +921,7 @@ def _track_group(labelled: pd.DataFrame, frames: pd.DataFrame, config: TrackerCo
             detections = set(order)
             used: set = set()
             for stage in (True, False):
-                tracks = {tr for tr, book in live.items() if book.confirmed is stage}
+                tracks = {tr for tr in live if first[tr] is stage}
                 if not tracks:
                     continue
                 assoc = parts.associator.associate(tracks, detections - used, ts)
