@@ -40,8 +40,17 @@ REPO = Path(__file__).resolve().parents[1]
 
 
 def _typed(v: str):
-    """A command-line value as YAML reads it: 2 an int, 2.0 a float, null (or none) None."""
-    return None if v.lower() == "none" else yaml.safe_load(v)
+    """A command-line value as YAML reads it: 2 an int, 2.0 a float, null (or none) None; a
+    string that is a number YAML 1.1 does not read as one (1e-3) a float."""
+    if v.lower() == "none":
+        return None
+    out = yaml.safe_load(v)
+    if isinstance(out, str):
+        try:
+            return float(out)
+        except ValueError:
+            return out
+    return out
 
 
 def tracker_config(cfg, overrides: list[str]) -> TrackerConfig:

@@ -9,7 +9,9 @@ line of sight) and the median delays of the others. Prints figures, asserts noth
         [--predictor track_state] [--set monte_carlo|ncap] [--all] [tracker overrides ...]
 
 Reads data/driving (truth, points, scenes.json) and the predictors' models as
-``studies/crossing_prior.py``; runs the tracker on the whole main draw (about 30 s of CPU).
+``studies/crossing_prior.py``; runs the tracker on the whole main draw (about 30 s of CPU), or
+with ``--set ncap`` on Euro NCAP's nominal grids (one scene per cell; ``--all`` lists every
+intruding scene, the cells both inputs avoid too).
 The lead's track: the one with most rows within 0.7 m of the child.
 
 Conclusion (2026-12-06, main draw, track_state; docs/studies/first-point-to-brake.md, sixth

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import json
 
+import pytest
+
 from blindspot.report.ethucy_report import (
     compare_to_cvm,
     format_calibration,
@@ -185,3 +187,6 @@ def test_exactly_the_tolerance_is_within_and_anything_beyond_is_off():
     off is within (0.52 - 0.50 is 0.020000000000000018 in floats), 2.01 points is not."""
     assert not off_nominal(0.52, 0.50) and not off_nominal(0.88, 0.90)
     assert off_nominal(0.5201, 0.50) and off_nominal(0.8799, 0.90)
+    for bad in (float("nan"), 1.2, None):
+        with pytest.raises(ValueError, match="coverage: expected a share"):
+            off_nominal(bad, 0.5)

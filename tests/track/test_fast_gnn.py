@@ -67,6 +67,7 @@ def _both(points: pd.DataFrame, cfg) -> tuple[pd.DataFrame, pd.DataFrame]:
      "field_of_view_deg": 120.0},
     {"confirm_m": 1, "max_misses": 2},
     {"doppler_std_mps": 0.3, "priority_max_coast_frames": 1},
+    {"priority_max_coast_frames": None},
 ])
 def test_the_vectorised_gnn_step_gives_stone_soups_tracks(seed, changes):
     cfg = config("gnn_cv", **changes)

@@ -176,6 +176,8 @@ def test_a_track_with_its_own_radial_speed_is_not_held_back_by_the_car_s_old_hit
     assert not exempt[on_child][0] and exempt[on_child][1:].all()
     with pytest.raises(ValueError, match="static_exempt_log_ratio"):
         moving_tracks(tracks, 0.5, static_exempt_log_ratio=0.0, **kw)
+    with pytest.raises(ValueError, match="static_exempt_log_ratio"):     # grid off: checked too
+        moving_tracks(tracks, 0.5, static_exempt_log_ratio="4.6")
 
 
 def test_static_evidence_is_read_at_the_last_hit_of_a_coasting_track():

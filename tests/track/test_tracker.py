@@ -844,7 +844,7 @@ def _stale_track_and_newcomer() -> pd.DataFrame:
     return pd.concat([old, gap, new], ignore_index=True)
 
 
-@pytest.mark.parametrize("name", ["gnn_cv", "jpda_cv"])
+@pytest.mark.parametrize("name", ["gnn_cv"])
 def test_a_long_silent_confirmed_track_loses_its_priority_over_a_newcomers_track(name):
     """With confirmed tracks always first, the object's track, silent since frame 9, takes the
     newcomer's detection once its grown gate reaches it and the newcomer's own track dies;
@@ -859,3 +859,22 @@ def test_a_long_silent_confirmed_track_loses_its_priority_over_a_newcomers_track
                      & np.isclose(demoted.x_m, 1.0, atol=0.3)]
     assert on_new.track_id.nunique() == 1 and on_new.frame.min() == 12
     assert set(demoted[demoted.track_id == on_new.track_id.iloc[0]].frame) >= set(range(12, 40))
+
+
+@pytest.mark.parametrize("misses, first", [(0, True), (1, True), (2, True), (3, False)])
+def test_the_priority_limit_counts_missed_frames_in_time(misses, first):
+    """priority_max_coast_frames = 2: a confirmed track whose last hit came ``misses`` + 1
+    frame periods ago (0.1 s each) keeps the first stage up to 2 missed frames, not 3; a
+    tentative track never has it, and null keeps every confirmed track first."""
+    from blindspot.track.tracker import _Book, _first_stage
+    book = _Book(0, [True] * 5 + [False] * misses, confirmed=True, last_hit_s=0.4)
+    t = 0.4 + (misses + 1) * DT
+    assert _first_stage(book, t, (2 + 1.5) * DT) is first
+    assert _first_stage(book, t, None) is True
+    assert _first_stage(_Book(1, [True], last_hit_s=t - DT), t, (2 + 1.5) * DT) is False
+
+
+def test_the_priority_limit_is_refused_with_jpda():
+    jpda = dataclasses.asdict(config("jpda_cv"))
+    with pytest.raises(ConfigError, match="tracker.priority_max_coast_frames.*jpda"):
+        TrackerConfig.from_mapping({**jpda, "priority_max_coast_frames": 2})

@@ -29,7 +29,8 @@ def reference_radii(scores, tp, tr, prior, levels, eta, kappa, n0):
     at t, every finite outcome revealed by t and not yet used, in reveal order, moves its
     level's tracker by eta (1[log(score / q) > tracker] - alpha) and adds 1[score > the radius
     its prediction was given] - alpha to the level's miss sum S; the radius is q exp(tracker +
-    kappa S / (used + n0)), q the prior's 'higher' quantile of the level at the step."""
+    kappa S / (used + n0)), q the prior's 'higher' quantile of the level at the step, raised to
+    the lower level's where it falls below (``levels`` ascending)."""
     n, h = scores.shape
     out = np.zeros((len(levels), n, h))
     q = np.array([[np.quantile(prior[~np.isnan(prior[:, k]), k], lv, method="higher")
@@ -48,6 +49,7 @@ def reference_radii(scores, tp, tr, prior, levels, eta, kappa, n0):
                 miss[li] += float(scores[j, k] > out[li, j, k]) - (1 - lv)
         for li in range(len(levels)):
             out[li, i] = q[li] * np.exp(theta[li] + kappa * miss[li] / (len(used) + n0))
+        out[:, i] = np.maximum.accumulate(out[:, i], axis=0)     # levels ascending: nested
     return out
 
 
@@ -142,20 +144,27 @@ def test_equal_to_the_one_outcome_at_a_time_reference(kappa):
     got = conf.radii(s, tp, tr, group, prior)
     for g in (0, 1):
         rows = group == g
-        want = np.maximum.accumulate(   # LEVELS ascending: each level at least the one below
-            reference_radii(s[rows], tp[rows], tr[rows], prior, LEVELS, 0.07, kappa, 20), axis=0)
+        want = reference_radii(s[rows], tp[rows], tr[rows], prior, LEVELS, 0.07, kappa, 20)
         np.testing.assert_allclose(got[:, rows], want, rtol=1e-12)
 
 
-def test_the_ellipses_are_nested_whatever_the_order_of_the_levels():
-    """Levels one point apart, given out of order, each tracked on its own by a large step: at
-    every prediction and step the higher level's radius is at least the lower's (without the
-    nesting the 51 % radius falls below the 50 % one on this stream)."""
+@pytest.mark.parametrize("kappa", [0.0, 10.0])
+def test_the_ellipses_are_nested_whatever_the_order_of_the_levels(kappa):
+    """Levels one point apart, given out of order, each tracked on its own by a large step,
+    with and without the correction: at every prediction and step the higher level's radius
+    is at least the lower's (without the nesting the 51 % radius falls below the 50 % one on
+    this stream), and the result is the ascending order's."""
     levels = (0.95, 0.51, 0.5)
     s, tp, tr, _ = bursty_drifting_scene(3)
     prior = np.random.default_rng(7).exponential(2.0, (500, 12))
-    r = ScaleTracker(levels, eta=0.5, kappa=0.0).radii(s, tp, tr, np.zeros(tp.size, int), prior)
+    one = np.zeros(tp.size, int)
+    r = ScaleTracker(levels, eta=0.5, kappa=kappa).radii(s, tp, tr, one, prior)
     assert np.all(r[1] >= r[2]) and np.all(r[0] >= r[1])
+    up = ScaleTracker(levels[::-1], eta=0.5, kappa=kappa).radii(s, tp, tr, one, prior)
+    np.testing.assert_array_equal(r, up[::-1])
+    # the correction judges the nested radius each prediction was given
+    want = reference_radii(s, tp, tr, prior, levels[::-1], 0.5, kappa, 50)
+    np.testing.assert_allclose(up, want, rtol=1e-12)
 
 
 def test_a_prediction_never_sees_a_later_outcome():

@@ -22,11 +22,15 @@ COVERAGE_TOLERANCE_PP = 2
 
 def off_nominal(coverage: float, nominal: float) -> bool:
     """Whether a coverage (a share) is more than :data:`COVERAGE_TOLERANCE_PP` points from its
-    nominal level (a share); exactly the tolerance counts as within."""
+    nominal level (a share); exactly the tolerance counts as within. Raises ValueError for
+    either outside [0, 1] or not a finite number."""
+    for name, v in (("coverage", coverage), ("nominal", nominal)):
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not 0.0 <= v <= 1.0:
+            raise ValueError(f"off_nominal: {name}: expected a share in [0, 1], found {v!r}")
     return abs(coverage - nominal) > COVERAGE_TOLERANCE_PP / 100 + 1e-12
 
-__all__ = ["format_table", "compare_to_cvm", "format_calibration", "format_seeds",
-           "format_multimodal", "format_report"]
+__all__ = ["COVERAGE_TOLERANCE_PP", "off_nominal", "format_table", "compare_to_cvm",
+           "format_calibration", "format_seeds", "format_multimodal", "format_report"]
 
 Results = Mapping[str, Mapping[str, Mapping[str, float]]]
 
@@ -107,9 +111,10 @@ def format_calibration(calibration: Mapping[str, Mapping[str, Mapping[str, Any]]
     ellipses and the NLL (nats per point), from ``calibration.json``-shaped values; a cell is
     marked ``*`` where a coverage is more than 2 percentage points from nominal
     (:func:`off_nominal`). A method whose rows hold ``online_coverage_*`` (the online ellipses,
-    sliding-window conformal or scale tracking, :mod:`blindspot.traj.online`) gets a second row, "<method>, online", with the 95 %
-    interval of its 90 % coverage (``online_coverage_90_ci95``) and the largest share of its
-    unbounded ellipses where those are there."""
+    sliding-window conformal or scale tracking, :mod:`blindspot.traj.online`) gets a second
+    row, "<method>, online", with the 95 % interval of its 90 % coverage
+    (``online_coverage_90_ci95``) and the largest share of its unbounded ellipses where those
+    are there."""
     lines = ["| method | " + " | ".join(folds) + " |", "|---|" + "---|" * len(folds)]
     for m, rows in calibration.items():
         for prefix, label in (("", m), ("online_", f"{m}, online")):

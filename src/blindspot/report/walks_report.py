@@ -35,8 +35,8 @@ def _fmt(entry: Mapping[str, Any] | None, digits: int = 3) -> str:
 def benchmark_methods(metrics: Mapping[str, Any]) -> tuple[list[str], list[str]]:
     """(prediction methods, fill methods) of a benchmark.json: every top-level key whose value is
     a mapping of metrics, except ``paired``, the seed-ensemble members (``lstm_member<i>``) and
-    their summary (``lstm_members``), which have their own table, and ``online_setting``; fills are the ``fill_<method>``
-    keys. Both lists keep the file's order."""
+    their summary (``lstm_members``), which have their own table, and ``online_setting``;
+    fills are the ``fill_<method>`` keys. Both lists keep the file's order."""
     keys = [k for k, v in metrics.items() if isinstance(v, Mapping)
             and k not in ("paired", "lstm_members", "online_setting")
             and not k.startswith("lstm_member")]

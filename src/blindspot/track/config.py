@@ -31,9 +31,10 @@ class MovingConfig(TypedConfig):
     doppler_reference (the Doppler refutation); static_evidence_min, static_cell_m,
     static_lag_frames (the static evidence grid), static_exempt_log_ratio (a row whose track's
     own radial speeds make "moving" this many natural-log units likelier than "static" is not
-    held back by the grid; null: the grid holds back every row on it); doppler_first_log_ratio (the Doppler-first
-    path: a confirmed track whose own radial speeds make "moving" this many natural-log units
-    likelier than "static" is moving without waiting for the kinematic test; null: off);
+    held back by the grid; null: the grid holds back every row on it); doppler_first_log_ratio
+    (the Doppler-first path: a confirmed track whose own radial speeds make "moving" this many
+    natural-log units likelier than "static" is moving without waiting for the kinematic
+    test; null: off);
     crossing_log_ratio (the crossing prior: a confirmed track whose first radial speeds make
     "stepping toward the ego's path" this many natural-log units likelier than "static" is
     moving; null: off) and its hypothesis, crossing_speed_mps, crossing_speed_std_mps,
@@ -112,11 +113,12 @@ class TrackerConfig(TypedConfig):
             sec. 6.3).
         priority_max_coast_frames: a confirmed track is associated first (before the
             tentative tracks, with their detections out of reach) only while it has missed at
-            most this many frames in a row; a confirmed track silent for longer is associated
-            with the tentative ones in the second stage, by distance: its grown gate then cannot
-            take a detection a fresh track sits on (a parked car's edge track coasting 8 frames
-            took a child's first points 1.45 m off, Euro NCAP CPNCO 20 km/h); null: every
-            confirmed track first.
+            most this many frames in a row (counted in time at the median frame period, as
+            ``max_misses``); a confirmed track silent for longer competes jointly with the
+            tentative ones in the second stage (GNN: one min-sum assignment on Mahalanobis
+            distance), so a fresh track sitting on a detection can keep it (a parked car's edge
+            track coasting 8 frames took a child's first points 1.45 m off, Euro NCAP CPNCO 20
+            km/h); null: every confirmed track first. GNN only.
         max_misses: a confirmed track is deleted once silent (no measurement) for longer than
             this many frames take, the time they span at the recording's median frame period,
             whether the silence comes as frames without points or as no frames at all; until
@@ -184,6 +186,11 @@ class TrackerConfig(TypedConfig):
         if self.confirm_m > self.confirm_n:
             raise ConfigError("confirm_m", self.confirm_m,
                               f"at most confirm_n = {self.confirm_n} (M of N frames)")
+        if self.priority_max_coast_frames is not None and self.association != "gnn":
+            raise ConfigError("priority_max_coast_frames", self.priority_max_coast_frames,
+                              "null with association jpda (JPDA's second stage marks only each "
+                              "track's best detection used, so a demoted confirmed track "
+                              "would let its other detections start tracks beside it)")
         if self.doppler_std_mps is not None and self.association != "gnn":
             raise ConfigError("doppler_std_mps", self.doppler_std_mps,
                               "null with association jpda (the Doppler gate is GNN's)")

@@ -288,6 +288,9 @@ def moving_tracks(tracks: pd.DataFrame, speed_mps: float, probability: float = 0
     ``crossing_prior`` and ``crossing_log_ratio``, :func:`moving_frames`' crossing test makes
     rows moving too (before the latch and the grid); with ``approach_probability`` its approach
     test also makes a velocity significant, beside the chi-square test."""
+    if static_exempt_log_ratio is not None:
+        check_number(static_exempt_log_ratio, "static_exempt_log_ratio", gt=0.0,
+                     who="moving_tracks")
     fast = moving_frames(tracks, speed_mps, probability, ego=ego,
                          doppler_std_mps=doppler_std_mps,
                          doppler_log_ratio_min=doppler_log_ratio_min, doppler_llr=doppler_llr,
@@ -306,8 +309,6 @@ def moving_tracks(tracks: pd.DataFrame, speed_mps: float, probability: float = 0
         clear = track_static_evidence(tracks, points, cell_m=static_cell_m,
                                       lag_frames=static_lag_frames) < static_evidence_min
         if static_exempt_log_ratio is not None:
-            check_number(static_exempt_log_ratio, "static_exempt_log_ratio", gt=0.0,
-                         who="moving_tracks")
             clear |= doppler_motion_evidence(tracks, doppler_std_mps, DOPPLER_FIRST_WINDOW
                                              ) >= static_exempt_log_ratio
         out &= clear

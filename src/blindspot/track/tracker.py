@@ -607,14 +607,13 @@ class _Book:
     dopplers: list[tuple[int, float]] = field(default_factory=list)
 
 
-def _first_stage(book: _Book, max_coast: int | None) -> bool:
-    """Whether a track is associated in the first stage: confirmed and, with ``max_coast``
-    (``tracker.priority_max_coast_frames``), silent for at most that many frames in a row."""
-    if not book.confirmed:
-        return False
-    if max_coast is None or len(book.hits) <= max_coast:
-        return True
-    return any(book.hits[-(max_coast + 1):])
+def _first_stage(book: _Book, t: float, silent_first_s: float | None) -> bool:
+    """Whether a track is associated in the first stage at time ``t`` (s, the group's clock):
+    confirmed and, with ``silent_first_s``, its last hit at most that long ago (the time of
+    ``tracker.priority_max_coast_frames`` missed frames and the hit's own, plus half a frame,
+    so frames absent from the points count as the empty frames they replace, as for
+    deletion)."""
+    return book.confirmed and (silent_first_s is None or t - book.last_hit_s <= silent_first_s)
 
 
 def _doppler_confirms(book: _Book, config: TrackerConfig) -> bool:
@@ -833,6 +832,8 @@ def _track_group(labelled: pd.DataFrame, frames: pd.DataFrame, config: TrackerCo
     silent_after_miss_s = (config.max_misses + 0.5) * period
     silent_before_s = (config.max_misses + 1.5) * period
     tentative_s = (config.confirm_n - 0.5) * period
+    k = config.priority_max_coast_frames
+    silent_first_s = None if k is None else (k + 1.5) * period
     # the field of view's test per frame: the sensor's position, boresight and cos(half width);
     # a full circle deletes nothing (its cos(180 deg) = -1 would, by rounding, right behind)
     fov_cos = (None if config.field_of_view_deg is None or config.field_of_view_deg >= 360.0
@@ -880,8 +881,7 @@ def _track_group(labelled: pd.DataFrame, frames: pd.DataFrame, config: TrackerCo
         # nearby, so one joint assignment lets clutter-born tracks steal a confirmed track's
         # detection (Blackman & Popoli 1999, sec. 6.3: confirmed tracks have priority). With
         # tracker.priority_max_coast_frames a long-silent confirmed track joins the second.
-        first = {tr: _first_stage(book, config.priority_max_coast_frames)
-                 for tr, book in live.items()}
+        first = {tr: _first_stage(book, float(t), silent_first_s) for tr, book in live.items()}
         if fast:
             free = np.ones(len(xy), bool)
             F = np.asarray(parts.predictor.transition_model.matrix(time_interval=ts - prev_ts),

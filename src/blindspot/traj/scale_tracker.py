@@ -32,7 +32,10 @@ validation prior still in the window, and the 50 % ellipses of the direct LSTM c
   divided by sqrt(N + n0), or not at all, as Angelopoulos et al.'s integral term) would
   drive that error to 0 but, with a crowd's outcomes revealed a horizon late, oscillated in
   a trial on the crowded stream of ``tests/traj/test_scale_tracker.py`` (many predictions per
-  frame, each revealed 12 frames later) and was not taken.
+  frame, each revealed 12 frames later) and was not taken;
+* the radii are nested: each level is tracked on its own, and where a higher level's radius
+  falls below a lower one's it takes the lower's (a 90 % ellipse holds the 50 % one); the
+  correction of each level judges the nested radius its prediction was given.
 
 No finite-sample guarantee is claimed: with a constant step the tracker keeps moving in a band
 around the scene's quantile when the scene's scores are stationary, the correction leaves the
@@ -109,7 +112,8 @@ class ScaleTracker(OnlineEllipses):
         finite score of a step counts for its quantile), and a :class:`ConformalError` for a
         step of ``prior`` without a finite score or with a 0 quantile (no scale to track).
         Every radius is finite and > 0, and no radius is below a lower level's (each level is
-        tracked on its own; where a higher level's falls below, it takes the lower's)."""
+        tracked on its own; where a higher level's falls below, it takes the lower's, and its
+        correction judges the radius given, :meth:`_stream`)."""
         s, tp, tr, group, prior = check_stream_inputs(scores, t_predicted, t_revealed, stream,
                                                       prior, who="ScaleTracker.radii")
         empty = np.isnan(prior).all(axis=0)
@@ -127,15 +131,15 @@ class ScaleTracker(OnlineEllipses):
         for g in np.unique(group):
             rows = np.flatnonzero(group == g)
             out[:, rows] = self._stream(s[rows], tp[rows], tr[rows], q0, 1.0 - lv)
-        order = np.argsort(lv)                  # nested: a level's ellipse holds every lower one
-        out[order] = np.maximum.accumulate(out[order], axis=0)
         return out
 
     def _stream(self, s: np.ndarray, tp: np.ndarray, tr: np.ndarray, q0: np.ndarray,
                 alpha: np.ndarray) -> np.ndarray:
         """Radii (L, n, H) of one stream: the outcomes in the order they are revealed, the
         predictions in the order they are made; before each prediction time, every outcome
-        revealed since moves the tracker one at a time and the correction's running sums."""
+        revealed since moves the tracker one at a time and the correction's running sums. The
+        radii given are nested across levels (a level's at least every lower level's), and the
+        correction judges each outcome against the nested radius its prediction was given."""
         n, h = s.shape
         out = np.empty((alpha.size, n, h))
         i, k = np.nonzero(~np.isnan(s))                        # the outcomes that count
@@ -150,7 +154,8 @@ class ScaleTracker(OnlineEllipses):
         levels = range(alpha.size)
         theta = [0.0] * alpha.size
         a, eta = alpha.tolist(), float(self.eta)
-        miss_sum = np.zeros(alpha.size)                        # S: sum of (err - alpha)
+        miss_sum = np.zeros(alpha.size)               # S: sum of (err - alpha), given radii
+        up = np.argsort(-alpha, kind="stable")                 # levels, lowest coverage first
         done = 0
         for j, now in enumerate(upto):
             if now > done:
@@ -167,5 +172,7 @@ class ScaleTracker(OnlineEllipses):
             correction = self.kappa * miss_sum / (done + self.prior_outcomes) \
                 if done + self.prior_outcomes else np.zeros(alpha.size)
             rows_now = order[bounds[j]:bounds[j + 1]]
-            out[:, rows_now] = (q0 * np.exp(np.asarray(theta) + correction)[:, None])[:, None, :]
+            r = q0 * np.exp(np.asarray(theta) + correction)[:, None]          # (L, H)
+            r[up] = np.maximum.accumulate(r[up], axis=0)                       # nested
+            out[:, rows_now] = r[:, None, :]
         return out
