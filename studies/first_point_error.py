@@ -12,11 +12,11 @@ A body is 0.3-0.5 m wide, so errors up to about 0.3 m are its extent; more is th
 Reads data/driving/truth.parquet and points.parquet (the driving_measure stage's); seconds.
 
 Conclusion (2026-12-06, docs/studies/first-point-to-brake.md, seventh pass): on the main
-draw 2.9 % of the lead pedestrian's (a child or an adult) first five frames' points are more than 0.5 m off across the
-road (33 of 1,152, in 30 of 190 scenes); on the CPNCO grid 4 of 96 in 3 scenes, the 40 km/h
-75 % cell's two in a row (0.73 and 0.90 m; 40 km/h 50 %: one at 0.45 m): beside the parked
-car's corner the angle of the child's cell is pulled toward the car (about 3 degrees at 14 m)
-and the child's young track follows the points away from it.
+draw 2.9 % of the lead pedestrian's (a child or an adult) first five frames' points are more
+than 0.5 m off across the road (33 of 1,152, in 30 of 190 scenes); on the CPNCO grid 4 of 96
+in 3 scenes, the 40 km/h 75 % cell's two in a row (0.73 and 0.90 m; 40 km/h 50 %: one at
+0.45 m): beside the parked car's corner the angle of the child's cell is pulled toward the car
+(about 3 degrees at 14 m) and the child's young track follows the points away from it.
 """
 
 from __future__ import annotations

@@ -27,10 +27,10 @@ Settings: the sliding window's ``gamma`` (ACI step per prediction time), ``windo
 scores kept) and ``rescale`` (:class:`~blindspot.traj.conformal.AdaptiveConformal`'s
 ``rescale_prior_after``; 0 off); the scale tracker's ``eta`` and ``kappa``
 (:class:`~blindspot.traj.scale_tracker.ScaleTracker`); and ``reveal`` (``step``: each future
-point known at its own frame; ``whole``: the whole future at its last frame). Prints per setting the worst and mean distance from nominal and the largest share of
-unbounded ellipses (with ``--per-stream`` or a single setting, first each stream's 50 / 90 / 95 %
-coverage). Constant velocity and the Kalman filter only: they need no training, so the table takes
-about 1.5 min (the learned models' online coverage is in ``reports/metrics/calibration.json``).
+point known at its own frame; ``whole``: the whole future at its last frame). Prints per
+setting the worst and mean distance from nominal and the largest share of unbounded ellipses
+(with ``--per-stream`` or a single setting, first each stream's 50 / 90 / 95 % coverage).
+Constant velocity and the Kalman filter only: they need no training, so the table takes about 1.5 min (the learned models' online coverage is in ``reports/metrics/calibration.json``).
 
 Conclusion: on the val scenes with CV and Kalman (2026-12-06, ``--top 40 --reveal step``), the
 best scale tracker is nearer nominal than the best sliding window on every fold: mean distance
@@ -38,7 +38,8 @@ best scale tracker is nearer nominal than the best sliding window on every fold:
 kappa 20) against 1.46 / 2.50 / 2.39 / 2.17 / 2.42 pp, worst stream 5.2-7.7 against 6.6-12.3 pp.
 Here constant velocity's noise model is refitted without the held-out scene and 36 window settings
 are ranked, so the figures differ a little from the stage's val distances. The ethucy stage
-chooses per fold and model among both kinds (conf/ethucy/standard.yaml online_*); a new scene can differ from validation by a scale of 0.01x-16x, hence the window's
+chooses per fold and model among both kinds (conf/ethucy/standard.yaml online_*); a new
+scene can differ from validation by a scale of 0.01x-16x, hence the window's
 rescale_prior_after (blindspot.traj.conformal) and the tracker (blindspot.traj.scale_tracker).
 """
 
