@@ -306,7 +306,8 @@ class DetectionChain:
         o = self.doa
         ang, spec = doa_angles(ula, self.ula_pos, 1, o.n_signals, self.grid_deg, method=o.method,
                                forward_backward=o.forward_backward, subarray=o.subarray,
-                               loading=o.loading, return_spectrum=True)
+                               loading=o.loading, peak_order=o.peak_order,
+                               return_spectrum=True)
         return (ang[:, 0], spec) if return_spectrum else ang[:, 0]
 
     # -------------------------------------------------------------------------------- batches

@@ -21,6 +21,7 @@ from blindspot.typed_config import ConfigError, TypedConfig, setting
 CFAR_DOMAINS = ("power", "db")            # where a CFAR scale multiplies the training mean
 CFAR_MODES = ("ca", "go", "so")           # cell averaging, greatest-of, smallest-of (+ "os")
 DOA_METHODS = ("music", "bartlett", "capon")
+PEAK_ORDERS = ("spectrum", "power")       # which pseudo-spectrum peak is first (dsp.doa)
 WINDOW_NAMES = ("hann", "hamming", "blackman", "blackmanharris", "rect")
 SNAPSHOT_MODES = ("cells", "chirps")      # neighbourhood cells, or the range bin across chirps
 RANGE_INTERPOLATIONS = ("ipdft", "none")  # sub-bin range of a detection (dsp.subbin), or the bin
@@ -70,7 +71,8 @@ def threshold_rule(pfa, scale, domain: str) -> tuple[str, Any, str] | None:
 @dataclass(frozen=True)
 class DoaConfig(TypedConfig):
     """Hydra group ``doa``: method music | bartlett | capon, n_signals, scan grid
-    (grid_deg: [start, stop, step]), forward_backward, subarray (elements, null = none), loading."""
+    (grid_deg: [start, stop, step]), forward_backward, subarray (elements, null = none), loading,
+    peak_order spectrum | power (:func:`blindspot.dsp.doa.doa_angles`)."""
 
     GROUP = "doa"
 
@@ -81,6 +83,7 @@ class DoaConfig(TypedConfig):
     forward_backward: bool = setting()
     subarray: int | None = setting(ge=2, le=4096)
     loading: float = setting(ge=0.0, le=1e6)
+    peak_order: str = setting(choices=PEAK_ORDERS)
 
     def validate(self) -> None:
         start, stop, step = self.grid_deg

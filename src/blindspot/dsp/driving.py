@@ -94,7 +94,7 @@ def unwrap_and_angles(ula: np.ndarray, v_wrapped: np.ndarray, odometry_mps: np.n
     n_targets = 1 if peak_centre is None else max(o.n_signals, 1)
     peaks = doa_angles(x, chain.ula_pos, n_targets, o.n_signals, chain.grid_deg, method=o.method,
                        forward_backward=o.forward_backward, subarray=o.subarray,
-                       loading=o.loading)
+                       loading=o.loading, peak_order=o.peak_order)
     if peak_centre is None:
         angle = peaks[:, 0]
     else:
