@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from blindspot.dsp.doa import (
-    DEFAULT_GRID_DEG, DoaError, _source_powers, bartlett_angles, bartlett_spectrum, capon_angles,
+    DEFAULT_GRID_DEG, POWER_RIDGE, DoaError, _source_powers, bartlett_angles, bartlett_spectrum, capon_angles,
     capon_spectrum, music_angles, music_spectrum,
 )
 from blindspot.radar.array import mmwcas_array
@@ -165,7 +165,7 @@ def test_power_order_takes_the_strong_extended_source_the_spectrum_misses(ula):
     by_spectrum = music_angles(x, ula, **opts, peak_order="spectrum")[:, 0]
     by_power = music_angles(x, ula, **opts, peak_order="power")[:, 0]
     assert np.mean(np.abs(by_spectrum - 14.0) < 0.5) > 0.9       # the failure, as measured
-    np.testing.assert_allclose(by_power, 7.0, atol=0.25)          # every trial: the strong one
+    np.testing.assert_allclose(by_power, 7.0, atol=0.3)   # every trial: inside the strong one
     # two peaks asked for: the strong one first, then (but for a split of the spread source in
     # one trial of 60) the weak one
     both = music_angles(x, ula, 2, **opts, peak_order="power")
@@ -173,28 +173,64 @@ def test_power_order_takes_the_strong_extended_source_the_spectrum_misses(ula):
     assert np.mean(np.abs(both[:, 1] - 14.0) < 0.1) >= 0.95
 
 
-def test_source_powers_are_the_least_squares_amplitudes(ula):
-    """Against the powers the snapshots were made with: two point sources 20 dB apart, 64
-    snapshots at 30 dB SNR; the fit is joint, so the strong one's sidelobe at the weak one's
-    angle does not bias it; a missing peak (valid False) gets 0 and changes nothing."""
+def test_source_powers_are_the_joint_least_squares_amplitudes(ula):
+    """Against the powers the snapshots were made with: a source 20 dB down on the first
+    sidelobe of a strong one (64 snapshots, 30 dB SNR). Fitted alone, |a^H x / M|^2, the weak
+    one reads the strong one's sidelobe (several times its power); fitted jointly it reads its
+    own power, scaled as every isolated source by the ridge's 1 / (1 + r)^2. A missing peak
+    (valid False) gets 0 and changes nothing."""
     rng = np.random.default_rng(12)
-    ang = np.array([-12.0, 9.5])
+    u0 = 0.0
+    grid = np.linspace(0.001, 0.1, 2000)                   # the strong one's first sidelobe
+    beam = np.abs(np.exp(2j * np.pi * np.outer(grid, ula)).sum(axis=1)) / ula.size
+    side = grid[np.flatnonzero((beam[1:-1] > beam[:-2]) & (beam[1:-1] > beam[2:]))[0] + 1]
+    u = np.array([u0, side])
     amp = np.array([1.0, 0.1])
-    a = np.exp(2j * np.pi * np.outer(ula, np.sin(np.radians(ang))))
+    a = np.exp(2j * np.pi * np.outer(ula, u))
     s = amp[:, None] * np.exp(2j * np.pi * rng.random((2, 64)))
-    x = (a @ s + 0.0224 * (rng.standard_normal((86, 64)) + 1j * rng.standard_normal((86, 64))))
-    u = np.sin(np.radians([[ang[0], ang[1], 40.0]]))
-    pw = _source_powers(x[None], ula, u, np.array([[True, True, False]]))
-    np.testing.assert_allclose(pw[0, :2], amp ** 2, rtol=0.02)
+    x = a @ s + 0.0224 * (rng.standard_normal((86, 64)) + 1j * rng.standard_normal((86, 64)))
+    alone = np.mean(np.abs(a.conj().T @ x / ula.size) ** 2, axis=1)
+    assert alone[1] > 2 * amp[1] ** 2                     # the sidelobe, not the source
+    cand = np.array([[u0, side, np.sin(np.radians(40.0))]])
+    pw = _source_powers(x[None], ula, cand, np.array([[True, True, False]]))
+    np.testing.assert_allclose(pw[0, :2], amp ** 2 / (1 + POWER_RIDGE) ** 2, rtol=0.03)
     assert pw[0, 2] == 0.0
-    alone = _source_powers(x[None], ula, u[:, :2], np.array([[True, True]]))
-    np.testing.assert_allclose(alone, pw[:, :2], rtol=1e-12)
+    two = _source_powers(x[None], ula, cand[:, :2], np.array([[True, True]]))
+    np.testing.assert_allclose(two, pw[:, :2], rtol=1e-12)
+
+
+def test_power_order_is_not_won_by_aliased_end_fire_peaks(ula):
+    """On the 0.5013-wavelength array u = -1 aliases to u = +1.003: candidates at -90, +90 and
+    83.8 deg are nearly one steering vector. With one source at 30 deg and -5 dB SNR per
+    element (9 snapshots) an unridged fit gives that pair many times the source's power from
+    noise alone; the ridge keeps the source first in every draw."""
+    rng = np.random.default_rng(14)
+    n = 300
+    a = np.exp(2j * np.pi * ula * np.sin(np.radians(30.0)))
+    x = (a[None, :, None] * np.exp(2j * np.pi * rng.random((n, 1, 9)))
+         + np.sqrt(10 ** 0.5 / 2) * (rng.standard_normal((n, 86, 9))
+                                     + 1j * rng.standard_normal((n, 86, 9))))
+    cand = np.sin(np.radians(np.array([[30.0, 83.8, -90.0]]))).repeat(n, axis=0)
+    pw = _source_powers(x, ula, cand, np.ones(cand.shape, dtype=bool))
+    assert np.all(pw.argmax(axis=1) == 0)
 
 
 def test_peak_order_is_checked(ula):
     x = plane_waves(np.random.default_rng(13), ula, [5.0], 9, 20.0)[0]
     with pytest.raises(DoaError, match="peak_order must be one of .*'loudest'"):
         music_angles(x, ula, peak_order="loudest")
+    with pytest.raises(DoaError, match="peak_order must be one of"):
+        music_angles(x, ula, peak_order=np.array(["power"]))
+
+
+@pytest.mark.parametrize("peak_order", ["spectrum", "power"])
+def test_all_zero_snapshots_have_no_angle_with_smoothing(ula, peak_order):
+    """Smoothing and forward-backward leave a zero covariance's eigenvectors arbitrary; a
+    detection without signal still has no angle (NaN), beside one that has."""
+    x = plane_waves(np.random.default_rng(15), ula, [5.0], 9, 20.0)
+    x = np.concatenate([x, np.zeros_like(x)])
+    ang = music_angles(x, ula, 2, forward_backward=True, subarray=64, peak_order=peak_order)
+    assert np.all(np.isnan(ang[1])) and abs(ang[0, 0] - 5.0) < 0.1
 
 
 @pytest.mark.parametrize("m", [8, 9])

@@ -19,7 +19,8 @@ a leading frames axis:
    integer ``range_bin`` stays the cell's.
 5. ``angles``: for the ``max_detections`` first detections of each frame: snapshots
    (``snapshots.py``), TDM-MIMO Doppler compensation with each detection's Doppler bin, ULA
-   elements, batched MUSIC (or Bartlett / Capon); angle of the strongest peak. Others keep NaN.
+   elements, batched MUSIC (or Bartlett / Capon); the angle of its first peak (``doa.peak_order``:
+   the highest, or the most powerful by least squares). Others keep NaN.
 6. ``points``: static clutter removed by speed, each frame's pedestrian detections grouped into
    one point (``point_estimator``: the strongest detection, or the SNR-weighted centroid;
    :func:`blindspot.dsp.points.group_points`), or no point.

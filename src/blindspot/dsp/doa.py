@@ -26,11 +26,13 @@ Which peak is a detection's angle (``peak_order``): ``"spectrum"`` ranks the pea
 pseudo-spectrum height (the paper). A MUSIC peak's height says how nearly a direction is
 orthogonal to the noise subspace, not how much power comes from it: a point-like weak return
 gives a sharper, higher peak than a strong extended one (a body's parts; a car corner beside a
-child in one range-Doppler cell), so the strongest peak can be the weaker source.
+child in one range-Doppler cell), so the highest peak can be the weaker source.
 ``"power"`` takes the peaks of the ``n_signals``-source model (at least ``n_targets``) and ranks
-them by their least-squares source powers, fitted jointly to the full array's snapshots
-(Stoica & Moses, *Spectral Analysis of Signals*, 2005, sec. 4.3: the deterministic signal
-model's amplitudes ``S = (A^H A)^-1 A^H X`` at the estimated angles).
+them by their least-squares source powers, fitted jointly to the full array's snapshots: the
+deterministic (conditional) signal model's amplitudes ``S = (A^H A)^-1 A^H X`` at the
+estimated angles (Stoica & Moses, *Spectral Analysis of Signals*, 2005, ch. 6), with a ridge
+(:data:`POWER_RIDGE`). The fit assumes no particular correlation between the sources, so
+coherent ones are fitted as well as independent ones.
 
 Coherent sources (a car's scatterers in one range-Doppler cell) make R rank-deficient in the
 signal part; ``forward_backward=True`` (needs a centro-symmetric array) and spatial smoothing
@@ -62,9 +64,12 @@ from blindspot.dsp.config import PEAK_ORDERS
 
 DEFAULT_GRID_DEG = np.arange(-90.0, 90.0 + 0.125, 0.25)  # -90 .. 90 deg, 721 points
 # peak_order "power": ridge of the joint least-squares fit, as a fraction of the Gram matrix's
-# diagonal (M): keeps two candidate peaks a grid step apart solvable, leaves the power of
-# resolved ones unchanged to 1e-6
-POWER_RIDGE = 1e-6
+# diagonal (M). It keeps the fit solvable with a missing peak (a zero steering row) and bounds
+# the noise gain of nearly parallel candidates: on a 0.5013-wavelength array u = -1 aliases to
+# u = +1.003, so peaks at -90, +90 and about 83 deg are nearly one steering vector, and without
+# a ridge a noise peak there could be fitted several times the true source's power. It scales
+# an isolated source's power by 1 / (1 + ridge)^2, the same for every peak.
+POWER_RIDGE = 1e-2
 # detections per block: the block's (block, M, M) covariances stay in cache (at 64, 7.6 MB for
 # the 86-element ULA; at 512 they went through memory: 0.51 -> 0.44 s for 1,357 driving
 # detections, the same bytes, as a detection's angle never depends on its block)
@@ -482,24 +487,26 @@ def doa_angles(snapshots: np.ndarray, positions: np.ndarray, n_targets: int = 1,
                subarray: int | None = None, loading: float = 0.0,
                peak_order: str = "spectrum", return_power: bool = False,
                return_spectrum: bool = False):
-    """The ``n_targets`` strongest peaks of the pseudo-spectrum, refined between grid points.
+    """``n_targets`` peaks of the pseudo-spectrum, refined between grid points, first the
+    highest (``peak_order="spectrum"``) or the most powerful (``"power"``).
 
     snapshots : complex (elements M, snapshots L) or batched (detections D, M, L), array data in
                 any consistent unit; positions : (M,) element positions along the array, in
                 wavelengths
-    peak_order : "spectrum" (strongest pseudo-spectrum peak first, the paper) or "power" (the
-                 ``max(n_targets, n_signals)`` strongest peaks, ranked by their joint
+    peak_order : "spectrum" (highest pseudo-spectrum peak first, the paper) or "power" (the
+                 ``max(n_targets, n_signals)`` highest peaks, ranked by their joint
                  least-squares source powers; module docstring)
     returns angles in degrees, (n_targets,) for (M, L) snapshots or (D, n_targets) for batched,
-    strongest first, NaN where the spectrum has fewer peaks (a flat spectrum, e.g. from all-zero
-    snapshots, has none); with ``return_power`` also the pseudo-spectrum values at the refined
-    peaks (same shape); with ``return_spectrum`` also the pseudo-spectrum on the grid ((G,) or
-    (D, G)). Extra outputs follow the angles in that order.
+    in that order, NaN where the spectrum has fewer peaks (a flat spectrum has none, nor do
+    all-zero snapshots); with ``return_power`` also the pseudo-spectrum values at the refined
+    peaks (same shape and order: with "power" not necessarily descending); with
+    ``return_spectrum`` also the pseudo-spectrum on the grid ((G,) or (D, G)). Extra outputs
+    follow the angles in that order.
     raises DoaError for non-finite snapshots, bad shapes, grids or options
     """
     if not (isinstance(n_targets, (int, np.integer)) and n_targets >= 1):
         raise DoaError(f"n_targets must be a positive integer, got {n_targets!r}")
-    if peak_order not in PEAK_ORDERS:
+    if not isinstance(peak_order, str) or peak_order not in PEAK_ORDERS:
         raise DoaError(f"peak_order must be one of {PEAK_ORDERS}, got {peak_order!r}")
     x, p, single = _as_batch(snapshots, positions)
     grid = np.asarray(grid_deg, dtype=np.float64)
@@ -545,6 +552,9 @@ def _angles_block(x: np.ndarray, p: np.ndarray, *, n_targets: int, n_signals: in
     spec = _spectrum_from_g(g, method, p.size)
     n_peaks = n_targets if peak_order == "spectrum" else max(n_targets, n_signals)
     idx = _grid_peaks(spec, n_peaks)
+    # all-zero snapshots carry no direction (smoothing and forward-backward would otherwise
+    # give their arbitrary eigenvectors a peak)
+    idx[~np.any(x_full != 0, axis=(1, 2))] = -1
     safe = np.maximum(idx, 0)
     u_grid = np.sin(np.radians(grid))
     lo = u_grid[np.maximum(safe - 1, 0)]
@@ -577,7 +587,7 @@ def _source_powers(x: np.ndarray, p: np.ndarray, u: np.ndarray, valid: np.ndarra
 
 def music_angles(snapshots: np.ndarray, positions: np.ndarray, n_targets: int = 1,
                  n_signals: int = 3, grid_deg: np.ndarray = DEFAULT_GRID_DEG, **options):
-    """MUSIC angles in degrees: the ``n_targets`` strongest pseudo-spectrum peaks over
+    """MUSIC angles in degrees: ``n_targets`` pseudo-spectrum peaks (``peak_order``) over
     ``grid_deg`` (default -90..90 in 0.25 deg), refined between grid points.
     (M, L) -> (n_targets,); (D, M, L) -> (D, n_targets); NaN where fewer peaks exist."""
     return doa_angles(snapshots, positions, n_targets, n_signals, grid_deg, method="music",

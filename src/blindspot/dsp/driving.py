@@ -72,8 +72,8 @@ def unwrap_and_angles(ula: np.ndarray, v_wrapped: np.ndarray, odometry_mps: np.n
     (``sum_l |a(theta)^H x_l|^2`` on a 0.5 deg grid, cheap) gives ``theta_m``; the order kept
     minimises ``|v_m + v_odo cos(theta_m)|`` (:func:`~blindspot.dsp.ego_motion.unwrap_doppler` at
     the angle found under that order). The final angle is the configured estimator (MUSIC) on
-    the snapshots compensated with the chosen velocity: its strongest peak, or, with
-    ``peak_centre`` (the index of each detection's own cell along L; detections chosen by the
+    the snapshots compensated with the chosen velocity: its first peak (``doa.peak_order``), or,
+    with ``peak_centre`` (the index of each detection's own cell along L; detections chosen by the
     range-Doppler-angle rule), the peak nearest the angle at which the cell is a
     range-Doppler-angle maximum (:func:`~blindspot.dsp.detections.angle_peaks` on the same
     snapshots), within ``HINT_TOLERANCE_DEG`` (NaN beyond it, or where no peak qualifies): a
@@ -92,9 +92,12 @@ def unwrap_and_angles(ula: np.ndarray, v_wrapped: np.ndarray, odometry_mps: np.n
                                 chain.ula_tx)
     o = chain.doa
     n_targets = 1 if peak_centre is None else max(o.n_signals, 1)
+    # with peak_centre every one of the n_signals peaks is a candidate and the hint picks one:
+    # their order does not matter, so the power fit is skipped
     peaks = doa_angles(x, chain.ula_pos, n_targets, o.n_signals, chain.grid_deg, method=o.method,
                        forward_backward=o.forward_backward, subarray=o.subarray,
-                       loading=o.loading, peak_order=o.peak_order)
+                       loading=o.loading,
+                       peak_order=o.peak_order if peak_centre is None else "spectrum")
     if peak_centre is None:
         angle = peaks[:, 0]
     else:

@@ -394,7 +394,8 @@ def differences(metrics: Mapping[str, Metrics]) -> list[str]:
         if better:
             out.append("Interpolation: the paper's forward LSTM rollout cannot use the reappearance "
                        f"point and errs {fwd:.2f} m on average on the hidden frames; "
-                       + ", ".join(f"{method_label(m)} {v:.2f} m" for m, v in better.items()) + " do better.")
+                       + ", ".join(f"{method_label(m)} {v:.2f} m" for m, v in better.items())
+                       + (" do better." if len(better) > 1 else " does better."))
     eth = metrics.get("ethucy")
     ours = ethucy_lead(eth) if eth else None
     if ours and "cvm" in eth:

@@ -250,7 +250,8 @@ def verdicts(metrics: Mapping[str, Metrics]) -> list[str]:
             f"**Paper reproduction:** the paper's metric is {ours:.2f} m for our best LSTM on "
             f"{_context(metrics)['n_walks']} simulated walks, about {ours / PATH_ERROR_MEAN_M.value:.1f}x the paper's "
             f"{PATH_ERROR_MEAN_M.value} m (its real walks are not available)"
-            + (f"; {' and '.join(beaten)} do better." if beaten else "; no baseline does better."))
+            + (f"; {' and '.join(beaten)} {'do' if len(beaten) > 1 else 'does'} better."
+               if beaten else "; no baseline does better."))
     name = _get(metrics, ("ethucy", "best"))
     a = _num(_get(metrics, ("ethucy", name, "avg", "ade"))) if isinstance(name, str) else None
     f = _num(_get(metrics, ("ethucy", name, "avg", "fde"))) if isinstance(name, str) else None
