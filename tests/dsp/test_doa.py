@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from blindspot.dsp.doa import (
-    DEFAULT_GRID_DEG, POWER_RIDGE, DoaError, _source_powers, bartlett_angles, bartlett_spectrum, capon_angles,
-    capon_spectrum, music_angles, music_spectrum,
+    DEFAULT_GRID_DEG, POWER_RIDGE, DoaError, _source_powers, bartlett_angles, bartlett_spectrum,
+    capon_angles, capon_spectrum, music_angles, music_spectrum,
 )
 from blindspot.radar.array import mmwcas_array
 
