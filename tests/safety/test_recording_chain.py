@@ -41,7 +41,8 @@ def ti_cut(src: Path, dst: Path, n_frames: int) -> Path:
 
 def simulated_capture(path: Path, n_frames: int = 10) -> Path:
     """A DCA1000 capture of the dca1000_awr1843 profile made by the simulator: a person (three
-    scatterers) walking across at 1.3 m/s 4 m in front of a still radar, beside a static pole."""
+    scatterers) walking across at 1.3 m/s 4 m in front of a still radar from 2.5 m to its
+    left, beside a static pole."""
     from blindspot.radar.array import array_for
     from blindspot.radar.capture import write_dca1000
     from blindspot.radar.config import RadarConfig
@@ -52,7 +53,8 @@ def simulated_capture(path: Path, n_frames: int = 10) -> Path:
     sim = FmcwSimulator(radar, array_for(radar), noise=True)
     frames = []
     for f in range(n_frames):
-        x = -1.0 + 1.3 * f * radar.frame_period_s
+        x = -2.5 + 1.3 * f * radar.frame_period_s       # radial speed 0.5-0.7 m/s, past the
+        # static cut (0.3 m/s): nearer the boresight the walker sits in the Doppler notch
         pos = np.array([[x, 4.0, 1.0], [x + 0.1, 4.0, 0.5], [x - 0.1, 4.05, 1.3], [2.0, 6.0, 1.0]])
         vel = np.array([[1.3, 0, 0], [1.6, 0, 0], [1.1, 0, 0], [0, 0, 0]], float)
         frames.append(sim.frame(pos, vel, np.array([0.5, 0.3, 0.3, 3.0]),
@@ -76,7 +78,8 @@ def test_the_command_on_a_simulated_capture_and_a_cut_of_tis_people_log(tmp_path
     tracks, predicted paths per recording, the summary with n_tracks, TI's tracks kept."""
     conf = tmp_path / "conf" / "recordings"
     conf.mkdir(parents=True)
-    capture = simulated_capture(tmp_path / "adc_data.bin")
+    # 20 frames (0.67 s at 30 frames/s): the tracker's 0.5 s confirmation window fits
+    capture = simulated_capture(tmp_path / "adc_data.bin", n_frames=20)
     cut = ti_cut(shared_dir / TI_LOG, tmp_path / "ti_cut.bin", 120)
     (conf / "mine.yaml").write_text(f"""
 defaults:
@@ -91,8 +94,8 @@ ti_cut:
   path: {cut}
   frame_period_s: 0.05
   reference_gate_m: 0.5
-  tracker: {{cluster_min_samples: 2, velocity_damping_per_s: 2.0, confirm_m: 6, confirm_n: 8,
-            max_misses: 80}}
+  min_detectable_speed_mps: 0.04
+  boundary_box_m: [-2.0, 10.0, 0.0, 10.0]
 """)
     run_dir = tmp_path / "run"
     proc = _run_recordings(tmp_path, shared_dir, run_dir)
@@ -172,9 +175,9 @@ def test_timestamps_going_backwards_are_named(groups, tmp_path):
 
 
 def test_a_recording_shorter_than_the_history_is_named(groups, tmp_path):
-    crossing_from_a_car(n_frames=3).to_parquet(path := tmp_path / "short.parquet")
-    with pytest.raises(RecordingError, match=r"short\.parquet.*3 frames, shorter than the "
-                                             r"predictor's history of 5 frames"):
+    crossing_from_a_car(n_frames=2).to_parquet(path := tmp_path / "short.parquet")
+    with pytest.raises(RecordingError, match=r"short\.parquet.*2 frames, fewer than the 3 "
+                                             r"frames the tracker needs to confirm a track"):
         _run(groups, path)
     assert _run(groups, path, stop_at="points").tracks is None      # points only: accepted
 

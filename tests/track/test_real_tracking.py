@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import pytest
 
-from blindspot.track.config import tracked_recordings
+from blindspot.track.config import TrackerConfig, tracked_recordings
 from blindspot.track.recordings import track_recording
 
 pytestmark = pytest.mark.real_data
@@ -16,6 +16,13 @@ pytestmark = pytest.mark.real_data
 @pytest.fixture(scope="module")
 def recordings(composed_config):
     return tracked_recordings(composed_config)
+
+
+def test_every_recording_runs_the_tracker_groups_own_settings(recordings, composed_config):
+    """Issue 40: no per-recording tracker settings; what differs between the recordings is
+    what the sensor did (frame period, Doppler notch, walls), not the tracker."""
+    group = TrackerConfig.from_cfg(composed_config)
+    assert all(tracker == group for _, tracker in recordings.values())
 
 
 def test_ti_people_same_four_people_no_id_switch(recordings, shared_dir):

@@ -50,7 +50,7 @@ from blindspot.dsp.recording import detect_recording
 from blindspot.safety.predict import decision_rows, track_histories
 from blindspot.safety.risk import EgoShape, collision_risk
 from blindspot.track.config import TrackedRecording, TrackerConfig
-from blindspot.track.recordings import load_points, track_recording
+from blindspot.track.recordings import load_points, track_recording, tracker_input
 from blindspot.track.tracker import track_points
 from blindspot.typed_config import ConfigError, TypedConfig, setting
 
@@ -78,7 +78,9 @@ class RecordingEntry(TypedConfig):
     Fields: ``name``; ``kind`` (:data:`RAW_KINDS` or :data:`POINT_LOG_KINDS`); ``path``
     (relative to ``paths.shared_dir`` or absolute); ``frame_period_s`` (s; null: the file's
     stamps, or the radar profile's period for a raw capture); ``static_speed_mps`` (the static
-    clutter tolerance, m/s; null keeps every point); ``moving`` (recorded from a car driving
+    clutter tolerance, m/s; null keeps every point); ``min_detectable_speed_mps`` and
+    ``boundary_box_m`` (a point-cloud log's Doppler notch and walls, as
+    :class:`~blindspot.track.config.TrackedRecording`'s); ``moving`` (recorded from a car driving
     along the radar's boresight: the ego speed, a world frame and the decisions);
     ``speed_column`` (the point table's ego-speed column; null: estimated by the radar);
     ``stop_at`` (:data:`STEPS`); ``reference_gate_m`` (TI's tracks, CLEAR MOT gate, m);
@@ -95,6 +97,9 @@ class RecordingEntry(TypedConfig):
     path: str = setting()
     frame_period_s: float | None = setting(None, gt=0.0, le=60.0)
     static_speed_mps: float | None = setting(None, ge=0.0, le=100.0)
+    min_detectable_speed_mps: float | None = setting(None, gt=0.0, le=100.0)
+    boundary_box_m: tuple[float, float, float, float] | None = setting(None, ge=-1000.0,
+                                                                         le=1000.0)
     moving: bool = setting(False)
     speed_column: str | None = setting(None)
     stop_at: str = setting("decisions", choices=STEPS)
@@ -110,6 +115,11 @@ class RecordingEntry(TypedConfig):
         if self.kind == "ti_gtrack" and self.frame_period_s is None:
             raise ConfigError("frame_period_s", None, "a positive period (s): a ti_gtrack log "
                               "holds no time stamps")
+        for key in ("min_detectable_speed_mps", "boundary_box_m"):
+            value = getattr(self, key)
+            if value is not None and (self.kind not in ("ti_gtrack", "radhar") or self.moving):
+                raise ConfigError(key, value, "null except for a ti_gtrack or radhar log from "
+                                  f"a still radar (kind {self.kind!r}, moving {self.moving})")
 
 
 @dataclass
@@ -178,10 +188,10 @@ def check_points(points: pd.DataFrame, where: str, min_frames: int) -> dict:
         raise RecordingError(f"{where}: no point in any of its {len(frames)} frames; expected "
                              "a point cloud (is it the right file, or all static clutter?)")
     if len(frames) < min_frames:
-        raise RecordingError(f"{where}: {len(frames)} frames, shorter than the predictor's "
-                             f"history of {min_frames} frames (the tracker's confirmation "
-                             "window); record longer, or stop the recording at 'points' "
-                             "(stop_at: points)")
+        raise RecordingError(f"{where}: {len(frames)} frames, fewer than the {min_frames} "
+                             "frames the tracker needs to confirm a track (tracker.confirm_m at "
+                             "this frame rate); record longer, or stop the recording at "
+                             "'points' (stop_at: points)")
     empty = int(len(frames) - seen.frame.nunique())
     if empty:
         warnings.warn(f"{where}: {empty} of {len(frames)} frames hold no point; tracks coast "
@@ -216,17 +226,17 @@ def _ego_motion(entry: RecordingEntry, pts: pd.DataFrame, where: str) -> pd.Data
     tol = entry.static_speed_mps if entry.static_speed_mps is not None else 0.0
     curve = -pts.ego_speed_mps * np.cos(np.radians(pts.azimuth_deg))
     pts["static"] = (pts.velocity_mps - curve).abs() <= tol
+    # the radial speed over ground (the tracker's Doppler) seen from the sensor's world position
+    pts["velocity_over_ground_mps"] = pts.velocity_mps - curve
+    pts["sensor_x_m"], pts["sensor_y_m"] = 0.0, pts.ego_y_m
     pts["y_m"] = pts.y_m + pts.ego_y_m            # sensor frame -> world frame
     return pts
 
 
 def _track(points: pd.DataFrame, tracker: TrackerConfig, source: str) -> pd.DataFrame:
-    moving = points[~points.static.astype(bool)].dropna(subset=["x_m"])
-    frames = points.drop_duplicates("frame")[["frame", "time_s"]]
-    bare = frames[~frames.frame.isin(moving.frame)].assign(x_m=np.nan, y_m=np.nan)
-    moving = pd.concat([moving[["frame", "time_s", "x_m", "y_m"]], bare]).sort_values(
-        "frame", kind="stable")
-    return track_points(moving, tracker, source=source)
+    """The tracker on a recording's moving points with their radial speed over ground (a still
+    radar's own radial speed, or the ego-motion-compensated one from the sensor's position)."""
+    return track_points(tracker_input(points), tracker, source=source)
 
 
 def predict_tracks(tracks: pd.DataFrame, predictor: Any, horizon: int, dt_s: float,
@@ -310,6 +320,8 @@ def run_recording(entry: RecordingEntry, rec_cfg: Any, path: Path, groups: Any,
             tr_rec = TrackedRecording(name=entry.name, kind=entry.kind, path=str(path),
                                       frame_period_s=entry.frame_period_s,
                                       static_speed_mps=entry.static_speed_mps,
+                                      min_detectable_speed_mps=entry.min_detectable_speed_mps,
+                                      boundary_box_m=entry.boundary_box_m,
                                       reference_gate_m=entry.reference_gate_m)
             pts, reference = load_points(tr_rec, path.parent)
     except (OSError, ValueError) as exc:
@@ -322,9 +334,10 @@ def run_recording(entry: RecordingEntry, rec_cfg: Any, path: Path, groups: Any,
         tol = entry.static_speed_mps
         pts["static"] = (pts.velocity_mps.abs() <= tol).to_numpy() if tol is not None else False
     pts["static"] = pts.static.fillna(False).astype(bool)
-    need = tracker.confirm_n if _steps_to(entry, "tracks") else 1
     dts = np.diff(np.sort(pts.time_s.dropna().unique()))
     dt = float(np.median(dts)) if len(dts) else float(entry.frame_period_s or 0.1)
+    # the fewest frames that can confirm a track at this frame period (tracker.count_period_s)
+    need = tracker.counts_at(dt)[0] if _steps_to(entry, "tracks") else 1
     horizon = max(1, int(round(warning.horizon_s / dt)))
     summary.update(check_points(pts, where, need), frame_period_s=dt,
                    n_points=int(pts.x_m.notna().sum()),

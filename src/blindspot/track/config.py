@@ -9,6 +9,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numpy as np
+
 from blindspot.track.moving import DOPPLER_LLR_FORMS, DOPPLER_REFERENCES
 from blindspot.typed_config import ConfigError, TypedConfig, setting
 
@@ -123,6 +125,11 @@ class TrackerConfig(TypedConfig):
             this many frames take, the time they span at the recording's median frame period,
             whether the silence comes as frames without points or as no frames at all; until
             then it coasts (predicted only).
+        count_period_s: the frame period (s) at which ``confirm_m``, ``confirm_n``,
+            ``max_misses`` and ``priority_max_coast_frames`` are counted; a group of points at
+            another median frame period gets the same times (:meth:`counts_at`), so a
+            20-frames/s recording confirms on 6 of 10 frames where a 10-frames/s one takes 3 of
+            5; null: the counts are frames at any rate.
         doppler_std_mps: the spread of one point's ego-motion-compensated radial speed (m/s);
             set, the GNN gate and assignment cost take each object's median radial speed
             against the one the track's predicted velocity gives along the line of sight (a
@@ -174,6 +181,7 @@ class TrackerConfig(TypedConfig):
     confirm_n: int = setting(ge=1, le=1000)
     max_misses: int = setting(ge=0, le=100_000)
     priority_max_coast_frames: int | None = setting(None, ge=0, le=100_000)
+    count_period_s: float | None = setting(None, gt=0.0, le=60.0)
     doppler_std_mps: float | None = setting(None, gt=0.0, le=100.0)
     field_of_view_deg: float | None = setting(None, gt=0.0, le=360.0)
     init_doppler_std_mps: float | None = setting(None, gt=0.0, le=100.0)
@@ -195,6 +203,24 @@ class TrackerConfig(TypedConfig):
             raise ConfigError("doppler_std_mps", self.doppler_std_mps,
                               "null with association jpda (the Doppler gate is GNN's)")
 
+    def counts_at(self, period_s: float) -> tuple[int, int, int, int | None]:
+        """(confirm_m, confirm_n, max_misses, priority_max_coast_frames) for frames of
+        ``period_s`` seconds: with ``count_period_s`` each count scaled by count_period_s /
+        period_s to the nearest frame (at least one; M rounded up, so the hit fraction does not
+        fall below M / N); unchanged without it, or at that period (to 1e-9)."""
+        if isinstance(period_s, bool) or not (isinstance(period_s, (int, float)) and period_s > 0):
+            raise ValueError(f"TrackerConfig.counts_at: period_s must be a positive frame "
+                             f"period (s; inf for a single frame); found {period_s!r}")
+        m, n, k = self.confirm_m, self.confirm_n, self.priority_max_coast_frames
+        scale = (1.0 if self.count_period_s is None or not np.isfinite(period_s)
+                 else self.count_period_s / float(period_s))
+        if abs(scale - 1.0) <= 1e-9:
+            return m, n, self.max_misses, k
+        n_s = max(1, round(n * scale))
+        m_s = min(n_s, max(1, int(np.ceil(m * n_s / n - 1e-9))))
+        return (m_s, n_s, round(self.max_misses * scale),
+                None if k is None else round(k * scale))
+
 
 #: Point-cloud log formats the real_tracking stage reads (blindspot.radar.capture).
 RECORDING_KINDS = ("ti_gtrack", "radhar")
@@ -213,6 +239,13 @@ class TrackedRecording(TypedConfig):
             to use the file's own stamps (radhar).
         static_speed_mps: points with |radial speed| at most this are static clutter and are
             dropped before tracking; null keeps every point.
+        min_detectable_speed_mps: the recording's Doppler notch (m/s): it holds no point with a
+            radial speed below this (static clutter removed on the sensor, or by
+            ``static_speed_mps``); the tracker holds a track that goes silent there as a
+            stopped target (:func:`blindspot.track.track_points`); null: no notch.
+        boundary_box_m: the scene's walls [x_min, x_max, y_min, y_max] (m, the sensor frame);
+            points beyond them are reflections from behind a wall and are dropped before
+            tracking (TI's gtrack "boundary box"); null: no walls.
         reference_gate_m: the largest distance (m) at which one of our tracks may stand for a
             reference track (CLEAR MOT); null when the recording has no reference tracker.
 
@@ -227,6 +260,9 @@ class TrackedRecording(TypedConfig):
     path: str = setting()
     frame_period_s: float | None = setting(None, gt=0.0, le=60.0)
     static_speed_mps: float | None = setting(None, ge=0.0, le=100.0)
+    min_detectable_speed_mps: float | None = setting(None, gt=0.0, le=100.0)
+    boundary_box_m: tuple[float, float, float, float] | None = setting(None, ge=-1000.0,
+                                                                         le=1000.0)
     reference_gate_m: float | None = setting(None, gt=0.0, le=100.0)
 
     def validate(self) -> None:
@@ -235,6 +271,10 @@ class TrackedRecording(TypedConfig):
                               "a positive period (s): a ti_gtrack log holds no time stamps")
         if not self.path:
             raise ConfigError("path", self.path, "a file path")
+        box = self.boundary_box_m
+        if box is not None and not (box[0] < box[1] and box[2] < box[3]):
+            raise ConfigError("boundary_box_m", list(box),
+                              "[x_min, x_max, y_min, y_max] with x_min < x_max and y_min < y_max")
 
 
 @dataclass(frozen=True)

@@ -1,4 +1,5 @@
-"""The tracker on real point-cloud recordings: read, drop static clutter, track, score.
+"""The tracker on real point-cloud recordings: read, drop static clutter and what lies behind the
+scene's walls, track (with the points' radial speeds and the sensor's Doppler notch), score.
 
 For a recording with a reference tracker (TI's gtrack targets in a people-counting log) the
 confirmed tracks are scored against it with CLEAR MOT (:mod:`blindspot.track.evaluation`). For
@@ -19,9 +20,10 @@ from blindspot.radar.capture.radhar import read_radhar
 from blindspot.radar.capture.ti_gtrack import read_ti_gtrack
 from blindspot.track.config import TrackedRecording, TrackerConfig
 from blindspot.track.evaluation import compare_tracks
-from blindspot.track.tracker import track_points
+from blindspot.track.tracker import DOPPLER_COLUMN, track_points
 
-__all__ = ["STATIC_TRACK_EXTENT_M", "RecordingTracks", "load_points", "track_recording"]
+__all__ = ["STATIC_TRACK_EXTENT_M", "RecordingTracks", "load_points", "track_recording",
+           "tracker_input"]
 
 #: A confirmed track whose positions all stay within this distance of their mean stands still:
 #: static clutter that got through (a person shifting on the spot moves about 0.3 m).
@@ -56,7 +58,8 @@ def load_points(rec: TrackedRecording, shared_dir: Path) -> tuple[pd.DataFrame, 
     the tracker steps through it) and its reference tracks (None without a reference).
 
     Columns of the points: ``frame``, ``time_s``, ``x_m``, ``y_m`` (m, the recording's sensor
-    frame), ``velocity_mps`` (radial, m/s), ``static`` (``|velocity| <= static_speed_mps``).
+    frame), ``velocity_mps`` (radial, m/s), ``static`` (``|velocity| <= static_speed_mps``),
+    ``outside`` (beyond the scene's ``boundary_box_m``: behind a wall).
     """
     path = _resolve(rec.path, shared_dir)
     reference = None
@@ -75,19 +78,54 @@ def load_points(rec: TrackedRecording, shared_dir: Path) -> tuple[pd.DataFrame, 
     pts = pts[["frame", "time_s", "x_m", "y_m", "velocity_mps"]].copy()
     pts["static"] = (False if rec.static_speed_mps is None
                      else pts.velocity_mps.abs() <= rec.static_speed_mps)
+    box = rec.boundary_box_m
+    pts["outside"] = (False if box is None
+                      else ~(pts.x_m.between(box[0], box[1]) & pts.y_m.between(box[2], box[3])))
     empty = frames[~frames.frame.isin(pts.frame)].assign(x_m=np.nan, y_m=np.nan,
-                                                         velocity_mps=np.nan, static=False)
+                                                         velocity_mps=np.nan, static=False,
+                                                         outside=False)
     pts = pd.concat([pts, empty], ignore_index=True).sort_values("frame", kind="stable")
     return pts.reset_index(drop=True), reference
 
 
-def track_recording(rec: TrackedRecording, tracker: TrackerConfig,
-                    shared_dir: Path) -> RecordingTracks:
-    """Track one recording and summarise it.
+def tracker_input(points: pd.DataFrame, *, doppler: bool = True) -> pd.DataFrame:
+    """The tracker's input (:func:`blindspot.track.track_points`) from a recording's points:
+    the points neither ``static`` nor ``outside`` (where those columns exist), with ``frame``,
+    ``time_s``, ``x_m``, ``y_m``, the sensor's position columns where the points carry them,
+    and with ``doppler`` their radial speed over ground (``velocity_over_ground_mps``, or a
+    still sensor's own ``velocity_mps``: the range-rate updates and a new track's velocity);
+    a frame left without a point is one NaN row, so tracks coast through it."""
+    missing = [c for c in ("frame", "time_s", "x_m", "y_m") if c not in points.columns]
+    if doppler and not {"velocity_over_ground_mps", "velocity_mps"} & set(points.columns):
+        missing.append("velocity_mps")
+    if missing:
+        raise ValueError(f"tracker_input: the points lack {missing}; found "
+                         f"{list(points.columns)}")
+    keep = np.ones(len(points), bool)
+    for col in ("static", "outside"):
+        if col in points.columns:
+            keep &= ~points[col].fillna(False).astype(bool).to_numpy()
+    pose = [c for c in ("sensor_x_m", "sensor_y_m") if c in points.columns]
+    cols = ["frame", "time_s", "x_m", "y_m"] + pose
+    moving = points[keep].dropna(subset=["x_m"])
+    if doppler:
+        if DOPPLER_COLUMN not in moving.columns:
+            moving = moving.assign(**{DOPPLER_COLUMN: moving.velocity_mps})
+        cols.append(DOPPLER_COLUMN)
+    frames = points.drop_duplicates("frame")[["frame", "time_s"] + pose]
+    bare = frames[~frames.frame.isin(moving.frame)].assign(x_m=np.nan, y_m=np.nan)
+    return pd.concat([moving[cols], bare]).sort_values("frame", kind="stable")
+
+
+def track_recording(rec: TrackedRecording, tracker: TrackerConfig, shared_dir: Path, *,
+                    doppler: bool = True) -> RecordingTracks:
+    """Track one recording and summarise it (``doppler``: the points' radial speeds reach the
+    tracker, :func:`tracker_input`).
 
     Returns:
         :class:`RecordingTracks` whose ``metrics`` holds ``n_frames``, ``n_points``,
-        ``static_points_dropped`` (fraction), ``n_tracks`` (confirmed), ``static_tracks``
+        ``static_points_dropped`` and ``outside_points_dropped`` (fractions: static clutter,
+        beyond the walls), ``n_tracks`` (confirmed), ``static_tracks``
         (confirmed tracks within :data:`STATIC_TRACK_EXTENT_M` of their mean throughout),
         ``longest_track_coverage`` (frames the longest confirmed track is live over the frames
         from the first to the last moving point), ``longest_track_to_points_median_m`` (without
@@ -98,13 +136,9 @@ def track_recording(rec: TrackedRecording, tracker: TrackerConfig,
         track matched by exactly one of ours, ours by one reference); None where no reference.
     """
     points, reference = load_points(rec, shared_dir)
-    moving = points[~points.static]
-    # a frame whose points are all static is still a frame: one NaN row, so tracks coast
-    frames = points.drop_duplicates("frame")[["frame", "time_s"]]
-    bare = frames[~frames.frame.isin(moving.frame)].assign(x_m=np.nan, y_m=np.nan)
-    moving = pd.concat([moving[["frame", "time_s", "x_m", "y_m"]], bare]).sort_values(
-        "frame", kind="stable")
-    tracks = track_points(moving, tracker, source=str(_resolve(rec.path, shared_dir)))
+    moving = tracker_input(points, doppler=doppler)
+    tracks = track_points(moving, tracker, source=str(_resolve(rec.path, shared_dir)),
+                          min_detectable_speed_mps=rec.min_detectable_speed_mps)
     conf = tracks[tracks.confirmed]
     seen = moving.dropna(subset=["x_m"])
     span = (seen.frame.min(), seen.frame.max()) if len(seen) else (0, -1)
@@ -117,6 +151,7 @@ def track_recording(rec: TrackedRecording, tracker: TrackerConfig,
         "n_frames": int(points.frame.nunique()),
         "n_points": int(points.x_m.notna().sum()),
         "static_points_dropped": float(points.static[points.x_m.notna()].mean()),
+        "outside_points_dropped": float(points.outside[points.x_m.notna()].mean()),
         "n_tracks": int(conf.track_id.nunique()),
         "static_tracks": int((extent < STATIC_TRACK_EXTENT_M).sum()),
         "longest_track_coverage": (float(sizes.max() / span_frames)

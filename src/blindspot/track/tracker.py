@@ -20,13 +20,16 @@ the way its tutorials read:
 * initiation: ``SimpleMeasurementInitiator`` from every object no live track took, velocity
   prior zero with ``init_velocity_std_mps``;
 * management: M-of-N confirmation of tentative tracks, deletion of confirmed tracks silent
-  longer than ``max_misses`` frames take: the rule of Stone Soup's ``UpdateTimeDeleter`` with
-  ``time_since_update`` = (``max_misses`` + 1/2) frame periods (the group's median frame
-  interval), so "missed frames" means the time they span whether the silence comes as frames
-  without points or as no frames at all (on regular frames: the deletions of
-  ``UpdateTimeStepsDeleter(max_misses + 1)``, tested); until then a track coasts (prediction
-  only), so a person who reappears keeps their track. A tentative track is likewise deleted
-  once its ``confirm_n`` frames' time has passed.
+  longer than ``max_misses`` frames take (frames of ``count_period_s``: a group at another frame
+  rate gets the same times, :meth:`TrackerConfig.counts_at`): the rule of Stone Soup's
+  ``UpdateTimeDeleter`` with ``time_since_update`` = (``max_misses`` + 1/2) frame periods (the
+  group's median frame interval), so "missed frames" means the time they span whether the
+  silence comes as frames without points or as no frames at all (on regular frames: the
+  deletions of ``UpdateTimeStepsDeleter(max_misses + 1)``, tested); until then a track coasts
+  (prediction only), so a person who reappears keeps their track. A tentative track is likewise deleted
+  once its ``confirm_n`` frames' time has passed. Behind a sensor's Doppler notch
+  (``min_detectable_speed_mps``) a silent track that stopped there is kept
+  (:mod:`blindspot.track.stopped`).
 
 The Kalman recursion is sequential in time, so frames are stepped one after another per group;
 clustering runs once over every frame of every group (one DBSCAN call).
@@ -34,6 +37,7 @@ clustering runs once over every frame of every group (one DBSCAN call).
 
 from __future__ import annotations
 
+import copy
 import datetime as dt
 from dataclasses import dataclass, field
 from functools import partial
@@ -47,6 +51,7 @@ from blindspot.arrays import check_count
 from blindspot.parallel import parallel_map
 from blindspot.track.config import TrackerConfig
 from blindspot.track.moving import doppler_motion_log_ratio
+from blindspot.track.stopped import SLOWING_OBJECTS, notch_update, seen_slowing
 
 __all__ = ["INPUT_COLUMNS", "OUTPUT_COLUMNS", "TrackingError", "cluster_points", "label_objects",
            "track_points"]
@@ -603,6 +608,9 @@ class _Book:
     confirmed: bool = False
     born_s: float = 0.0          # time of its first detection (s, the group's clock)
     last_hit_s: float = 0.0      # time of its last detection
+    # with a Doppler notch: its silence explained by a stop there (blindspot.track.stopped),
+    # not counted toward deletion
+    stopped: bool = False
     # (points, median ego-compensated radial speed) of each hit's object, oldest first
     dopplers: list[tuple[int, float]] = field(default_factory=list)
 
@@ -616,17 +624,18 @@ def _first_stage(book: _Book, t: float, silent_first_s: float | None) -> bool:
     return book.confirmed and (silent_first_s is None or t - book.last_hit_s <= silent_first_s)
 
 
-def _doppler_confirms(book: _Book, config: TrackerConfig) -> bool:
+def _doppler_confirms(book: _Book, config: TrackerConfig, window: int) -> bool:
     """A tentative track confirms early, on its second consecutive hit, when the radial speeds
     of its objects say "moving" (``tracker.doppler_confirm_log_ratio``; null: never): their
     :func:`~blindspot.track.moving.doppler_motion_log_ratio` over its hits (point spread
-    ``tracker.moving.doppler_std_mps``, window ``confirm_n``) reaches that. A static object's
+    ``tracker.moving.doppler_std_mps``, the last ``window`` hits: ``confirm_n`` at the group's
+    frame period) reaches that. A static object's
     compensated Doppler is ~0, so the parked cars' edges, the kerb and zero-Doppler multipath
     keep the M-of-N rule; a walker with a radial component confirms in two frames."""
     if (config.doppler_confirm_log_ratio is None or config.moving is None
             or len(book.hits) < 2 or not all(book.hits[-2:])):
         return False
-    n, d = np.array(book.dopplers[-config.confirm_n:], float).T
+    n, d = np.array(book.dopplers[-window:], float).T
     return bool(doppler_motion_log_ratio(n, d, config.moving.doppler_std_mps)
                 >= config.doppler_confirm_log_ratio)
 
@@ -786,6 +795,44 @@ def _gnn_stage(tracks: list, z: np.ndarray, free: np.ndarray, F: np.ndarray, Q: 
     return hit, det
 
 
+def _set_state(track, x: np.ndarray, P: np.ndarray) -> None:
+    """Replace the last state of a :class:`_Track` or a Stone Soup track (a copy of it with
+    this mean and covariance, its type and timestamp kept)."""
+    if isinstance(track, _Track):
+        track.x, track.P = x, P
+        return
+    from stonesoup.types.array import CovarianceMatrix, StateVector
+
+    state = copy.copy(track.state)
+    state.state_vector = StateVector(np.asarray(x, float).reshape(-1, 1))
+    state.covar = CovarianceMatrix(np.asarray(P, float))
+    track[-1] = state
+
+
+def _silence_in_notch(live: dict, hit_now: dict, sensor_xy, min_speed: float,
+                      config: TrackerConfig) -> None:
+    """After a frame's association, for a sensor with a Doppler notch: each silent confirmed
+    track takes the frame's negative information (:func:`blindspot.track.stopped.notch_update`)
+    and counts as stopped (its silence explained, not counted toward deletion) while the notch
+    is the likelier reason and its last objects were seen slowing into it
+    (:func:`~blindspot.track.stopped.seen_slowing`); a detected track is not stopped."""
+    silent = []
+    for tr, hit in hit_now.items():
+        live[tr].stopped = False
+        if not hit and live[tr].confirmed:
+            silent.append(tr)
+    if not silent:
+        return
+    xs, ps = zip(*(_state_arrays(tr) for tr in silent))
+    x, P, w = notch_update(np.stack(xs), np.stack(ps), sensor_xy, min_speed,
+                           config.detection_probability)
+    for tr, xi, pi, wi in zip(silent, x, P, w):
+        _set_state(tr, xi, pi)
+        n, d = np.array(live[tr].dopplers[-SLOWING_OBJECTS:], float).reshape(-1, 2).T
+        live[tr].stopped = bool(wi >= 0.5) and seen_slowing(n, d, min_speed,
+                                                            config.moving.doppler_std_mps)
+
+
 def _objects(xy: np.ndarray, labels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(k, 2) centroids of the points (n, 2) of each label, in label order, and (k,) counts."""
     _, inverse, counts = np.unique(labels, return_inverse=True, return_counts=True)
@@ -795,8 +842,9 @@ def _objects(xy: np.ndarray, labels: np.ndarray) -> tuple[np.ndarray, np.ndarray
 
 
 def _track_group(labelled: pd.DataFrame, frames: pd.DataFrame, config: TrackerConfig,
-                 parts: _Parts) -> dict[str, list]:
-    """Step the tracker through the frames of one group; return output columns as lists."""
+                 parts: _Parts, min_speed: float | None = None) -> dict[str, list]:
+    """Step the tracker through the frames of one group; return output columns as lists
+    (``min_speed``: the sensor's minimum detectable radial speed, m/s, or None)."""
     from stonesoup.types.detection import Detection
 
     out = {c: [] for c in OUTPUT_COLUMNS}
@@ -829,10 +877,11 @@ def _track_group(labelled: pd.DataFrame, frames: pd.DataFrame, config: TrackerCo
     times = frames["time_s"].to_numpy(float)
     t0 = float(times[0]) if len(times) else 0.0
     period = float(np.median(np.diff(times))) if len(times) > 1 else np.inf
-    silent_after_miss_s = (config.max_misses + 0.5) * period
-    silent_before_s = (config.max_misses + 1.5) * period
-    tentative_s = (config.confirm_n - 0.5) * period
-    k = config.priority_max_coast_frames
+    # the counts at this group's frame period (tracker.count_period_s)
+    m, n, max_misses, k = config.counts_at(period)
+    silent_after_miss_s = (max_misses + 0.5) * period
+    silent_before_s = (max_misses + 1.5) * period
+    tentative_s = (n - 0.5) * period
     silent_first_s = None if k is None else (k + 1.5) * period
     # the field of view's test per frame: the sensor's position, boresight and cos(half width);
     # a full circle deletes nothing (its cos(180 deg) = -1 would, by rounding, right behind)
@@ -848,15 +897,15 @@ def _track_group(labelled: pd.DataFrame, frames: pd.DataFrame, config: TrackerCo
     fast = parts.fast and not parts.jpda
     R_meas = np.asarray(parts.measurement_model.covar(), float)
     prev_ts = None
-    m, n = config.confirm_m, config.confirm_n
     for i_frame, (frame, t) in enumerate(zip(frames["frame"].to_numpy(),
                                              frames["time_s"].to_numpy(float))):
         # Stone Soup's timestamps on the group's own clock (from its first frame): any epoch
         # in seconds stays in datetime's range and keeps its microseconds
         ts = _EPOCH + dt.timedelta(seconds=float(t) - t0)
         for track in [tr for tr, book in live.items()
-                      if (t - book.last_hit_s > silent_before_s if book.confirmed
-                          else t - book.born_s > tentative_s)]:
+                      if (t - book.last_hit_s > silent_before_s
+                          if book.confirmed and not book.stopped
+                          else not book.confirmed and t - book.born_s > tentative_s)]:
             del live[track]      # silent too long (no frames at all): never takes a newcomer
         pxy, plabels = by_frame.get(frame, no_points)
         xy, counts = _objects(pxy, plabels) if len(pxy) else (np.empty((0, 2)),
@@ -951,8 +1000,10 @@ def _track_group(labelled: pd.DataFrame, frames: pd.DataFrame, config: TrackerCo
                                             state.timestamp)
                     track.append(state)
                     hit_now[track] = hit
+        if min_speed is not None:
+            _silence_in_notch(live, hit_now, sensor, min_speed, config)
         # Track management: M-of-N confirmation, deletion of failed tentatives and of confirmed
-        # tracks silent for longer than max_misses frame periods.
+        # tracks silent for longer than max_misses frame periods (silence in the notch excepted).
         for track, hit in hit_now.items():
             book = live[track]
             book.hits.append(hit)
@@ -961,7 +1012,8 @@ def _track_group(labelled: pd.DataFrame, frames: pd.DataFrame, config: TrackerCo
                 j = meas_of[track]
                 book.dopplers.append((int(counts[j]), float(dop[j])))
             if not book.confirmed:
-                if sum(book.hits[-n:]) >= m or _doppler_confirms(book, config):
+                if sum(book.hits[-n:]) >= m or (min_speed is None
+                                                 and _doppler_confirms(book, config, n)):
                     book.confirmed = True
                 elif sum(book.hits) + max(n - len(book.hits), 0) < m or len(book.hits) >= n:
                     del live[track]
@@ -969,7 +1021,8 @@ def _track_group(labelled: pd.DataFrame, frames: pd.DataFrame, config: TrackerCo
             # Stone Soup's UpdateTimeDeleter.check_for_deletion(track) read off the time of
             # the last hit (a walk over the track's states was 9 % of the stage); on regular
             # frames the deletions of UpdateTimeStepsDeleter(max_misses + 1)
-            if book.confirmed and not hit and t - book.last_hit_s > silent_after_miss_s:
+            if (book.confirmed and not hit and not book.stopped
+                    and t - book.last_hit_s > silent_after_miss_s):
                 del live[track]
         if pose is not None:
             coasting = [tr for tr, hit in hit_now.items() if not hit and tr in live]
@@ -1044,19 +1097,21 @@ def _in_field_of_view(xy: np.ndarray, pose: np.ndarray, cos_half: float) -> np.n
     return r @ pose[2:] >= np.hypot(r[:, 0], r[:, 1]) * cos_half
 
 
-def _track_chunk(chunk: list, config: TrackerConfig) -> pd.DataFrame | None:
+def _track_chunk(chunk: list, config: TrackerConfig,
+                 min_speed: float | None = None) -> pd.DataFrame | None:
     """Track the groups of one chunk (a worker's share): [(group, objects, frames)]."""
     parts = _parts(config)
     pieces = []
     for g, objects, fr in chunk:
-        res = pd.DataFrame(_track_group(objects, fr, config, parts))
+        res = pd.DataFrame(_track_group(objects, fr, config, parts, min_speed))
         res.insert(0, "group", g)
         pieces.append(res)
     return pd.concat(pieces, ignore_index=True) if pieces else None
 
 
 def track_points(points: pd.DataFrame, config: TrackerConfig, jobs: int = 1, *,
-                 source: str = "") -> pd.DataFrame:
+                 source: str = "", min_detectable_speed_mps: float | None = None
+                 ) -> pd.DataFrame:
     """Tracks of the points of many frames: one row per live track per frame.
 
     Args:
@@ -1083,6 +1138,16 @@ def track_points(points: pd.DataFrame, config: TrackerConfig, jobs: int = 1, *,
         jobs: worker processes over the groups (:func:`blindspot.parallel.parallel_map`; the
             result does not depend on it).
         source: where the points come from (their file), named in every TrackingError.
+        min_detectable_speed_mps: the sensor's Doppler notch (m/s): it reports no point whose
+            radial speed over ground is below this (static clutter removed on the sensor or
+            by the reader). Each frame a confirmed track goes silent updates it with that
+            negative information (:mod:`blindspot.track.stopped`: its radial speed drawn into
+            the notch, its tangential speed kept), and while the notch is the likelier reason
+            for the silence and the track's last object was seen slowing into it, the silence
+            is a stop and does not count toward ``max_misses``. The Doppler early confirmation
+            (``tracker.doppler_confirm_log_ratio``) is off: every reported point moves by
+            selection. Needs ``tracker.moving`` (its ``doppler_std_mps``). None (points of the
+            static world included, as the driving chain gives them): no notch.
 
     Returns:
         DataFrame with (``group``), ``frame``, ``time_s``, ``track_id`` (int, unique within a
@@ -1114,6 +1179,15 @@ def track_points(points: pd.DataFrame, config: TrackerConfig, jobs: int = 1, *,
     who = _who(source)
     _check_config(config, who)
     check_count(jobs, "jobs", ge=1, error=TrackingError, who=who)
+    notch = min_detectable_speed_mps
+    if notch is not None and (isinstance(notch, bool) or not isinstance(notch, (int, float))
+                              or not (np.isfinite(notch) and notch > 0)):
+        raise TrackingError(f"{who}: min_detectable_speed_mps must be a positive finite speed "
+                            f"(m/s) or None; found {notch!r}")
+    if notch is not None and config.moving is None:
+        raise TrackingError(f"{who}: min_detectable_speed_mps needs tracker.moving (its "
+                            "doppler_std_mps: a point's radial-speed spread, which tells a track "
+                            "slowing into the notch); found tracker.moving null")
     keys = (["group"] if has_group else []) + ["frame"]
     # the sensor's pose per frame (the field of view needs to know where it looks: only with the
     # heading column)
@@ -1140,11 +1214,12 @@ def track_points(points: pd.DataFrame, config: TrackerConfig, jobs: int = 1, *,
         n_chunks = min(len(items), 4 * jobs) if jobs > 1 else 1
         bounds = np.linspace(0, len(items), n_chunks + 1).round().astype(int)
         chunks = [items[a:b] for a, b in zip(bounds[:-1], bounds[1:]) if b > a]
-        pieces = [p for p in parallel_map(partial(_track_chunk, config=config), chunks, jobs)
+        pieces = [p for p in parallel_map(partial(_track_chunk, config=config, min_speed=notch),
+                                             chunks, jobs)
                   if p is not None]
         result = pd.concat(pieces, ignore_index=True) if pieces else None
     else:
-        result = pd.DataFrame(_track_group(labelled, frames, config, _parts(config)))
+        result = pd.DataFrame(_track_group(labelled, frames, config, _parts(config), notch))
     cols = (["group"] if has_group else []) + list(OUTPUT_COLUMNS)
     if result is None or result.empty:
         empty = {c: pd.Series(dtype=float) for c in cols}

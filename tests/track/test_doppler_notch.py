@@ -1,0 +1,250 @@
+"""A sensor blind to small radial speeds (its static clutter removed) and a sensor at another
+frame rate: the tracker's negative information and its counts in time, against truths it did not
+write (the posterior by importance sampling; a stop-and-go walker drawn from kinematics; the same
+walk sampled at 10 and 20 frames/s)."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pandas as pd
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from omegaconf import OmegaConf
+
+from blindspot.track import TrackerConfig, TrackingError, track_points
+from blindspot.track.config import TrackedRecording
+from blindspot.track.stopped import notch_split, notch_update, seen_slowing
+from blindspot.typed_config import ConfigError
+from tests.conftest import REPO_ROOT
+
+
+def config(name: str = "gnn_cv", **changes) -> TrackerConfig:
+    cfg = TrackerConfig.from_mapping(OmegaConf.load(REPO_ROOT / "conf" / "tracker" / f"{name}.yaml"))
+    return dataclasses.replace(cfg, **changes)
+
+
+# ------------------------------------------------------------------ the update itself
+
+def _sampled_posterior(x, P, sensor, v_min, p_d, n=400_000, seed=0):
+    """The exact posterior's moments by importance sampling: prior draws weighted by
+    P(no detection | state) = 1 - P_D outside the notch, 1 inside."""
+    rng = np.random.default_rng(seed)
+    s = rng.multivariate_normal(x, P, size=n)
+    los = s[:, [0, 2]] - sensor
+    u = los / np.hypot(los[:, 0], los[:, 1])[:, None]
+    inside = np.abs(u[:, 0] * s[:, 1] + u[:, 1] * s[:, 3]) < v_min
+    w = np.where(inside, 1.0, 1.0 - p_d)
+    w /= w.sum()
+    mean = w @ s
+    d = s - mean
+    return mean, (w[:, None] * d).T @ d, float(w[inside].sum())
+
+
+@settings(max_examples=12, deadline=None)
+@given(seed=st.integers(0, 10_000), v_min=st.sampled_from([0.04, 0.3]),
+       p_d=st.sampled_from([0.6, 0.9]))
+def test_the_update_is_the_posterior_of_no_detection(seed, v_min, p_d):
+    """Mean, covariance and the notch's posterior probability match importance sampling of the
+    exact posterior (the radial speed's moments are exact; the rest of the state follows by
+    its linear regression, exact for a Gaussian prior)."""
+    rng = np.random.default_rng(seed)
+    x = np.array([rng.uniform(-3, 3), rng.normal(0, 0.4), rng.uniform(2, 8), rng.normal(0, 0.4)])
+    a = rng.normal(0, 0.3, (4, 4))
+    P = a @ a.T + np.diag([0.05, 0.05, 0.05, 0.05])
+    P[[0, 2], :] *= 0.3                         # position sd a few tens of cm, as a track's
+    P[:, [0, 2]] *= 0.3
+    sensor = np.array([0.2, -0.5])
+    xn, pn, q = notch_update(x[None], P[None], sensor, v_min, p_d)
+    mean, cov, q_true = _sampled_posterior(x, P, sensor, v_min, p_d, seed=seed)
+    # the update holds the line of sight at the mean position, the sampling does not: agreement
+    # to a few per cent of the prior's spread
+    np.testing.assert_allclose(xn[0], mean, atol=0.02 * np.sqrt(P.diagonal().max()) + 0.004)
+    np.testing.assert_allclose(pn[0], cov, atol=0.03 * P.max() + 0.002)
+    assert q[0] == pytest.approx(q_true, abs=0.02)
+
+
+def test_a_walker_crossing_the_line_of_sight_keeps_walking():
+    """Silent while crossing (radial speed in the notch): the tangential velocity stays, the
+    radial one is pulled into the notch, and the silence is explained."""
+    x = np.array([[0.0, 1.2, 5.0, 0.1]])             # crossing at 1.2 m/s, 5 m ahead
+    P = np.diag([0.01, 0.04, 0.01, 0.04])[None]
+    xn, pn, w = notch_update(x, P, (0.0, 0.0), 0.3, 0.9)
+    assert xn[0, 1] == pytest.approx(1.2) and abs(xn[0, 3]) < 0.1
+    assert w[0] > 0.5
+
+
+def test_a_track_moving_away_fast_is_not_explained():
+    """1 m/s along the line of sight with a 0.05 m/s spread: the notch cannot explain its
+    silence (a missed detection can), and its state is nearly the prior."""
+    x = np.array([[0.0, 0.0, 5.0, 1.0]])
+    P = np.diag([0.01, 0.0025, 0.01, 0.0025])[None]
+    xn, pn, w = notch_update(x, P, (0.0, 0.0), 0.04, 0.9)
+    assert w[0] < 1e-6
+    np.testing.assert_allclose(xn, x, atol=1e-6)
+
+
+def test_the_split_parts_add_up_to_the_prior():
+    """p_in times the inside moments plus (1 - p_in) times the outside ones give back the
+    prior's mean and covariance (the mixture identity the outside part is built from)."""
+    rng = np.random.default_rng(3)
+    x = np.array([[0.4, 0.3, 6.0, -0.2], [-1.0, 0.0, 3.0, 0.05]])
+    P = np.stack([np.diag([0.02, 0.09, 0.02, 0.04]), np.diag([0.01, 0.01, 0.01, 0.01])])
+    P[0, 1, 3] = P[0, 3, 1] = 0.01
+    p_in, (xi, Pi), (xo, Po) = notch_split(x, P, (0.0, 0.0), 0.1)
+    for k in range(2):
+        mean = p_in[k] * xi[k] + (1 - p_in[k]) * xo[k]
+        np.testing.assert_allclose(mean, x[k], atol=1e-12)
+        di, do = xi[k] - x[k], xo[k] - x[k]
+        cov = p_in[k] * (Pi[k] + np.outer(di, di)) + (1 - p_in[k]) * (Po[k] + np.outer(do, do))
+        np.testing.assert_allclose(cov, P[k], atol=1e-12)
+    del rng
+
+
+@pytest.mark.parametrize("n, d, slowing", [
+    ([6], [-0.10], True),            # 6 points at 0.1 m/s: within 0.04 + 1.96 * 0.3 / sqrt(6)
+    ([6], [-0.35], False),           # beyond 0.28 m/s
+    ([1], [0.55], True),             # one point: its spread allows a stop
+    ([1], [np.nan], False),          # no radial speed: not seen slowing
+])
+def test_seen_slowing_is_the_last_objects_speed_against_the_notch(n, d, slowing):
+    assert seen_slowing(n, d, 0.04, 0.3) is slowing
+
+
+@pytest.mark.parametrize("kwargs, match", [
+    ({"min_speed_mps": 0.0}, "min_speed_mps"),
+    ({"min_speed_mps": float("nan")}, "min_speed_mps"),
+    ({"detection_probability": 1.0}, "detection_probability"),
+    ({"x": np.zeros((2, 3))}, r"x \(K, 4\)"),
+])
+def test_bad_arguments_are_named(kwargs, match):
+    args = {"x": np.zeros((1, 4)) + [0, 0, 5, 0], "P": np.eye(4)[None], "sensor_xy": (0, 0),
+            "min_speed_mps": 0.3, "detection_probability": 0.9} | kwargs
+    with pytest.raises(ValueError, match=match):
+        notch_update(**args)
+
+
+# ------------------------------------------------------------------ in the tracker
+
+def _stop_and_go(dt: float, v_min: float, seed: int = 1) -> tuple[pd.DataFrame, np.ndarray]:
+    """A person walking toward a still sensor (1 m/s), decelerating to a stop at 6.5 m, standing
+    3.5 s, walking off across the line of sight; 6 points a frame; the sensor drops every point
+    whose radial speed is below v_min (a standing person gives none). (points, truth (T, 2))."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(0.0, 12.0, dt)
+    # speed 1 m/s until 2 s, then uniform deceleration to 0 at 3 s; stand until 6.5 s
+    v = np.interp(t, [0, 2, 3, 6.5, 7.5, 12], [1, 1, 0, 0, 1, 1])
+    pos = np.zeros((len(t), 2))
+    pos[:, 1] = 9.0 - np.concatenate([[0], np.cumsum(v[:-1] * dt)]).clip(max=2.5)
+    after = t >= 6.5
+    pos[after, 0] = np.concatenate([[0], np.cumsum(v[after][:-1] * dt)])
+    vel = np.gradient(pos, dt, axis=0)
+    radial = (pos * vel).sum(1) / np.hypot(pos[:, 0], pos[:, 1])
+    rows = []
+    for i, ti in enumerate(t):
+        if abs(radial[i]) < v_min and np.hypot(*vel[i]) < v_min:
+            rows.append({"frame": i, "time_s": ti, "x_m": np.nan, "y_m": np.nan,
+                         "velocity_over_ground_mps": np.nan})
+            continue
+        for _ in range(6):
+            p = pos[i] + rng.normal(0, 0.12, 2)
+            rows.append({"frame": i, "time_s": ti, "x_m": p[0], "y_m": p[1],
+                         "velocity_over_ground_mps": radial[i] + rng.normal(0, 0.05)})
+    return pd.DataFrame(rows), pos
+
+
+@pytest.mark.parametrize("name", ["gnn_cv", "jpda_cv"])
+def test_a_person_who_stops_in_the_notch_keeps_one_track(name):
+    """Standing 3.5 s without a point (longer than max_misses' 2 s): with the sensor's notch
+    given, one track from first confirmation to the end, where the person is; without it the
+    track is deleted while they stand and a new one starts when they walk off."""
+    pts, truth = _stop_and_go(0.05, 0.04)
+    cfg = config(name)
+    held = track_points(pts, cfg, min_detectable_speed_mps=0.04)
+    conf = held[held.confirmed]
+    assert conf.track_id.nunique() == 1
+    end = conf[conf.frame == conf.frame.max()].iloc[0]
+    assert np.hypot(end.x_m - truth[-1, 0], end.y_m - truth[-1, 1]) < 0.3
+    standing = conf[(conf.time_s > 3.2) & (conf.time_s < 6.4)]
+    assert len(standing) and standing.coasting.all()
+    assert np.hypot(standing.x_m - 0.0, standing.y_m - 6.5).max() < 0.3
+    plain = track_points(pts, cfg)
+    assert plain[plain.confirmed].track_id.nunique() == 2
+
+
+def test_a_fast_object_that_vanishes_is_deleted_with_the_notch_too():
+    """An object seen moving away at 0.8 m/s for 1 s, then nothing: its silence is a miss, not
+    the notch, so the track goes after max_misses' 2 s as without the notch."""
+    f = np.arange(40)
+    seen = f < 20
+    pts = pd.DataFrame({"frame": f, "time_s": f * 0.05,
+                        "x_m": np.where(seen, 0.0, np.nan),
+                        "y_m": np.where(seen, 4.0 + 0.8 * f * 0.05, np.nan),
+                        "velocity_over_ground_mps": np.where(seen, 0.8, np.nan)})
+    pts = pd.concat([pts, pd.DataFrame({"frame": np.arange(40, 120), "time_s":
+                                        np.arange(40, 120) * 0.05})], ignore_index=True)
+    with_notch = track_points(pts, config(), min_detectable_speed_mps=0.04)
+    plain = track_points(pts, config())
+    last = with_notch[with_notch.track_id == 0].time_s.max()
+    assert last == plain[plain.track_id == 0].time_s.max()
+    assert last < 19 * 0.05 + 2.2
+
+
+def test_the_doppler_confirmation_is_off_with_a_notch():
+    """Behind a notch every point moves by selection, so two moving hits do not confirm a
+    track (M-of-N does): without the notch they do."""
+    f = np.arange(2)
+    pts = pd.DataFrame({"frame": f, "time_s": f * 0.1, "x_m": 0.0, "y_m": 5.0 + 0.1 * f,
+                        "velocity_over_ground_mps": 1.0})
+    assert track_points(pts, config()).confirmed.iloc[-1]
+    assert not track_points(pts, config(), min_detectable_speed_mps=0.3).confirmed.any()
+
+
+@pytest.mark.parametrize("bad", [0.0, -0.1, float("inf"), True, "0.3"])
+def test_a_bad_notch_is_named(bad):
+    pts = pd.DataFrame({"frame": [0], "time_s": [0.0], "x_m": [0.0], "y_m": [5.0]})
+    with pytest.raises(TrackingError, match="min_detectable_speed_mps"):
+        track_points(pts, config(), min_detectable_speed_mps=bad)
+
+
+# ------------------------------------------------------------------ counts in time
+
+def test_counts_scale_with_the_frame_period():
+    cfg = config()
+    assert cfg.counts_at(0.1) == (3, 5, 20, 2)
+    assert cfg.counts_at(0.1 + 1e-15) == (3, 5, 20, 2)
+    assert cfg.counts_at(0.05) == (6, 10, 40, 4)
+    assert cfg.counts_at(1 / 30) == (9, 15, 60, 6)
+    assert cfg.counts_at(float("inf")) == (3, 5, 20, 2)              # one frame: as stated
+    assert dataclasses.replace(cfg, count_period_s=None).counts_at(0.05) == (3, 5, 20, 2)
+    with pytest.raises(ValueError, match="period_s"):
+        cfg.counts_at(0.0)
+
+
+@pytest.mark.parametrize("silence_s, kept", [(1.8, True), (2.3, False)])
+@pytest.mark.parametrize("dt", [0.1, 0.05])
+def test_coasting_and_confirmation_take_the_same_time_at_any_frame_rate(dt, silence_s, kept):
+    """The same walk at 10 and 20 frames/s: confirmed on the same share of hits in the same
+    0.5 s window (3 of 5 frames, 6 of 10), kept through 1.8 s of silence and gone after 2.3 s
+    (max_misses' 2 s at count_period_s)."""
+    n = int(round(1.0 / dt))
+    gap = int(round(silence_s / dt))
+    f = np.arange(2 * n + gap)
+    seen = (f < n) | (f >= n + gap)
+    t = f * dt
+    pts = pd.DataFrame({"frame": f, "time_s": t, "x_m": np.where(seen, 0.5 * t, np.nan),
+                        "y_m": np.where(seen, 5.0, np.nan)})
+    tracks = track_points(pts, config())
+    m = 3 if dt == 0.1 else 6
+    assert tracks[tracks.confirmed].time_s.min() == pytest.approx((m - 1) * dt, abs=1e-9)
+    assert (set(tracks.track_id) == {0}) is kept
+
+
+# ------------------------------------------------------------------ a recording's walls
+
+def test_a_boundary_box_must_be_a_box():
+    with pytest.raises(ConfigError, match="boundary_box_m"):
+        TrackedRecording.from_mapping({"name": "a", "kind": "radhar", "path": "p",
+                                       "boundary_box_m": [1.0, -1.0, 0.0, 5.0]})
