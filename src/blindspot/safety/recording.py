@@ -78,10 +78,11 @@ class RecordingEntry(TypedConfig):
     Fields: ``name``; ``kind`` (:data:`RAW_KINDS` or :data:`POINT_LOG_KINDS`); ``path``
     (relative to ``paths.shared_dir`` or absolute); ``frame_period_s`` (s; null: the file's
     stamps, or the radar profile's period for a raw capture); ``static_speed_mps`` (the static
-    clutter tolerance, m/s; null keeps every point); ``min_detectable_speed_mps`` and
-    ``boundary_box_m`` (a point-cloud log's Doppler notch and walls, as
-    :class:`~blindspot.track.config.TrackedRecording`'s); ``moving`` (recorded from a car driving
-    along the radar's boresight: the ego speed, a world frame and the decisions);
+    clutter tolerance, m/s; null keeps every point); ``min_detectable_speed_mps`` (a still
+    radar's Doppler notch, :func:`blindspot.track.track_points`) and ``boundary_box_m`` (a
+    point-cloud log's walls, as :class:`~blindspot.track.config.TrackedRecording`'s);
+    ``moving`` (recorded from a car driving along the radar's boresight: the ego speed, a world
+    frame and the decisions);
     ``speed_column`` (the point table's ego-speed column; null: estimated by the radar);
     ``stop_at`` (:data:`STEPS`); ``reference_gate_m`` (TI's tracks, CLEAR MOT gate, m);
     ``ego_width_m``, ``ego_length_m`` (the car, m); ``animate`` (the recordings stage draws
@@ -115,11 +116,15 @@ class RecordingEntry(TypedConfig):
         if self.kind == "ti_gtrack" and self.frame_period_s is None:
             raise ConfigError("frame_period_s", None, "a positive period (s): a ti_gtrack log "
                               "holds no time stamps")
-        for key in ("min_detectable_speed_mps", "boundary_box_m"):
-            value = getattr(self, key)
-            if value is not None and (self.kind not in ("ti_gtrack", "radhar") or self.moving):
-                raise ConfigError(key, value, "null except for a ti_gtrack or radhar log from "
-                                  f"a still radar (kind {self.kind!r}, moving {self.moving})")
+        if self.min_detectable_speed_mps is not None and self.moving:
+            raise ConfigError("min_detectable_speed_mps", self.min_detectable_speed_mps,
+                              "null for a recording from a moving car (its static points are "
+                              "kept for the ego-motion, so it has no Doppler notch)")
+        box = self.boundary_box_m
+        if box is not None and (self.kind not in ("ti_gtrack", "radhar") or self.moving):
+            raise ConfigError("boundary_box_m", list(box), "null except for a ti_gtrack or "
+                              f"radhar log from a still radar (kind {self.kind!r}, moving "
+                              f"{self.moving})")
 
 
 @dataclass
@@ -233,10 +238,13 @@ def _ego_motion(entry: RecordingEntry, pts: pd.DataFrame, where: str) -> pd.Data
     return pts
 
 
-def _track(points: pd.DataFrame, tracker: TrackerConfig, source: str) -> pd.DataFrame:
+def _track(points: pd.DataFrame, tracker: TrackerConfig, source: str,
+           min_detectable_speed_mps: float | None) -> pd.DataFrame:
     """The tracker on a recording's moving points with their radial speed over ground (a still
-    radar's own radial speed, or the ego-motion-compensated one from the sensor's position)."""
-    return track_points(tracker_input(points), tracker, source=source)
+    radar's own radial speed, or the ego-motion-compensated one from the sensor's position),
+    behind the recording's Doppler notch if it has one."""
+    return track_points(tracker_input(points), tracker, source=source,
+                        min_detectable_speed_mps=min_detectable_speed_mps)
 
 
 def predict_tracks(tracks: pd.DataFrame, predictor: Any, horizon: int, dt_s: float,
@@ -351,7 +359,7 @@ def run_recording(entry: RecordingEntry, rec_cfg: Any, path: Path, groups: Any,
         summary.update({k: v for k, v in res.metrics.items()
                         if k not in ("n_frames", "n_points")})
     else:
-        result.tracks = _track(pts, tracker, str(path.name))
+        result.tracks = _track(pts, tracker, str(path.name), entry.min_detectable_speed_mps)
         summary["n_tracks"] = int(result.tracks[result.tracks.confirmed].track_id.nunique())
     if not _steps_to(entry, "predictions"):
         return result

@@ -7,6 +7,7 @@ range. The yaml files give the source or the reason of every value.
 
 from __future__ import annotations
 
+import numbers
 from dataclasses import dataclass
 
 import numpy as np
@@ -107,7 +108,9 @@ class TrackerConfig(TypedConfig):
         gate_probability: probability that the true object's measurement falls inside the
             Mahalanobis gate; the gate is the chi-square quantile with 2 degrees of freedom.
         association: ``gnn`` or ``jpda`` (see :data:`ASSOCIATIONS`).
-        detection_probability: P_D of an object in a frame (JPDA's hypothesis weights).
+        detection_probability: P_D of an object in a frame (JPDA's hypothesis weights; with a
+            sensor's Doppler notch, the miss likelihood of the negative information,
+            :func:`blindspot.track.stopped.notch_update`).
         clutter_density_per_m2: spatial density of false objects per frame (JPDA).
         confirm_m, confirm_n: a tentative track is confirmed once it has been updated with a
             measurement in ``confirm_m`` of its last ``confirm_n`` frames, and deleted when its
@@ -125,6 +128,9 @@ class TrackerConfig(TypedConfig):
             this many frames take, the time they span at the recording's median frame period,
             whether the silence comes as frames without points or as no frames at all; until
             then it coasts (predicted only).
+        max_stop_s: the longest a track stopped in a sensor's Doppler notch
+            (:mod:`blindspot.track.stopped`) is held without a detection (s); then its silence
+            counts toward ``max_misses`` again.
         count_period_s: the frame period (s) at which ``confirm_m``, ``confirm_n``,
             ``max_misses`` and ``priority_max_coast_frames`` are counted; a group of points at
             another median frame period gets the same times (:meth:`counts_at`), so a
@@ -182,6 +188,7 @@ class TrackerConfig(TypedConfig):
     max_misses: int = setting(ge=0, le=100_000)
     priority_max_coast_frames: int | None = setting(None, ge=0, le=100_000)
     count_period_s: float | None = setting(None, gt=0.0, le=60.0)
+    max_stop_s: float = setting(25.0, gt=0.0, le=3600.0)
     doppler_std_mps: float | None = setting(None, gt=0.0, le=100.0)
     field_of_view_deg: float | None = setting(None, gt=0.0, le=360.0)
     init_doppler_std_mps: float | None = setting(None, gt=0.0, le=100.0)
@@ -206,9 +213,11 @@ class TrackerConfig(TypedConfig):
     def counts_at(self, period_s: float) -> tuple[int, int, int, int | None]:
         """(confirm_m, confirm_n, max_misses, priority_max_coast_frames) for frames of
         ``period_s`` seconds: with ``count_period_s`` each count scaled by count_period_s /
-        period_s to the nearest frame (at least one; M rounded up, so the hit fraction does not
-        fall below M / N); unchanged without it, or at that period (to 1e-9)."""
-        if isinstance(period_s, bool) or not (isinstance(period_s, (int, float)) and period_s > 0):
+        period_s to the nearest frame, halves up (N at least one; M rounded up, so the hit
+        fraction does not fall below M / N); unchanged without it, or at that period (to 1e-9).
+        At periods of count_period_s * N or longer a track confirms on one hit."""
+        if (isinstance(period_s, (bool, np.bool_)) or not isinstance(period_s, numbers.Real)
+                or not period_s > 0):
             raise ValueError(f"TrackerConfig.counts_at: period_s must be a positive frame "
                              f"period (s; inf for a single frame); found {period_s!r}")
         m, n, k = self.confirm_m, self.confirm_n, self.priority_max_coast_frames
@@ -216,10 +225,13 @@ class TrackerConfig(TypedConfig):
                  else self.count_period_s / float(period_s))
         if abs(scale - 1.0) <= 1e-9:
             return m, n, self.max_misses, k
-        n_s = max(1, round(n * scale))
+        def nearest(count: float) -> int:
+            return int(np.floor(count + 0.5))
+
+        n_s = max(1, nearest(n * scale))
         m_s = min(n_s, max(1, int(np.ceil(m * n_s / n - 1e-9))))
-        return (m_s, n_s, round(self.max_misses * scale),
-                None if k is None else round(k * scale))
+        return (m_s, n_s, nearest(self.max_misses * scale),
+                None if k is None else nearest(k * scale))
 
 
 #: Point-cloud log formats the real_tracking stage reads (blindspot.radar.capture).

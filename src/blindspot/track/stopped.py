@@ -1,4 +1,4 @@
-"""Silent tracks of a sensor with a Doppler notch: a stop, a miss, or gone.
+"""Silent tracks of a sensor with a Doppler notch: coasting through it, or stopped in it.
 
 A radar that drops its static clutter on the sensor (TI's people-counting demo removes the
 zero-Doppler bin) or in the reader (a recording's ``static_speed_mps``) reports no point whose
@@ -7,38 +7,48 @@ across the line of sight, goes silent: a constant-velocity track coasts on with 
 it last had, walks away from them and is deleted after ``tracker.max_misses``, and the person
 gets a new track when they walk off.
 
-A frame without a detection is negative information (Koch 2007, "On exploiting 'negative'
-sensor evidence for target tracking and sensor data fusion", Information Fusion 8(1); behind a
-Doppler notch, the move-stop-move targets of GMTI tracking, Kirubarajan & Bar-Shalom 2003). Its
-likelihood is 1 - P_D outside the notch and 1 inside it, so the predicted Gaussian becomes a
-mixture of itself (weight 1 - P_D) and its part inside the notch (weight P_D p_in);
-:func:`notch_update` collapses it to one Gaussian by moment matching (:func:`notch_split`: the
-radial speed's truncated-normal moments, carried to the state by its linear regression on it).
-The radial speed is pulled into the notch, the tangential one kept: a walker crossing the line
-of sight keeps walking, a person who stopped stays put.
+Two answers, both used by :func:`blindspot.track.track_points` with ``min_detectable_speed_mps``:
 
-Repeated, that update erodes any velocity: an object that vanished at 0.8 m/s, missed frame after
-frame, ends up "in the notch" because the model has no hypothesis that it is gone. So a silence
-counts as a stop, not toward deletion, only when the track's last object was seen slowing into
-the notch (:func:`seen_slowing`: its radial speed consistent with it), and while the
-notch is the likelier reason for the silence (its posterior probability at least one half). A
-sensor that reports its static points (the driving chain) has no notch.
+* **Coasting through the notch.** A frame without a detection is negative information (Koch
+  2007, "On exploiting 'negative' sensor evidence for target tracking and sensor data fusion",
+  Information Fusion 8(1)). Its likelihood is 1 - P_D outside the notch and 1 inside it, so the
+  predicted Gaussian becomes a mixture of itself (weight 1 - P_D) and its part inside the notch
+  (weight P_D p_in); :func:`notch_update` collapses it to one Gaussian by moment matching (the
+  radial speed's truncated-normal moments, carried to the state by its linear regression on
+  it). The radial speed is drawn into the notch, the tangential one kept: a walker crossing the
+  line of sight keeps walking.
+* **Stopped in the notch.** The move-stop-move targets of GMTI tracking (Kirubarajan &
+  Bar-Shalom 2003, "Tracking evasive move-stop-move targets with a GMTI radar using a VS-IMM
+  estimator", IEEE Trans. AES 39(3)) have a stopped mode: zero velocity, no process noise. A
+  track whose silence outlasts its coasting time is not deleted but stopped, held where it was
+  last detected (:func:`held_state`), when what was last seen of it says it was stopping: its
+  last object's radial speed inside the notch within its error (:func:`seen_slowing`) and its
+  filtered velocity then consistent with standing (:func:`still`). An object last seen moving
+  (one that vanished at speed, a walker crossing the line of sight) is deleted as before. A
+  stopped track meets each frame's detections with a new track's velocity prior
+  (:func:`released_state`) and is held at most ``tracker.max_stop_s``.
+
+The decisions are hard ones, without an IMM's mode probabilities. A sensor that reports its
+static points (the driving chain) has no notch.
 """
 
 from __future__ import annotations
 
-import numpy as np
-from scipy.stats import norm
+import numbers
 
-__all__ = ["SLOWING_OBJECTS", "SLOWING_TEST_PROBABILITY", "notch_split", "notch_update",
-           "seen_slowing"]
+import numpy as np
+from scipy.stats import chi2, norm
+
+__all__ = ["SLOWING_OBJECTS", "SLOWING_TEST_PROBABILITY", "held_state", "is_positive_speed",
+           "notch_split", "notch_update", "released_state", "seen_slowing", "still"]
 
 #: The last objects of a track whose pooled radial speed :func:`seen_slowing` tests: the last
-#: one (pooling 3 objects of a 20-frames/s sensor averages 0.15 s of the deceleration and lags
-#: it: a person braking at 1 m/s^2 was not seen slowing).
+#: one (pooling 3 objects of a 20-frames/s sensor averages 0.15 s of a deceleration and lags
+#: it: the synthetic person braking at 1 m/s^2 of tests/track/test_doppler_notch.py was not
+#: seen slowing with 3).
 SLOWING_OBJECTS = 1
-#: Two-sided probability of that test: the silence is a stop unless the last objects' radial
-#: speed lies outside the notch by more than this quantile of its standard error.
+#: Probability of the stop tests (:func:`seen_slowing`, two-sided; :func:`still`): a track is
+#: stopping unless what was last seen of it lies beyond this quantile.
 SLOWING_TEST_PROBABILITY = 0.95
 
 
@@ -51,17 +61,22 @@ def _check_states(x: np.ndarray, P: np.ndarray, who: str) -> tuple[np.ndarray, n
     return x, P
 
 
+def is_positive_speed(value) -> bool:
+    """Whether ``value`` is a real number (Python or numpy, not a bool), finite and > 0."""
+    return (isinstance(value, numbers.Real) and not isinstance(value, (bool, np.bool_))
+            and bool(np.isfinite(value)) and value > 0)
+
+
 def _check_speed(value: float, name: str, who: str) -> None:
-    if (isinstance(value, bool) or not isinstance(value, (int, float))
-            or not (np.isfinite(value) and value > 0)):
+    if not is_positive_speed(value):
         raise ValueError(f"{who}: {name} must be a positive finite speed (m/s); found {value!r}")
 
 
 def notch_split(x: np.ndarray, P: np.ndarray, sensor_xy, min_speed_mps: float):
-    """A Gaussian state conditioned on its radial speed over ground r = u.v (u the unit line of
-    sight from ``sensor_xy`` to the state's position, held at the mean: the linearisation of
-    :func:`blindspot.track.tracker._range_rate_update`) lying inside the notch |r| <
-    ``min_speed_mps`` or outside it.
+    """A Gaussian state conditioned on its radial speed over ground r = u.v lying inside the
+    notch |r| < ``min_speed_mps`` (u the unit line of sight from ``sensor_xy`` to the state's
+    position, held at the mean: the linearisation of
+    :func:`blindspot.track.tracker._range_rate_update`).
 
     The radial speed's truncated-normal moments are exact; the rest of the state follows by its
     linear regression on r (exact for a Gaussian conditioned on a linear function of itself).
@@ -72,13 +87,17 @@ def notch_split(x: np.ndarray, P: np.ndarray, sensor_xy, min_speed_mps: float):
         min_speed_mps: the notch's half-width (m/s, > 0).
 
     Returns:
-        ``(p_in, (x_in, P_in), (x_out, P_out))``: the prior probability of the notch (K,) and
-        the two conditional states. Where a side has (numerically) no mass, or the state sits
-        at the sensor (p_in 0 there), that side's state is the prior.
+        ``(p_in, x_in, P_in)``: the prior probability of the notch (K,) and the conditioned
+        states. Where the notch has (numerically) no mass, or the state sits at the sensor
+        (p_in 0 there), the state is the prior.
     """
     x, P = _check_states(x, P, "notch_split")
     _check_speed(min_speed_mps, "min_speed_mps", "notch_split")
-    los = x[:, [0, 2]] - np.asarray(sensor_xy, float).reshape(1, 2)
+    sensor = np.asarray(sensor_xy, float)
+    if sensor.shape != (2,) or not np.isfinite(sensor).all():
+        raise ValueError(f"notch_split: sensor_xy must be a finite position (x, y) in m; found "
+                         f"{sensor_xy!r}")
+    los = x[:, [0, 2]] - sensor[None, :]
     rng = np.hypot(los[:, 0], los[:, 1])
     h = np.zeros((len(x), 4))
     h[:, 1], h[:, 3] = (los / np.where(rng > 0, rng, 1.0)[:, None]).T
@@ -89,25 +108,15 @@ def notch_split(x: np.ndarray, P: np.ndarray, sensor_xy, min_speed_mps: float):
     mu = np.einsum("ki,ki->k", h, x)
     a, b = (-min_speed_mps - mu) / s, (min_speed_mps - mu) / s
     p_in = np.where(ok, norm.cdf(b) - norm.cdf(a), 0.0)
-    has_in = ok & (p_in > 1e-12)
-    has_out = ok & (p_in < 1.0 - 1e-12)
-    pi = np.where(has_in, p_in, 1.0)
+    use = ok & (p_in > 1e-12)
+    pi = np.where(use, p_in, 1.0)
     fa, fb = norm.pdf(a), norm.pdf(b)
-    m_in = np.where(has_in, mu + s * (fa - fb) / pi, mu)
-    v_in = np.where(has_in, s2 * (1.0 + (a * fa - b * fb) / pi - ((fa - fb) / pi) ** 2), s2)
-    # outside: what the prior holds beyond the inside part (the mixture identity)
-    po = np.where(has_out, 1.0 - p_in, 1.0)
-    m_out = np.where(has_out, (mu - p_in * m_in) / po, mu)
-    second = np.where(has_out, (s2 + mu ** 2 - p_in * (v_in + m_in ** 2)) / po, s2 + mu ** 2)
-    v_out = np.where(has_out, np.maximum(second - m_out ** 2, 0.0), s2)
+    m_in = np.where(use, mu + s * (fa - fb) / pi, mu)
+    v_in = np.where(use, s2 * (1.0 + (a * fa - b * fb) / pi - ((fa - fb) / pi) ** 2), s2)
     k = ph / np.where(ok, s2, 1.0)[:, None]
-
-    def conditioned(m, v, use):
-        xc = x + k * np.where(use, m - mu, 0.0)[:, None]
-        pc = P - k[:, :, None] * k[:, None, :] * np.where(use, s2 - v, 0.0)[:, None, None]
-        return xc, 0.5 * (pc + np.swapaxes(pc, 1, 2))
-
-    return p_in, conditioned(m_in, v_in, has_in), conditioned(m_out, v_out, has_out)
+    x_in = x + k * np.where(use, m_in - mu, 0.0)[:, None]
+    p_new = P - k[:, :, None] * k[:, None, :] * np.where(use, s2 - v_in, 0.0)[:, None, None]
+    return p_in, x_in, 0.5 * (p_new + np.swapaxes(p_new, 1, 2))
 
 
 def notch_update(x: np.ndarray, P: np.ndarray, sensor_xy, min_speed_mps: float,
@@ -130,7 +139,7 @@ def notch_update(x: np.ndarray, P: np.ndarray, sensor_xy, min_speed_mps: float,
         raise ValueError(f"notch_update: detection_probability must lie in (0, 1); found "
                          f"{detection_probability!r}")
     x, P = _check_states(x, P, "notch_update")
-    p_in, (x_in, P_in), _ = notch_split(x, P, sensor_xy, min_speed_mps)
+    p_in, x_in, P_in = notch_split(x, P, sensor_xy, min_speed_mps)
     c1 = detection_probability * p_in
     w = c1 / (c1 + 1.0 - detection_probability)
     xm = (1 - w)[:, None] * x + w[:, None] * x_in
@@ -147,7 +156,9 @@ def seen_slowing(n_points, doppler_mps, min_speed_mps: float, point_std_mps: flo
     ground ``doppler_mps`` (k,)) were slow enough to be entering the notch: their pooled radial
     speed d = sum n d_k / sum n lies within ``min_speed_mps`` + z ``point_std_mps`` /
     sqrt(sum n), z the two-sided ``probability`` quantile of the normal (NaN speeds and empty
-    objects left out; False without any)."""
+    objects left out; False without any). The standard error treats an object's median speed as
+    the mean of independent points: a person's points are correlated (one body), so it is
+    optimistic."""
     _check_speed(min_speed_mps, "min_speed_mps", "seen_slowing")
     _check_speed(point_std_mps, "point_std_mps", "seen_slowing")
     n = np.asarray(n_points, float)
@@ -158,3 +169,41 @@ def seen_slowing(n_points, doppler_mps, min_speed_mps: float, point_std_mps: flo
     pooled = (n[ok] * d[ok]).sum() / n[ok].sum()
     z = norm.ppf(0.5 + probability / 2.0)
     return bool(abs(pooled) <= min_speed_mps + z * point_std_mps / np.sqrt(n[ok].sum()))
+
+
+def held_state(x: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The stopped mode's states of (K, 4) / (K, 4, 4) ones: velocity zero and certain (no
+    covariance with the position), position and its covariance kept; held so, frame after
+    frame, with no process noise (Kirubarajan & Bar-Shalom 2003's stopped model)."""
+    x, P = _check_states(x, P, "held_state")
+    x, P = x.copy(), P.copy()
+    x[:, [1, 3]] = 0.0
+    P[:, [1, 3], :] = 0.0
+    P[:, :, [1, 3]] = 0.0
+    return x, P
+
+
+def released_state(x: np.ndarray, P: np.ndarray, velocity_std_mps: float
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    """A held state (4,) / (4, 4) as the next frame's association meets it: the position held,
+    the velocity a new track's prior (zero mean, ``velocity_std_mps`` per axis,
+    ``tracker.init_velocity_std_mps``): a person walking off starts a new motion."""
+    _check_speed(velocity_std_mps, "velocity_std_mps", "released_state")
+    x, P = held_state(np.asarray(x, float)[None], np.asarray(P, float)[None])
+    P[0, 1, 1] = P[0, 3, 3] = velocity_std_mps ** 2
+    return x[0], P[0]
+
+
+def still(x: np.ndarray, P: np.ndarray, probability: float = SLOWING_TEST_PROBABILITY) -> bool:
+    """Whether a state's velocity (x (4,), P (4, 4)) is consistent with standing still: v' P_v^-1
+    v at most the chi-square quantile of ``probability`` with 2 degrees of freedom (a walker
+    crossing the line of sight keeps a tangential speed its positions measured: not still)."""
+    x = np.asarray(x, float)
+    P = np.asarray(P, float)
+    v = x[[1, 3]]
+    pv = P[np.ix_([1, 3], [1, 3])]
+    try:
+        d2 = float(v @ np.linalg.solve(pv, v))
+    except np.linalg.LinAlgError:
+        return bool(np.allclose(v, 0.0))
+    return d2 <= chi2.ppf(probability, 2)

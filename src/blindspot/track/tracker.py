@@ -26,10 +26,10 @@ the way its tutorials read:
   group's median frame interval), so "missed frames" means the time they span whether the
   silence comes as frames without points or as no frames at all (on regular frames: the
   deletions of ``UpdateTimeStepsDeleter(max_misses + 1)``, tested); until then a track coasts
-  (prediction only), so a person who reappears keeps their track. A tentative track is likewise deleted
-  once its ``confirm_n`` frames' time has passed. Behind a sensor's Doppler notch
-  (``min_detectable_speed_mps``) a silent track that stopped there is kept
-  (:mod:`blindspot.track.stopped`).
+  (prediction only), so a person who reappears keeps their track. A tentative track is
+  likewise deleted once its ``confirm_n`` frames' time has passed. Behind a sensor's Doppler
+  notch (``min_detectable_speed_mps``) a silent track coasts through it and, seen stopping, is
+  held (:mod:`blindspot.track.stopped`).
 
 The Kalman recursion is sequential in time, so frames are stepped one after another per group;
 clustering runs once over every frame of every group (one DBSCAN call).
@@ -51,7 +51,10 @@ from blindspot.arrays import check_count
 from blindspot.parallel import parallel_map
 from blindspot.track.config import TrackerConfig
 from blindspot.track.moving import doppler_motion_log_ratio
-from blindspot.track.stopped import SLOWING_OBJECTS, notch_update, seen_slowing
+from blindspot.track.stopped import (
+    SLOWING_OBJECTS, held_state, is_positive_speed, notch_update, released_state, seen_slowing,
+    still,
+)
 
 __all__ = ["INPUT_COLUMNS", "OUTPUT_COLUMNS", "TrackingError", "cluster_points", "label_objects",
            "track_points"]
@@ -608,9 +611,12 @@ class _Book:
     confirmed: bool = False
     born_s: float = 0.0          # time of its first detection (s, the group's clock)
     last_hit_s: float = 0.0      # time of its last detection
-    # with a Doppler notch: its silence explained by a stop there (blindspot.track.stopped),
-    # not counted toward deletion
+    # with a Doppler notch: stopped there (blindspot.track.stopped) since ``stopped_s`` (s),
+    # held at ``held`` (x (4,), P (4, 4), velocity zero), its silence not counted toward deletion
     stopped: bool = False
+    stopped_s: float = 0.0
+    held: tuple | None = None
+    seen: tuple | None = None    # its state (x, P) at its last detection, with a notch
     # (points, median ego-compensated radial speed) of each hit's object, oldest first
     dopplers: list[tuple[int, float]] = field(default_factory=list)
 
@@ -809,28 +815,50 @@ def _set_state(track, x: np.ndarray, P: np.ndarray) -> None:
     track[-1] = state
 
 
-def _silence_in_notch(live: dict, hit_now: dict, sensor_xy, min_speed: float,
-                      config: TrackerConfig) -> None:
-    """After a frame's association, for a sensor with a Doppler notch: each silent confirmed
-    track takes the frame's negative information (:func:`blindspot.track.stopped.notch_update`)
-    and counts as stopped (its silence explained, not counted toward deletion) while the notch
-    is the likelier reason and its last objects were seen slowing into it
-    (:func:`~blindspot.track.stopped.seen_slowing`); a detected track is not stopped."""
+def _silence_in_notch(live: dict, hit_now: dict, t: float, sensor_xy, min_speed: float,
+                      config: TrackerConfig, coast_s: float, partial: set) -> None:
+    """After a frame's association, for a sensor with a Doppler notch
+    (:mod:`blindspot.track.stopped`): a detected track is moving (its state kept as what was
+    last seen of it); a stopped one stays held where it stopped (the stopped mode: zero
+    velocity, no process noise) until ``tracker.max_stop_s`` has passed, then its silence
+    counts again and deletes it; each other silent confirmed track takes the frame's negative
+    information (:func:`~blindspot.track.stopped.notch_update`) and coasts, except those in
+    ``partial`` (JPDA: detections in its gate took part of its update). When its silence
+    outlasts ``coast_s`` (``max_misses``' time) it stops instead of being deleted if its last
+    object was seen slowing into the notch (:func:`~blindspot.track.stopped.seen_slowing`) and
+    its velocity when last detected is consistent with standing
+    (:func:`~blindspot.track.stopped.still`)."""
     silent = []
     for tr, hit in hit_now.items():
-        live[tr].stopped = False
-        if not hit and live[tr].confirmed:
+        book = live[tr]
+        if hit:
+            book.seen = _state_arrays(tr)
+        if hit or not book.confirmed:
+            book.stopped, book.held = False, None
+        elif tr in partial:
+            continue
+        elif book.stopped:
+            if t - book.stopped_s > config.max_stop_s:
+                book.stopped, book.held = False, None     # deleted with its silence's time
+            else:
+                _set_state(tr, *book.held)
+        else:
             silent.append(tr)
     if not silent:
         return
     xs, ps = zip(*(_state_arrays(tr) for tr in silent))
-    x, P, w = notch_update(np.stack(xs), np.stack(ps), sensor_xy, min_speed,
+    x, P, _ = notch_update(np.stack(xs), np.stack(ps), sensor_xy, min_speed,
                            config.detection_probability)
-    for tr, xi, pi, wi in zip(silent, x, P, w):
+    for tr, xi, pi in zip(silent, x, P):
+        book = live[tr]
+        n, d = np.array(book.dopplers[-SLOWING_OBJECTS:], float).reshape(-1, 2).T
+        if (t - book.last_hit_s > coast_s and book.seen is not None
+                and still(*book.seen)
+                and seen_slowing(n, d, min_speed, config.moving.doppler_std_mps)):
+            hx, hp = held_state(book.seen[0][None], book.seen[1][None])
+            book.stopped, book.stopped_s, book.held = True, float(t), (hx[0], hp[0])
+            xi, pi = book.held
         _set_state(tr, xi, pi)
-        n, d = np.array(live[tr].dopplers[-SLOWING_OBJECTS:], float).reshape(-1, 2).T
-        live[tr].stopped = bool(wi >= 0.5) and seen_slowing(n, d, min_speed,
-                                                            config.moving.doppler_std_mps)
 
 
 def _objects(xy: np.ndarray, labels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -907,6 +935,9 @@ def _track_group(labelled: pd.DataFrame, frames: pd.DataFrame, config: TrackerCo
                           if book.confirmed and not book.stopped
                           else not book.confirmed and t - book.born_s > tentative_s)]:
             del live[track]      # silent too long (no frames at all): never takes a newcomer
+        for track, book in live.items():      # a stopped track may walk off: a new motion
+            if book.stopped:
+                _set_state(track, *released_state(*book.held, config.init_velocity_std_mps))
         pxy, plabels = by_frame.get(frame, no_points)
         xy, counts = _objects(pxy, plabels) if len(pxy) else (np.empty((0, 2)),
                                                               np.empty(0, np.int64))
@@ -925,6 +956,7 @@ def _track_group(labelled: pd.DataFrame, frames: pd.DataFrame, config: TrackerCo
 
         hit_now: dict[object, bool] = {}
         meas_of: dict[object, int] = {}          # track -> the object (index) that updated it
+        partial: set = set()                     # JPDA: not detected, yet updated in part
         # Two-stage association: confirmed tracks first, tentative tracks with what is left. A
         # new track's wide velocity prior gives it a small Mahalanobis distance to anything
         # nearby, so one joint assignment lets clutter-born tracks steal a confirmed track's
@@ -977,6 +1009,8 @@ def _track_group(labelled: pd.DataFrame, frames: pd.DataFrame, config: TrackerCo
                 for track, hyp in assoc.items():
                     if parts.jpda:
                         state, hit = _jpda_posterior(track, hyp, parts.updater)
+                        if not hit and any(bool(h) for h in hyp):
+                            partial.add(track)
                         if stage:
                             used.update(h.measurement for h in hyp if h)
                         if hit:
@@ -1001,7 +1035,8 @@ def _track_group(labelled: pd.DataFrame, frames: pd.DataFrame, config: TrackerCo
                     track.append(state)
                     hit_now[track] = hit
         if min_speed is not None:
-            _silence_in_notch(live, hit_now, sensor, min_speed, config)
+            _silence_in_notch(live, hit_now, float(t), sensor, min_speed, config,
+                              silent_after_miss_s, partial)
         # Track management: M-of-N confirmation, deletion of failed tentatives and of confirmed
         # tracks silent for longer than max_misses frame periods (silence in the notch excepted).
         for track, hit in hit_now.items():
@@ -1140,11 +1175,12 @@ def track_points(points: pd.DataFrame, config: TrackerConfig, jobs: int = 1, *,
         source: where the points come from (their file), named in every TrackingError.
         min_detectable_speed_mps: the sensor's Doppler notch (m/s): it reports no point whose
             radial speed over ground is below this (static clutter removed on the sensor or
-            by the reader). Each frame a confirmed track goes silent updates it with that
-            negative information (:mod:`blindspot.track.stopped`: its radial speed drawn into
-            the notch, its tangential speed kept), and while the notch is the likelier reason
-            for the silence and the track's last object was seen slowing into it, the silence
-            is a stop and does not count toward ``max_misses``. The Doppler early confirmation
+            by the reader). Each frame a confirmed track goes silent it takes that negative
+            information (:mod:`blindspot.track.stopped`: its radial speed drawn into the
+            notch, its tangential speed kept); a track whose silence outlasts ``max_misses``'
+            time is held as stopped where it was last detected, instead of deleted, when what
+            was last seen of it was slowing into the notch and standing, for at most
+            ``tracker.max_stop_s``. The Doppler early confirmation
             (``tracker.doppler_confirm_log_ratio``) is off: every reported point moves by
             selection. Needs ``tracker.moving`` (its ``doppler_std_mps``). None (points of the
             static world included, as the driving chain gives them): no notch.
@@ -1180,10 +1216,10 @@ def track_points(points: pd.DataFrame, config: TrackerConfig, jobs: int = 1, *,
     _check_config(config, who)
     check_count(jobs, "jobs", ge=1, error=TrackingError, who=who)
     notch = min_detectable_speed_mps
-    if notch is not None and (isinstance(notch, bool) or not isinstance(notch, (int, float))
-                              or not (np.isfinite(notch) and notch > 0)):
+    if notch is not None and not is_positive_speed(notch):
         raise TrackingError(f"{who}: min_detectable_speed_mps must be a positive finite speed "
                             f"(m/s) or None; found {notch!r}")
+    notch = None if notch is None else float(notch)
     if notch is not None and config.moving is None:
         raise TrackingError(f"{who}: min_detectable_speed_mps needs tracker.moving (its "
                             "doppler_std_mps: a point's radial-speed spread, which tells a track "
