@@ -54,36 +54,34 @@ def test_the_update_is_the_posterior_of_no_detection(seed, v_min, p_d):
     x = np.array([rng.uniform(-3, 3), rng.normal(0, 0.4), rng.uniform(2, 8), rng.normal(0, 0.4)])
     a = rng.normal(0, 0.3, (4, 4))
     P = a @ a.T + np.diag([0.05, 0.05, 0.05, 0.05])
-    P[[0, 2], :] *= 0.3                         # position sd a few tens of cm, as a track's
-    P[:, [0, 2]] *= 0.3
+    P[[0, 2], :] *= 0.1                         # position sd up to ~0.2 m, as a track's: the
+    P[:, [0, 2]] *= 0.1                         # line of sight held at the mean is then exact
     sensor = np.array([0.2, -0.5])
-    xn, pn, q = notch_update(x[None], P[None], sensor, v_min, p_d)
-    mean, cov, q_true = _sampled_posterior(x, P, sensor, v_min, p_d, seed=seed)
+    xn, pn = notch_update(x[None], P[None], sensor, v_min, p_d)
+    mean, cov, _ = _sampled_posterior(x, P, sensor, v_min, p_d, seed=seed)
     # the update holds the line of sight at the mean position, the sampling does not: agreement
     # to a few per cent of the prior's spread
     np.testing.assert_allclose(xn[0], mean, atol=0.02 * np.sqrt(P.diagonal().max()) + 0.004)
     np.testing.assert_allclose(pn[0], cov, atol=0.03 * P.max() + 0.002)
-    assert q[0] == pytest.approx(q_true, abs=0.02)
 
 
 def test_a_walker_crossing_the_line_of_sight_keeps_walking():
     """Silent while crossing (radial speed in the notch): the tangential velocity stays, the
-    radial one is pulled into the notch, and the silence is explained."""
+    radial one is pulled into the notch."""
     x = np.array([[0.0, 1.2, 5.0, 0.1]])             # crossing at 1.2 m/s, 5 m ahead
     P = np.diag([0.01, 0.04, 0.01, 0.04])[None]
-    xn, pn, w = notch_update(x, P, (0.0, 0.0), 0.3, 0.9)
+    xn, pn = notch_update(x, P, (0.0, 0.0), 0.3, 0.9)
     assert xn[0, 1] == pytest.approx(1.2) and abs(xn[0, 3]) < 0.1
-    assert w[0] > 0.5
 
 
 def test_a_track_moving_away_fast_is_not_explained():
     """1 m/s along the line of sight with a 0.05 m/s spread: the notch cannot explain its
-    silence (a missed detection can), and its state is nearly the prior."""
+    silence (a missed detection can), and its state stays the prior."""
     x = np.array([[0.0, 0.0, 5.0, 1.0]])
     P = np.diag([0.01, 0.0025, 0.01, 0.0025])[None]
-    xn, pn, w = notch_update(x, P, (0.0, 0.0), 0.04, 0.9)
-    assert w[0] < 1e-6
+    xn, pn = notch_update(x, P, (0.0, 0.0), 0.04, 0.9)
     np.testing.assert_allclose(xn, x, atol=1e-6)
+    np.testing.assert_allclose(pn, P, atol=1e-9)
 
 
 def test_the_inside_part_is_the_prior_conditioned_on_the_notch():
@@ -107,10 +105,10 @@ def test_still_is_the_velocity_against_its_own_spread():
 
 
 @pytest.mark.parametrize("n, d, slowing", [
-    ([6], [-0.10], True),            # 6 points at 0.1 m/s: within 0.04 + 1.96 * 0.3 / sqrt(6)
-    ([6], [-0.35], False),           # beyond 0.28 m/s
-    ([1], [0.55], True),             # one point: its spread allows a stop
-    ([1], [np.nan], False),          # no radial speed: not seen slowing
+    (6, -0.10, True),                # 6 points at 0.1 m/s: within 0.04 + 1.96 * 0.3 / sqrt(6)
+    (6, -0.35, False),               # beyond 0.28 m/s
+    (1, 0.55, True),                 # one point: its spread allows a stop
+    (1, np.nan, False),              # no radial speed: not seen slowing
 ])
 def test_seen_slowing_is_the_last_objects_speed_against_the_notch(n, d, slowing):
     assert seen_slowing(n, d, 0.04, 0.3) is slowing
@@ -169,9 +167,9 @@ def test_a_person_who_stops_in_the_notch_keeps_one_track(name, approach_deg):
     """Standing 3.5 s without a point (longer than max_misses' 2 s): with the sensor's notch
     given, one track from first confirmation to the end, where the person is, coasting through
     the notch and then held; without it the track is deleted while they stand and a new one
-    starts when they walk off. Once held, the track stands where the person was last detected:
-    where its coasting had taken it, 0.5-1.3 m off for a person who came in 30-60 deg off the
-    line of sight (the filter's lag on the velocity across it; five seeds, 2026-12-06)."""
+    starts when they walk off. Once held, the track stands where the person was last detected
+    (where its coasting had taken it was 0.5-1.3 m off for a person who came in 30-60 deg off
+    the line of sight: the filter's lag on the velocity across it; five seeds, 2026-12-06)."""
     pts, truth = _stop_and_go(0.05, 0.04, approach_deg=approach_deg)
     cfg = config(name)
     held = track_points(pts, cfg, min_detectable_speed_mps=0.04)
@@ -272,6 +270,54 @@ def test_a_stopped_track_is_held_at_most_max_stop_s():
     # coasting 2 s (max_misses), then held 5 s, then its silence counts: gone at once
     assert tracks[tracks.track_id == 0].time_s.max() == pytest.approx(last_hit + 2.0 + 5.0,
                                                                       abs=0.1)
+
+
+@pytest.mark.parametrize("name", ["gnn_cv", "jpda_cv"])
+@pytest.mark.parametrize("drop", ["one frame", "every empty frame"])
+def test_a_stop_holds_when_frames_are_missing_not_empty(drop, name):
+    """Found in review: frames absent from the points (not empty ones) skipped the stop and
+    deleted the standing person's track. The silence is the time it spans, either way."""
+    pts, _ = _stop_and_go(0.05, 0.04)
+    silent = pts[pts.x_m.isna()].frame
+    gone = silent.iloc[[41]] if drop == "one frame" else silent
+    tracks = track_points(pts[~pts.frame.isin(gone)], config(name),
+                          min_detectable_speed_mps=0.04)
+    assert tracks[tracks.confirmed].track_id.nunique() == 1
+
+
+@pytest.mark.parametrize("name", ["gnn_cv", "jpda_cv"])
+def test_a_stopped_track_meets_a_newcomer_after_a_gap_with_its_held_spread(name):
+    """Found in review: a stopped track released with a new track's velocity prior and
+    predicted over a 6 s gap without frames took a newcomer 4 m away. Held, it keeps its
+    spread, and the newcomer starts its own track."""
+    pts, _ = _stop_and_go(0.05, 0.04)
+    pts = pts[pts.time_s < 5.5]
+    t0 = 11.5
+    new = pd.DataFrame({"frame": np.repeat(np.arange(300, 340), 6),
+                        "time_s": np.repeat(t0 + np.arange(40) * 0.05, 6),
+                        "x_m": 4.0 + np.random.default_rng(2).normal(0, 0.1, 240),
+                        "y_m": 6.5 + np.random.default_rng(3).normal(0, 0.1, 240),
+                        "velocity_over_ground_mps": 0.5})
+    tracks = track_points(pd.concat([pts, new], ignore_index=True), config(name),
+                          min_detectable_speed_mps=0.04)
+    later = tracks[tracks.confirmed & (tracks.time_s >= t0 + 0.5)]
+    assert 0 not in set(later[later.x_m > 2.0].track_id)
+
+
+def test_jpda_decides_a_stop_on_a_frame_it_updated_in_part():
+    """Found in review: a passer-by 0.6 m from a person who stopped, at the moment the stop is
+    decided, made JPDA skip the decision and delete the track; GNN held it. Both hold it."""
+    pts, truth = _stop_and_go(0.05, 0.04)
+    pts = pts[pts.time_s < 6.4]
+    t_last = pts.dropna(subset=["x_m"]).time_s.max()
+    decide = t_last + 2.05
+    near = pts.time_s.between(decide - 0.1, decide + 0.1)
+    pts.loc[near, ["x_m", "y_m"]] = [0.6, 6.5]
+    for name in ("gnn_cv", "jpda_cv"):
+        cfg = config(name, clutter_density_per_m2=3.0) if name == "jpda_cv" else config(name)
+        tracks = track_points(pts, cfg, min_detectable_speed_mps=0.04)
+        first = tracks[tracks.track_id == 0]
+        assert first.time_s.max() >= 6.3, name
 
 
 def test_a_notch_given_as_a_numpy_float_is_taken():

@@ -129,8 +129,8 @@ class TrackerConfig(TypedConfig):
             whether the silence comes as frames without points or as no frames at all; until
             then it coasts (predicted only).
         max_stop_s: the longest a track stopped in a sensor's Doppler notch
-            (:mod:`blindspot.track.stopped`) is held without a detection (s); then its silence
-            counts toward ``max_misses`` again.
+            (:mod:`blindspot.track.stopped`) is held without a detection after its coasting
+            time (s); then it is deleted.
         count_period_s: the frame period (s) at which ``confirm_m``, ``confirm_n``,
             ``max_misses`` and ``priority_max_coast_frames`` are counted; a group of points at
             another median frame period gets the same times (:meth:`counts_at`), so a

@@ -24,11 +24,13 @@ Two answers, both used by :func:`blindspot.track.track_points` with ``min_detect
   last detected (:func:`held_state`), when what was last seen of it says it was stopping: its
   last object's radial speed inside the notch within its error (:func:`seen_slowing`) and its
   filtered velocity then consistent with standing (:func:`still`). An object last seen moving
-  (one that vanished at speed, a walker crossing the line of sight) is deleted as before. A
-  stopped track meets each frame's detections with a new track's velocity prior
-  (:func:`released_state`) and is held at most ``tracker.max_stop_s``.
+  (one that vanished at speed, a walker crossing the line of sight faster than about 1 m/s) is
+  deleted as before. A stopped track is held at most ``tracker.max_stop_s``; a detection ends
+  its stop, and it walks off with the constant-velocity model's process noise.
 
-The decisions are hard ones, without an IMM's mode probabilities. A sensor that reports its
+The decisions are hard ones, without an IMM's mode probabilities. With 0.15 m of measurement
+noise the filtered velocity across the line of sight is known to about 0.4 m/s, so a walker
+slower than about 0.9 m/s who vanishes there is taken for one who stopped, and held. A sensor that reports its
 static points (the driving chain) has no notch.
 """
 
@@ -39,14 +41,9 @@ import numbers
 import numpy as np
 from scipy.stats import chi2, norm
 
-__all__ = ["SLOWING_OBJECTS", "SLOWING_TEST_PROBABILITY", "held_state", "is_positive_speed",
-           "notch_split", "notch_update", "released_state", "seen_slowing", "still"]
+__all__ = ["SLOWING_TEST_PROBABILITY", "held_state", "is_positive_speed", "notch_split",
+           "notch_update", "seen_slowing", "still"]
 
-#: The last objects of a track whose pooled radial speed :func:`seen_slowing` tests: the last
-#: one (pooling 3 objects of a 20-frames/s sensor averages 0.15 s of a deceleration and lags
-#: it: the synthetic person braking at 1 m/s^2 of tests/track/test_doppler_notch.py was not
-#: seen slowing with 3).
-SLOWING_OBJECTS = 1
 #: Probability of the stop tests (:func:`seen_slowing`, two-sided; :func:`still`): a track is
 #: stopping unless what was last seen of it lies beyond this quantile.
 SLOWING_TEST_PROBABILITY = 0.95
@@ -120,7 +117,7 @@ def notch_split(x: np.ndarray, P: np.ndarray, sensor_xy, min_speed_mps: float):
 
 
 def notch_update(x: np.ndarray, P: np.ndarray, sensor_xy, min_speed_mps: float,
-                 detection_probability: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                 detection_probability: float) -> tuple[np.ndarray, np.ndarray]:
     """The states after a frame without a detection from a sensor blind inside the notch: the
     prior (weight 1 - P_D) and its inside part (weight P_D p_in, :func:`notch_split`), moment
     matched to one Gaussian (module docstring).
@@ -132,8 +129,7 @@ def notch_update(x: np.ndarray, P: np.ndarray, sensor_xy, min_speed_mps: float,
         detection_probability: P_D of the object outside the notch, in (0, 1).
 
     Returns:
-        (x', P', q): the posterior states and the posterior probability q (K,) that the radial
-        speed lies inside the notch, p_in / (p_in + (1 - P_D)(1 - p_in)).
+        (x', P'): the posterior states.
     """
     if not 0.0 < detection_probability < 1.0:
         raise ValueError(f"notch_update: detection_probability must lie in (0, 1); found "
@@ -146,29 +142,26 @@ def notch_update(x: np.ndarray, P: np.ndarray, sensor_xy, min_speed_mps: float,
     da, db = x - xm, x_in - xm
     pm = ((1 - w)[:, None, None] * (P + da[:, :, None] * da[:, None, :])
           + w[:, None, None] * (P_in + db[:, :, None] * db[:, None, :]))
-    q = p_in / (p_in + (1.0 - detection_probability) * (1.0 - p_in))
-    return xm, 0.5 * (pm + np.swapaxes(pm, 1, 2)), q
+    return xm, 0.5 * (pm + np.swapaxes(pm, 1, 2))
 
 
-def seen_slowing(n_points, doppler_mps, min_speed_mps: float, point_std_mps: float,
+def seen_slowing(n_points: int, doppler_mps: float, min_speed_mps: float, point_std_mps: float,
                  probability: float = SLOWING_TEST_PROBABILITY) -> bool:
-    """Whether a track's last objects (``n_points`` (k,) points each, median radial speeds over
-    ground ``doppler_mps`` (k,)) were slow enough to be entering the notch: their pooled radial
-    speed d = sum n d_k / sum n lies within ``min_speed_mps`` + z ``point_std_mps`` /
-    sqrt(sum n), z the two-sided ``probability`` quantile of the normal (NaN speeds and empty
-    objects left out; False without any). The standard error treats an object's median speed as
-    the mean of independent points: a person's points are correlated (one body), so it is
-    optimistic."""
+    """Whether a track's last object (``n_points`` points, median radial speed over ground
+    ``doppler_mps``) was slow enough to be entering the notch: |d| within ``min_speed_mps`` + z
+    ``point_std_mps`` / sqrt(n), z the two-sided ``probability`` quantile of the normal (False
+    without a speed or a point). The last object only: pooling 3 objects of a 20-frames/s
+    sensor averages 0.15 s of a deceleration and lags it (the synthetic person braking at 1
+    m/s^2 of tests/track/test_doppler_notch.py was not seen slowing with 3). The standard error
+    treats an object's median speed as the mean of independent points: a person's points are
+    correlated (one body), so it is optimistic."""
     _check_speed(min_speed_mps, "min_speed_mps", "seen_slowing")
     _check_speed(point_std_mps, "point_std_mps", "seen_slowing")
-    n = np.asarray(n_points, float)
-    d = np.asarray(doppler_mps, float)
-    ok = np.isfinite(d) & (n > 0)
-    if not ok.any():
+    n, d = float(n_points), float(doppler_mps)
+    if not (np.isfinite(d) and n > 0):
         return False
-    pooled = (n[ok] * d[ok]).sum() / n[ok].sum()
     z = norm.ppf(0.5 + probability / 2.0)
-    return bool(abs(pooled) <= min_speed_mps + z * point_std_mps / np.sqrt(n[ok].sum()))
+    return bool(abs(d) <= min_speed_mps + z * point_std_mps / np.sqrt(n))
 
 
 def held_state(x: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -183,17 +176,6 @@ def held_state(x: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return x, P
 
 
-def released_state(x: np.ndarray, P: np.ndarray, velocity_std_mps: float
-                   ) -> tuple[np.ndarray, np.ndarray]:
-    """A held state (4,) / (4, 4) as the next frame's association meets it: the position held,
-    the velocity a new track's prior (zero mean, ``velocity_std_mps`` per axis,
-    ``tracker.init_velocity_std_mps``): a person walking off starts a new motion."""
-    _check_speed(velocity_std_mps, "velocity_std_mps", "released_state")
-    x, P = held_state(np.asarray(x, float)[None], np.asarray(P, float)[None])
-    P[0, 1, 1] = P[0, 3, 3] = velocity_std_mps ** 2
-    return x[0], P[0]
-
-
 def still(x: np.ndarray, P: np.ndarray, probability: float = SLOWING_TEST_PROBABILITY) -> bool:
     """Whether a state's velocity (x (4,), P (4, 4)) is consistent with standing still: v' P_v^-1
     v at most the chi-square quantile of ``probability`` with 2 degrees of freedom (a walker
@@ -206,4 +188,4 @@ def still(x: np.ndarray, P: np.ndarray, probability: float = SLOWING_TEST_PROBAB
         d2 = float(v @ np.linalg.solve(pv, v))
     except np.linalg.LinAlgError:
         return bool(np.allclose(v, 0.0))
-    return d2 <= chi2.ppf(probability, 2)
+    return bool(d2 <= chi2.ppf(probability, 2))

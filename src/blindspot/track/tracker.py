@@ -52,8 +52,7 @@ from blindspot.parallel import parallel_map
 from blindspot.track.config import TrackerConfig
 from blindspot.track.moving import doppler_motion_log_ratio
 from blindspot.track.stopped import (
-    SLOWING_OBJECTS, held_state, is_positive_speed, notch_update, released_state, seen_slowing,
-    still,
+    held_state, is_positive_speed, notch_update, seen_slowing, still,
 )
 
 __all__ = ["INPUT_COLUMNS", "OUTPUT_COLUMNS", "TrackingError", "cluster_points", "label_objects",
@@ -612,11 +611,12 @@ class _Book:
     born_s: float = 0.0          # time of its first detection (s, the group's clock)
     last_hit_s: float = 0.0      # time of its last detection
     # with a Doppler notch: stopped there (blindspot.track.stopped) since ``stopped_s`` (s),
-    # held at ``held`` (x (4,), P (4, 4), velocity zero), its silence not counted toward deletion
+    # held at ``held`` (x (4,), P (4, 4), velocity zero); ``seen``: its state at its last
+    # detection
     stopped: bool = False
     stopped_s: float = 0.0
     held: tuple | None = None
-    seen: tuple | None = None    # its state (x, P) at its last detection, with a notch
+    seen: tuple | None = None
     # (points, median ego-compensated radial speed) of each hit's object, oldest first
     dopplers: list[tuple[int, float]] = field(default_factory=list)
 
@@ -815,50 +815,71 @@ def _set_state(track, x: np.ndarray, P: np.ndarray) -> None:
     track[-1] = state
 
 
-def _silence_in_notch(live: dict, hit_now: dict, t: float, sensor_xy, min_speed: float,
-                      config: TrackerConfig, coast_s: float, partial: set) -> None:
+def _held_noise(parts: _Parts, gap: dt.timedelta, period: float) -> np.ndarray:
+    """The process noise a stopped track is predicted with over a frame interval ``gap``: that of
+    at most one frame period (``period`` s), however long the gap: a standing person does not
+    diffuse, and one who walks off is met within a frame's reach."""
+    step = min(gap, dt.timedelta(seconds=period)) if np.isfinite(period) else gap
+    return np.asarray(parts.predictor.transition_model.covar(time_interval=step), float)
+
+
+def _held_for(track, ts, prev_ts, period: float) -> None:
+    """A stopped Stone Soup track's last state stamped at most one frame period before ``ts``,
+    so the predictor's process noise spans that, as :func:`_held_noise` for the vectorised
+    path."""
+    if prev_ts is None or not np.isfinite(period):
+        return
+    state = copy.copy(track.state)
+    state.timestamp = max(prev_ts, ts - dt.timedelta(seconds=period))
+    track[-1] = state
+
+
+def _silence_in_notch(live: dict, hit_now: dict, sensor_xy, min_speed: float,
+                      config: TrackerConfig, partial: set) -> None:
     """After a frame's association, for a sensor with a Doppler notch
-    (:mod:`blindspot.track.stopped`): a detected track is moving (its state kept as what was
-    last seen of it); a stopped one stays held where it stopped (the stopped mode: zero
-    velocity, no process noise) until ``tracker.max_stop_s`` has passed, then its silence
-    counts again and deletes it; each other silent confirmed track takes the frame's negative
+    (:mod:`blindspot.track.stopped`): a detected track is moving, and what was last seen of it
+    is kept; a silent stopped track stays held where it stopped (the stopped mode: zero
+    velocity, no process noise); each other silent confirmed track takes the frame's negative
     information (:func:`~blindspot.track.stopped.notch_update`) and coasts, except those in
-    ``partial`` (JPDA: detections in its gate took part of its update). When its silence
-    outlasts ``coast_s`` (``max_misses``' time) it stops instead of being deleted if its last
-    object was seen slowing into the notch (:func:`~blindspot.track.stopped.seen_slowing`) and
-    its velocity when last detected is consistent with standing
-    (:func:`~blindspot.track.stopped.still`)."""
+    ``partial`` (JPDA: detections in its gate took part of its update)."""
     silent = []
     for tr, hit in hit_now.items():
         book = live[tr]
         if hit:
-            book.seen = _state_arrays(tr)
-        if hit or not book.confirmed:
-            book.stopped, book.held = False, None
-        elif tr in partial:
-            continue
+            book.seen, book.stopped, book.held = _state_arrays(tr), False, None
         elif book.stopped:
-            if t - book.stopped_s > config.max_stop_s:
-                book.stopped, book.held = False, None     # deleted with its silence's time
-            else:
-                _set_state(tr, *book.held)
-        else:
+            _set_state(tr, *book.held)
+        elif book.confirmed and tr not in partial:
             silent.append(tr)
-    if not silent:
-        return
-    xs, ps = zip(*(_state_arrays(tr) for tr in silent))
-    x, P, _ = notch_update(np.stack(xs), np.stack(ps), sensor_xy, min_speed,
-                           config.detection_probability)
-    for tr, xi, pi in zip(silent, x, P):
-        book = live[tr]
-        n, d = np.array(book.dopplers[-SLOWING_OBJECTS:], float).reshape(-1, 2).T
-        if (t - book.last_hit_s > coast_s and book.seen is not None
-                and still(*book.seen)
-                and seen_slowing(n, d, min_speed, config.moving.doppler_std_mps)):
-            hx, hp = held_state(book.seen[0][None], book.seen[1][None])
-            book.stopped, book.stopped_s, book.held = True, float(t), (hx[0], hp[0])
-            xi, pi = book.held
-        _set_state(tr, xi, pi)
+    if silent:
+        xs, ps = zip(*(_state_arrays(tr) for tr in silent))
+        x, P = notch_update(np.stack(xs), np.stack(ps), sensor_xy, min_speed,
+                            config.detection_probability)
+        for tr, xi, pi in zip(silent, x, P):
+            _set_state(tr, xi, pi)
+
+
+def _ends_silence(track, book: _Book, t: float, min_speed: float | None,
+                  config: TrackerConfig) -> bool:
+    """A confirmed track silent longer than its coasting time, at time ``t`` (s): whether it is
+    deleted (True) or, behind a Doppler notch, stopped and held where it was last detected
+    (False) because what was last seen of it says it was stopping: its last object's radial
+    speed inside the notch (:func:`~blindspot.track.stopped.seen_slowing`) and its velocity
+    then consistent with standing (:func:`~blindspot.track.stopped.still`). A stopped track is
+    deleted once held longer than ``tracker.max_stop_s``."""
+    if book.stopped:
+        return t - book.stopped_s > config.max_stop_s
+    if min_speed is None or book.seen is None or not book.dopplers:
+        return True
+    n, d = book.dopplers[-1]
+    if not (still(*book.seen)
+            and seen_slowing(n, d, min_speed, config.moving.doppler_std_mps)):
+        return True
+    book.stopped, book.stopped_s = True, float(t)
+    book.held = held_state(book.seen[0][None], book.seen[1][None])
+    book.held = (book.held[0][0], book.held[1][0])
+    _set_state(track, *book.held)
+    return False
 
 
 def _objects(xy: np.ndarray, labels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -930,14 +951,14 @@ def _track_group(labelled: pd.DataFrame, frames: pd.DataFrame, config: TrackerCo
         # Stone Soup's timestamps on the group's own clock (from its first frame): any epoch
         # in seconds stays in datetime's range and keeps its microseconds
         ts = _EPOCH + dt.timedelta(seconds=float(t) - t0)
+        # silent too long (no frames at all): deleted, or stopped behind a notch, before the
+        # frame's association, so a track never takes a newcomer after a gap
         for track in [tr for tr, book in live.items()
-                      if (t - book.last_hit_s > silent_before_s
-                          if book.confirmed and not book.stopped
+                      if (_ends_silence(tr, book, float(t), min_speed, config)
+                          if book.confirmed and (book.stopped
+                                                 or t - book.last_hit_s > silent_before_s)
                           else not book.confirmed and t - book.born_s > tentative_s)]:
-            del live[track]      # silent too long (no frames at all): never takes a newcomer
-        for track, book in live.items():      # a stopped track may walk off: a new motion
-            if book.stopped:
-                _set_state(track, *released_state(*book.held, config.init_velocity_std_mps))
+            del live[track]
         pxy, plabels = by_frame.get(frame, no_points)
         xy, counts = _objects(pxy, plabels) if len(pxy) else (np.empty((0, 2)),
                                                               np.empty(0, np.int64))
@@ -979,7 +1000,12 @@ def _track_group(labelled: pd.DataFrame, frames: pd.DataFrame, config: TrackerCo
                 tracks = [tr for tr in live if first[tr] is stage]
                 if not tracks:
                     continue
-                hits, det = _gnn_stage(tracks, xy, free, F, Q, R_meas, parts.gate, terms,
+                q_stage = Q
+                held = np.array([live[tr].stopped for tr in tracks], bool)
+                if held.any():         # a stopped track does not diffuse over a gap
+                    q_stage = np.repeat(Q[None], len(tracks), axis=0)
+                    q_stage[held] = _held_noise(parts, ts - prev_ts, period)
+                hits, det = _gnn_stage(tracks, xy, free, F, q_stage, R_meas, parts.gate, terms,
                                        parts.doppler_std_mps)
                 free[det[hits]] = False
                 for track, hit, j in zip(tracks, hits, det):
@@ -995,6 +1021,9 @@ def _track_group(labelled: pd.DataFrame, frames: pd.DataFrame, config: TrackerCo
                     for tr, xi, pi in zip(upd, xs, ps):
                         tr.x, tr.P = xi, pi
         else:
+            for track in live:     # a stopped track does not diffuse over a gap
+                if live[track].stopped:
+                    _held_for(track, ts, prev_ts, period)
             order = [Detection(p.reshape(2, 1), timestamp=ts,
                                measurement_model=parts.measurement_model, metadata=meta(j))
                      for j, p in enumerate(xy)]
@@ -1035,8 +1064,7 @@ def _track_group(labelled: pd.DataFrame, frames: pd.DataFrame, config: TrackerCo
                     track.append(state)
                     hit_now[track] = hit
         if min_speed is not None:
-            _silence_in_notch(live, hit_now, float(t), sensor, min_speed, config,
-                              silent_after_miss_s, partial)
+            _silence_in_notch(live, hit_now, sensor, min_speed, config, partial)
         # Track management: M-of-N confirmation, deletion of failed tentatives and of confirmed
         # tracks silent for longer than max_misses frame periods (silence in the notch excepted).
         for track, hit in hit_now.items():
@@ -1056,8 +1084,9 @@ def _track_group(labelled: pd.DataFrame, frames: pd.DataFrame, config: TrackerCo
             # Stone Soup's UpdateTimeDeleter.check_for_deletion(track) read off the time of
             # the last hit (a walk over the track's states was 9 % of the stage); on regular
             # frames the deletions of UpdateTimeStepsDeleter(max_misses + 1)
-            if (book.confirmed and not hit and not book.stopped
-                    and t - book.last_hit_s > silent_after_miss_s):
+            if (book.confirmed and not hit
+                    and (book.stopped or t - book.last_hit_s > silent_after_miss_s)
+                    and _ends_silence(track, book, float(t), min_speed, config)):
                 del live[track]
         if pose is not None:
             coasting = [tr for tr, hit in hit_now.items() if not hit and tr in live]
