@@ -114,6 +114,17 @@ def test_seen_slowing_is_the_last_objects_speed_against_the_notch(n, d, slowing)
     assert seen_slowing(n, d, 0.04, 0.3) is slowing
 
 
+def test_the_stop_tests_name_bad_arguments():
+    with pytest.raises(ValueError, match=r"still: a state x \(4,\)"):
+        still(np.zeros(3), np.eye(4))
+    with pytest.raises(ValueError, match="still: probability"):
+        still(np.zeros(4), np.eye(4), probability=1.5)
+    with pytest.raises(ValueError, match="seen_slowing: probability"):
+        seen_slowing(3, 0.1, 0.04, 0.3, probability=0.0)
+    with pytest.raises(ValueError, match="seen_slowing: min_speed_mps"):
+        seen_slowing(3, 0.1, -0.04, 0.3)
+
+
 @pytest.mark.parametrize("kwargs, match", [
     ({"min_speed_mps": 0.0}, "min_speed_mps"),
     ({"min_speed_mps": float("nan")}, "min_speed_mps"),

@@ -30,8 +30,8 @@ Two answers, both used by :func:`blindspot.track.track_points` with ``min_detect
 
 The decisions are hard ones, without an IMM's mode probabilities. With 0.15 m of measurement
 noise the filtered velocity across the line of sight is known to about 0.4 m/s, so a walker
-slower than about 0.9 m/s who vanishes there is taken for one who stopped, and held. A sensor that reports its
-static points (the driving chain) has no notch.
+slower than about 0.9 m/s who vanishes there is taken for one who stopped, and held. A sensor
+that reports its static points (the driving chain) has no notch.
 """
 
 from __future__ import annotations
@@ -67,6 +67,11 @@ def is_positive_speed(value) -> bool:
 def _check_speed(value: float, name: str, who: str) -> None:
     if not is_positive_speed(value):
         raise ValueError(f"{who}: {name} must be a positive finite speed (m/s); found {value!r}")
+
+
+def _check_probability(value: float, who: str) -> None:
+    if not (isinstance(value, numbers.Real) and 0.0 < value < 1.0):
+        raise ValueError(f"{who}: probability must lie in (0, 1); found {value!r}")
 
 
 def notch_split(x: np.ndarray, P: np.ndarray, sensor_xy, min_speed_mps: float):
@@ -157,6 +162,7 @@ def seen_slowing(n_points: int, doppler_mps: float, min_speed_mps: float, point_
     correlated (one body), so it is optimistic."""
     _check_speed(min_speed_mps, "min_speed_mps", "seen_slowing")
     _check_speed(point_std_mps, "point_std_mps", "seen_slowing")
+    _check_probability(probability, "seen_slowing")
     n, d = float(n_points), float(doppler_mps)
     if not (np.isfinite(d) and n > 0):
         return False
@@ -167,7 +173,8 @@ def seen_slowing(n_points: int, doppler_mps: float, min_speed_mps: float, point_
 def held_state(x: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The stopped mode's states of (K, 4) / (K, 4, 4) ones: velocity zero and certain (no
     covariance with the position), position and its covariance kept; held so, frame after
-    frame, with no process noise (Kirubarajan & Bar-Shalom 2003's stopped model)."""
+    frame, without process noise (Kirubarajan & Bar-Shalom 2003's stopped model; across a gap
+    in the frames the tracker grants it one frame period's, blindspot.track.tracker._held_noise)."""
     x, P = _check_states(x, P, "held_state")
     x, P = x.copy(), P.copy()
     x[:, [1, 3]] = 0.0
@@ -182,6 +189,10 @@ def still(x: np.ndarray, P: np.ndarray, probability: float = SLOWING_TEST_PROBAB
     crossing the line of sight keeps a tangential speed its positions measured: not still)."""
     x = np.asarray(x, float)
     P = np.asarray(P, float)
+    if x.shape != (4,) or P.shape != (4, 4):
+        raise ValueError(f"still: a state x (4,) and P (4, 4) as [x, vx, y, vy]; found x "
+                         f"{x.shape}, P {P.shape}")
+    _check_probability(probability, "still")
     v = x[[1, 3]]
     pv = P[np.ix_([1, 3], [1, 3])]
     try:
