@@ -41,7 +41,9 @@ import numbers
 import numpy as np
 from scipy.stats import chi2, norm
 
-__all__ = ["SLOWING_TEST_PROBABILITY", "held_state", "is_positive_speed", "notch_split",
+from blindspot.arrays import check_number
+
+__all__ = ["SLOWING_TEST_PROBABILITY", "held_state", "notch_split",
            "notch_update", "seen_slowing", "still"]
 
 #: Probability of the stop tests (:func:`seen_slowing`, two-sided; :func:`still`): a track is
@@ -58,15 +60,8 @@ def _check_states(x: np.ndarray, P: np.ndarray, who: str) -> tuple[np.ndarray, n
     return x, P
 
 
-def is_positive_speed(value) -> bool:
-    """Whether ``value`` is a real number (Python or numpy, not a bool), finite and > 0."""
-    return (isinstance(value, numbers.Real) and not isinstance(value, (bool, np.bool_))
-            and bool(np.isfinite(value)) and value > 0)
-
-
 def _check_speed(value: float, name: str, who: str) -> None:
-    if not is_positive_speed(value):
-        raise ValueError(f"{who}: {name} must be a positive finite speed (m/s); found {value!r}")
+    check_number(value, name, gt=0.0, unit="m/s", who=who)
 
 
 def _check_probability(value: float, who: str) -> None:

@@ -47,13 +47,11 @@ import pandas as pd
 from scipy.stats import chi2
 from sklearn.cluster import DBSCAN
 
-from blindspot.arrays import check_count
+from blindspot.arrays import check_count, check_number
 from blindspot.parallel import parallel_map
 from blindspot.track.config import TrackerConfig
 from blindspot.track.moving import doppler_motion_log_ratio
-from blindspot.track.stopped import (
-    held_state, is_positive_speed, notch_update, seen_slowing, still,
-)
+from blindspot.track.stopped import held_state, notch_update, seen_slowing, still
 
 __all__ = ["INPUT_COLUMNS", "OUTPUT_COLUMNS", "TrackingError", "cluster_points", "label_objects",
            "track_points"]
@@ -1245,10 +1243,9 @@ def track_points(points: pd.DataFrame, config: TrackerConfig, jobs: int = 1, *,
     _check_config(config, who)
     check_count(jobs, "jobs", ge=1, error=TrackingError, who=who)
     notch = min_detectable_speed_mps
-    if notch is not None and not is_positive_speed(notch):
-        raise TrackingError(f"{who}: min_detectable_speed_mps must be a positive finite speed "
-                            f"(m/s) or None; found {notch!r}")
-    notch = None if notch is None else float(notch)
+    if notch is not None:
+        notch = check_number(notch, "min_detectable_speed_mps", gt=0.0, unit="m/s (or None)",
+                             error=TrackingError, who=who)
     if notch is not None and config.moving is None:
         raise TrackingError(f"{who}: min_detectable_speed_mps needs tracker.moving (its "
                             "doppler_std_mps: a point's radial-speed spread, which tells a track "
