@@ -45,7 +45,8 @@ def test_first_confirmed_is_the_first_frame_with_m_of_the_last_n(mn, rows):
 def test_bad_confirmation_and_points_are_named():
     with pytest.raises(BoundError, match="confirm_m <= confirm_n"):
         first_confirmed(np.zeros((1, 5), bool), 4, 3)
-    with pytest.raises(BoundError, match="missing \\['source'\\]"):
+    with pytest.raises(BoundError,
+                       match="data/driving/points.parquet: missing columns \\['source'\\]"):
         lead_observed(pd.DataFrame({"scene": ["a"], "frame": [0]}), np.array(["a"]),
                       np.arange(3), where="data/driving/points.parquet")
 

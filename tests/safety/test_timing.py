@@ -70,7 +70,7 @@ def test_true_state_tracks_split_at_gaps_and_number_per_scene():
 def test_true_state_tracks_check_their_input():
     row = {"scene": ["a"], "pedestrian": "p0", "frame": 0, "time_s": 0.0, "x_m": 0.0,
            "y_m": 0.0, "vx_mps": 0.0, "vy_mps": 0.0}
-    with pytest.raises(ValueError, match=r"lacks columns \['occluded'\]"):
+    with pytest.raises(ValueError, match=r"truth: missing columns \['occluded'\]"):
         true_state_tracks(pd.DataFrame(row))
     with pytest.raises(ValueError, match="occluded: expected booleans, found dtype"):
         true_state_tracks(pd.DataFrame({**row, "occluded": ["False"]}))

@@ -39,6 +39,7 @@ import numpy as np
 import pandas as pd
 
 from blindspot.safety.evaluation import SceneInfo, scene_results
+from blindspot.tables import check_columns
 
 __all__ = ["BOUNDS", "BoundError", "lead_observed", "first_frame", "first_confirmed",
            "best_request_frame", "bound_results"]
@@ -57,10 +58,8 @@ def lead_observed(points: pd.DataFrame, scenes: np.ndarray, frames: np.ndarray,
 
     points: columns scene, frame, source (one row per radar point); points of other scenes or
     frames are ignored. Raises BoundError naming ``where`` for missing columns."""
-    missing = sorted({"scene", "frame", "source"} - set(points.columns))
-    if missing:
-        raise BoundError(f"{where}: expected columns scene, frame, source (the radar points' "
-                         f"truth label); missing {missing}")
+    check_columns(points, {"scene", "frame", "source"}, where, error=BoundError,
+                  note="the radar points' truth label")
     own = points[points.source.to_numpy() == lead]
     si = pd.Index(scenes).get_indexer(own.scene)
     fi = pd.Index(frames).get_indexer(own.frame)

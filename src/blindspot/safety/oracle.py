@@ -21,8 +21,9 @@ import numpy as np
 import pandas as pd
 
 from blindspot.arrays import check_number
-from blindspot.safety.config import OracleConfig
 from blindspot.kalman import cv_model, kalman_filter
+from blindspot.safety.config import OracleConfig
+from blindspot.tables import check_columns
 
 __all__ = ["TRACK_COLUMNS", "oracle_tracks", "noisy_position_points", "true_state_tracks"]
 
@@ -42,10 +43,7 @@ def oracle_tracks(points: pd.DataFrame, cfg: OracleConfig, frame_period_s: float
     (scene, pedestrian, frame) rows.
     """
     check_number(frame_period_s, "frame_period_s", gt=0.0, unit="s", who="oracle_tracks")
-    need = {"scene", "pedestrian", "frame", "x_m", "y_m"}
-    missing = sorted(need - set(points.columns))
-    if missing:
-        raise ValueError(f"{where}: missing columns {missing}")
+    check_columns(points, {"scene", "pedestrian", "frame", "x_m", "y_m"}, where)
     p = points.sort_values(["scene", "pedestrian", "frame"]).reset_index(drop=True)
     if p.duplicated(["scene", "pedestrian", "frame"]).any():
         raise ValueError(f"{where}: more than one point per (scene, pedestrian, frame)")
@@ -130,11 +128,8 @@ def true_state_tracks(truth: pd.DataFrame, pos_std_m: float = 0.1,
     if not isinstance(truth, pd.DataFrame):
         raise TypeError(f"true_state_tracks: truth: expected a pandas DataFrame, found "
                         f"{type(truth).__name__}")
-    need = {"scene", "pedestrian", "frame", "time_s", "x_m", "y_m", "vx_mps", "vy_mps",
-            "occluded"}
-    missing = sorted(need - set(truth.columns))
-    if missing:
-        raise ValueError(f"true_state_tracks: truth lacks columns {missing}")
+    check_columns(truth, {"scene", "pedestrian", "frame", "time_s", "x_m", "y_m", "vx_mps",
+                          "vy_mps", "occluded"}, "truth", who="true_state_tracks")
     if not pd.api.types.is_bool_dtype(truth.occluded):
         raise ValueError(f"true_state_tracks: truth.occluded: expected booleans, found dtype "
                          f"{truth.occluded.dtype}")

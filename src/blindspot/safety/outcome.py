@@ -27,6 +27,7 @@ import pandas as pd
 from blindspot.arrays import check_number
 from blindspot.safety.braking import BrakingModel
 from blindspot.safety.risk import EgoShape
+from blindspot.tables import check_columns
 
 __all__ = ["OutcomeError", "SceneArrays", "body_boxes", "scene_arrays", "pedestrian_boxes",
            "braked_impacts", "NEVER_S"]
@@ -74,11 +75,9 @@ def scene_arrays(truth: pd.DataFrame, bodies: dict[str, tuple[float, float, floa
     ``where`` for missing columns, scenes on different frame grids, a turning ego (yaw != 0) or
     a body not in ``bodies``.
     """
-    need = {"scene", "frame", "time_s", "ego_x_m", "ego_y_m", "ego_yaw_deg", "ego_speed_mps",
-            "pedestrian", "body", "x_m", "y_m", "vx_mps", "vy_mps"}
-    missing = sorted(need - set(truth.columns))
-    if missing:
-        raise OutcomeError(f"{where}: missing columns {missing}")
+    check_columns(truth, {"scene", "frame", "time_s", "ego_x_m", "ego_y_m", "ego_yaw_deg",
+                          "ego_speed_mps", "pedestrian", "body", "x_m", "y_m", "vx_mps",
+                          "vy_mps"}, where, error=OutcomeError)
     if not np.allclose(truth.ego_yaw_deg.to_numpy(), 0.0):
         raise OutcomeError(f"{where}: the outcome model needs an ego driving straight along +y "
                            "(ego_yaw_deg 0), found other headings")

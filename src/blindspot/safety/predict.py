@@ -27,11 +27,12 @@ from blindspot.arrays import check_count, check_number
 from blindspot.radar.config import RadarConfig
 from blindspot.safety.config import WarningConfig
 from blindspot.safety.risk import EgoShape, collision_risk, mixture_collision_risk
+from blindspot.tables import check_columns
 from blindspot.track.moving import coast_frames, confirmed_moving
 from blindspot.traj.baselines import ConstantVelocity, KalmanCV, prediction_methods
 from blindspot.traj.config import CalibrationConfig, DatasetConfig, EvalConfig
-from blindspot.traj.lstm import LSTMPredictor
 from blindspot.traj.distribution import DistributionError
+from blindspot.traj.lstm import LSTMPredictor
 from blindspot.traj.mixture import MixtureForecast
 from blindspot.traj.windows import interpolate_gaps
 
@@ -112,12 +113,9 @@ def track_state_forecast(pred: TrackState, rows: pd.DataFrame, horizon: int):
     if horizon > len(k.scale):
         raise DistributionError(f"track_state: the Kalman calibration covers {len(k.scale)} "
                                 f"steps, asked for {horizon}")
-    need = ["x_m", "y_m", "vx_mps", "vy_mps", "cov_xx", "cov_xy", "cov_yy", "cov_vxvx",
-            "cov_vxvy", "cov_vyvy"]
-    missing = sorted(set(need) - set(rows.columns))
-    if missing:
-        raise ValueError(f"tracks: missing columns {missing} (the track_state predictor "
-                         "forecasts the filtered state)")
+    check_columns(rows, ["x_m", "y_m", "vx_mps", "vy_mps", "cov_xx", "cov_xy", "cov_yy",
+                         "cov_vxvx", "cov_vxvy", "cov_vyvy"], "tracks",
+                  note="the track_state predictor forecasts the filtered state")
     n = len(rows)
     m = rows[["x_m", "y_m", "vx_mps", "vy_mps"]].to_numpy(float)
     col = (lambda c: rows[c].to_numpy(float) if c in rows.columns else np.zeros(n))
@@ -214,12 +212,10 @@ def decision_rows(tracks: pd.DataFrame, dt_s: float, max_coast_s: float | None) 
     them clutter off the parked cars). Raises ValueError naming a missing column (``coasting`` only with a
     limit), a ``dt_s`` not > 0 or a ``max_coast_s`` < 0."""
     check_number(dt_s, "dt_s", gt=0.0, unit="s", who="decision_rows")
-    need = {"confirmed"} | ({"group", "track_id", "frame", "coasting"}
-                            if max_coast_s is not None else set())
-    missing = sorted(need - set(tracks.columns))
-    if missing:
-        raise ValueError(f"decision_rows: tracks: missing columns {missing} (the "
-                         "blindspot.track schema; coasting is needed for max_coast_s)")
+    check_columns(tracks, {"confirmed"} | ({"group", "track_id", "frame", "coasting"}
+                                           if max_coast_s is not None else set()),
+                  "tracks", who="decision_rows",
+                  note="the blindspot.track schema; coasting is needed for max_coast_s")
     keep = confirmed_moving(tracks)
     if max_coast_s is not None:
         check_number(max_coast_s, "max_coast_s", ge=0.0, unit="s", who="decision_rows")

@@ -15,6 +15,7 @@ import pandas as pd
 
 from blindspot.safety.evaluation import replicate_half
 from blindspot.safety.oracle import oracle_tracks, noisy_position_points
+from blindspot.tables import check_columns
 from blindspot.track.moving import moving_test_settings, moving_tracks
 from blindspot.track.tracker import label_objects, track_points
 
@@ -50,9 +51,7 @@ def driving_tracks(truth, points, tcfg, oracle_cfg, *, seed, frame_period_s, job
     data/driving/track.json. Raises ValueError naming ``where`` and the missing columns of
     ``points`` (:data:`POINT_COLUMNS`), or as the functions it calls (``tcfg.moving`` null).
     """
-    missing = sorted(set(POINT_COLUMNS) - set(points.columns))
-    if missing:
-        raise ValueError(f"{where}: missing columns {missing}")
+    check_columns(points, POINT_COLUMNS, where)
     if tcfg.moving is None:
         raise ValueError("tracker.moving: the driving scenes need the moving-object test's "
                          "settings (conf/tracker/gnn_cv.yaml), found null")

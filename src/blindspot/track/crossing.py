@@ -42,6 +42,7 @@ import numpy as np
 import pandas as pd
 
 from blindspot.arrays import check_number
+from blindspot.tables import check_columns
 
 __all__ = ["CrossingPrior", "approach_z", "crossing_evidence", "toward_path"]
 
@@ -74,10 +75,7 @@ def toward_path(tracks: pd.DataFrame, ego: pd.DataFrame) -> tuple[np.ndarray, ..
     along the heading; u (N, 2) the unit line of sight from the radar). Raises ValueError
     naming a missing column or a row without an ego pose."""
     need = {"group", "frame", "ego_x_m", "ego_y_m", "ego_yaw_deg"}
-    missing = sorted(need - set(ego.columns))
-    if missing:
-        raise ValueError(f"ego: missing columns {missing} (group, frame, ego_x_m, ego_y_m, "
-                         "ego_yaw_deg)")
+    check_columns(ego, need, "ego", note="the ego's poses")
     pose = tracks[["group", "frame"]].merge(ego[list(need)], on=["group", "frame"],
                                             how="left")
     if pose.ego_x_m.isna().any():
@@ -105,10 +103,8 @@ def approach_z(tracks: pd.DataFrame, ego: pd.DataFrame, corridor_m: float) -> np
     missing column, a row without an ego pose (:func:`toward_path`) or a ``corridor_m`` not > 0.
     """
     check_number(corridor_m, "corridor_m", gt=0.0, unit="m", who="approach_z")
-    missing = sorted({"group", "frame", "x_m", "y_m", "vx_mps", "vy_mps", "cov_vxvx",
-                      "cov_vxvy", "cov_vyvy"} - set(tracks.columns))
-    if missing:
-        raise ValueError(f"tracks: missing columns {missing} (the blindspot.track schema)")
+    check_columns(tracks, {"group", "frame", "x_m", "y_m", "vx_mps", "vy_mps", "cov_vxvx",
+                           "cov_vxvy", "cov_vyvy"}, "tracks", note="the blindspot.track schema")
     c, lateral, ahead, _ = toward_path(tracks, ego)
     v = tracks[["vx_mps", "vy_mps"]].to_numpy(float)
     pxx, pxy, pyy = (tracks[k].to_numpy(float) for k in ("cov_vxvx", "cov_vxvy", "cov_vyvy"))
@@ -129,10 +125,8 @@ def crossing_evidence(tracks: pd.DataFrame, ego: pd.DataFrame,
     add nothing. Raises ValueError naming a missing column (:func:`toward_path` for ``ego``)."""
     if not isinstance(prior, CrossingPrior):
         raise ValueError(f"prior: expected a CrossingPrior, found {type(prior).__name__}")
-    missing = sorted({"group", "track_id", "frame", "x_m", "y_m", "n_points", "doppler_mps"}
-                     - set(tracks.columns))
-    if missing:
-        raise ValueError(f"tracks: missing columns {missing} (the blindspot.track schema)")
+    check_columns(tracks, {"group", "track_id", "frame", "x_m", "y_m", "n_points",
+                           "doppler_mps"}, "tracks", note="the blindspot.track schema")
     c, lateral, ahead, u = toward_path(tracks, ego)
     b = (u * c).sum(axis=1)
     n = tracks.n_points.to_numpy(float)

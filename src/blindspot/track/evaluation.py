@@ -14,6 +14,7 @@ import numpy as np
 import pandas as pd
 
 from blindspot.arrays import check_number
+from blindspot.tables import check_columns
 
 __all__ = ["MOT_METRICS", "compare_tracks", "matched_distances"]
 
@@ -53,9 +54,7 @@ def compare_tracks(tracks: pd.DataFrame, reference: pd.DataFrame, gate_m: float)
 
     check_number(gate_m, "gate_m", gt=0.0, unit="m", who="compare_tracks")  # inf gated all
     for name, df in (("tracks", tracks), ("reference", reference)):
-        missing = {"frame", "track_id", "x_m", "y_m"} - set(df.columns)
-        if missing:
-            raise ValueError(f"compare_tracks: {name} lack column(s) {sorted(missing)}")
+        check_columns(df, {"frame", "track_id", "x_m", "y_m"}, name, who="compare_tracks")
     frames = np.unique(reference["frame"].to_numpy())
     tracks = tracks[tracks["frame"].isin(frames)]
     pairs = _pairs(tracks, reference)

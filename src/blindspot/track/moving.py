@@ -18,6 +18,7 @@ import pandas as pd
 from scipy.stats import chi2, norm
 
 from blindspot.arrays import check_number
+from blindspot.tables import check_columns
 from blindspot.track.crossing import CrossingPrior, approach_z, crossing_evidence
 
 __all__ = ["DOPPLER_LLR_FORMS", "DOPPLER_REFERENCES", "DOPPLER_FIRST_WINDOW",
@@ -165,10 +166,8 @@ def doppler_motion_evidence(tracks: pd.DataFrame, doppler_std_mps: float,
     including the row (a coasting row: its last measured ones; 0 before any). Vectorised: per
     track cumulative sums of n d and n over its measured rows, differenced ``window`` back.
     Any row order. Raises ValueError naming a missing column."""
-    missing = sorted({"group", "track_id", "frame", "n_points", "doppler_mps"}
-                     - set(tracks.columns))
-    if missing:
-        raise ValueError(f"tracks: missing columns {missing} (the blindspot.track schema)")
+    check_columns(tracks, {"group", "track_id", "frame", "n_points", "doppler_mps"}, "tracks",
+                  note="the blindspot.track schema")
     order, key = _track_order(tracks)
     n = tracks.n_points.to_numpy(float)[order]
     d = tracks.doppler_mps.to_numpy(float)[order]
@@ -216,9 +215,8 @@ def doppler_spread_log_ratio(tracks: pd.DataFrame, static_std_mps: float,
     object (s = 0) pay the full (n - 1) ln(sigma_s / sigma_w). Rows with fewer than two points
     or no spread (coasting) give 0. Raises ValueError naming a missing column or standard
     deviations that are not 0 < static < walker."""
-    missing = sorted({"n_points", "doppler_spread_mps"} - set(tracks.columns))
-    if missing:
-        raise ValueError(f"tracks: missing columns {missing} (the blindspot.track schema)")
+    check_columns(tracks, {"n_points", "doppler_spread_mps"}, "tracks",
+                  note="the blindspot.track schema")
     if not (0.0 < static_std_mps < walker_std_mps):
         raise ValueError(f"static_std_mps, walker_std_mps: expected 0 < static < walker, found "
                          f"{static_std_mps!r}, {walker_std_mps!r}")
@@ -366,9 +364,7 @@ def moving_frames(tracks: pd.DataFrame, speed_mps: float, probability: float = 0
         need |= {"x_m", "y_m", "n_points", "doppler_mps"}
         if doppler_spread_std_mps is not None:
             need.add("doppler_spread_mps")
-    missing = sorted(need - set(tracks.columns))
-    if missing:
-        raise ValueError(f"tracks: missing columns {missing} (the blindspot.track schema)")
+    check_columns(tracks, need, "tracks", note="the blindspot.track schema")
     if doppler_llr not in DOPPLER_LLR_FORMS:
         raise ValueError(f"doppler_llr: expected one of {list(DOPPLER_LLR_FORMS)}, found "
                          f"{doppler_llr!r}")
@@ -507,9 +503,8 @@ def last_hit_rows(tracks: pd.DataFrame) -> np.ndarray:
     track's last earlier row that had one (a coasting row's state is the filter's
     extrapolation, not something the radar saw); a row with no measured row before it in its
     track points to itself. Any row order. Raises ValueError naming a missing column."""
-    missing = sorted({"group", "track_id", "frame", "n_points"} - set(tracks.columns))
-    if missing:
-        raise ValueError(f"tracks: missing columns {missing} (the blindspot.track schema)")
+    check_columns(tracks, {"group", "track_id", "frame", "n_points"}, "tracks",
+                  note="the blindspot.track schema")
     order, key = _track_order(tracks)
     hit = tracks.n_points.to_numpy(float)[order] > 0
     held = (pd.Series(np.where(hit, order, -1)).where(hit).groupby(key, sort=False).ffill()
@@ -524,9 +519,8 @@ def coast_frames(tracks: pd.DataFrame) -> np.ndarray:
     since the row's track last had a measurement (0 on a measured row, ``coasting`` False; rows
     before a track's first measured row count from the track's first row). Any row order.
     Raises ValueError naming a missing column."""
-    missing = sorted({"group", "track_id", "frame", "coasting"} - set(tracks.columns))
-    if missing:
-        raise ValueError(f"tracks: missing columns {missing} (the blindspot.track schema)")
+    check_columns(tracks, {"group", "track_id", "frame", "coasting"}, "tracks",
+                  note="the blindspot.track schema")
     order, key = _track_order(tracks)
     frame = tracks.frame.to_numpy(np.int64)[order]
     measured = ~tracks.coasting.to_numpy(bool)[order]
@@ -543,8 +537,7 @@ def confirmed_moving(tracks: pd.DataFrame) -> np.ndarray:
     decision's, :func:`blindspot.safety.predict.decision_rows`, and the first-moving time's,
     :func:`blindspot.safety.evaluation.first_moving_s`). Raises ValueError naming a missing
     ``confirmed`` column."""
-    if "confirmed" not in tracks.columns:
-        raise ValueError("tracks: missing columns ['confirmed'] (the blindspot.track schema)")
+    check_columns(tracks, {"confirmed"}, "tracks", note="the blindspot.track schema")
     keep = tracks.confirmed.to_numpy(bool).copy()
     if "moving" in tracks.columns:
         keep &= tracks.moving.to_numpy(bool)
@@ -614,9 +607,7 @@ def static_evidence(tracks: pd.DataFrame, points: pd.DataFrame, *, cell_m: float
     ValueError naming a missing column or a bad ``cell_m`` / ``lag_frames``."""
     for name, df, need in (("tracks", tracks, {"group", "frame", "x_m", "y_m"}),
                            ("points", points, {"scene", "frame", "x_m", "y_m", "static"})):
-        missing = sorted(need - set(df.columns))
-        if missing:
-            raise ValueError(f"{name}: missing columns {missing}")
+        check_columns(df, need, name)
     if not (np.isfinite(cell_m) and cell_m > 0):
         raise ValueError(f"cell_m: expected a positive cell size in m, found {cell_m!r}")
     if int(lag_frames) != lag_frames or lag_frames < 1:
