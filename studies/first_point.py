@@ -14,6 +14,12 @@ ones, the confirmed tracks classed moving that are static-world clutter (no pede
 within the cluster radius over their life: driving_track's labels): the price of seeing early.
 Overrides: e.g. init_doppler_std_mps=0.3 doppler_confirm_log_ratio=4.6
 moving.doppler_first_log_ratio=4.6. Time: a few minutes (the tracker on one half).
+
+``--criteria``: at the lead child's first confirmed track row within 1 m of it, how many are
+classed moving, and for the others what each path of the moving test (tracker.moving) read
+there against its threshold: the filtered speed, the chi-square test, the approach test's z,
+the Doppler-first ratio, the Doppler refutation sum and the crossing prior's ratio, with the
+filtered velocity beside the true one.
 """
 
 from __future__ import annotations
@@ -28,12 +34,16 @@ import numpy as np
 import pandas as pd
 import yaml
 from omegaconf import OmegaConf
+from scipy.stats import chi2, norm
 
 from blindspot.track.config import TrackerConfig
 from blindspot.safety.evaluation import delay_stats, first_moving_s, replicate_half
 from blindspot.synth.driving_tracks import track_labels, tracker_input
 from blindspot.track.config import MovingConfig
-from blindspot.track.moving import moving_test_settings, moving_tracks
+from blindspot.track.crossing import approach_z, crossing_evidence
+from blindspot.track.moving import (DOPPLER_FIRST_WINDOW, doppler_evidence,
+                                    doppler_motion_evidence, moving_test_settings, moving_tracks,
+                                    velocity_chi2)
 from blindspot.track.tracker import track_points
 
 REPO = Path(__file__).resolve().parents[1]
@@ -80,11 +90,56 @@ def tracked(truth: pd.DataFrame, points: pd.DataFrame, tcfg: TrackerConfig, jobs
     return tracks, ego
 
 
+def criteria(tracks: pd.DataFrame, ego: pd.DataFrame, truth: pd.DataFrame, scenes,
+             m: MovingConfig) -> None:
+    """Print what each path of the moving test ``m`` read at the lead child's first confirmed
+    row within 1 m of it in ``scenes`` (see the module docstring, ``--criteria``)."""
+    s = moving_test_settings(m, grid=False)
+    checks = {  # name: (value per row, passes)
+        "speed": (np.hypot(tracks.vx_mps, tracks.vy_mps).to_numpy(), lambda v: v > m.speed_mps),
+        "chi2": (velocity_chi2(tracks), lambda v: v > chi2.ppf(m.probability, 2)),
+        "approach_z": (approach_z(tracks, ego, m.crossing_corridor_m),
+                       lambda v: v > norm.ppf(m.approach_probability)),
+        "doppler_first": (doppler_motion_evidence(tracks, m.doppler_std_mps,
+                                                  DOPPLER_FIRST_WINDOW),
+                          lambda v: v >= m.doppler_first_log_ratio),
+        "doppler_sum": (doppler_evidence(tracks, ego, m.doppler_std_mps, m.doppler_llr,
+                                         m.doppler_log_ratio_floor,
+                                         reference=m.doppler_reference),
+                        lambda v: v > m.doppler_log_ratio_min),
+        "crossing": (crossing_evidence(tracks, ego, s["crossing_prior"])[0],
+                     lambda v: v >= m.crossing_log_ratio)}
+    t = tracks.assign(**{k: v for k, (v, _) in checks.items()})
+    p = truth.loc[truth.pedestrian == "p0", ["scene", "frame", "x_m", "y_m", "vx_mps",
+                                                "vy_mps"]].rename(
+        columns={"scene": "group", "x_m": "px", "y_m": "py", "vx_mps": "true_vx",
+                 "vy_mps": "true_vy"})
+    j = t[t.confirmed & t.group.isin(scenes)].merge(p, on=["group", "frame"])
+    j = j[np.hypot(j.x_m - j.px, j.y_m - j.py) <= 1.0]
+    first = j.sort_values("frame").groupby("group").first()
+    print(f"lead child's first confirmed row within 1 m: {len(first)} scenes, classed moving "
+          f"there in {int(first.moving.sum())}; in each group, the share passing each path's "
+          "threshold and the values read (median [p10, p90]):")
+    late = first[~first.moving]
+    for label, rows in (("moving there", first[first.moving]), ("not moving there", late)):
+        print(f" {label} ({len(rows)}):")
+        for k, (_, ok) in checks.items():
+            v = rows[k].to_numpy(float)
+            print(f"  {k:13s} passes {np.mean(ok(v)):.2f}; {np.median(v):.2f} "
+                  f"[{np.percentile(v, 10):.2f}, {np.percentile(v, 90):.2f}]")
+    print(" not moving there, filtered and true velocity:")
+    for k in ("vx_mps", "vy_mps", "true_vx", "true_vy"):
+        print(f"  {k:13s} {late[k].median():.2f} [{late[k].quantile(0.1):.2f}, "
+              f"{late[k].quantile(0.9):.2f}] m/s")
+
+
 def main(argv: list[str]) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--data", type=Path, default=REPO / "data")
     ap.add_argument("--half", default="tuning", choices=("tuning", "held_out", "all"))
     ap.add_argument("--jobs", type=int, default=2)
+    ap.add_argument("--criteria", action="store_true",
+                    help="what the moving test read at the child's first confirmed row")
     ap.add_argument("overrides", nargs="*")
     args = ap.parse_args(argv)
     tcfg = tracker_config(OmegaConf.load(REPO / "params.yaml"), args.overrides)
@@ -94,7 +149,7 @@ def main(argv: list[str]) -> None:
     half = replicate_half(mc)
     keep = mc if args.half == "all" else mc[half if args.half == "tuning" else ~half]
     truth, points = truth[truth.scene.isin(keep)], points[points.scene.isin(keep)]
-    tracks, _ = tracked(truth, points, tcfg, args.jobs)
+    tracks, ego = tracked(truth, points, tcfg, args.jobs)
     lead = truth[truth.pedestrian == "p0"].groupby("scene").first()
     intr = lead.index[((lead.behaviour == "cross") & lead.collision.astype(bool)).to_numpy()]
     fp = (points[points.source == "p0"].merge(truth[["scene", "frame", "time_s"]]
@@ -123,6 +178,8 @@ def main(argv: list[str]) -> None:
     print(f"static-world tracks classed moving: {int(clutter.sum())} of {int((lab == 'static').sum())}"
           f"; scenes with one: non-intruding {len(set(g[clutter.to_numpy()]) & non)} of "
           f"{len(non)}, intruding {len(set(g[clutter.to_numpy()]) - non)} of {len(intr)}")
+    if args.criteria:
+        criteria(tracks, ego, truth, intr, tcfg.moving)
 
 
 if __name__ == "__main__":
