@@ -20,9 +20,14 @@ def check_columns(table: Any, columns: Iterable[str], name: str, *,
 
     Raises:
         error: naming ``who``, ``name``, the missing columns (sorted) and ``note`` (what the
-            table is, e.g. the schema it follows), or that ``table`` has no columns at all.
+            table is, e.g. the schema it follows), or that ``table`` has no columns at all (not a
+            table: the caller's own error class, so a stage reports it as any other bad input).
+        TypeError: ``columns`` is one string (it would be read as its characters).
     """
     prefix = f"{who}: " if who else ""
+    if isinstance(columns, (str, bytes)):
+        raise TypeError(f"check_columns: columns: expected column names (a list or set), found "
+                        f"the string {columns!r}")
     found = getattr(table, "columns", None)
     if found is None:
         raise error(f"{prefix}{name}: expected a table with columns {sorted(set(columns))}, "

@@ -298,7 +298,7 @@ def test_one_dbscan_over_all_frames_equals_one_per_frame(rows, min_samples):
 
 def test_bad_points_are_named():
     good = frame_table(np.array([0, 1]), np.zeros((2, 2)))
-    with pytest.raises(TrackingError, match=r"lack column\(s\) \['y_m'\]"):
+    with pytest.raises(TrackingError, match=r"points: missing columns \['y_m'\]"):
         track_points(good.drop(columns="y_m"), config())
     with pytest.raises(TrackingError, match="'frame' must hold integers"):
         track_points(good.assign(frame=[0.0, 1.0]), config())

@@ -59,7 +59,7 @@ def lead_observed(points: pd.DataFrame, scenes: np.ndarray, frames: np.ndarray,
     points: columns scene, frame, source (one row per radar point); points of other scenes or
     frames are ignored. Raises BoundError naming ``where`` for missing columns."""
     check_columns(points, {"scene", "frame", "source"}, where, error=BoundError,
-                  note="the radar points' truth label")
+                  note="expected scene, frame, source: the radar points' truth label")
     own = points[points.source.to_numpy() == lead]
     si = pd.Index(scenes).get_indexer(own.scene)
     fi = pd.Index(frames).get_indexer(own.frame)

@@ -29,6 +29,7 @@ import pandas as pd
 from blindspot.arrays import check_count, check_number
 from blindspot.safety.draws import draw_curve
 from blindspot.safety.evaluation import wilson
+from blindspot.tables import check_columns
 
 __all__ = ["OPERATING_COLUMNS", "choose_operating_point", "operating_point_at",
            "operating_blocks"]
@@ -50,10 +51,8 @@ def _checked(curve: pd.DataFrame, who: str) -> pd.DataFrame:
     if not isinstance(curve, pd.DataFrame):
         raise TypeError(f"{who}: curve: expected a DataFrame (operating_curve's), found "
                         f"{type(curve).__name__}")
-    missing = [c for c in OPERATING_COLUMNS if c not in curve.columns]
-    if missing:
-        raise KeyError(f"{who}: curve: missing columns {missing}; expected "
-                       f"{list(OPERATING_COLUMNS)}")
+    check_columns(curve, OPERATING_COLUMNS, "curve", error=KeyError, who=who,
+                  note=f"expected {list(OPERATING_COLUMNS)}")
     if curve.empty or curve[list(OPERATING_COLUMNS)].isna().any().any():
         raise ValueError(f"{who}: curve: expected at least one threshold and no missing rate "
                          f"(a draw with intruding and non-intruding scenes), found "

@@ -49,6 +49,7 @@ from blindspot.dsp.ego_motion import EgoMotionError, estimate_ego_speed
 from blindspot.dsp.recording import detect_recording
 from blindspot.safety.predict import decision_rows, track_histories
 from blindspot.safety.risk import EgoShape, collision_risk
+from blindspot.tables import check_columns
 from blindspot.track.config import TrackedRecording, TrackerConfig
 from blindspot.track.recordings import load_points, track_recording, tracker_input
 from blindspot.track.tracker import track_points
@@ -169,9 +170,8 @@ def _read_table(entry: RecordingEntry, path: Path) -> pd.DataFrame:
     pts = pd.read_parquet(path) if path.suffix == ".parquet" else pd.read_csv(path)
     need = ["frame", "time_s", "x_m", "y_m", "velocity_mps"] + (
         [entry.speed_column] if entry.speed_column else [])
-    if missing := [c for c in need if c not in pts.columns]:
-        raise RecordingError(f"recording {entry.name!r}: {path.name}: expected columns {need}, "
-                             f"found {list(pts.columns)} (missing {missing})")
+    check_columns(pts, need, f"recording {entry.name!r}: {path.name}", error=RecordingError,
+                  note=f"expected {need}, found {list(pts.columns)}")
     return pts
 
 

@@ -75,7 +75,8 @@ def toward_path(tracks: pd.DataFrame, ego: pd.DataFrame) -> tuple[np.ndarray, ..
     along the heading; u (N, 2) the unit line of sight from the radar). Raises ValueError
     naming a missing column or a row without an ego pose."""
     need = {"group", "frame", "ego_x_m", "ego_y_m", "ego_yaw_deg"}
-    check_columns(ego, need, "ego", note="the ego's poses")
+    check_columns(ego, need, "ego", note="the ego's poses: group, frame, ego_x_m, ego_y_m, "
+                                          "ego_yaw_deg")
     pose = tracks[["group", "frame"]].merge(ego[list(need)], on=["group", "frame"],
                                             how="left")
     if pose.ego_x_m.isna().any():

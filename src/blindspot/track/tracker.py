@@ -48,6 +48,7 @@ from scipy.stats import chi2
 from sklearn.cluster import DBSCAN
 
 from blindspot.arrays import check_count, check_number
+from blindspot.tables import check_columns
 from blindspot.parallel import parallel_map
 from blindspot.track.config import TrackerConfig
 from blindspot.track.moving import doppler_motion_log_ratio
@@ -101,11 +102,9 @@ def _check_points(points: pd.DataFrame, source: str = "") -> bool:
     if not isinstance(points, pd.DataFrame):
         raise TrackingError(f"{who}: points must be a pandas DataFrame; found "
                             f"{type(points).__name__}")
-    missing = [c for c in INPUT_COLUMNS if c not in points.columns]
-    if missing:
-        raise TrackingError(f"{who}: points lack column(s) {missing}; expected "
-                            f"{list(INPUT_COLUMNS)} (+ optional group, velocity_mps); found "
-                            f"{list(points.columns)}")
+    check_columns(points, INPUT_COLUMNS, "points", error=TrackingError, who=who,
+                  note=f"expected {list(INPUT_COLUMNS)} (+ optional group, velocity_mps); "
+                       f"found {list(points.columns)}")
     for c in ("frame", "time_s"):   # null (NA, None, NaN) before any dtype or order test
         null = points[c].isna().to_numpy(bool)
         if null.any():
