@@ -16,6 +16,10 @@ Conclusion: the direct multi-step predictor's choices, one change at a time agai
 (heading frame, residual on constant velocity, mirroring, displacement inputs, the loss, the
 neighbours); the table and the configured seq2seq settings are in conf/ethucy/standard.yaml, the
 encoders over three seeds in README (0.47-0.48 / 1.02-1.05 m; every seed past 0.50 / 1.10).
+A frame scaled by the walker's step (studies/patches/speed_scaled_frame.diff: the mean observed
+step, a loss in metres) makes eth worse at seed 0 (0.85 / 1.87 -> 0.88-0.92 / 1.95-2.03 m) while
+val prefers the mean-step scale (0.4028 -> 0.3988 m): not adopted (docs/studies/ethucy.md,
+third pass).
 """
 
 from __future__ import annotations
