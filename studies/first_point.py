@@ -113,21 +113,29 @@ def criteria(tracks: pd.DataFrame, ego: pd.DataFrame, truth: pd.DataFrame, scene
     """Print what each path of the moving test ``m`` read at the lead child's first confirmed
     row within 1 m of it in ``scenes`` (see the module docstring, ``--criteria``)."""
     s = moving_test_settings(m, grid=False)
-    checks = {  # name: (value per row, passes)
-        "speed": (np.hypot(tracks.vx_mps, tracks.vy_mps).to_numpy(), lambda v: v > m.speed_mps),
-        "chi2": (velocity_chi2(tracks), lambda v: v > chi2.ppf(m.probability, 2)),
-        "approach_z": (approach_z(tracks, ego, m.crossing_corridor_m),
+    paths = {  # name: (its setting, value per row, passes); a path whose setting is null is off
+        "speed": (m.speed_mps, lambda: np.hypot(tracks.vx_mps, tracks.vy_mps).to_numpy(),
+                  lambda v: v > m.speed_mps),
+        "chi2": (m.probability, lambda: velocity_chi2(tracks),
+                 lambda v: v > chi2.ppf(m.probability, 2)),
+        "approach_z": (m.approach_probability,
+                       lambda: approach_z(tracks, ego, m.crossing_corridor_m),
                        lambda v: v > norm.ppf(m.approach_probability)),
-        "doppler_first": (doppler_motion_evidence(tracks, m.doppler_std_mps,
-                                                  DOPPLER_FIRST_WINDOW),
+        "doppler_first": (m.doppler_first_log_ratio,
+                          lambda: doppler_motion_evidence(tracks, m.doppler_std_mps,
+                                                          DOPPLER_FIRST_WINDOW),
                           lambda v: v >= m.doppler_first_log_ratio),
-        "doppler_sum": (doppler_evidence(tracks, ego, m.doppler_std_mps, m.doppler_llr,
-                                         m.doppler_log_ratio_floor,
-                                         spread_std_mps=m.doppler_spread_std_mps,
-                                         reference=m.doppler_reference),
+        "doppler_sum": (m.doppler_log_ratio_min,
+                        lambda: doppler_evidence(tracks, ego, m.doppler_std_mps, m.doppler_llr,
+                                                 m.doppler_log_ratio_floor,
+                                                 spread_std_mps=m.doppler_spread_std_mps,
+                                                 reference=m.doppler_reference),
                         lambda v: v > m.doppler_log_ratio_min),
-        "crossing": (crossing_evidence(tracks, ego, s["crossing_prior"])[0],
+        "crossing": (m.crossing_log_ratio,
+                     lambda: crossing_evidence(tracks, ego, s["crossing_prior"])[0],
                      lambda v: v >= m.crossing_log_ratio)}
+    checks = {k: (value(), ok) for k, (setting, value, ok) in paths.items()
+              if setting is not None}
     t = tracks.assign(**{k: v for k, (v, _) in checks.items()})
     p = truth.loc[truth.pedestrian == "p0", ["scene", "frame", "x_m", "y_m", "vx_mps",
                                                 "vy_mps"]].rename(
