@@ -101,6 +101,60 @@ def test_kmeans_finds_separated_clusters():
     assert np.allclose(np.sort(found, axis=0), np.sort(centres, axis=0), atol=0.1)
 
 
+def test_reduced_keeps_the_moments_and_merges_separated_groups():
+    rng = np.random.default_rng(10)
+    # per track 3 groups of 4 nearby paths: merged to 3, each hypothesis is its group's
+    # probability-weighted mean, carrying the group's summed probability
+    b, h = 5, 4
+    centres = rng.normal(size=(b, 3, h, 2)) * 20
+    means = np.repeat(centres, 4, axis=1) + 0.05 * rng.normal(size=(b, 12, h, 2))
+    w = rng.random((b, 12)) + 0.1
+    w /= w.sum(1, keepdims=True)
+    covs = np.broadcast_to(np.eye(2) * 0.04, (b, 12, h, 2, 2)).copy()
+    mix = MixtureForecast(w, means, covs)
+    red = mix.reduced(3, seed=1)
+    assert red.means.shape == (b, 3, h, 2)
+    np.testing.assert_allclose(red.mean(), mix.mean(), atol=1e-12)
+    np.testing.assert_allclose(red.moment_cov(), mix.moment_cov(), atol=1e-10)
+    group_w = w.reshape(b, 3, 4).sum(2)
+    group_mu = np.einsum("bgk,bgkhi->bghi", w.reshape(b, 3, 4) / group_w[..., None],
+                         means.reshape(b, 3, 4, h, 2))
+    for t in range(b):
+        order = np.argsort(red.means[t, :, 0, 0])
+        truth = np.argsort(group_mu[t, :, 0, 0])
+        np.testing.assert_allclose(red.means[t, order], group_mu[t, truth], atol=1e-12)
+        np.testing.assert_allclose(red.weights[t, order], group_w[t, truth], atol=1e-12)
+    # n = M gives the same hypotheses (in another order); the ensemble's best of its merged
+    # hypotheses is no better than of all of them
+    same = mix.reduced(12)
+    key = lambda m: np.sort(m.means[:, :, 0, 0], axis=1)                 # noqa: E731
+    np.testing.assert_allclose(key(same), key(mix), atol=1e-12)
+    truth = means[:, 0] + 0.3
+    assert best_of(red.means, truth)[0] >= best_of(mix.means, truth)[0]
+
+
+def test_reduced_by_count_gives_each_cluster_its_members_spread_about_its_centre():
+    rng = np.random.default_rng(11)
+    mix = _mixture(rng, b=4, m=9, h=3)
+    red = mix.reduced(3, seed=2, weighted=False)
+    np.testing.assert_allclose(red.weights.sum(1), 1.0)
+    for t in range(4):
+        # brute force: each hypothesis to its nearest centre; the cluster's probability, and
+        # its members' covariances plus their spread about the centre
+        flat = mix.means[t].reshape(9, -1)
+        lab = np.argmin(((flat[:, None] - red.means[t].reshape(3, -1)[None]) ** 2).sum(-1), 1)
+        for k in range(3):
+            inn = lab == k
+            np.testing.assert_allclose(red.weights[t, k], mix.weights[t, inn].sum(), atol=1e-12)
+            # by count, the centre is the members' plain mean
+            np.testing.assert_allclose(red.means[t, k], mix.means[t, inn].mean(0), atol=1e-12)
+            s = mix.weights[t, inn] / mix.weights[t, inn].sum()
+            d = mix.means[t, inn] - red.means[t, k]
+            want = np.einsum("m,mhij->hij", s, mix.covs[t, inn]
+                             + d[..., :, None] * d[..., None, :])
+            np.testing.assert_allclose(red.covs[t, k], want, atol=1e-10)
+
+
 def test_bad_arguments_are_named():
     rng = np.random.default_rng(9)
     mix = _mixture(rng)
@@ -116,3 +170,7 @@ def test_bad_arguments_are_named():
         mix.coverage(np.zeros((6, 4, 2)), (0.5, 1.0))
     with pytest.raises(DistributionError, match="k: expected"):
         kmeans(np.zeros((3, 2)), 4)
+    with pytest.raises(DistributionError, match="reduced: n: expected"):
+        mix.reduced(4)
+    with pytest.raises(DistributionError, match="iterations"):
+        mix.reduced(2, iterations=-1)

@@ -27,7 +27,8 @@ ONLINE_METHODS = ("scale_tracker", "aci_window")
 __all__ = [
     "ACTIVATIONS", "DatasetConfig", "ETHUCY_MODELS", "EthUcyConfig", "EvalConfig", "KalmanConfig", "LSTMConfig", "OPTIMIZERS",
     "PREDICTION_METHODS", "PathSpec", "SCHEDULES", "SEQ2SEQ_CELLS", "SEQ2SEQ_FRAMES",
-    "SEQ2SEQ_INPUTS", "SEQ2SEQ_LOSSES", "SEQ2SEQ_OUTPUTS", "Seq2SeqConfig", "SplitConfig", "TARGETS",
+    "SEQ2SEQ_INPUTS", "SEQ2SEQ_KEEP_BY", "SEQ2SEQ_LOSSES", "SEQ2SEQ_OUTPUTS",
+    "SEQ2SEQ_WTA_SCORES", "Seq2SeqConfig", "SplitConfig", "TARGETS",
     "TrainConfig",
 ]
 
@@ -269,6 +270,8 @@ SEQ2SEQ_FRAMES: tuple[str, ...] = ("heading", "world")
 SEQ2SEQ_INPUTS: tuple[str, ...] = ("displacement", "position")
 SEQ2SEQ_OUTPUTS: tuple[str, ...] = ("displacement", "position")
 SEQ2SEQ_LOSSES: tuple[str, ...] = ("ade", "mse")
+SEQ2SEQ_WTA_SCORES: tuple[str, ...] = ("ade", "ade_fde")
+SEQ2SEQ_KEEP_BY: tuple[str, ...] = ("mean", "best_of")
 
 
 @dataclass(frozen=True)
@@ -305,6 +308,12 @@ class Seq2SeqConfig(TypedConfig):
         modes: M > 1: the head emits M hypotheses (each a Gaussian path) and their
             probabilities, trained winner-takes-all (:mod:`blindspot.traj.mixture`); 1 = one
             Gaussian path.
+        wta_score: (read when modes > 1) what picks the winning hypothesis of a training window:
+            ``"ade"`` its mean distance to the truth, ``"ade_fde"`` that plus its final
+            distance (the endpoint counted twice, as best-of-N FDE scores it apart).
+        keep_by: which epoch is kept: ``"mean"`` the lowest val ADE of the single prediction,
+            ``"best_of"`` the lowest val ADE of each window's best hypothesis (with modes = 1
+            the same as ``"mean"``).
     """
 
     GROUP = "ethucy.seq2seq"
@@ -334,6 +343,8 @@ class Seq2SeqConfig(TypedConfig):
     threads: int = setting(1, ge=1)
     neighbours: int = setting(8, ge=0)
     modes: int = setting(1, ge=1)
+    wta_score: str = setting("ade", choices=SEQ2SEQ_WTA_SCORES)
+    keep_by: str = setting("mean", choices=SEQ2SEQ_KEEP_BY)
 
     def validate(self) -> None:
         if self.scale_aug > 0 and self.speed_floor > 0:

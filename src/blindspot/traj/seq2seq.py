@@ -404,6 +404,15 @@ class Seq2SeqModel:
         mean, _ = self._framed_both(x, soc, with_cov=False)
         return np.einsum("bij,bhj->bhi", np.linalg.inv(rot), mean[:, :horizon]) + origin[:, None, :]
 
+    def _hypotheses_of_framed(self, framed: tuple[np.ndarray, np.ndarray | None, np.ndarray,
+                                                  np.ndarray], horizon: int) -> np.ndarray:
+        """(B, M, horizon, 2) world positions of the M hypotheses of inputs framed once by
+        :func:`_framed_inputs` (a model with ``cfg.modes`` > 1; the per-epoch validation)."""
+        x, soc, origin, rot = framed
+        means = self._framed_mixture(x, soc).means[:, :, :horizon]
+        return (np.einsum("bij,bmhj->bmhi", np.linalg.inv(rot), means)
+                + origin[:, None, None, :])
+
     @property
     def uses_neighbours(self) -> bool:
         return self.cfg.neighbours > 0
@@ -698,7 +707,8 @@ def _mixture_loss(out: torch.Tensor, logits: torch.Tensor, base: torch.Tensor, y
     err = y[:, None] - (base[:, None] + off)                                 # (B, M, H, 2)
     dist = torch.linalg.vector_norm(err, dim=-1)                             # (B, M, H)
     per = dist.mean(-1) if cfg.loss == "ade" else (err**2).sum(-1).mean(-1)  # (B, M)
-    win = per.detach().argmin(dim=1)                                         # (B,)
+    score = per.detach() + (dist[..., -1].detach() if cfg.wta_score == "ade_fde" else 0.0)
+    win = score.argmin(dim=1)                                                # (B,)
     m = cfg.modes
     w = torch.full_like(per, WTA_EPSILON / (m - 1))
     w.scatter_(1, win[:, None], 1.0 - WTA_EPSILON)
@@ -791,7 +801,13 @@ def train_seq2seq(train_xy: np.ndarray, val_xy: np.ndarray, cfg: Seq2SeqConfig, 
 
         def val_errors() -> np.ndarray:
             """(N_val, horizon) m: the network's errors on the val windows as they stand."""
-            pred = Seq2SeqModel(net, cfg, name)._mean_of_framed(val_framed, cfg.horizon)
+            model = Seq2SeqModel(net, cfg, name)
+            if cfg.keep_by == "best_of" and cfg.modes > 1:
+                hyp = model._hypotheses_of_framed(val_framed, cfg.horizon)       # (N, M, H, 2)
+                err = np.linalg.norm(hyp - val_fut[:, None], axis=-1)
+                best = err.mean(axis=-1).argmin(axis=1)
+                return err[np.arange(len(err)), best]
+            pred = model._mean_of_framed(val_framed, cfg.horizon)
             return np.linalg.norm(pred - val_fut, axis=-1)
 
         def weights() -> dict[str, torch.Tensor]:
