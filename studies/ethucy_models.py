@@ -1,7 +1,8 @@
 """What helps a path predictor beat constant velocity on ETH/UCY: an ablation table.
 
     BLINDSPOT_SHARED=/work/shared python studies/ethucy_models.py \
-        [--variants base,no_residual,...] [--folds eth,hotel,...] [--jobs 2] [--epochs N]
+        [--variants base,no_residual,...] [--folds eth,hotel,...] [--jobs 2] [--epochs N] \
+        [--set cell=mlp,modes=20] [--save DIR]
 
 Every variant is the direct multi-step predictor (:mod:`blindspot.traj.seq2seq`) with the
 benchmark's settings (conf/ethucy/standard.yaml, ``seq2seq``) and one change, trained per fold on
@@ -10,7 +11,11 @@ variant says otherwise; ``next_point`` is the project's next-point LSTM rolled o
 (:func:`blindspot.traj.ethucy_protocol.train_fold_lstm`, one member). The table gives the
 average over the folds of val ADE/FDE (what settings are chosen on) and test ADE/FDE (reported,
 never chosen on), CVM beside them. ``ensemble_k`` rows are prefixes of one 5-member ensemble.
-Prints the table (Markdown) and, with ``--json``, the per-fold numbers.
+Prints the table (Markdown) and, with ``--json``, the per-fold numbers. A multi-modal base
+(``--set modes=20``: the stage's ``mix`` with ``cell=mlp``) adds a table of best-of-20 (each
+model's 20 most probable hypotheses; an ensemble's pooled ones also merged into 20,
+``_reduced``: :meth:`blindspot.traj.mixture.MixtureForecast.reduced`). ``--save DIR`` writes
+each trained model to ``DIR/<variant>_<fold>.pt`` (``studies/ethucy_best_of.py`` reads them).
 
 Conclusion: the direct multi-step predictor's choices, one change at a time against the base
 (heading frame, residual on constant velocity, mirroring, displacement inputs, the loss, the
@@ -19,7 +24,10 @@ encoders over three seeds in README (0.47-0.48 / 1.02-1.05 m; every seed past 0.
 A frame scaled by the walker's step (studies/patches/speed_scaled_frame.diff: the mean observed
 step, a loss in metres) makes eth worse at seed 0 (0.85 / 1.87 -> 0.88-0.92 / 1.95-2.03 m) while
 val prefers the mean-step scale (0.4028 -> 0.3988 m): not adopted (docs/studies/ethucy.md,
-third pass).
+third pass). For mix (``--set cell=mlp,modes=20``) the epoch kept by val best-of-20 is val's
+choice (``keep_by: best_of``: val 0.1692 / 0.3016 -> 0.1679 / 0.2995 m at seed 0); the winner
+by ADE + FDE, no residual and three seeds pooled and merged are not; 32 epochs gains 0.0005 /
+0.004 m on val at twice the training, not taken (fourth pass).
 """
 
 from __future__ import annotations
@@ -29,12 +37,16 @@ import json
 import time
 from dataclasses import replace
 from functools import partial
+from pathlib import Path
 
 import numpy as np
 
 from blindspot.traj.baselines import ConstantVelocity
 from blindspot.traj.ethucy import FOLDS, default_data_dir, load_split
 from blindspot.traj.metrics import ade, fde
+from blindspot.traj.ethucy_protocol import BEST_OF
+from blindspot.traj.mixture import best_of
+from blindspot.traj.multimodal import MultiModalPredictor
 from blindspot.traj.seq2seq import Seq2SeqConfig, Seq2SeqEnsemble, train_ensemble
 
 #: one change each from the base config
@@ -60,18 +72,23 @@ VARIANTS: dict[str, dict] = {
     "epochs32": {"epochs": 32},
     "scale_aug15": {"scale_aug": 0.15},
     "scale_aug30": {"scale_aug": 0.3},
+    # the multi-modal head's training (run with --set cell=mlp,modes=20: the stage's mix)
+    "wta_ade_fde": {"wta_score": "ade_fde"},
+    "keep_best_of": {"keep_by": "best_of"},
+    "wta_keep": {"wta_score": "ade_fde", "keep_by": "best_of"},
+    # three seeds pooled (60 hypotheses): the 20 most probable, and the 20 merged (_reduced)
+    "ensemble3": {"ensemble": 3},
 }
 
 
 def base_config() -> Seq2SeqConfig:
     from omegaconf import OmegaConf
 
-    from pathlib import Path
     conf = OmegaConf.load(Path(__file__).resolve().parents[1] / "conf/ethucy/standard.yaml")
     return Seq2SeqConfig.from_mapping(OmegaConf.to_container(conf.seq2seq))
 
 
-def run_variant(fold: str, name: str, cfg: Seq2SeqConfig, data_dir) -> dict:
+def run_variant(fold: str, name: str, cfg: Seq2SeqConfig, data_dir, save_dir=None) -> dict:
     t0 = time.perf_counter()
     k = cfg.neighbours
     val_w = load_split(data_dir, fold, "val", neighbours=k)
@@ -89,6 +106,8 @@ def run_variant(fold: str, name: str, cfg: Seq2SeqConfig, data_dir) -> dict:
         train_w = load_split(data_dir, fold, "train", min_peds=1, neighbours=k)
         ens, _ = train_ensemble(train_w.xy, val, cfg, train_nb=train_w.neighbours,
                                 val_nb=nb["val"])
+        if save_dir:
+            ens.save(Path(save_dir) / f"{name}_{fold}.pt")
         preds = {name: ens}
         if cfg.ensemble > 1:
             for k in range(1, cfg.ensemble + 1):
@@ -102,6 +121,17 @@ def run_variant(fold: str, name: str, cfg: Seq2SeqConfig, data_dir) -> dict:
             pv, pt = p.predict(val[:, :8], 12), p.predict(test[:, :8], 12)
         out[key] = {"val_ade": ade(pv, val[:, 8:]), "val_fde": fde(pv, val[:, 8:]),
                     "test_ade": ade(pt, test[:, 8:]), "test_fde": fde(pt, test[:, 8:])}
+        if getattr(getattr(p, "cfg", None), "modes", 1) > 1:
+            for split, xy, k_nb in (("val", val, nb["val"]), ("test", test, nb["test"])):
+                mix = MultiModalPredictor(p).predict_mixture(xy[:, :8], 12, neighbours=k_nb)
+                order = np.argsort(-mix.weights, axis=1, kind="stable")[:, :BEST_OF]
+                top = np.take_along_axis(mix.means, order[:, :, None, None], axis=1)
+                b_ade, b_fde = best_of(top, xy[:, 8:])
+                out[key] |= {f"{split}_best_ade": b_ade, f"{split}_best_fde": b_fde}
+                if mix.modes > BEST_OF:
+                    r_ade, r_fde = best_of(mix.reduced(BEST_OF).means, xy[:, 8:])
+                    out[f"{key}_reduced"] = out.get(f"{key}_reduced", dict(out[key])) | {
+                        f"{split}_best_ade": r_ade, f"{split}_best_fde": r_fde}
     out["_seconds"] = time.perf_counter() - t0
     return out
 
@@ -114,6 +144,8 @@ def main() -> None:
     ap.add_argument("--epochs", type=int, default=None, help="override the base epochs")
     ap.add_argument("--set", default="", help="base overrides, e.g. cell=gru,epochs=8")
     ap.add_argument("--json", default=None, help="write per-fold numbers to this file")
+    ap.add_argument("--save", default=None, help="write each trained model to DIR/<variant>_"
+                    "<fold>.pt (Seq2SeqEnsemble.save)")
     args = ap.parse_args()
     from blindspot.parallel import parallel_map
 
@@ -132,8 +164,9 @@ def main() -> None:
         elif v == "next_point":
             cfg = base
         else:
-            cfg = replace(base, ensemble=1, **VARIANTS[v])
-        work = partial(run_variant, name=v, cfg=cfg, data_dir=default_data_dir())
+            cfg = replace(base, **({"ensemble": 1} | VARIANTS[v]))
+        work = partial(run_variant, name=v, cfg=cfg, data_dir=default_data_dir(),
+                       save_dir=args.save)
         res = dict(zip(folds, parallel_map(work, folds, args.jobs)))
         for key in res[folds[0]]:
             if key.startswith("_"):
@@ -157,6 +190,20 @@ def _print(rows, folds) -> None:
         per = ", ".join(f"{f} {r[f]['test_ade']:.2f}/{r[f]['test_fde']:.2f}" for f in folds)
         print(f"| {k} | {m['val_ade']:.4f} | {m['val_fde']:.4f} | {m['test_ade']:.4f} | "
               f"{m['test_fde']:.4f} | {per} |", flush=True)
+    multi = [k for k, r in rows.items() if "val_best_ade" in r[folds[0]]]
+    if not multi:
+        return
+    print("\n| variant, best of the hypotheses | val ADE | val FDE | test ADE | test FDE | "
+          "test per fold (ADE/FDE) |")
+    print("|---|---|---|---|---|---|")
+    for k in multi:
+        r = rows[k]
+        m = {s: np.mean([r[f][s] for f in folds]) for s in ("val_best_ade", "val_best_fde",
+                                                            "test_best_ade", "test_best_fde")}
+        per = ", ".join(f"{f} {r[f]['test_best_ade']:.2f}/{r[f]['test_best_fde']:.2f}"
+                        for f in folds)
+        print(f"| {k} | {m['val_best_ade']:.4f} | {m['val_best_fde']:.4f} | "
+              f"{m['test_best_ade']:.4f} | {m['test_best_fde']:.4f} | {per} |", flush=True)
 
 
 if __name__ == "__main__":
