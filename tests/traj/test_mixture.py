@@ -17,6 +17,16 @@ def _mixture(rng, b=6, m=3, h=4, sd=0.5):
     return MixtureForecast(w / w.sum(1, keepdims=True), means, covs)
 
 
+def test_most_probable_orders_by_probability():
+    rng = np.random.default_rng(12)
+    mix = _mixture(rng, b=3, m=5)
+    top = mix.most_probable(2)
+    for t in range(3):
+        i, j = np.argsort(-mix.weights[t])[:2]
+        assert np.array_equal(top[t], mix.means[t, [i, j]])
+    assert np.array_equal(mix.most_probable(1)[:, 0], mix.most_likely())
+
+
 def test_best_of_is_the_brute_force_minimum_over_hypotheses():
     rng = np.random.default_rng(0)
     means = rng.normal(size=(5, 20, 12, 2))
@@ -124,8 +134,8 @@ def test_reduced_keeps_the_moments_and_merges_separated_groups():
         truth = np.argsort(group_mu[t, :, 0, 0])
         np.testing.assert_allclose(red.means[t, order], group_mu[t, truth], atol=1e-12)
         np.testing.assert_allclose(red.weights[t, order], group_w[t, truth], atol=1e-12)
-    # n = M gives the same hypotheses (in another order); the ensemble's best of its merged
-    # hypotheses is no better than of all of them
+    # n = M gives the same hypotheses (in another order); here (truth near one group's
+    # members) the best of the merged hypotheses is no better than the best of all
     same = mix.reduced(12)
     key = lambda m: np.sort(m.means[:, :, 0, 0], axis=1)                 # noqa: E731
     np.testing.assert_allclose(key(same), key(mix), atol=1e-12)
@@ -133,26 +143,28 @@ def test_reduced_keeps_the_moments_and_merges_separated_groups():
     assert best_of(red.means, truth)[0] >= best_of(mix.means, truth)[0]
 
 
-def test_reduced_by_count_gives_each_cluster_its_members_spread_about_its_centre():
+def test_reduced_by_count_keeps_the_moments_and_takes_hypotheses_of_probability_zero():
     rng = np.random.default_rng(11)
     mix = _mixture(rng, b=4, m=9, h=3)
-    red = mix.reduced(3, seed=2, weighted=False)
-    np.testing.assert_allclose(red.weights.sum(1), 1.0)
-    for t in range(4):
-        # brute force: each hypothesis to its nearest centre; the cluster's probability, and
-        # its members' covariances plus their spread about the centre
-        flat = mix.means[t].reshape(9, -1)
-        lab = np.argmin(((flat[:, None] - red.means[t].reshape(3, -1)[None]) ** 2).sum(-1), 1)
-        for k in range(3):
-            inn = lab == k
-            np.testing.assert_allclose(red.weights[t, k], mix.weights[t, inn].sum(), atol=1e-12)
-            # by count, the centre is the members' plain mean
-            np.testing.assert_allclose(red.means[t, k], mix.means[t, inn].mean(0), atol=1e-12)
-            s = mix.weights[t, inn] / mix.weights[t, inn].sum()
-            d = mix.means[t, inn] - red.means[t, k]
-            want = np.einsum("m,mhij->hij", s, mix.covs[t, inn]
-                             + d[..., :, None] * d[..., None, :])
-            np.testing.assert_allclose(red.covs[t, k], want, atol=1e-10)
+    for weighted in (True, False):
+        red = mix.reduced(3, seed=2, weighted=weighted)
+        np.testing.assert_allclose(red.mean(), mix.mean(), atol=1e-12)
+        np.testing.assert_allclose(red.moment_cov(), mix.moment_cov(), atol=1e-10)
+    # a hypothesis of probability 0 (valid input, and what an empty cluster becomes) is kept
+    # apart or merged without harm, and a merged mixture merges again
+    w = mix.weights.copy()
+    w[:, 0] = 0.0
+    zero = MixtureForecast(w / w.sum(1, keepdims=True), mix.means, mix.covs)
+    for weighted in (True, False):
+        red = zero.reduced(5, seed=3, weighted=weighted)
+        np.testing.assert_allclose(red.mean(), zero.mean(), atol=1e-12)
+        twice = red.reduced(2, seed=4, weighted=weighted)
+        np.testing.assert_allclose(twice.moment_cov(), zero.moment_cov(), atol=1e-10)
+    same = np.repeat(mix.means[:, :1], 4, axis=1)            # four copies of one path
+    copies = MixtureForecast(np.full((4, 4), 0.25), same, mix.covs[:, :4])
+    red = copies.reduced(2)
+    assert np.allclose(np.sort(red.weights, axis=1), [[0.0, 1.0]] * 4)
+    assert np.allclose(red.reduced(2).mean(), copies.mean())
 
 
 def test_bad_arguments_are_named():
@@ -174,3 +186,9 @@ def test_bad_arguments_are_named():
         mix.reduced(4)
     with pytest.raises(DistributionError, match="iterations"):
         mix.reduced(2, iterations=-1)
+    with pytest.raises(DistributionError, match="seed"):
+        mix.reduced(2, seed=1.5)
+    with pytest.raises(DistributionError, match="weighted"):
+        mix.reduced(2, weighted="no")
+    with pytest.raises(DistributionError, match="most_probable: n"):
+        mix.most_probable(0)

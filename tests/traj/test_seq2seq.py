@@ -453,11 +453,15 @@ def test_keep_by_best_of_keeps_the_epoch_of_the_best_hypotheses_and_wta_score_co
     out = torch.zeros(1, 2, 2, 5)
     out[0, 0, :, 0] = torch.tensor([0.0, 1.0])
     out[0, 1, :, 0] = torch.tensor([0.7, 0.4])
-    two = replace(cfg, horizon=2, modes=2, nll_weight=0.0)
+    two = replace(cfg, horizon=2, modes=2, nll_weight=0.0, outputs="position", loss="ade")
     zero = torch.zeros(1, 2, 2)
     for score, ade_won in (("ade", 0.5), ("ade_fde", 0.55)):
         _, won = _loss((out, torch.zeros(1, 2)), zero, zero, replace(two, wta_score=score))
         assert float(won) == pytest.approx(ade_won)
+    # one hypothesis: its best is its mean (the same model and record as keep_by="mean")
+    one_b, fit_1b = train_seq2seq(train, val, replace(CFG, epochs=2, keep_by="best_of"))
+    one_m, fit_1m = train_seq2seq(train, val, replace(CFG, epochs=2))
+    assert fit_1b.val_ade == fit_1m.val_ade
     with pytest.raises(ValueError, match="keep_by"):
         replace(cfg, keep_by="last")
     with pytest.raises(ValueError, match="wta_score"):

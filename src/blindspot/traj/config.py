@@ -309,8 +309,9 @@ class Seq2SeqConfig(TypedConfig):
             probabilities, trained winner-takes-all (:mod:`blindspot.traj.mixture`); 1 = one
             Gaussian path.
         wta_score: (read when modes > 1) what picks the winning hypothesis of a training window:
-            ``"ade"`` its mean distance to the truth, ``"ade_fde"`` that plus its final
-            distance (the endpoint counted twice, as best-of-N FDE scores it apart).
+            ``"ade"`` its training loss (``loss``: its mean distance to the truth, or squared
+            error), ``"ade_fde"`` its mean plus its final distance (the endpoint counted
+            twice, as best-of-N FDE scores it apart).
         keep_by: which epoch is kept: ``"mean"`` the lowest val ADE of the single prediction,
             ``"best_of"`` the lowest val ADE of each window's best hypothesis (with modes = 1
             the same as ``"mean"``).

@@ -436,8 +436,7 @@ def mixture_scores(model: Any, test: Windows, n: int = BEST_OF) -> dict[str, Any
     from blindspot.traj.mixture import best_of
 
     mix = model.predict_mixture(test.observed(), PRED_LEN, neighbours=test.neighbours)
-    order = np.argsort(-mix.weights, axis=1, kind="stable")[:, :n]
-    means = np.take_along_axis(mix.means, order[:, :, None, None], axis=1)
+    means = mix.most_probable(min(n, mix.modes))
     b_ade, b_fde = best_of(means, test.future())
     cov = mix.coverage(test.future(), CALIBRATION_LEVELS)
     return {"best_of_ade": b_ade, "best_of_fde": b_fde, "best_of_n": int(means.shape[1]),

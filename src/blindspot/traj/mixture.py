@@ -157,32 +157,47 @@ class MixtureForecast:
         c = np.einsum("bij,bmhjk,blk->bmhil", a, self.covs, a)
         return MixtureForecast(self.weights, mu, c)
 
+    def most_probable(self, n: int) -> np.ndarray:
+        """(B, n, H, 2) the mean paths of each track's ``n`` (1..M) most probable hypotheses,
+        most probable first (ties in their order)."""
+        _count(n, "n", 1, self.modes, "MixtureForecast.most_probable")
+        order = np.argsort(-self.weights, axis=1, kind="stable")[:, :n]
+        return np.take_along_axis(self.means, order[:, :, None, None], axis=1)
+
     def reduced(self, n: int, *, seed: int = 0, iterations: int = 25,
                 weighted: bool = True) -> MixtureForecast:
-        """The mixture merged into ``n`` (1..M) hypotheses per track: probability-weighted
-        k-means of the M mean paths (each path one point of H x 2 coordinates; the first
-        centre the most probable path, the others drawn k-means++ style with chances in
-        proportion to probability times squared distance, from a generator seeded by
-        ``seed``; then ``iterations`` Lloyd steps), each cluster moment-matched: its summed
-        probability, its probability-weighted mean path, its members' covariances plus their
-        spread about that path. The aggregation step of MultiPath++ (Varadarajan et al.
-        2022), which merges an ensemble's pooled hypotheses into the few it reports; an empty
-        cluster keeps its centre with probability 0 and the covariance of the path it
+        """The mixture merged into ``n`` (1..M) hypotheses per track by k-means of the M mean
+        paths (each path one point of H x 2 coordinates), each cluster moment-matched: its
+        summed probability, its probability-weighted mean path, its members' covariances
+        plus their spread about that path (so the mixture's mean and covariance are kept).
+        The aggregation step of MultiPath++ (Varadarajan et al. 2022), which merges an
+        ensemble's pooled hypotheses into the few it reports.
+
+        The clustering: the first centre is the most probable path, the others are drawn
+        k-means++ style (chances in proportion to weight times squared distance to the
+        nearest centre, from a generator seeded by ``seed``), then ``iterations`` + 1
+        assignments, each followed by the weighted mean of every cluster. The weight is the
+        probability (``weighted``) or 1 for every path (each path counted once, so unlikely
+        paths pull centres too). A cluster left without probability (no member, or members of
+        probability 0) keeps its centre with probability 0 and the covariance of the path it
         started at."""
         who = "MixtureForecast.reduced"
         b, m, h = self.means.shape[:3]
         _count(n, "n", 1, m, who)
         check_count(iterations, "iterations", ge=0, error=DistributionError, who=who)
+        check_count(seed, "seed", ge=0, error=DistributionError, who=who)
+        if not isinstance(weighted, bool):
+            raise DistributionError(f"{who}: weighted: expected True or False, found "
+                                    f"{weighted!r}")
         x, prob = self.means.reshape(b, m, h * 2), self.weights
-        w = prob if weighted else np.full_like(prob, 1.0 / m)
+        w = prob if weighted else np.ones_like(prob)
         rows, rng = np.arange(b), np.random.default_rng(seed)
         start = np.empty((b, n), dtype=int)
-        start[:, 0] = np.argmax(w, axis=1)
+        start[:, 0] = np.argmax(prob, axis=1)
         d2 = ((x - x[rows, start[:, 0]][:, None]) ** 2).sum(-1)                   # (B, M)
         for j in range(1, n):
             p = w * d2
-            total = p.sum(1)
-            p = np.where(total[:, None] > 0, p, (d2 > 0) + 1e-300)   # only repeats left
+            p = np.where(p.sum(1)[:, None] > 0, p, (d2 > 0) + 1e-300)  # no weight left: any
             cum = np.cumsum(p, axis=1)
             pick = (cum < rng.random(b)[:, None] * cum[:, -1:]).sum(1)
             start[:, j] = np.minimum(pick, m - 1)
@@ -191,23 +206,24 @@ class MixtureForecast:
         for _ in range(iterations + 1):
             dist = ((x ** 2).sum(-1)[:, :, None] - 2 * np.einsum("bmd,bkd->bmk", x, centres)
                     + (centres ** 2).sum(-1)[:, None, :])
-            member = np.eye(n)[np.argmin(dist, axis=2)] * w[:, :, None]          # (B, M, n)
-            mass = member.sum(1)                                                 # (B, n)
-            moved = np.einsum("bmk,bmd->bkd", member, x) / np.maximum(mass, 1e-300)[..., None]
-            centres = np.where(mass[..., None] > 0, moved, centres)
-        mu = centres.reshape(b, n, h, 2)
-        member = member / w[:, :, None] * prob[:, :, None]        # the clusters' probabilities
+            onehot = np.eye(n)[np.argmin(dist, axis=2)]                           # (B, M, n)
+            pull = onehot * w[:, :, None]
+            total = pull.sum(1)                                                  # (B, n)
+            moved = np.einsum("bmk,bmd->bkd", pull, x) / np.maximum(total, 1e-300)[..., None]
+            centres = np.where(total[..., None] > 0, moved, centres)
+        member = onehot * prob[:, :, None]                          # the clusters' probabilities
         mass = member.sum(1)                                                     # (B, n)
         share = member / np.maximum(mass, 1e-300)[:, None, :]                     # (B, M, n)
-        # sum_m share (S_m + (mu_m - c)(mu_m - c)^T) about the track's mean path, without a
-        # (B, M, n, H, 2, 2) array: the members' second moment, less the cross terms with c
+        empty = mass <= 0
+        mu = np.where(empty[..., None], centres, np.einsum("bmk,bmd->bkd", share, x))
+        mu = mu.reshape(b, n, h, 2)
+        # sum_m share (S_m + (mu_m - c)(mu_m - c)^T) = the members' second moment less c c^T
+        # (c their weighted mean), about the track's mean path: small numbers, and no
+        # (B, M, n, H, 2, 2) array
         ref = self.mean()[:, None]
         d, c = self.means - ref, mu - ref
-        e = np.einsum("bmk,bmhi->bkhi", share, d)                  # members' mean about ref
         cov = (np.einsum("bmk,bmhij->bkhij", share, self.covs + d[..., :, None] * d[..., None, :])
-               - e[..., :, None] * c[..., None, :] - c[..., :, None] * e[..., None, :]
-               + c[..., :, None] * c[..., None, :])
-        empty = mass <= 0
+               - c[..., :, None] * c[..., None, :])
         if np.any(empty):
             cov[empty] = self.covs[rows[:, None], start][empty]
         return MixtureForecast(mass / mass.sum(1, keepdims=True), mu, cov)

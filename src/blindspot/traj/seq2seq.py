@@ -292,7 +292,8 @@ def _cv_offsets(framed_obs: np.ndarray, horizon: int) -> np.ndarray:
 @dataclass
 class FitReport:
     """What training one member did: the epoch kept (0: the ``init`` weights, which no epoch
-    beat on val), validation ADE/FDE per epoch (m), the ``init`` weights' val ADE (m; None
+    beat on val), validation ADE/FDE per epoch (m; with ``keep_by="best_of"`` and modes > 1,
+    of each window's hypothesis with the lowest ADE), the ``init`` weights' val ADE (m; None
     without ``init``), time."""
 
     best_epoch: int
@@ -409,9 +410,8 @@ class Seq2SeqModel:
         """(B, M, horizon, 2) world positions of the M hypotheses of inputs framed once by
         :func:`_framed_inputs` (a model with ``cfg.modes`` > 1; the per-epoch validation)."""
         x, soc, origin, rot = framed
-        means = self._framed_mixture(x, soc).means[:, :, :horizon]
-        return (np.einsum("bij,bmhj->bmhi", np.linalg.inv(rot), means)
-                + origin[:, None, None, :])
+        mix = self._framed_mixture(x, soc).truncated(horizon)
+        return mix.transformed(np.linalg.inv(rot), origin).means
 
     @property
     def uses_neighbours(self) -> bool:
@@ -684,7 +684,8 @@ def _loss(out: torch.Tensor | tuple[torch.Tensor, torch.Tensor], base: torch.Ten
           y: torch.Tensor, cfg: Seq2SeqConfig) -> tuple[torch.Tensor, torch.Tensor]:
     """(total loss, ADE of the batch) for head output (B, H, 5) against framed truth y; with
     ``cfg.modes`` > 1 the output is ``((B, M, H, 5), (B, M) logits)``, the loss the relaxed
-    winner-takes-all one (module docstring) and the ADE that of the winners (best of M)."""
+    winner-takes-all one (module docstring) and the ADE that of the winners (best of M, or
+    with ``wta_score="ade_fde"`` the hypotheses best by ADE + FDE)."""
     if cfg.modes > 1:
         return _mixture_loss(out[0], out[1], base, y, cfg)
     off = out[..., :2]
@@ -707,7 +708,7 @@ def _mixture_loss(out: torch.Tensor, logits: torch.Tensor, base: torch.Tensor, y
     err = y[:, None] - (base[:, None] + off)                                 # (B, M, H, 2)
     dist = torch.linalg.vector_norm(err, dim=-1)                             # (B, M, H)
     per = dist.mean(-1) if cfg.loss == "ade" else (err**2).sum(-1).mean(-1)  # (B, M)
-    score = per.detach() + (dist[..., -1].detach() if cfg.wta_score == "ade_fde" else 0.0)
+    score = (dist.mean(-1) + dist[..., -1] if cfg.wta_score == "ade_fde" else per).detach()
     win = score.argmin(dim=1)                                                # (B,)
     m = cfg.modes
     w = torch.full_like(per, WTA_EPSILON / (m - 1))
