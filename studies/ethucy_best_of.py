@@ -17,15 +17,15 @@ DIR holds ``<variant>_<fold>.pt`` ensembles written by ``studies/ethucy_models.p
   probability, then its Gaussian per step), merged into 20 by k-means (the test-time sampling
   of Y-Net, Mangalam et al. 2021), and the same from the pooled mixture.
 
-Settings are chosen on the val columns; test is reported. Time: about 4 min for eth and hotel
-with 500 paths; univ's windows take most of a five-fold run.
+Settings are chosen on the val columns; test is reported. Time: about 10 min for eth and hotel
+with 500 paths on a shared 2-core machine; univ's windows take most of a five-fold run.
 
-Conclusion (2026-12-06, seed 0-2 of mix kept by val best-of-20; docs/studies/ethucy.md, fourth
-pass): val prefers each seed's own 20 hypotheses to every way of choosing 20 from more. Pooled
-and merged by probability they tie (five folds: val 0.1681 / 0.3005 against 0.1679 / 0.2995 m);
-paths drawn from the mixture and merged cut eth's test FDE from 0.70 to 0.60-0.63 m and cost val
-0.015 m of ADE (eth and hotel folds): eth's walkers end beyond what the other scenes taught, val
-cannot see it, so drawn paths are not taken.
+Conclusion (2026-12-06, seeds 0-2 of mix kept by val best-of-20; docs/studies/ethucy.md,
+fourth pass): three seeds' 60 hypotheses merged by probability tie the best single seed on val
+(five folds: 0.1681 / 0.3005 against 0.1679 / 0.2995 m) for three times the training; paths
+drawn from the mixture and merged cut eth's test FDE from 0.70 to 0.60-0.63 m and cost val
+0.015-0.018 m of ADE (eth and hotel folds): eth's walkers end beyond what the other scenes
+taught, val cannot see it. Neither is taken; the stage keeps each seed's own 20.
 """
 
 from __future__ import annotations
@@ -41,12 +41,6 @@ from blindspot.traj.ethucy_protocol import BEST_OF
 from blindspot.traj.mixture import MixtureForecast, best_of
 from blindspot.traj.multimodal import MultiModalPredictor
 from blindspot.traj.seq2seq import Seq2SeqEnsemble
-
-
-def top(mix: MixtureForecast, n: int = BEST_OF) -> np.ndarray:
-    """(B, n, H, 2) the n most probable hypotheses' mean paths."""
-    order = np.argsort(-mix.weights, axis=1, kind="stable")[:, :n]
-    return np.take_along_axis(mix.means, order[:, :, None, None], axis=1)
 
 
 def sampled(mix: MixtureForecast, samples: int, seed: int = 0) -> MixtureForecast:
@@ -71,13 +65,13 @@ def scores(ens: Seq2SeqEnsemble, windows, samples: int) -> dict[str, tuple[float
     for k, member in enumerate(ens.members):
         mix = MultiModalPredictor(Seq2SeqEnsemble([member])).predict_mixture(obs, PRED_LEN,
                                                                              neighbours=nb)
-        per_seed.append(best_of(top(mix), truth))
+        per_seed.append(best_of(mix.most_probable(BEST_OF), truth))
         out[f"seed {k}"] = per_seed[-1]
         if k == 0 and samples:
             out["seed 0, sampled"] = best_of(sampled(mix, samples).reduced(BEST_OF).means, truth)
     out["seeds, mean"] = tuple(np.mean(per_seed, axis=0))
     pooled = MultiModalPredictor(ens).predict_mixture(obs, PRED_LEN, neighbours=nb)
-    out["pooled, top 20"] = best_of(top(pooled), truth)
+    out["pooled, top 20"] = best_of(pooled.most_probable(BEST_OF), truth)
     out["pooled, merged"] = best_of(pooled.reduced(BEST_OF).means, truth)
     out["pooled, merged by count"] = best_of(pooled.reduced(BEST_OF, weighted=False).means,
                                              truth)

@@ -43,8 +43,8 @@ import numpy as np
 
 from blindspot.traj.baselines import ConstantVelocity
 from blindspot.traj.ethucy import FOLDS, default_data_dir, load_split
-from blindspot.traj.metrics import ade, fde
 from blindspot.traj.ethucy_protocol import BEST_OF
+from blindspot.traj.metrics import ade, fde
 from blindspot.traj.mixture import best_of
 from blindspot.traj.multimodal import MultiModalPredictor
 from blindspot.traj.seq2seq import Seq2SeqConfig, Seq2SeqEnsemble, train_ensemble
@@ -124,9 +124,7 @@ def run_variant(fold: str, name: str, cfg: Seq2SeqConfig, data_dir, save_dir=Non
         if getattr(getattr(p, "cfg", None), "modes", 1) > 1:
             for split, xy, k_nb in (("val", val, nb["val"]), ("test", test, nb["test"])):
                 mix = MultiModalPredictor(p).predict_mixture(xy[:, :8], 12, neighbours=k_nb)
-                order = np.argsort(-mix.weights, axis=1, kind="stable")[:, :BEST_OF]
-                top = np.take_along_axis(mix.means, order[:, :, None, None], axis=1)
-                b_ade, b_fde = best_of(top, xy[:, 8:])
+                b_ade, b_fde = best_of(mix.most_probable(min(BEST_OF, mix.modes)), xy[:, 8:])
                 out[key] |= {f"{split}_best_ade": b_ade, f"{split}_best_fde": b_fde}
                 if mix.modes > BEST_OF:
                     r_ade, r_fde = best_of(mix.reduced(BEST_OF).means, xy[:, 8:])
@@ -185,6 +183,8 @@ def _print(rows, folds) -> None:
     print("| variant | val ADE | val FDE | test ADE | test FDE | test per fold (ADE/FDE) |")
     print("|---|---|---|---|---|---|")
     for k, r in rows.items():
+        if k.endswith("_reduced"):            # its single prediction is its parent's
+            continue
         m = {s: np.mean([r[f][s] for f in folds]) for s in ("val_ade", "val_fde", "test_ade",
                                                             "test_fde")}
         per = ", ".join(f"{f} {r[f]['test_ade']:.2f}/{r[f]['test_fde']:.2f}" for f in folds)
