@@ -390,10 +390,9 @@ class Seq2SeqModel:
             raise HistoryError(f"{self.name}.predict_mixture: the model emits one path "
                                f"(modes = {self.cfg.modes}); expected modes > 1")
         obs = self._observed(history, horizon)
-        x, soc, origin, rot = _framed_inputs(
-            obs, _check_neighbours(neighbours, obs.shape[0], self.cfg, self.name), self.cfg)
-        mix = self._framed_mixture(x, soc).truncated(horizon)
-        return mix.transformed(np.linalg.inv(rot), origin)
+        return self._mixture_of_framed(_framed_inputs(
+            obs, _check_neighbours(neighbours, obs.shape[0], self.cfg, self.name), self.cfg),
+            horizon)
 
     def _mean_of_framed(self, framed: tuple[np.ndarray, np.ndarray | None, np.ndarray,
                                             np.ndarray], horizon: int) -> np.ndarray:
@@ -405,13 +404,14 @@ class Seq2SeqModel:
         mean, _ = self._framed_both(x, soc, with_cov=False)
         return np.einsum("bij,bhj->bhi", np.linalg.inv(rot), mean[:, :horizon]) + origin[:, None, :]
 
-    def _hypotheses_of_framed(self, framed: tuple[np.ndarray, np.ndarray | None, np.ndarray,
-                                                  np.ndarray], horizon: int) -> np.ndarray:
-        """(B, M, horizon, 2) world positions of the M hypotheses of inputs framed once by
-        :func:`_framed_inputs` (a model with ``cfg.modes`` > 1; the per-epoch validation)."""
+    def _mixture_of_framed(self, framed: tuple[np.ndarray, np.ndarray | None, np.ndarray,
+                                               np.ndarray], horizon: int) -> MixtureForecast:
+        """The M hypotheses over ``horizon`` steps, world metres, of inputs framed by
+        :func:`_framed_inputs` (a model with ``cfg.modes`` > 1): what :meth:`predict_mixture`
+        gives, and the per-epoch validation's, whose val tracks are framed once."""
         x, soc, origin, rot = framed
         mix = self._framed_mixture(x, soc).truncated(horizon)
-        return mix.transformed(np.linalg.inv(rot), origin).means
+        return mix.transformed(np.linalg.inv(rot), origin)
 
     @property
     def uses_neighbours(self) -> bool:
@@ -804,7 +804,7 @@ def train_seq2seq(train_xy: np.ndarray, val_xy: np.ndarray, cfg: Seq2SeqConfig, 
             """(N_val, horizon) m: the network's errors on the val windows as they stand."""
             model = Seq2SeqModel(net, cfg, name)
             if cfg.keep_by == "best_of" and cfg.modes > 1:
-                hyp = model._hypotheses_of_framed(val_framed, cfg.horizon)       # (N, M, H, 2)
+                hyp = model._mixture_of_framed(val_framed, cfg.horizon).means   # (N, M, H, 2)
                 err = np.linalg.norm(hyp - val_fut[:, None], axis=-1)
                 best = err.mean(axis=-1).argmin(axis=1)
                 return err[np.arange(len(err)), best]
