@@ -16,7 +16,8 @@ import pandas as pd
 from matplotlib.figure import Figure
 
 from blindspot.report.paper_values import PATH_ERROR_MEAN_M
-from blindspot.report.style import method_colour, method_label, new_grid, panel_title, require_columns
+from blindspot.report.style import method_colour, method_label, new_grid, panel_title
+from blindspot.tables import check_columns
 
 __all__ = ["fig10_error"]
 
@@ -39,7 +40,7 @@ def fig10_error(curves: pd.DataFrame, metrics: Mapping[str, Any], dt_s: float = 
             over scenes here.
         metrics: ``reports/metrics/evaluate.json``.
     """
-    require_columns(curves, ("method", "step", "error_m", "path_error_m"), "fig10 curves")
+    check_columns(curves, ("method", "step", "error_m", "path_error_m"), "fig10 curves")
     cols = [c for c in ("error_m", "path_error_m", "path_error_radar_m") if c in curves.columns]
     mean = curves.groupby(["method", "step"], sort=False)[cols].mean().reset_index()
     methods = list(dict.fromkeys(mean.method))

@@ -34,11 +34,11 @@ from blindspot.report.style import (
     new_grid,
     panel_title,
     radar_direction,
-    require_columns,
     scene_title,
     set_xy_limits,
     xy_of,
 )
+from blindspot.tables import check_columns
 
 __all__ = [
     "PathCase",
@@ -149,8 +149,8 @@ def fig07_scenes(points: pd.DataFrame, truth: pd.DataFrame, scenes: Mapping[str,
         scenes: ``data/simulate/scenes.json`` (with_car, car_polygon_xy_m, turn_deg, n_frames).
         pairs: (no-car scene, car scene) per direction, in column order.
     """
-    require_columns(points, ("scene", "frame", "time_s", "x_m", "y_m"), "fig07 points")
-    require_columns(truth, ("scene", "frame", "x_m", "y_m", "occluded"), "fig07 truth")
+    check_columns(points, ("scene", "frame", "time_s", "x_m", "y_m"), "fig07 points")
+    check_columns(truth, ("scene", "frame", "x_m", "y_m", "occluded"), "fig07 truth")
     if not pairs:
         raise ValueError("fig07_scenes: no scene pairs")
     n = len(pairs)
@@ -212,8 +212,8 @@ def fig08_interpolation(tracks: pd.DataFrame, truth: pd.DataFrame,
         scenes: ``data/simulate/scenes.json``.
         metrics: ``reports/metrics/interpolate.json`` ({method: {scene: {hidden_mean_m, ...}}}).
     """
-    require_columns(tracks, ("scene", "method", "frame", "x_m", "y_m", "observed", "filled", "hidden"),
-             "fig08 tracks")
+    check_columns(tracks, ("scene", "method", "frame", "x_m", "y_m", "observed", "filled", "hidden"),
+                  "fig08 tracks")
     names = list(dict.fromkeys(tracks.scene))
     methods = list(dict.fromkeys(tracks.method))
     if not names:
@@ -312,8 +312,8 @@ def fig09_prediction(inputs: pd.DataFrame, predictions: pd.DataFrame, truth: pd.
         scenes: ``data/simulate/scenes.json``.
         metrics: ``reports/metrics/evaluate.json`` ({method: {per_scene: {scene: {...}}}}).
     """
-    require_columns(predictions, ("scene", "method", "step", "frame", "x_m", "y_m"), "fig09 predictions")
-    require_columns(inputs, ("scene", "frame", "x_m", "y_m"), "fig09 inputs")
+    check_columns(predictions, ("scene", "method", "step", "frame", "x_m", "y_m"), "fig09 predictions")
+    check_columns(inputs, ("scene", "frame", "x_m", "y_m"), "fig09 inputs")
     names = list(dict.fromkeys(predictions.scene))
     methods = list(dict.fromkeys(predictions.method))
     if not names:

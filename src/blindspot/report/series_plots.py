@@ -19,7 +19,8 @@ matplotlib.use("Agg")
 import pandas as pd  # noqa: E402
 from matplotlib.figure import Figure  # noqa: E402
 
-from blindspot.report.style import method_colour, method_label, require_columns  # noqa: E402
+from blindspot.report.style import method_colour, method_label  # noqa: E402
+from blindspot.tables import check_columns  # noqa: E402
 
 __all__ = ["SVG_RC", "history_wide", "error_by_step_wide", "series_figure"]
 
@@ -30,7 +31,7 @@ def history_wide(history: pd.DataFrame, value: str = "val_rmse_m") -> pd.DataFra
     """The training history (one row per member and epoch; ``member``, ``seed``, ``epoch`` and
     ``value`` columns) as one row per epoch and one column per member, named
     ``member <i> (seed <s>)``; a history without ``member`` is one series, ``value``."""
-    require_columns(history, ("epoch", value), "training history")
+    check_columns(history, ("epoch", value), "training history")
     if "member" not in history:
         return history[["epoch", value]].reset_index(drop=True)
     names = {m: f"member {m}" + (f" (seed {s})" if s is not None else "")
@@ -45,7 +46,7 @@ def error_by_step_wide(curve: pd.DataFrame, value: str = "error_m") -> pd.DataFr
     """The error per prediction step (``method``, ``step``, ``time_s``, ``value``; one row per
     method and step) as one row per step (``step``, ``time_s``) and one column per method, in
     the order the methods first appear."""
-    require_columns(curve, ("method", "step", "time_s", value), "error per prediction step")
+    check_columns(curve, ("method", "step", "time_s", value), "error per prediction step")
     order = list(dict.fromkeys(curve["method"]))
     wide = curve.pivot(index=["step", "time_s"], columns="method", values=value)
     return wide[order].reset_index().rename_axis(columns=None)

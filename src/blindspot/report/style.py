@@ -52,7 +52,6 @@ __all__ = [
     "to_db",
     "cell_edges",
     "xy_of",
-    "require_columns",
     "new_grid",
 ]
 
@@ -183,13 +182,6 @@ def cell_edges(axis: np.ndarray) -> np.ndarray:
 def xy_of(df: pd.DataFrame, x: str = "x_m", y: str = "y_m") -> np.ndarray:
     """(N, 2) float positions in metres from the columns ``x`` and ``y`` of ``df``."""
     return df[[x, y]].to_numpy(dtype=float)
-
-
-def require_columns(df: pd.DataFrame, columns: Sequence[str], what: str) -> None:
-    """Raise ValueError naming ``what``, the missing columns and the columns found."""
-    missing = [c for c in columns if c not in df.columns]
-    if missing:
-        raise ValueError(f"{what}: missing columns {missing}; found {list(df.columns)}")
 
 
 def new_grid(n_rows: int, n_cols: int, width: float, height: float) -> tuple[Figure, np.ndarray]:

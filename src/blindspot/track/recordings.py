@@ -18,6 +18,7 @@ import pandas as pd
 
 from blindspot.radar.capture.radhar import read_radhar
 from blindspot.radar.capture.ti_gtrack import read_ti_gtrack
+from blindspot.tables import check_columns
 from blindspot.track.config import TrackedRecording, TrackerConfig
 from blindspot.track.evaluation import compare_tracks
 from blindspot.track.tracker import DOPPLER_COLUMN, track_points
@@ -95,12 +96,10 @@ def tracker_input(points: pd.DataFrame, *, doppler: bool = True) -> pd.DataFrame
     and with ``doppler`` their radial speed over ground (``velocity_over_ground_mps``, or a
     still sensor's own ``velocity_mps``: the range-rate updates and a new track's velocity);
     a frame left without a point is one NaN row, so tracks coast through it."""
-    missing = [c for c in ("frame", "time_s", "x_m", "y_m") if c not in points.columns]
-    if doppler and not {"velocity_over_ground_mps", "velocity_mps"} & set(points.columns):
-        missing.append("velocity_mps")
-    if missing:
-        raise ValueError(f"tracker_input: the points lack {missing}; found "
-                         f"{list(points.columns)}")
+    check_columns(points, ("frame", "time_s", "x_m", "y_m"), "points", who="tracker_input")
+    if doppler and not {DOPPLER_COLUMN, "velocity_mps"} & set(points.columns):
+        raise ValueError(f"tracker_input: points: with doppler, expected a radial speed column "
+                         f"({DOPPLER_COLUMN!r} or 'velocity_mps'); found {list(points.columns)}")
     keep = np.ones(len(points), bool)
     for col in ("static", "outside"):
         if col in points.columns:

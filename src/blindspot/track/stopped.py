@@ -64,9 +64,9 @@ def _check_speed(value: float, name: str, who: str) -> None:
     check_number(value, name, gt=0.0, unit="m/s", who=who)
 
 
-def _check_probability(value: float, who: str) -> None:
+def _check_probability(value: float, who: str, name: str = "probability") -> None:
     if not (isinstance(value, numbers.Real) and 0.0 < value < 1.0):
-        raise ValueError(f"{who}: probability must lie in (0, 1); found {value!r}")
+        raise ValueError(f"{who}: {name} must lie in (0, 1); found {value!r}")
 
 
 def notch_split(x: np.ndarray, P: np.ndarray, sensor_xy, min_speed_mps: float):
@@ -131,9 +131,7 @@ def notch_update(x: np.ndarray, P: np.ndarray, sensor_xy, min_speed_mps: float,
     Returns:
         (x', P'): the posterior states.
     """
-    if not 0.0 < detection_probability < 1.0:
-        raise ValueError(f"notch_update: detection_probability must lie in (0, 1); found "
-                         f"{detection_probability!r}")
+    _check_probability(detection_probability, "notch_update", "detection_probability")
     x, P = _check_states(x, P, "notch_update")
     p_in, x_in, P_in = notch_split(x, P, sensor_xy, min_speed_mps)
     c1 = detection_probability * p_in

@@ -873,8 +873,8 @@ def _ends_silence(track, book: _Book, t: float, min_speed: float | None,
             and seen_slowing(n, d, min_speed, config.moving.doppler_std_mps)):
         return True
     book.stopped, book.stopped_s = True, float(t)
-    book.held = held_state(book.seen[0][None], book.seen[1][None])
-    book.held = (book.held[0][0], book.held[1][0])
+    (x,), (P,) = held_state(book.seen[0][None], book.seen[1][None])
+    book.held = (x, P)
     _set_state(track, *book.held)
     return False
 
