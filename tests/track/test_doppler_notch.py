@@ -343,12 +343,13 @@ def test_jpda_takes_no_negative_information_on_a_frame_it_updated_in_part():
     """Found in review: JPDA calls a track not detected when its detections carry at most half
     the probability, yet its state holds their share; the notch's "no detection" must not be
     laid over it. A walker receding at 1 m/s, then a point 0.48 m beside its prediction in a
-    dense-clutter setting (P(detected) < 0.5): the notch changes nothing on that frame."""
+    dense-clutter setting (P(detected) < 0.5; object noise 0.15 m, which puts that point inside
+    the gate): the notch changes nothing on that frame."""
     f = np.arange(21)
     pts = pd.DataFrame({"frame": f, "time_s": f * 0.05, "x_m": np.where(f < 20, 0.0, 0.48),
                         "y_m": 4.0 + f * 0.05,
                         "velocity_over_ground_mps": np.where(f < 20, 1.0, np.nan)})
-    cfg = config("jpda_cv", clutter_density_per_m2=3.0)
+    cfg = config("jpda_cv", clutter_density_per_m2=3.0, measurement_noise_m=0.15)
     a = track_points(pts, cfg, min_detectable_speed_mps=0.3)
     b = track_points(pts, cfg)
     row_a, row_b = (t[(t.frame == 20) & (t.track_id == 0)].iloc[0] for t in (a, b))

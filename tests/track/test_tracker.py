@@ -204,7 +204,7 @@ def test_track_rows_carry_the_updating_objects_points_and_median_doppler():
     # one walker, 3 points per frame whose over-ground radial speeds are 0.9, 1.0, 5.0 m/s (an
     # outlier): the row of a hit carries 3 points and their median 1.0; a frame without
     # points leaves the track coasting with 0 points and NaN
-    truth = np.column_stack([np.linspace(-2, 2, 10), np.full(10, 6.0)])
+    truth = np.column_stack([np.linspace(-1, 1, 10), np.full(10, 6.0)])      # 2.2 m/s
     rows = [(f, f * DT, x + dx, y, v) for f, (x, y) in enumerate(truth) if f != 6
             for dx, v in ((-0.1, 0.9), (0.0, 1.0), (0.1, 5.0))]
     pts = pd.DataFrame(rows, columns=["frame", "time_s", "x_m", "y_m",
@@ -851,10 +851,12 @@ def test_a_long_silent_confirmed_track_loses_its_priority_over_a_newcomers_track
     with tracker.priority_max_coast_frames = 2 the silent track meets the newcomer's in the
     second stage, by distance, and the newcomer keeps one track from frame 12 to the end."""
     pts = _stale_track_and_newcomer()
-    always = track_points(pts, config(name, max_misses=40, priority_max_coast_frames=None))
+    # the geometry (1.0 m apart, 10 silent frames) is set for an object noise of 0.15 m
+    settings = {"max_misses": 40, "measurement_noise_m": 0.15}
+    always = track_points(pts, config(name, **settings, priority_max_coast_frames=None))
     owner = always[(always.frame == 39) & ~always.coasting].track_id
     assert list(owner) == [0]                                  # the silent track took it
-    demoted = track_points(pts, config(name, max_misses=40, priority_max_coast_frames=2))
+    demoted = track_points(pts, config(name, **settings, priority_max_coast_frames=2))
     on_new = demoted[(demoted.frame >= 12) & ~demoted.coasting
                      & np.isclose(demoted.x_m, 1.0, atol=0.3)]
     assert on_new.track_id.nunique() == 1 and on_new.frame.min() == 12
