@@ -96,7 +96,6 @@ ti_cut:
   reference_gate_m: 0.5
   min_detectable_speed_mps: 0.04
   boundary_box_m: [-2.0, 10.0, 0.0, 10.0]
-  measurement_noise_m: 0.15
 """)
     run_dir = tmp_path / "run"
     proc = _run_recordings(tmp_path, shared_dir, run_dir)
@@ -165,17 +164,6 @@ def test_from_a_car_the_child_gets_a_warning_then_the_aeb_request(groups, tmp_pa
     assert dec.aeb.any(), dec
     assert dec.frame[dec.warning].min() <= dec.frame[dec.aeb].min()
     assert res.summary["first_aeb_s"] is not None and res.summary["n_tracks"] >= 1
-
-
-def test_a_recordings_sensor_noise_is_the_one_its_tracks_are_filtered_with(groups, tmp_path):
-    """measurement_noise_m of an entry replaces the tracker's: a new track's position variance
-    is that noise squared (its first point, nothing else known)."""
-    crossing_from_a_car().to_parquet(path := tmp_path / "drive.parquet")
-    for noise in (None, 0.3):
-        tracks = _run(groups, path, stop_at="tracks", measurement_noise_m=noise).tracks
-        first = tracks.sort_values("frame").groupby("track_id").head(1)
-        expected = (groups[1].measurement_noise_m if noise is None else noise) ** 2
-        assert np.allclose(first.cov_xx, expected), (noise, first.cov_xx.unique())
 
 
 def test_timestamps_going_backwards_are_named(groups, tmp_path):

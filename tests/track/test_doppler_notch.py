@@ -129,7 +129,7 @@ def test_the_stop_tests_name_bad_arguments():
     ({"min_speed_mps": 0.0}, "min_speed_mps"),
     ({"min_speed_mps": float("nan")}, "min_speed_mps"),
     ({"detection_probability": 1.0}, "detection_probability"),
-    ({"detection_probability": "0.9"}, "notch_update: detection_probability must lie in"),
+    ({"detection_probability": "0.9"}, "notch_update: detection_probability must be a number in"),
     ({"x": np.zeros((2, 3))}, r"x \(K, 4\)"),
 ])
 def test_bad_arguments_are_named(kwargs, match):

@@ -33,8 +33,9 @@ def fig_driving_bev(truth: pd.DataFrame, detections: pd.DataFrame,
 
     truth: the scene's rows of ``driving/truth.parquet`` (ego_y_m, x_m, y_m, pedestrian,
     occluded, time_s); detections: x_m, y_m (world), static."""
-    check_columns(truth, ["ego_x_m", "ego_y_m", "x_m", "y_m", "pedestrian", "occluded"], "truth")
-    check_columns(detections, ["x_m", "y_m", "static"], "detections")
+    check_columns(truth, ["ego_x_m", "ego_y_m", "x_m", "y_m", "pedestrian", "occluded"], "truth",
+                  who="fig_driving_bev")
+    check_columns(detections, ["x_m", "y_m", "static"], "detections", who="fig_driving_bev")
     fig, axes = new_grid(1, 1, 9.0, 6.0)
     ax = axes[0, 0]
     from matplotlib.patches import Polygon, Rectangle
@@ -83,7 +84,7 @@ def fig_driving_range_doppler(frame: Mapping[str, np.ndarray], detections: pd.Da
     velocity_wrapped_mps, velocity_mps, angle_deg, static. pedestrian_truth: angle_deg,
     radial_velocity_mps, range_m of the pedestrian at that frame (or None)."""
     check_columns(detections, ["range_m", "velocity_wrapped_mps", "velocity_mps", "angle_deg",
-                               "static"], "detections")
+                               "static"], "detections", who="fig_driving_range_doppler")
     fig, axes = new_grid(1, 2, 14.0, 4.8)
     ax = axes[0, 0]
     p = to_db(frame["power"])
@@ -128,7 +129,8 @@ def fig_ego_speed_error(sweep: pd.DataFrame, *, goal_mps: float = 0.1) -> Figure
     its RMS per speed, the odometry's error beside it and the goal. Right (turning frames only,
     when present): the yaw-rate error of every frame, its RMS and the least-squares theory's
     standard deviation (``yaw_rate_sd_theory_deg_s``, median per speed)."""
-    check_columns(sweep, ["speed_kmh", "error_mps", "odometry_error_mps"], "sweep")
+    check_columns(sweep, ["speed_kmh", "error_mps", "odometry_error_mps"], "sweep",
+                  who="fig_ego_speed_error")
     yaw = (sweep.true_yaw_rate_deg_s if "true_yaw_rate_deg_s" in sweep
            else pd.Series(0.0, index=sweep.index))
     turning = sweep[yaw != 0]
@@ -152,7 +154,8 @@ def fig_ego_speed_error(sweep: pd.DataFrame, *, goal_mps: float = 0.1) -> Figure
     ax.grid(True, lw=0.4, alpha=0.5)
     ax.legend(fontsize=7)
     if len(turning):
-        check_columns(turning, ["yaw_rate_error_deg_s", "yaw_rate_sd_theory_deg_s"], "sweep")
+        check_columns(turning, ["yaw_rate_error_deg_s", "yaw_rate_sd_theory_deg_s"], "sweep",
+                      who="fig_ego_speed_error")
         ax = axes[0, 1]
         ax.scatter(turning.speed_kmh, turning.yaw_rate_error_deg_s, s=10, c="tab:red",
                    marker="^", label="radar, per frame")

@@ -40,7 +40,8 @@ def fig10_error(curves: pd.DataFrame, metrics: Mapping[str, Any], dt_s: float = 
             over scenes here.
         metrics: ``reports/metrics/evaluate.json``.
     """
-    check_columns(curves, ("method", "step", "error_m", "path_error_m"), "fig10 curves")
+    check_columns(curves, ("method", "step", "error_m", "path_error_m"), "fig10 curves",
+                  who="fig10_error")
     cols = [c for c in ("error_m", "path_error_m", "path_error_radar_m") if c in curves.columns]
     mean = curves.groupby(["method", "step"], sort=False)[cols].mean().reset_index()
     methods = list(dict.fromkeys(mean.method))

@@ -149,8 +149,10 @@ def fig07_scenes(points: pd.DataFrame, truth: pd.DataFrame, scenes: Mapping[str,
         scenes: ``data/simulate/scenes.json`` (with_car, car_polygon_xy_m, turn_deg, n_frames).
         pairs: (no-car scene, car scene) per direction, in column order.
     """
-    check_columns(points, ("scene", "frame", "time_s", "x_m", "y_m"), "fig07 points")
-    check_columns(truth, ("scene", "frame", "x_m", "y_m", "occluded"), "fig07 truth")
+    check_columns(points, ("scene", "frame", "time_s", "x_m", "y_m"), "fig07 points",
+                  who="fig07_scenes")
+    check_columns(truth, ("scene", "frame", "x_m", "y_m", "occluded"), "fig07 truth",
+                  who="fig07_scenes")
     if not pairs:
         raise ValueError("fig07_scenes: no scene pairs")
     n = len(pairs)
@@ -212,8 +214,8 @@ def fig08_interpolation(tracks: pd.DataFrame, truth: pd.DataFrame,
         scenes: ``data/simulate/scenes.json``.
         metrics: ``reports/metrics/interpolate.json`` ({method: {scene: {hidden_mean_m, ...}}}).
     """
-    check_columns(tracks, ("scene", "method", "frame", "x_m", "y_m", "observed", "filled", "hidden"),
-                  "fig08 tracks")
+    check_columns(tracks, ("scene", "method", "frame", "x_m", "y_m", "observed", "filled",
+                           "hidden"), "fig08 tracks", who="fig08_interpolation")
     names = list(dict.fromkeys(tracks.scene))
     methods = list(dict.fromkeys(tracks.method))
     if not names:
@@ -312,8 +314,9 @@ def fig09_prediction(inputs: pd.DataFrame, predictions: pd.DataFrame, truth: pd.
         scenes: ``data/simulate/scenes.json``.
         metrics: ``reports/metrics/evaluate.json`` ({method: {per_scene: {scene: {...}}}}).
     """
-    check_columns(predictions, ("scene", "method", "step", "frame", "x_m", "y_m"), "fig09 predictions")
-    check_columns(inputs, ("scene", "frame", "x_m", "y_m"), "fig09 inputs")
+    check_columns(predictions, ("scene", "method", "step", "frame", "x_m", "y_m"),
+                  "fig09 predictions", who="fig09_prediction")
+    check_columns(inputs, ("scene", "frame", "x_m", "y_m"), "fig09 inputs", who="fig09_prediction")
     names = list(dict.fromkeys(predictions.scene))
     methods = list(dict.fromkeys(predictions.method))
     if not names:

@@ -63,7 +63,8 @@ def fig06_detection(frame: Mapping[str, Any], detections: pd.DataFrame, *,
         n_accumulate: frames accumulated in (e) (default: the paper's,
             :data:`~blindspot.report.paper_values.FIG6E_ACCUMULATED_FRAMES`).
     """
-    check_columns(detections, ("range_m", "velocity_mps", "moving"), "fig06 detections")
+    check_columns(detections, ("range_m", "velocity_mps", "moving"), "fig06 detections",
+                  who="fig06_detection")
     power = np.asarray(frame["power"], dtype=float)
     threshold = np.asarray(frame["threshold"], dtype=float)
     mask = np.asarray(frame["mask"], dtype=bool)
@@ -232,7 +233,8 @@ def fig_recording(power: np.ndarray, detections: np.ndarray | pd.DataFrame,
                        vmin=max(floor, top - dynamic_range_db), vmax=top, shading="flat")
     fig.colorbar(im, ax=ax, label="power (dB re 1 ADC code², summed over channels)")
     if isinstance(detections, pd.DataFrame):
-        check_columns(detections, ("range_m", "velocity_mps"), "fig_recording detections")
+        check_columns(detections, ("range_m", "velocity_mps"), "fig_recording detections",
+                      who="fig_recording")
         mov = (detections["moving"].to_numpy(bool) if "moving" in detections.columns
                else np.zeros(len(detections), bool))
         ax.plot(detections.velocity_mps[~mov], detections.range_m[~mov], "s", mfc="none",

@@ -50,8 +50,10 @@ def fig_safety_timeline(truth: pd.DataFrame, tracks: pd.DataFrame, risk: pd.Data
     p_collision) of one input; timeline: the braked ego of each predictor (predictor, time_s,
     ego_y_m, ego_speed_mps); outcome: its scene_outcomes rows (predictor, warning_s, aeb_s,
     impact_speed_kmh, avoided). ``predictor`` is the one drawn in the bird's-eye view."""
-    check_columns(truth, ["time_s", "ego_y_m", "x_m", "y_m", "pedestrian", "occluded"], "truth")
-    check_columns(timeline, ["predictor", "time_s", "ego_y_m", "ego_speed_mps"], "timeline")
+    check_columns(truth, ["time_s", "ego_y_m", "x_m", "y_m", "pedestrian", "occluded"], "truth",
+                  who="fig_safety_timeline")
+    check_columns(timeline, ["predictor", "time_s", "ego_y_m", "ego_speed_mps"], "timeline",
+                  who="fig_safety_timeline")
     from matplotlib.patches import Polygon, Rectangle
 
     fig, axes = new_grid(3, 1, 10.0, 11.0)
@@ -136,7 +138,7 @@ def fig_operating_characteristic(curves: pd.DataFrame, operating: Mapping[str, M
     avoided rate, drawn at 0 % false activations (a perfect decider has none); confirm: the
     (M, N) of the confirmed-track bound (``safety_bound.json`` settings), for its label."""
     check_columns(curves, ["threshold", "avoided_rate", "false_activation_rate", "predictor",
-                           "input"], "curves")
+                           "input"], "curves", who="fig_operating_characteristic")
     fig, axes = new_grid(1, 1, 8.0, 6.0)
     ax = axes[0, 0]
     for (inp, name), g in curves.groupby(["input", "predictor"], sort=False):
@@ -169,7 +171,7 @@ def fig_ncap_grid(grid: pd.DataFrame, predictors: Sequence[str]) -> Figure:
     """grid: speed_kmh, impact_pct, n, n_avoided, impact_speed_kmh_mean, band, predictor (one
     input)."""
     check_columns(grid, ["speed_kmh", "impact_pct", "n", "n_avoided", "impact_speed_kmh_mean",
-                         "band", "predictor"], "grid")
+                         "band", "predictor"], "grid", who="fig_ncap_grid")
     from matplotlib.patches import Rectangle
 
     fig, axes = new_grid(1, len(predictors), 3.6 * len(predictors), 4.6)
@@ -204,7 +206,7 @@ def fig_ncap_grid(grid: pd.DataFrame, predictors: Sequence[str]) -> Figure:
 def fig_lead_times(scenes: pd.DataFrame, predictors: Sequence[str]) -> Figure:
     """scenes: the evaluated intruding scenes of one input (predictor, speed_kmh,
     lead_time_s)."""
-    check_columns(scenes, ["predictor", "speed_kmh", "lead_time_s"], "scenes")
+    check_columns(scenes, ["predictor", "speed_kmh", "lead_time_s"], "scenes", who="fig_lead_times")
     fig, axes = new_grid(1, 1, 9.0, 5.0)
     ax = axes[0, 0]
     speeds = np.sort(scenes.speed_kmh.unique())

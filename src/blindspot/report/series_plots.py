@@ -31,7 +31,7 @@ def history_wide(history: pd.DataFrame, value: str = "val_rmse_m") -> pd.DataFra
     """The training history (one row per member and epoch; ``member``, ``seed``, ``epoch`` and
     ``value`` columns) as one row per epoch and one column per member, named
     ``member <i> (seed <s>)``; a history without ``member`` is one series, ``value``."""
-    check_columns(history, ("epoch", value), "training history")
+    check_columns(history, ("epoch", value), "training history", who="history_wide")
     if "member" not in history:
         return history[["epoch", value]].reset_index(drop=True)
     names = {m: f"member {m}" + (f" (seed {s})" if s is not None else "")
@@ -46,7 +46,8 @@ def error_by_step_wide(curve: pd.DataFrame, value: str = "error_m") -> pd.DataFr
     """The error per prediction step (``method``, ``step``, ``time_s``, ``value``; one row per
     method and step) as one row per step (``step``, ``time_s``) and one column per method, in
     the order the methods first appear."""
-    check_columns(curve, ("method", "step", "time_s", value), "error per prediction step")
+    check_columns(curve, ("method", "step", "time_s", value), "error per prediction step",
+                  who="error_by_step_wide")
     order = list(dict.fromkeys(curve["method"]))
     wide = curve.pivot(index=["step", "time_s"], columns="method", values=value)
     return wide[order].reset_index().rename_axis(columns=None)

@@ -40,9 +40,10 @@ def fig_tracks_against_reference(points: pd.DataFrame, tracks: pd.DataFrame,
         metrics: printed in the legend title (``mota``, ``id_switches``,
             ``median_distance_m``, ``gate_m``).
     """
-    check_columns(points, ("x_m", "y_m"), "points")
-    check_columns(tracks, (*_TRACK_COLS, "time_s"), "tracks")
-    check_columns(reference, (*_TRACK_COLS, "time_s"), "reference tracks")
+    check_columns(points, ("x_m", "y_m"), "points", who="fig_tracks_against_reference")
+    check_columns(tracks, (*_TRACK_COLS, "time_s"), "tracks", who="fig_tracks_against_reference")
+    check_columns(reference, (*_TRACK_COLS, "time_s"), "reference tracks",
+                  who="fig_tracks_against_reference")
     fig, axes = new_grid(1, 2, 11.0, 5.0)
     ax, ax_t = axes[0]
     ax.scatter(points.x_m, points.y_m, s=2, c="0.75", lw=0, label="points (all frames)")
@@ -89,8 +90,9 @@ def fig_track_over_points(points: pd.DataFrame, tracks: pd.DataFrame, *, title: 
         metrics: printed in the legend (``n_tracks``, ``longest_track_coverage``,
             ``static_points_dropped``).
     """
-    check_columns(points, ("time_s", "x_m", "y_m", "static"), "points")
-    check_columns(tracks, ("time_s", "track_id", "x_m", "y_m"), "tracks")
+    check_columns(points, ("time_s", "x_m", "y_m", "static"), "points", who="fig_track_over_points")
+    check_columns(tracks, ("time_s", "track_id", "x_m", "y_m"), "tracks",
+                  who="fig_track_over_points")
     fig, axes = new_grid(1, 2, 11.0, 5.0)
     ax, ax_t = axes[0]
     static, moving = points[points.static], points[~points.static]

@@ -50,7 +50,7 @@ from blindspot.dsp.recording import detect_recording
 from blindspot.safety.predict import decision_rows, track_histories
 from blindspot.safety.risk import EgoShape, collision_risk
 from blindspot.tables import check_columns
-from blindspot.track.config import TrackedRecording, TrackerConfig, with_sensor_noise
+from blindspot.track.config import TrackedRecording, TrackerConfig
 from blindspot.track.recordings import load_points, track_recording, tracker_input
 from blindspot.track.tracker import track_points
 from blindspot.typed_config import ConfigError, TypedConfig, setting
@@ -86,8 +86,6 @@ class RecordingEntry(TypedConfig):
     frame and the decisions);
     ``speed_column`` (the point table's ego-speed column; null: estimated by the radar);
     ``stop_at`` (:data:`STEPS`); ``reference_gate_m`` (TI's tracks, CLEAR MOT gate, m);
-    ``measurement_noise_m`` (the sensor's object position sd, m; null: the tracker's, as
-    :class:`~blindspot.track.config.TrackedRecording`'s);
     ``ego_width_m``, ``ego_length_m`` (the car, m); ``animate`` (the recordings stage draws
     ``animation.gif``, every ``animate_every``-th frame, at most 150). The raw kinds'
     ``radar``, ``options``, ``cfar``, ``doa``, ``detect`` and every entry's ``tracker`` mapping
@@ -108,7 +106,6 @@ class RecordingEntry(TypedConfig):
     speed_column: str | None = setting(None)
     stop_at: str = setting("decisions", choices=STEPS)
     reference_gate_m: float | None = setting(None, gt=0.0, le=100.0)
-    measurement_noise_m: float | None = setting(None, gt=0.0, le=100.0)
     ego_width_m: float = setting(1.815, gt=0.0, le=5.0)
     ego_length_m: float = setting(4.358, gt=0.0, le=30.0)
     animate: bool = setting(False)
@@ -313,7 +310,6 @@ def run_recording(entry: RecordingEntry, rec_cfg: Any, path: Path, groups: Any,
     (s) -> probabilistic predictor; warning: the ``warning`` group (horizon, thresholds, risk).
     """
     where = f"recording {entry.name!r} ({path.name})"
-    tracker = with_sensor_noise(tracker, entry.measurement_noise_m)
     det = first = reference = None
     summary: dict = {"file": entry.path if not Path(entry.path).is_absolute() else path.name,
                      "kind": entry.kind, "moving": entry.moving, "stop_at": entry.stop_at,
@@ -334,8 +330,7 @@ def run_recording(entry: RecordingEntry, rec_cfg: Any, path: Path, groups: Any,
                                       static_speed_mps=entry.static_speed_mps,
                                       min_detectable_speed_mps=entry.min_detectable_speed_mps,
                                       boundary_box_m=entry.boundary_box_m,
-                                      reference_gate_m=entry.reference_gate_m,
-                                      measurement_noise_m=entry.measurement_noise_m)
+                                      reference_gate_m=entry.reference_gate_m)
             pts, reference = load_points(tr_rec, path.parent)
     except (OSError, ValueError) as exc:
         if isinstance(exc, RecordingError):

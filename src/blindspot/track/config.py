@@ -8,7 +8,7 @@ range. The yaml files give the source or the reason of every value.
 from __future__ import annotations
 
 import numbers
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -260,10 +260,6 @@ class TrackedRecording(TypedConfig):
             tracking (TI's gtrack "boundary box"); null: no walls.
         reference_gate_m: the largest distance (m) at which one of our tracks may stand for a
             reference track (CLEAR MOT); null when the recording has no reference tracker.
-        measurement_noise_m: the recording's sensor's object position sd (m) where it differs
-            from the tracker's ``tracker.measurement_noise_m`` (the driving cascade's): a
-            single-chip sensor's few azimuth channels resolve angle far more coarsely; null: the
-            tracker's (:func:`with_sensor_noise`).
 
     The record's ``tracker`` mapping (keys of the ``tracker`` group) overrides the tracker
     group for this recording; :func:`tracked_recordings` merges and types it.
@@ -280,7 +276,6 @@ class TrackedRecording(TypedConfig):
     boundary_box_m: tuple[float, float, float, float] | None = setting(None, ge=-1000.0,
                                                                          le=1000.0)
     reference_gate_m: float | None = setting(None, gt=0.0, le=100.0)
-    measurement_noise_m: float | None = setting(None, gt=0.0, le=100.0)
 
     def validate(self) -> None:
         if self.kind == "ti_gtrack" and self.frame_period_s is None:
@@ -305,22 +300,11 @@ class RealTrackingConfig(TypedConfig):
     recordings: tuple[TrackedRecording, ...] = setting(min_items=1)
 
 
-def with_sensor_noise(tracker: TrackerConfig, measurement_noise_m: float | None) -> TrackerConfig:
-    """``tracker`` with a sensor's own object position sd (m), where a recording declares one
-    (its ``measurement_noise_m``); ``tracker`` itself for None."""
-    if not isinstance(tracker, TrackerConfig):
-        raise TypeError(f"with_sensor_noise: tracker: expected a TrackerConfig, found "
-                        f"{type(tracker).__name__}")
-    if measurement_noise_m is None:
-        return tracker
-    return replace(tracker, measurement_noise_m=measurement_noise_m)
-
-
 def tracked_recordings(cfg) -> dict:
     """The real recordings of ``cfg.real_tracking`` (the composed config), each with its tracker
     settings: the ``tracker`` group with the record's ``tracker`` keys laid over it (errors name
-    ``real_tracking.recordings.<name>.tracker.<key>``) and the recording's sensor noise
-    (:func:`with_sensor_noise`): ``{name: (TrackedRecording, TrackerConfig)}``."""
+    ``real_tracking.recordings.<name>.tracker.<key>``): ``{name: (TrackedRecording,
+    TrackerConfig)}``."""
     from omegaconf import OmegaConf
 
     group = RealTrackingConfig.from_cfg(cfg)
@@ -329,6 +313,6 @@ def tracked_recordings(cfg) -> dict:
     for rec in group.recordings:
         overrides = cfg.real_tracking["recordings"][rec.name].get("tracker") or {}
         merged = OmegaConf.merge(cfg.tracker, overrides)
-        out[rec.name] = (rec, with_sensor_noise(TrackerConfig.from_mapping(
-            merged, where=f"real_tracking.recordings.{rec.name}.tracker"), rec.measurement_noise_m))
+        out[rec.name] = (rec, TrackerConfig.from_mapping(
+            merged, where=f"real_tracking.recordings.{rec.name}.tracker"))
     return out

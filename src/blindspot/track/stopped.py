@@ -28,9 +28,10 @@ Two answers, both used by :func:`blindspot.track.track_points` with ``min_detect
   deleted as before. A stopped track is held at most ``tracker.max_stop_s``; a detection ends
   its stop, and it walks off with the constant-velocity model's process noise.
 
-The decisions are hard ones, without an IMM's mode probabilities. With 0.15 m of measurement
-noise the filtered velocity across the line of sight is known to about 0.4 m/s, so a walker
-slower than about 0.9 m/s who vanishes there is taken for one who stopped, and held. A sensor
+The decisions are hard ones, without an IMM's mode probabilities. With 0.12-0.15 m of
+measurement noise the filtered velocity across the line of sight is known to a few tenths of a
+m/s, so a walker slower than about 0.7-0.9 m/s who vanishes there is taken for one who stopped,
+and held. A sensor
 that reports its static points (the driving chain) has no notch.
 """
 
@@ -64,9 +65,9 @@ def _check_speed(value: float, name: str, who: str) -> None:
     check_number(value, name, gt=0.0, unit="m/s", who=who)
 
 
-def _check_probability(value: float, who: str, name: str = "probability") -> None:
+def _check_probability(value: float, who: str, *, name: str = "probability") -> None:
     if not (isinstance(value, numbers.Real) and 0.0 < value < 1.0):
-        raise ValueError(f"{who}: {name} must lie in (0, 1); found {value!r}")
+        raise ValueError(f"{who}: {name} must be a number in (0, 1); found {value!r}")
 
 
 def notch_split(x: np.ndarray, P: np.ndarray, sensor_xy, min_speed_mps: float):
@@ -131,7 +132,7 @@ def notch_update(x: np.ndarray, P: np.ndarray, sensor_xy, min_speed_mps: float,
     Returns:
         (x', P'): the posterior states.
     """
-    _check_probability(detection_probability, "notch_update", "detection_probability")
+    _check_probability(detection_probability, "notch_update", name="detection_probability")
     x, P = _check_states(x, P, "notch_update")
     p_in, x_in, P_in = notch_split(x, P, sensor_xy, min_speed_mps)
     c1 = detection_probability * p_in
