@@ -31,8 +31,7 @@ Two answers, both used by :func:`blindspot.track.track_points` with ``min_detect
 The decisions are hard ones, without an IMM's mode probabilities. With 0.12-0.15 m of
 measurement noise the filtered velocity across the line of sight is known to a few tenths of a
 m/s, so a walker slower than about 0.7-0.9 m/s who vanishes there is taken for one who stopped,
-and held. A sensor
-that reports its static points (the driving chain) has no notch.
+and held. A sensor that reports its static points (the driving chain) has no notch.
 """
 
 from __future__ import annotations
