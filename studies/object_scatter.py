@@ -25,6 +25,7 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+from scipy.stats import median_abs_deviation
 
 REPO = Path(__file__).resolve().parents[1]
 BANDS_M = (0.0, 8.0, 12.0, 16.0, 25.0, 60.0)
@@ -45,10 +46,6 @@ def object_errors(truth: pd.DataFrame, points: pd.DataFrame) -> pd.DataFrame:
     return m.assign(dex=g.ex.diff().where(step), dey=g.ey.diff().where(step))
 
 
-def _robust_sd(v: pd.Series) -> float:
-    return float(1.4826 * np.median(np.abs(v - v.median())))
-
-
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--data", type=Path, default=REPO / "data")
@@ -62,9 +59,10 @@ def main(argv: list[str] | None = None) -> None:
           f"{'jitter sd x/y':>13s}  {'robust x/y':>11s}")
     for band, b in [("all", e)] + list(e.groupby("band", observed=True)):
         j = b.dropna(subset=["dex"])
+        rx, ry = median_abs_deviation(j[["dex", "dey"]], scale="normal") / np.sqrt(2)
         print(f"{str(band):14s} {len(b):5d} {len(j):5d}  {b.ex.std():.3f} {b.ey.std():.3f}  "
               f"  {j.dex.std() / np.sqrt(2):.3f} {j.dey.std() / np.sqrt(2):.3f}  "
-              f"  {_robust_sd(j.dex) / np.sqrt(2):.3f} {_robust_sd(j.dey) / np.sqrt(2):.3f}")
+              f"  {rx:.3f} {ry:.3f}")
 
 
 if __name__ == "__main__":

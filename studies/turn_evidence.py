@@ -33,13 +33,9 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+from scipy.stats import median_abs_deviation
 
 REPO = Path(__file__).resolve().parents[1]
-
-
-def robust_sd(x: np.ndarray) -> float:
-    """1.4826 x the median absolute deviation of ``x`` (the sd of a Gaussian core)."""
-    return float(1.4826 * np.median(np.abs(x - np.median(x))))
 
 
 def tracker_turn_lag(truth: pd.DataFrame, tracks: pd.DataFrame, *, turn_deg: float = 45.0,
@@ -132,7 +128,7 @@ def main(argv: list[str] | None = None) -> None:
                        ("standing", ~walking)):
         r = residual[rows]
         print(f"  {name:8s} position error median {np.median(error[rows]):.3f} m; radial speed "
-              f"about the truth: median {np.median(r):+.3f}, robust sd {robust_sd(r):.3f}, "
+              f"about the truth: median {np.median(r):+.3f}, robust sd {median_abs_deviation(r, scale='normal'):.3f}, "
               f"sd {r.std():.3f}, |r| > 0.8 m/s {np.mean(np.abs(r) > 0.8):.1%}")
 
 
