@@ -45,13 +45,13 @@ def run(cfg, ctx):
     outs.append(save_figure(fig_operating_characteristic(curves, *oc),
                             ctx.out("safety_operating.png"), dpi=110))
     ev = scenes[(scenes.input == headline) & scenes.evaluated & scenes.intruding]
-    for fig, out in ((fig_ncap_grid(grid[grid.input == headline], predictors),
-                      ctx.out("safety_ncap_grid.png")),
-                     (fig_lead_times(ev, predictors), ctx.out("safety_lead_times.png"))):
-        outs.append(save_figure(fig, out, dpi=110))
+    outs += [save_figure(fig, out, dpi=110) for fig, out in (
+        (fig_ncap_grid(grid[grid.input == headline], predictors), ctx.out("safety_ncap_grid.png")),
+        (fig_lead_times(ev, predictors), ctx.out("safety_lead_times.png")))]
     outs.append(write_text(ctx.out("safety_grid.md"), grid_page(grid, metrics)))
-    outs.append(write_text(ctx.out("safety_ncap.md"),
-                           ncap_page(json.loads(ctx.dep("ncap.json").read_text()), metrics)))
+    ncap, held_bound = (json.loads(p.read_text()) for p in (
+        ctx.dep("ncap.json"), ctx.dep("safety_held_out_bound.json")))
+    outs.append(write_text(ctx.out("safety_ncap.md"), ncap_page(ncap, metrics, held_bound)))
     print("fig_safety: " + ", ".join(map(str, outs)))
     return StageResult(artifacts=outs)
 

@@ -15,6 +15,7 @@ from blindspot.track.config import TrackerConfig
 from blindspot.cli import main_stage
 from blindspot.io import write_json
 from blindspot.safety.assess import perception_bounds
+from blindspot.safety.bound import bound_summary, logged_bounds
 from blindspot.safety.outcome import body_boxes
 from blindspot.safety.risk import EgoShape
 from blindspot.stage import StageResult
@@ -33,20 +34,8 @@ def run(cfg, ctx):
                             confirm=(tracker.confirm_m, tracker.confirm_n),
                             points_name=str(ctx.dep("points.parquet")))
     write_json(ctx.out("safety_bound.json"), out)
-    logged = {}
-    for name, m in out.items():
-        if name == "settings":
-            continue
-        logged[name] = {"avoided_rate": m["avoided_rate"],
-                        "by_speed_kmh": {k: {kk: v[kk] for kk in ("avoided_rate",
-                                                                   "impact_speed_kmh_mean",
-                                                                   "lead_time_s_median")
-                                             if v[kk] is not None}
-                                         for k, v in m["by_speed_kmh"].items()}}
-        print(f"safety_bound {name}: avoided {m['avoided_rate']:.3f}; by speed "
-              + ", ".join(f"{k}: {v['avoided_rate']:.2f} avoided, {v['impact_speed_kmh_mean']:.1f}"
-                          " km/h" for k, v in m["by_speed_kmh"].items()))
-    return StageResult(metrics=logged)
+    print("\n".join(bound_summary("safety_bound", out)))
+    return StageResult(metrics=logged_bounds(out))
 
 
 if __name__ == "__main__":

@@ -35,8 +35,8 @@ def test_missing_files_and_keys_print_na_and_new_keys_are_ignored():
     block = readme.results_block({**m, "safety": safety, "headline": {"x": 1}})
     assert "**Does it protect the child?** n/a (the safety stage has not run)." in block
     assert len(block.splitlines()) == len(readme.ROWS) + 2 + 1 + 4   # 3 verdicts, the bounds
-    assert len(readme.results_block({k: v for k, v in m.items() if k != "safety_bound"})
-               .splitlines()) == len(readme.ROWS) + 2 + 1 + 3            # no bounds: no line
+    no_bounds = {k: v for k, v in m.items() if k not in ("safety_bound", "safety_held_out_bound")}
+    assert len(readme.results_block(no_bounds).splitlines()) == len(readme.ROWS) + 2 + 1 + 3
 
 
 def test_replace_block_keeps_the_rest_and_needs_the_markers():
@@ -135,6 +135,32 @@ def test_the_bound_verdict_reads_each_bound_and_the_tracker_row_beside_them():
     text = readme._bound_verdict(bound, safety)
     assert "its first radar point" not in text and "own tracks" not in text
     assert readme._bound_verdict({}, safety) == ""
+
+
+def test_the_bound_verdict_prefers_the_held_out_draw_and_its_chain_row():
+    def rate(r, lo, hi):
+        return {"avoided_after_visible_rate": r, "avoided_after_visible_rate_ci95": [lo, hi],
+                "false_activation_rate": 0.0, "false_activation_rate_ci95": [0.0, 0.012],
+                "n_intruding": 306, "n_non_intruding": 306}
+    main = {"radar_point": rate(0.73, 0.64, 0.81), "settings": {"confirm_m": 3, "confirm_n": 5}}
+    held_bound = {"line_of_sight": rate(0.88, 0.84, 0.91), "radar_point": rate(0.75, 0.7, 0.8),
+                  "settings": {"confirm_m": 3, "confirm_n": 5, "seed": 3}}
+    safety = {"track_state": {"settings": {"aeb_threshold": 0.5}, "by_input": {"tracker": {
+                  "avoided_after_visible_rate": 0.574, "false_activation_rate": 0.093}}},
+              "held_out": {"seed": 3, "track_state": {
+                  "avoided_after_visible_rate": 0.52,
+                  "avoided_after_visible_rate_ci95": [0.47, 0.58],
+                  "false_activation_rate": 0.092, "false_activation_rate_ci95": [0.064, 0.129]}}}
+    text = readme._bound_verdict(main, safety, held_bound)
+    assert text.startswith("**What perception allows:** on the held-out draw (seed 3, 306 + 306 "
+                           "scenes) a perfect decision")
+    assert ("88 [84, 91] % from its first frame in line of sight, 75 [70, 80] % from its first "
+            "radar point, each at 0 [0, 1] % false activations; the chain on its own tracks "
+            "(track state, AEB threshold 0.5) 52 [47, 58] % at 9 [6, 13] %") in text
+    # without held-out bounds: the main draw's, with the main draw's chain row
+    assert readme._bound_verdict(main, safety, {}).startswith(
+        "**What perception allows:** on the main Monte-Carlo draw")
+    assert "57 %" in readme._bound_verdict(main, safety, {"settings": {}})
 
 
 def test_the_online_sentence_counts_the_scenes_within_two_points_and_names_the_furthest():

@@ -77,6 +77,7 @@ def _curves(*predictors):
 def test_the_block_has_the_issue_shape_and_its_curves():
     by_speed = {"10": {"avoided_after_visible_rate": 1.0}, "60": {"avoided_after_visible_rate": 0.2}}
     m = {k: 0.5 for k in DRAW_KEYS} | {"n_intruding": 306, "n_non_intruding": 306,
+                                       "first_point_to_confirmed_s": {"median": 0.2},
                                        "first_point_to_moving_s": {"median": 0.3},
                                        "first_point_to_aeb_s": {"median": 0.7},
                                        "by_speed_kmh": by_speed}
@@ -85,6 +86,7 @@ def test_the_block_has_the_issue_shape_and_its_curves():
     assert block["seed"] == 1 and block["n_intruding"] == 306 and block["n_non_intruding"] == 306
     t = block["track_state"]
     assert t["first_point_to_moving_s_median"] == 0.3 and t["first_point_to_aeb_s_median"] == 0.7
+    assert t["first_point_to_confirmed_s_median"] == 0.2
     assert t["avoided_after_visible_rate_by_speed_kmh"] == {"10": 1.0, "60": 0.2}
     assert set(block) == {"seed", "chain_digest", "n_intruding", "n_non_intruding", "track_state"}
     curve = draw_curve(block, "track_state")                       # the tracker's, read back

@@ -5,7 +5,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from blindspot.safety.evaluation import delay_stats, first_moving_s
+from blindspot.safety.evaluation import delay_stats, first_track_s
 from blindspot.safety.oracle import true_state_tracks
 from blindspot.safety.predict import TrackState, track_state_forecast
 
@@ -18,8 +18,26 @@ def test_first_moving_row_near_the_lead_pedestrian():
                            "confirmed": [False, True, True, True, True],
                            "moving": [False, False, True, True, True]})
     clutter = tracks.assign(x_m=5.0, moving=True, confirmed=True)     # far: never counts
-    t = first_moving_s(pd.concat([tracks, clutter]), truth, np.array(["a", "b"]))
+    both, scenes = pd.concat([tracks, clutter]), np.array(["a", "b"])
+    t = first_track_s(both, truth, scenes)
     assert t[0] == pytest.approx(0.2) and np.isnan(t[1])
+    # born: its first row; confirmed: its first confirmed row (the clutter is never near)
+    assert first_track_s(both, truth, scenes, step="born")[0] == pytest.approx(0.0)
+    assert first_track_s(both, truth, scenes, step="confirmed")[0] == pytest.approx(0.1)
+    # 0.15 m of radius: the track 0.2 m off the child never counts
+    assert np.isnan(first_track_s(both, truth, scenes, radius_m=0.15)).all()
+
+
+@pytest.mark.parametrize("kw, match", [({"step": "tentative"}, "step: expected one of"),
+                                       ({"radius_m": 0.0}, "radius_m"),
+                                       ({"radius_m": "1"}, "radius_m")])
+def test_first_track_s_refuses_a_bad_step_or_radius(kw, match):
+    truth = pd.DataFrame({"scene": "a", "frame": [0], "pedestrian": "p0", "x_m": 0.0,
+                          "y_m": 0.0})
+    tracks = pd.DataFrame({"group": "a", "frame": [0], "time_s": 0.0, "x_m": 0.0, "y_m": 0.0,
+                           "confirmed": True})
+    with pytest.raises(ValueError, match=match):
+        first_track_s(tracks, truth, np.array(["a"]), **kw)
 
 
 def test_delay_stats_per_speed():

@@ -19,6 +19,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from blindspot.io import write_text
+from blindspot.report.bound_steps import BOUND_STEPS
 from blindspot.report.ethucy_report import COVERAGE_TOLERANCE_PP, off_nominal
 from blindspot.report.page import ethucy_label
 from blindspot.report.paper_values import (ETHUCY_CVM, PATH_ERROR_FIRST_BELOW_M, PATH_ERROR_MEAN_M,
@@ -38,7 +39,7 @@ NA = "n/a"
 
 #: the metrics files the block reads (reports/metrics/<name>.json); the report stage's deps
 METRICS_FILES = ("train", "benchmark", "train_direct", "ethucy", "calibration_ethucy", "safety",
-                 "safety_bound", "real_tracking")
+                 "safety_bound", "safety_held_out_bound", "real_tracking")
 
 
 class MissingMarkers(ValueError):
@@ -278,7 +279,8 @@ def verdicts(metrics: Mapping[str, Metrics]) -> list[str]:
                    f"{len(met)} of {len(met) + len(missed)} Euro NCAP-style goals met."
                    + _held_out_sentence(_get(metrics, ("safety",)) or {}))
     bounds = _bound_verdict(_get(metrics, ("safety_bound",)) or {},
-                            _get(metrics, ("safety",)) or {})
+                            _get(metrics, ("safety",)) or {},
+                            _get(metrics, ("safety_held_out_bound",)) or {})
     if bounds:
         out.append(bounds)
     return out
@@ -348,34 +350,36 @@ def _held_out_sentence(safety: Mapping[str, Any]) -> str:
     return out + "."
 
 
-#: safety_bound.json's bounds, in the chain's order: what a perfect decision could do from
-#: the first frame of each piece of information about the lead child ({m}, {n}: M of N)
-_BOUND_STEPS = (("line_of_sight", "its first frame in line of sight"),
-                ("radar_point", "its first radar point"),
-                ("confirmed_track", "a track confirmed on {m} of {n} frames of its points"))
-
-
-def _bound_verdict(bound: Mapping[str, Any], safety: Mapping[str, Any]) -> str:
-    """``**What perception allows:** ...``: of safety_bound.json (``bound``), what a decision
-    braking at the best frame from the first frame of each piece of information
-    (:data:`_BOUND_STEPS`) avoids once the child is visible, and at what false-activation rate,
-    beside the tracker-input track-state row of safety.json on the same scenes, and the step
-    of the chain that loses most; "" without the bounds."""
-    settings = bound.get("settings") or {}
+def _bound_verdict(bound: Mapping[str, Any], safety: Mapping[str, Any],
+                   held_bound: Mapping[str, Any] | None = None) -> str:
+    """``**What perception allows:** ...``: what a decision braking at the best frame from the
+    first frame of each piece of information (:data:`BOUND_STEPS`) avoids once the child is
+    visible, and at what false-activation rate, beside the chain's track-state row on the same
+    scenes (AEB threshold as configured), and the step of the chain that loses most. On the
+    held-out draw where ``held_bound`` (safety_held_out_bound.json) has the bounds (the chain's
+    row: safety.json's ``held_out``), else on the main draw (``bound``: safety_bound.json; the
+    chain's row: its tracker input); "" without either."""
+    held = safety.get("held_out") or {}
+    use_held = any(_num((held_bound or {}).get(n, {}).get("avoided_after_visible_rate"))
+                   is not None for n, _ in BOUND_STEPS)
+    source = held_bound if use_held else bound
+    settings = source.get("settings") or {}
     steps = [(words.format(m=settings.get("confirm_m", "M"), n=settings.get("confirm_n", "N")),
-              bound[name]) for name, words in _BOUND_STEPS
-             if _num((bound.get(name) or {}).get("avoided_after_visible_rate")) is not None]
+              source[name]) for name, words in BOUND_STEPS
+             if _num((source.get(name) or {}).get("avoided_after_visible_rate")) is not None]
     if not steps:
         return ""
     first = steps[0][1]
-    out = (f"**What perception allows:** on the main Monte-Carlo draw (the one above, "
-           f"{first.get('n_intruding', NA)} + "
+    where = (f"on the held-out draw (seed {settings.get('seed', NA)}, " if use_held
+             else "on the main Monte-Carlo draw (the one above, ")
+    out = (f"**What perception allows:** {where}{first.get('n_intruding', NA)} + "
            f"{first.get('n_non_intruding', NA)} scenes) a perfect decision, braking at the best "
            f"frame, avoids once the child is visible "
            + ", ".join(f"{_rate(b, 'avoided_after_visible_rate')} from {words}"
                        for words, b in steps)
            + f", each at {_rate(first, 'false_activation_rate')} false activations")
-    row = _get(safety, ("track_state", "by_input", "tracker")) or {}
+    row = ((held.get("track_state") or {}) if use_held
+           else _get(safety, ("track_state", "by_input", "tracker")) or {})
     threshold = _num(_get(safety, ("track_state", "settings", "aeb_threshold")))
     if None not in (_num(row.get("avoided_after_visible_rate")),
                     _num(row.get("false_activation_rate")), threshold):

@@ -1,15 +1,18 @@
 """Markdown pages of the safety stage's metrics (issue 40): the Monte-Carlo grid page and the
 Euro NCAP nominal grids with the held-out figures. Formatting only: every number is read from
-the metrics the safety stage wrote (reports/metrics/safety.json, ncap.json)."""
+the metrics the safety stages wrote (reports/metrics/safety.json, ncap.json,
+safety_held_out_bound.json)."""
 
 from __future__ import annotations
 
 import pandas as pd
 
+from blindspot.report.bound_steps import BOUND_STEPS
 from blindspot.report.safety_figures import ncap_grid_markdown
 
-__all__ = ["predictor_names", "operating_inputs", "grid_page", "ncap_page",
+__all__ = ["predictor_names", "operating_inputs", "grid_page", "ncap_page", "held_out_ladder",
            "lstm_verdict"]
+
 
 def predictor_names(metrics: dict) -> list[str]:
     """The predictors of safety.json, in its order: its entries with rates by input
@@ -57,10 +60,12 @@ def _rate_ci(block: dict, key: str, nd: int) -> str:
             f"{_fmt(ci[1], nd) if ci else '-'}]")
 
 
-def ncap_page(ncap: dict, metrics: dict) -> str:
+def ncap_page(ncap: dict, metrics: dict, held_bound: dict | None = None) -> str:
     """reports/tables/safety_ncap.md: the held-out figures of the headline input per predictor
-    (with their 95 % intervals), the first-radar-point delays per speed, and the Euro NCAP
-    nominal grids (impact speed km/h and 2026 band per cell) per input and predictor."""
+    (with their 95 % intervals), where the time goes on the held-out draw
+    (:func:`held_out_ladder`, with ``held_bound``: safety_held_out_bound.json), the
+    first-radar-point delays per speed, and the Euro NCAP nominal grids (impact speed km/h and
+    2026 band per cell) per input and predictor."""
     held, tune = metrics.get("held_out", {}), metrics.get("tuning_half", {})
     draw = metrics.get("tuning_draw", {})
     out = ["# Safety: held-out figures and the Euro NCAP nominal grids\n\n",
@@ -76,7 +81,7 @@ def ncap_page(ncap: dict, metrics: dict) -> str:
            f"tuning draw (the one with the fewest false activations there).\n\n",
            "| predictor | avoided after visible | false activations | at the tuning draw's "
            "operating point: threshold, avoided after visible, false activations | first point "
-           "-> moving, median s | first point -> AEB, median s |\n|---|---|---|---|---|---|\n"]
+           "-> confirmed / moving / AEB, median s |\n|---|---|---|---|---|\n"]
     for p, h in held.items():
         if not isinstance(h, dict):
             continue
@@ -87,22 +92,28 @@ def ncap_page(ncap: dict, metrics: dict) -> str:
               f"{_rate_ci(op, 'false_activation_rate', 3)}")
         out.append(f"| {p} | {_rate_ci(h, 'avoided_after_visible_rate', 2)} | "
                    f"{_rate_ci(h, 'false_activation_rate', 3)} | {at} | "
-                   f"{_fmt(h['first_point_to_moving_s_median'])} | "
-                   f"{_fmt(h['first_point_to_aeb_s_median'])} |\n")
+                   f"{_fmt(h.get('first_point_to_confirmed_s_median'))} / "
+                   f"{_fmt(h.get('first_point_to_moving_s_median'))} / "
+                   f"{_fmt(h.get('first_point_to_aeb_s_median'))} |\n")
     out.append(lstm_verdict(held))
-    out.append("\n## First radar point of the lead pedestrian -> first moving track / AEB request "
-               "(all Monte-Carlo intruding scenes, headline input; median / p90 s, never)\n\n")
+    if held_bound:
+        first = metrics.get(next(iter(predictor_names(metrics)), ""), {})
+        out.append(held_out_ladder(held_bound, held,
+                                   (first.get("settings") or {}).get("aeb_threshold")))
+    out.append("\n## First radar point of the lead pedestrian -> first confirmed track / moving "
+               "track / AEB request (main Monte-Carlo draw, all intruding scenes, headline input; "
+               "median / p90 s, never)\n\n")
     for p in predictor_names(metrics):
         m = metrics[p]
-        if "first_point_to_moving_s" not in m:
+        steps = [(word, m[key]) for word, key in (("confirmed", "first_point_to_confirmed_s"),
+                                                  ("moving", "first_point_to_moving_s"),
+                                                  ("AEB", "first_point_to_aeb_s")) if key in m]
+        if not steps:
             continue
-        mv, ab = m["first_point_to_moving_s"], m["first_point_to_aeb_s"]
-        cells = ", ".join(f"{k} km/h {_fmt(v['median'])} / {_fmt(v['p90'])}"
-                          for k, v in mv["by_speed_kmh"].items())
-        cells_a = ", ".join(f"{k} km/h {_fmt(v['median'])} / {_fmt(v['p90'])}"
-                            for k, v in ab["by_speed_kmh"].items())
-        out.append(f"- {p}: moving {cells} (never {mv['n_never']}); AEB {cells_a} "
-                   f"(never {ab['n_never']})\n")
+        out.append(f"- {p}: " + "; ".join(
+            f"{word} " + ", ".join(f"{k} km/h {_fmt(v['median'])} / {_fmt(v['p90'])}"
+                                   for k, v in d["by_speed_kmh"].items())
+            + f" (never {d['n_never']})" for word, d in steps) + "\n")
     out.append("\n## Euro NCAP nominal grids (one nominal scene per cell; impact speed km/h, "
                "2026 band)\n")
     for proto, by_input in ncap.items():
@@ -118,6 +129,56 @@ def ncap_page(ncap: dict, metrics: dict) -> str:
                         "-" if c is None else f"{c['impact_speed_kmh']:.1f} {c['band']}"
                         for c in row) + " |\n")
     return "".join(out)
+
+
+def held_out_ladder(bound: dict, held: dict, aeb_threshold: float | None = None) -> str:
+    """The section "Where the time goes, held out": per row, once the child is visible, the
+    avoided rate (Wilson 95 %) and false activations, overall and per speed, of a perfect
+    decision (braking at the best frame, never for a child who does not cross) from the first
+    frame of each piece of information (``bound``: safety_held_out_bound.json,
+    :data:`~blindspot.report.bound_steps.BOUND_STEPS`), then the chain's predictors on the same draw (``held``: safety.json's
+    ``held_out``) at the configured AEB threshold (``aeb_threshold``, for its label) and at the
+    tuning draw's operating point; ""
+    when ``bound`` has none of the steps. A goal above a bound's interval is out of reach of
+    every decision logic on these points."""
+    settings = bound.get("settings") or {}
+    steps = [(words.format(m=settings.get("confirm_m", "M"), n=settings.get("confirm_n", "N")),
+              bound[name]) for name, words in BOUND_STEPS if isinstance(bound.get(name), dict)]
+    if not steps:
+        return ""
+    speeds = sorted({k for _, b in steps for k in b.get("by_speed_kmh", {})}, key=float)
+    head = ("\n## Where the time goes, held out (the same draw; avoided after visible, false "
+            "activations)\n\nA perfect decision brakes at the best frame from the first frame "
+            "of the information about the lead child and never for a child who does not cross "
+            "(safety_held_out_bound.json); the chain's rows are the predictors on their own "
+            "tracks (first point -> confirmed / moving / AEB in the table above).\n\n"
+            "| information, decision | avoided after visible | false activations | "
+            + " | ".join(f"{k} km/h" for k in speeds) + " |\n|---|---|---|"
+            + "---|" * len(speeds) + "\n")
+    rows = []
+    for words, b in steps:
+        per = b.get("by_speed_kmh", {})
+        rows.append(f"| perfect decision from {words} | "
+                    f"{_rate_ci(b, 'avoided_after_visible_rate', 2)} | "
+                    f"{_rate_ci(b, 'false_activation_rate', 3)} | "
+                    + " | ".join(_fmt((per.get(k) or {}).get("avoided_after_visible_rate"))
+                                 for k in speeds) + " |\n")
+    for p, h in held.items():
+        if not isinstance(h, dict) or p == "none" or "avoided_after_visible_rate" not in h:
+            continue
+        per = h.get("avoided_after_visible_rate_by_speed_kmh") or {}
+        at = "configured AEB threshold" + ("" if aeb_threshold is None else f" {aeb_threshold:g}")
+        rows.append(f"| the chain, {p}, {at} | "
+                    f"{_rate_ci(h, 'avoided_after_visible_rate', 2)} | "
+                    f"{_rate_ci(h, 'false_activation_rate', 3)} | "
+                    + " | ".join(_fmt(per.get(k)) for k in speeds) + " |\n")
+        op = h.get("at_tuning_operating_point")
+        if op:
+            rows.append(f"| the chain, {p}, tuning draw's threshold {op['aeb_threshold']:.6g} | "
+                        f"{_rate_ci(op, 'avoided_after_visible_rate', 2)} | "
+                        f"{_rate_ci(op, 'false_activation_rate', 3)} | "
+                        + " | ".join("-" for _ in speeds) + " |\n")
+    return head + "".join(rows)
 
 
 def lstm_verdict(held: dict, learned: tuple[str, ...] = ("lstm", "lstm_direct"),

@@ -22,7 +22,7 @@ from blindspot.safety.config import WarningConfig
 from blindspot.safety.evaluation import (KMH, SceneInfo, aeb_gate_s,
                                          aeb_thresholds, avoided_at_false_activation,
                                          delay_stats,
-                                         first_moving_s, ncap_grid, operating_curve,
+                                         first_track_s, ncap_grid, operating_curve,
                                          replicate_half, scene_frame_risk, scene_info,
                                          scene_results, summarise)
 from blindspot.safety.ncap import ncap_band, nominal_cell
@@ -249,7 +249,8 @@ def assess(truth: pd.DataFrame, scenes_meta: dict, tracks: dict[str, pd.DataFram
                           method=cfg.probability, max_len=max_len,
                           max_coast_s=cfg.max_coast_s)
         risks.append(risk.assign(input=inp))
-        t_moving = first_moving_s(tr, truth, sa.scenes)[ev]
+        t_confirmed = first_track_s(tr, truth, sa.scenes, step="confirmed")[ev]
+        t_moving = first_track_s(tr, truth, sa.scenes, step="moving")[ev]
         fp = (info.first_seen_s if first_point_s is None
               else np.asarray(first_point_s, float)[ev])
         for name in use:                             # the four predictors
@@ -276,8 +277,9 @@ def assess(truth: pd.DataFrame, scenes_meta: dict, tracks: dict[str, pd.DataFram
             curve = operating_curve(p_aeb[ev], info, impact[ev], thresholds, sa.time_s)
             m["avoided_rate_at_false_activation_le"] = avoided_at_false_activation(curve)
             it = info.intruding                      # delays of the intruding scenes only
-            to_moving = t_moving - fp
+            to_confirmed, to_moving = t_confirmed - fp, t_moving - fp
             to_aeb = res.aeb_s.to_numpy(float) - fp
+            m["first_point_to_confirmed_s"] = delay_stats(to_confirmed[it], info.speed_kmh[it])
             m["first_point_to_moving_s"] = delay_stats(to_moving[it], info.speed_kmh[it])
             m["first_point_to_aeb_s"] = delay_stats(to_aeb[it], info.speed_kmh[it])
             for block, half in ((held, ~tuning & it), (tune, tuning & it)):
@@ -292,6 +294,8 @@ def assess(truth: pd.DataFrame, scenes_meta: dict, tracks: dict[str, pd.DataFram
                     "avoided_rate": hm["avoided_rate"],
                     "false_activation_rate": hm["false_activation_rate"],
                     "false_activation_rate_ci95": hm["false_activation_rate_ci95"],
+                    "first_point_to_confirmed_s_median": delay_stats(
+                        to_confirmed[half], info.speed_kmh[half])["median"],
                     "first_point_to_moving_s_median": delay_stats(
                         to_moving[half], info.speed_kmh[half])["median"],
                     "first_point_to_aeb_s_median": delay_stats(

@@ -42,7 +42,7 @@ from blindspot.safety.evaluation import SceneInfo, scene_results
 from blindspot.tables import check_columns
 
 __all__ = ["BOUNDS", "BoundError", "lead_observed", "first_frame", "first_confirmed",
-           "best_request_frame", "bound_results"]
+           "best_request_frame", "bound_results", "logged_bounds", "bound_summary"]
 
 BOUNDS = ("line_of_sight", "radar_point", "confirmed_track")
 
@@ -125,3 +125,34 @@ def bound_results(info: SceneInfo, impact_kmh: np.ndarray, frame_times: np.ndarr
     return scene_results(p, info, impact_kmh, np.asarray(frame_times, float),
                          warning_threshold=0.5, aeb_threshold=0.5,
                          decision_delay_s=decision_delay_s)
+
+
+def logged_bounds(bounds: dict) -> dict:
+    """What a stage logs of :func:`blindspot.safety.assess.perception_bounds`' output
+    (``bounds``): per bound its avoided rate and, per speed, its avoided rate, mean impact speed
+    and median lead time (those that exist). Raises BoundError for a bound without them."""
+    out = {}
+    for name, m in bounds.items():
+        if name == "settings":
+            continue
+        if not (isinstance(m, dict) and "avoided_rate" in m and "by_speed_kmh" in m):
+            raise BoundError(f"logged_bounds: bound {name!r}: expected perception_bounds' "
+                             f"summary (avoided_rate, by_speed_kmh), found {m!r:.80}")
+        out[name] = {"avoided_rate": m["avoided_rate"],
+                     "by_speed_kmh": {k: {kk: v[kk] for kk in ("avoided_rate",
+                                                               "impact_speed_kmh_mean",
+                                                               "lead_time_s_median")
+                                          if v.get(kk) is not None}
+                                      for k, v in m["by_speed_kmh"].items()}}
+    return out
+
+
+def bound_summary(stage: str, bounds: dict) -> list[str]:
+    """One printed line per bound of :func:`blindspot.safety.assess.perception_bounds`'
+    output, prefixed with the ``stage`` name: its avoided rate, and per speed its avoided rate
+    and mean impact speed (km/h)."""
+    return [f"{stage} {name}: avoided {m['avoided_rate']:.3f}; by speed "
+            + ", ".join(f"{k}: {v['avoided_rate']:.2f} avoided, "
+                        f"{v['impact_speed_kmh_mean']:.1f} km/h"
+                        for k, v in m["by_speed_kmh"].items())
+            for name, m in bounds.items() if name != "settings"]

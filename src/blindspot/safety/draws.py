@@ -121,8 +121,8 @@ def draw_block(metrics: dict, seed: int, curves: pd.DataFrame, digest: str) -> d
     """A draw's block (``safety_tuning.json``, ``safety_held_out.json``) from
     :func:`~blindspot.safety.assess.assess`'s metrics and curves of the draw (tracker input):
     ``seed``, ``n_intruding``, ``n_non_intruding``, ``chain_digest`` (:func:`chain_digest`) and
-    per predictor :data:`DRAW_KEYS`, the medians of first radar point -> first moving track and
-    -> AEB request (s), the per-speed avoided-after-visible rates and ``curve``: its operating
+    per predictor :data:`DRAW_KEYS`, the medians of first radar point -> first confirmed track,
+    -> first moving track and -> AEB request (s), the per-speed avoided-after-visible rates and ``curve``: its operating
     characteristic as lists (``threshold``, ``avoided_rate``, ``avoided_after_visible_rate``,
     ``false_activation_rate``; :func:`draw_curve` reads it back), so that an AEB operating
     point chosen on another draw can be read here without running the draw again.
@@ -148,6 +148,8 @@ def draw_block(metrics: dict, seed: int, curves: pd.DataFrame, digest: str) -> d
         if c.empty:
             raise ValueError(f"draw_block: curves: no tracker-input curve of predictor {name!r}")
         out[name] = {**{k: m[k] for k in DRAW_KEYS},
+                     "first_point_to_confirmed_s_median":
+                         m["first_point_to_confirmed_s"]["median"],
                      "first_point_to_moving_s_median": m["first_point_to_moving_s"]["median"],
                      "first_point_to_aeb_s_median": m["first_point_to_aeb_s"]["median"],
                      "avoided_after_visible_rate_by_speed_kmh": {

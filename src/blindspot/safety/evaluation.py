@@ -52,7 +52,8 @@ from blindspot.arrays import check_array, check_count, check_number
 from blindspot.safety.ncap import ncap_band
 from blindspot.track.moving import confirmed_moving
 
-__all__ = ["SceneInfo", "line_of_sight_onset", "first_moving_s", "delay_stats", "scene_info", "replicate_half", "aeb_gate_s", "scene_frame_risk",
+__all__ = ["SceneInfo", "line_of_sight_onset", "TRACK_STEPS", "first_track_s", "delay_stats",
+           "scene_info", "replicate_half", "aeb_gate_s", "scene_frame_risk",
            "trigger_frames", "scene_results",
            "summarise", "aeb_thresholds", "operating_curve", "avoided_at_false_activation", "ncap_grid", "wilson",
            "KMH"]
@@ -99,14 +100,26 @@ def line_of_sight_onset(p0: pd.DataFrame) -> pd.Series:
     return clear.groupby("scene").time_s.min().reindex(pd.Index(p0.scene.unique()))
 
 
-def first_moving_s(tracks: pd.DataFrame, truth: pd.DataFrame, scenes: np.ndarray,
-                   lead: str = "p0", radius_m: float = 1.0) -> np.ndarray:
-    """(S,) s per scene of ``scenes``: the time of the first track row classed a moving object
-    (confirmed and, with a ``moving`` column, moving; the decision's coasting limit does not
-    apply: a first moving row is a measured one) lying within ``radius_m`` of the
-    lead pedestrian's true position at that frame (truth scores, it never feeds the chain);
-    NaN where none. ``tracks``: columns group, frame, time_s, x_m, y_m, confirmed (moving)."""
-    keep = confirmed_moving(tracks)
+#: The steps of a track's life :func:`first_track_s` times: its first row (``born``), its first
+#: confirmed row, its first row classed a moving object (confirmed and moving).
+TRACK_STEPS = ("born", "confirmed", "moving")
+
+
+def first_track_s(tracks: pd.DataFrame, truth: pd.DataFrame, scenes: np.ndarray, *,
+                  step: str = "moving", lead: str = "p0", radius_m: float = 1.0) -> np.ndarray:
+    """(S,) s per scene of ``scenes``: the time of the first track row at ``step`` of its life
+    (:data:`TRACK_STEPS`: any row; a confirmed row; a row classed a moving object, confirmed
+    and, with a ``moving`` column, moving; the decision's coasting limit does not apply: a
+    first moving row is a measured one) lying within ``radius_m`` of the lead pedestrian's
+    true position at that frame (truth scores, it never feeds the chain); NaN where none.
+    ``tracks``: columns group, frame, time_s, x_m, y_m, confirmed (moving). Raises ValueError
+    for an unknown ``step`` or a ``radius_m`` that is not a number > 0."""
+    if step not in TRACK_STEPS:
+        raise ValueError(f"first_track_s: step: expected one of {TRACK_STEPS}, found {step!r}")
+    check_number(radius_m, "radius_m", gt=0.0, unit="m", who="first_track_s")
+    keep = (np.ones(len(tracks), bool) if step == "born"
+            else tracks.confirmed.to_numpy(bool) if step == "confirmed"
+            else confirmed_moving(tracks))
     t = tracks.loc[keep, ["group", "frame", "time_s", "x_m", "y_m"]]
     p = truth.loc[truth.pedestrian == lead, ["scene", "frame", "x_m", "y_m"]].rename(
         columns={"scene": "group", "x_m": "px", "y_m": "py"})
