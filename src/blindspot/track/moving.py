@@ -535,7 +535,7 @@ def confirmed_moving(tracks: pd.DataFrame) -> np.ndarray:
     """(N,) bool per row of ``tracks``: confirmed and, where the table has a ``moving`` column
     (:func:`moving_tracks`), classed moving: the rows that stand for a moving object (the
     decision's, :func:`blindspot.safety.predict.decision_rows`, and the first-moving time's,
-    :func:`blindspot.safety.evaluation.first_moving_s`). Raises ValueError naming a missing
+    :func:`blindspot.safety.evaluation.first_track_s`). Raises ValueError naming a missing
     ``confirmed`` column."""
     check_columns(tracks, {"confirmed"}, "tracks", note="the blindspot.track schema")
     keep = tracks.confirmed.to_numpy(bool).copy()
