@@ -21,8 +21,8 @@ from blindspot.typed_config import jobs
 def run(cfg, ctx):
     mc = load_scenarios(cfg.scenario)[0].monte_carlo
     block, _ = draw_stage_block(cfg, stage_predictors(cfg, ctx.dep, jobs=jobs(cfg)),
-                             seed=mc.tuning_seed, per_cell=mc.tuning_scenes_per_cell,
-                             jobs=jobs(cfg), progress=cfg.progress, where="tuning")
+                                seed=mc.tuning_seed, per_cell=mc.tuning_scenes_per_cell,
+                                jobs=jobs(cfg), progress=cfg.progress, where="tuning")
     write_json(ctx.out("safety_tuning.json"), block)
     print("\n".join(draw_summary("safety_tuning", block)))
     return StageResult(metrics=logged_metrics({"tuning_draw": block}))

@@ -157,6 +157,12 @@ def test_the_bound_verdict_prefers_the_held_out_draw_and_its_chain_row():
     assert ("88 [84, 91] % from its first frame in line of sight, 75 [70, 80] % from its first "
             "radar point, each at 0 [0, 1] % false activations; the chain on its own tracks "
             "(track state, AEB threshold 0.5) 52 [47, 58] % at 9 [6, 13] %") in text
+    # held-out bounds of another draw than safety.json's held-out block: the main draw's
+    stale = {**held_bound, "settings": {**held_bound["settings"], "seed": 4}}
+    assert readme._bound_verdict(main, safety, stale).startswith(
+        "**What perception allows:** on the main Monte-Carlo draw")
+    assert readme._bound_verdict(main, safety, {"radar_point": None}).startswith(
+        "**What perception allows:** on the main Monte-Carlo draw")
     # without held-out bounds: the main draw's, with the main draw's chain row
     assert readme._bound_verdict(main, safety, {}).startswith(
         "**What perception allows:** on the main Monte-Carlo draw")

@@ -99,8 +99,13 @@ def test_the_held_out_ladder_puts_the_bounds_above_the_chain_on_one_draw():
         "| the chain, track_state, tuning draw's threshold 0.98 | 0.48 [0.43, 0.54] | "
         "0.042 [0.025, 0.071] | - | - |"]                  # "none" is not a chain's row
     assert held_out_ladder({"settings": {}}, held) == ""
-    assert "Where the time goes" in ncap_page({}, {"held_out": held}, bound)
+    assert held_out_ladder({"radar_point": {"avoided_after_visible_rate": None}}, held) == ""
     assert "Where the time goes" not in ncap_page({}, {"held_out": held})
+    # the page labels the chain's rows with the configured threshold of safety.json
+    metrics = {"held_out": held, "track_state": {"by_input": {}, "settings": {
+        "aeb_threshold": 0.7, "headline_input": "tracker", "inputs": ["tracker"]}}}
+    assert "| the chain, track_state, configured AEB threshold 0.7 | 0.52" in ncap_page(
+        {}, metrics, bound)
 
 
 def test_the_pages_name_every_bound_the_stages_write():

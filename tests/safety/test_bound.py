@@ -15,8 +15,8 @@ from omegaconf import OmegaConf
 
 from blindspot.radar.driving import load_scenarios, scene_truth
 from blindspot.safety.assess import perception_bounds
-from blindspot.safety.bound import (BOUNDS, BoundError, bound_results, first_confirmed,
-                                    first_frame, lead_observed)
+from blindspot.safety.bound import (BOUNDS, BoundError, bound_results, bound_summary,
+                                    first_confirmed, first_frame, lead_observed, logged_bounds)
 from blindspot.safety.braking import BrakingModel
 from blindspot.safety.config import WarningConfig
 from blindspot.safety.risk import EgoShape
@@ -163,3 +163,28 @@ def test_line_of_sight_onset_is_the_emergence_that_leads_to_the_crossing():
     onset = line_of_sight_onset(pd.concat([p0, never_hidden]))
     assert onset["a"] == pytest.approx(0.6)
     assert onset["b"] == pytest.approx(0.0)
+
+
+def _summary(avoided, by_speed):
+    return {"avoided_rate": avoided, "avoided_after_visible_rate": avoided, "goals": {},
+            "by_speed_kmh": by_speed}
+
+
+def test_logged_bounds_keep_the_rates_and_drop_what_is_missing():
+    bounds = {"radar_point": _summary(0.7, {"10": {"avoided_rate": 1.0,
+                                                   "impact_speed_kmh_mean": 0.0,
+                                                   "lead_time_s_median": None},
+                                            "60": {"avoided_rate": 0.3,
+                                                   "impact_speed_kmh_mean": None,
+                                                   "lead_time_s_median": 1.1}}),
+              "settings": {"seed": 3}}
+    assert logged_bounds(bounds) == {"radar_point": {"avoided_rate": 0.7, "by_speed_kmh": {
+        "10": {"avoided_rate": 1.0, "impact_speed_kmh_mean": 0.0},
+        "60": {"avoided_rate": 0.3, "lead_time_s_median": 1.1}}}}
+    assert bound_summary("held", bounds) == [
+        "held radar_point: avoided 0.700; by speed 10: 1.00 avoided, 0.0 km/h, "
+        "60: 0.30 avoided, - km/h"]
+    with pytest.raises(BoundError, match="bound 'radar_point'"):
+        logged_bounds({"radar_point": {"avoided_rate": 0.7}})
+    with pytest.raises(BoundError, match="stage"):
+        bound_summary("", bounds)

@@ -163,3 +163,11 @@ def test_bad_arguments_are_named():
         draw_block({"tuning": {}}, -1, _curves("a"), "abc")
     with pytest.raises(ValueError, match="draw_truth: scenes: expected at least one"):
         draw_truth([], None, 0.1)
+
+
+def test_assess_draw_refuses_a_with_bounds_that_is_not_a_bool():
+    from blindspot.synth.independent_draw import assess_draw
+
+    # checked before the config is read: no draw runs
+    with pytest.raises(ValueError, match="with_bounds: expected True or False, found 'yes'"):
+        assess_draw(None, {}, seed=3, per_cell=1, with_bounds="yes")

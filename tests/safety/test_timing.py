@@ -30,14 +30,27 @@ def test_first_moving_row_near_the_lead_pedestrian():
 
 @pytest.mark.parametrize("kw, match", [({"step": "tentative"}, "step: expected one of"),
                                        ({"radius_m": 0.0}, "radius_m"),
-                                       ({"radius_m": "1"}, "radius_m")])
-def test_first_track_s_refuses_a_bad_step_or_radius(kw, match):
+                                       ({"radius_m": "1"}, "radius_m"),
+                                       ({"lead": 3}, "lead: expected"),
+                                       ({"scenes": "a"}, "scenes: expected"),
+                                       ({"scenes": np.array([["a"]])}, "scenes: expected"),
+                                       ({"tracks": "drop confirmed"}, r"tracks.*confirmed"),
+                                       ({"truth": "drop pedestrian"}, r"truth.*pedestrian")])
+def test_first_track_s_refuses_bad_arguments(kw, match):
     truth = pd.DataFrame({"scene": "a", "frame": [0], "pedestrian": "p0", "x_m": 0.0,
                           "y_m": 0.0})
     tracks = pd.DataFrame({"group": "a", "frame": [0], "time_s": 0.0, "x_m": 0.0, "y_m": 0.0,
                            "confirmed": True})
+    args = {"tracks": tracks, "truth": truth, "scenes": np.array(["a"])}
+    for name, table, col in (("tracks", tracks, "confirmed"), ("truth", truth, "pedestrian")):
+        if kw.get(name) == f"drop {col}":
+            kw = {**kw, name: table.drop(columns=col)}
+    args.update({k: kw.pop(k) for k in ("tracks", "truth", "scenes") if k in kw})
     with pytest.raises(ValueError, match=match):
-        first_track_s(tracks, truth, np.array(["a"]), **kw)
+        first_track_s(args["tracks"], args["truth"], args["scenes"], **kw)
+    # born needs no confirmed column
+    assert first_track_s(tracks.drop(columns="confirmed"), truth, np.array(["a"]),
+                         step="born")[0] == 0.0
 
 
 def test_delay_stats_per_speed():

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from blindspot.io import write_text
-from blindspot.report.bound_steps import BOUND_STEPS
+from blindspot.report.bound_steps import bound_steps
 from blindspot.report.ethucy_report import COVERAGE_TOLERANCE_PP, off_nominal
 from blindspot.report.page import ethucy_label
 from blindspot.report.paper_values import (ETHUCY_CVM, PATH_ERROR_FIRST_BELOW_M, PATH_ERROR_MEAN_M,
@@ -353,20 +353,20 @@ def _held_out_sentence(safety: Mapping[str, Any]) -> str:
 def _bound_verdict(bound: Mapping[str, Any], safety: Mapping[str, Any],
                    held_bound: Mapping[str, Any] | None = None) -> str:
     """``**What perception allows:** ...``: what a decision braking at the best frame from the
-    first frame of each piece of information (:data:`BOUND_STEPS`) avoids once the child is
-    visible, and at what false-activation rate, beside the chain's track-state row on the same
-    scenes (AEB threshold as configured), and the step of the chain that loses most. On the
-    held-out draw where ``held_bound`` (safety_held_out_bound.json) has the bounds (the chain's
-    row: safety.json's ``held_out``), else on the main draw (``bound``: safety_bound.json; the
-    chain's row: its tracker input); "" without either."""
+    first frame of each piece of information (:data:`~blindspot.report.bound_steps.BOUND_STEPS`)
+    avoids once the child is visible, and at what false-activation rate, beside the chain's
+    track-state row on the same scenes (AEB threshold as configured), and the step of the chain
+    that loses most. On the held-out draw where ``held_bound`` (safety_held_out_bound.json) has
+    the bounds of the draw of safety.json's ``held_out`` (the same seed; the chain's row: that
+    block), else on the main draw (``bound``: safety_bound.json; the chain's row: its tracker
+    input); "" without either."""
     held = safety.get("held_out") or {}
-    use_held = any(_num((held_bound or {}).get(n, {}).get("avoided_after_visible_rate"))
-                   is not None for n, _ in BOUND_STEPS)
+    held_seed = ((held_bound or {}).get("settings") or {}).get("seed")
+    # the held-out bounds only beside the held-out rows of the same draw (a stale file: the main)
+    use_held = bool(bound_steps(held_bound)) and held_seed == held.get("seed")
     source = held_bound if use_held else bound
     settings = source.get("settings") or {}
-    steps = [(words.format(m=settings.get("confirm_m", "M"), n=settings.get("confirm_n", "N")),
-              source[name]) for name, words in BOUND_STEPS
-             if _num((source.get(name) or {}).get("avoided_after_visible_rate")) is not None]
+    steps = bound_steps(source)
     if not steps:
         return ""
     first = steps[0][1]

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import pandas as pd
 
-from blindspot.report.bound_steps import BOUND_STEPS
+from blindspot.report.bound_steps import bound_steps
 from blindspot.report.safety_figures import ncap_grid_markdown
 
 __all__ = ["predictor_names", "operating_inputs", "grid_page", "ncap_page", "held_out_ladder",
@@ -136,14 +136,12 @@ def held_out_ladder(bound: dict, held: dict, aeb_threshold: float | None = None)
     avoided rate (Wilson 95 %) and false activations, overall and per speed, of a perfect
     decision (braking at the best frame, never for a child who does not cross) from the first
     frame of each piece of information (``bound``: safety_held_out_bound.json,
-    :data:`~blindspot.report.bound_steps.BOUND_STEPS`), then the chain's predictors on the same draw (``held``: safety.json's
-    ``held_out``) at the configured AEB threshold (``aeb_threshold``, for its label) and at the
-    tuning draw's operating point; ""
-    when ``bound`` has none of the steps. A goal above a bound's interval is out of reach of
-    every decision logic on these points."""
-    settings = bound.get("settings") or {}
-    steps = [(words.format(m=settings.get("confirm_m", "M"), n=settings.get("confirm_n", "N")),
-              bound[name]) for name, words in BOUND_STEPS if isinstance(bound.get(name), dict)]
+    :func:`~blindspot.report.bound_steps.bound_steps`), then the chain's predictors on the same
+    draw (``held``: safety.json's ``held_out``) at the configured AEB threshold
+    (``aeb_threshold``, for its label) and at the tuning draw's operating point. "" when
+    ``bound`` has none of the steps. A goal above a bound's interval is out of reach of every
+    decision logic on these points."""
+    steps = bound_steps(bound)
     if not steps:
         return ""
     speeds = sorted({k for _, b in steps for k in b.get("by_speed_kmh", {})}, key=float)
@@ -163,13 +161,12 @@ def held_out_ladder(bound: dict, held: dict, aeb_threshold: float | None = None)
                     f"{_rate_ci(b, 'false_activation_rate', 3)} | "
                     + " | ".join(_fmt((per.get(k) or {}).get("avoided_after_visible_rate"))
                                  for k in speeds) + " |\n")
+    at = "configured AEB threshold" + ("" if aeb_threshold is None else f" {aeb_threshold:g}")
     for p, h in held.items():
         if not isinstance(h, dict) or p == "none" or "avoided_after_visible_rate" not in h:
             continue
         per = h.get("avoided_after_visible_rate_by_speed_kmh") or {}
-        at = "configured AEB threshold" + ("" if aeb_threshold is None else f" {aeb_threshold:g}")
-        rows.append(f"| the chain, {p}, {at} | "
-                    f"{_rate_ci(h, 'avoided_after_visible_rate', 2)} | "
+        rows.append(f"| the chain, {p}, {at} | {_rate_ci(h, 'avoided_after_visible_rate', 2)} | "
                     f"{_rate_ci(h, 'false_activation_rate', 3)} | "
                     + " | ".join(_fmt(per.get(k)) for k in speeds) + " |\n")
         op = h.get("at_tuning_operating_point")

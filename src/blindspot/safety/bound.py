@@ -150,9 +150,16 @@ def logged_bounds(bounds: dict) -> dict:
 def bound_summary(stage: str, bounds: dict) -> list[str]:
     """One printed line per bound of :func:`blindspot.safety.assess.perception_bounds`'
     output, prefixed with the ``stage`` name: its avoided rate, and per speed its avoided rate
-    and mean impact speed (km/h)."""
-    return [f"{stage} {name}: avoided {m['avoided_rate']:.3f}; by speed "
-            + ", ".join(f"{k}: {v['avoided_rate']:.2f} avoided, "
-                        f"{v['impact_speed_kmh_mean']:.1f} km/h"
+    and mean impact speed (km/h; "-" where none). Raises BoundError for an empty ``stage`` and
+    the errors of :func:`logged_bounds` for a bound without its rates."""
+    if not (isinstance(stage, str) and stage):
+        raise BoundError(f"bound_summary: stage: expected the stage's name (a non-empty string), "
+                         f"found {stage!r}")
+
+    def num(x, fmt):
+        return "-" if x is None else format(x, fmt)
+    return [f"{stage} {name}: avoided {num(m['avoided_rate'], '.3f')}; by speed "
+            + ", ".join(f"{k}: {num(v.get('avoided_rate'), '.2f')} avoided, "
+                        f"{num(v.get('impact_speed_kmh_mean'), '.1f')} km/h"
                         for k, v in m["by_speed_kmh"].items())
-            for name, m in bounds.items() if name != "settings"]
+            for name, m in logged_bounds(bounds).items()]

@@ -122,10 +122,11 @@ def draw_block(metrics: dict, seed: int, curves: pd.DataFrame, digest: str) -> d
     :func:`~blindspot.safety.assess.assess`'s metrics and curves of the draw (tracker input):
     ``seed``, ``n_intruding``, ``n_non_intruding``, ``chain_digest`` (:func:`chain_digest`) and
     per predictor :data:`DRAW_KEYS`, the medians of first radar point -> first confirmed track,
-    -> first moving track and -> AEB request (s), the per-speed avoided-after-visible rates and ``curve``: its operating
-    characteristic as lists (``threshold``, ``avoided_rate``, ``avoided_after_visible_rate``,
-    ``false_activation_rate``; :func:`draw_curve` reads it back), so that an AEB operating
-    point chosen on another draw can be read here without running the draw again.
+    -> first moving track and -> AEB request (s), the per-speed avoided-after-visible rates and
+    ``curve``: its operating characteristic as lists (``threshold``, ``avoided_rate``,
+    ``avoided_after_visible_rate``, ``false_activation_rate``; :func:`draw_curve` reads it
+    back), so that an AEB operating point chosen on another draw can be read here without
+    running the draw again.
 
     Raises:
         ValueError: metrics without predictors, a seed that is not an integer >= 0, or a
@@ -198,8 +199,13 @@ def read_draw(path: Path, digest: str) -> dict:
 
 def draw_summary(stage: str, block: dict) -> list[str]:
     """One printed line per predictor of a draw's block (:func:`draw_block`): its rates at the
-    configured thresholds and its delays, prefixed with the ``stage`` name."""
+    configured thresholds and its delays (s, "-" where none), prefixed with the ``stage``
+    name."""
+    def s(x):
+        return "-" if x is None else f"{x:.2f}"
     return [f"{stage} {name}: avoided after visible {m['avoided_after_visible_rate']:.3f} at "
-            f"{m['false_activation_rate']:.3f} false activations; first point -> moving "
-            f"{m['first_point_to_moving_s_median']} s, -> AEB {m['first_point_to_aeb_s_median']} s"
+            f"{m['false_activation_rate']:.3f} false activations; first point -> confirmed "
+            f"{s(m.get('first_point_to_confirmed_s_median'))} s, -> moving "
+            f"{s(m['first_point_to_moving_s_median'])} s, -> AEB "
+            f"{s(m['first_point_to_aeb_s_median'])} s"
             for name, m in block.items() if isinstance(m, dict)]

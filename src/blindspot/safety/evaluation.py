@@ -50,6 +50,7 @@ from scipy import stats
 
 from blindspot.arrays import check_array, check_count, check_number
 from blindspot.safety.ncap import ncap_band
+from blindspot.tables import check_columns
 from blindspot.track.moving import confirmed_moving
 
 __all__ = ["SceneInfo", "line_of_sight_onset", "TRACK_STEPS", "first_track_s", "delay_stats",
@@ -100,23 +101,43 @@ def line_of_sight_onset(p0: pd.DataFrame) -> pd.Series:
     return clear.groupby("scene").time_s.min().reindex(pd.Index(p0.scene.unique()))
 
 
-#: The steps of a track's life :func:`first_track_s` times: its first row (``born``), its first
-#: confirmed row, its first row classed a moving object (confirmed and moving).
+#: The steps :func:`first_track_s` times: the first track row near the lead pedestrian
+#: (``born``), the first confirmed one, the first one classed a moving object.
 TRACK_STEPS = ("born", "confirmed", "moving")
 
 
 def first_track_s(tracks: pd.DataFrame, truth: pd.DataFrame, scenes: np.ndarray, *,
                   step: str = "moving", lead: str = "p0", radius_m: float = 1.0) -> np.ndarray:
-    """(S,) s per scene of ``scenes``: the time of the first track row at ``step`` of its life
+    """(S,) s per scene of ``scenes``: the time of the first track row of ``step``
     (:data:`TRACK_STEPS`: any row; a confirmed row; a row classed a moving object, confirmed
     and, with a ``moving`` column, moving; the decision's coasting limit does not apply: a
     first moving row is a measured one) lying within ``radius_m`` of the lead pedestrian's
-    true position at that frame (truth scores, it never feeds the chain); NaN where none.
-    ``tracks``: columns group, frame, time_s, x_m, y_m, confirmed (moving). Raises ValueError
-    for an unknown ``step`` or a ``radius_m`` that is not a number > 0."""
+    true position at that frame (truth scores, it never feeds the chain); NaN where none. The
+    row may be any track's, not only the one that follows the pedestrian longest.
+
+    tracks: columns group, frame, time_s, x_m, y_m (and confirmed, unless ``step`` is
+    ``born``; moving counts where present); truth: columns scene, frame, pedestrian, x_m, y_m;
+    scenes (S,): scene names; lead: the pedestrian's name in ``truth``.
+
+    Raises:
+        ValueError: an unknown ``step``, a ``radius_m`` that is not a number > 0, a ``lead``
+            that is not a non-empty string, ``scenes`` that are not a 1-D array of names, or a
+            table without its columns (naming them).
+    """
+    who = "first_track_s"
     if step not in TRACK_STEPS:
-        raise ValueError(f"first_track_s: step: expected one of {TRACK_STEPS}, found {step!r}")
-    check_number(radius_m, "radius_m", gt=0.0, unit="m", who="first_track_s")
+        raise ValueError(f"{who}: step: expected one of {TRACK_STEPS}, found {step!r}")
+    check_number(radius_m, "radius_m", gt=0.0, unit="m", who=who)
+    if not (isinstance(lead, str) and lead):
+        raise ValueError(f"{who}: lead: expected a pedestrian's name (a non-empty string), "
+                         f"found {lead!r}")
+    names = np.asarray(scenes)
+    if names.ndim != 1 or not all(isinstance(x, str) for x in names.tolist()):
+        raise ValueError(f"{who}: scenes: expected a 1-D array of scene names, found "
+                         f"{type(scenes).__name__} of shape {names.shape}")
+    need = {"group", "frame", "time_s", "x_m", "y_m"} | ({"confirmed"} if step != "born" else set())
+    check_columns(tracks, need, "tracks", who=who, note="the blindspot.track schema")
+    check_columns(truth, {"scene", "frame", "pedestrian", "x_m", "y_m"}, "truth", who=who)
     keep = (np.ones(len(tracks), bool) if step == "born"
             else tracks.confirmed.to_numpy(bool) if step == "confirmed"
             else confirmed_moving(tracks))
@@ -125,7 +146,7 @@ def first_track_s(tracks: pd.DataFrame, truth: pd.DataFrame, scenes: np.ndarray,
         columns={"scene": "group", "x_m": "px", "y_m": "py"})
     j = t.merge(p, on=["group", "frame"])
     j = j[np.hypot(j.x_m - j.px, j.y_m - j.py) <= radius_m]
-    return j.groupby("group").time_s.min().reindex(pd.Index(scenes)).to_numpy(float)
+    return j.groupby("group").time_s.min().reindex(pd.Index(names)).to_numpy(float)
 
 
 def delay_stats(delay_s: np.ndarray, speed_kmh: np.ndarray) -> dict:
