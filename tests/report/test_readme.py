@@ -161,6 +161,9 @@ def test_the_bound_verdict_prefers_the_held_out_draw_and_its_chain_row():
     stale = {**held_bound, "settings": {**held_bound["settings"], "seed": 4}}
     assert readme._bound_verdict(main, safety, stale).startswith(
         "**What perception allows:** on the main Monte-Carlo draw")
+    unseeded = {**held_bound, "settings": {"confirm_m": 3, "confirm_n": 5}}
+    assert readme._bound_verdict(main, {**safety, "held_out": {}}, unseeded).startswith(
+        "**What perception allows:** on the main Monte-Carlo draw")
     assert readme._bound_verdict(main, safety, {"radar_point": None}).startswith(
         "**What perception allows:** on the main Monte-Carlo draw")
     # without held-out bounds: the main draw's, with the main draw's chain row

@@ -82,7 +82,8 @@ def test_the_held_out_ladder_puts_the_bounds_above_the_chain_on_one_draw():
         "false_activation_rate": 0.092, "false_activation_rate_ci95": [0.064, 0.129],
         "avoided_after_visible_rate_by_speed_kmh": {"10": 0.9, "60": 0.1},
         "first_point_to_confirmed_s_median": 0.2, "first_point_to_moving_s_median": 0.2,
-        "first_point_to_aeb_s_median": 0.5, "at_tuning_operating_point": op}, "none": {"avoided_after_visible_rate": 0.26}}
+        "first_point_to_aeb_s_median": 0.5, "at_tuning_operating_point": op},
+        "none": {"avoided_after_visible_rate": 0.26}}
     page = held_out_ladder(bound, held, 0.5)
     lines = [x for x in page.splitlines() if x.startswith("| ")]
     assert lines[0] == ("| information, decision | avoided after visible | false activations | "
@@ -99,6 +100,9 @@ def test_the_held_out_ladder_puts_the_bounds_above_the_chain_on_one_draw():
         "| the chain, track_state, tuning draw's threshold 0.98 | 0.48 [0.43, 0.54] | "
         "0.042 [0.025, 0.071] | - | - |"]                  # "none" is not a chain's row
     assert held_out_ladder({"settings": {}}, held) == ""
+    # bounds of another draw, or without a seed, never stand beside this draw's rows
+    assert held_out_ladder({**bound, "settings": {**bound["settings"], "seed": 4}}, held) == ""
+    assert held_out_ladder({**bound, "settings": {"confirm_m": 3, "confirm_n": 5}}, held) == ""
     assert held_out_ladder({"radar_point": {"avoided_after_visible_rate": None}}, held) == ""
     assert "Where the time goes" not in ncap_page({}, {"held_out": held})
     # the page labels the chain's rows with the configured threshold of safety.json
@@ -113,3 +117,13 @@ def test_the_pages_name_every_bound_the_stages_write():
     from blindspot.safety.bound import BOUNDS
 
     assert tuple(name for name, _ in BOUND_STEPS) == BOUNDS
+
+
+def test_same_draw_needs_two_equal_integer_seeds():
+    from blindspot.report.bound_steps import same_draw
+
+    assert same_draw({"settings": {"seed": 3}}, {"seed": 3})
+    assert not same_draw({"settings": {"seed": 3}}, {"seed": 4})
+    assert not same_draw({"settings": {}}, {})                  # two missing seeds: not one draw
+    assert not same_draw({"settings": {"seed": True}}, {"seed": True})
+    assert not same_draw(None, {"seed": 3})

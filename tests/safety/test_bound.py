@@ -186,5 +186,9 @@ def test_logged_bounds_keep_the_rates_and_drop_what_is_missing():
         "60: 0.30 avoided, - km/h"]
     with pytest.raises(BoundError, match="bound 'radar_point'"):
         logged_bounds({"radar_point": {"avoided_rate": 0.7}})
+    with pytest.raises(BoundError, match="bound 'radar_point'"):
+        logged_bounds({"radar_point": {"avoided_rate": 0.7, "by_speed_kmh": None}})
+    with pytest.raises(BoundError, match="bounds: expected"):
+        bound_summary("held", None)
     with pytest.raises(BoundError, match="stage"):
         bound_summary("", bounds)

@@ -13,8 +13,8 @@ import pytest
 from blindspot.radar.driving import draw_scenarios
 from blindspot.radar.scenario import load_scenarios
 from blindspot.safety.draws import (CHAIN_KEYS, CURVE_COLUMNS, DRAW_KEYS, chain_digest, draw_block,
-                                    draw_curve, draw_noise, draw_truth, independent_scenes,
-                                    read_draw)
+                                    draw_curve, draw_noise, draw_summary, draw_truth,
+                                    independent_scenes, read_draw)
 from blindspot.typed_config import ConfigError
 
 
@@ -87,6 +87,10 @@ def test_the_block_has_the_issue_shape_and_its_curves():
     t = block["track_state"]
     assert t["first_point_to_moving_s_median"] == 0.3 and t["first_point_to_aeb_s_median"] == 0.7
     assert t["first_point_to_confirmed_s_median"] == 0.2
+    line = draw_summary("held", block)[0]
+    assert "first point -> confirmed 0.20 s, -> moving 0.30 s, -> AEB 0.70 s" in line
+    t["first_point_to_confirmed_s_median"] = None               # no child ever confirmed
+    assert "-> confirmed - s" in draw_summary("held", block)[0]
     assert t["avoided_after_visible_rate_by_speed_kmh"] == {"10": 1.0, "60": 0.2}
     assert set(block) == {"seed", "chain_digest", "n_intruding", "n_non_intruding", "track_state"}
     curve = draw_curve(block, "track_state")                       # the tracker's, read back

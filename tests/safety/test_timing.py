@@ -34,6 +34,7 @@ def test_first_moving_row_near_the_lead_pedestrian():
                                        ({"lead": 3}, "lead: expected"),
                                        ({"scenes": "a"}, "scenes: expected"),
                                        ({"scenes": np.array([["a"]])}, "scenes: expected"),
+                                       ({"scenes": np.array([1, 2])}, r"found 1 \(int\)"),
                                        ({"tracks": "drop confirmed"}, r"tracks.*confirmed"),
                                        ({"truth": "drop pedestrian"}, r"truth.*pedestrian")])
 def test_first_track_s_refuses_bad_arguments(kw, match):

@@ -9,7 +9,7 @@ import math
 from collections.abc import Mapping
 from typing import Any
 
-__all__ = ["BOUND_STEPS", "bound_steps"]
+__all__ = ["BOUND_STEPS", "bound_steps", "same_draw"]
 
 BOUND_STEPS = (("line_of_sight", "its first frame in line of sight"),
                ("radar_point", "its first radar point"),
@@ -32,3 +32,15 @@ def bound_steps(bound: Mapping[str, Any] | None) -> list[tuple[str, Mapping[str,
             out.append((words.format(m=settings.get("confirm_m", "M"),
                                      n=settings.get("confirm_n", "N")), block))
     return out
+
+
+def same_draw(bound: Mapping[str, Any] | None, block: Mapping[str, Any] | None) -> bool:
+    """Whether a bounds file's content (``bound``, its ``settings.seed``) and a draw's block of
+    safety.json (``block``, its ``seed``) are of one draw: both seeds integers and equal. A
+    bounds file of another draw, or one without its seed, must not stand beside the block's
+    rows."""
+    if not (isinstance(bound, Mapping) and isinstance(block, Mapping)):
+        return False
+    a, b = (bound.get("settings") or {}).get("seed"), block.get("seed")
+    ints = all(isinstance(x, int) and not isinstance(x, bool) for x in (a, b))
+    return ints and a == b

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from blindspot.io import write_text
-from blindspot.report.bound_steps import bound_steps
+from blindspot.report.bound_steps import bound_steps, same_draw
 from blindspot.report.ethucy_report import COVERAGE_TOLERANCE_PP, off_nominal
 from blindspot.report.page import ethucy_label
 from blindspot.report.paper_values import (ETHUCY_CVM, PATH_ERROR_FIRST_BELOW_M, PATH_ERROR_MEAN_M,
@@ -361,9 +361,8 @@ def _bound_verdict(bound: Mapping[str, Any], safety: Mapping[str, Any],
     block), else on the main draw (``bound``: safety_bound.json; the chain's row: its tracker
     input); "" without either."""
     held = safety.get("held_out") or {}
-    held_seed = ((held_bound or {}).get("settings") or {}).get("seed")
     # the held-out bounds only beside the held-out rows of the same draw (a stale file: the main)
-    use_held = bool(bound_steps(held_bound)) and held_seed == held.get("seed")
+    use_held = bool(bound_steps(held_bound)) and same_draw(held_bound, held)
     source = held_bound if use_held else bound
     settings = source.get("settings") or {}
     steps = bound_steps(source)

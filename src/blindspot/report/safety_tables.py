@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import pandas as pd
 
-from blindspot.report.bound_steps import bound_steps
+from blindspot.report.bound_steps import bound_steps, same_draw
 from blindspot.report.safety_figures import ncap_grid_markdown
 
 __all__ = ["predictor_names", "operating_inputs", "grid_page", "ncap_page", "held_out_ladder",
@@ -139,9 +139,10 @@ def held_out_ladder(bound: dict, held: dict, aeb_threshold: float | None = None)
     :func:`~blindspot.report.bound_steps.bound_steps`), then the chain's predictors on the same
     draw (``held``: safety.json's ``held_out``) at the configured AEB threshold
     (``aeb_threshold``, for its label) and at the tuning draw's operating point. "" when
-    ``bound`` has none of the steps. A goal above a bound's interval is out of reach of every
-    decision logic on these points."""
-    steps = bound_steps(bound)
+    ``bound`` has none of the steps or is not of ``held``'s draw (its seed,
+    :func:`~blindspot.report.bound_steps.same_draw`). A goal above a bound's interval is out of
+    reach of every decision logic on these points."""
+    steps = bound_steps(bound) if same_draw(bound, held) else []
     if not steps:
         return ""
     speeds = sorted({k for _, b in steps for k in b.get("by_speed_kmh", {})}, key=float)

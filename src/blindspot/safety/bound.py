@@ -130,12 +130,17 @@ def bound_results(info: SceneInfo, impact_kmh: np.ndarray, frame_times: np.ndarr
 def logged_bounds(bounds: dict) -> dict:
     """What a stage logs of :func:`blindspot.safety.assess.perception_bounds`' output
     (``bounds``): per bound its avoided rate and, per speed, its avoided rate, mean impact speed
-    and median lead time (those that exist). Raises BoundError for a bound without them."""
+    and median lead time (those that exist). Raises BoundError for ``bounds`` that is not a
+    dict or a bound without its avoided rate and per-speed table."""
+    if not isinstance(bounds, dict):
+        raise BoundError(f"logged_bounds: bounds: expected perception_bounds' output (a dict), "
+                         f"found {type(bounds).__name__}")
     out = {}
     for name, m in bounds.items():
         if name == "settings":
             continue
-        if not (isinstance(m, dict) and "avoided_rate" in m and "by_speed_kmh" in m):
+        if not (isinstance(m, dict) and "avoided_rate" in m
+                and isinstance(m.get("by_speed_kmh"), dict)):
             raise BoundError(f"logged_bounds: bound {name!r}: expected perception_bounds' "
                              f"summary (avoided_rate, by_speed_kmh), found {m!r:.80}")
         out[name] = {"avoided_rate": m["avoided_rate"],

@@ -132,9 +132,13 @@ def first_track_s(tracks: pd.DataFrame, truth: pd.DataFrame, scenes: np.ndarray,
         raise ValueError(f"{who}: lead: expected a pedestrian's name (a non-empty string), "
                          f"found {lead!r}")
     names = np.asarray(scenes)
-    if names.ndim != 1 or not all(isinstance(x, str) for x in names.tolist()):
+    if names.ndim != 1:
         raise ValueError(f"{who}: scenes: expected a 1-D array of scene names, found "
                          f"{type(scenes).__name__} of shape {names.shape}")
+    bad = [x for x in names.tolist() if not isinstance(x, str)]
+    if bad:
+        raise ValueError(f"{who}: scenes: expected scene names (strings), found "
+                         f"{bad[0]!r} ({type(bad[0]).__name__})")
     need = {"group", "frame", "time_s", "x_m", "y_m"} | ({"confirmed"} if step != "born" else set())
     check_columns(tracks, need, "tracks", who=who, note="the blindspot.track schema")
     check_columns(truth, {"scene", "frame", "pedestrian", "x_m", "y_m"}, "truth", who=who)
