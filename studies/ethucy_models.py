@@ -27,7 +27,11 @@ val prefers the mean-step scale (0.4028 -> 0.3988 m): not adopted (docs/studies/
 third pass). For mix (``--set cell=mlp,modes=20``) the epoch kept by val best-of-20 is val's
 choice (``keep_by: best_of``: val 0.1692 / 0.3016 -> 0.1679 / 0.2995 m at seed 0); the winner
 by ADE + FDE, no residual and three seeds pooled and merged are not; 32 epochs gains 0.0005 /
-0.004 m on val at twice the training, not taken (fourth pass).
+0.004 m on val at twice the training, not taken (fourth pass). Training windows also resampled
+every 5/3 annotated steps (``steps_5_3``: the eth file's labelled 0.4 s spans 0.67 s) are val's
+choice for the LSTM encoder over seeds 0-2 (val ADE 0.4029 -> 0.4017 m), for mix's best-of-20
+at seed 0 (0.1679 / 0.2995 -> 0.1666 / 0.2931 m) and a tie for the MLP encoder; adding 5/2 or
+4/3 and 2 is not (docs/studies/ethucy.md, sixth pass).
 """
 
 from __future__ import annotations
@@ -78,6 +82,11 @@ VARIANTS: dict[str, dict] = {
     "wta_keep": {"wta_score": "ade_fde", "keep_by": "best_of"},
     # three seeds pooled (60 hypotheses): the 20 most probable, and the 20 merged (_reduced)
     "ensemble3": {"ensemble": 3},
+    # training windows also at longer annotation steps (the eth file's 10 / 6 = 5/3, issue 43)
+    "steps_5_3": {"time_steps": (1.0, 5 / 3)},
+    "steps_5_3_5_2": {"time_steps": (1.0, 5 / 3, 5 / 2)},
+    "steps_4_3_to_2": {"time_steps": (1.0, 4 / 3, 5 / 3, 2.0)},
+    "steps_2": {"time_steps": (1.0, 2.0)},
 }
 
 
@@ -103,7 +112,8 @@ def run_variant(fold: str, name: str, cfg: Seq2SeqConfig, data_dir, save_dir=Non
                                    progress=False)
         preds = {name: pred}
     else:
-        train_w = load_split(data_dir, fold, "train", min_peds=1, neighbours=k)
+        train_w = load_split(data_dir, fold, "train", min_peds=1, neighbours=k,
+                             time_steps=cfg.time_steps)
         ens, _ = train_ensemble(train_w.xy, val, cfg, train_nb=train_w.neighbours,
                                 val_nb=nb["val"])
         if save_dir:

@@ -19,6 +19,7 @@ from blindspot.traj.ethucy import (
     load_split,
     random_rotations,
     read_scene,
+    resample_tracks,
     scene_tracks,
     sliding_windows,
 )
@@ -83,6 +84,53 @@ def test_bad_files_are_named(tmp_path):
         read_scene(dup)
     with pytest.raises(EthUcyDataError, match="fold"):
         load_split(tmp_path, "nowhere", "test")
+
+
+def test_resampled_tracks_are_the_walk_at_a_longer_step(tmp_path):
+    """A walker at constant velocity, resampled every 5/3 frames, steps 5/3 as far per frame
+    and passes exactly through its annotated positions where the grids meet (every 5th
+    annotated frame); a pedestrian absent on either side of a resampled time is absent."""
+    tracks = scene_tracks(read_scene(write_scene(tmp_path / "s.txt", synthetic_rows())))
+    slow = resample_tracks(tracks, 5 / 3)
+    assert slow.xy.shape == (3, 15, 2)                  # t = 0, 5/3, ..., 70/3 <= 24
+    np.testing.assert_allclose(slow.frames, tracks.frames[0] + 10 * np.arange(15) * 5 / 3)
+    ped1 = slow.xy[0]                                    # ped 1: x = frame index, 0..24
+    np.testing.assert_allclose(np.diff(ped1[:, 0]), 5 / 3)
+    np.testing.assert_array_equal(ped1[::3], tracks.xy[0, ::5][:5])
+    np.testing.assert_allclose(ped1[:, 1], 1.0)
+    # ped 3 is annotated in frames 3..22: present at t in [3, 22] only
+    t = np.arange(15) * 5 / 3
+    np.testing.assert_array_equal(np.isfinite(slow.xy[2, :, 0]), (t >= 3 - 1e-9) & (t <= 22))
+    assert resample_tracks(tracks, 1) is tracks
+    for bad in (0.5, float("nan"), "fast", None):
+        with pytest.raises(EthUcyDataError, match="step: expected a finite number >= 1"):
+            resample_tracks(tracks, bad)
+
+
+def test_a_split_at_several_time_steps_pools_their_windows(tmp_path):
+    """Per file, the windows at step 1 are the split's own, followed by those of the resampled
+    scene; the resampled windows cover step x 19 annotated frames and keep their pedestrians'
+    ids, with neighbours read on the resampled grid; the file's skip report is the annotated
+    grid's alone; a tuple without step 1 is refused, by load_split and by the config."""
+    d = tmp_path / "eth" / "train"
+    d.mkdir(parents=True)
+    rows = [(10 * f, p, 0.5 * f, float(p)) for p in (1, 2) for f in range(40)]
+    write_scene(d / "a.txt", rows)
+    own = load_split(tmp_path, "eth", "train", min_peds=1)
+    both = load_split(tmp_path, "eth", "train", min_peds=1, time_steps=(1.0, 2.0), neighbours=1)
+    assert len(own) == 2 * 21 and len(both) == 2 * 21 + 2 * 1
+    assert sorted(both.track_id[len(own):].tolist()) == sorted(set(own.track_id.tolist()))
+    # the one neighbour is the other pedestrian (y = 1 and 2), over the resampled observed frames
+    np.testing.assert_allclose(both.neighbours[len(own):, 0, :, :],
+                               np.stack([both.xy[len(own):, :8, 0],
+                                         3 - both.xy[len(own):, :8, 1]], axis=-1))
+    np.testing.assert_array_equal(both.xy[:len(own)], own.xy)
+    np.testing.assert_allclose(np.diff(both.xy[len(own):, :, 0], axis=1), 1.0)   # 2 x 0.5 m
+    assert both.skipped == own.skipped
+    with pytest.raises(EthUcyDataError, match="time_steps: expected a tuple of steps holding 1"):
+        load_split(tmp_path, "eth", "train", time_steps=(2.0,))
+    with pytest.raises(ConfigError, match="time_steps"):
+        Seq2SeqConfig(time_steps=(2.0,))
 
 
 def test_settings_from_the_config_group(tmp_path):

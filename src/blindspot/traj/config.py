@@ -315,6 +315,10 @@ class Seq2SeqConfig(TypedConfig):
         keep_by: which epoch is kept: ``"mean"`` the lowest val ADE of the single prediction,
             ``"best_of"`` the lowest val ADE of each window's best hypothesis (with modes = 1
             the same as ``"mean"``).
+        time_steps: (ETH/UCY) the train split's windows at each of these steps of the
+            annotated grid, pooled (:func:`blindspot.traj.ethucy.resample_tracks`): 1 = as
+            annotated; 5/3 = a recording labelled 0.4 s per step whose steps span 0.67 s, as
+            the benchmark's eth file does. Must hold 1.
     """
 
     GROUP = "ethucy.seq2seq"
@@ -346,8 +350,12 @@ class Seq2SeqConfig(TypedConfig):
     modes: int = setting(1, ge=1)
     wta_score: str = setting("ade", choices=SEQ2SEQ_WTA_SCORES)
     keep_by: str = setting("mean", choices=SEQ2SEQ_KEEP_BY)
+    time_steps: tuple[float, ...] = setting((1.0,), ge=1.0, min_items=1)
 
     def validate(self) -> None:
+        if 1.0 not in self.time_steps:
+            raise ConfigError("time_steps", list(self.time_steps),
+                              "a list holding 1 (the windows as annotated)")
         if self.scale_aug > 0 and self.speed_floor > 0:
             raise ConfigError("scale_aug", self.scale_aug,
                               "0 when speed_floor > 0 (the speed-scaled frame divides the "

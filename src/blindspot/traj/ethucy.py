@@ -70,6 +70,7 @@ __all__ = [
     "sliding_windows",
     "split_files",
     "load_split",
+    "resample_tracks",
     "random_rotations",
     "neighbour_tracks",
 ]
@@ -428,6 +429,41 @@ def sliding_windows(tracks: SceneTracks, seq_len: int, *, min_peds: int = 2,
     return xy, ped, start, skips
 
 
+def resample_tracks(tracks: SceneTracks, step: float) -> SceneTracks:
+    """The scene sampled every ``step`` grid frames: each pedestrian's position at frame index
+    ``k * step`` (k = 0, 1, ...), linearly interpolated between the two annotated frames around
+    it, absent where either is.
+
+    A window of the resampled scene spans ``step`` times the time of one on the original grid
+    while it is read as 0.4 s per frame: the walk as a recording whose annotations are
+    ``step`` x 0.4 s apart but labelled 0.4 s, as the Social-GAN file of the eth scene is (its
+    frame ids step by 10 where the original annotation of the same positions steps by 6, so
+    each labelled 0.4 s spans 10 / 6 x 0.4 s of walking; agrimgupta92/sgan issue 84,
+    StanfordASL/Trajectron-plus-plus issue 67). ``step`` = 1 returns the scene unchanged.
+
+    Raises:
+        EthUcyDataError: ``step`` not a finite number >= 1.
+    """
+    try:
+        step = float(step)
+    except (TypeError, ValueError):
+        step = float("nan")
+    if not (np.isfinite(step) and step >= 1.0):
+        raise EthUcyDataError(f"{tracks.source}: step: expected a finite number >= 1 (grid "
+                              f"frames between resampled frames), found {step!r}")
+    if step == 1.0:
+        return tracks
+    n_frames = tracks.xy.shape[1]
+    t = np.arange(int(np.floor((n_frames - 1) / step + 1e-9)) + 1) * step
+    lo = np.floor(t + 1e-9).astype(np.int64)
+    w = np.clip(t - lo, 0.0, None)[None, :, None]
+    hi = np.minimum(lo + 1, n_frames - 1)
+    a, b = tracks.xy[:, lo], tracks.xy[:, hi]
+    xy = np.where(w < 1e-9, a, (1.0 - w) * a + w * b)     # on a grid frame: that frame alone
+    grid = tracks.frames[1] - tracks.frames[0] if n_frames > 1 else 0
+    return replace(tracks, xy=xy, frames=tracks.frames[0] + grid * t)
+
+
 @dataclass(frozen=True)
 class Windows:
     """Windows of one fold/split, concatenated over its files.
@@ -486,7 +522,8 @@ def split_files(data_dir: str | Path, fold: str, split: str) -> list[Path]:
 
 def load_split(data_dir: str | Path, fold: str, split: str, *, seq_len: int = OBS_LEN + PRED_LEN,
                min_peds: int = 2, frame_step: int = FRAME_STEP, bad_rows: str = "raise",
-               neighbours: int = 0, obs_len: int = OBS_LEN) -> Windows:
+               neighbours: int = 0, obs_len: int = OBS_LEN,
+               time_steps: tuple[float, ...] = (1.0,)) -> Windows:
     """Windows of one fold and split, Social-GAN style (see :func:`sliding_windows`).
 
     Args:
@@ -497,6 +534,10 @@ def load_split(data_dir: str | Path, fold: str, split: str, *, seq_len: int = OB
             defective rows (:func:`read_scene`, :func:`scene_tracks`).
         neighbours: K > 0 also gathers each window's K nearest other pedestrians over its
             first ``obs_len`` frames (:func:`neighbour_tracks`, ``Windows.neighbours``).
+        time_steps: each file's windows at every one of these steps of its grid
+            (:func:`resample_tracks`; 1 = as annotated), pooled: a training augmentation of
+            recordings at another annotation rate. A resampled window keeps its
+            pedestrian's ``track_id``; its ``start`` counts frames of the resampled grid.
 
     Returns:
         :class:`Windows` with ``xy`` (N, seq_len, 2) metres and one :class:`SkipReport` per file
@@ -509,24 +550,32 @@ def load_split(data_dir: str | Path, fold: str, split: str, *, seq_len: int = OB
             and its longest track against ``seq_len``).
     """
     neighbours = check_count(neighbours, "neighbours", error=EthUcyDataError, who="load_split")
+    steps = tuple(time_steps) if isinstance(time_steps, (tuple, list)) else ()
+    if not steps or 1.0 not in steps:
+        raise EthUcyDataError(f"load_split: time_steps: expected a tuple of steps holding 1 "
+                              f"(the annotated grid), found {time_steps!r}")
     parts, ids, starts, file_idx, reports, nbs = [], [], [], [], [], []
     offset = 0
     files = split_files(data_dir, fold, split)
     for i, path in enumerate(files):
         rows, read = _read_rows(path, bad_rows)
-        tracks, grid = _scene_tracks(rows, frame_step, str(path), bad_rows, read)
+        annotated, grid = _scene_tracks(rows, frame_step, str(path), bad_rows, read)
         _warn_defects(grid)
-        xy, ped, start, skips = sliding_windows(tracks, seq_len, min_peds=min_peds, report=True)
-        reports.append(replace(skips, rows=grid.rows, nan_rows=grid.nan_rows,
-                               duplicate_rows=grid.duplicate_rows,
-                               off_grid_rows=grid.off_grid_rows))
-        parts.append(xy)
-        if neighbours:
-            nbs.append(neighbour_tracks(tracks, ped, start, neighbours, obs_len))
-        ids.append(ped + offset)
-        starts.append(start)
-        file_idx.append(np.full(ped.size, i, np.int64))
-        offset += tracks.ped_ids.size
+        for step in steps:
+            tracks = resample_tracks(annotated, step)
+            xy, ped, start, skips = sliding_windows(tracks, seq_len, min_peds=min_peds,
+                                                    report=True)
+            if step == 1.0:
+                reports.append(replace(skips, rows=grid.rows, nan_rows=grid.nan_rows,
+                                       duplicate_rows=grid.duplicate_rows,
+                                       off_grid_rows=grid.off_grid_rows))
+            parts.append(xy)
+            if neighbours:
+                nbs.append(neighbour_tracks(tracks, ped, start, neighbours, obs_len))
+            ids.append(ped + offset)
+            starts.append(start)
+            file_idx.append(np.full(ped.size, i, np.int64))
+        offset += annotated.ped_ids.size
     windows = Windows(xy=np.concatenate(parts), track_id=np.concatenate(ids),
                       start=np.concatenate(starts), file_index=np.concatenate(file_idx),
                       files=tuple(str(f) for f in files), skipped=tuple(reports),

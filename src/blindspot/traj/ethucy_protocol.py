@@ -385,7 +385,8 @@ def train_fold_seq2seq(data_dir: Path, fold: str, cfg: Seq2SeqConfig, name: str,
     epoch with the lowest ADE on the fold's val split (Social-GAN windows).
 
     Training windows: every fully observed 20-frame stretch of every pedestrian of the train
-    split (no neighbour filter: the model sees one pedestrian at a time).
+    split (no neighbour filter: the model sees one pedestrian at a time), at each of
+    ``cfg.time_steps`` (:func:`~blindspot.traj.ethucy.resample_tracks`).
 
     Returns:
         ``(ensemble, fitted)``: the :class:`~blindspot.traj.seq2seq.Seq2SeqEnsemble` and what
@@ -395,7 +396,8 @@ def train_fold_seq2seq(data_dir: Path, fold: str, cfg: Seq2SeqConfig, name: str,
     from blindspot.traj.seq2seq import train_ensemble
 
     if train is None:
-        train = load_split(data_dir, fold, "train", min_peds=1, neighbours=cfg.neighbours)
+        train = load_split(data_dir, fold, "train", min_peds=1, neighbours=cfg.neighbours,
+                           time_steps=cfg.time_steps)
     if val is None:
         val = val_windows(data_dir, fold, cfg.neighbours)
     say = (lambda line: print(f"[{fold}] {line}", flush=True)) if progress else None
@@ -450,7 +452,8 @@ def _train_seeds(data_dir: Path, fold: str, cfg: Seq2SeqConfig, name: str, seeds
     """Train ``name`` with ``seeds`` seeds (``cfg.seed`` + k) on the fold; score each on test
     and val. Returns the first seed's predictor and ``fitted`` with the per-seed rows
     (``seed_scores``) and their mean test ADE / FDE (``ade``, ``fde``)."""
-    train = load_split(data_dir, fold, "train", min_peds=1, neighbours=cfg.neighbours)
+    train = load_split(data_dir, fold, "train", min_peds=1, neighbours=cfg.neighbours,
+                       time_steps=cfg.time_steps)
     rows, first, fitted = [], None, {}
     for k in range(seeds):
         ens, fit = train_fold_seq2seq(data_dir, fold, replace(cfg, seed=cfg.seed + k), name,
