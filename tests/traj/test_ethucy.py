@@ -3,6 +3,7 @@ published constant-velocity numbers (Schöller et al. 2020), plus a smoke run of
 its report page."""
 
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -102,9 +103,56 @@ def test_resampled_tracks_are_the_walk_at_a_longer_step(tmp_path):
     t = np.arange(15) * 5 / 3
     np.testing.assert_array_equal(np.isfinite(slow.xy[2, :, 0]), (t >= 3 - 1e-9) & (t <= 22))
     assert resample_tracks(tracks, 1) is tracks
-    for bad in (0.5, float("nan"), "fast", None):
-        with pytest.raises(EthUcyDataError, match="step: expected a finite number >= 1"):
+    for bad in (0.5, float("nan"), "fast", "2", True, None, [1, 2]):
+        with pytest.raises(EthUcyDataError, match=r"step: expected a finite number >= 1 .*"
+                           r"found " + re.escape(repr(bad))):
             resample_tracks(tracks, bad)
+
+
+def test_resampled_edges_follow_the_annotated_frames(tmp_path):
+    """At step 5/3 the grids meet every 5 annotated frames: a track ending on such a frame is
+    present there, one ending just before it is absent there (its next frame is missing), and
+    one starting just after a resampled time is absent at that time. At step 1.4, times such
+    as 7 x 1.4 = 9.799... and 5 x 1.4 = 7.0 land on their annotated frames."""
+    spans = {1: range(0, 21), 2: range(0, 20), 3: range(6, 22)}     # the scene: frames 0..21
+    rows = [(10 * f, p, float(f), float(p)) for p, fr in spans.items() for f in fr]
+    tracks = scene_tracks(read_scene(write_scene(tmp_path / "s.txt", rows)))
+    slow = resample_tracks(tracks, 5 / 3)               # t = 0, 5/3, ..., 20: 13 times
+    present = np.isfinite(slow.xy[..., 0])
+    assert present[0].all() and slow.xy[0, -1, 0] == 20.0     # ends on t = 20: present,
+    #                                                           though frame 21 holds nothing
+    assert present[1, :-1].all() and not present[1, -1]        # ends at 19 < 20
+    t = np.arange(13) * 5 / 3
+    np.testing.assert_array_equal(present[2], t >= 6)          # starts at 6: absent at 5
+    np.testing.assert_allclose(slow.xy[2, present[2], 0], t[t >= 6])
+    odd = resample_tracks(tracks, 1.4)
+    np.testing.assert_allclose(odd.xy[0, :15, 0], np.arange(15) * 1.4, rtol=0, atol=1e-12)
+    assert np.isfinite(odd.xy[1, :14, 0]).all()               # 13 x 1.4 = 18.2 < 19
+
+
+def test_the_benchmark_resamples_the_train_split_alone(tmp_path, monkeypatch):
+    """The stage's learned models train on windows at every configured step; their val and
+    test windows are read as annotated."""
+    import blindspot.traj.ethucy_protocol as protocol
+
+    seen = []
+    real = protocol.load_split
+
+    def spy(data_dir, fold, split, **kw):
+        seen.append((split, tuple(kw.get("time_steps", (1.0,)))))
+        return real(data_dir, fold, split, **kw)
+
+    monkeypatch.setattr(protocol, "load_split", spy)
+    cfg = Seq2SeqConfig(epochs=1, ensemble=1, neighbours=0, time_steps=(1.0, 5 / 3))
+    for split in ("train", "val", "test"):
+        d = tmp_path / "eth" / split
+        d.mkdir(parents=True)
+        write_scene(d / "a.txt", [(10 * f, p, 0.5 * f, float(p)) for p in (1, 2)
+                                  for f in range(40)])
+    protocol.run_fold(tmp_path, "eth", ("lstm",), RolloutLSTMConfig(), progress=False,
+                      seq2seq=cfg)
+    assert ("train", (1.0, 5 / 3)) in seen
+    assert {steps for split, steps in seen if split != "train"} == {(1.0,)}
 
 
 def test_a_split_at_several_time_steps_pools_their_windows(tmp_path):
@@ -127,10 +175,15 @@ def test_a_split_at_several_time_steps_pools_their_windows(tmp_path):
     np.testing.assert_array_equal(both.xy[:len(own)], own.xy)
     np.testing.assert_allclose(np.diff(both.xy[len(own):, :, 0], axis=1), 1.0)   # 2 x 0.5 m
     assert both.skipped == own.skipped
-    with pytest.raises(EthUcyDataError, match="time_steps: expected a tuple of steps holding 1"):
-        load_split(tmp_path, "eth", "train", time_steps=(2.0,))
-    with pytest.raises(ConfigError, match="time_steps"):
-        Seq2SeqConfig(time_steps=(2.0,))
+    for bad in ((2.0,), (1.0, 1.0), (1.0, 2.0, 2.0)):
+        with pytest.raises(EthUcyDataError, match="time_steps: expected distinct steps holding 1"):
+            load_split(tmp_path, "eth", "train", time_steps=bad)
+        with pytest.raises(ConfigError, match="time_steps"):
+            Seq2SeqConfig(time_steps=bad)
+    with pytest.raises(EthUcyDataError, match=r"time_steps\[1\]: expected a finite number"):
+        load_split(tmp_path, "eth", "train", time_steps=(1.0, 0.5))
+    with pytest.raises(EthUcyDataError, match="time_steps: expected a tuple or list"):
+        load_split(tmp_path, "eth", "train", time_steps=2.0)
 
 
 def test_settings_from_the_config_group(tmp_path):

@@ -318,7 +318,7 @@ class Seq2SeqConfig(TypedConfig):
         time_steps: (ETH/UCY) the train split's windows at each of these steps of the
             annotated grid, pooled (:func:`blindspot.traj.ethucy.resample_tracks`): 1 = as
             annotated; 5/3 = a recording labelled 0.4 s per step whose steps span 0.67 s, as
-            the benchmark's eth file does. Must hold 1.
+            the benchmark's eth file does. Distinct, and must hold 1.
     """
 
     GROUP = "ethucy.seq2seq"
@@ -353,9 +353,9 @@ class Seq2SeqConfig(TypedConfig):
     time_steps: tuple[float, ...] = setting((1.0,), ge=1.0, min_items=1)
 
     def validate(self) -> None:
-        if 1.0 not in self.time_steps:
+        if 1.0 not in self.time_steps or len(set(self.time_steps)) != len(self.time_steps):
             raise ConfigError("time_steps", list(self.time_steps),
-                              "a list holding 1 (the windows as annotated)")
+                              "a list of distinct steps holding 1 (the windows as annotated)")
         if self.scale_aug > 0 and self.speed_floor > 0:
             raise ConfigError("scale_aug", self.scale_aug,
                               "0 when speed_floor > 0 (the speed-scaled frame divides the "

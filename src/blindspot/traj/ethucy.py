@@ -432,7 +432,8 @@ def sliding_windows(tracks: SceneTracks, seq_len: int, *, min_peds: int = 2,
 def resample_tracks(tracks: SceneTracks, step: float) -> SceneTracks:
     """The scene sampled every ``step`` grid frames: each pedestrian's position at frame index
     ``k * step`` (k = 0, 1, ...), linearly interpolated between the two annotated frames around
-    it, absent where either is.
+    it, absent where either is; a time on an annotated frame takes that frame alone (present
+    where it is, whatever the next frame holds).
 
     A window of the resampled scene spans ``step`` times the time of one on the original grid
     while it is read as 0.4 s per frame: the walk as a recording whose annotations are
@@ -442,15 +443,9 @@ def resample_tracks(tracks: SceneTracks, step: float) -> SceneTracks:
     StanfordASL/Trajectron-plus-plus issue 67). ``step`` = 1 returns the scene unchanged.
 
     Raises:
-        EthUcyDataError: ``step`` not a finite number >= 1.
+        EthUcyDataError: ``step`` not a finite real number >= 1 (a string or a bool included).
     """
-    try:
-        step = float(step)
-    except (TypeError, ValueError):
-        step = float("nan")
-    if not (np.isfinite(step) and step >= 1.0):
-        raise EthUcyDataError(f"{tracks.source}: step: expected a finite number >= 1 (grid "
-                              f"frames between resampled frames), found {step!r}")
+    step = _time_step(step, f"{tracks.source}: step")
     if step == 1.0:
         return tracks
     n_frames = tracks.xy.shape[1]
@@ -460,8 +455,22 @@ def resample_tracks(tracks: SceneTracks, step: float) -> SceneTracks:
     hi = np.minimum(lo + 1, n_frames - 1)
     a, b = tracks.xy[:, lo], tracks.xy[:, hi]
     xy = np.where(w < 1e-9, a, (1.0 - w) * a + w * b)     # on a grid frame: that frame alone
-    grid = tracks.frames[1] - tracks.frames[0] if n_frames > 1 else 0
-    return replace(tracks, xy=xy, frames=tracks.frames[0] + grid * t)
+    id_step = tracks.frames[1] - tracks.frames[0] if n_frames > 1 else 0
+    return replace(tracks, xy=xy, frames=tracks.frames[0] + id_step * t)
+
+
+def _time_step(value: object, who: str) -> float:
+    """``value`` as a resampling step: a finite real number >= 1 (not a string or a bool)."""
+    step = float("nan")
+    if not isinstance(value, (str, bytes, bool, np.bool_)):
+        try:
+            step = float(value)
+        except (TypeError, ValueError):
+            pass
+    if not (np.isfinite(step) and step >= 1.0):
+        raise EthUcyDataError(f"{who}: expected a finite number >= 1 (annotated frames between "
+                              f"resampled frames), found {value!r}")
+    return step
 
 
 @dataclass(frozen=True)
@@ -471,7 +480,8 @@ class Windows:
     Attributes:
         xy: (N, seq_len, 2) positions in metres (no NaN).
         track_id: (N,) a pedestrian id unique across the split's files (file-major numbering).
-        start: (N,) first frame index of each window within its file.
+        start: (N,) first frame index of each window within its file (of its resampled grid
+            for windows of a step other than 1, :func:`load_split`'s ``time_steps``).
         file_index: (N,) index into ``files``.
         files: the scene files read, sorted by name.
         skipped: one :class:`SkipReport` per file, in ``files`` order.
@@ -534,10 +544,13 @@ def load_split(data_dir: str | Path, fold: str, split: str, *, seq_len: int = OB
             defective rows (:func:`read_scene`, :func:`scene_tracks`).
         neighbours: K > 0 also gathers each window's K nearest other pedestrians over its
             first ``obs_len`` frames (:func:`neighbour_tracks`, ``Windows.neighbours``).
-        time_steps: each file's windows at every one of these steps of its grid
-            (:func:`resample_tracks`; 1 = as annotated), pooled: a training augmentation of
-            recordings at another annotation rate. A resampled window keeps its
-            pedestrian's ``track_id``; its ``start`` counts frames of the resampled grid.
+        time_steps: each file's windows at every one of these distinct steps of its grid
+            (:func:`resample_tracks`; 1 = as annotated, and must be among them), pooled: a
+            training augmentation of recordings at another annotation rate. A resampled window
+            keeps its pedestrian's ``track_id``; its ``start`` counts frames of the resampled
+            grid (nothing marks which step a window came from); the file's
+            :class:`SkipReport` counts the annotated grid's windows alone. Each step's grid
+            starts at the file's first frame (one phase of the resampled grid).
 
     Returns:
         :class:`Windows` with ``xy`` (N, seq_len, 2) metres and one :class:`SkipReport` per file
@@ -547,13 +560,18 @@ def load_split(data_dir: str | Path, fold: str, split: str, *, seq_len: int = OB
     Raises:
         EthUcyDataError: see :func:`split_files`, :func:`read_scene`, :func:`scene_tracks`; and
             when no file of the split yields a window (the message lists each file's tracks
-            and its longest track against ``seq_len``).
+            and its longest track against ``seq_len``); ``time_steps`` not a tuple or list of
+            distinct finite numbers >= 1 holding 1 (names the element).
     """
     neighbours = check_count(neighbours, "neighbours", error=EthUcyDataError, who="load_split")
-    steps = tuple(time_steps) if isinstance(time_steps, (tuple, list)) else ()
-    if not steps or 1.0 not in steps:
-        raise EthUcyDataError(f"load_split: time_steps: expected a tuple of steps holding 1 "
-                              f"(the annotated grid), found {time_steps!r}")
+    if not isinstance(time_steps, (tuple, list)):
+        raise EthUcyDataError(f"load_split: time_steps: expected a tuple or list of steps "
+                              f"holding 1 (the annotated grid), found {time_steps!r}")
+    steps = tuple(_time_step(v, f"load_split: time_steps[{i}]")
+                  for i, v in enumerate(time_steps))
+    if 1.0 not in steps or len(set(steps)) != len(steps):
+        raise EthUcyDataError(f"load_split: time_steps: expected distinct steps holding 1 (the "
+                              f"annotated grid), found {list(time_steps)!r}")
     parts, ids, starts, file_idx, reports, nbs = [], [], [], [], [], []
     offset = 0
     files = split_files(data_dir, fold, split)
