@@ -28,10 +28,11 @@ third pass). For mix (``--set cell=mlp,modes=20``) the epoch kept by val best-of
 choice (``keep_by: best_of``: val 0.1692 / 0.3016 -> 0.1679 / 0.2995 m at seed 0); the winner
 by ADE + FDE, no residual and three seeds pooled and merged are not; 32 epochs gains 0.0005 /
 0.004 m on val at twice the training, not taken (fourth pass). Training windows also resampled
-every 5/3 annotated steps (``steps_5_3``: the eth file's labelled 0.4 s spans 0.67 s) are val's
-choice for the LSTM encoder over seeds 0-2 (val ADE 0.4029 -> 0.4017 m), for mix's best-of-20
-at seed 0 (0.1679 / 0.2995 -> 0.1666 / 0.2931 m) and a tie for the MLP encoder; adding 5/2 or
-4/3 and 2 is not (docs/studies/ethucy.md, sixth pass).
+every 5/3 annotated steps (``steps_5_3``: the eth file's labelled 0.4 s spans 0.67 s) are
+adopted on that documented step, and val does not object: it slightly prefers them for the LSTM
+encoder over seeds 0-2 (val ADE 0.4029 -> 0.4017 m) and for mix's best-of-20 at seed 0 (0.1679 /
+0.2995 -> 0.1666 / 0.2931 m), and is indifferent for the MLP encoder (0.4020 -> 0.4027 m);
+adding 5/2, or 4/3 and 2, is not val's choice (docs/studies/ethucy.md, sixth pass).
 """
 
 from __future__ import annotations

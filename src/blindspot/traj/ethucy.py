@@ -46,7 +46,7 @@ from pathlib import Path
 
 import numpy as np
 
-from blindspot.arrays import check_array, check_count
+from blindspot.arrays import check_array, check_count, check_number
 from blindspot.traj.config import ETHUCY_FOLDS as FOLDS
 
 __all__ = [
@@ -94,6 +94,8 @@ MAX_ID = 10**8
 #: largest real scene needs 7e5): the frame span comes from the file, so a stray frame id far
 #: from the others is refused naming its row instead of allocating the span.
 MAX_GRID_CELLS = 2 * 10**7
+#: what a resampling step counts (resample_tracks, load_split's time_steps), for their errors
+_STEP_UNIT = "annotated frames between resampled frames"
 
 
 class EthUcyDataError(ValueError):
@@ -445,7 +447,8 @@ def resample_tracks(tracks: SceneTracks, step: float) -> SceneTracks:
     Raises:
         EthUcyDataError: ``step`` not a finite real number >= 1 (a string or a bool included).
     """
-    step = _time_step(step, f"{tracks.source}: step")
+    step = check_number(step, "step", ge=1.0, unit=_STEP_UNIT, error=EthUcyDataError,
+                        who=tracks.source)
     if step == 1.0:
         return tracks
     n_frames = tracks.xy.shape[1]
@@ -457,20 +460,6 @@ def resample_tracks(tracks: SceneTracks, step: float) -> SceneTracks:
     xy = np.where(w < 1e-9, a, (1.0 - w) * a + w * b)     # on a grid frame: that frame alone
     id_step = tracks.frames[1] - tracks.frames[0] if n_frames > 1 else 0
     return replace(tracks, xy=xy, frames=tracks.frames[0] + id_step * t)
-
-
-def _time_step(value: object, who: str) -> float:
-    """``value`` as a resampling step: a finite real number >= 1 (not a string or a bool)."""
-    step = float("nan")
-    if not isinstance(value, (str, bytes, bool, np.bool_)):
-        try:
-            step = float(value)
-        except (TypeError, ValueError):
-            pass
-    if not (np.isfinite(step) and step >= 1.0):
-        raise EthUcyDataError(f"{who}: expected a finite number >= 1 (annotated frames between "
-                              f"resampled frames), found {value!r}")
-    return step
 
 
 @dataclass(frozen=True)
@@ -567,7 +556,8 @@ def load_split(data_dir: str | Path, fold: str, split: str, *, seq_len: int = OB
     if not isinstance(time_steps, (tuple, list)):
         raise EthUcyDataError(f"load_split: time_steps: expected a tuple or list of steps "
                               f"holding 1 (the annotated grid), found {time_steps!r}")
-    steps = tuple(_time_step(v, f"load_split: time_steps[{i}]")
+    steps = tuple(check_number(v, f"time_steps[{i}]", ge=1.0, unit=_STEP_UNIT,
+                               error=EthUcyDataError, who="load_split")
                   for i, v in enumerate(time_steps))
     if 1.0 not in steps or len(set(steps)) != len(steps):
         raise EthUcyDataError(f"load_split: time_steps: expected distinct steps holding 1 (the "
