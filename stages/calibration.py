@@ -1,11 +1,8 @@
-"""calibration: every scene predictor's predictive distribution, calibrated on validation paths.
-
-LSTM, the direct multi-step LSTM (lstm_direct), constant velocity and Kalman each get a per-step
-scale fitted on (history, future) pairs of the validation paths (blindspot.traj.calibration);
-coverage of the 50/90/95 % ellipses and NLL on the held-out paths ("sim_paths"), beside the
-online ellipses' (online_coverage_*, calibration.online_method). A declared dep ending in
-calibration_ethucy.json (the ETH/UCY folds) is merged in. models.json: the fits for the walks
-stage; val_scores.npz: the validation scores, the online ellipses' prior."""
+"""calibration: each scene predictor (lstm, lstm_direct, constant velocity, Kalman) calibrated on
+validation paths (blindspot.traj.calibration), scored on the held-out paths ("sim_paths") beside
+the online ellipses it chose on validation streams (blindspot.traj.path_calibration); a dep ending
+in calibration_ethucy.json is merged in. models.json: the fits; val_scores.npz: the online
+ellipses' prior; online.json: each predictor's chosen setting (the walks stage reads all three)."""
 
 import blindspot  # noqa: F401  first: pins the CPU kernels before numpy loads (blindspot.kernels)
 import numpy as np
@@ -16,12 +13,13 @@ from blindspot.io import atomic_open, write_json
 from blindspot.radar.config import RadarConfig
 from blindspot.stage import StageResult
 from blindspot.traj.baselines import prediction_methods
-from blindspot.traj.calibration import (LEVELS, calibrate_on_paths, coverage_line,
-                                        held_out_pairs, merge_ethucy_folds, to_record)
+from blindspot.traj.calibration import LEVELS, to_record
 from blindspot.traj.config import CalibrationConfig, DatasetConfig, EvalConfig
 from blindspot.traj.direct import NAME as DIRECT, path_splits
 from blindspot.traj.lstm import LSTMPredictor
-from blindspot.traj.online import online_ellipses
+from blindspot.traj.online import online_candidates
+from blindspot.traj.path_calibration import (calibrate_on_paths, coverage_line, held_out_pairs,
+                                             merge_ethucy_folds)
 from blindspot.traj.paths import table_to_arrays
 from blindspot.traj.seq2seq import Seq2SeqEnsemble
 from blindspot.traj.windows import WindowSet
@@ -40,13 +38,15 @@ def run(cfg, ctx):
     lstm = LSTMPredictor.load(ctx.dep("train/model.pt")).with_workers(jobs(cfg))
     predictors = {**prediction_methods(ev, RadarConfig.from_cfg(cfg).frame_period_s, lstm),
                   DIRECT: Seq2SeqEnsemble.load(ctx.dep("train_direct/model.pt"))}
-    calibrated, prior, metrics = calibrate_on_paths(
-        predictors, pairs, online_ellipses(c, LEVELS), scale_method=c.scale_method,
-        scale_level=c.scale_level, cv_fit_points=ev.cv_fit_points, n_test_paths=len(ids["test"]))
+    calibrated, prior, metrics, online = calibrate_on_paths(
+        predictors, pairs, online_candidates(c, LEVELS), scale_method=c.scale_method,
+        scale_level=c.scale_level, cv_fit_points=ev.cv_fit_points, n_test_paths=len(ids["test"]),
+        val_streams=c.online_val_streams)
     write_json(ctx.out("calibration.json"), merge_ethucy_folds(metrics, ctx.files.deps))
     write_json(ctx.out("models.json"), {n: to_record(p) for n, p in calibrated.items()})
     with atomic_open(ctx.out("val_scores.npz"), "wb") as fh:
         np.savez(fh, **prior)
+    write_json(ctx.out("online.json"), online)
     print(*filter(None, (coverage_line(n, m) for n, m in metrics.items())), sep="\n")
     return StageResult(metrics=_numbers(metrics))     # MLflow: the method names stay in the file
 

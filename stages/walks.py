@@ -1,10 +1,7 @@
-"""walks: many randomised occluded walks of the paper's scene (issue 10, section 3).
-
-``walks.n_walks`` walks drawn around the car scene (blindspot.synth.scene_walks), measured
-through the paths stage's reduced chain with the car as occluder, filled and predicted by every
-method and scored with bootstrap intervals, the calibrated distributions and the adaptive
-conformal ellipses beside them (blindspot.synth.walk_scores.score_walks).
-"""
+"""walks: many randomised occluded walks of the paper's scene (issue 10, section 3), drawn around
+the car (blindspot.synth.scene_walks), measured through the paths stage's reduced chain, filled,
+predicted and scored with bootstrap intervals, with the calibrated distributions and each
+predictor's online ellipses (the calibration stage's) beside (blindspot.synth.walk_scores)."""
 
 import blindspot  # noqa: F401  first: pins the CPU kernels before numpy loads (blindspot.kernels)
 import json
@@ -19,7 +16,7 @@ from blindspot.report.walks_report import benchmark_figure, benchmark_table
 from blindspot.stage import StageResult
 from blindspot.synth.scene_walks import car_scene_walks
 from blindspot.synth.walk_scores import per_walk_table, score_walks, walk_lines
-from blindspot.traj.config import CalibrationConfig, EvalConfig, WalksConfig
+from blindspot.traj.config import EvalConfig, WalksConfig
 from blindspot.traj.lstm import LSTMPredictor
 from blindspot.traj.seq2seq import Seq2SeqEnsemble
 from blindspot.typed_config import jobs
@@ -35,12 +32,13 @@ def run(cfg, ctx):
                                       progress=bool(cfg.progress))
     t_radar = time.perf_counter() - t0
     metrics, extra, scores, names, fills = score_walks(
-        walks, measured, ev=EvalConfig.from_cfg(cfg), bench=bench,
-        calibration=CalibrationConfig.from_cfg(cfg), dt=radar.frame_period_s,
+        walks, measured, ev=EvalConfig.from_cfg(cfg), bench=bench, dt=radar.frame_period_s,
         lstm=LSTMPredictor.load(ctx.dep("train/model.pt")).with_workers(jobs(cfg)),
         direct=Seq2SeqEnsemble.load(ctx.dep("train_direct/model.pt")),
         records=json.loads(ctx.dep("models.json").read_text()),
-        val_scores=ctx.dep("val_scores.npz"), seed=int(cfg.seed), train_seed=int(cfg.train.seed))
+        val_scores=ctx.dep("val_scores.npz"),
+        online_settings=json.loads(ctx.dep("online.json").read_text()),
+        seed=int(cfg.seed), train_seed=int(cfg.train.seed))
     write_json(ctx.out("benchmark.json"), metrics)
     write_json(ctx.out("benchmark_paired.json"), extra)
     whole = {**metrics, **extra}                    # what the table and the figure read

@@ -119,8 +119,14 @@ def test_calibration_then_benchmark_on_a_tiny_setting(tiny):
     for level in (50, 90, 95):
         entry = m["kalman"][f"online_coverage_{level}"]
         assert 0.0 <= entry["mean"] <= 1.0 and len(entry["ci95"]) == 2
-    assert "Online ellipses (`calibration.online_method`" in \
-        (root / "reports/tables/benchmark.md").read_text()
+    # each predictor's online setting, chosen in the calibration stage, named in the table
+    chosen = json.loads((root / "data/calibration/online.json").read_text())
+    assert set(chosen) == set(z.files) and m["online_setting"] == chosen
+    assert cal["kalman"]["sim_paths"]["online_method"] == chosen["kalman"]["online_method"]
+    assert "online_val_distance" in cal["kalman"]["sim_paths"]
+    table = (root / "reports/tables/benchmark.md").read_text()
+    assert "each method's setting is the one it chose among `calibration.online_*`" in table
+    assert any(f"| Kalman (CV) | {label} " in table for label in ("ACI", "scale"))
     assert "lstm - kalman" in m["paired"]
     # the scenes' direct LSTM beside the paper's methods: scored, calibrated, paired
     assert {"path_error_mean_m", "ade_1s", "fde_2s", "coverage_90", "online_coverage_90"} <= \

@@ -15,15 +15,19 @@ def metrics(setting=None) -> dict:
     return m
 
 
-def test_the_online_method_is_named_with_its_parameters():
-    table = benchmark_table(metrics({"online_method": "aci_window", "online_gamma": 0.005,
-                                     "online_window": 150}), "dvc repro benchmark")
-    assert ("`calibration.online_method` aci_window: sliding-window ACI, "
-            "blindspot.traj.conformal; gamma 0.005, window 150") in table
-    assert benchmark_methods(metrics({"online_method": "aci_window"}))[0] == ["lstm"]
+def test_each_method_s_online_setting_is_named_in_its_row():
+    table = benchmark_table(metrics({"lstm": {"online_method": "scale_tracker", "online_eta": 0.02,
+                                              "online_kappa": 100.0,
+                                              "online_prior_outcomes": 50}}),
+                            "dvc repro benchmark")
+    assert "| LSTM (paper) | scale 0.02 / 100 | 0.500 [0.400, 0.600]" in table
+    assert "chose among `calibration.online_*` on validation streams" in table
+    aci = {"online_method": "aci_window", "online_gamma": 0.005, "online_window": 150,
+           "online_rescale_after": 3}
+    assert "| ACI 0.005 / 150 / 3 |" in benchmark_table(metrics({"lstm": aci}), "dvc repro x")
+    assert benchmark_methods(metrics({"lstm": aci}))[0] == ["lstm"]
 
 
-def test_without_a_recorded_setting_the_table_says_where_it_is_set():
+def test_without_a_recorded_setting_the_row_says_so():
     table = benchmark_table(metrics(), "dvc repro benchmark")
-    assert "Online ellipses (`calibration.online_method`): the walks" in table
-    assert "scale tracking" not in table and "sliding-window" not in table
+    assert "| LSTM (paper) | - | 0.500 [0.400, 0.600]" in table

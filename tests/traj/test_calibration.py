@@ -65,33 +65,6 @@ def test_path_pairs_histories_hold_nothing_from_after_the_window():
     assert len(h) == expect < 4 * len(starts)
 
 
-def test_online_scores_follow_a_scene_the_val_calibration_misjudges():
-    """Validation walks with 0.05 m radar noise, test walks with 0.25 m (another sensor): the
-    val-calibrated Kalman ellipses under-cover the test paths, the adaptive conformal ones
-    (the paths one stream, val scores first) come within 2 pp of every level."""
-    from blindspot.traj.calibration import forecast_scores, online_scores
-    from blindspot.traj.conformal import AdaptiveConformal
-
-    tv, mv = cv_paths(200, 120, seed=11)
-    tt, _ = cv_paths(200, 120, seed=12)
-    mt = tt + np.random.default_rng(13).normal(0, 0.25, tt.shape)
-    val = path_pairs(mv, tv, 20, 10, 5)
-    test = path_pairs(mt, tt, 20, 10, 5, with_index=True)
-    cal = calibrate({"kalman": KalmanCV(dt=0.1, process_psd=0.3, meas_std=0.05)}, *val,
-                    scale_method="mixture")["kalman"]
-    static = calibration_scores(cal, *test[:2])
-    assert static["coverage_90"] < 0.8
-    online = online_scores(cal, AdaptiveConformal((0.5, 0.9, 0.95), 0.01, 100),
-                           forecast_scores(cal, *val), test)
-    assert {k for k in online if "coverage" in k} == {
-        f"online_coverage_{p}{tail}" for p in (50, 90, 95) for tail in ("", "_ci95")}
-    assert online["online_unbounded_95"] < 0.01
-    for level in (50, 90, 95):
-        assert online[f"online_coverage_{level}"] == pytest.approx(level / 100, abs=0.02), level
-        lo, hi = online[f"online_coverage_{level}_ci95"]       # a bootstrap over the 200 paths
-        assert lo < online[f"online_coverage_{level}"] < hi and hi - lo < 0.1, level
-
-
 class PointOnly:
     """A predictor with no distribution of its own (as the LSTM): CV with k = 4."""
 

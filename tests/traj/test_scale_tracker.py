@@ -204,22 +204,6 @@ def test_the_choice_on_held_out_streams_takes_either_kind():
     assert len(rep["online_coverage_50_ci95"]) == 2 and 0 < rep["online_radius_50"] < np.inf
 
 
-def test_the_config_names_the_method():
-    """``calibration.online_method`` picks the kind and its settings; anything else is named."""
-    from blindspot.traj.config import CalibrationConfig
-    from blindspot.traj.online import online_ellipses
-
-    keys = dict(horizon_frames=40, stride=10, scale_method="mixture", scale_level=0.9,
-                online_gamma=0.005, online_window=100, online_rescale_after=3, online_eta=0.02,
-                online_kappa=5.0)
-    tracker = online_ellipses(CalibrationConfig(online_method="scale_tracker", **keys), LEVELS)
-    assert tracker == ScaleTracker(LEVELS, 0.02, 5.0)
-    window = online_ellipses(CalibrationConfig(online_method="aci_window", **keys), LEVELS)
-    assert window == AdaptiveConformal(LEVELS, 0.005, 100, 3)
-    with pytest.raises(ConformalError, match="expected a CalibrationConfig, found dict"):
-        online_ellipses(keys, LEVELS)
-
-
 def test_bad_input_is_named():
     s, tp, tr = stream(20)
     prior, _, _ = stream(30, seed=1)

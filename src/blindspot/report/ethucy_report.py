@@ -14,6 +14,7 @@ from collections.abc import Mapping, Sequence
 from typing import Any
 
 from blindspot.report.paper_values import ETHUCY_PUBLISHED
+from blindspot.report.online_label import online_setting_label
 
 #: how far from nominal a coverage may be and still count as calibrated (percentage points;
 #: issue 43's goal for the online ellipses)
@@ -143,23 +144,18 @@ def format_calibration(calibration: Mapping[str, Mapping[str, Mapping[str, Any]]
 def format_online_choice(calibration: Mapping[str, Mapping[str, Mapping[str, Any]]],
                          folds: Sequence[str]) -> str:
     """Markdown table of the online setting each method chose on each fold's val scenes and its
-    mean distance from nominal there (``online_val_distance``, percentage points): "ACI
-    gamma / window / rescale after" (``online_method`` ``"aci_window"`` or absent, from
-    ``online_gamma`` / ``online_window`` / ``online_rescale_after``) or "scale eta / kappa"
-    (``"scale_tracker"``, ``online_eta`` / ``online_kappa``); "" when no row names one."""
+    mean distance from nominal there (``online_val_distance``, percentage points), each
+    setting as :func:`blindspot.report.online_label.online_setting_label` writes it; "" when no row
+    names one."""
     lines = ["| method | " + " | ".join(folds) + " |", "|---|" + "---|" * len(folds)]
     seen = False
     for m, rows in calibration.items():
         cells = []
         for f in folds:
             r = rows.get(f) or {}
-            if r.get("online_method") == "scale_tracker":
-                cell = f"scale {r['online_eta']:g} / {r['online_kappa']:g}"
-            elif "online_gamma" in r:
-                cell = (f"ACI {r['online_gamma']:g} / {r['online_window']} / "
-                        f"{r['online_rescale_after']}")
-            else:
-                cells.append("-")
+            cell = online_setting_label(r)
+            if cell == "-":
+                cells.append(cell)
                 continue
             seen = True
             d = r.get("online_val_distance")

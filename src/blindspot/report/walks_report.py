@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 from matplotlib.figure import Figure
 
+from blindspot.report.online_label import online_setting_label
 from blindspot.report.style import method_colour, method_label, new_grid, panel_title
 
 __all__ = ["benchmark_figure", "benchmark_table", "benchmark_methods", "PREDICTION_METRICS"]
@@ -42,22 +43,6 @@ def benchmark_methods(metrics: Mapping[str, Any]) -> tuple[list[str], list[str]]
             and not k.startswith("lstm_member")]
     fills = [k for k in keys if k.startswith("fill_")]
     return [k for k in keys if k not in fills], fills
-
-
-_ONLINE_METHODS = {"aci_window": "sliding-window ACI, blindspot.traj.conformal",
-                   "scale_tracker": "scale tracking, blindspot.traj.scale_tracker"}
-
-
-def _online_method(setting: Mapping[str, Any] | None) -> str:
-    """The online ellipses' method and parameters as the walks stage recorded them
-    (``online_setting``: ``online_method`` and ``online_<parameter>``), or where to set it."""
-    if not setting:
-        return "`calibration.online_method`"
-    method = setting.get("online_method")
-    params = ", ".join(f"{k[len('online_'):]} {v}" for k, v in setting.items()
-                       if k != "online_method")
-    return (f"`calibration.online_method` {method}: {_ONLINE_METHODS.get(method, method)}"
-            + (f"; {params}" if params else ""))
 
 
 def _members(metrics: Mapping[str, Any]) -> list[str]:
@@ -100,13 +85,16 @@ def benchmark_table(metrics: Mapping[str, Any], command: str) -> str:
     online = [p for p in preds if "online_coverage_90" in metrics[p]]
     if online:
         keys = ("online_coverage_50", "online_coverage_90", "online_coverage_95")
-        lines += ["", f"Online ellipses ({_online_method(metrics.get('online_setting'))}): "
-                  "the walks met one after another, each walk's ellipses from the outcomes of "
-                  "the walks before it (the validation scores before any).", "",
-                  "| method | " + " | ".join(_NAMES[k[len("online_"):]] for k in keys) + " |",
-                  "|---|" + "---|" * len(keys)]
-        lines += [f"| {method_label(p)} | " + " | ".join(_fmt(metrics[p].get(k)) for k in keys)
-                  + " |" for p in online]
+        settings = metrics.get("online_setting") or {}
+        lines += ["", "Online ellipses: the walks met one after another, each walk's ellipses "
+                  "from the outcomes of the walks before it (the validation scores before any); "
+                  "each method's setting is the one it chose among `calibration.online_*` on "
+                  "validation streams (the calibration stage's online.json; ACI gamma / window "
+                  "/ rescale after, or scale eta / kappa).", "",
+                  "| method | setting | " + " | ".join(_NAMES[k[len("online_"):]] for k in keys)
+                  + " |", "|---|---|" + "---|" * len(keys)]
+        lines += [f"| {method_label(p)} | {online_setting_label(settings.get(p))} | "
+                  + " | ".join(_fmt(metrics[p].get(k)) for k in keys) + " |" for p in online]
     paired = metrics.get("paired", {})
     if paired:
         keys = ("path_error_mean_m", "ade_1s", "fde_2s", "hidden_mean_m")

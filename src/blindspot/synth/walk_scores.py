@@ -39,7 +39,8 @@ def score_scene_walks(walks: SceneWalks, measured: np.ndarray, *,
                       smoother: Callable[[np.ndarray], np.ndarray], horizon: int, dt_s: float,
                       horizons_s: tuple[float, ...],
                       distributions: Mapping[str, object] | None = None, threads: int = 1,
-                      online=None, priors: Mapping[str, np.ndarray] | None = None,
+                      online: Mapping[str, object] | None = None,
+                      priors: Mapping[str, np.ndarray] | None = None,
                       ) -> tuple[dict[str, dict[str, np.ndarray]], dict[str, np.ndarray]]:
     """Per-walk scores of every interpolation and prediction method.
 
@@ -55,10 +56,10 @@ def score_scene_walks(walks: SceneWalks, measured: np.ndarray, *,
         distributions: {name: predictor with ``predict_distribution``} for the methods that
             give a Gaussian forecast (scored on the same histories as their point prediction).
         threads: torch threads while scoring (restored after).
-        online, priors: the online ellipses (``calibration.online_method``:
-            :class:`blindspot.traj.scale_tracker.ScaleTracker` or
+        online, priors: {name: online ellipses} (each predictor's setting, chosen by the
+            calibration stage: :class:`blindspot.traj.scale_tracker.ScaleTracker` or
             :class:`blindspot.traj.conformal.AdaptiveConformal`) scored beside each
-            distribution whose name has a prior, ``priors[name]`` (M, H_cal) its scores on the
+            distribution with both, ``priors[name]`` (M, H_cal) its scores on the
             validation pairs (the calibration stage's ``val_scores.npz``): the walks are met one
             after another in their drawn order, each walk's ellipses from the outcomes of the
             walks before it (:func:`distribution_scores`).
@@ -74,7 +75,7 @@ def score_scene_walks(walks: SceneWalks, measured: np.ndarray, *,
     try:
         return _score(walks, measured, predictors, interpolation_methods, prediction_input,
                       gap_predictor, smoother, horizon, dt_s, horizons_s, distributions,
-                      online, priors or {})
+                      online or {}, priors or {})
     finally:
         torch.set_num_threads(previous)
 
@@ -100,7 +101,8 @@ def _score(walks, measured, predictors, interpolation_methods, prediction_input,
         if distributions and name in distributions:
             scores[name].update(distribution_scores(
                 distributions[name], filled[prediction_input], walks.start, end, truth,
-                online=online if name in priors else None, prior=priors.get(name)))
+                online=online.get(name) if name in priors else None,
+                prior=priors.get(name)))
     return scores, predictions
 
 
@@ -229,25 +231,31 @@ def walk_lines(metrics: dict, names: list[str]) -> list[str]:
             for name in names for m in [metrics[name]]]
 
 
-def score_walks(walks: SceneWalks, measured: np.ndarray, *, ev, bench, calibration, dt: float,
-                lstm, direct, records: dict, val_scores, seed: int, train_seed: int):
+def score_walks(walks: SceneWalks, measured: np.ndarray, *, ev, bench, dt: float,
+                lstm, direct, records: dict, val_scores, online_settings: Mapping[str, Mapping],
+                seed: int, train_seed: int):
     """The walks stage's scoring, ``(metrics, extra, scores, names, fills)``: the paper's
     methods (``ev.prediction_methods``), the direct LSTM ``direct`` (continued at its last
     step's velocity past its horizon) and each member of the LSTM's ensemble score the walks
     (:func:`score_scene_walks`) with the calibration stage's distributions (``records``,
-    ``val_scores``) and the online ellipses; then :func:`walk_statistics`; ``extra`` also
-    names the online ellipses' setting (``online_setting``)."""
+    ``val_scores``) and the online ellipses of the setting it chose for each predictor
+    (``online_settings``, its online.json: {name: setting}); then :func:`walk_statistics`;
+    ``extra`` also names each predictor's online setting (``online_setting``)."""
     from blindspot.traj.baselines import kalman_baseline, prediction_methods
     from blindspot.traj.calibration import calibrated_distributions
     from blindspot.traj.direct import NAME as DIRECT
-    from blindspot.traj.online import online_ellipses
+    from blindspot.traj.online import online_from_setting
     from blindspot.traj.predictor import ConstantVelocityTail
 
     predictors = {**prediction_methods(ev, dt, lstm),
                   DIRECT: ConstantVelocityTail(direct, direct.cfg.horizon)}
     distributions, priors = calibrated_distributions(records, predictors, val_scores)
-    c = calibration
-    online = online_ellipses(c, COVERAGE_LEVELS)
+    if not isinstance(online_settings, Mapping):
+        raise TypeError(f"score_walks: online_settings: expected a mapping of predictor names "
+                        f"to settings (online.json), found {type(online_settings).__name__}")
+    online = {n: online_from_setting(online_settings[n], COVERAGE_LEVELS,
+                                     where=f"online_settings[{n!r}]")
+              for n in priors if n in online_settings}
     members = ({f"lstm_member{i}": lstm.member(i) for i in range(lstm.n_members)}
                if lstm.n_members > 1 else {})
     scores, _ = score_scene_walks(
@@ -260,5 +268,5 @@ def score_walks(walks: SceneWalks, measured: np.ndarray, *, ev, bench, calibrati
     metrics, extra, fills = walk_statistics(
         scores, names, members, ev.interpolation_methods, n_walks=len(walks),
         n_boot=bench.n_bootstrap, level=bench.ci_level, seed=seed, train_seed=train_seed)
-    extra["online_setting"] = online.setting
+    extra["online_setting"] = {n: o.setting for n, o in online.items()}
     return metrics, extra, scores, names, fills

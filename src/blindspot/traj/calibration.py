@@ -43,16 +43,11 @@ from blindspot.traj.distribution import (DistributionError, GaussianForecast, Sc
                                          mahalanobis_sq)
 from blindspot.traj.windows import interpolate_gaps
 
-__all__ = ["ETHUCY_FILE", "ETHUCY_NAMES", "CalibrationError", "path_pairs", "ErrorModelPredictor", "ScaledPredictor",
-           "calibrate", "calibration_scores", "online_scores", "forecast_scores", "to_record",
-           "from_record"]
+__all__ = ["CalibrationError", "path_pairs", "ErrorModelPredictor", "ScaledPredictor",
+           "calibrate", "calibration_scores", "forecast_scores", "to_record", "from_record",
+           "calibrated_distributions"]
 
 LEVELS = (0.5, 0.9, 0.95)
-# The ETH/UCY folds' calibration (same shape, written by the ethucy work): merged into
-# calibration.json when the calibration stage declares it as a dep.
-ETHUCY_FILE = "calibration_ethucy.json"
-# Its model names that are the scene predictors' under another name (ethucy's "cvm").
-ETHUCY_NAMES = {"cvm": "constant_velocity"}
 
 
 class CalibrationError(ValueError):
@@ -230,29 +225,6 @@ def forecast_scores(predictor, history: np.ndarray, future: np.ndarray) -> np.nd
     return mahalanobis_sq(predictor.predict_distribution(history, future.shape[1]), future)
 
 
-def online_scores(predictor, online, prior: np.ndarray,
-                  test: tuple[np.ndarray, ...]) -> dict[str, float | list[float]]:
-    """``{"online_coverage_50", ...}`` of a calibrated predictor's online ellipses
-    ``online`` ( :class:`~blindspot.traj.conformal.OnlineEllipses`, passed in
-    so that the stages reading a calibration do not import them; their ``setting`` is
-    recorded beside) on test pairs: ``prior`` (M, H) the
-    :func:`forecast_scores` of the validation pairs (the ellipses' prior), ``test`` =
-    (history, future, path, start) of
-    :func:`path_pairs` with ``with_index``. The paths are one stream, met one after another
-    as one radar meets walkers (path k's outcomes known before path k + 1 starts; a single walk
-    of a few seconds is too short to learn from its own outcomes); within a path a window is
-    predicted at its last history frame and each future point known at its own frame.
-    ``online_coverage_<p>_ci95``: the interval of a bootstrap over the paths."""
-    h, f, path, start = test
-    d2 = forecast_scores(predictor, h, f)
-    start = np.asarray(start, dtype=np.int64)
-    span = int(start.max(initial=0)) + h.shape[1] + f.shape[1] + 1  # frames of a path, and more
-    t_pred = np.asarray(path, dtype=np.int64) * span + start + h.shape[1] - 1
-    t_seen = t_pred[:, None] + 1 + np.arange(f.shape[1])
-    return {**online.coverage(d2, t_pred, t_seen, np.zeros(len(d2), np.int64), prior,
-                              clusters=np.asarray(path)), **online.setting}
-
-
 def to_record(p: ScaledPredictor) -> dict:
     """A calibrated predictor's fitted numbers as plain JSON (the point model is not stored)."""
     noise = p.base.noise if isinstance(p.base, (ErrorModelPredictor, ConstantVelocity)) else None
@@ -288,56 +260,6 @@ def from_record(record: dict, predictor, name: str) -> ScaledPredictor:
         raise CalibrationError(f"calibration record of {name!r}: missing or malformed field "
                                f"{e}") from None
     return ScaledPredictor(base, scale, options, name, mixture)
-
-
-# ----------------------------------------------------------------------------- the stage's steps
-def held_out_pairs(measured: np.ndarray, truth: np.ndarray, ids: dict, window: int,
-                   horizon: int, stride: int) -> dict:
-    """{"val": (history, future), "test": (history, future, index)}: :func:`path_pairs` of the
-    validation paths and of the held-out ones (``ids``: path ids by split)."""
-    return {split: path_pairs(measured[ids[split]], truth[ids[split]], window, horizon, stride,
-                              with_index=split == "test") for split in ("val", "test")}
-
-
-def calibrate_on_paths(predictors: dict, pairs: dict, online, *, scale_method: str,
-                       scale_level: float, cv_fit_points: int, n_test_paths: int):
-    """(calibrated predictors, validation scores, metrics): each predictor calibrated on the
-    validation pairs (:func:`calibrate`), its scores there (where the online ellipses of
-    ``online`` start, here and in the walks), and its coverage / NLL on the held-out pairs
-    beside the online coverage: ``{name: {"sim_paths": {...}}}``."""
-    calibrated = calibrate(predictors, *pairs["val"], scale_method=scale_method,
-                           scale_level=scale_level, cv_fit_points=cv_fit_points)
-    prior = {n: forecast_scores(p, *pairs["val"]) for n, p in calibrated.items()}
-    metrics = {name: {"sim_paths": {**calibration_scores(p, *pairs["test"][:2]),
-                                    **online_scores(p, online, prior[name], pairs["test"]),
-                                    "n_paths": int(n_test_paths)}}
-               for name, p in calibrated.items()}
-    return calibrated, prior, metrics
-
-
-def merge_ethucy_folds(metrics: dict, paths) -> dict:
-    """``metrics`` with the ETH/UCY folds of every path ending in :data:`ETHUCY_FILE` merged in
-    (same shape; names mapped by :data:`ETHUCY_NAMES`)."""
-    import json
-    from pathlib import Path
-
-    for path in paths:
-        if str(path).endswith(ETHUCY_FILE):
-            for name, folds in json.loads(Path(path).read_text()).items():
-                metrics.setdefault(ETHUCY_NAMES.get(name, name), {}).update(folds)
-    return metrics
-
-
-def coverage_line(name: str, m: dict) -> str | None:
-    """One log line of a predictor's ``sim_paths`` scores (None without them)."""
-    s = m.get("sim_paths")
-    if not s:
-        return None
-    return (f"calibration {name}: coverage 50/90/95 {s['coverage_50']:.3f} / "
-            f"{s['coverage_90']:.3f} / {s['coverage_95']:.3f}, NLL {s['nll']:.3f} "
-            f"({s['n_points']} points of {s['n_paths']} held-out paths); online "
-            f"{s['online_coverage_50']:.3f} / {s['online_coverage_90']:.3f} / "
-            f"{s['online_coverage_95']:.3f}")
 
 
 def calibrated_distributions(records: dict, predictors: dict, val_scores) -> tuple[dict, dict]:

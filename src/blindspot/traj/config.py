@@ -25,7 +25,8 @@ INTERPOLATION_METHODS = ("forward", "kalman", "bidirectional")
 ONLINE_METHODS = ("scale_tracker", "aci_window")
 
 __all__ = [
-    "ACTIVATIONS", "DatasetConfig", "ETHUCY_MODELS", "EthUcyConfig", "EvalConfig", "KalmanConfig", "LSTMConfig", "OPTIMIZERS",
+    "ACTIVATIONS", "DatasetConfig", "ETHUCY_MODELS", "EthUcyConfig", "EvalConfig", "KalmanConfig",
+    "LSTMConfig", "OPTIMIZERS", "OnlineCandidatesConfig",
     "PREDICTION_METHODS", "PathSpec", "SCHEDULES", "SEQ2SEQ_CELLS", "SEQ2SEQ_FRAMES",
     "SEQ2SEQ_INPUTS", "SEQ2SEQ_KEEP_BY", "SEQ2SEQ_LOSSES", "SEQ2SEQ_OUTPUTS",
     "SEQ2SEQ_WTA_SCORES", "Seq2SeqConfig", "SplitConfig", "TARGETS",
@@ -404,7 +405,34 @@ class RolloutLSTMConfig(TypedConfig):
 
 
 @dataclass(frozen=True)
-class EthUcyConfig(TypedConfig):
+class OnlineCandidatesConfig(TypedConfig):
+    """The candidate settings of the online ellipses a config group chooses among, each met on
+    validation streams held out of the others' prior
+    (:func:`blindspot.traj.conformal.select_on_held_out_streams`,
+    :func:`blindspot.traj.online.online_candidates`): the ``ethucy`` group per fold and model,
+    the ``calibration`` group per scene predictor.
+
+    Attributes:
+        online_gammas / online_windows / online_rescales: every combination is a candidate of
+            the sliding-window ellipses (:class:`blindspot.traj.conformal.AdaptiveConformal`):
+            the ACI step size per prediction time (Gibbs & Candès 2021 use 0.005), in [0, 1);
+            the revealed scores kept per step; the own outcomes after which the prior scores
+            take the scene's scale (``rescale_prior_after``; 0 off).
+        online_etas / online_kappas: every combination is a candidate of the scale-tracking
+            ellipses (:class:`blindspot.traj.scale_tracker.ScaleTracker`): the tracker's step
+            in log radius per revealed outcome and the coverage correction's gain (empty
+            etas: none).
+    """
+
+    online_gammas: tuple[float, ...] = setting(ge=0.0, lt=1.0, min_items=1)
+    online_windows: tuple[int, ...] = setting(ge=1, min_items=1)
+    online_rescales: tuple[int, ...] = setting(ge=0, min_items=1)
+    online_etas: tuple[float, ...] = setting(gt=0.0, le=1.0)
+    online_kappas: tuple[float, ...] = setting(ge=0.0, le=100.0, min_items=1)
+
+
+@dataclass(frozen=True)
+class EthUcyConfig(OnlineCandidatesConfig):
     """The Hydra group ``ethucy`` (conf/ethucy/standard.yaml): the ETH/UCY benchmark.
 
     Attributes:
@@ -423,18 +451,8 @@ class EthUcyConfig(TypedConfig):
             :func:`blindspot.traj.distribution.fit_conditional_scale_mixture`).
         calibration_speed_edges: the observed-speed class edges of ``"conditional"``, m/s,
             increasing.
-        online_gammas / online_windows / online_rescales: the candidate settings (every
-            combination) of the adaptive conformal ellipses
-            (:class:`blindspot.traj.conformal.AdaptiveConformal`): the ACI step size per
-            prediction time (Gibbs & Candès 2021 use 0.005), in [0, 1); the revealed scores
-            kept per step; the own outcomes after which the prior scores take the scene's
-            scale (``rescale_prior_after``; 0 off).
-        online_etas / online_kappas: candidate settings of the scale-tracking ellipses
-            (:class:`blindspot.traj.scale_tracker.ScaleTracker`): the tracker's step in log
-            radius per revealed outcome and the coverage correction's gain (empty etas:
-            none). Each fold
-            and model chooses among all the candidates of both kinds on its own val scenes
-            (:func:`blindspot.traj.conformal.select_on_held_out_streams`).
+        online_*: the candidates of the online ellipses (:class:`OnlineCandidatesConfig`);
+            each fold and model chooses among them on its own val scenes.
         seq2seq: the direct predictor's model and training settings
             (:class:`blindspot.traj.seq2seq.Seq2SeqConfig`; its ``cell`` is set by the model
             key, its ``threads`` by ``threads``, its first seed by the top-level ``seed``).
@@ -453,11 +471,6 @@ class EthUcyConfig(TypedConfig):
     threads: int = setting(ge=1)
     calibration: str = setting(choices=("mle", "quantile", "mixture", "conditional"))
     calibration_speed_edges: tuple[float, ...] = setting(gt=0.0, ordered=True, min_items=1)
-    online_gammas: tuple[float, ...] = setting(ge=0.0, lt=1.0, min_items=1)
-    online_windows: tuple[int, ...] = setting(ge=1, min_items=1)
-    online_rescales: tuple[int, ...] = setting(ge=0, min_items=1)
-    online_etas: tuple[float, ...] = setting(gt=0.0, le=1.0)
-    online_kappas: tuple[float, ...] = setting(ge=0.0, le=100.0, min_items=1)
     seq2seq: Seq2SeqConfig = setting()
     lstm_rollout: RolloutLSTMConfig = setting()
     seeds: int = setting(1, ge=1)
@@ -554,17 +567,18 @@ class DirectConfig(TypedConfig):
 
 
 @dataclass(frozen=True)
-class CalibrationConfig(TypedConfig):
+class CalibrationConfig(OnlineCandidatesConfig):
     """The Hydra group ``calibration`` (``conf/calibration/sim_paths.yaml``).
 
     horizon_frames: future points per pair; stride: points between pair starts;
     scale_method / scale_level: :func:`fit_step_scale`'s method and level, or ``"mixture"``:
         a per-step scale mixture (:func:`blindspot.traj.distribution.fit_scale_mixture`,
         heavy-tailed errors; ``scale_level`` unused).
-    online_method: the online ellipses scored beside: ``"scale_tracker"``
-        (:class:`blindspot.traj.scale_tracker.ScaleTracker`, with ``online_eta`` /
-        ``online_kappa``) or ``"aci_window"`` (:class:`blindspot.traj.conformal.AdaptiveConformal`,
-        with ``online_gamma`` / ``online_window`` / ``online_rescale_after``).
+    online_*: the candidates of the online ellipses (:class:`OnlineCandidatesConfig`); each
+        predictor chooses among them on the validation paths, cut into ``online_val_streams``
+        streams of consecutive paths, each met as a new stream with the others' scores as its
+        prior (as the held-out paths are met, with all the validation scores as theirs).
+    online_val_streams: how many streams the validation paths are cut into, >= 2.
     """
 
     GROUP = "calibration"
@@ -573,9 +587,4 @@ class CalibrationConfig(TypedConfig):
     stride: int = setting(ge=1, le=1000)
     scale_method: str = setting(choices=("mle", "quantile", "mixture"))
     scale_level: float = setting(gt=0.0, lt=1.0)
-    online_method: str = setting(choices=ONLINE_METHODS)
-    online_gamma: float = setting(ge=0.0, lt=1.0)
-    online_window: int = setting(ge=1)
-    online_rescale_after: int = setting(ge=0)
-    online_eta: float = setting(gt=0.0, le=1.0)
-    online_kappa: float = setting(ge=0.0, le=100.0)
+    online_val_streams: int = setting(ge=2)

@@ -54,7 +54,6 @@ online ellipses (sliding-window conformal or scale tracking) of :func:`online_co
 
 from __future__ import annotations
 
-import itertools
 import time
 from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass, field, fields, replace
@@ -68,7 +67,6 @@ from blindspot.traj.baselines import ConstantVelocity, KalmanCV
 from blindspot.traj.config import ETHUCY_MODELS, EthUcyConfig, RolloutLSTMConfig, Seq2SeqConfig
 from blindspot.traj.conformal import (AdaptiveConformal, OnlineEllipses,
                                       select_on_held_out_streams)
-from blindspot.traj.scale_tracker import ScaleTracker
 from blindspot.traj.distribution import (
     ConditionalScaleMixture,
     GaussianForecast,
@@ -91,6 +89,7 @@ from blindspot.traj.ethucy import (
     random_rotations,
 )
 from blindspot.traj.metrics import ade, fde
+from blindspot.traj.online import online_candidates
 from blindspot.traj.predictor import (
     HeadingFrameRollout,
     MeanNextPoint,
@@ -197,13 +196,7 @@ class EthUcySettings:
                    seq2seq=replace(config.seq2seq, seed=int(seed), threads=config.threads),
                    calibration=config.calibration,
                    speed_edges=tuple(config.calibration_speed_edges),
-                   online=(*(AdaptiveConformal(CALIBRATION_LEVELS, g, w, k)
-                             for g, w, k in itertools.product(
-                                 config.online_gammas, config.online_windows,
-                                 config.online_rescales)),
-                           *(ScaleTracker(CALIBRATION_LEVELS, e, k)
-                             for e, k in itertools.product(config.online_etas,
-                                                           config.online_kappas))),
+                   online=online_candidates(config, CALIBRATION_LEVELS),
                    seeds=config.seeds, mix_cell=config.mix_cell, mix_modes=config.mix_modes)
 
 

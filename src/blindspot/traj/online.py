@@ -1,32 +1,70 @@
-"""The online ellipses a config names (``calibration.online_method``): scale tracking
-(:class:`blindspot.traj.scale_tracker.ScaleTracker`) or sliding-window ACI
-(:class:`blindspot.traj.conformal.AdaptiveConformal`), with the group's settings."""
+"""The online ellipses a config group chooses among: its candidate settings
+(:class:`blindspot.traj.config.OnlineCandidatesConfig`: sliding-window ACI,
+:class:`blindspot.traj.conformal.AdaptiveConformal`, and scale tracking,
+:class:`blindspot.traj.scale_tracker.ScaleTracker`), and a chosen setting rebuilt from what
+the metrics files record of it."""
 
 from __future__ import annotations
 
-from blindspot.traj.config import ONLINE_METHODS, CalibrationConfig
+import itertools
+from collections.abc import Mapping
+from typing import Any
+
+from blindspot.traj.config import ONLINE_METHODS, OnlineCandidatesConfig
 from blindspot.traj.conformal import AdaptiveConformal, ConformalError, OnlineEllipses
 from blindspot.traj.scale_tracker import ScaleTracker
 
-__all__ = ["online_ellipses"]
+__all__ = ["online_candidates", "online_from_setting"]
+
+# what each method's ``setting`` records, beside ``online_method``: the constructor's arguments
+_ARGUMENTS = {"aci_window": ("online_gamma", "online_window", "online_rescale_after"),
+              "scale_tracker": ("online_eta", "online_kappa", "online_prior_outcomes")}
 
 
-def online_ellipses(c: CalibrationConfig, levels: tuple[float, ...]) -> OnlineEllipses:
-    """The online ellipses of ``c.online_method`` at ``levels``: ``"scale_tracker"`` with
-    ``online_eta`` / ``online_kappa``, ``"aci_window"`` with ``online_gamma`` /
-    ``online_window`` / ``online_rescale_after``.
+def online_candidates(config: OnlineCandidatesConfig, levels: tuple[float, ...]
+                      ) -> tuple[OnlineEllipses, ...]:
+    """Every candidate of ``config`` at ``levels``: the sliding-window ellipses of each
+    (gamma, window, rescale) combination, then the scale trackers of each (eta, kappa), in the
+    config's order (a tie in the choice goes to the first).
 
     Raises:
-        ConformalError: ``c`` not a :class:`CalibrationConfig`, an unknown method, or the
-            settings' own errors.
+        ConformalError: ``config`` not an :class:`OnlineCandidatesConfig`, or the settings'
+            own errors.
     """
-    if not isinstance(c, CalibrationConfig):
-        raise ConformalError(f"online_ellipses: c: expected a CalibrationConfig, found "
-                             f"{type(c).__name__}")
-    if c.online_method == "scale_tracker":
-        return ScaleTracker(tuple(levels), c.online_eta, c.online_kappa)
-    if c.online_method == "aci_window":
-        return AdaptiveConformal(tuple(levels), c.online_gamma, c.online_window,
-                                 c.online_rescale_after)
-    raise ConformalError(f"calibration.online_method: expected one of {ONLINE_METHODS}, found "
-                         f"{c.online_method!r}")
+    if not isinstance(config, OnlineCandidatesConfig):
+        raise ConformalError(f"online_candidates: config: expected an OnlineCandidatesConfig "
+                             f"(the ethucy or calibration group), found {type(config).__name__}")
+    levels = tuple(levels)
+    return (*(AdaptiveConformal(levels, g, w, k) for g, w, k in itertools.product(
+                config.online_gammas, config.online_windows, config.online_rescales)),
+            *(ScaleTracker(levels, e, k) for e, k in itertools.product(
+                config.online_etas, config.online_kappas)))
+
+
+def online_from_setting(setting: Mapping[str, Any], levels: tuple[float, ...],
+                        where: str = "setting") -> OnlineEllipses:
+    """The online ellipses whose ``setting`` (:attr:`OnlineEllipses.setting`: ``online_method``
+    and its ``online_<argument>`` keys, as the calibration stage's online.json records each
+    predictor's choice) is ``setting``, at ``levels``.
+
+    Raises:
+        ConformalError: naming ``where``: not a mapping, an unknown method, a missing or
+            unknown key, or the setting's own errors.
+    """
+    if not isinstance(setting, Mapping):
+        raise ConformalError(f"{where}: expected a mapping with online_method, found "
+                             f"{type(setting).__name__}")
+    method = setting.get("online_method")
+    if method not in _ARGUMENTS:
+        raise ConformalError(f"{where}: online_method: expected one of {ONLINE_METHODS}, found "
+                             f"{method!r}")
+    keys = _ARGUMENTS[method]
+    if set(setting) != {"online_method", *keys}:
+        raise ConformalError(f"{where}: expected the keys {['online_method', *keys]} of "
+                             f"{method}, found {sorted(setting)}")
+    cls = AdaptiveConformal if method == "aci_window" else ScaleTracker
+    try:
+        return cls(tuple(levels), *(setting[k] for k in keys))
+    except ConformalError as e:
+        raise ConformalError(f"{where}: {e}") from None
+

@@ -1,0 +1,149 @@
+"""The calibration stage's steps on the simulated paths: the validation and held-out pairs,
+every scene predictor calibrated on the first (:mod:`blindspot.traj.calibration`) and scored on
+the second, beside the online ellipses each predictor chose among the config's candidates on
+validation streams (:func:`online_scores`), and the ETH/UCY folds' scores merged in.
+
+The online ellipses' choice is made as the ETH/UCY stage makes it per fold
+(:func:`blindspot.traj.conformal.select_on_held_out_streams`): each validation stream is met as
+a new scene whose prior is the other streams' scores. Here a stream is a run of consecutive
+validation paths (:func:`path_streams`), met one path after another as the held-out paths are
+(:func:`pair_times`)."""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from blindspot.traj.calibration import (CalibrationError, calibrate, calibration_scores,
+                                        forecast_scores, path_pairs)
+from blindspot.traj.conformal import select_on_held_out_streams
+
+__all__ = ["ETHUCY_FILE", "ETHUCY_NAMES", "held_out_pairs", "pair_times", "path_streams",
+           "online_scores", "calibrate_on_paths", "merge_ethucy_folds", "coverage_line"]
+
+# The ETH/UCY folds' calibration (same shape, written by the ethucy work): merged into
+# calibration.json when the calibration stage declares it as a dep.
+ETHUCY_FILE = "calibration_ethucy.json"
+# Its model names that are the scene predictors' under another name (ethucy's "cvm").
+ETHUCY_NAMES = {"cvm": "constant_velocity"}
+
+
+def held_out_pairs(measured: np.ndarray, truth: np.ndarray, ids: dict, window: int,
+                   horizon: int, stride: int) -> dict:
+    """{"val": ..., "test": ...}: :func:`path_pairs` (history, future, path, start; ``path`` the
+    row of ``measured``) of the validation paths and of the held-out ones (``ids``: path ids
+    by split)."""
+    return {split: path_pairs(measured[ids[split]], truth[ids[split]], window, horizon, stride,
+                              with_index=True) for split in ("val", "test")}
+
+
+def calibrate_on_paths(predictors: dict, pairs: dict, candidates, *, scale_method: str,
+                       scale_level: float, cv_fit_points: int, n_test_paths: int,
+                       val_streams: int):
+    """(calibrated predictors, validation scores, metrics, online settings): each predictor
+    calibrated on the validation pairs (:func:`calibrate`), its scores there (where the online
+    ellipses start, here and in the walks), its coverage / NLL on the held-out pairs beside
+    the online coverage of the setting it chose among ``candidates`` on ``val_streams``
+    validation streams (:func:`online_scores`): ``{name: {"sim_paths": {...}}}``, and each
+    predictor's chosen setting ``{name: setting}`` (the walks' online ellipses)."""
+    val, test = pairs["val"], pairs["test"]
+    calibrated = calibrate(predictors, *val[:2], scale_method=scale_method,
+                           scale_level=scale_level, cv_fit_points=cv_fit_points)
+    prior = {n: forecast_scores(p, *val[:2]) for n, p in calibrated.items()}
+    metrics, settings = {}, {}
+    for name, p in calibrated.items():
+        online, chosen = online_scores(candidates, val, prior[name], test,
+                                       forecast_scores(p, *test[:2]), val_streams)
+        metrics[name] = {"sim_paths": {**calibration_scores(p, *test[:2]), **online,
+                                       "n_paths": int(n_test_paths)}}
+        settings[name] = chosen.setting
+    return calibrated, prior, metrics, settings
+
+
+def pair_times(history: np.ndarray, future: np.ndarray, path: np.ndarray, start: np.ndarray
+               ) -> tuple[np.ndarray, np.ndarray]:
+    """``(t_predicted (N,), t_revealed (N, H))`` of :func:`path_pairs` met as one stream (their
+    ``path`` and ``start`` from ``with_index``), the paths one after another as one radar meets
+    walkers (path k's outcomes known before path k + 1 starts; a single walk of a few seconds
+    is too short to learn from its own outcomes): within a path a pair is predicted at its last
+    history frame and each future point known at its own frame."""
+    start = np.asarray(start, dtype=np.int64)
+    span = int(start.max(initial=0)) + history.shape[1] + future.shape[1] + 1  # a path's frames
+    t_pred = np.asarray(path, dtype=np.int64) * span + start + history.shape[1] - 1
+    return t_pred, t_pred[:, None] + 1 + np.arange(future.shape[1])
+
+
+def path_streams(path: np.ndarray, n_streams: int) -> np.ndarray:
+    """(N,) stream of each pair: the distinct ``path`` ids (N,) in order, cut into
+    ``n_streams`` runs of consecutive paths as equal as they come.
+
+    Raises:
+        CalibrationError: fewer distinct paths than streams, or ``n_streams`` < 2.
+    """
+    ids = np.unique(np.asarray(path))
+    if isinstance(n_streams, bool) or not isinstance(n_streams, (int, np.integer)) \
+            or not 2 <= n_streams <= ids.size:
+        raise CalibrationError(f"path_streams: n_streams (calibration.online_val_streams): "
+                               f"expected an integer in [2, {ids.size}] (the validation "
+                               f"paths), found {n_streams!r}")
+    runs = np.array_split(ids, n_streams)
+    return np.searchsorted(np.array([r[0] for r in runs]), path, side="right") - 1
+
+
+def online_scores(candidates: Sequence, val: tuple[np.ndarray, ...], val_scores: np.ndarray,
+                  test: tuple[np.ndarray, ...], test_scores: np.ndarray, n_streams: int
+                  ) -> tuple[dict[str, Any], Any]:
+    """``({"online_coverage_50", ...}, the online ellipses chosen)`` of one calibrated
+    predictor: the setting chosen among ``candidates``
+    (:class:`~blindspot.traj.conformal.OnlineEllipses`) on the validation pairs alone
+    (:func:`~blindspot.traj.conformal.select_on_held_out_streams`: the validation paths cut
+    into ``n_streams`` runs (:func:`path_streams`), each met as a new stream with the other
+    runs' scores as its prior; with one candidate, that one), then its coverage on the test
+    pairs met as one stream (:func:`pair_times`) with every validation score as the prior.
+
+    ``val`` / ``test`` are (history, future, path, start) of :func:`path_pairs` with
+    ``with_index``; ``val_scores`` / ``test_scores`` (N, H) the predictor's
+    :func:`forecast_scores` on them. Beside the coverage: ``online_coverage_<p>_ci95`` (a
+    bootstrap over the test paths), the chosen ``setting`` and, when there was a choice, its
+    mean distance from nominal on the validation streams (``online_val_distance``)."""
+    if not candidates:
+        raise CalibrationError("online_scores: candidates: expected at least one online "
+                               "ellipses setting, found none")
+    best, distance = 0, None
+    if len(candidates) > 1:
+        best, table = select_on_held_out_streams(candidates, val_scores, *pair_times(*val),
+                                                 path_streams(val[2], n_streams))
+        distance = table[best].distance_mean
+    chosen = candidates[best]
+    t_pred, t_seen = pair_times(*test)
+    out = {**chosen.coverage(test_scores, t_pred, t_seen, np.zeros(len(test_scores), np.int64),
+                             val_scores, clusters=np.asarray(test[2])), **chosen.setting}
+    if distance is not None:
+        out["online_val_distance"] = distance
+    return out, chosen
+
+
+def merge_ethucy_folds(metrics: dict, paths) -> dict:
+    """``metrics`` with the ETH/UCY folds of every path ending in :data:`ETHUCY_FILE` merged in
+    (same shape; names mapped by :data:`ETHUCY_NAMES`)."""
+    for path in paths:
+        if str(path).endswith(ETHUCY_FILE):
+            for name, folds in json.loads(Path(path).read_text()).items():
+                metrics.setdefault(ETHUCY_NAMES.get(name, name), {}).update(folds)
+    return metrics
+
+
+def coverage_line(name: str, m: dict) -> str | None:
+    """One log line of a predictor's ``sim_paths`` scores (None without them)."""
+    s = m.get("sim_paths")
+    if not s:
+        return None
+    return (f"calibration {name}: coverage 50/90/95 {s['coverage_50']:.3f} / "
+            f"{s['coverage_90']:.3f} / {s['coverage_95']:.3f}, NLL {s['nll']:.3f} "
+            f"({s['n_points']} points of {s['n_paths']} held-out paths); online "
+            f"{s['online_coverage_50']:.3f} / {s['online_coverage_90']:.3f} / "
+            f"{s['online_coverage_95']:.3f}")
