@@ -22,9 +22,12 @@ def test_the_calibration_stage_chooses_among_the_ethucy_folds_candidates(compose
     assert len(ours) == n_window + len(cal.online_etas) * len(cal.online_kappas)
     assert all(isinstance(c, AdaptiveConformal) for c in ours[:n_window])    # windows first:
     assert all(isinstance(c, ScaleTracker) for c in ours[n_window:])        # ties go to them
-    assert ours[0] == AdaptiveConformal(LEVELS, cal.online_gammas[0], cal.online_windows[0],
-                                        cal.online_rescales[0])
-    assert ours[-1] == ScaleTracker(LEVELS, cal.online_etas[-1], cal.online_kappas[-1])
+    # the order the ETH/UCY stage has always had: gamma slowest, then window, then rescale;
+    # eta, then kappa (a tie in the choice goes to the first, so the order is part of the result)
+    assert ours == (*(AdaptiveConformal(LEVELS, g, w, k) for g in cal.online_gammas
+                      for w in cal.online_windows for k in cal.online_rescales),
+                    *(ScaleTracker(LEVELS, e, k) for e in cal.online_etas
+                      for k in cal.online_kappas))
     with pytest.raises(ConformalError, match="expected an OnlineCandidatesConfig .*found dict"):
         online_candidates({"online_gammas": [0.005]}, LEVELS)
 
@@ -45,6 +48,8 @@ def test_a_recorded_setting_gives_back_the_same_ellipses(composed_config):
       "online_rescale_after": 3, "online_eta": 0.1}, "expected the keys .*found"),
     ({"online_method": "scale_tracker", "online_eta": 2.0, "online_kappa": 10.0,
       "online_prior_outcomes": 50}, "online.json: kalman: eta: expected a number in"),
+    ({"online_method": "aci_window", "online_gamma": "0.1", "online_window": 100,
+      "online_rescale_after": 3}, "online.json: kalman: online_gamma: expected a number, found '0.1'"),
 ])
 def test_a_malformed_setting_is_named(setting, message):
     with pytest.raises(ConformalError, match=message):

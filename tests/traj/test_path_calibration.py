@@ -9,7 +9,7 @@ import pytest
 from blindspot.traj.baselines import KalmanCV
 from blindspot.traj.calibration import (CalibrationError, calibrate, calibration_scores,
                                         forecast_scores, path_pairs)
-from blindspot.traj.conformal import AdaptiveConformal
+from blindspot.traj.conformal import AdaptiveConformal, select_on_held_out_streams
 from blindspot.traj.path_calibration import online_scores, pair_times, path_streams
 from blindspot.traj.scale_tracker import ScaleTracker
 
@@ -75,21 +75,45 @@ def test_online_scores_follow_a_scene_the_val_calibration_misjudges():
 
 def test_the_setting_is_chosen_on_the_validation_streams_alone():
     """A one-score window can say nothing at 90 % (its ellipse is unbounded), so the streams
-    refuse it wherever it is listed; the choice and its val distance are recorded, and the test
-    scores never enter it (the same choice whatever the test paths are)."""
+    refuse it wherever it is listed; the choice is the bounded candidate nearest nominal on the
+    streams (select_on_held_out_streams' table, whatever the order), its val distance is
+    recorded, and the test scores never enter it (the same choice whatever the test paths)."""
     val = noisy_pairs(0.05, seed=21, n=60)
     cal = kalman_on(val)
     d2_val = forecast_scores(cal, *val[:2])
     useless = AdaptiveConformal(LEVELS, 0.0, 1)
-    candidates = [useless, AdaptiveConformal(LEVELS, 0.005, 100), ScaleTracker(LEVELS, 0.02, 20)]
-    choices = []
-    for noise, seed in ((0.05, 22), (0.5, 23)):
-        test = noisy_pairs(noise, seed=seed, n=20)
-        online, chosen = online_scores(candidates, val, d2_val, test,
-                                       forecast_scores(cal, *test[:2]), 3)
-        assert chosen is not useless and online["online_method"] == chosen.setting["online_method"]
-        assert 0 <= online["online_val_distance"] < 0.1
-        choices.append(chosen)
-    assert choices[0] == choices[1]
-    with pytest.raises(CalibrationError, match="candidates: expected at least one"):
-        online_scores([], val, d2_val, val, d2_val, 3)
+    good = [AdaptiveConformal(LEVELS, 0.005, 100), ScaleTracker(LEVELS, 0.02, 20),
+            ScaleTracker(LEVELS, 0.05, 100)]
+    streams = path_streams(val[2], 3)
+    _, table = select_on_held_out_streams([useless, *good], d2_val, *pair_times(*val), streams)
+    assert table[0].unbounded > 0 and all(t.unbounded == 0 for t in table[1:])
+    nearest = 1 + int(np.argmin([t.distance_mean for t in table[1:]]))
+    expect = [useless, *good][nearest]
+    for order in ([useless, *good], [*good[::-1], useless], [good[1], useless, good[0], good[2]]):
+        for noise, seed in ((0.05, 22), (0.5, 23)):
+            test = noisy_pairs(noise, seed=seed, n=20)
+            online, chosen = online_scores(order, val, d2_val, test,
+                                           forecast_scores(cal, *test[:2]), 3)
+            assert chosen == expect and online["online_method"] == expect.setting["online_method"]
+            assert online["online_val_distance"] == table[nearest].distance_mean
+
+
+def test_bad_arguments_are_named():
+    val = noisy_pairs(0.05, seed=31, n=6)
+    d2 = np.ones((len(val[0]), 10))
+    one = [AdaptiveConformal(LEVELS)]
+    with pytest.raises(CalibrationError, match="candidates: expected a non-empty sequence"):
+        online_scores([], val, d2, val, d2, 3)
+    with pytest.raises(CalibrationError, match="val: expected \\(history, future, path, start\\)"
+                                               ".*found 2 items"):
+        online_scores(one, val[:2], d2, val, d2, 3)
+    n = len(val[0])
+    with pytest.raises(CalibrationError,
+                       match=f"test_scores: expected shape \\({n}, 10\\), found shape \\({n}, 5\\)"):
+        online_scores(one, val, d2, val, d2[:, :5], 3)
+    with pytest.raises(CalibrationError, match="calibration.online_val_streams.*\\[2, 6\\].*found 7"):
+        online_scores(one, val, d2, val, d2, 7)
+    with pytest.raises(CalibrationError, match=f"pair_times: pairs path: expected shape \\({n}\\)"):
+        pair_times(*val[:2], val[2][:-1], val[3])
+    with pytest.raises(CalibrationError, match="path_streams: path: expected"):
+        path_streams(np.zeros((2, 2), int), 2)

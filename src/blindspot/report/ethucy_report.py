@@ -13,8 +13,8 @@ import json
 from collections.abc import Mapping, Sequence
 from typing import Any
 
-from blindspot.report.paper_values import ETHUCY_PUBLISHED
 from blindspot.report.online_label import online_setting_label
+from blindspot.report.paper_values import ETHUCY_PUBLISHED
 
 #: how far from nominal a coverage may be and still count as calibrated (percentage points;
 #: issue 43's goal for the online ellipses)

@@ -253,9 +253,13 @@ def score_walks(walks: SceneWalks, measured: np.ndarray, *, ev, bench, dt: float
     if not isinstance(online_settings, Mapping):
         raise TypeError(f"score_walks: online_settings: expected a mapping of predictor names "
                         f"to settings (online.json), found {type(online_settings).__name__}")
+    missing = sorted(set(priors) - set(online_settings))
+    if missing:
+        raise ValueError(f"score_walks: online_settings (the calibration stage's online.json): "
+                         f"expected a setting for every calibrated predictor, found none for "
+                         f"{missing}")
     online = {n: online_from_setting(online_settings[n], COVERAGE_LEVELS,
-                                     where=f"online_settings[{n!r}]")
-              for n in priors if n in online_settings}
+                                     where=f"online_settings[{n!r}]") for n in priors}
     members = ({f"lstm_member{i}": lstm.member(i) for i in range(lstm.n_members)}
                if lstm.n_members > 1 else {})
     scores, _ = score_scene_walks(

@@ -21,8 +21,6 @@ from blindspot.typed_config import ConfigError, TypedConfig, setting
 # algorithms: the ETH/UCY leave-one-scene-out folds and the gap-filling methods.
 ETHUCY_FOLDS: tuple[str, ...] = ("eth", "hotel", "univ", "zara1", "zara2")
 INTERPOLATION_METHODS = ("forward", "kalman", "bidirectional")
-#: the online ellipses (blindspot.traj.scale_tracker, blindspot.traj.conformal)
-ONLINE_METHODS = ("scale_tracker", "aci_window")
 
 __all__ = [
     "ACTIVATIONS", "DatasetConfig", "ETHUCY_MODELS", "EthUcyConfig", "EvalConfig", "KalmanConfig",

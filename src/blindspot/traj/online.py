@@ -10,15 +10,17 @@ import itertools
 from collections.abc import Mapping
 from typing import Any
 
-from blindspot.traj.config import ONLINE_METHODS, OnlineCandidatesConfig
+from blindspot.traj.config import OnlineCandidatesConfig
 from blindspot.traj.conformal import AdaptiveConformal, ConformalError, OnlineEllipses
 from blindspot.traj.scale_tracker import ScaleTracker
 
-__all__ = ["online_candidates", "online_from_setting"]
+__all__ = ["ONLINE_METHODS", "online_candidates", "online_from_setting"]
 
 # what each method's ``setting`` records, beside ``online_method``: the constructor's arguments
 _ARGUMENTS = {"aci_window": ("online_gamma", "online_window", "online_rescale_after"),
               "scale_tracker": ("online_eta", "online_kappa", "online_prior_outcomes")}
+#: the kinds of online ellipses a recorded setting may name
+ONLINE_METHODS = tuple(_ARGUMENTS)
 
 
 def online_candidates(config: OnlineCandidatesConfig, levels: tuple[float, ...]
@@ -62,9 +64,12 @@ def online_from_setting(setting: Mapping[str, Any], levels: tuple[float, ...],
     if set(setting) != {"online_method", *keys}:
         raise ConformalError(f"{where}: expected the keys {['online_method', *keys]} of "
                              f"{method}, found {sorted(setting)}")
+    for k in keys:
+        v = setting[k]
+        if isinstance(v, bool) or not isinstance(v, (int, float)):
+            raise ConformalError(f"{where}: {k}: expected a number, found {v!r}")
     cls = AdaptiveConformal if method == "aci_window" else ScaleTracker
     try:
         return cls(tuple(levels), *(setting[k] for k in keys))
     except ConformalError as e:
         raise ConformalError(f"{where}: {e}") from None
-

@@ -18,6 +18,7 @@ from typing import Any
 
 import numpy as np
 
+from blindspot.arrays import check_array
 from blindspot.traj.calibration import (CalibrationError, calibrate, calibration_scores,
                                         forecast_scores, path_pairs)
 from blindspot.traj.conformal import select_on_held_out_streams
@@ -35,8 +36,8 @@ ETHUCY_NAMES = {"cvm": "constant_velocity"}
 def held_out_pairs(measured: np.ndarray, truth: np.ndarray, ids: dict, window: int,
                    horizon: int, stride: int) -> dict:
     """{"val": ..., "test": ...}: :func:`path_pairs` (history, future, path, start; ``path`` the
-    row of ``measured``) of the validation paths and of the held-out ones (``ids``: path ids
-    by split)."""
+    row of ``measured[ids[split]]``, an index within the split) of the validation paths and of
+    the held-out ones (``ids``: path ids by split)."""
     return {split: path_pairs(measured[ids[split]], truth[ids[split]], window, horizon, stride,
                               with_index=True) for split in ("val", "test")}
 
@@ -50,7 +51,14 @@ def calibrate_on_paths(predictors: dict, pairs: dict, candidates, *, scale_metho
     the online coverage of the setting it chose among ``candidates`` on ``val_streams``
     validation streams (:func:`online_scores`): ``{name: {"sim_paths": {...}}}``, and each
     predictor's chosen setting ``{name: setting}`` (the walks' online ellipses)."""
-    val, test = pairs["val"], pairs["test"]
+    who = "calibrate_on_paths"
+    if not isinstance(pairs, dict) or not {"val", "test"} <= set(pairs):
+        found = sorted(pairs) if isinstance(pairs, dict) else type(pairs).__name__
+        raise CalibrationError(f"{who}: pairs: expected held_out_pairs' keys 'val' and 'test', "
+                               f"found {found}")
+    val, test = (_indexed_pairs(pairs[k], f"pairs[{k!r}]", who) for k in ("val", "test"))
+    _check_candidates(candidates, who)
+    path_streams(val[2], val_streams)   # a bad stream count is named before minutes of work
     calibrated = calibrate(predictors, *val[:2], scale_method=scale_method,
                            scale_level=scale_level, cv_fit_points=cv_fit_points)
     prior = {n: forecast_scores(p, *val[:2]) for n, p in calibrated.items()}
@@ -71,10 +79,10 @@ def pair_times(history: np.ndarray, future: np.ndarray, path: np.ndarray, start:
     walkers (path k's outcomes known before path k + 1 starts; a single walk of a few seconds
     is too short to learn from its own outcomes): within a path a pair is predicted at its last
     history frame and each future point known at its own frame."""
-    start = np.asarray(start, dtype=np.int64)
-    span = int(start.max(initial=0)) + history.shape[1] + future.shape[1] + 1  # a path's frames
-    t_pred = np.asarray(path, dtype=np.int64) * span + start + history.shape[1] - 1
-    return t_pred, t_pred[:, None] + 1 + np.arange(future.shape[1])
+    h, f, path, start = _indexed_pairs((history, future, path, start), "pairs", "pair_times")
+    span = int(start.max(initial=0)) + h.shape[1] + f.shape[1] + 1   # a path's frames, and more
+    t_pred = path * span + start + h.shape[1] - 1
+    return t_pred, t_pred[:, None] + 1 + np.arange(f.shape[1])
 
 
 def path_streams(path: np.ndarray, n_streams: int) -> np.ndarray:
@@ -84,12 +92,13 @@ def path_streams(path: np.ndarray, n_streams: int) -> np.ndarray:
     Raises:
         CalibrationError: fewer distinct paths than streams, or ``n_streams`` < 2.
     """
-    ids = np.unique(np.asarray(path))
+    path = check_array(path, "path", ("N",), error=CalibrationError, who="path_streams", dtype=int)
+    ids = np.unique(path)
     if isinstance(n_streams, bool) or not isinstance(n_streams, (int, np.integer)) \
             or not 2 <= n_streams <= ids.size:
         raise CalibrationError(f"path_streams: n_streams (calibration.online_val_streams): "
-                               f"expected an integer in [2, {ids.size}] (the validation "
-                               f"paths), found {n_streams!r}")
+                               f"expected an integer in [2, {ids.size}] (the distinct paths; "
+                               f"at least 2 are needed), found {n_streams!r}")
     runs = np.array_split(ids, n_streams)
     return np.searchsorted(np.array([r[0] for r in runs]), path, side="right") - 1
 
@@ -104,19 +113,27 @@ def online_scores(candidates: Sequence, val: tuple[np.ndarray, ...], val_scores:
     into ``n_streams`` runs (:func:`path_streams`), each met as a new stream with the other
     runs' scores as its prior; with one candidate, that one), then its coverage on the test
     pairs met as one stream (:func:`pair_times`) with every validation score as the prior.
+    The predictor was calibrated on all the validation paths, the held-out run's included, so
+    the validation distances are somewhat optimistic for every predictor (as constant
+    velocity's are on the ETH/UCY folds).
 
     ``val`` / ``test`` are (history, future, path, start) of :func:`path_pairs` with
     ``with_index``; ``val_scores`` / ``test_scores`` (N, H) the predictor's
     :func:`forecast_scores` on them. Beside the coverage: ``online_coverage_<p>_ci95`` (a
     bootstrap over the test paths), the chosen ``setting`` and, when there was a choice, its
     mean distance from nominal on the validation streams (``online_val_distance``)."""
-    if not candidates:
-        raise CalibrationError("online_scores: candidates: expected at least one online "
-                               "ellipses setting, found none")
+    who = "online_scores"
+    val, test = _indexed_pairs(val, "val", who), _indexed_pairs(test, "test", who)
+    _check_candidates(candidates, who)
+    for name, scores, pairs in (("val_scores", val_scores, val), ("test_scores", test_scores,
+                                                                   test)):
+        check_array(scores, name, (len(pairs[0]), pairs[1].shape[1]), error=CalibrationError,
+                    who=who, allow_nan=True)
+    streams = path_streams(val[2], n_streams)
     best, distance = 0, None
     if len(candidates) > 1:
         best, table = select_on_held_out_streams(candidates, val_scores, *pair_times(*val),
-                                                 path_streams(val[2], n_streams))
+                                                 streams)
         distance = table[best].distance_mean
     chosen = candidates[best]
     t_pred, t_seen = pair_times(*test)
@@ -147,3 +164,26 @@ def coverage_line(name: str, m: dict) -> str | None:
             f"({s['n_points']} points of {s['n_paths']} held-out paths); online "
             f"{s['online_coverage_50']:.3f} / {s['online_coverage_90']:.3f} / "
             f"{s['online_coverage_95']:.3f}")
+
+
+def _indexed_pairs(pairs, name: str, who: str) -> tuple[np.ndarray, ...]:
+    """(history (N, W, 2), future (N, H, 2), path (N,) int, start (N,) int): :func:`path_pairs`
+    with ``with_index``, checked."""
+    if not isinstance(pairs, (tuple, list)) or len(pairs) != 4:
+        found = (f"{len(pairs)} items" if isinstance(pairs, (tuple, list))
+                 else type(pairs).__name__)
+        raise CalibrationError(f"{who}: {name}: expected (history, future, path, start) of "
+                               f"path_pairs(..., with_index=True), found {found}")
+    h = check_array(pairs[0], f"{name} history", ("N", "W", 2), error=CalibrationError, who=who)
+    f = check_array(pairs[1], f"{name} future", (h.shape[0], "H", 2), error=CalibrationError,
+                    who=who, allow_nan=True)
+    path, start = (check_array(a, f"{name} {what}", (h.shape[0],), error=CalibrationError,
+                               who=who, dtype=int) for a, what in ((pairs[2], "path"),
+                                                                    (pairs[3], "start")))
+    return h, f, path, start
+
+
+def _check_candidates(candidates, who: str) -> None:
+    if not isinstance(candidates, Sequence) or not candidates:
+        raise CalibrationError(f"{who}: candidates: expected a non-empty sequence of online "
+                               f"ellipses settings, found {candidates!r}")
