@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from blindspot.synth.walk_scores import _online_shares
+from blindspot.synth.walk_scores import _check_online, _online_shares
 from blindspot.traj.conformal import AdaptiveConformal
 
 LEVELS = (0.5, 0.9, 0.95)
@@ -47,3 +47,21 @@ def test_points_are_ranked_by_forecast_step_not_by_point_index():
     out = _online_shares(AdaptiveConformal(LEVELS, 0.0, 300), prior, d2[:2],
                          np.array([2, steps]))
     assert np.isfinite(out["online_coverage_90"][0]) and np.isnan(out["online_coverage_90"][1])
+
+
+def test_each_calibrated_predictor_gets_its_own_recorded_setting():
+    from blindspot.synth.walk_scores import online_by_predictor
+    from blindspot.traj.scale_tracker import ScaleTracker
+
+    window, tracker = AdaptiveConformal(LEVELS, 0.005, 100, 3), ScaleTracker(LEVELS, 0.05, 100.0)
+    priors = {"kalman": np.ones((3, 4)), "lstm": np.ones((3, 4))}
+    got = online_by_predictor({"kalman": window.setting, "lstm": tracker.setting,
+                               "not_calibrated": window.setting}, priors)
+    assert got == {"kalman": window, "lstm": tracker}
+    with pytest.raises(ValueError, match="expected a setting for every calibrated predictor, "
+                                         "found none for \\['lstm'\\]"):
+        online_by_predictor({"kalman": window.setting}, priors)
+    with pytest.raises(TypeError, match="settings: expected a mapping .*found list"):
+        online_by_predictor([window.setting], priors)
+    with pytest.raises(TypeError, match="score_scene_walks: online: expected a mapping"):
+        _check_online(window, priors, "score_scene_walks")     # one setting for all: refused

@@ -45,6 +45,10 @@ def test_a_path_is_revealed_before_the_next_is_predicted():
     for k in range(2):
         assert t_seen[path == k].max() < t_pred[path == k + 1].min()
     np.testing.assert_array_equal(t_seen, t_pred[:, None] + 1 + np.arange(f.shape[1]))
+    # pairs start every 5 frames within a path: the next pair is predicted once the first 5 of
+    # this pair's 10 future points are known, and not one more
+    for i in np.flatnonzero(path[1:] == path[:-1]):
+        assert (t_seen[i] <= t_pred[i + 1]).sum() == 5
     assert np.all(np.diff(t_pred) > 0)                      # pairs in order within a path
 
 
@@ -115,5 +119,9 @@ def test_bad_arguments_are_named():
         online_scores(one, val, d2, val, d2, 7)
     with pytest.raises(CalibrationError, match=f"pair_times: pairs path: expected shape \\({n}\\)"):
         pair_times(*val[:2], val[2][:-1], val[3])
+    with pytest.raises(CalibrationError, match="pairs start: expected indices >= 0, found -1"):
+        pair_times(*val[:3], val[3] - val[3].min() - 1)
+    with pytest.raises(CalibrationError, match="candidates: expected a non-empty sequence"):
+        online_scores(["aci"], val, d2, val, d2, 3)
     with pytest.raises(CalibrationError, match="path_streams: path: expected"):
         path_streams(np.zeros((2, 2), int), 2)

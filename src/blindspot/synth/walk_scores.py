@@ -22,7 +22,7 @@ from blindspot.traj.bootstrap import hidden_gap_error, prediction_scores
 from blindspot.traj.forecast import forecast_distributions, forecast_tracks
 from blindspot.traj.interpolation import fill_gaps
 
-__all__ = ["COVERAGE_LEVELS", "score_scene_walks", "future_truth"]
+__all__ = ["COVERAGE_LEVELS", "score_scene_walks", "future_truth", "online_by_predictor"]
 
 COVERAGE_LEVELS = (0.5, 0.9, 0.95)
 
@@ -70,6 +70,8 @@ def score_scene_walks(walks: SceneWalks, measured: np.ndarray, *,
     """
     import torch
 
+    if online is not None:
+        _check_online(online, priors or {}, "score_scene_walks")
     previous = torch.get_num_threads()
     torch.set_num_threads(int(threads))
     try:
@@ -244,22 +246,12 @@ def score_walks(walks: SceneWalks, measured: np.ndarray, *, ev, bench, dt: float
     from blindspot.traj.baselines import kalman_baseline, prediction_methods
     from blindspot.traj.calibration import calibrated_distributions
     from blindspot.traj.direct import NAME as DIRECT
-    from blindspot.traj.online import online_from_setting
     from blindspot.traj.predictor import ConstantVelocityTail
 
     predictors = {**prediction_methods(ev, dt, lstm),
                   DIRECT: ConstantVelocityTail(direct, direct.cfg.horizon)}
     distributions, priors = calibrated_distributions(records, predictors, val_scores)
-    if not isinstance(online_settings, Mapping):
-        raise TypeError(f"score_walks: online_settings: expected a mapping of predictor names "
-                        f"to settings (online.json), found {type(online_settings).__name__}")
-    missing = sorted(set(priors) - set(online_settings))
-    if missing:
-        raise ValueError(f"score_walks: online_settings (the calibration stage's online.json): "
-                         f"expected a setting for every calibrated predictor, found none for "
-                         f"{missing}")
-    online = {n: online_from_setting(online_settings[n], COVERAGE_LEVELS,
-                                     where=f"online_settings[{n!r}]") for n in priors}
+    online = online_by_predictor(online_settings, priors)
     members = ({f"lstm_member{i}": lstm.member(i) for i in range(lstm.n_members)}
                if lstm.n_members > 1 else {})
     scores, _ = score_scene_walks(
@@ -274,3 +266,36 @@ def score_walks(walks: SceneWalks, measured: np.ndarray, *, ev, bench, dt: float
         n_boot=bench.n_bootstrap, level=bench.ci_level, seed=seed, train_seed=train_seed)
     extra["online_setting"] = {n: o.setting for n, o in online.items()}
     return metrics, extra, scores, names, fills
+
+
+def online_by_predictor(settings: Mapping[str, Mapping], priors: Mapping[str, np.ndarray]
+                        ) -> dict[str, object]:
+    """{name: online ellipses at :data:`COVERAGE_LEVELS`} of every predictor with a prior
+    (``priors``: the calibration stage's val_scores.npz), rebuilt from ``settings`` (its
+    online.json: {name: setting}, :func:`blindspot.traj.online.online_from_setting`).
+
+    Raises:
+        TypeError: ``settings`` not a mapping. ValueError: no setting for a predictor with a
+            prior (its online columns would silently go missing). ConformalError: a malformed
+            setting, named.
+    """
+    from blindspot.traj.online import online_from_setting
+
+    if not isinstance(settings, Mapping):
+        raise TypeError(f"online_by_predictor: settings: expected a mapping of predictor names "
+                        f"to settings (online.json), found {type(settings).__name__}")
+    online = {n: online_from_setting(settings[n], COVERAGE_LEVELS, where=f"online.json: {n}")
+              for n in priors if n in settings}
+    _check_online(online, priors, "online_by_predictor")
+    return online
+
+
+def _check_online(online, priors: Mapping[str, np.ndarray], who: str) -> None:
+    """ValueError unless ``online`` maps every name of ``priors`` to online ellipses."""
+    if not isinstance(online, Mapping):
+        raise TypeError(f"{who}: online: expected a mapping of predictor names to online "
+                        f"ellipses, found {type(online).__name__}")
+    missing = sorted(set(priors) - set(online))
+    if missing:
+        raise ValueError(f"{who}: online (the calibration stage's online.json): expected a "
+                         f"setting for every calibrated predictor, found none for {missing}")

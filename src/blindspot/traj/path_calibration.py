@@ -21,7 +21,7 @@ import numpy as np
 from blindspot.arrays import check_array
 from blindspot.traj.calibration import (CalibrationError, calibrate, calibration_scores,
                                         forecast_scores, path_pairs)
-from blindspot.traj.conformal import select_on_held_out_streams
+from blindspot.traj.conformal import OnlineEllipses, select_on_held_out_streams
 
 __all__ = ["ETHUCY_FILE", "ETHUCY_NAMES", "held_out_pairs", "pair_times", "path_streams",
            "online_scores", "calibrate_on_paths", "merge_ethucy_folds", "coverage_line"]
@@ -180,10 +180,15 @@ def _indexed_pairs(pairs, name: str, who: str) -> tuple[np.ndarray, ...]:
     path, start = (check_array(a, f"{name} {what}", (h.shape[0],), error=CalibrationError,
                                who=who, dtype=int) for a, what in ((pairs[2], "path"),
                                                                     (pairs[3], "start")))
+    for a, what in ((path, "path"), (start, "start")):
+        if a.size and a.min() < 0:
+            raise CalibrationError(f"{who}: {name} {what}: expected indices >= 0, found "
+                                   f"{int(a.min())}")
     return h, f, path, start
 
 
 def _check_candidates(candidates, who: str) -> None:
-    if not isinstance(candidates, Sequence) or not candidates:
+    if (not isinstance(candidates, Sequence) or isinstance(candidates, str) or not candidates
+            or not all(isinstance(c, OnlineEllipses) for c in candidates)):
         raise CalibrationError(f"{who}: candidates: expected a non-empty sequence of online "
-                               f"ellipses settings, found {candidates!r}")
+                               f"ellipses (OnlineEllipses), found {candidates!r}")
