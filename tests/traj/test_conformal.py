@@ -262,6 +262,42 @@ def test_the_choice_on_held_out_streams_prefers_what_a_new_scene_needs():
         select_on_held_out_streams([plain, AdaptiveConformal((0.5,))], s, tp, tr, scene)
 
 
+def test_the_held_out_choice_is_scored_on_the_test_streams_with_every_val_score_as_prior():
+    """held_out_choice_coverage (the ETH/UCY folds' and the simulated paths' one path): the
+    choice is select_on_held_out_streams', the report the chosen ellipses' coverage of the
+    test stream from all the val scores, with their setting and val distance; one candidate
+    or one val stream means no choice (and no distance)."""
+    from blindspot.traj.conformal import held_out_choice_coverage, select_on_held_out_streams
+
+    parts = [stream(400, seed=41), stream(400, seed=42),
+             stream(120, seed=43, scale=np.full(120, 8.0))]
+    val = tuple(np.concatenate([p[k] for p in parts]) for k in range(3)) + (
+        np.repeat([0, 1, 2], [400, 400, 120]),)
+    s_test, tp_test, tr_test = stream(150, seed=44, scale=np.full(150, 6.0))
+    test = (s_test, tp_test, tr_test, np.zeros(150, int))
+    clusters = np.arange(150) // 10
+    cands = [AdaptiveConformal(LEVELS, 0.005, 100), AdaptiveConformal(LEVELS, 0.005, 100, 3)]
+    report, chosen = held_out_choice_coverage(cands, val, test, clusters=clusters)
+    best, table = select_on_held_out_streams(cands, *val)
+    assert chosen is cands[best] and best == 1
+    assert report == {**chosen.coverage(*test, val[0], clusters=clusters), **chosen.setting,
+                      "online_val_distance": table[best].distance_mean}
+    assert abs(report["online_coverage_90"] - 0.9) < \
+        abs(cands[0].coverage(*test, val[0])["online_coverage_90"] - 0.9)
+    alone, first = held_out_choice_coverage(cands[1:], val, test)
+    assert first is cands[1] and "online_val_distance" not in alone
+    assert "online_coverage_50_ci95" not in alone
+    one_stream = val[:3] + (np.zeros(len(val[0]), int),)
+    assert held_out_choice_coverage(cands, one_stream, test)[1] is cands[0]
+    for bad, match in (((), "candidates"), ("aci", "candidates"), ([0.5], "candidates")):
+        with pytest.raises(ConformalError, match=match):
+            held_out_choice_coverage(bad, val, test)
+    with pytest.raises(ConformalError, match="val: expected"):
+        held_out_choice_coverage(cands, val[:3], test)
+    with pytest.raises(ConformalError, match="test: expected"):
+        held_out_choice_coverage(cands, val, list(test))
+
+
 def test_nan_steps_neither_count_nor_move_a_level():
     s, tp, tr = stream(500, seed=8)
     prior, _, _ = stream(100, seed=9)

@@ -71,7 +71,8 @@ from blindspot.arrays import check_array
 
 __all__ = ["AdaptiveConformal", "ConformalError", "HeldOutStreamScore", "OnlineEllipses",
            "check_stream_inputs", "cluster_bootstrap_coverage", "ellipse_hits",
-           "rank_held_out", "select_on_held_out_streams", "stream_coverage"]
+           "held_out_choice_coverage", "rank_held_out", "select_on_held_out_streams",
+           "stream_coverage"]
 
 #: prefix of the adaptive ellipses' coverage keys in the metrics files
 #: (``online_coverage_50`` beside the val calibration's ``coverage_50``)
@@ -429,6 +430,47 @@ def select_on_held_out_streams(candidates: Sequence[OnlineEllipses], scores: np.
         table.append(HeldOutStreamScore.of([np.abs(hits - levels) for hits, _ in per_stream],
                                            [unb for _, unb in per_stream]))
     return rank_held_out(table)[0], table
+
+
+def held_out_choice_coverage(candidates: Sequence[OnlineEllipses],
+                             val: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
+                             test: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
+                             clusters: np.ndarray | None = None
+                             ) -> tuple[dict[str, float | int | str | list[float]], OnlineEllipses]:
+    """``(report, the online ellipses chosen)``: the setting chosen among ``candidates`` on the
+    validation streams alone (:func:`select_on_held_out_streams`; the first candidate when
+    there is one candidate or one validation stream), then scored on the test streams with
+    every validation score as their prior (:meth:`OnlineEllipses.coverage`, the cluster
+    bootstrap over ``clusters``). What the ETH/UCY folds and the simulated paths share.
+
+    ``val`` and ``test`` are ``(scores (N, H), t_predicted (N,), t_revealed (N, H), stream
+    (N,))``, as :meth:`OnlineEllipses.radii` takes them. The report is the coverage's keys,
+    the chosen ``setting`` and, when there was a choice, ``online_val_distance``: its mean
+    distance from nominal over the validation streams and levels.
+
+    Raises:
+        ConformalError: ``candidates`` not a non-empty sequence of :class:`OnlineEllipses`,
+            ``val`` / ``test`` not 4-tuples, or the errors of the functions above.
+    """
+    who = "held_out_choice_coverage"
+    if isinstance(candidates, (str, bytes)) or not isinstance(candidates, Sequence) \
+            or not candidates or not all(isinstance(c, OnlineEllipses) for c in candidates):
+        raise ConformalError(f"{who}: candidates: expected a non-empty sequence of online "
+                             f"ellipses (AdaptiveConformal, ScaleTracker), found {candidates!r}")
+    for name, part in (("val", val), ("test", test)):
+        if not isinstance(part, tuple) or len(part) != 4:
+            raise ConformalError(f"{who}: {name}: expected (scores, t_predicted, t_revealed, "
+                                 f"stream), found {type(part).__name__} of "
+                                 f"{len(part) if isinstance(part, tuple) else '?'} items")
+    best, distance = 0, None
+    if len(candidates) > 1 and np.unique(np.asarray(val[3])).size > 1:
+        best, table = select_on_held_out_streams(candidates, *val)
+        distance = table[best].distance_mean
+    chosen = candidates[best]
+    out = {**chosen.coverage(*test, val[0], clusters=clusters), **chosen.setting}
+    if distance is not None:
+        out["online_val_distance"] = distance
+    return out, chosen
 
 
 def ellipse_hits(scores: np.ndarray, radii: np.ndarray) -> np.ndarray:

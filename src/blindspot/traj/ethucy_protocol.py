@@ -66,7 +66,7 @@ import numpy as np
 from blindspot.traj.baselines import ConstantVelocity, KalmanCV
 from blindspot.traj.config import ETHUCY_MODELS, EthUcyConfig, RolloutLSTMConfig, Seq2SeqConfig
 from blindspot.traj.conformal import (AdaptiveConformal, OnlineEllipses,
-                                      select_on_held_out_streams)
+                                      held_out_choice_coverage)
 from blindspot.traj.distribution import (
     ConditionalScaleMixture,
     GaussianForecast,
@@ -315,7 +315,7 @@ def online_coverage(online: Sequence[OnlineEllipses], val_forecast: GaussianFore
     (:class:`~blindspot.traj.conformal.AdaptiveConformal`,
     :class:`~blindspot.traj.scale_tracker.ScaleTracker`) of a forecast, with the
     setting chosen among ``online`` on the val windows alone
-    (:func:`~blindspot.traj.conformal.select_on_held_out_streams`: each val scene met as a new
+    (:func:`~blindspot.traj.conformal.held_out_choice_coverage`: each val scene met as a new
     scene, the fold's other val scenes its prior; with one val scene, the first candidate).
     The val scores (d^2 of ``val_forecast``) are then the test scenes' prior. Each
     test scene file is a stream; each future point is known at its own frame
@@ -330,17 +330,10 @@ def online_coverage(online: Sequence[OnlineEllipses], val_forecast: GaussianFore
     looks at the scene it is scored on. Constant velocity's noise model is fitted on all the
     val scenes, the held-out one included, so its val distances are somewhat optimistic."""
     d2_val = mahalanobis_sq(val_forecast, val.future())
-    times_val = reveal_times(val.start)
-    best, table = 0, None
-    if len(online) > 1 and np.unique(val.file_index).size > 1:
-        best, table = select_on_held_out_streams(online, d2_val, *times_val, val.file_index)
-    chosen = online[best]
     d2 = mahalanobis_sq(test_forecast, test.future())
-    out: dict[str, Any] = chosen.coverage(d2, *reveal_times(test.start), test.file_index,
-                                          d2_val, clusters=test.track_id)
-    out.update(chosen.setting)
-    if table is not None:
-        out["online_val_distance"] = table[best].distance_mean
+    out, _ = held_out_choice_coverage(
+        online, (d2_val, *reveal_times(val.start), val.file_index),
+        (d2, *reveal_times(test.start), test.file_index), clusters=test.track_id)
     return out
 
 

@@ -21,7 +21,7 @@ import numpy as np
 from blindspot.arrays import check_array
 from blindspot.traj.calibration import (CalibrationError, calibrate, calibration_scores,
                                         forecast_scores, path_pairs)
-from blindspot.traj.conformal import OnlineEllipses, select_on_held_out_streams
+from blindspot.traj.conformal import OnlineEllipses, held_out_choice_coverage
 
 __all__ = ["ETHUCY_FILE", "ETHUCY_NAMES", "held_out_pairs", "pair_times", "path_streams",
            "online_scores", "calibrate_on_paths", "merge_ethucy_folds", "coverage_line"]
@@ -109,7 +109,7 @@ def online_scores(candidates: Sequence, val: tuple[np.ndarray, ...], val_scores:
     """``({"online_coverage_50", ...}, the online ellipses chosen)`` of one calibrated
     predictor: the setting chosen among ``candidates``
     (:class:`~blindspot.traj.conformal.OnlineEllipses`) on the validation pairs alone
-    (:func:`~blindspot.traj.conformal.select_on_held_out_streams`: the validation paths cut
+    (:func:`~blindspot.traj.conformal.held_out_choice_coverage`: the validation paths cut
     into ``n_streams`` runs (:func:`path_streams`), each met as a new stream with the other
     runs' scores as its prior; with one candidate, that one), then its coverage on the test
     pairs met as one stream (:func:`pair_times`) with every validation score as the prior.
@@ -129,19 +129,10 @@ def online_scores(candidates: Sequence, val: tuple[np.ndarray, ...], val_scores:
                                                                    test)):
         check_array(scores, name, (len(pairs[0]), pairs[1].shape[1]), error=CalibrationError,
                     who=who, allow_nan=True)
-    streams = path_streams(val[2], n_streams)
-    best, distance = 0, None
-    if len(candidates) > 1:
-        best, table = select_on_held_out_streams(candidates, val_scores, *pair_times(*val),
-                                                 streams)
-        distance = table[best].distance_mean
-    chosen = candidates[best]
-    t_pred, t_seen = pair_times(*test)
-    out = {**chosen.coverage(test_scores, t_pred, t_seen, np.zeros(len(test_scores), np.int64),
-                             val_scores, clusters=np.asarray(test[2])), **chosen.setting}
-    if distance is not None:
-        out["online_val_distance"] = distance
-    return out, chosen
+    return held_out_choice_coverage(
+        candidates, (val_scores, *pair_times(*val), path_streams(val[2], n_streams)),
+        (test_scores, *pair_times(*test), np.zeros(len(test_scores), np.int64)),
+        clusters=np.asarray(test[2]))
 
 
 def merge_ethucy_folds(metrics: dict, paths) -> dict:
