@@ -88,6 +88,13 @@ def test_calibrated_on_validation_covers_at_the_nominal_rate_on_test():
         s = calibration_scores(p, ht, ft)
         for level in (50, 90, 95):
             assert s[f"coverage_{level}"] == pytest.approx(level / 100, abs=0.04), (name, level)
+        # a forecast the caller made already gives the same scores; one of another shape is named
+        fc = p.predict_distribution(ht, ft.shape[1])
+        assert calibration_scores(p, ht, ft, forecast=fc) == s
+        with pytest.raises(CalibrationError, match=r"forecast: expected .* mean shape"):
+            calibration_scores(p, ht, ft[:, :5], forecast=fc)
+        with pytest.raises(CalibrationError, match="found ndarray"):
+            calibration_scores(p, ht, ft, forecast=fc.mean)
     # the Kalman filter's own covariance is right already: its scales stay near 1
     np.testing.assert_allclose(cal["kalman"].scale, 1.0, atol=0.25)
 

@@ -200,12 +200,23 @@ def calibrate(predictors: dict[str, Any], history: np.ndarray, future: np.ndarra
     return out
 
 
-def calibration_scores(predictor, history: np.ndarray, future: np.ndarray) -> dict[str, float]:
+def calibration_scores(predictor, history: np.ndarray, future: np.ndarray,
+                       forecast: GaussianForecast | None = None) -> dict[str, float]:
     """``coverage_50``, ``coverage_90``, ``coverage_95`` (share of true positions inside the
     ellipses) and ``nll`` (nats per point) of a predictor's forecast on (history, future); a
     mixture-calibrated :class:`ScaledPredictor` is scored by its mixture (ellipses and
-    likelihood)."""
-    fc = predictor.predict_distribution(history, future.shape[1])
+    likelihood). ``forecast``: that forecast when the caller has made it already (not made
+    again; its mean must have ``future``'s shape)."""
+    if forecast is None:
+        fc = predictor.predict_distribution(history, future.shape[1])
+    elif isinstance(forecast, GaussianForecast) and forecast.mean.shape == np.shape(future):
+        fc = forecast
+    else:
+        found = (f"a forecast of mean shape {forecast.mean.shape}"
+                 if isinstance(forecast, GaussianForecast) else type(forecast).__name__)
+        raise CalibrationError(f"calibration_scores: forecast: expected the predictor's "
+                               f"GaussianForecast of mean shape {np.shape(future)} (future's), "
+                               f"found {found}")
     mix = getattr(predictor, "mixture", None)
     if mix is not None:
         base = GaussianForecast(fc.mean, fc.cov / predictor.scale[None, :fc.horizon, None, None])

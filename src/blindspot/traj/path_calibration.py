@@ -22,6 +22,7 @@ from blindspot.arrays import check_array
 from blindspot.traj.calibration import (CalibrationError, calibrate, calibration_scores,
                                         forecast_scores, path_pairs)
 from blindspot.traj.conformal import OnlineEllipses, held_out_choice_coverage
+from blindspot.traj.distribution import mahalanobis_sq
 
 __all__ = ["ETHUCY_FILE", "ETHUCY_NAMES", "held_out_pairs", "pair_times", "path_streams",
            "online_scores", "calibrate_on_paths", "merge_ethucy_folds", "coverage_line"]
@@ -64,10 +65,11 @@ def calibrate_on_paths(predictors: dict, pairs: dict, candidates, *, scale_metho
     prior = {n: forecast_scores(p, *val[:2]) for n, p in calibrated.items()}
     metrics, settings = {}, {}
     for name, p in calibrated.items():
+        fc = p.predict_distribution(test[0], test[1].shape[1])    # one forecast, two scores
         online, chosen = online_scores(candidates, val, prior[name], test,
-                                       forecast_scores(p, *test[:2]), val_streams)
-        metrics[name] = {"sim_paths": {**calibration_scores(p, *test[:2]), **online,
-                                       "n_paths": int(n_test_paths)}}
+                                       mahalanobis_sq(fc, test[1]), val_streams)
+        metrics[name] = {"sim_paths": {**calibration_scores(p, *test[:2], forecast=fc),
+                                       **online, "n_paths": int(n_test_paths)}}
         settings[name] = chosen.setting
     return calibrated, prior, metrics, settings
 
