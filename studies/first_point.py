@@ -52,7 +52,7 @@ from omegaconf import OmegaConf
 from scipy.stats import chi2, norm
 
 from blindspot.track.config import TrackerConfig
-from blindspot.safety.evaluation import delay_stats, first_track_s, replicate_half
+from blindspot.safety.evaluation import delay_stats, first_track_times, replicate_half
 from blindspot.synth.driving_tracks import track_labels, tracker_input
 from blindspot.track.config import MovingConfig
 from blindspot.track.crossing import approach_z, crossing_evidence
@@ -215,8 +215,8 @@ def main(argv: list[str]) -> None:
                                               suffixes=("_p", ""))
           .groupby("scene").time_s.min().reindex(intr).to_numpy(float))
     speed = (lead.ego_speed_mps.reindex(intr) * 3.6).round().to_numpy()
-    born, conf, mov = (first_track_s(tracks, truth, intr, step=step)
-                       for step in ("born", "confirmed", "moving"))
+    first = first_track_times(tracks, truth, intr, steps=("born", "confirmed", "moving"))
+    born, conf, mov = first["born"], first["confirmed"], first["moving"]
     print(f"{len(keep)} scenes ({args.half}), {len(intr)} intruding; overrides {args.overrides}")
     for name, t in (("born", born), ("confirmed", conf), ("moving", mov)):
         s = delay_stats(t - fp, speed)

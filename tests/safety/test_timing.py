@@ -5,7 +5,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from blindspot.safety.evaluation import delay_stats, first_track_s
+from blindspot.safety.evaluation import TRACK_STEPS, delay_stats, first_track_s, first_track_times
 from blindspot.safety.oracle import true_state_tracks
 from blindspot.safety.predict import TrackState, track_state_forecast
 
@@ -26,6 +26,26 @@ def test_first_moving_row_near_the_lead_pedestrian():
     assert first_track_s(both, truth, scenes, step="confirmed")[0] == pytest.approx(0.1)
     # 0.15 m of radius: the track 0.2 m off the child never counts
     assert np.isnan(first_track_s(both, truth, scenes, radius_m=0.15)).all()
+
+
+def test_first_track_times_match_each_step_alone():
+    rng = np.random.default_rng(3)
+    n = 60
+    truth = pd.DataFrame({"scene": np.repeat(["a", "b", "c"], 20), "frame": np.tile(np.arange(20), 3),
+                          "pedestrian": "p0", "x_m": rng.normal(size=n), "y_m": rng.normal(size=n)})
+    tracks = truth.rename(columns={"scene": "group"}).drop(columns="pedestrian").assign(
+        time_s=lambda d: d.frame * 0.1, x_m=lambda d: d.x_m + rng.normal(0, 0.8, n),
+        confirmed=rng.random(n) < 0.5, moving=rng.random(n) < 0.5)
+    scenes = np.array(["c", "a", "b", "z"])
+    both = first_track_times(tracks, truth, scenes)
+    assert set(both) == set(TRACK_STEPS)
+    for step in TRACK_STEPS:
+        np.testing.assert_array_equal(both[step], first_track_s(tracks, truth, scenes, step=step))
+    assert np.isnan(both["moving"][3])                       # a scene without tracks
+    assert (both["born"][:3] <= both["confirmed"][:3]).all()
+    for bad in (("moving", "moving"), (), ["moving"], ("fast",)):
+        with pytest.raises(ValueError, match="steps: expected"):
+            first_track_times(tracks, truth, scenes, steps=bad)
 
 
 @pytest.mark.parametrize("kw, match", [({"step": "tentative"}, "step: expected one of"),

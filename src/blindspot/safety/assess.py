@@ -22,7 +22,7 @@ from blindspot.safety.config import WarningConfig
 from blindspot.safety.evaluation import (KMH, SceneInfo, aeb_gate_s,
                                          aeb_thresholds, avoided_at_false_activation,
                                          delay_stats,
-                                         first_track_s, ncap_grid, operating_curve,
+                                         first_track_times, ncap_grid, operating_curve,
                                          replicate_half, scene_frame_risk, scene_info,
                                          scene_results, summarise)
 from blindspot.safety.ncap import ncap_band, nominal_cell
@@ -249,8 +249,8 @@ def assess(truth: pd.DataFrame, scenes_meta: dict, tracks: dict[str, pd.DataFram
                           method=cfg.probability, max_len=max_len,
                           max_coast_s=cfg.max_coast_s)
         risks.append(risk.assign(input=inp))
-        t_confirmed = first_track_s(tr, truth, sa.scenes, step="confirmed")[ev]
-        t_moving = first_track_s(tr, truth, sa.scenes, step="moving")[ev]
+        first = first_track_times(tr, truth, sa.scenes, steps=("confirmed", "moving"))
+        t_confirmed, t_moving = first["confirmed"][ev], first["moving"][ev]
         fp = (info.first_seen_s if first_point_s is None
               else np.asarray(first_point_s, float)[ev])
         for name in use:                             # the four predictors

@@ -53,7 +53,8 @@ from blindspot.safety.ncap import ncap_band
 from blindspot.tables import check_columns
 from blindspot.track.moving import confirmed_moving
 
-__all__ = ["SceneInfo", "line_of_sight_onset", "TRACK_STEPS", "first_track_s", "delay_stats",
+__all__ = ["SceneInfo", "line_of_sight_onset", "TRACK_STEPS", "first_track_s",
+           "first_track_times", "delay_stats",
            "scene_info", "replicate_half", "aeb_gate_s", "scene_frame_risk",
            "trigger_frames", "scene_results",
            "summarise", "aeb_thresholds", "operating_curve", "avoided_at_false_activation", "ncap_grid", "wilson",
@@ -113,7 +114,8 @@ def first_track_s(tracks: pd.DataFrame, truth: pd.DataFrame, scenes: np.ndarray,
     and, with a ``moving`` column, moving; the decision's coasting limit does not apply: a
     first moving row is a measured one) lying within ``radius_m`` of the lead pedestrian's
     true position at that frame (truth scores, it never feeds the chain); NaN where none. The
-    row may be any track's, not only the one that follows the pedestrian longest.
+    row may be any track's, not only the one that follows the pedestrian longest. Several
+    steps at once: :func:`first_track_times`.
 
     tracks: columns group, frame, time_s, x_m, y_m (and confirmed, unless ``step`` is
     ``born``; moving counts where present); truth: columns scene, frame, pedestrian, x_m, y_m;
@@ -124,9 +126,27 @@ def first_track_s(tracks: pd.DataFrame, truth: pd.DataFrame, scenes: np.ndarray,
             that is not a non-empty string, ``scenes`` that are not a 1-D array of names, or a
             table without its columns (naming them).
     """
-    who = "first_track_s"
-    if step not in TRACK_STEPS:
-        raise ValueError(f"{who}: step: expected one of {TRACK_STEPS}, found {step!r}")
+    if not isinstance(step, str) or step not in TRACK_STEPS:
+        raise ValueError(f"first_track_s: step: expected one of {TRACK_STEPS}, found {step!r}")
+    return first_track_times(tracks, truth, scenes, steps=(step,), lead=lead,
+                             radius_m=radius_m)[step]
+
+
+def first_track_times(tracks: pd.DataFrame, truth: pd.DataFrame, scenes: np.ndarray, *,
+                      steps: tuple[str, ...] = TRACK_STEPS, lead: str = "p0",
+                      radius_m: float = 1.0) -> dict[str, np.ndarray]:
+    """``{step: (S,) s}``: :func:`first_track_s` for each of ``steps`` (distinct names of
+    :data:`TRACK_STEPS`), the track rows matched to the lead pedestrian once for all of them.
+
+    Raises:
+        ValueError: ``steps`` not a non-empty tuple of distinct names of :data:`TRACK_STEPS`,
+            and the errors of :func:`first_track_s`.
+    """
+    who = "first_track_times"
+    if not isinstance(steps, tuple) or not steps or len(set(steps)) != len(steps) \
+            or not all(isinstance(x, str) and x in TRACK_STEPS for x in steps):
+        raise ValueError(f"{who}: steps: expected a non-empty tuple of distinct names of "
+                         f"{TRACK_STEPS}, found {steps!r}")
     check_number(radius_m, "radius_m", gt=0.0, unit="m", who=who)
     if not (isinstance(lead, str) and lead):
         raise ValueError(f"{who}: lead: expected a pedestrian's name (a non-empty string), "
@@ -139,18 +159,21 @@ def first_track_s(tracks: pd.DataFrame, truth: pd.DataFrame, scenes: np.ndarray,
     if bad:
         raise ValueError(f"{who}: scenes: expected scene names (strings), found "
                          f"{bad[0]!r} ({type(bad[0]).__name__})")
-    need = {"group", "frame", "time_s", "x_m", "y_m"} | ({"confirmed"} if step != "born" else set())
+    need = {"group", "frame", "time_s", "x_m", "y_m"} | (
+        {"confirmed"} if set(steps) != {"born"} else set())
     check_columns(tracks, need, "tracks", who=who, note="the blindspot.track schema")
     check_columns(truth, {"scene", "frame", "pedestrian", "x_m", "y_m"}, "truth", who=who)
-    keep = (np.ones(len(tracks), bool) if step == "born"
-            else tracks.confirmed.to_numpy(bool) if step == "confirmed"
-            else confirmed_moving(tracks))
-    t = tracks.loc[keep, ["group", "frame", "time_s", "x_m", "y_m"]]
+    keep = {"born": lambda: np.ones(len(tracks), bool),
+            "confirmed": lambda: tracks.confirmed.to_numpy(bool),
+            "moving": lambda: confirmed_moving(tracks)}
+    t = tracks[["group", "frame", "time_s", "x_m", "y_m"]].assign(
+        **{f"_{x}": keep[x]() for x in steps})
     p = truth.loc[truth.pedestrian == lead, ["scene", "frame", "x_m", "y_m"]].rename(
         columns={"scene": "group", "x_m": "px", "y_m": "py"})
     j = t.merge(p, on=["group", "frame"])
     j = j[np.hypot(j.x_m - j.px, j.y_m - j.py) <= radius_m]
-    return j.groupby("group").time_s.min().reindex(pd.Index(names)).to_numpy(float)
+    return {x: j[j[f"_{x}"]].groupby("group").time_s.min().reindex(pd.Index(names))
+            .to_numpy(float) for x in steps}
 
 
 def delay_stats(delay_s: np.ndarray, speed_kmh: np.ndarray) -> dict:
