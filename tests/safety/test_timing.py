@@ -39,7 +39,14 @@ def test_first_track_times_match_each_step_alone():
     scenes = np.array(["c", "a", "b", "z"])
     both = first_track_times(tracks, truth, scenes)
     assert set(both) == set(TRACK_STEPS)
-    for step in TRACK_STEPS:
+    near = np.hypot(tracks.x_m - truth.x_m, tracks.y_m - truth.y_m).to_numpy() <= 1.0
+    rows = {"born": near, "confirmed": near & tracks.confirmed.to_numpy(),
+            "moving": near & tracks.confirmed.to_numpy() & tracks.moving.to_numpy()}
+    for step in TRACK_STEPS:                 # row by row, as the definition reads
+        want = [tracks.time_s[rows[step] & (tracks.group == g).to_numpy()].min()
+                if (rows[step] & (tracks.group == g).to_numpy()).any() else np.nan
+                for g in scenes]
+        np.testing.assert_array_equal(both[step], want)
         np.testing.assert_array_equal(both[step], first_track_s(tracks, truth, scenes, step=step))
     assert np.isnan(both["moving"][3])                       # a scene without tracks
     assert (both["born"][:3] <= both["confirmed"][:3]).all()
@@ -67,7 +74,7 @@ def test_first_track_s_refuses_bad_arguments(kw, match):
         if kw.get(name) == f"drop {col}":
             kw = {**kw, name: table.drop(columns=col)}
     args.update({k: kw.pop(k) for k in ("tracks", "truth", "scenes") if k in kw})
-    with pytest.raises(ValueError, match=match):
+    with pytest.raises(ValueError, match="first_track_s.*" + match):     # names the caller
         first_track_s(args["tracks"], args["truth"], args["scenes"], **kw)
     # born needs no confirmed column
     assert first_track_s(tracks.drop(columns="confirmed"), truth, np.array(["a"]),

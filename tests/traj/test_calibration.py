@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from blindspot.traj.baselines import ConstantVelocity, KalmanCV
+from blindspot.traj.distribution import GaussianForecast
 from blindspot.traj.calibration import (CalibrationError, calibrate, calibration_scores,
                                         from_record, path_pairs, to_record)
 from blindspot.traj.windows import interpolate_gaps
@@ -91,6 +92,8 @@ def test_calibrated_on_validation_covers_at_the_nominal_rate_on_test():
         # a forecast the caller made already gives the same scores; one of another shape is named
         fc = p.predict_distribution(ht, ft.shape[1])
         assert calibration_scores(p, ht, ft, forecast=fc) == s
+        wide = GaussianForecast(fc.mean, fc.cov * 4.0)       # used as given, not made again
+        assert calibration_scores(p, ht, ft, forecast=wide)["coverage_50"] > s["coverage_50"] + 0.1
         with pytest.raises(CalibrationError, match=r"forecast: expected .* mean shape"):
             calibration_scores(p, ht, ft[:, :5], forecast=fc)
         with pytest.raises(CalibrationError, match="found ndarray"):

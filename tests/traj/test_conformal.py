@@ -282,13 +282,21 @@ def test_the_held_out_choice_is_scored_on_the_test_streams_with_every_val_score_
     assert chosen is cands[best] and best == 1
     assert report == {**chosen.coverage(*test, val[0], clusters=clusters), **chosen.setting,
                       "online_val_distance": table[best].distance_mean}
+    # the metrics files keep this key order
+    assert list(report) == [*chosen.coverage(*test, val[0], clusters=clusters),
+                            *chosen.setting, "online_val_distance"]
     assert abs(report["online_coverage_90"] - 0.9) < \
         abs(cands[0].coverage(*test, val[0])["online_coverage_90"] - 0.9)
     alone, first = held_out_choice_coverage(cands[1:], val, test)
     assert first is cands[1] and "online_val_distance" not in alone
     assert "online_coverage_50_ci95" not in alone
     one_stream = val[:3] + (np.zeros(len(val[0]), int),)
-    assert held_out_choice_coverage(cands, one_stream, test)[1] is cands[0]
+    single, first = held_out_choice_coverage(cands, one_stream, test)
+    assert first is cands[0] and "online_val_distance" not in single
+    with pytest.raises(ConformalError, match="stream"):         # checked without a choice too
+        held_out_choice_coverage(cands[:1], val[:3] + (np.zeros(5, int),), test)
+    with pytest.raises(ConformalError, match="one set of levels"):
+        held_out_choice_coverage([cands[0], AdaptiveConformal((0.5,))], one_stream, test)
     for bad, match in (((), "candidates"), ("aci", "candidates"), ([0.5], "candidates")):
         with pytest.raises(ConformalError, match=match):
             held_out_choice_coverage(bad, val, test)

@@ -128,8 +128,8 @@ def first_track_s(tracks: pd.DataFrame, truth: pd.DataFrame, scenes: np.ndarray,
     """
     if not isinstance(step, str) or step not in TRACK_STEPS:
         raise ValueError(f"first_track_s: step: expected one of {TRACK_STEPS}, found {step!r}")
-    return first_track_times(tracks, truth, scenes, steps=(step,), lead=lead,
-                             radius_m=radius_m)[step]
+    return _first_track_times(tracks, truth, scenes, (step,), lead, radius_m,
+                              "first_track_s")[step]
 
 
 def first_track_times(tracks: pd.DataFrame, truth: pd.DataFrame, scenes: np.ndarray, *,
@@ -140,13 +140,21 @@ def first_track_times(tracks: pd.DataFrame, truth: pd.DataFrame, scenes: np.ndar
 
     Raises:
         ValueError: ``steps`` not a non-empty tuple of distinct names of :data:`TRACK_STEPS`,
-            and the errors of :func:`first_track_s`.
+            a ``radius_m`` that is not a number > 0, a ``lead`` that is not a non-empty string,
+            ``scenes`` that are not a 1-D array of names, or a table without its columns
+            (naming them: ``confirmed`` unless ``steps`` is ``("born",)``).
     """
-    who = "first_track_times"
     if not isinstance(steps, tuple) or not steps or len(set(steps)) != len(steps) \
             or not all(isinstance(x, str) and x in TRACK_STEPS for x in steps):
-        raise ValueError(f"{who}: steps: expected a non-empty tuple of distinct names of "
-                         f"{TRACK_STEPS}, found {steps!r}")
+        raise ValueError(f"first_track_times: steps: expected a non-empty tuple of distinct "
+                         f"names of {TRACK_STEPS}, found {steps!r}")
+    return _first_track_times(tracks, truth, scenes, steps, lead, radius_m, "first_track_times")
+
+
+def _first_track_times(tracks: pd.DataFrame, truth: pd.DataFrame, scenes: np.ndarray,
+                       steps: tuple[str, ...], lead: str, radius_m: float, who: str
+                       ) -> dict[str, np.ndarray]:
+    """:func:`first_track_times` with ``steps`` checked; errors name the public ``who``."""
     check_number(radius_m, "radius_m", gt=0.0, unit="m", who=who)
     if not (isinstance(lead, str) and lead):
         raise ValueError(f"{who}: lead: expected a pedestrian's name (a non-empty string), "

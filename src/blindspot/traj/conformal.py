@@ -449,19 +449,24 @@ def held_out_choice_coverage(candidates: Sequence[OnlineEllipses],
     distance from nominal over the validation streams and levels.
 
     Raises:
-        ConformalError: ``candidates`` not a non-empty sequence of :class:`OnlineEllipses`,
-            ``val`` / ``test`` not 4-tuples, or the errors of the functions above.
+        ConformalError: ``candidates`` not a non-empty sequence of :class:`OnlineEllipses`
+            with one set of levels, ``val`` / ``test`` not 4-tuples, ``val`` not what
+            :func:`check_stream_inputs` accepts, or the errors of the functions above.
     """
     who = "held_out_choice_coverage"
     if isinstance(candidates, (str, bytes)) or not isinstance(candidates, Sequence) \
             or not candidates or not all(isinstance(c, OnlineEllipses) for c in candidates):
         raise ConformalError(f"{who}: candidates: expected a non-empty sequence of online "
                              f"ellipses (AdaptiveConformal, ScaleTracker), found {candidates!r}")
+    if len({c.levels for c in candidates}) != 1:
+        raise ConformalError(f"{who}: candidates: expected one set of levels, found "
+                             f"{[c.levels for c in candidates]!r}")
     for name, part in (("val", val), ("test", test)):
         if not isinstance(part, tuple) or len(part) != 4:
-            raise ConformalError(f"{who}: {name}: expected (scores, t_predicted, t_revealed, "
-                                 f"stream), found {type(part).__name__} of "
-                                 f"{len(part) if isinstance(part, tuple) else '?'} items")
+            size = f" of {len(part)} items" if isinstance(part, (tuple, list)) else ""
+            raise ConformalError(f"{who}: {name}: expected a tuple (scores, t_predicted, "
+                                 f"t_revealed, stream), found {type(part).__name__}{size}")
+    check_stream_inputs(*val, val[0], who=f"{who}: val")    # also when there is no choice
     best, distance = 0, None
     if len(candidates) > 1 and np.unique(np.asarray(val[3])).size > 1:
         best, table = select_on_held_out_streams(candidates, *val)
