@@ -51,8 +51,12 @@ def test_first_track_times_match_each_step_alone():
     assert np.isnan(both["moving"][3])                       # a scene without tracks
     assert (both["born"][:3] <= both["confirmed"][:3]).all()
     for bad in (("moving", "moving"), (), ["moving"], ("fast",)):
-        with pytest.raises(ValueError, match="steps: expected"):
+        with pytest.raises(ValueError, match="first_track_times: steps: expected"):
             first_track_times(tracks, truth, scenes, steps=bad)
+    with pytest.raises(ValueError, match="first_track_times: radius_m"):     # names the caller
+        first_track_times(tracks, truth, scenes, radius_m=0.0)
+    with pytest.raises(ValueError, match="first_track_times: tracks.*confirmed"):
+        first_track_times(tracks.drop(columns="confirmed"), truth, scenes)
 
 
 @pytest.mark.parametrize("kw, match", [({"step": "tentative"}, "step: expected one of"),

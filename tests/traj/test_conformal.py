@@ -293,10 +293,12 @@ def test_the_held_out_choice_is_scored_on_the_test_streams_with_every_val_score_
     one_stream = val[:3] + (np.zeros(len(val[0]), int),)
     single, first = held_out_choice_coverage(cands, one_stream, test)
     assert first is cands[0] and "online_val_distance" not in single
-    with pytest.raises(ConformalError, match="stream"):         # checked without a choice too
+    with pytest.raises(ConformalError, match="val: stream: expected"):   # checked without a choice too
         held_out_choice_coverage(cands[:1], val[:3] + (np.zeros(5, int),), test)
     with pytest.raises(ConformalError, match="one set of levels"):
         held_out_choice_coverage([cands[0], AdaptiveConformal((0.5,))], one_stream, test)
+    as_list = AdaptiveConformal(list(LEVELS), 0.005, 100, 3)      # levels kept as a list
+    assert held_out_choice_coverage([as_list, cands[1]], val, test, clusters=clusters)[0] == report
     for bad, match in (((), "candidates"), ("aci", "candidates"), ([0.5], "candidates")):
         with pytest.raises(ConformalError, match=match):
             held_out_choice_coverage(bad, val, test)

@@ -383,6 +383,11 @@ def rank_held_out(table: Sequence[HeldOutStreamScore]) -> list[int]:
                                  table[i].distance_mean))
 
 
+def _level_key(candidate: OnlineEllipses) -> tuple[float, ...]:
+    """A candidate's levels as a hashable tuple of floats (a constructor may keep a list)."""
+    return tuple(np.asarray(candidate.levels, float).ravel().tolist())
+
+
 def select_on_held_out_streams(candidates: Sequence[OnlineEllipses], scores: np.ndarray,
                                t_predicted: np.ndarray, t_revealed: np.ndarray,
                                stream: np.ndarray) -> tuple[int, list[HeldOutStreamScore]]:
@@ -412,7 +417,7 @@ def select_on_held_out_streams(candidates: Sequence[OnlineEllipses], scores: np.
             streams, or the errors of :meth:`AdaptiveConformal.radii`.
     """
     who = "select_on_held_out_streams"
-    if not candidates or len({c.levels for c in candidates}) != 1:
+    if not candidates or len({_level_key(c) for c in candidates}) != 1:
         raise ConformalError(f"{who}: expected candidates with one set of levels, found "
                              f"{[c.levels for c in candidates]!r}")
     s = np.asarray(scores, float)
@@ -458,7 +463,7 @@ def held_out_choice_coverage(candidates: Sequence[OnlineEllipses],
             or not candidates or not all(isinstance(c, OnlineEllipses) for c in candidates):
         raise ConformalError(f"{who}: candidates: expected a non-empty sequence of online "
                              f"ellipses (AdaptiveConformal, ScaleTracker), found {candidates!r}")
-    if len({c.levels for c in candidates}) != 1:
+    if len({_level_key(c) for c in candidates}) != 1:
         raise ConformalError(f"{who}: candidates: expected one set of levels, found "
                              f"{[c.levels for c in candidates]!r}")
     for name, part in (("val", val), ("test", test)):
