@@ -10,7 +10,8 @@ the fold's train split with the epoch kept by the fold's val ADE, ONE member (se
 variant says otherwise; ``next_point`` is the project's next-point LSTM rolled out 12 steps
 (:func:`blindspot.traj.ethucy_protocol.train_fold_lstm`, one member). The table gives the
 average over the folds of val ADE/FDE (what settings are chosen on) and test ADE/FDE (reported,
-never chosen on), CVM beside them. ``ensemble_k`` rows are prefixes of one 5-member ensemble.
+never chosen on), CVM beside them. ``ensemble_k`` rows are prefixes of one ensemble
+(``--variants ensemble --set ensemble=K``: seeds 0 to k - 1 averaged).
 Prints the table (Markdown) and, with ``--json``, the per-fold numbers. A multi-modal base
 (``--set modes=20``: the stage's ``mix`` with ``cell=mlp``) adds a table of best-of-20 (each
 model's 20 most probable hypotheses; an ensemble's pooled ones also merged into 20,
@@ -35,14 +36,13 @@ adopted on that documented step, and val does not object: it slightly prefers th
 encoder over seeds 0-2 (val ADE 0.4029 -> 0.4017 m) and for mix's best-of-20 at seed 0 (0.1679 /
 0.2995 -> 0.1666 / 0.2931 m), and is indifferent for the MLP encoder (0.4020 -> 0.4027 m);
 adding 5/2, or 4/3 and 2, is not val's choice (docs/studies/ethucy.md, sixth pass). Val
-windows also at 5/3 (``--val-steps 1,5/3``, seed 0) do not let val see what eth needs: val
-still prefers 32 epochs and [1, 5/3] to [1, 5/3, 5/2], within the seeds' spread, and test the
-other way round (eighth pass).
+windows also at 5/3 (``--val-steps 1,5/3``, seed 0) still rank 32 epochs and [1, 5/3] first
+(by 0.0008 / 0.0013 m) where test ranks them last (eighth pass).
 mix with 40 hypotheses (``--set cell=mlp,modes=40``) loses on val best-of-20 whether its 20
 most probable or its 40 merged into 20 are scored. The LSTM encoders of seeds 0-2 averaged
-(``--variants ensemble --set cell=lstm,ensemble=3``) are preferred by val (0.4011 -> 0.3994 m)
-and test (0.4668 / 0.9657 m against the stage's three-seed mean 0.4730 / 0.9785): the next step
-for the deterministic figure, not yet in the stage (eighth pass).
+(``--variants ensemble --set cell=lstm,ensemble=3``) are preferred by val and test (against the
+seeds one at a time: val 0.4017 -> 0.3994 m, test 0.4733 / 0.9791 -> 0.4668 / 0.9657 m): the
+next step for the deterministic figure, not yet in the stage (eighth pass).
 """
 
 from __future__ import annotations
