@@ -31,8 +31,9 @@ def test_first_moving_row_near_the_lead_pedestrian():
 def test_first_track_times_match_each_step_alone():
     rng = np.random.default_rng(3)
     n = 60
-    truth = pd.DataFrame({"scene": np.repeat(["a", "b", "c"], 20), "frame": np.tile(np.arange(20), 3),
-                          "pedestrian": "p0", "x_m": rng.normal(size=n), "y_m": rng.normal(size=n)})
+    truth = pd.DataFrame({"scene": np.repeat(["a", "b", "c"], 20),
+                          "frame": np.tile(np.arange(20), 3), "pedestrian": "p0",
+                          "x_m": rng.normal(size=n), "y_m": rng.normal(size=n)})
     tracks = truth.rename(columns={"scene": "group"}).drop(columns="pedestrian").assign(
         time_s=lambda d: d.frame * 0.1, x_m=lambda d: d.x_m + rng.normal(0, 0.8, n),
         confirmed=rng.random(n) < 0.5, moving=rng.random(n) < 0.5)

@@ -293,7 +293,8 @@ def test_the_held_out_choice_is_scored_on_the_test_streams_with_every_val_score_
     one_stream = val[:3] + (np.zeros(len(val[0]), int),)
     single, first = held_out_choice_coverage(cands, one_stream, test)
     assert first is cands[0] and "online_val_distance" not in single
-    with pytest.raises(ConformalError, match="val: stream: expected"):   # checked without a choice too
+    # val is checked also when there is no choice to make
+    with pytest.raises(ConformalError, match="val: stream: expected"):
         held_out_choice_coverage(cands[:1], val[:3] + (np.zeros(5, int),), test)
     with pytest.raises(ConformalError, match="one set of levels"):
         held_out_choice_coverage([cands[0], AdaptiveConformal((0.5,))], one_stream, test)
