@@ -123,5 +123,7 @@ def test_bad_arguments_are_named():
         pair_times(*val[:3], val[3] - val[3].min() - 1)
     with pytest.raises(CalibrationError, match="candidates: expected a non-empty sequence"):
         online_scores(["aci"], val, d2, val, d2, 3)
+    with pytest.raises(CalibrationError, match="candidates: expected one set of levels"):
+        online_scores([*one, AdaptiveConformal((0.5,))], val, d2, val, d2, 3)
     with pytest.raises(CalibrationError, match="path_streams: path: expected"):
         path_streams(np.zeros((2, 2), int), 2)

@@ -70,7 +70,8 @@ import numpy as np
 from blindspot.arrays import check_array
 
 __all__ = ["AdaptiveConformal", "ConformalError", "HeldOutStreamScore", "OnlineEllipses",
-           "check_stream_inputs", "cluster_bootstrap_coverage", "ellipse_hits",
+           "check_candidates", "check_stream_inputs", "cluster_bootstrap_coverage",
+           "ellipse_hits",
            "held_out_choice_coverage", "rank_held_out", "select_on_held_out_streams",
            "stream_coverage"]
 
@@ -437,6 +438,18 @@ def select_on_held_out_streams(candidates: Sequence[OnlineEllipses], scores: np.
     return rank_held_out(table)[0], table
 
 
+def check_candidates(candidates, who: str, error: type[Exception] = ConformalError) -> None:
+    """Raise ``error`` (prefixed with ``who``) unless ``candidates`` is a non-empty sequence of
+    :class:`OnlineEllipses` with one set of levels: what a choice among settings needs."""
+    if isinstance(candidates, (str, bytes)) or not isinstance(candidates, Sequence) \
+            or not candidates or not all(isinstance(c, OnlineEllipses) for c in candidates):
+        raise error(f"{who}: candidates: expected a non-empty sequence of online ellipses "
+                    f"(AdaptiveConformal, ScaleTracker), found {candidates!r}")
+    if len({_level_key(c) for c in candidates}) != 1:
+        raise error(f"{who}: candidates: expected one set of levels, found "
+                    f"{[c.levels for c in candidates]!r}")
+
+
 def held_out_choice_coverage(candidates: Sequence[OnlineEllipses],
                              val: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
                              test: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
@@ -459,13 +472,7 @@ def held_out_choice_coverage(candidates: Sequence[OnlineEllipses],
             :func:`check_stream_inputs` accepts, or the errors of the functions above.
     """
     who = "held_out_choice_coverage"
-    if isinstance(candidates, (str, bytes)) or not isinstance(candidates, Sequence) \
-            or not candidates or not all(isinstance(c, OnlineEllipses) for c in candidates):
-        raise ConformalError(f"{who}: candidates: expected a non-empty sequence of online "
-                             f"ellipses (AdaptiveConformal, ScaleTracker), found {candidates!r}")
-    if len({_level_key(c) for c in candidates}) != 1:
-        raise ConformalError(f"{who}: candidates: expected one set of levels, found "
-                             f"{[c.levels for c in candidates]!r}")
+    check_candidates(candidates, who)
     for name, part in (("val", val), ("test", test)):
         if not isinstance(part, tuple) or len(part) != 4:
             size = f" of {len(part)} items" if isinstance(part, (tuple, list)) else ""

@@ -21,7 +21,7 @@ import numpy as np
 from blindspot.arrays import check_array
 from blindspot.traj.calibration import (CalibrationError, calibrate, calibration_scores,
                                         forecast_scores, path_pairs)
-from blindspot.traj.conformal import OnlineEllipses, held_out_choice_coverage
+from blindspot.traj.conformal import check_candidates, held_out_choice_coverage
 from blindspot.traj.distribution import mahalanobis_sq
 
 __all__ = ["ETHUCY_FILE", "ETHUCY_NAMES", "held_out_pairs", "pair_times", "path_streams",
@@ -58,7 +58,7 @@ def calibrate_on_paths(predictors: dict, pairs: dict, candidates, *, scale_metho
         raise CalibrationError(f"{who}: pairs: expected held_out_pairs' keys 'val' and 'test', "
                                f"found {found}")
     val, test = (_indexed_pairs(pairs[k], f"pairs[{k!r}]", who) for k in ("val", "test"))
-    _check_candidates(candidates, who)
+    check_candidates(candidates, who, CalibrationError)
     path_streams(val[2], val_streams)   # a bad stream count is named before minutes of work
     calibrated = calibrate(predictors, *val[:2], scale_method=scale_method,
                            scale_level=scale_level, cv_fit_points=cv_fit_points)
@@ -126,7 +126,7 @@ def online_scores(candidates: Sequence, val: tuple[np.ndarray, ...], val_scores:
     mean distance from nominal on the validation streams (``online_val_distance``)."""
     who = "online_scores"
     val, test = _indexed_pairs(val, "val", who), _indexed_pairs(test, "test", who)
-    _check_candidates(candidates, who)
+    check_candidates(candidates, who, CalibrationError)
     for name, scores, pairs in (("val_scores", val_scores, val), ("test_scores", test_scores,
                                                                    test)):
         check_array(scores, name, (len(pairs[0]), pairs[1].shape[1]), error=CalibrationError,
@@ -179,9 +179,3 @@ def _indexed_pairs(pairs, name: str, who: str) -> tuple[np.ndarray, ...]:
                                    f"{int(a.min())}")
     return h, f, path, start
 
-
-def _check_candidates(candidates, who: str) -> None:
-    if (not isinstance(candidates, Sequence) or isinstance(candidates, str) or not candidates
-            or not all(isinstance(c, OnlineEllipses) for c in candidates)):
-        raise CalibrationError(f"{who}: candidates: expected a non-empty sequence of online "
-                               f"ellipses (OnlineEllipses), found {candidates!r}")
