@@ -102,6 +102,12 @@ VARIANTS: dict[str, dict] = {
     "steps_4_3_to_2": {"time_steps": (1.0, 4 / 3, 5 / 3, 2.0)},
     "steps_2": {"time_steps": (1.0, 2.0)},
     "steps_5_3_epochs32": {"time_steps": (1.0, 5 / 3), "epochs": 32},
+    "transformer": {"cell": "transformer"},
+    "transformer_2l": {"cell": "transformer", "num_layers": 2},
+    "basis_4": {"basis_rank": 4},
+    "basis_6": {"basis_rank": 6},
+    "basis_8": {"basis_rank": 8},
+    "transformer_basis_4": {"cell": "transformer", "basis_rank": 4},
 }
 
 

@@ -6,6 +6,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+import torch
 
 from blindspot.traj.baselines import ConstantVelocity
 from blindspot.traj.config import Seq2SeqConfig
@@ -39,7 +40,7 @@ def _rot(a):
 def test_untrained_residual_head_is_constant_velocity():
     rng = np.random.default_rng(0)
     xy = turning_tracks(rng, 50)
-    for cell in ("mlp", "gru", "lstm"):
+    for cell in ("mlp", "gru", "lstm", "transformer"):
         cfg = replace(CFG, cell=cell)
         model = Seq2SeqModel(Seq2SeqNet(cfg), cfg)
         np.testing.assert_allclose(model.predict(xy[:, :8], 12),
@@ -466,3 +467,86 @@ def test_keep_by_best_of_keeps_the_epoch_of_the_best_hypotheses_and_wta_score_co
         replace(cfg, keep_by="last")
     with pytest.raises(ValueError, match="wta_score"):
         replace(cfg, wta_score="fde")
+
+
+def test_transformer_encoder_learns_the_turn_and_keeps_the_symmetries():
+    """Self-attention over the observed steps: well below constant velocity on circle arcs
+    after three epochs, and its predictions turn, move and mirror with the track."""
+    rng = np.random.default_rng(20)
+    train, val, test = turning_tracks(rng, 3000), turning_tracks(rng, 500), turning_tracks(rng, 300)
+    cfg = replace(CFG, cell="transformer", attention_heads=4)
+    model, _ = train_seq2seq(train, val, cfg)
+    obs = test[:, :8]
+    pred = model.predict(obs, 12)
+    cv = ConstantVelocity().predict(obs, 12)
+    err, cv_err = (np.linalg.norm(p - test[:, 8:], axis=-1).mean() for p in (pred, cv))
+    assert err < 0.5 * cv_err, (err, cv_err)
+    R, t = _rot(-1.1), np.array([-4.0, 7.0])
+    np.testing.assert_allclose(model.predict(obs @ R.T + t, 12), pred @ R.T + t, atol=1e-4)
+    np.testing.assert_allclose(model.predict(obs * [1.0, -1.0], 12), pred * [1.0, -1.0],
+                               atol=1e-4)
+
+
+def _shaped_walks(rng, n, shape):
+    """Straight walks whose future leaves constant velocity by ``a x shape`` (heading frame,
+    (12, 2)), ``a`` set by the walker's observed speed: the deviations span exactly one
+    direction, and the history tells how far along it."""
+    speed = rng.uniform(0.8, 1.6, n)
+    h = rng.uniform(0, 2 * np.pi, n)
+    fwd = np.stack([np.cos(h), np.sin(h)], axis=-1)                    # (n, 2)
+    left = np.stack([-np.sin(h), np.cos(h)], axis=-1)
+    t = np.arange(20) * 0.4
+    xy = (speed[:, None, None] * t[None, :, None]) * fwd[:, None, :]
+    a = 3.0 * (speed - 1.2)
+    dev = a[:, None, None] * shape[None]                                # (n, 12, 2) framed
+    xy[:, 8:] += dev[..., :1] * fwd[:, None, :] + dev[..., 1:] * left[:, None, :]
+    return xy + rng.uniform(-10, 10, (n, 1, 2))
+
+
+def test_motion_basis_spans_the_training_deviations_and_bounds_the_predictions():
+    """Walks leave constant velocity along one known shape only: a rank-1 basis set from them
+    is that shape (up to sign), a trained rank-1 model's framed offsets have rank 1 and it
+    learns the shape, as the unconstrained head does (each within a tenth of constant
+    velocity's error)."""
+    rng = np.random.default_rng(21)
+    k = np.arange(1, 13) / 12
+    shape = np.stack([-0.3 * k**2, 0.8 * k**2], axis=-1)              # a slowing left turn
+    train, val, test = (_shaped_walks(rng, n, shape) for n in (3000, 500, 300))
+    cfg = replace(CFG, basis_rank=1, mirror=False, epochs=10, lr=1e-2)
+    model, _ = train_seq2seq(train, val, cfg)
+    g = shape.ravel() / np.linalg.norm(shape)
+    assert abs(model.net.basis[:, 0].numpy() @ g) > 0.999
+    out = model.net(*[torch.as_tensor(a, dtype=torch.float32) for a in
+                      (np.diff(test[:, :8], axis=1), test[:, 7] - test[:, 6])],
+                    torch.zeros(300, CFG.neighbours, 8, 5)).detach().numpy()
+    sv = np.linalg.svd(out[..., :2].reshape(300, -1), compute_uv=False)
+    assert sv[1] < 1e-5 * sv[0], sv[:3]
+    free, _ = train_seq2seq(train, val, replace(cfg, basis_rank=0))
+    err = [np.linalg.norm(m.predict(test[:, :8], 12) - test[:, 8:], axis=-1).mean()
+           for m in (model, free)]
+    cv = np.linalg.norm(ConstantVelocity().predict(test[:, :8], 12) - test[:, 8:],
+                        axis=-1).mean()
+    assert max(err) < 0.1 * cv, (err, cv)
+
+
+def test_motion_basis_saves_loads_and_its_bad_settings_are_named(tmp_path):
+    from blindspot.typed_config import ConfigError
+
+    rng = np.random.default_rng(22)
+    xy = turning_tracks(rng, 300)
+    cfg = replace(CFG, cell="transformer", basis_rank=3, epochs=1)
+    ens = Seq2SeqEnsemble([train_seq2seq(xy[:200], xy[200:], cfg)[0]])
+    back = Seq2SeqEnsemble.load(ens.save(tmp_path / "basis.pt"))
+    assert np.array_equal(ens.predict(xy[200:, :8], 12), back.predict(xy[200:, :8], 12))
+    assert np.count_nonzero(back.members[0].net.basis.numpy()) > 0
+    with pytest.raises(ConfigError, match="basis_rank.*at most 2 x horizon"):
+        replace(CFG, basis_rank=25)
+    with pytest.raises(ConfigError, match="basis_rank.*outputs is position"):
+        replace(CFG, basis_rank=2, outputs="displacement")
+    with pytest.raises(ConfigError, match="attention_heads.*divisor of hidden_size"):
+        replace(CFG, cell="transformer", attention_heads=3)
+    net = Seq2SeqNet(replace(CFG, basis_rank=2))
+    with pytest.raises(ValueError, match="set_basis: deviations: expected"):
+        net.set_basis(np.zeros((1, 12, 2)))
+    with pytest.raises(ValueError, match="set_basis: cfg.basis_rank is 0"):
+        Seq2SeqNet(CFG).set_basis(np.zeros((5, 12, 2)))

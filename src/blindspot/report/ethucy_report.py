@@ -270,10 +270,13 @@ def format_report(results: Results, validation: Results,
         fitted = ", ".join(f"{f} {details[f]['kalman']['fitted']['process_psd_m2_s3']:.3g}"
                            for f in folds)
         parts.append(f"  Fitted process noise q (m^2/s^3), meas_std 0.05 m: {fitted}.")
-    direct = [m for m in ("lstm", "gru", "mlp") if m in models]
+    direct = [m for m in ("lstm", "gru", "mlp", "transformer") if m in models]
     if seq2seq is not None and direct:
         enc = {"lstm": "an LSTM encoder", "gru": "a GRU encoder",
-               "mlp": "a dense (MLP) encoder over the flattened inputs"}
+               "mlp": "a dense (MLP) encoder over the flattened inputs",
+               "transformer": (f"a transformer encoder ({seq2seq.get('num_layers')} pre-norm "
+                               f"self-attention layer(s) of {seq2seq.get('attention_heads')} "
+                               "heads over the observed steps, a learned position embedding)")}
         n_seeds = (results.get("seeds") or {}).get(direct[0], {}).get("n", 1)
         for m in direct:
             parts.append(

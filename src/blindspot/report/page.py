@@ -301,6 +301,7 @@ SIM_PATHS = "sim_paths"
 #: not the radar paths' direct LSTM (lstm_direct) either
 _ETHUCY_LABELS = {"cvm": "CVM", "constant_velocity": "constant velocity", "kalman": "Kalman (CV)",
                   "lstm": "LSTM encoder", "gru": "GRU encoder", "mlp": "MLP encoder",
+                  "transformer": "transformer encoder",
                   "mix": "multi-modal MLP encoder", "lstm_rollout": "next-point LSTM"}
 
 

@@ -36,7 +36,7 @@ TARGETS: tuple[str, ...] = ("displacement", "absolute")
 OPTIMIZERS: tuple[str, ...] = ("adam", "adamw")
 SCHEDULES: tuple[str, ...] = ("constant", "cosine")
 PREDICTION_METHODS: tuple[str, ...] = ("lstm", "constant_velocity", "kalman")
-ETHUCY_MODELS: tuple[str, ...] = ("cvm", "kalman", "lstm", "gru", "mlp", "mix",
+ETHUCY_MODELS: tuple[str, ...] = ("cvm", "kalman", "lstm", "gru", "mlp", "transformer", "mix",
                                   "lstm_rollout")
 SEED_MAX = 2**63 - 1     # the largest seed numpy and torch both take
 
@@ -264,7 +264,7 @@ class EvalConfig(TypedConfig):
 
 
 # ----------------------------------------------------------------------------- seq2seq
-SEQ2SEQ_CELLS: tuple[str, ...] = ("gru", "lstm", "mlp")
+SEQ2SEQ_CELLS: tuple[str, ...] = ("gru", "lstm", "mlp", "transformer")
 SEQ2SEQ_FRAMES: tuple[str, ...] = ("heading", "world")
 SEQ2SEQ_INPUTS: tuple[str, ...] = ("displacement", "position")
 SEQ2SEQ_OUTPUTS: tuple[str, ...] = ("displacement", "position")
@@ -279,8 +279,11 @@ class Seq2SeqConfig(TypedConfig):
     ``ethucy.seq2seq``; every field is measured in ``studies/ethucy_models.py``).
 
     Attributes:
-        cell: the encoder of the observed history: ``"gru"`` or ``"lstm"`` (recurrent) or
-            ``"mlp"`` (dense, over the flattened history).
+        cell: the encoder of the observed history: ``"gru"`` or ``"lstm"`` (recurrent),
+            ``"mlp"`` (dense, over the flattened history) or ``"transformer"`` (self-attention
+            over the observed steps, a learned position embedding; its last step's output).
+        attention_heads: (read when cell is ``"transformer"``) heads of each self-attention
+            layer; must divide ``hidden_size``.
         hidden_size: encoder state size.
         num_layers: encoder layers.
         head_hidden: width of the dense head's hidden layer.
@@ -314,6 +317,10 @@ class Seq2SeqConfig(TypedConfig):
         keep_by: which epoch is kept: ``"mean"`` the lowest val ADE of the single prediction,
             ``"best_of"`` the lowest val ADE of each window's best hypothesis (with modes = 1
             the same as ``"mean"``).
+        basis_rank: k > 0: each predicted path's mean deviation from the residual base lies
+            in the span of the k leading right singular vectors of the training windows'
+            deviations (a low-rank prior over motion shapes, after SingularTrajectory, Bae et
+            al. 2024; :class:`blindspot.traj.seq2seq.Seq2SeqNet`); 0 = any path.
         time_steps: (ETH/UCY) the train split's windows at each of these steps of the
             annotated grid, pooled (:func:`blindspot.traj.ethucy.resample_tracks`): 1 = as
             annotated; 5/3 = a recording labelled 0.4 s per step whose steps span 0.67 s, as
@@ -350,8 +357,22 @@ class Seq2SeqConfig(TypedConfig):
     wta_score: str = setting("ade", choices=SEQ2SEQ_WTA_SCORES)
     keep_by: str = setting("mean", choices=SEQ2SEQ_KEEP_BY)
     time_steps: tuple[float, ...] = setting((1.0,), ge=1.0, min_items=1)
+    attention_heads: int = setting(4, ge=1)
+    basis_rank: int = setting(0, ge=0)
 
     def validate(self) -> None:
+        if self.cell == "transformer" and self.hidden_size % self.attention_heads:
+            raise ConfigError("attention_heads", self.attention_heads,
+                              f"a divisor of hidden_size ({self.hidden_size}) with cell "
+                              "transformer")
+        if self.basis_rank > 2 * self.horizon:
+            raise ConfigError("basis_rank", self.basis_rank,
+                              f"at most 2 x horizon ({2 * self.horizon}): the dimension of "
+                              "a path")
+        if self.basis_rank > 0 and self.outputs != "position":
+            raise ConfigError("basis_rank", self.basis_rank,
+                              "0 unless outputs is position (the basis spans position "
+                              "deviations)")
         if 1.0 not in self.time_steps or len(set(self.time_steps)) != len(self.time_steps):
             raise ConfigError("time_steps", list(self.time_steps),
                               "a list of distinct steps holding 1 (the windows as annotated)")

@@ -123,7 +123,7 @@ __all__ = [
 
 MODELS: tuple[str, ...] = ETHUCY_MODELS
 #: models that give a predictive distribution (scored for calibration)
-PROBABILISTIC: tuple[str, ...] = ("cvm", "kalman", "lstm", "gru", "mlp", "mix")
+PROBABILISTIC: tuple[str, ...] = ("cvm", "kalman", "lstm", "gru", "mlp", "transformer", "mix")
 #: ellipse levels of ``calibration.json``
 CALIBRATION_LEVELS: tuple[float, ...] = (0.5, 0.9, 0.95)
 #: nominal levels of the reliability curve (figure)
@@ -134,7 +134,8 @@ MIXTURE_COMPONENTS = 3
 #: 1.3-1.4 m/s, Bohannon 1997, "Comfortable and maximum walking speed of adults aged 20-79")
 SPEED_EDGES_M_S: tuple[float, ...] = (0.2, 0.6, 1.0, 1.4)
 #: encoder of each direct-predictor model key
-SEQ2SEQ_CELL: dict[str, str] = {"lstm": "lstm", "gru": "gru", "mlp": "mlp", "mix": "mlp"}
+SEQ2SEQ_CELL: dict[str, str] = {"lstm": "lstm", "gru": "gru", "mlp": "mlp",
+                                 "transformer": "transformer", "mix": "mlp"}
 #: hypotheses of the best-of-N score (the field's best-of-20)
 BEST_OF = 20
 
@@ -647,8 +648,8 @@ def calibration_table(per_fold: dict[str, dict[str, FoldOutcome]], *, reliabilit
 
 #: relative training cost of each model on a fold (the learned ones dominate): the order in which
 #: run_benchmark hands (fold, model) items to the workers, costliest first
-_COST_RANK: dict[str, int] = {"lstm_rollout": 0, "lstm": 1, "gru": 2, "mix": 3, "mlp": 4,
-                               "kalman": 5, "cvm": 6}
+_COST_RANK: dict[str, int] = {"lstm_rollout": 0, "transformer": 1, "lstm": 2, "gru": 3, "mix": 4,
+                               "mlp": 5, "kalman": 6, "cvm": 7}
 
 
 def benchmark_items(models: Sequence[str], folds: Sequence[str]) -> list[tuple[str, str]]:

@@ -151,9 +151,12 @@ class SocialAttention(nn.Module):
 
 
 class Seq2SeqNet(nn.Module):
-    """Encoder (GRU/LSTM over the (obs_len or obs_len - 1, 2) input sequence) -> dense head ->
-    (horizon, 5): mean offset (2) and Gaussian parameters (log std x, log std y, atanh rho);
-    with ``cfg.neighbours`` the :class:`SocialAttention` context joins the head's input."""
+    """Encoder (GRU/LSTM/transformer over the (obs_len or obs_len - 1, 2) input sequence, or a
+    dense layer over it flattened) -> dense head -> (horizon, 5): mean offset (2) and Gaussian
+    parameters (log std x, log std y, atanh rho); with ``cfg.neighbours`` the
+    :class:`SocialAttention` context joins the head's input. With ``cfg.basis_rank`` k > 0 the
+    mean offsets are projected on the span of the ``basis`` buffer's k orthonormal columns
+    (:meth:`set_basis`; zero until set)."""
 
     def __init__(self, cfg: Seq2SeqConfig) -> None:
         super().__init__()
@@ -161,9 +164,17 @@ class Seq2SeqNet(nn.Module):
         self.social = (SocialAttention(cfg.obs_len * SOCIAL_FEATURES, cfg.hidden_size)
                        if cfg.neighbours > 0 else None)
         self.embed = nn.Linear(2, cfg.hidden_size)
+        n_steps = cfg.obs_len - (1 if cfg.inputs == "displacement" else 0)
         if cfg.cell == "mlp":     # the whole input sequence flattened (RED's dense variant)
-            n_in = 2 * (cfg.obs_len - (1 if cfg.inputs == "displacement" else 0))
-            self.encoder = nn.Sequential(nn.Linear(n_in, cfg.hidden_size), nn.ReLU())
+            self.encoder = nn.Sequential(nn.Linear(2 * n_steps, cfg.hidden_size), nn.ReLU())
+        elif cfg.cell == "transformer":   # pre-norm self-attention over the observed steps
+            layer = nn.TransformerEncoderLayer(
+                cfg.hidden_size, cfg.attention_heads, dim_feedforward=2 * cfg.hidden_size,
+                dropout=0.0, batch_first=True, norm_first=True)
+            self.encoder = nn.TransformerEncoder(layer, cfg.num_layers,
+                                                 norm=nn.LayerNorm(cfg.hidden_size),
+                                                 enable_nested_tensor=False)
+            self.position = nn.Parameter(0.02 * torch.randn(n_steps, cfg.hidden_size))
         else:
             rnn = nn.GRU if cfg.cell == "gru" else nn.LSTM
             self.encoder = rnn(cfg.hidden_size, cfg.hidden_size, num_layers=cfg.num_layers,
@@ -176,6 +187,30 @@ class Seq2SeqNet(nn.Module):
         # start at CVM with unit-ish spread: zero the last layer
         nn.init.zeros_(self.head[-1].weight)
         nn.init.zeros_(self.head[-1].bias)
+        if cfg.basis_rank > 0:
+            self.register_buffer("basis", torch.zeros(cfg.horizon * 2, cfg.basis_rank))
+
+    def set_basis(self, deviations: np.ndarray) -> None:
+        """Span of the mean offsets: the ``cfg.basis_rank`` leading right singular vectors of
+        ``deviations`` (N, horizon, 2), framed training futures less their residual base."""
+        d = np.asarray(deviations, dtype=float)
+        k, h = self.cfg.basis_rank, self.cfg.horizon
+        if k == 0:
+            raise ValueError("Seq2SeqNet.set_basis: cfg.basis_rank is 0 (no basis)")
+        if d.ndim != 3 or d.shape[1:] != (h, 2) or len(d) < k or not np.isfinite(d).all():
+            raise ValueError(f"Seq2SeqNet.set_basis: deviations: expected a finite (N >= {k}, "
+                             f"{h}, 2) array, found shape {d.shape}")
+        vt = np.linalg.svd(d.reshape(len(d), -1), full_matrices=False)[2]
+        with torch.no_grad():
+            self.basis.copy_(torch.as_tensor(vt[:k].T, dtype=self.basis.dtype))
+
+    def _project(self, out: torch.Tensor) -> torch.Tensor:
+        """(..., horizon, 5) head output with its mean offsets projected on the basis."""
+        if self.cfg.basis_rank == 0:
+            return out
+        mean = out[..., :2].flatten(-2)
+        mean = (mean @ self.basis) @ self.basis.T
+        return torch.cat([mean.unflatten(-1, (self.cfg.horizon, 2)), out[..., 2:]], dim=-1)
 
     def set_anchors(self, anchors: np.ndarray) -> None:
         """Start hypothesis m at ``anchors[m]`` (M, horizon, 2), a framed deviation from the
@@ -199,6 +234,8 @@ class Seq2SeqNet(nn.Module):
         ``cfg.modes`` M > 1, ``((B, M, horizon, 5), (B, M) logits)``."""
         if self.cfg.cell == "mlp":
             enc = self.encoder(u.flatten(1))
+        elif self.cfg.cell == "transformer":
+            enc = self.encoder(self.embed(u) + self.position)[:, -1]
         else:
             enc = self.encoder(torch.relu(self.embed(u)))[0][:, -1]
         if self.social is not None:
@@ -210,8 +247,8 @@ class Seq2SeqNet(nn.Module):
         out = self.head(z)
         m, h = self.cfg.modes, self.cfg.horizon
         if m == 1:
-            return out.view(-1, h, 5)
-        return out[:, :m * h * 5].view(-1, m, h, 5), out[:, m * h * 5:]
+            return self._project(out.view(-1, h, 5))
+        return self._project(out[:, :m * h * 5].view(-1, m, h, 5)), out[:, m * h * 5:]
 
 
 # --------------------------------------------------------------------------------------------
@@ -724,14 +761,19 @@ def _mixture_loss(out: torch.Tensor, logits: torch.Tensor, base: torch.Tensor, y
     return loss, ade
 
 
-def mixture_anchors(x: np.ndarray, y: np.ndarray, cfg: Seq2SeqConfig, seed: int) -> np.ndarray:
-    """(M, horizon, 2) starting points of the M hypotheses: k-means centres
-    (:func:`blindspot.traj.mixture.kmeans`, seeded) of framed futures ``y`` (N, H, 2) as
-    deviations from the residual base of framed observations ``x`` (N, obs_len, 2)."""
+def base_deviations(x: np.ndarray, y: np.ndarray, cfg: Seq2SeqConfig) -> np.ndarray:
+    """(N, horizon, 2) framed futures ``y`` (N, H, 2) less the residual base of framed
+    observations ``x`` (N, obs_len, 2): what the head's mean offsets learn."""
     step = x[:, -1] - x[:, -2]
     base = x[:, -1:, :] + (step[:, None, :] * np.arange(1, cfg.horizon + 1)[None, :, None]
                            if cfg.residual else 0.0)
-    dev = (y - base).reshape(len(y), -1)
+    return y - base
+
+
+def mixture_anchors(x: np.ndarray, y: np.ndarray, cfg: Seq2SeqConfig, seed: int) -> np.ndarray:
+    """(M, horizon, 2) starting points of the M hypotheses: k-means centres
+    (:func:`blindspot.traj.mixture.kmeans`, seeded) of the :func:`base_deviations`."""
+    dev = base_deviations(x, y, cfg).reshape(len(y), -1)
     return kmeans(dev, cfg.modes, seed=seed).reshape(cfg.modes, cfg.horizon, 2)
 
 
@@ -789,8 +831,11 @@ def train_seq2seq(train_xy: np.ndarray, val_xy: np.ndarray, cfg: Seq2SeqConfig, 
         net = Seq2SeqNet(cfg)
         if init is not None:
             net.load_state_dict(init.net.state_dict())
-        elif cfg.modes > 1:
-            net.set_anchors(mixture_anchors(x_np, y_np, cfg, seed))
+        else:
+            if cfg.basis_rank > 0:
+                net.set_basis(base_deviations(x_np, y_np, cfg))
+            if cfg.modes > 1:
+                net.set_anchors(mixture_anchors(x_np, y_np, cfg, seed))
         opt = torch.optim.AdamW(net.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
         sched = torch.optim.lr_scheduler.CosineAnnealingLR(opt, T_max=cfg.epochs)
         x_all = torch.as_tensor(x_np, dtype=torch.float32)
@@ -897,7 +942,8 @@ def _train_member(train_xy: np.ndarray, val_xy: np.ndarray, cfg: Seq2SeqConfig, 
 # what the weights compute (Seq2SeqNet's shapes, and the frame and encoding of its inputs and
 # outputs); the rest are training settings a fine-tuning may change
 _ARCHITECTURE = ("cell", "hidden_size", "num_layers", "head_hidden", "obs_len", "horizon",
-                 "inputs", "outputs", "frame", "residual", "speed_floor", "neighbours", "modes")
+                 "inputs", "outputs", "frame", "residual", "speed_floor", "neighbours", "modes",
+                 "attention_heads", "basis_rank")
 
 
 def _check_architecture(have: Seq2SeqConfig, want: Seq2SeqConfig, who: str) -> None:
