@@ -320,8 +320,9 @@ def test_protocol_trains_and_scores_the_lstm(ethucy_dir):
 
 @pytest.mark.real_data
 def test_each_direct_model_key_trains_its_own_encoder(ethucy_dir):
-    """The model keys lstm / gru / mlp train the direct predictor with an LSTM / GRU / dense
-    encoder (one member, one epoch on fold eth) and score it like any other model."""
+    """The model keys lstm / gru / mlp / transformer train the direct predictor with an LSTM /
+    GRU / dense / self-attention encoder (one member, one epoch on fold eth) and score it like
+    any other model."""
     from dataclasses import replace as _replace
 
     import torch
@@ -340,13 +341,14 @@ def test_each_direct_model_key_trains_its_own_encoder(ethucy_dir):
     cfg = _replace(Seq2SeqConfig(), epochs=1, ensemble=1, neighbours=0)
     with pytest.MonkeyPatch.context() as mp:
         mp.setattr(ethucy_protocol, "train_fold_seq2seq", spy)
-        out = ethucy_protocol.run_fold(ethucy_dir, "eth", ("lstm", "gru", "mlp"),
+        out = ethucy_protocol.run_fold(ethucy_dir, "eth", ("lstm", "gru", "mlp", "transformer"),
                                         RolloutLSTMConfig(), progress=False, seq2seq=cfg,
                                         calibration="mle")
     assert isinstance(trained["lstm"], torch.nn.LSTM)
     assert isinstance(trained["gru"], torch.nn.GRU)
     assert isinstance(trained["mlp"], torch.nn.Sequential)
-    for name in ("lstm", "gru", "mlp"):
+    assert isinstance(trained["transformer"], torch.nn.TransformerEncoder)
+    for name in ("lstm", "gru", "mlp", "transformer"):
         assert 0.5 < out[name].ade < 2.0                        # CVM: 1.00 on eth
         assert 0.0 < out[name].calibration["coverage_90"] <= 1.0
 
@@ -397,8 +399,10 @@ def _scores(per_fold):
 def test_benchmark_items_put_the_learned_models_first():
     from blindspot.traj.ethucy_protocol import benchmark_items
 
-    items = benchmark_items(("cvm", "kalman", "lstm", "mlp", "gru"), ("eth", "hotel"))
-    assert items == [("eth", "lstm"), ("hotel", "lstm"), ("eth", "gru"), ("hotel", "gru"),
+    items = benchmark_items(("cvm", "kalman", "lstm", "mlp", "gru", "transformer"),
+                            ("eth", "hotel"))
+    assert items == [("eth", "transformer"), ("hotel", "transformer"),
+                     ("eth", "lstm"), ("hotel", "lstm"), ("eth", "gru"), ("hotel", "gru"),
                      ("eth", "mlp"), ("hotel", "mlp"),
                      ("eth", "kalman"), ("hotel", "kalman"), ("eth", "cvm"), ("hotel", "cvm")]
 

@@ -15,6 +15,7 @@ from blindspot.traj.seq2seq import (
     Seq2SeqEnsemble,
     Seq2SeqModel,
     Seq2SeqNet,
+    _framed_inputs,
     train_seq2seq,
 )
 
@@ -47,10 +48,11 @@ def test_untrained_residual_head_is_constant_velocity():
                                    ConstantVelocity().predict(xy[:, :8], 12), atol=1e-5)
 
 
-def test_predictions_rotate_translate_and_mirror_with_the_track():
+@pytest.mark.parametrize("cell, basis_rank", [("mlp", 0), ("transformer", 0), ("mlp", 3)])
+def test_predictions_rotate_translate_and_mirror_with_the_track(cell, basis_rank):
     rng = np.random.default_rng(1)
     xy = turning_tracks(rng, 400)
-    model, _ = train_seq2seq(xy[:300], xy[300:], CFG)
+    model, _ = train_seq2seq(xy[:300], xy[300:], replace(CFG, cell=cell, basis_rank=basis_rank))
     obs = xy[300:, :8]
     pred = model.predict(obs, 12)
     R, t = _rot(0.7), np.array([3.0, -2.0])
@@ -469,22 +471,23 @@ def test_keep_by_best_of_keeps_the_epoch_of_the_best_hypotheses_and_wta_score_co
         replace(cfg, wta_score="fde")
 
 
-def test_transformer_encoder_learns_the_turn_and_keeps_the_symmetries():
+def test_transformer_encoder_learns_the_turn():
     """Self-attention over the observed steps: well below constant velocity on circle arcs
-    after three epochs, and its predictions turn, move and mirror with the track."""
+    after three epochs (its symmetries: test_predictions_rotate_translate_and_mirror...)."""
     rng = np.random.default_rng(20)
     train, val, test = turning_tracks(rng, 3000), turning_tracks(rng, 500), turning_tracks(rng, 300)
-    cfg = replace(CFG, cell="transformer", attention_heads=4)
-    model, _ = train_seq2seq(train, val, cfg)
+    model, _ = train_seq2seq(train, val, replace(CFG, cell="transformer", attention_heads=4))
     obs = test[:, :8]
-    pred = model.predict(obs, 12)
-    cv = ConstantVelocity().predict(obs, 12)
-    err, cv_err = (np.linalg.norm(p - test[:, 8:], axis=-1).mean() for p in (pred, cv))
+    err, cv_err = (np.linalg.norm(p - test[:, 8:], axis=-1).mean()
+                   for p in (model.predict(obs, 12), ConstantVelocity().predict(obs, 12)))
     assert err < 0.5 * cv_err, (err, cv_err)
-    R, t = _rot(-1.1), np.array([-4.0, 7.0])
-    np.testing.assert_allclose(model.predict(obs @ R.T + t, 12), pred @ R.T + t, atol=1e-4)
-    np.testing.assert_allclose(model.predict(obs * [1.0, -1.0], 12), pred * [1.0, -1.0],
-                               atol=1e-4)
+
+
+def test_transformer_layers_start_from_their_own_draws():
+    """torch copies one encoder layer into all of them; each starts from its own weights."""
+    net = Seq2SeqNet(replace(CFG, cell="transformer", num_layers=2))
+    a, b = (layer.self_attn.in_proj_weight for layer in net.encoder.layers)
+    assert not torch.equal(a, b)
 
 
 def _shaped_walks(rng, n, shape):
@@ -516,9 +519,10 @@ def test_motion_basis_spans_the_training_deviations_and_bounds_the_predictions()
     model, _ = train_seq2seq(train, val, cfg)
     g = shape.ravel() / np.linalg.norm(shape)
     assert abs(model.net.basis[:, 0].numpy() @ g) > 0.999
-    out = model.net(*[torch.as_tensor(a, dtype=torch.float32) for a in
-                      (np.diff(test[:, :8], axis=1), test[:, 7] - test[:, 6])],
-                    torch.zeros(300, CFG.neighbours, 8, 5)).detach().numpy()
+    basis = model.net.basis.numpy()
+    np.testing.assert_allclose(basis.T @ basis, np.eye(1), atol=1e-6)
+    x, soc, _, _ = _framed_inputs(test[:, :8], None, cfg)
+    out = model._net_out(x, soc).numpy()                           # framed offsets
     sv = np.linalg.svd(out[..., :2].reshape(300, -1), compute_uv=False)
     assert sv[1] < 1e-5 * sv[0], sv[:3]
     free, _ = train_seq2seq(train, val, replace(cfg, basis_rank=0))
@@ -543,10 +547,42 @@ def test_motion_basis_saves_loads_and_its_bad_settings_are_named(tmp_path):
         replace(CFG, basis_rank=25)
     with pytest.raises(ConfigError, match="basis_rank.*outputs is position"):
         replace(CFG, basis_rank=2, outputs="displacement")
+    with pytest.raises(ConfigError, match="basis_rank.*rotation_deg > 0"):
+        replace(CFG, basis_rank=2, rotation_deg=10.0)
     with pytest.raises(ConfigError, match="attention_heads.*divisor of hidden_size"):
         replace(CFG, cell="transformer", attention_heads=3)
     net = Seq2SeqNet(replace(CFG, basis_rank=2))
     with pytest.raises(ValueError, match="set_basis: deviations: expected"):
         net.set_basis(np.zeros((1, 12, 2)))
+    with pytest.raises(ValueError, match="expected finite values, found 1 NaN"):
+        net.set_basis(np.where(np.arange(120).reshape(5, 12, 2) == 7, np.nan, 0.0))
     with pytest.raises(ValueError, match="set_basis: cfg.basis_rank is 0"):
         Seq2SeqNet(CFG).set_basis(np.zeros((5, 12, 2)))
+
+
+def test_motion_basis_of_mirrored_training_is_mirror_symmetric_and_bounds_every_hypothesis():
+    """With mirrored copies the basis spans mirrored paths too (M B = B B^T M B), and with M
+    hypotheses each one's framed offsets lie in the span (nothing left outside it)."""
+    rng = np.random.default_rng(23)
+    xy = turning_tracks(rng, 600)
+    cfg = replace(CFG, modes=3, basis_rank=4, mirror=True, epochs=2)
+    model, _ = train_seq2seq(xy[:500], xy[500:], cfg)
+    b = model.net.basis.numpy().astype(float)
+    np.testing.assert_allclose(b.T @ b, np.eye(4), atol=1e-5)
+    mirror = np.diag(np.tile([1.0, -1.0], 12))
+    np.testing.assert_allclose(mirror @ b, b @ b.T @ mirror @ b, atol=1e-5)
+    x, soc, _, _ = _framed_inputs(xy[500:, :8], None, cfg)
+    hyp = model._net_out(x, soc)[0].numpy()[..., :2].reshape(100, 3, 24)
+    assert np.abs(hyp).max() > 1e-3                                  # the head did learn
+    np.testing.assert_allclose(hyp - hyp @ b @ b.T, 0.0, atol=1e-5)
+
+
+def test_fine_tuning_keeps_the_pretrained_basis():
+    rng = np.random.default_rng(24)
+    a, b = turning_tracks(rng, 300), turning_tracks(rng, 300) * [1.0, 3.0]
+    cfg = replace(CFG, basis_rank=2, epochs=1)
+    pre, _ = train_seq2seq(a[:200], a[200:], cfg)
+    tuned, _ = train_seq2seq(b[:200], b[200:], cfg, init=pre)
+    fresh, _ = train_seq2seq(b[:200], b[200:], cfg)
+    assert torch.equal(tuned.net.basis, pre.net.basis)
+    assert not torch.allclose(fresh.net.basis, pre.net.basis, atol=1e-3)

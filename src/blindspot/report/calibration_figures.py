@@ -19,7 +19,7 @@ from blindspot.report.style import new_grid, panel_title
 __all__ = ["reliability_figure"]
 
 _COLOURS = {"cvm": "#1f77b4", "kalman": "#2ca02c", "lstm": "#d62728", "gru": "#9467bd",
-            "mlp": "#ff7f0e", "transformer": "#8c564b", "mix": "#e377c2"}
+            "mlp": "#ff7f0e", "transformer": "#8c564b"}
 
 
 def reliability_figure(reliability: Mapping[str, Mapping[str, Mapping[str, Any]]],

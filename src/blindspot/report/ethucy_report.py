@@ -364,7 +364,7 @@ def format_report(results: Results, validation: Results,
                   + ". `*`: more than 2 percentage points from nominal. cvm: a heteroscedastic "
                   "noise model of its errors (along/cross-track covariance per step, scaled "
                   "by the history's speed and acceleration) fitted on val; kalman: the filter's "
-                  "own F P F^T + Q + R; lstm / gru / mlp: the Gaussian head plus the ensemble "
+                  "own F P F^T + Q + R; lstm / gru / mlp / transformer: the Gaussian head plus the ensemble "
                   "spread; mix: the mixture's second moment about its single prediction. "
                   "Rows \"online\": the same forecasts' online ellipses, each test scene a "
                   "stream, each future point known at its own frame; they use the scene's past "

@@ -320,7 +320,9 @@ class Seq2SeqConfig(TypedConfig):
         basis_rank: k > 0: each predicted path's mean deviation from the residual base lies
             in the span of the k leading right singular vectors of the training windows'
             deviations (a low-rank prior over motion shapes, after SingularTrajectory, Bae et
-            al. 2024; :class:`blindspot.traj.seq2seq.Seq2SeqNet`); 0 = any path.
+            al. 2024; :class:`blindspot.traj.seq2seq.Seq2SeqNet`); 0 = any path. Needs
+            ``outputs`` position and no rotation augmentation; a fine-tuned model keeps its
+            ``init``'s basis.
         time_steps: (ETH/UCY) the train split's windows at each of these steps of the
             annotated grid, pooled (:func:`blindspot.traj.ethucy.resample_tracks`): 1 = as
             annotated; 5/3 = a recording labelled 0.4 s per step whose steps span 0.67 s, as
@@ -369,6 +371,10 @@ class Seq2SeqConfig(TypedConfig):
             raise ConfigError("basis_rank", self.basis_rank,
                               f"at most 2 x horizon ({2 * self.horizon}): the dimension of "
                               "a path")
+        if self.basis_rank > 0 and self.rotation_deg > 0:
+            raise ConfigError("basis_rank", self.basis_rank,
+                              "0 when rotation_deg > 0 (the basis is set from the unrotated "
+                              "training deviations)")
         if self.basis_rank > 0 and self.outputs != "position":
             raise ConfigError("basis_rank", self.basis_rank,
                               "0 unless outputs is position (the basis spans position "

@@ -42,7 +42,7 @@ multi-modal models' best-of-20 scores, seed mean).
 
 Predictive distributions (issue 10, section 2): every model but ``lstm_rollout`` gives a
 :class:`~blindspot.traj.distribution.GaussianForecast` (cvm: :class:`CVNoise` fitted on the
-fold's val split; kalman: its own propagated covariance; lstm/gru/mlp: the Gaussian head and
+fold's val split; kalman: its own propagated covariance; lstm/gru/mlp/transformer: the Gaussian head and
 the ensemble spread). Each is calibrated on the fold's val split, never on test (``calibration``
 of :func:`run_fold`: a per-step covariance scale,
 :func:`~blindspot.traj.distribution.fit_step_scale`; a per-step scale mixture; or, the stage's
@@ -150,8 +150,8 @@ class EthUcySettings:
         models: models to score, a subset of :data:`MODELS` (in this order in the results).
         folds: test folds, a subset of :data:`~blindspot.traj.ethucy.FOLDS`.
         lstm: the next-point LSTM's settings (``"lstm_rollout"``).
-        seq2seq: the direct predictor's settings (``"lstm"``, ``"gru"``, ``"mlp"``; the cell is
-            set by the model key).
+        seq2seq: the direct predictor's settings (``"lstm"``, ``"gru"``, ``"mlp"``,
+            ``"transformer"``, ``"mix"``; the cell is set by the model key).
         calibration: how forecasts are calibrated on the val split: ``"mle"`` or
             ``"quantile"`` (a per-step scale, :func:`fit_step_scale`), ``"mixture"`` (a
             per-step scale mixture, :func:`fit_scale_mixture`) or ``"conditional"`` (one

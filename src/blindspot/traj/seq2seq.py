@@ -1,5 +1,5 @@
-"""A direct multi-step path predictor: a recurrent encoder over the observed track and a head
-that emits every future step at once, with a Gaussian per step.
+"""A direct multi-step path predictor: an encoder over the observed track and a head that emits
+every future step at once, with a Gaussian per step.
 
 Where the next-point LSTM (:mod:`blindspot.traj.lstm`) predicts one point and is rolled out step
 by step (its errors feed back, and it is trained on one-step errors it never makes at 4.8 s),
@@ -13,6 +13,9 @@ dense head, which beats constant velocity there).
 What the model sees and emits (each choice a :class:`Seq2SeqConfig` field, measured by
 ``studies/ethucy_models.py``):
 
+* ``cell``: the encoder of the observed steps: a GRU or LSTM, a dense layer over the flattened
+  steps (RED's dense variant), or a transformer (pre-norm self-attention over the steps with a
+  learned position embedding, Vaswani et al. 2017; its last step's output).
 * ``frame="heading"``: every track is moved to its own heading frame (origin at the last
   observed point, +x along the last step, :func:`blindspot.traj.predictor.heading_frame`), so the
   model is invariant to where the pedestrian is and which way they walk; ``"world"`` keeps world
@@ -41,6 +44,12 @@ What the model sees and emits (each choice a :class:`Seq2SeqConfig` field, measu
   al. 2018, "Social Attention", and Sadeghian et al. 2019, "SoPhie", in place of Social LSTM's
   occupancy grid, Alahi et al. 2016), with a learned "nobody" slot so an empty scene is a
   valid input. Predicting without neighbours (``neighbours=None``) means nobody is near.
+
+* ``basis_rank`` (k > 0): a low-rank prior over motion shapes. Each mean path's deviation from
+  the residual base is projected on the k leading right singular vectors of the training
+  windows' deviations (mirrored copies included; set once before training, a buffer saved with
+  the weights): the "singular space" of Bae et al. 2024, "SingularTrajectory", without its
+  adaptive anchors. A fine-tuned model keeps its ``init``'s basis.
 
 * ``modes`` (M > 1): the head emits M hypotheses, each a Gaussian path, and their
   probabilities (a mixture; :mod:`blindspot.traj.mixture`), trained by relaxed
@@ -174,6 +183,12 @@ class Seq2SeqNet(nn.Module):
             self.encoder = nn.TransformerEncoder(layer, cfg.num_layers,
                                                  norm=nn.LayerNorm(cfg.hidden_size),
                                                  enable_nested_tensor=False)
+            for later in self.encoder.layers[1:]:     # torch deep-copies the first layer
+                for sub in later.modules():
+                    if hasattr(sub, "_reset_parameters"):
+                        sub._reset_parameters()
+                    elif isinstance(sub, nn.Linear):
+                        sub.reset_parameters()
             self.position = nn.Parameter(0.02 * torch.randn(n_steps, cfg.hidden_size))
         else:
             rnn = nn.GRU if cfg.cell == "gru" else nn.LSTM
@@ -197,9 +212,12 @@ class Seq2SeqNet(nn.Module):
         k, h = self.cfg.basis_rank, self.cfg.horizon
         if k == 0:
             raise ValueError("Seq2SeqNet.set_basis: cfg.basis_rank is 0 (no basis)")
-        if d.ndim != 3 or d.shape[1:] != (h, 2) or len(d) < k or not np.isfinite(d).all():
-            raise ValueError(f"Seq2SeqNet.set_basis: deviations: expected a finite (N >= {k}, "
-                             f"{h}, 2) array, found shape {d.shape}")
+        if d.ndim != 3 or d.shape[1:] != (h, 2) or len(d) < k:
+            raise ValueError(f"Seq2SeqNet.set_basis: deviations: expected a (N >= {k}, {h}, 2) "
+                             f"array, found shape {d.shape}")
+        if not np.isfinite(d).all():
+            raise ValueError(f"Seq2SeqNet.set_basis: deviations: expected finite values, found "
+                             f"{int((~np.isfinite(d)).sum())} NaN or infinite")
         vt = np.linalg.svd(d.reshape(len(d), -1), full_matrices=False)[2]
         with torch.no_grad():
             self.basis.copy_(torch.as_tensor(vt[:k].T, dtype=self.basis.dtype))
@@ -214,7 +232,8 @@ class Seq2SeqNet(nn.Module):
 
     def set_anchors(self, anchors: np.ndarray) -> None:
         """Start hypothesis m at ``anchors[m]`` (M, horizon, 2), a framed deviation from the
-        residual base (the head's mean-offset biases; its weights stay zero)."""
+        residual base (the head's mean-offset biases; its weights stay zero); with a basis,
+        at the anchor's projection on it (the nearest path the head can emit)."""
         a = np.asarray(anchors, dtype=float)
         if a.shape != (self.cfg.modes, self.cfg.horizon, 2):
             raise ValueError(f"Seq2SeqNet.set_anchors: anchors: expected shape "
@@ -764,6 +783,8 @@ def _mixture_loss(out: torch.Tensor, logits: torch.Tensor, base: torch.Tensor, y
 def base_deviations(x: np.ndarray, y: np.ndarray, cfg: Seq2SeqConfig) -> np.ndarray:
     """(N, horizon, 2) framed futures ``y`` (N, H, 2) less the residual base of framed
     observations ``x`` (N, obs_len, 2): what the head's mean offsets learn."""
+    x = check_array(x, "x", ("N", cfg.obs_len, 2), who="base_deviations")
+    y = check_array(y, "y", (len(x), cfg.horizon, 2), who="base_deviations")
     step = x[:, -1] - x[:, -2]
     base = x[:, -1:, :] + (step[:, None, :] * np.arange(1, cfg.horizon + 1)[None, :, None]
                            if cfg.residual else 0.0)
@@ -794,7 +815,7 @@ def train_seq2seq(train_xy: np.ndarray, val_xy: np.ndarray, cfg: Seq2SeqConfig, 
         train_nb, val_nb: (N, K, obs_len, 2) neighbours of the windows (metres, NaN =
             absent; ``Windows.neighbours``), read when ``cfg.neighbours`` > 0.
         init: start from this model's weights instead of a fresh draw (fine-tuning a
-            pre-trained network); the optimiser and its schedule start afresh, and the weights
+            pre-trained network; its motion basis and anchors with them); the optimiser and its schedule start afresh, and the weights
             themselves are scored on ``val_xy`` as epoch 0 (kept if no epoch beats them). Its
             config must equal ``cfg`` in every architecture key.
 
@@ -943,11 +964,12 @@ def _train_member(train_xy: np.ndarray, val_xy: np.ndarray, cfg: Seq2SeqConfig, 
 # outputs); the rest are training settings a fine-tuning may change
 _ARCHITECTURE = ("cell", "hidden_size", "num_layers", "head_hidden", "obs_len", "horizon",
                  "inputs", "outputs", "frame", "residual", "speed_floor", "neighbours", "modes",
-                 "attention_heads", "basis_rank")
+                 "basis_rank")
 
 
 def _check_architecture(have: Seq2SeqConfig, want: Seq2SeqConfig, who: str) -> None:
-    diff = [k for k in _ARCHITECTURE if getattr(have, k) != getattr(want, k)]
+    keys = _ARCHITECTURE + (("attention_heads",) if want.cell == "transformer" else ())
+    diff = [k for k in keys if getattr(have, k) != getattr(want, k)]
     if diff:
         raise ValueError(f"{who}: made with another " + ", ".join(
             f"{k} ({getattr(have, k)!r}, expected {getattr(want, k)!r})" for k in diff))
