@@ -186,6 +186,19 @@ def test_a_split_at_several_time_steps_pools_their_windows(tmp_path):
         load_split(tmp_path, "eth", "train", time_steps=2.0)
 
 
+def test_transformer_heads_are_checked_when_a_model_uses_them():
+    """The group's seq2seq.cell is set per model key, so the heads are checked against the
+    width when the models (or mix_cell) name the transformer, by the key's name."""
+    from blindspot.typed_config import ConfigError
+
+    group = OmegaConf.to_container(OmegaConf.load(REPO / "conf" / "ethucy" / "standard.yaml"))
+    group["seq2seq"]["attention_heads"] = 3
+    EthUcyConfig.from_mapping(group)                           # no transformer: not read
+    for change in ({"models": ["cvm", "transformer"]}, {"mix_cell": "transformer"}):
+        with pytest.raises(ConfigError, match="seq2seq.attention_heads.*divisor of"):
+            EthUcyConfig.from_mapping({**group, **change})
+
+
 def test_settings_from_the_config_group(tmp_path):
     """conf/ethucy/standard.yaml, typed (EthUcyConfig), gives the run's settings: data under the
     shared folder, the top-level seed and ethucy.threads in both learned models' settings, the

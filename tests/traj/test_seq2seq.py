@@ -16,6 +16,7 @@ from blindspot.traj.seq2seq import (
     Seq2SeqModel,
     Seq2SeqNet,
     _framed_inputs,
+    base_deviations,
     train_seq2seq,
 )
 
@@ -484,10 +485,15 @@ def test_transformer_encoder_learns_the_turn():
 
 
 def test_transformer_layers_start_from_their_own_draws():
-    """torch copies one encoder layer into all of them; each starts from its own weights."""
-    net = Seq2SeqNet(replace(CFG, cell="transformer", num_layers=2))
-    a, b = (layer.self_attn.in_proj_weight for layer in net.encoder.layers)
-    assert not torch.equal(a, b)
+    """torch copies one encoder layer into all of them; each starts from its own weights,
+    initialised as a fresh layer is (the attention's output bias zero)."""
+    net = Seq2SeqNet(replace(CFG, cell="transformer", num_layers=3))
+    layers = list(net.encoder.layers)
+    for a, b in zip(layers, layers[1:]):
+        assert not torch.equal(a.self_attn.in_proj_weight, b.self_attn.in_proj_weight)
+        assert not torch.equal(a.linear1.weight, b.linear1.weight)
+    for layer in layers:
+        assert not layer.self_attn.out_proj.bias.any()
 
 
 def _shaped_walks(rng, n, shape):
@@ -552,12 +558,19 @@ def test_motion_basis_saves_loads_and_its_bad_settings_are_named(tmp_path):
     with pytest.raises(ConfigError, match="attention_heads.*divisor of hidden_size"):
         replace(CFG, cell="transformer", attention_heads=3)
     net = Seq2SeqNet(replace(CFG, basis_rank=2))
-    with pytest.raises(ValueError, match="set_basis: deviations: expected"):
+    with pytest.raises(ValueError, match="set_basis: deviations: expected at least basis_rank"):
         net.set_basis(np.zeros((1, 12, 2)))
-    with pytest.raises(ValueError, match="expected finite values, found 1 NaN"):
+    with pytest.raises(ValueError, match=r"set_basis: deviations: expected shape \(N, 12, 2\)"):
+        net.set_basis(np.zeros((3, 11, 2)))
+    with pytest.raises(ValueError, match="deviations: expected finite values.*found nan"):
         net.set_basis(np.where(np.arange(120).reshape(5, 12, 2) == 7, np.nan, 0.0))
-    with pytest.raises(ValueError, match="set_basis: cfg.basis_rank is 0"):
+    with pytest.raises(ValueError, match="set_basis: expected cfg.basis_rank > 0, found 0"):
         Seq2SeqNet(CFG).set_basis(np.zeros((5, 12, 2)))
+    x, y = xy[:, :8], xy[:, 8:]
+    with pytest.raises(ValueError, match="base_deviations: x"):
+        base_deviations(x[:, :7], y, CFG)
+    with pytest.raises(ValueError, match="base_deviations: y"):
+        base_deviations(x, y[:5], CFG)
 
 
 def test_motion_basis_of_mirrored_training_is_mirror_symmetric_and_bounds_every_hypothesis():
@@ -586,3 +599,19 @@ def test_fine_tuning_keeps_the_pretrained_basis():
     fresh, _ = train_seq2seq(b[:200], b[200:], cfg)
     assert torch.equal(tuned.net.basis, pre.net.basis)
     assert not torch.allclose(fresh.net.basis, pre.net.basis, atol=1e-3)
+    with pytest.raises(ValueError, match=r"init: made with another basis_rank \(2, expected 3\)"):
+        train_seq2seq(b[:200], b[200:], replace(cfg, basis_rank=3), init=pre)
+
+
+def test_fine_tuning_a_recurrent_encoder_ignores_the_attention_heads():
+    """attention_heads shapes only a transformer: an LSTM made with another value fine-tunes."""
+    rng = np.random.default_rng(25)
+    xy = turning_tracks(rng, 200)
+    cfg = replace(CFG, cell="lstm", epochs=1)
+    pre, _ = train_seq2seq(xy[:150], xy[150:], replace(cfg, attention_heads=2))
+    tuned, _ = train_seq2seq(xy[:150], xy[150:], cfg, init=pre)
+    assert tuned.cfg.attention_heads == 4
+    with pytest.raises(ValueError, match="init: made with another attention_heads"):
+        train_seq2seq(xy[:150], xy[150:], replace(cfg, cell="transformer"),
+                      init=train_seq2seq(xy[:150], xy[150:], replace(
+                          cfg, cell="transformer", attention_heads=2))[0])

@@ -462,8 +462,9 @@ class EthUcyConfig(OnlineCandidatesConfig):
 
     Attributes:
         data: folder of the ETH/UCY files, relative to ``paths.shared_dir`` (or absolute).
-        models: predictors to score, from :data:`ETHUCY_MODELS` (``lstm`` / ``gru`` / ``mlp``:
-            the direct multi-step predictor with an LSTM / GRU / MLP encoder; ``lstm_rollout``:
+        models: predictors to score, from :data:`ETHUCY_MODELS` (``lstm`` / ``gru`` / ``mlp`` /
+            ``transformer``: the direct multi-step predictor with that encoder; ``mix``: its
+            multi-modal form with ``mix_cell``; ``lstm_rollout``:
             the next-point LSTM rolled out step by step).
         folds: leave-one-scene-out folds, from :data:`blindspot.traj.ethucy.FOLDS`.
         threads: torch threads.
@@ -501,6 +502,13 @@ class EthUcyConfig(OnlineCandidatesConfig):
     seeds: int = setting(1, ge=1)
     mix_cell: str = setting("mlp", choices=SEQ2SEQ_CELLS)
     mix_modes: int = setting(20, ge=2)
+
+    def validate(self) -> None:
+        heads, width = self.seq2seq.attention_heads, self.seq2seq.hidden_size
+        if ("transformer" in self.models or self.mix_cell == "transformer") and width % heads:
+            raise ConfigError("seq2seq.attention_heads", heads,
+                              f"a divisor of seq2seq.hidden_size ({width}) when a model "
+                              "uses the transformer encoder")
 
 
 @dataclass(frozen=True)

@@ -177,18 +177,16 @@ class Seq2SeqNet(nn.Module):
         if cfg.cell == "mlp":     # the whole input sequence flattened (RED's dense variant)
             self.encoder = nn.Sequential(nn.Linear(2 * n_steps, cfg.hidden_size), nn.ReLU())
         elif cfg.cell == "transformer":   # pre-norm self-attention over the observed steps
-            layer = nn.TransformerEncoderLayer(
-                cfg.hidden_size, cfg.attention_heads, dim_feedforward=2 * cfg.hidden_size,
-                dropout=0.0, batch_first=True, norm_first=True)
-            self.encoder = nn.TransformerEncoder(layer, cfg.num_layers,
+            def layer() -> nn.TransformerEncoderLayer:
+                return nn.TransformerEncoderLayer(
+                    cfg.hidden_size, cfg.attention_heads, dim_feedforward=2 * cfg.hidden_size,
+                    dropout=0.0, batch_first=True, norm_first=True)
+
+            self.encoder = nn.TransformerEncoder(layer(), cfg.num_layers,
                                                  norm=nn.LayerNorm(cfg.hidden_size),
                                                  enable_nested_tensor=False)
-            for later in self.encoder.layers[1:]:     # torch deep-copies the first layer
-                for sub in later.modules():
-                    if hasattr(sub, "_reset_parameters"):
-                        sub._reset_parameters()
-                    elif isinstance(sub, nn.Linear):
-                        sub.reset_parameters()
+            for i in range(1, cfg.num_layers):   # torch deep-copies the first: own draws
+                self.encoder.layers[i] = layer()
             self.position = nn.Parameter(0.02 * torch.randn(n_steps, cfg.hidden_size))
         else:
             rnn = nn.GRU if cfg.cell == "gru" else nn.LSTM
@@ -208,16 +206,13 @@ class Seq2SeqNet(nn.Module):
     def set_basis(self, deviations: np.ndarray) -> None:
         """Span of the mean offsets: the ``cfg.basis_rank`` leading right singular vectors of
         ``deviations`` (N, horizon, 2), framed training futures less their residual base."""
-        d = np.asarray(deviations, dtype=float)
         k, h = self.cfg.basis_rank, self.cfg.horizon
         if k == 0:
-            raise ValueError("Seq2SeqNet.set_basis: cfg.basis_rank is 0 (no basis)")
-        if d.ndim != 3 or d.shape[1:] != (h, 2) or len(d) < k:
-            raise ValueError(f"Seq2SeqNet.set_basis: deviations: expected a (N >= {k}, {h}, 2) "
-                             f"array, found shape {d.shape}")
-        if not np.isfinite(d).all():
-            raise ValueError(f"Seq2SeqNet.set_basis: deviations: expected finite values, found "
-                             f"{int((~np.isfinite(d)).sum())} NaN or infinite")
+            raise ValueError("Seq2SeqNet.set_basis: expected cfg.basis_rank > 0, found 0")
+        d = check_array(deviations, "deviations", ("N", h, 2), who="Seq2SeqNet.set_basis")
+        if len(d) < k:
+            raise ValueError(f"Seq2SeqNet.set_basis: deviations: expected at least "
+                             f"basis_rank = {k} paths, found {len(d)}")
         vt = np.linalg.svd(d.reshape(len(d), -1), full_matrices=False)[2]
         with torch.no_grad():
             self.basis.copy_(torch.as_tensor(vt[:k].T, dtype=self.basis.dtype))
@@ -785,10 +780,7 @@ def base_deviations(x: np.ndarray, y: np.ndarray, cfg: Seq2SeqConfig) -> np.ndar
     observations ``x`` (N, obs_len, 2): what the head's mean offsets learn."""
     x = check_array(x, "x", ("N", cfg.obs_len, 2), who="base_deviations")
     y = check_array(y, "y", (len(x), cfg.horizon, 2), who="base_deviations")
-    step = x[:, -1] - x[:, -2]
-    base = x[:, -1:, :] + (step[:, None, :] * np.arange(1, cfg.horizon + 1)[None, :, None]
-                           if cfg.residual else 0.0)
-    return y - base
+    return y - (x[:, -1:, :] + (_cv_offsets(x, cfg.horizon) if cfg.residual else 0.0))
 
 
 def mixture_anchors(x: np.ndarray, y: np.ndarray, cfg: Seq2SeqConfig, seed: int) -> np.ndarray:
@@ -815,7 +807,8 @@ def train_seq2seq(train_xy: np.ndarray, val_xy: np.ndarray, cfg: Seq2SeqConfig, 
         train_nb, val_nb: (N, K, obs_len, 2) neighbours of the windows (metres, NaN =
             absent; ``Windows.neighbours``), read when ``cfg.neighbours`` > 0.
         init: start from this model's weights instead of a fresh draw (fine-tuning a
-            pre-trained network; its motion basis and anchors with them); the optimiser and its schedule start afresh, and the weights
+            pre-trained network; its motion basis and anchors with them); the optimiser and
+            its schedule start afresh, and the weights
             themselves are scored on ``val_xy`` as epoch 0 (kept if no epoch beats them). Its
             config must equal ``cfg`` in every architecture key.
 
