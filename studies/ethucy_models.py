@@ -43,11 +43,12 @@ most probable or its 40 merged into 20 are scored. Three seeds' LSTM encoders av
 (``--variants ensemble --set cell=lstm,ensemble=3,seed=S``, S = 0, 3, 6) are preferred by val,
 but the three averages score 0.4724 +- 0.0065 / 0.9762 +- 0.0111 m on test against the stage's
 three-seed mean 0.4730 / 0.9785: not adopted (eighth pass).
-A transformer encoder (``transformer``, three seeds) ties the LSTM on val (0.4020 against 0.4017
-m) and beats it on test (0.456 / 0.961 against 0.473 / 0.979 m, eth 0.77 / 1.57 against 0.87 /
-1.70), all of it on eth; not val's choice, so a model key run on request, as the GRU is. The low-rank motion basis (``basis_4`` to
-``basis_8``) moves the LSTM's val by at most 0.0009 m with no trend in the rank and loses for
-the MLP encoder and mix at seed 0: ``basis_rank`` stays 0 (ninth pass).
+A transformer encoder (``transformer``, three seeds) ties the LSTM on val (0.4020 against 0.4018
+m) and beats the stage's LSTM on test (0.456 / 0.961 against 0.473 / 0.978 m), all of it on eth
+(0.77 / 1.57 against 0.87 / 1.70): not val's choice, so a model key run on request, as the GRU
+is. The low-rank motion basis (``basis_4`` to ``basis_8``) moves the LSTM's val by at most
+0.0009 m with no trend in the rank (test too: 0.467-0.472 m), and loses for the MLP encoder
+and mix at seed 0; one ``basis_rank`` serves every encoder, so it stays 0 (ninth pass).
 """
 
 from __future__ import annotations
