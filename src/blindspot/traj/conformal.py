@@ -414,13 +414,12 @@ def select_on_held_out_streams(candidates: Sequence[OnlineEllipses], scores: np.
         ``(index of the choice, one HeldOutStreamScore per candidate)``.
 
     Raises:
-        ConformalError: no candidate, candidates with different levels, fewer than two
-            streams, or the errors of :meth:`AdaptiveConformal.radii`.
+        ConformalError: no candidate (or not online ellipses), candidates with different
+            levels (:func:`check_candidates`), fewer than two streams, or the errors of
+            :meth:`AdaptiveConformal.radii`.
     """
     who = "select_on_held_out_streams"
-    if not candidates or len({_level_key(c) for c in candidates}) != 1:
-        raise ConformalError(f"{who}: expected candidates with one set of levels, found "
-                             f"{[c.levels for c in candidates]!r}")
+    check_candidates(candidates, who)
     s = np.asarray(scores, float)
     group = np.asarray(stream)
     names = np.unique(group)

@@ -43,8 +43,8 @@ multi-modal models' best-of-20 scores, seed mean).
 Predictive distributions (issue 10, section 2): every model but ``lstm_rollout`` gives a
 :class:`~blindspot.traj.distribution.GaussianForecast` (cvm: :class:`CVNoise` fitted on the
 fold's val split; kalman: its own propagated covariance; lstm/gru/mlp/transformer: the Gaussian
-head and the ensemble spread). Each is calibrated on the fold's val split, never on test (``calibration``
-of :func:`run_fold`: a per-step covariance scale,
+head and the ensemble spread). Each is calibrated on the fold's val split, never on test
+(``calibration`` of :func:`run_fold`: a per-step covariance scale,
 :func:`~blindspot.traj.distribution.fit_step_scale`; a per-step scale mixture; or, the stage's
 setting, one such mixture per class of observed speed,
 :func:`~blindspot.traj.distribution.fit_conditional_scale_mixture`) and scored on the test scene:
