@@ -124,6 +124,49 @@ def base_config() -> Seq2SeqConfig:
     return Seq2SeqConfig.from_mapping(OmegaConf.to_container(conf.seq2seq))
 
 
+def apply_set(base: Seq2SeqConfig, spec: str) -> Seq2SeqConfig:
+    """``base`` with the overrides of ``spec`` (``key=value,key=value``; ``--set``), each value
+    read as its key's type. Raises ValueError naming a malformed item, an unknown key, a value
+    of the wrong type, or a key no single value can set (a tuple: use a variant)."""
+    for item in filter(None, spec.split(",")):
+        key, eq, value = item.partition("=")
+        if not eq or not key:
+            raise ValueError(f"--set: expected key=value items, found {item!r}")
+        if not hasattr(base, key):
+            raise ValueError(f"--set: unknown setting {key!r}; expected one of "
+                             f"{sorted(vars(base))}")
+        typ = type(getattr(base, key))
+        if typ is tuple:
+            raise ValueError(f"--set: {key} takes a list, which --set cannot give; use a variant")
+        if typ is bool and value not in ("True", "False"):
+            raise ValueError(f"--set: {key}: expected True or False, found {value!r}")
+        try:
+            base = replace(base, **{key: value == "True" if typ is bool else typ(value)})
+        except ValueError as err:
+            raise ValueError(f"--set: {key}: expected a value of type {typ.__name__}, found "
+                             f"{value!r} ({err})") from None
+    return base
+
+
+def scores(p, xy: np.ndarray, nb: np.ndarray | None) -> dict:
+    """ADE / FDE of predictor ``p``'s prediction of windows ``xy`` (N, 20, 2) with neighbours
+    ``nb`` (passed when ``p`` reads them); a multi-modal model (``cfg.modes`` > 1) adds
+    ``best_ade`` / ``best_fde``, the best of its 20 most probable hypotheses, and when it has more
+    than 20 (an ensemble's pooled ones) ``reduced_ade`` / ``reduced_fde``, the best of them merged
+    into 20 (:meth:`blindspot.traj.mixture.MixtureForecast.reduced`)."""
+    kw = {"neighbours": nb} if getattr(p, "uses_neighbours", False) else {}
+    pred = p.predict(xy[:, :8], 12, **kw)
+    out = {"ade": ade(pred, xy[:, 8:]), "fde": fde(pred, xy[:, 8:])}
+    if getattr(getattr(p, "cfg", None), "modes", 1) > 1:
+        mix = MultiModalPredictor(p).predict_mixture(xy[:, :8], 12, neighbours=nb)
+        b_ade, b_fde = best_of(mix.most_probable(min(BEST_OF, mix.modes)), xy[:, 8:])
+        out |= {"best_ade": b_ade, "best_fde": b_fde}
+        if mix.modes > BEST_OF:
+            r_ade, r_fde = best_of(mix.reduced(BEST_OF).means, xy[:, 8:])
+            out |= {"reduced_ade": r_ade, "reduced_fde": r_fde}
+    return out
+
+
 def run_variant(fold: str, name: str, cfg: Seq2SeqConfig, data_dir, save_dir=None,
                 val_steps: tuple[float, ...] = (1.0,)) -> dict:
     t0 = time.perf_counter()
@@ -152,22 +195,13 @@ def run_variant(fold: str, name: str, cfg: Seq2SeqConfig, data_dir, save_dir=Non
                 preds[f"ensemble_{k}"] = Seq2SeqEnsemble(ens.members[:k])
     preds["cvm"] = ConstantVelocity()
     for key, p in preds.items():
-        if getattr(p, "uses_neighbours", False):
-            pv = p.predict(val[:, :8], 12, neighbours=nb["val"])
-            pt = p.predict(test[:, :8], 12, neighbours=nb["test"])
-        else:
-            pv, pt = p.predict(val[:, :8], 12), p.predict(test[:, :8], 12)
-        out[key] = {"val_ade": ade(pv, val[:, 8:]), "val_fde": fde(pv, val[:, 8:]),
-                    "test_ade": ade(pt, test[:, 8:]), "test_fde": fde(pt, test[:, 8:])}
-        if getattr(getattr(p, "cfg", None), "modes", 1) > 1:
-            for split, xy, k_nb in (("val", val, nb["val"]), ("test", test, nb["test"])):
-                mix = MultiModalPredictor(p).predict_mixture(xy[:, :8], 12, neighbours=k_nb)
-                b_ade, b_fde = best_of(mix.most_probable(min(BEST_OF, mix.modes)), xy[:, 8:])
-                out[key] |= {f"{split}_best_ade": b_ade, f"{split}_best_fde": b_fde}
-                if mix.modes > BEST_OF:
-                    r_ade, r_fde = best_of(mix.reduced(BEST_OF).means, xy[:, 8:])
-                    out[f"{key}_reduced"] = out.get(f"{key}_reduced", dict(out[key])) | {
-                        f"{split}_best_ade": r_ade, f"{split}_best_fde": r_fde}
+        sc = {"val": scores(p, val, nb["val"]), "test": scores(p, test, nb["test"])}
+        out[key] = {f"{split}_{m}": sc[split][m] for split in sc for m in ("ade", "fde")}
+        out[key] |= {f"{split}_{m}": sc[split][m] for split in sc for m in ("best_ade", "best_fde")
+                     if m in sc[split]}
+        if "reduced_ade" in sc["val"]:     # the pooled hypotheses merged into 20
+            out[f"{key}_reduced"] = out[key] | {f"{split}_best_{m}": sc[split][f"reduced_{m}"]
+                                                for split in sc for m in ("ade", "fde")}
     out["_seconds"] = time.perf_counter() - t0
     return out
 
@@ -188,11 +222,10 @@ def main() -> None:
     args = ap.parse_args()
     from blindspot.parallel import parallel_map
 
-    base = base_config()
-    for item in filter(None, args.set.split(",")):
-        k, v = item.split("=")
-        typ = type(getattr(base, k))
-        base = replace(base, **{k: (v == "True") if typ is bool else typ(v)})
+    try:
+        base = apply_set(base_config(), args.set)
+    except ValueError as err:
+        ap.error(str(err))
     if args.epochs:
         base = replace(base, epochs=args.epochs)
     folds = args.folds.split(",")

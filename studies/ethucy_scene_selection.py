@@ -8,28 +8,32 @@ ETH/UCY's test prefers?
 The benchmark's val split is a slice of the same four scenes the fold trains on, so it cannot
 see what sets the fold's test scene apart (eth's pace, issue 43). Leave-one-domain-out
 validation (Gulrajani and Lopez-Paz 2021, "In search of lost domain generalization", DomainBed's
-model selection) asks instead how a setting does on a scene it never trained on. For test scene
-F and every other scene G, a model trained on F's train split without G's files (its epoch kept
-by F's val split without G's files) is scored on G's whole recording (fold G's test files).
-F's own recording is never read, so the choice stays blind to F's test. The held-out models of
-F and G train on the same files (each fold's train split holds the same per-scene files), so
-the ten scene pairs' models serve both folds. Each setting's held-out score for fold F is its
-ADE averaged over the four scenes G (equal weight, as the folds are averaged), over the seeds;
-the lowest is held-out validation's choice, set beside the standard val's choice and every
-variant's test (the fold's own model, as ``studies/ethucy_models.py`` trains it; the seeds'
-mean and sd).
+model selection) asks instead how a setting does on a recording it never trained on. For test
+scene F and every other scene G, a model trained on F's train split without G's recordings'
+files (its epoch kept by F's val split without them) is scored on G's whole recording (fold G's
+test files). F's own recording is never read, so the choice stays blind to F's test. (Only eth
+and hotel are places no other file shows: uni_examples, of univ's campus, and crowds_zara03
+train in every fold.) The pair models of F and G train on the same files (each fold's splits
+hold the same per-scene files, checked byte for byte before training), so the ten scene pairs'
+models serve both folds. Each setting's held-out score for fold F is its ADE averaged over the
+four scenes G (equal weight, as the folds are averaged) and over the seeds; the lowest is
+held-out validation's choice, set beside each fold's own val split's choice and every variant's
+test (the fold's own model, ``ethucy_models.run_variant``; the seeds' mean and sd).
 
 Variants are ``studies/ethucy_models.py``'s (one change from the benchmark's seq2seq settings,
-``conf/ethucy/standard.yaml``); ``--set`` overrides the base for all of them. ``--print FILE``
-prints an earlier run's tables from its ``--json`` file. A multi-modal base (``--set
-cell=mlp,modes=20``) adds the tables scored and chosen by best-of-20.
+``conf/ethucy/standard.yaml``); ``--set`` overrides the base for all of them (not ``seed`` or
+``ensemble``: one member per seed of ``--seeds``). ``--print FILE`` prints an earlier run's
+tables from its ``--json`` file. A multi-modal base (``--set cell=mlp,modes=20``) adds the
+tables scored and chosen by best-of-20.
 
 Conclusion (2026-12-07, the LSTM encoder, the transformer encoder and the LSTM with training
-windows also at 5/2, seeds 0-2, about 1 h on 2 cores; docs/studies/ethucy.md, tenth pass): the
-held-out scenes choose the transformer for hotel, univ, zara1 and zara2, whose held-out scenes
-include eth (trained without eth, it scores 0.76-0.84 m there against the LSTM's 0.78-0.90),
-and the LSTM for eth, whose test the transformer improves: test 0.4750 / 0.9859 m against the
-stage's 0.4733 / 0.9791. What makes eth hard is in eth alone; nothing adopted.
+windows also at 5/2, seeds 0-2, under an hour on 2 cores; docs/studies/ethucy.md, tenth pass):
+the held-out scenes choose the transformer for hotel, univ, zara1 and zara2, whose held-out
+scenes include eth (trained without eth, it scores 0.76-0.84 m there against the LSTM's
+0.78-0.90; without eth among them every fold would choose the LSTM), and for eth itself, whose
+test the transformer improves, the LSTM, tied with 5/2: test 0.4750 / 0.9859 m (0.4691 / 0.9649
+with the tie broken the other way) against 0.4733 / 0.9791 for the stage's settings retrained
+here. What makes eth hard is in eth alone; nothing adopted.
 """
 
 from __future__ import annotations
@@ -43,66 +47,81 @@ from functools import partial
 from pathlib import Path
 
 import numpy as np
-from ethucy_models import VARIANTS, base_config   # the script's own folder is on its path
+from ethucy_models import VARIANTS, apply_set, base_config, run_variant, scores  # own folder
 
-from blindspot.traj.ethucy import FOLDS, Windows, default_data_dir, load_split
-from blindspot.traj.ethucy_protocol import BEST_OF
-from blindspot.traj.metrics import ade, fde
-from blindspot.traj.mixture import best_of
-from blindspot.traj.multimodal import MultiModalPredictor
+from blindspot.traj.ethucy import FOLDS, Windows, default_data_dir, load_split, split_files
 from blindspot.traj.seq2seq import train_ensemble
 
-#: the file-name stems of each test scene's recordings (the Social-GAN split's files;
-#: crowds_zara03 and uni_examples are training files of every fold and belong to no test scene)
-SCENE_FILES = {"eth": ("biwi_eth",), "hotel": ("biwi_hotel",),
-               "univ": ("students001", "students003"), "zara1": ("crowds_zara01",),
-               "zara2": ("crowds_zara02",)}
+SPLIT_SUFFIXES = ("_train", "_val")   # a train / val file is a test recording's stem + suffix
 
 
-def without_scene(w: Windows, scene: str) -> Windows:
-    """The windows of ``w`` whose file is not one of ``scene``'s recordings."""
-    keep_file = np.array([not Path(f).stem.startswith(SCENE_FILES[scene]) for f in w.files])
-    if keep_file.all():
-        raise ValueError(f"without_scene: no file of {scene!r} among {w.files}")
-    m = keep_file[w.file_index]
+def scene_stems(data_dir, scene: str) -> set[str]:
+    """The stems of ``scene``'s recordings: its fold's test files (univ: students001 and
+    students003; uni_examples and crowds_zara03 are training files of every fold, of no
+    test scene)."""
+    return {f.stem for f in split_files(data_dir, scene, "test")}
+
+
+def _recording(path: str) -> str:
+    stem = Path(path).stem
+    for suffix in SPLIT_SUFFIXES:
+        stem = stem.removesuffix(suffix)
+    return stem
+
+
+def without_scene(w: Windows, stems: set[str], scene: str) -> Windows:
+    """The windows of ``w`` whose file is not a part of one of ``scene``'s recordings
+    (``stems``, :func:`scene_stems`); ``files``, ``skipped`` and ``file_index`` follow.
+    Raises ValueError when a recording has no file in ``w``."""
+    rec = [_recording(f) for f in w.files]
+    missing = sorted(stems - set(rec))
+    if missing:
+        raise ValueError(f"without_scene: {scene}: no file of {missing} among {w.files}")
+    keep = np.array([r not in stems for r in rec])
+    new_index = np.cumsum(keep) - 1
+    m = keep[w.file_index]
     return replace(w, xy=w.xy[m], track_id=w.track_id[m], start=w.start[m],
-                   file_index=w.file_index[m],
+                   file_index=new_index[w.file_index[m]],
+                   files=tuple(f for f, k in zip(w.files, keep) if k),
+                   skipped=tuple(r for r, k in zip(w.skipped, keep) if k),
                    neighbours=None if w.neighbours is None else w.neighbours[m])
 
 
-def _scores(model, cfg, w: Windows) -> dict:
-    """ADE / FDE of the mean prediction; for a multi-modal model (``modes`` > 1) also of the
-    best of its 20 most probable hypotheses (``best_ade`` / ``best_fde``)."""
-    obs, fut = w.xy[:, :8], w.xy[:, 8:]
-    p = model.predict(obs, 12, neighbours=w.neighbours)
-    out = {"ade": ade(p, fut), "fde": fde(p, fut)}
-    if cfg.modes > 1:
-        mix = MultiModalPredictor(model).predict_mixture(obs, 12, neighbours=w.neighbours)
-        b_ade, b_fde = best_of(mix.most_probable(min(BEST_OF, mix.modes)), fut)
-        out |= {"best_ade": b_ade, "best_fde": b_fde}
-    return out
+def check_shared_pairs(data_dir) -> None:
+    """The pair models' premise: for scenes F and G, fold F's train and val files less G's are
+    fold G's less F's, byte for byte (so one model serves both folds). Raises ValueError."""
+    for f, g in itertools.combinations(FOLDS, 2):
+        for split in ("train", "val"):
+            a, b = ({_recording(str(p)) + p.suffix: p.read_bytes() for p in split_files(
+                data_dir, fold, split) if _recording(str(p)) not in scene_stems(data_dir, other)}
+                for fold, other in ((f, g), (g, f)))
+            if a != b:
+                raise ValueError(f"{data_dir}: {f}/{split} without {g} differs from {g}/{split} "
+                                 f"without {f}: {sorted(a)} against {sorted(b)}")
 
 
 def run(job: tuple, data_dir) -> dict:
-    """One training: ``("fold", F, cfg)`` scored on F's val and test, or ``("pair", (F, G),
-    cfg)`` trained without F and G, scored on each one's whole recording."""
+    """One training: ``("fold", F, cfg)`` scored on F's val and test splits
+    (:func:`ethucy_models.run_variant`), or ``("pair", (F, G), cfg)`` trained without F and G,
+    scored on each one's whole recording."""
     kind, key, cfg = job
     t0 = time.perf_counter()
-    k = cfg.neighbours
-    fold = key if kind == "fold" else key[0]
-    train = load_split(data_dir, fold, "train", min_peds=1, neighbours=k,
-                       time_steps=cfg.time_steps)
-    val = load_split(data_dir, fold, "val", neighbours=k)
-    if kind == "pair":
-        train, val = without_scene(train, key[1]), without_scene(val, key[1])
+    if kind == "fold":
+        r = run_variant(key, "v", cfg, data_dir)["v"]
+        out = {split: {m.removeprefix(split + "_"): x for m, x in r.items()
+                       if m.startswith(split + "_")} for split in ("val", "test")}
+        return out | {"seconds": time.perf_counter() - t0}
+    k, (fold, other) = cfg.neighbours, key
+    stems = scene_stems(data_dir, other)
+    train, val = (without_scene(load_split(data_dir, fold, split, min_peds=1 if split == "train"
+                                           else 2, neighbours=k, time_steps=steps), stems, other)
+                  for split, steps in (("train", cfg.time_steps), ("val", (1.0,))))
     model, _ = train_ensemble(train.xy, val.xy, cfg, train_nb=train.neighbours,
                               val_nb=val.neighbours)
-    if kind == "fold":
-        out = {"val": _scores(model, cfg, val),
-               "test": _scores(model, cfg, load_split(data_dir, fold, "test", neighbours=k))}
-    else:
-        out = {s: _scores(model, cfg, load_split(data_dir, s, "test", neighbours=k))
-               for s in key}
+    out = {}
+    for scene in key:
+        test = load_split(data_dir, scene, "test", neighbours=k)
+        out[scene] = scores(model, test.xy, test.neighbours)
     return out | {"seconds": time.perf_counter() - t0}
 
 
@@ -117,24 +136,39 @@ def main() -> None:
                     help="print the tables of an earlier run's --json file (no training)")
     args = ap.parse_args()
     if args.print:
-        saved = json.loads(Path(args.print).read_text())
-        res = {v: {int(s): r for s, r in by.items()} for v, by in saved["results"].items()}
+        try:
+            saved = json.loads(Path(args.print).read_text())
+            res = {v: {int(s): r for s, r in by.items()} for v, by in saved["results"].items()}
+            modes = saved["base"]["modes"]
+        except (OSError, ValueError, KeyError, TypeError) as err:
+            ap.error(f"--print: expected a --json file of this script, found {args.print!r} "
+                     f"({type(err).__name__}: {err})")
         _print(res)
-        if saved["base"]["modes"] > 1:
+        if modes > 1:
             _print(res, "best_")
         return
-    from blindspot.parallel import parallel_map
-
-    base = base_config()
-    for item in filter(None, args.set.split(",")):
-        k, v = item.split("=")
-        typ = type(getattr(base, k))
-        base = replace(base, **{k: (v == "True") if typ is bool else typ(v)})
     variants = args.variants.split(",")
     unknown = [v for v in variants if v not in VARIANTS]
-    if unknown:
-        ap.error(f"--variants: unknown {unknown}; expected among {sorted(VARIANTS)}")
-    seeds = [int(s) for s in args.seeds.split(",")]
+    if unknown or len(set(variants)) != len(variants):
+        ap.error(f"--variants: expected distinct names among {sorted(VARIANTS)}, found "
+                 f"{variants}")
+    try:
+        seeds = [int(s) for s in args.seeds.split(",")]
+    except ValueError:
+        ap.error(f"--seeds: expected integers such as 0,1,2, found {args.seeds!r}")
+    if len(set(seeds)) != len(seeds):
+        ap.error(f"--seeds: expected distinct seeds, found {args.seeds!r}")
+    fixed = {item.partition("=")[0] for item in args.set.split(",")} & {"seed", "ensemble"}
+    if fixed:
+        ap.error(f"--set: {sorted(fixed)} are set by this script (one member, --seeds)")
+    try:
+        base = apply_set(base_config(), args.set)
+        check_shared_pairs(default_data_dir())
+    except ValueError as err:
+        ap.error(str(err))
+    from blindspot.parallel import parallel_map
+
+    t0 = time.perf_counter()
     pairs = list(itertools.combinations(FOLDS, 2))
     res: dict = {}
     for v in variants:
@@ -145,11 +179,12 @@ def main() -> None:
             res.setdefault(v, {})[s] = {"fold": dict(zip(FOLDS, out[:len(FOLDS)])),
                                         "pair": {"+".join(p): o for p, o in
                                                  zip(pairs, out[len(FOLDS):])}}
-            print(f"# {v} seed {s}: {sum(o['seconds'] for o in out):.0f} s of training",
+            print(f"# {v} seed {s}: {sum(o['seconds'] for o in out):.0f} s of fold time",
                   flush=True)
             if args.json:
                 Path(args.json).write_text(json.dumps({"base": base.__dict__, "results": res},
                                                       indent=1, default=str))
+    print(f"# wall time {time.perf_counter() - t0:.0f} s")
     _print(res)
     if base.modes > 1:
         _print(res, "best_")
@@ -168,7 +203,10 @@ def _print(res: dict, prefix: str = "") -> None:
     hypotheses ("best_"): every variant's scores per fold, then each rule's choices and their
     test over the five folds (the seeds' mean +- sd)."""
     variants, a, f_ = list(res), prefix + "ade", prefix + "fde"
-    seeds = list(res[variants[0]])
+    seeds = sorted(set.intersection(*(set(by) for by in res.values())))
+    if any(set(by) != set(seeds) for by in res.values()):
+        print(f"(an unfinished run: the seeds every variant has, {seeds})")
+        res = {v: {s: by[s] for s in seeds} for v, by in res.items()}
 
     def fold_mean(v, f, split, metric):
         return float(np.mean([r["fold"][f][split][metric] for r in res[v].values()]))
@@ -196,6 +234,9 @@ def _print(res: dict, prefix: str = "") -> None:
         print(f"| {name} | " + " | ".join(pick[f] for f in FOLDS)
               + f" | {np.mean(per_seed[0]):.4f} +- {sd[0]:.4f} / "
               f"{np.mean(per_seed[1]):.4f} +- {sd[1]:.4f} |")
+    margin = {f: np.diff(sorted(held_out(res, v, f, a) for v in variants)[:2]) for f in FOLDS}
+    print("\nheld-out scenes' margin between its first two choices (m): " + ", ".join(
+        f"{f} {m[0]:.5f}" for f, m in margin.items() if m.size))
 
 
 if __name__ == "__main__":
