@@ -56,7 +56,7 @@ from __future__ import annotations
 import argparse
 import json
 import time
-from dataclasses import replace
+from dataclasses import fields, replace
 from fractions import Fraction
 from functools import partial
 from pathlib import Path
@@ -128,23 +128,27 @@ def apply_set(base: Seq2SeqConfig, spec: str) -> Seq2SeqConfig:
     """``base`` with the overrides of ``spec`` (``key=value,key=value``; ``--set``), each value
     read as its key's type. Raises ValueError naming a malformed item, an unknown key, a value
     of the wrong type, or a key no single value can set (a tuple: use a variant)."""
+    names = sorted(f.name for f in fields(base))
     for item in filter(None, spec.split(",")):
         key, eq, value = item.partition("=")
         if not eq or not key:
             raise ValueError(f"--set: expected key=value items, found {item!r}")
-        if not hasattr(base, key):
-            raise ValueError(f"--set: unknown setting {key!r}; expected one of "
-                             f"{sorted(vars(base))}")
+        if key not in names:
+            raise ValueError(f"--set: unknown setting {key!r}; expected one of {names}")
         typ = type(getattr(base, key))
         if typ is tuple:
             raise ValueError(f"--set: {key} takes a list, which --set cannot give; use a variant")
         if typ is bool and value not in ("True", "False"):
             raise ValueError(f"--set: {key}: expected True or False, found {value!r}")
         try:
-            base = replace(base, **{key: value == "True" if typ is bool else typ(value)})
-        except ValueError as err:
+            parsed = value == "True" if typ is bool else typ(value)
+        except ValueError:
             raise ValueError(f"--set: {key}: expected a value of type {typ.__name__}, found "
-                             f"{value!r} ({err})") from None
+                             f"{value!r}") from None
+        try:
+            base = replace(base, **{key: parsed})
+        except ValueError as err:             # the config's own check (ConfigError)
+            raise ValueError(f"--set: {key}={value}: {err}") from None
     return base
 
 
@@ -236,14 +240,20 @@ def main() -> None:
     if 1.0 not in val_steps or len(set(val_steps)) != len(val_steps) or min(val_steps) < 1:
         ap.error(f"--val-steps: expected distinct steps >= 1 holding 1 (the annotated grid), "
                  f"found {args.val_steps!r}")
+    unknown = [v for v in args.variants.split(",")
+               if v not in VARIANTS and v not in ("ensemble", "next_point")]
+    if unknown:
+        ap.error(f"--variants: unknown {unknown}; expected among {sorted(VARIANTS)}, ensemble, "
+                 "next_point")
+    configs = {}
+    for v in args.variants.split(","):     # every config checked before any training
+        try:
+            configs[v] = (base if v in ("ensemble", "next_point")
+                          else replace(base, **({"ensemble": 1} | VARIANTS[v])))
+        except ValueError as err:
+            ap.error(f"--variants {v} with --set {args.set!r}: {err}")
     rows: dict[str, dict[str, dict]] = {}
-    for v in args.variants.split(","):
-        if v == "ensemble":
-            cfg = base
-        elif v == "next_point":
-            cfg = base
-        else:
-            cfg = replace(base, **({"ensemble": 1} | VARIANTS[v]))
+    for v, cfg in configs.items():
         work = partial(run_variant, name=v, cfg=cfg, data_dir=default_data_dir(),
                        save_dir=args.save, val_steps=val_steps)
         res = dict(zip(folds, parallel_map(work, folds, args.jobs)))

@@ -11,7 +11,7 @@ validation (Gulrajani and Lopez-Paz 2021, "In search of lost domain generalizati
 model selection) asks instead how a setting does on a recording it never trained on. For test
 scene F and every other scene G, a model trained on F's train split without G's recordings'
 files (its epoch kept by F's val split without them) is scored on G's whole recording (fold G's
-test files). F's own recording is never read, so the choice stays blind to F's test. (Only eth
+test files). F's own recording never enters F's choice, which stays blind to F's test. (Only eth
 and hotel are places no other file shows: uni_examples, of univ's campus, and crowds_zara03
 train in every fold.) The pair models of F and G train on the same files (each fold's splits
 hold the same per-scene files, checked byte for byte before training), so the ten scene pairs'
@@ -27,13 +27,16 @@ tables from its ``--json`` file. A multi-modal base (``--set cell=mlp,modes=20``
 tables scored and chosen by best-of-20.
 
 Conclusion (2026-12-07, the LSTM encoder, the transformer encoder and the LSTM with training
-windows also at 5/2, seeds 0-2, under an hour on 2 cores; docs/studies/ethucy.md, tenth pass):
-the held-out scenes choose the transformer for hotel, univ, zara1 and zara2, whose held-out
-scenes include eth (trained without eth, it scores 0.76-0.84 m there against the LSTM's
-0.78-0.90; without eth among them every fold would choose the LSTM), and for eth itself, whose
-test the transformer improves, the LSTM, tied with 5/2: test 0.4750 / 0.9859 m (0.4691 / 0.9649
-with the tie broken the other way) against 0.4733 / 0.9791 for the stage's settings retrained
-here. What makes eth hard is in eth alone; nothing adopted.
+windows also at 5/2, seeds 0-2, 52 min on 2 cores; docs/studies/ethucy.md, tenth pass): by
+held-out ADE the transformer is chosen for hotel, univ, zara1 and zara2, whose held-out scenes
+include eth (trained without eth it scores 0.796 m there against the LSTM's 0.856), and for eth
+itself, whose test the transformer improves, the LSTM, tied with 5/2 (0.37418 against 0.37424
+m): test 0.4750 / 0.9859 m against 0.4733 / 0.9791 for the stage's settings retrained. By
+held-out FDE, as by each fold's val, eth takes 5/2: 0.4687 / 0.9637 m, on margins inside the
+seeds' spread. No rule chooses the transformer for eth; what makes eth hard is in eth alone.
+For mix (best-of-20, with
+and without 5/2; 38 min) each fold's val keeps the stage's settings, and the held-out scenes'
+choice loses 0.001 / 0.002 m on test. Nothing adopted.
 """
 
 from __future__ import annotations
@@ -133,25 +136,28 @@ def main() -> None:
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--json", default=None, help="write every score to this file")
     ap.add_argument("--print", default=None, metavar="JSON",
-                    help="print the tables of an earlier run's --json file (no training)")
+                    help="print the tables of an earlier run's --json file (no training; "
+                    "the other options are not read)")
     args = ap.parse_args()
     if args.print:
         try:
             saved = json.loads(Path(args.print).read_text())
             res = {v: {int(s): r for s, r in by.items()} for v, by in saved["results"].items()}
             modes = saved["base"]["modes"]
-        except (OSError, ValueError, KeyError, TypeError) as err:
+            if not res or not all(res.values()):
+                raise ValueError("no variant with a finished seed")
+            tables = [_tables(res)] + ([_tables(res, "best_")] if modes > 1 else [])
+        except (OSError, ValueError, KeyError, TypeError, AttributeError) as err:
             ap.error(f"--print: expected a --json file of this script, found {args.print!r} "
                      f"({type(err).__name__}: {err})")
-        _print(res)
-        if modes > 1:
-            _print(res, "best_")
+        print(*tables, sep="\n")
         return
     variants = args.variants.split(",")
-    unknown = [v for v in variants if v not in VARIANTS]
-    if unknown or len(set(variants)) != len(variants):
-        ap.error(f"--variants: expected distinct names among {sorted(VARIANTS)}, found "
-                 f"{variants}")
+    unknown = sorted({v for v in variants if v not in VARIANTS})
+    repeated = sorted({v for v in variants if variants.count(v) > 1})
+    if unknown or repeated:
+        ap.error(f"--variants: unknown {unknown}, repeated {repeated}; expected distinct names "
+                 f"among {sorted(VARIANTS)}")
     try:
         seeds = [int(s) for s in args.seeds.split(",")]
     except ValueError:
@@ -163,80 +169,119 @@ def main() -> None:
         ap.error(f"--set: {sorted(fixed)} are set by this script (one member, --seeds)")
     try:
         base = apply_set(base_config(), args.set)
-        check_shared_pairs(default_data_dir())
     except ValueError as err:
         ap.error(str(err))
+    configs = {}
+    for v, s in itertools.product(variants, seeds):   # every config checked before training
+        try:
+            configs[v, s] = replace(base, **({"ensemble": 1, "seed": s} | VARIANTS[v]))
+        except ValueError as err:
+            ap.error(f"--variants {v} with --seeds {s} and --set {args.set!r}: {err}")
+    if args.json:
+        try:
+            Path(args.json).write_text("{}")
+        except OSError as err:
+            ap.error(f"--json: cannot write {args.json!r} ({err})")
+    try:
+        check_shared_pairs(default_data_dir())
+    except ValueError as err:
+        ap.error(f"the ETH/UCY data: {err}")
     from blindspot.parallel import parallel_map
 
     t0 = time.perf_counter()
     pairs = list(itertools.combinations(FOLDS, 2))
     res: dict = {}
-    for v in variants:
-        for s in seeds:
-            cfg = replace(base, **({"ensemble": 1, "seed": s} | VARIANTS[v]))
-            jobs = [("fold", f, cfg) for f in FOLDS] + [("pair", p, cfg) for p in pairs]
-            out = parallel_map(partial(run, data_dir=default_data_dir()), jobs, args.jobs)
-            res.setdefault(v, {})[s] = {"fold": dict(zip(FOLDS, out[:len(FOLDS)])),
-                                        "pair": {"+".join(p): o for p, o in
-                                                 zip(pairs, out[len(FOLDS):])}}
-            print(f"# {v} seed {s}: {sum(o['seconds'] for o in out):.0f} s of fold time",
-                  flush=True)
-            if args.json:
-                Path(args.json).write_text(json.dumps({"base": base.__dict__, "results": res},
-                                                      indent=1, default=str))
+    for (v, s), cfg in configs.items():
+        jobs = [("fold", f, cfg) for f in FOLDS] + [("pair", p, cfg) for p in pairs]
+        out = parallel_map(partial(run, data_dir=default_data_dir()), jobs, args.jobs)
+        res.setdefault(v, {})[s] = {"fold": dict(zip(FOLDS, out[:len(FOLDS)])),
+                                    "pair": {"+".join(p): o for p, o in
+                                             zip(pairs, out[len(FOLDS):])}}
+        print(f"# {v} seed {s}: {sum(o['seconds'] for o in out):.0f} s of fold time", flush=True)
+        if args.json:
+            Path(args.json).write_text(json.dumps({"base": base.__dict__, "results": res},
+                                                  indent=1, default=str))
     print(f"# wall time {time.perf_counter() - t0:.0f} s")
-    _print(res)
+    print(_tables(res))
     if base.modes > 1:
-        _print(res, "best_")
+        print(_tables(res, "best_"))
 
 
-def held_out(res: dict, v: str, fold: str, metric: str = "ade") -> float:
+def held_out(res: dict, v: str, fold: str, metric: str = "ade", seed: int | None = None
+             ) -> float:
     """Variant ``v``'s score for ``fold``: its ``metric`` on each other scene, trained without
-    it and ``fold``, averaged over those scenes and the seeds."""
-    vals = [r["pair"]["+".join(sorted((fold, g), key=FOLDS.index))][g][metric]
-            for r in res[v].values() for g in FOLDS if g != fold]
-    return float(np.mean(vals))
+    it and ``fold``, averaged over those scenes and the seeds (or at one ``seed``)."""
+    runs = res[v].values() if seed is None else [res[v][seed]]
+    return float(np.mean([r["pair"][_pair(fold, g)][g][metric] for r in runs
+                          for g in FOLDS if g != fold]))
 
 
-def _print(res: dict, prefix: str = "") -> None:
+def _pair(f: str, g: str) -> str:
+    return "+".join(sorted((f, g), key=FOLDS.index))
+
+
+def _tables(res: dict, prefix: str = "") -> str:
     """The tables of ``res`` scored by the mean prediction (``prefix`` "") or the best of 20
-    hypotheses ("best_"): every variant's scores per fold, then each rule's choices and their
-    test over the five folds (the seeds' mean +- sd)."""
+    hypotheses ("best_"): every variant's scores per fold; each held-out scene's score by the
+    pair models; each rule's choices and their test over the five folds (the seeds' mean +- sd);
+    the held-out rule's margin per fold."""
     variants, a, f_ = list(res), prefix + "ade", prefix + "fde"
     seeds = sorted(set.intersection(*(set(by) for by in res.values())))
+    lines = []
     if any(set(by) != set(seeds) for by in res.values()):
-        print(f"(an unfinished run: the seeds every variant has, {seeds})")
+        lines.append(f"(an unfinished run: the seeds every variant has, {seeds})")
         res = {v: {s: by[s] for s in seeds} for v, by in res.items()}
 
     def fold_mean(v, f, split, metric):
         return float(np.mean([r["fold"][f][split][metric] for r in res[v].values()]))
 
+    def sd(x):
+        return f"{np.std(x, ddof=1):.4f}" if len(x) > 1 else "n/a"
+
     what = "best of 20" if prefix else "mean prediction"
-    print(f"\n{what}, each variant per fold (seeds averaged):\n\n"
-          "| variant | fold | held-out scenes ADE / FDE | val ADE | test ADE / FDE |")
-    print("|---|---|---|---|---|")
+    lines += [f"\n{what}, each variant per fold (seeds averaged; the held-out score's range over "
+              "the seeds):\n", "| variant | fold | held-out scenes ADE [seeds] / FDE | val ADE "
+              "/ FDE | test ADE / FDE |", "|---|---|---|---|---|"]
     for v in variants:
         for f in FOLDS:
-            print(f"| {v} | {f} | {held_out(res, v, f, a):.4f} / {held_out(res, v, f, f_):.4f} "
-                  f"| {fold_mean(v, f, 'val', a):.4f} | {fold_mean(v, f, 'test', a):.3f} / "
-                  f"{fold_mean(v, f, 'test', f_):.3f} |")
-    print(f"\n{what}, each rule's choice per fold:\n\n| chosen by | " + " | ".join(FOLDS)
-          + " | test ADE / FDE, five folds, mean +- sd over seeds |")
-    print("|---" * (len(FOLDS) + 2) + "|")
-    rules = {"held-out scenes": lambda f: min(variants, key=lambda v: held_out(res, v, f, a)),
-             "val split": lambda f: min(variants, key=lambda v: fold_mean(v, f, "val", a))}
+            per = [held_out(res, v, f, a, s) for s in seeds]
+            lines.append(f"| {v} | {f} | {held_out(res, v, f, a):.5f} [{min(per):.4f}-"
+                         f"{max(per):.4f}] / {held_out(res, v, f, f_):.4f} | "
+                         f"{fold_mean(v, f, 'val', a):.4f} / {fold_mean(v, f, 'val', f_):.4f} | "
+                         f"{fold_mean(v, f, 'test', a):.3f} / {fold_mean(v, f, 'test', f_):.3f} |")
+    lines += [f"\n{what}, each scene held out: ADE of the four models trained without it (and one "
+              "other), seeds averaged, their mean [range]:\n",
+              "| variant | " + " | ".join(FOLDS) + " |", "|---" * (len(FOLDS) + 1) + "|"]
+    for v in variants:
+        cells = []
+        for g in FOLDS:
+            x = [np.mean([r["pair"][_pair(f, g)][g][a] for r in res[v].values()])
+                 for f in FOLDS if f != g]
+            cells.append(f"{np.mean(x):.3f} [{min(x):.2f}-{max(x):.2f}]")
+        lines.append(f"| {v} | " + " | ".join(cells) + " |")
+    lines += [f"\n{what}, each rule's choice per fold:\n", "| chosen by | " + " | ".join(FOLDS)
+              + " | test ADE / FDE, five folds, mean +- sd over seeds |",
+              "|---" * (len(FOLDS) + 2) + "|"]
+    rules = {"held-out scenes, by ADE": lambda f: min(variants,
+                                                      key=lambda v: held_out(res, v, f, a)),
+             "held-out scenes, by FDE": lambda f: min(variants,
+                                                      key=lambda v: held_out(res, v, f, f_)),
+             "val split, by ADE": lambda f: min(variants,
+                                                key=lambda v: fold_mean(v, f, "val", a))}
     rules |= {f"always {v}": (lambda f, v=v: v) for v in variants}
     for name, rule in rules.items():
         pick = {f: rule(f) for f in FOLDS}
         per_seed = [[np.mean([res[pick[f]][s]["fold"][f]["test"][m] for f in FOLDS])
                      for s in seeds] for m in (a, f_)]
-        sd = [np.std(x, ddof=1) if len(x) > 1 else 0.0 for x in per_seed]
-        print(f"| {name} | " + " | ".join(pick[f] for f in FOLDS)
-              + f" | {np.mean(per_seed[0]):.4f} +- {sd[0]:.4f} / "
-              f"{np.mean(per_seed[1]):.4f} +- {sd[1]:.4f} |")
-    margin = {f: np.diff(sorted(held_out(res, v, f, a) for v in variants)[:2]) for f in FOLDS}
-    print("\nheld-out scenes' margin between its first two choices (m): " + ", ".join(
-        f"{f} {m[0]:.5f}" for f, m in margin.items() if m.size))
+        lines.append(f"| {name} | " + " | ".join(pick[f] for f in FOLDS)
+                     + f" | {np.mean(per_seed[0]):.4f} +- {sd(per_seed[0])} / "
+                     f"{np.mean(per_seed[1]):.4f} +- {sd(per_seed[1])} |")
+    if len(variants) > 1:
+        margin = {f: np.diff(sorted(held_out(res, v, f, a) for v in variants)[:2])[0]
+                  for f in FOLDS}
+        lines.append("\nheld-out scenes' ADE margin between its first two choices (m): "
+                     + ", ".join(f"{f} {m:.5f}" for f, m in margin.items()))
+    return "\n".join(lines)
 
 
 if __name__ == "__main__":
