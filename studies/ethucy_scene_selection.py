@@ -93,11 +93,12 @@ def without_scene(w: Windows, stems: set[str], scene: str) -> Windows:
 def check_shared_pairs(data_dir) -> None:
     """The pair models' premise: for scenes F and G, fold F's train and val files less G's are
     fold G's less F's, byte for byte (so one model serves both folds). Raises ValueError."""
+    stems = {scene: scene_stems(data_dir, scene) for scene in FOLDS}
     for f, g in itertools.combinations(FOLDS, 2):
         for split in ("train", "val"):
-            a, b = ({_recording(str(p)) + p.suffix: p.read_bytes() for p in split_files(
-                data_dir, fold, split) if _recording(str(p)) not in scene_stems(data_dir, other)}
-                for fold, other in ((f, g), (g, f)))
+            a, b = ({p.name: p.read_bytes() for p in split_files(data_dir, fold, split)
+                     if _recording(p.name) not in stems[other]}
+                    for fold, other in ((f, g), (g, f)))
             if a != b:
                 raise ValueError(f"{data_dir}: {f}/{split} without {g} differs from {g}/{split} "
                                  f"without {f}: {sorted(a)} against {sorted(b)}")
